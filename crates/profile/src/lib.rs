@@ -1,1 +1,263 @@
-//! placeholder until its issue lands
+//! Vendor profiles for tilegraph.
+//!
+//! A [`Profile`] is data (`config/profiles/*.toml`, embedded at compile time) that says how a GPU
+//! family wants to be driven: tiler or immediate, whether a depth pre-pass pays, how passes are
+//! ordered, where occlusion queries go, which pipeline states break its hidden-surface removal,
+//! and which memory type each use of memory gets. It is chosen from a [`DeviceIdentity`] when the
+//! Vulkan device is created ([`ProfileSet::select`]), or forced by name
+//! (`TILEGRAPH_PROFILE=adreno-7xx`) so that every profile can run on lavapipe.
+//!
+//! This crate never touches Vulkan; `tilegraph-vk` builds the [`DeviceIdentity`].
+//! Every rule in the TOML files cites its source in `docs/PROFILES.md`.
+
+mod error;
+mod identity;
+mod memory;
+mod select;
+
+use serde::{Deserialize, Serialize};
+
+pub use error::ProfileError;
+pub use identity::{driver, vendor, DeviceIdentity, DeviceType};
+pub use memory::{
+    select_memory_type, MemoryChoice, MemoryFlag, MemoryFlags, MemoryHeap, MemoryPolicy,
+    MemoryRule, MemoryType, MemoryUse,
+};
+pub use select::{
+    glob_match, MatchRule, MatchedBy, ProfileSet, Selection, PROFILE_DIR_ENV, PROFILE_ENV,
+};
+
+/// A vendor profile. Field documentation says what each decides; `docs/PROFILES.md` says why
+/// each vendor's value is what it is.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Profile {
+    /// Unique name, e.g. `adreno-7xx`; what `TILEGRAPH_PROFILE` names.
+    pub name: String,
+    pub description: String,
+    /// Which devices this profile is for.
+    #[serde(rename = "match")]
+    pub matching: MatchRule,
+    pub gpu: GpuModel,
+    pub passes: PassPolicy,
+    pub render_pass: RenderPassPolicy,
+    pub memory: MemoryPolicy,
+    /// Pipeline states that defeat the GPU's hidden-surface removal (LRZ, FPK, HSR, early-Z).
+    #[serde(default)]
+    pub state_rules: Vec<StateRule>,
+}
+
+impl Profile {
+    pub fn is_tiler(&self) -> bool {
+        self.gpu.architecture == Architecture::Tiler
+    }
+}
+
+/// How the GPU turns triangles into pixels, as far as the graph compiler cares.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GpuModel {
+    pub architecture: Architecture,
+    pub hidden_surface_removal: HiddenSurfaceRemoval,
+    /// Tile (bin) size used by the traffic model; for immediate GPUs, the cache-line footprint
+    /// granularity (informational).
+    pub tile_width_px: u32,
+    pub tile_height_px: u32,
+    /// On-chip memory per tile in bytes (Adreno GMEM, Mali tile buffer): bounds how many bytes per
+    /// pixel a render pass may keep on chip before the driver shrinks tiles.
+    pub tile_memory_bytes: u64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Architecture {
+    /// Tile-based (TBR/TBDR): attachments live in on-chip tile memory during a render pass;
+    /// loads and stores to system memory are the cost to minimise.
+    Tiler,
+    /// Immediate-mode: every attachment access goes through caches to memory.
+    Immediate,
+}
+
+/// The hardware mechanism that removes hidden fragments before shading.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HiddenSurfaceRemoval {
+    /// Per-fragment early depth test only; draw order matters.
+    EarlyZ,
+    /// Adreno Low Resolution Z, built during the binning pass.
+    Lrz,
+    /// Arm Mali Forward Pixel Kill (and Fragment Prepass on newer parts).
+    Fpk,
+    /// PowerVR / Apple deferred hidden-surface removal: opaque fragments are shaded once per pixel
+    /// whatever the draw order.
+    Hsr,
+}
+
+/// Which passes a frame should have and in what order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PassPolicy {
+    pub depth_prepass: DepthPrepass,
+    /// Alpha-tested geometry gets its own depth pre-pass subpass with discard, so the costly
+    /// discard runs once and the colour pass can test EQUAL (seed 001, seed 003).
+    pub alpha_tested_prepass: bool,
+    pub opaque_sort: SortOrder,
+    /// Ordering among passes that do not depend on each other, by class: a pass of a class that
+    /// comes later in this list is not scheduled while a pass of an earlier class can still run.
+    pub order: Vec<PassClass>,
+    pub occlusion_queries: OcclusionQueryPolicy,
+}
+
+impl PassPolicy {
+    /// Rank of a class in the ordering policy; classes not listed sort after every listed one,
+    /// in declaration order.
+    pub fn class_rank(&self, class: PassClass) -> usize {
+        self.order
+            .iter()
+            .position(|c| *c == class)
+            .unwrap_or(self.order.len())
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DepthPrepass {
+    /// A depth pre-pass pays on this hardware when fragments are costly (early-Z, LRZ, FPK).
+    Recommended,
+    /// The hardware already shades each opaque pixel once (HSR): a pre-pass only adds vertex and
+    /// binning work. The frame setup leaves it out unless forced.
+    NotNeeded,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SortOrder {
+    FrontToBack,
+    /// Minimise state changes; depth order does not matter to the hardware.
+    ByState,
+    None,
+}
+
+/// What a pass is for, as far as ordering policy is concerned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PassClass {
+    /// Culling, pyramid builds and other compute that feeds drawing.
+    Compute,
+    DepthPrepass,
+    Opaque,
+    AlphaTested,
+    Transparent,
+    OcclusionQuery,
+    Post,
+    Transfer,
+    Other,
+}
+
+impl PassClass {
+    pub const fn name(self) -> &'static str {
+        match self {
+            PassClass::Compute => "compute",
+            PassClass::DepthPrepass => "depth_prepass",
+            PassClass::Opaque => "opaque",
+            PassClass::AlphaTested => "alpha_tested",
+            PassClass::Transparent => "transparent",
+            PassClass::OcclusionQuery => "occlusion_query",
+            PassClass::Post => "post",
+            PassClass::Transfer => "transfer",
+            PassClass::Other => "other",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OcclusionQueryPolicy {
+    /// Occlusion-query passes form a render pass of their own (never merged with drawing), so
+    /// the driver can run it in direct mode (seed 001).
+    pub own_render_pass: bool,
+    /// Submit (flush) the work before the query render pass (seed 001: "遮挡查询, 前面加一个flush").
+    pub flush_before: bool,
+}
+
+/// Render-pass shaping rules for the compiler.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderPassPolicy {
+    pub merge_subpasses: MergePolicy,
+    /// Attachments whose whole life is one render pass get TRANSIENT usage and lazily allocated
+    /// memory (when the device has such a type).
+    pub transient_attachments: bool,
+    /// Depth and stencil of a combined format are invalidated together or not at all (seed 001:
+    /// invalidating only one of D24S8 has no effect).
+    pub invalidate_depth_stencil_together: bool,
+    /// Most colour attachments a raster pass may declare on this family.
+    pub max_color_attachments: u32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MergePolicy {
+    /// Merge every compatible run of raster passes into subpasses (tilers: keeps data on chip).
+    Always,
+    /// Merging is allowed but gains little (immediate-mode GPUs); the compiler still merges where
+    /// it is free, so plans look alike across profiles.
+    Allowed,
+    /// Never merge (debugging aid, and drivers known to mishandle subpasses).
+    Never,
+}
+
+/// One pipeline state that defeats hidden-surface removal on this family.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StateRule {
+    pub state: PipelineState,
+    pub effect: StateEffect,
+    /// How far the damage reaches.
+    pub scope: StateScope,
+    /// Short explanation shown by the lint; the source is in docs/PROFILES.md.
+    pub note: String,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PipelineState {
+    /// The fragment shader may `discard` (alpha test) while depth writes are on.
+    DiscardWithDepthWrite,
+    /// The fragment shader writes `gl_FragDepth`.
+    ShaderDepthWrite,
+    /// Blending enabled while depth writes are on.
+    BlendWithDepthWrite,
+    /// A colour write mask that is neither all nor nothing.
+    PartialColorMask,
+    /// Depth compare direction differs from earlier draws of the same pass (e.g. GREATER then LESS).
+    DepthCompareDirectionChange,
+    /// Stencil test whose outcome depends on the depth test (depth-fail ops).
+    StencilDependsOnDepth,
+    /// The fragment shader writes storage buffers or images (side effects forbid early kill
+    /// unless early_fragment_tests is declared).
+    FragmentSideEffects,
+    /// Colour attachments of one pass with differing write or blend state.
+    MrtStateMismatch,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StateEffect {
+    DisablesLrz,
+    DisablesFpk,
+    DisablesHsr,
+    DisablesEarlyZ,
+    /// The draw does not update the low-resolution / hidden-surface structure (later draws are
+    /// culled less), though it is itself still tested.
+    SkipsHsrUpdate,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StateScope {
+    /// Only the offending draw loses the optimisation.
+    Draw,
+    /// Every later draw of the render pass loses it too (Adreno LRZ stays off until the pass ends).
+    RestOfRenderPass,
+}

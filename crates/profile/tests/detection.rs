@@ -1,0 +1,339 @@
+//! Profile detection on real device identities of every vendor.
+
+mod common;
+
+use common::*;
+use tilegraph_profile::{driver, vendor, DeviceType, MatchedBy, ProfileError, ProfileSet};
+
+fn pick(d: &tilegraph_profile::DeviceIdentity) -> (String, MatchedBy) {
+    let set = ProfileSet::embedded().unwrap();
+    let s = set.select(d, None).unwrap();
+    (s.profile.name, s.matched_by)
+}
+
+#[test]
+fn every_embedded_profile_parses_and_names_are_unique() {
+    let set = ProfileSet::embedded().unwrap();
+    let names = set.names();
+    for want in [
+        "adreno-6xx",
+        "adreno-7xx",
+        "mali-valhall",
+        "powervr-b",
+        "apple",
+        "desktop-nvidia",
+        "desktop-amd",
+        "desktop-intel",
+        "lavapipe",
+        "generic-desktop",
+        "generic-mobile",
+    ] {
+        assert!(names.contains(&want), "missing profile {want}: {names:?}");
+    }
+}
+
+#[test]
+fn real_identities_pick_their_family() {
+    let cases: Vec<(tilegraph_profile::DeviceIdentity, &str)> = vec![
+        (lavapipe(), "lavapipe"),
+        (adreno_740(), "adreno-7xx"),
+        (
+            identity(
+                vendor::QUALCOMM,
+                0x0605_0002,
+                driver::QUALCOMM_PROPRIETARY,
+                "Adreno (TM) 650",
+                DeviceType::IntegratedGpu,
+            ),
+            "adreno-6xx",
+        ),
+        (
+            identity(
+                vendor::QUALCOMM,
+                0x0703_0001,
+                driver::QUALCOMM_PROPRIETARY,
+                "Adreno (TM) 730",
+                DeviceType::IntegratedGpu,
+            ),
+            "adreno-7xx",
+        ),
+        (
+            identity(
+                vendor::QUALCOMM,
+                0x4305_0A01,
+                driver::MESA_TURNIP,
+                "Turnip Adreno (TM) 740",
+                DeviceType::IntegratedGpu,
+            ),
+            "adreno-7xx",
+        ),
+        (
+            identity(
+                vendor::QUALCOMM,
+                0x4305_1401,
+                driver::QUALCOMM_PROPRIETARY,
+                "Adreno (TM) 750",
+                DeviceType::IntegratedGpu,
+            ),
+            "adreno-7xx",
+        ),
+        (mali_g710(), "mali-valhall"),
+        (
+            identity(
+                vendor::ARM,
+                0x9091_0010,
+                driver::ARM_PROPRIETARY,
+                "Mali-G57",
+                DeviceType::IntegratedGpu,
+            ),
+            "mali-valhall",
+        ),
+        (
+            identity(
+                vendor::ARM,
+                0,
+                driver::ARM_PROPRIETARY,
+                "Mali-G78",
+                DeviceType::IntegratedGpu,
+            ),
+            "mali-valhall",
+        ),
+        (
+            identity(
+                vendor::IMAGINATION,
+                0x3650_4C,
+                driver::IMAGINATION_PROPRIETARY,
+                "PowerVR B-Series BXM-8-256",
+                DeviceType::IntegratedGpu,
+            ),
+            "powervr-b",
+        ),
+        (
+            identity(
+                vendor::APPLE,
+                0,
+                driver::MOLTENVK,
+                "Apple M1",
+                DeviceType::IntegratedGpu,
+            ),
+            "apple",
+        ),
+        (nvidia_rtx(), "desktop-nvidia"),
+        (
+            identity(
+                vendor::AMD,
+                0x744C,
+                driver::AMD_PROPRIETARY,
+                "AMD Radeon RX 7900 XTX",
+                DeviceType::DiscreteGpu,
+            ),
+            "desktop-amd",
+        ),
+        (
+            identity(
+                vendor::AMD,
+                0x73BF,
+                driver::MESA_RADV,
+                "AMD Radeon RX 6800 XT (RADV NAVI21)",
+                DeviceType::DiscreteGpu,
+            ),
+            "desktop-amd",
+        ),
+        (
+            identity(
+                vendor::INTEL,
+                0xA780,
+                driver::INTEL_OPEN_SOURCE_MESA,
+                "Intel(R) UHD Graphics 770",
+                DeviceType::IntegratedGpu,
+            ),
+            "desktop-intel",
+        ),
+    ];
+    for (d, want) in cases {
+        let (got, why) = pick(&d);
+        assert_eq!(
+            got, want,
+            "{} (vendor {:#x}) matched by {why}",
+            d.device_name, d.vendor_id
+        );
+    }
+}
+
+#[test]
+fn the_reason_is_reported() {
+    assert_eq!(
+        pick(&adreno_740()).1,
+        MatchedBy::DeviceName {
+            pattern: "Adreno (TM) 7*".into()
+        }
+    );
+    assert_eq!(
+        pick(&nvidia_rtx()).1,
+        MatchedBy::VendorAndDriver {
+            vendor_id: vendor::NVIDIA,
+            driver_id: driver::NVIDIA_PROPRIETARY
+        }
+    );
+    // A future Adreno the patterns do not know falls to the vendor's newest family.
+    let a830 = identity(
+        vendor::QUALCOMM,
+        0x4406_0001,
+        driver::QUALCOMM_PROPRIETARY,
+        "Adreno (TM) 830",
+        DeviceType::IntegratedGpu,
+    );
+    assert_eq!(
+        pick(&a830),
+        (
+            "adreno-7xx".into(),
+            MatchedBy::VendorAndDriver {
+                vendor_id: vendor::QUALCOMM,
+                driver_id: driver::QUALCOMM_PROPRIETARY
+            }
+        )
+    );
+    // Bifrost is not Valhall, but Arm's vendor default still takes it (closest rules we have).
+    let g76 = identity(vendor::ARM, 0, 0, "Mali-G76", DeviceType::IntegratedGpu);
+    assert_eq!(
+        pick(&g76),
+        (
+            "mali-valhall".into(),
+            MatchedBy::Vendor {
+                vendor_id: vendor::ARM
+            }
+        )
+    );
+}
+
+#[test]
+fn unknown_devices_fall_back_by_type() {
+    let unknown_dgpu = identity(0x1234, 1, 0, "Mystery GPU", DeviceType::DiscreteGpu);
+    assert_eq!(
+        pick(&unknown_dgpu),
+        (
+            "generic-desktop".into(),
+            MatchedBy::DeviceType {
+                device_type: DeviceType::DiscreteGpu
+            }
+        )
+    );
+    let unknown_igpu = identity(0x1234, 1, 0, "Mystery SoC", DeviceType::IntegratedGpu);
+    assert_eq!(pick(&unknown_igpu).0, "generic-mobile");
+}
+
+#[test]
+fn forcing_by_name_wins_and_says_so() {
+    let set = ProfileSet::embedded().unwrap();
+    let s = set.select(&lavapipe(), Some("adreno-7xx")).unwrap();
+    assert_eq!(s.profile.name, "adreno-7xx");
+    assert_eq!(
+        s.matched_by,
+        MatchedBy::Forced {
+            name: "adreno-7xx".into()
+        }
+    );
+    assert!(s.matched_by.to_string().contains("forced"));
+    match set.select(&lavapipe(), Some("adreno-9000")) {
+        Err(ProfileError::UnknownProfile { name, available }) => {
+            assert_eq!(name, "adreno-9000");
+            assert!(available.contains("mali-valhall"));
+        }
+        other => panic!("expected UnknownProfile, got {other:?}"),
+    }
+}
+
+#[test]
+fn a_directory_overrides_embedded_profiles() {
+    let dir =
+        std::env::temp_dir().join(format!("tilegraph-profile-override-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let base = include_str!("../../../config/profiles/lavapipe.toml");
+    let patched = base.replace("max_color_attachments = 8", "max_color_attachments = 3");
+    std::fs::write(dir.join("lavapipe.toml"), patched).unwrap();
+    let set = ProfileSet::embedded().unwrap().with_dir(&dir).unwrap();
+    let s = set.select(&lavapipe(), None).unwrap();
+    assert_eq!(s.profile.render_pass.max_color_attachments, 3);
+    assert!(s.source.ends_with("lavapipe.toml") && !s.source.starts_with("embedded:"));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+fn parse_err(text: &str) -> ProfileError {
+    let dir = std::env::temp_dir().join(format!(
+        "tilegraph-profile-bad-{}-{}",
+        std::process::id(),
+        text.len()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("bad.toml"), text).unwrap();
+    let err = ProfileSet::embedded().unwrap().with_dir(&dir).unwrap_err();
+    std::fs::remove_dir_all(&dir).ok();
+    err
+}
+
+#[test]
+fn malformed_profiles_name_file_line_and_key() {
+    let base = include_str!("../../../config/profiles/lavapipe.toml");
+    // A wrong type for a known key.
+    let bad = base.replace(
+        "max_color_attachments = 8",
+        "max_color_attachments = \"eight\"",
+    );
+    let line = bad.lines().position(|l| l.contains("\"eight\"")).unwrap() + 1;
+    match parse_err(&bad) {
+        ProfileError::Parse {
+            file, line: l, key, ..
+        } => {
+            assert!(file.ends_with("bad.toml"), "{file}");
+            assert_eq!(key, "render_pass.max_color_attachments");
+            assert_eq!(l, line);
+        }
+        other => panic!("expected Parse, got {other:?}"),
+    }
+    // An unknown key (typo) is an error, not silently ignored.
+    let bad = base.replace("opaque_sort", "opaque_sorting");
+    match parse_err(&bad) {
+        ProfileError::Parse { key, message, .. } => {
+            assert!(key.starts_with("passes"), "{key}");
+            assert!(message.contains("opaque_sorting"), "{message}");
+        }
+        other => panic!("expected Parse, got {other:?}"),
+    }
+    // An unknown enum value.
+    let bad = base.replace(
+        "architecture = \"immediate\"",
+        "architecture = \"sideways\"",
+    );
+    match parse_err(&bad) {
+        ProfileError::Parse { key, line, .. } => {
+            assert_eq!(key, "gpu.architecture");
+            assert_eq!(
+                line,
+                bad.lines().position(|l| l.contains("sideways")).unwrap() + 1
+            );
+        }
+        other => panic!("expected Parse, got {other:?}"),
+    }
+    // TOML syntax error.
+    match parse_err("name = \"x\"\n[gpu\n") {
+        ProfileError::Parse { line, .. } => assert_eq!(line, 2),
+        other => panic!("expected Parse, got {other:?}"),
+    }
+    // Semantically invalid.
+    let bad = base.replace("tile_width_px = 16", "tile_width_px = 0");
+    assert!(
+        matches!(parse_err(&bad), ProfileError::Invalid { key, .. } if key == "gpu.tile_width_px")
+    );
+}
+
+#[test]
+fn glob_patterns() {
+    use tilegraph_profile::glob_match;
+    assert!(glob_match("Adreno (TM) 7*", "Adreno (TM) 740"));
+    assert!(!glob_match("Adreno (TM) 7*", "Adreno (TM) 650"));
+    assert!(glob_match("Mali-G7?0*", "Mali-G710"));
+    assert!(glob_match("*pipe*", "llvmpipe (LLVM 15.0.6, 256 bits)"));
+    assert!(!glob_match("Mali-G77*", "Mali-G7"));
+    assert!(glob_match("", ""));
+    assert!(glob_match("**", "x"));
+}
