@@ -101,7 +101,7 @@ fn real_identities_pick_their_family() {
         (
             identity(
                 vendor::IMAGINATION,
-                0x3650_4C,
+                0x0036_504C,
                 driver::IMAGINATION_PROPRIETARY,
                 "PowerVR B-Series BXM-8-256",
                 DeviceType::IntegratedGpu,
