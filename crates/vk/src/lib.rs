@@ -1,1 +1,23 @@
-//! placeholder until its issue lands
+//! The Vulkan backend of tilegraph (ash). All `unsafe` and every Vulkan call of the project
+//! live here; each `unsafe` block says which rule makes it sound.
+//!
+//! - [`Instance`]: loader, validation layer (with synchronization validation) whose messages go
+//!   through `log` and are collected so a test fails on them, physical-device discovery.
+//! - [`Context`]: the logical device with only the requested [`Feature`]s, the profile chosen for
+//!   it (`tilegraph-profile`), and memory allocated in the type the profile picks per use.
+//! - [`first_frame`]: the smallest end-to-end frame, used by tests and the demo.
+
+mod context;
+mod error;
+mod features;
+pub mod first_frame;
+mod instance;
+pub mod shader;
+mod validation;
+
+pub use ash;
+pub use context::{Buffer, Context, ContextOptions, Image};
+pub use error::VkError;
+pub use features::{Feature, FeatureRequest};
+pub use instance::{DeviceLimits, Instance, PhysicalDevice, MIN_API_VERSION};
+pub use validation::{Validation, ValidationSink};

@@ -1,0 +1,154 @@
+//! Device features by name: passes ask for what they need, the device enables only that.
+//!
+//! DESIGN.md: "Device features are enabled only when a pass needs them." A request lists required
+//! and optional features; a required one that the device lacks is a typed error naming it, an
+//! optional one is a log line and the pass that wanted it chooses another path.
+
+use std::collections::BTreeSet;
+use std::fmt;
+
+use ash::vk;
+use serde::Serialize;
+
+/// A device capability that some tilegraph pass may need.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Feature {
+    /// `vkCmdPipelineBarrier2` (core 1.3, VK_KHR_synchronization2 on 1.2). The executor needs it.
+    Synchronization2,
+    /// `vkCmdBeginRendering` (core 1.3, VK_KHR_dynamic_rendering on 1.2).
+    DynamicRendering,
+    /// `vkCmdDrawIndexedIndirectCount` (core 1.2 feature).
+    DrawIndirectCount,
+    /// More than one draw per indirect call.
+    MultiDrawIndirect,
+    /// `gl_DrawID` / `gl_BaseInstance` in vertex shaders.
+    ShaderDrawParameters,
+    /// Min/max sampler reduction, for one-tap HiZ downsampling.
+    SamplerFilterMinmax,
+    /// `vkResetQueryPool` from the host.
+    HostQueryReset,
+    /// Vertex and fragment invocation counters.
+    PipelineStatisticsQuery,
+    /// Exact sample counts from occlusion queries.
+    OcclusionQueryPrecise,
+    /// VK_EXT_conditional_rendering.
+    ConditionalRendering,
+    /// Storage writes from fragment shaders (raster occlusion flags).
+    FragmentStoresAndAtomics,
+    /// Depth clamp (shadow casters, near-plane crossing proxies).
+    DepthClamp,
+}
+
+impl Feature {
+    pub const ALL: [Feature; 12] = [
+        Feature::Synchronization2,
+        Feature::DynamicRendering,
+        Feature::DrawIndirectCount,
+        Feature::MultiDrawIndirect,
+        Feature::ShaderDrawParameters,
+        Feature::SamplerFilterMinmax,
+        Feature::HostQueryReset,
+        Feature::PipelineStatisticsQuery,
+        Feature::OcclusionQueryPrecise,
+        Feature::ConditionalRendering,
+        Feature::FragmentStoresAndAtomics,
+        Feature::DepthClamp,
+    ];
+}
+
+impl fmt::Display for Feature {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(self, f)
+    }
+}
+
+/// What the caller wants enabled.
+#[derive(Debug, Clone, Default)]
+pub struct FeatureRequest {
+    pub required: BTreeSet<Feature>,
+    pub optional: BTreeSet<Feature>,
+}
+
+impl FeatureRequest {
+    pub fn require(mut self, f: impl IntoIterator<Item = Feature>) -> Self {
+        self.required.extend(f);
+        self
+    }
+    pub fn want(mut self, f: impl IntoIterator<Item = Feature>) -> Self {
+        self.optional.extend(f);
+        self
+    }
+    /// What the executor itself always needs.
+    pub fn executor() -> Self {
+        Self::default().require([Feature::Synchronization2, Feature::DynamicRendering])
+    }
+}
+
+/// Owned feature structs for querying / enabling, chained on demand.
+#[derive(Default)]
+pub(crate) struct FeatureStructs {
+    pub core: vk::PhysicalDeviceFeatures,
+    pub v11: vk::PhysicalDeviceVulkan11Features<'static>,
+    pub v12: vk::PhysicalDeviceVulkan12Features<'static>,
+    pub v13: vk::PhysicalDeviceVulkan13Features<'static>,
+    pub sync2: vk::PhysicalDeviceSynchronization2Features<'static>,
+    pub dynrend: vk::PhysicalDeviceDynamicRenderingFeatures<'static>,
+    pub cond: vk::PhysicalDeviceConditionalRenderingFeaturesEXT<'static>,
+}
+
+pub(crate) const EXT_CONDITIONAL_RENDERING: &std::ffi::CStr = ash::ext::conditional_rendering::NAME;
+pub(crate) const KHR_SYNC2: &std::ffi::CStr = ash::khr::synchronization2::NAME;
+pub(crate) const KHR_DYNREND: &std::ffi::CStr = ash::khr::dynamic_rendering::NAME;
+
+impl FeatureStructs {
+    pub fn get(&self, f: Feature, api13: bool) -> bool {
+        let b = |v: vk::Bool32| v == vk::TRUE;
+        match f {
+            Feature::Synchronization2 if api13 => b(self.v13.synchronization2),
+            Feature::Synchronization2 => b(self.sync2.synchronization2),
+            Feature::DynamicRendering if api13 => b(self.v13.dynamic_rendering),
+            Feature::DynamicRendering => b(self.dynrend.dynamic_rendering),
+            Feature::DrawIndirectCount => b(self.v12.draw_indirect_count),
+            Feature::MultiDrawIndirect => b(self.core.multi_draw_indirect),
+            Feature::ShaderDrawParameters => b(self.v11.shader_draw_parameters),
+            Feature::SamplerFilterMinmax => b(self.v12.sampler_filter_minmax),
+            Feature::HostQueryReset => b(self.v12.host_query_reset),
+            Feature::PipelineStatisticsQuery => b(self.core.pipeline_statistics_query),
+            Feature::OcclusionQueryPrecise => b(self.core.occlusion_query_precise),
+            Feature::ConditionalRendering => b(self.cond.conditional_rendering),
+            Feature::FragmentStoresAndAtomics => b(self.core.fragment_stores_and_atomics),
+            Feature::DepthClamp => b(self.core.depth_clamp),
+        }
+    }
+
+    pub fn set(&mut self, f: Feature, api13: bool) {
+        let t = vk::TRUE;
+        match f {
+            Feature::Synchronization2 if api13 => self.v13.synchronization2 = t,
+            Feature::Synchronization2 => self.sync2.synchronization2 = t,
+            Feature::DynamicRendering if api13 => self.v13.dynamic_rendering = t,
+            Feature::DynamicRendering => self.dynrend.dynamic_rendering = t,
+            Feature::DrawIndirectCount => self.v12.draw_indirect_count = t,
+            Feature::MultiDrawIndirect => self.core.multi_draw_indirect = t,
+            Feature::ShaderDrawParameters => self.v11.shader_draw_parameters = t,
+            Feature::SamplerFilterMinmax => self.v12.sampler_filter_minmax = t,
+            Feature::HostQueryReset => self.v12.host_query_reset = t,
+            Feature::PipelineStatisticsQuery => self.core.pipeline_statistics_query = t,
+            Feature::OcclusionQueryPrecise => self.core.occlusion_query_precise = t,
+            Feature::ConditionalRendering => self.cond.conditional_rendering = t,
+            Feature::FragmentStoresAndAtomics => self.core.fragment_stores_and_atomics = t,
+            Feature::DepthClamp => self.core.depth_clamp = t,
+        }
+    }
+
+    /// The device extension a feature needs on this API version, if any.
+    pub fn extension(f: Feature, api13: bool) -> Option<&'static std::ffi::CStr> {
+        match f {
+            Feature::Synchronization2 if !api13 => Some(KHR_SYNC2),
+            Feature::DynamicRendering if !api13 => Some(KHR_DYNREND),
+            Feature::ConditionalRendering => Some(EXT_CONDITIONAL_RENDERING),
+            _ => None,
+        }
+    }
+}

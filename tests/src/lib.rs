@@ -1,0 +1,65 @@
+//! Harness for GPU end-to-end tests: every context runs with the Khronos validation layer and
+//! synchronization validation, and [`Gpu`] fails the test on any message the layer reported.
+
+use tilegraph_vk::{Context, ContextOptions, FeatureRequest, Validation, VkError};
+
+/// A validated context for one test. Dropping it checks validation: any warning or error the
+/// layer reported during the test panics (fails) the test, naming the messages.
+pub struct Gpu {
+    pub ctx: Context,
+}
+
+impl std::ops::Deref for Gpu {
+    type Target = Context;
+    fn deref(&self) -> &Context {
+        &self.ctx
+    }
+}
+
+impl Drop for Gpu {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            return;
+        }
+        if let Err(e) = self
+            .ctx
+            .wait_idle()
+            .and_then(|_| self.ctx.check_validation())
+        {
+            panic!("Vulkan validation failed the test: {e}");
+        }
+    }
+}
+
+pub fn init_logging() {
+    let _ = env_logger::builder().is_test(true).try_init();
+}
+
+/// Context options for tests: validation required, the named profile forced (or the detected one
+/// when `None`), and the given features on top of the executor's.
+pub fn options(profile: Option<&str>, features: FeatureRequest) -> ContextOptions {
+    let mut o = ContextOptions::from_env();
+    o.validation = Validation::Required;
+    if let Some(p) = profile {
+        o.profile = Some(p.to_string());
+    }
+    o.features.required.extend(features.required);
+    o.features.optional.extend(features.optional);
+    o
+}
+
+/// A validated context on the default device (lavapipe in CI), optionally forcing a profile.
+pub fn gpu(profile: Option<&str>) -> Result<Gpu, VkError> {
+    init_logging();
+    Ok(Gpu {
+        ctx: Context::new(options(profile, FeatureRequest::default()))?,
+    })
+}
+
+/// Same as [`gpu`] with extra features.
+pub fn gpu_with(profile: Option<&str>, features: FeatureRequest) -> Result<Gpu, VkError> {
+    init_logging();
+    Ok(Gpu {
+        ctx: Context::new(options(profile, features))?,
+    })
+}
