@@ -1,1 +1,417 @@
-fn main() {}
+//! `cargo xtask <demo|test|shaders|bench|deps>`: the project's own commands.
+//!
+//! Both `demo` and `test` first make sure the system pieces are present — the Vulkan loader,
+//! Mesa's lavapipe, the Khronos validation layer, glslc and spirv-tools — installing what is
+//! missing with apt-get when running as root, or stopping with the exact command to run.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode};
+
+/// A system piece, how to recognise it, and the Debian/Ubuntu package that provides it.
+struct Requirement {
+    what: &'static str,
+    package: &'static str,
+    present: fn() -> bool,
+}
+
+const REQUIREMENTS: &[Requirement] = &[
+    Requirement {
+        what: "Vulkan loader (libvulkan.so.1)",
+        package: "libvulkan1",
+        present: has_vulkan_loader,
+    },
+    Requirement {
+        what: "Mesa lavapipe ICD",
+        package: "mesa-vulkan-drivers",
+        present: has_lavapipe,
+    },
+    Requirement {
+        what: "Khronos validation layer",
+        package: "vulkan-validationlayers",
+        present: has_validation_layer,
+    },
+    Requirement {
+        what: "glslc",
+        package: "glslc",
+        present: || on_path("glslc"),
+    },
+    Requirement {
+        what: "spirv-val",
+        package: "spirv-tools",
+        present: || on_path("spirv-val"),
+    },
+];
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (cmd, rest) = match args.split_first() {
+        Some((c, r)) => (c.as_str(), r),
+        None => ("help", &[][..]),
+    };
+    let result = match cmd {
+        "demo" => ensure_system().and_then(|_| demo(rest)),
+        "test" => ensure_system().and_then(|_| test(rest)),
+        "shaders" => ensure_system().and_then(|_| {
+            if rest.iter().any(|a| a == "--check") {
+                check_shaders(&root())
+            } else {
+                compile_shaders(&root())
+            }
+        }),
+        "bench" => ensure_system().and_then(|_| bench(rest)),
+        "deps" => ensure_system(),
+        _ => {
+            eprintln!(
+                "usage: cargo xtask <command>\n\
+                 \n  demo [ARGS]     render the demo frame (device, profile, PNG, per-pass GPU times)\
+                 \n  test            fmt --check, clippy -D warnings, shader check, every test\
+                 \n  shaders [--check]  compile shaders/*.{{vert,frag,comp}} to shaders/spv (or check them)\
+                 \n  bench           criterion benchmarks\
+                 \n  deps            install/check the system pieces (Vulkan, lavapipe, validation, glslc)"
+            );
+            return if cmd == "help" {
+                ExitCode::SUCCESS
+            } else {
+                ExitCode::FAILURE
+            };
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("xtask {cmd}: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn root() -> PathBuf {
+    // xtask/ is one level below the workspace root.
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."))
+}
+
+fn cargo() -> Command {
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.current_dir(root());
+    c
+}
+
+fn run(step: &str, cmd: &mut Command) -> Result<(), String> {
+    println!("==> {step}");
+    let status = cmd
+        .status()
+        .map_err(|e| format!("{step}: cannot start: {e}"))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!("{step} failed ({status})"))
+    }
+}
+
+fn demo(rest: &[String]) -> Result<(), String> {
+    let mut c = cargo();
+    c.args([
+        "run",
+        "--release",
+        "--quiet",
+        "-p",
+        "tilegraph-cli",
+        "--",
+        "demo",
+    ])
+    .args(rest);
+    run("tilegraph demo", &mut c)
+}
+
+fn test(rest: &[String]) -> Result<(), String> {
+    run(
+        "cargo fmt --all --check",
+        cargo().args(["fmt", "--all", "--", "--check"]),
+    )?;
+    run(
+        "cargo clippy --workspace --all-targets -- -D warnings",
+        cargo().args([
+            "clippy",
+            "--workspace",
+            "--all-targets",
+            "--",
+            "-D",
+            "warnings",
+        ]),
+    )?;
+    // The shader check (staleness + spirv-val) is xtask's own unit test, run by cargo test below.
+    // Every GPU test requires the validation layer (with synchronization validation).
+    run(
+        "cargo test --workspace",
+        cargo()
+            .args(["test", "--workspace"])
+            .args(rest)
+            .env("TILEGRAPH_VALIDATION", "required"),
+    )
+}
+
+fn bench(rest: &[String]) -> Result<(), String> {
+    run(
+        "cargo bench --workspace",
+        cargo().args(["bench", "--workspace"]).args(rest),
+    )
+}
+
+// ---------------------------------------------------------------------------------------------
+// System pieces
+
+fn ensure_system() -> Result<(), String> {
+    let missing: Vec<&Requirement> = REQUIREMENTS.iter().filter(|r| !(r.present)()).collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let packages: Vec<&str> = missing.iter().map(|r| r.package).collect();
+    for r in &missing {
+        println!("missing: {} (package {})", r.what, r.package);
+    }
+    let install = format!(
+        "apt-get install -y --no-install-recommends {}",
+        packages.join(" ")
+    );
+    if is_root() && on_path("apt-get") {
+        println!("==> installing {} with apt-get", packages.join(" "));
+        run(
+            "apt-get update",
+            Command::new("apt-get").args(["update", "-q"]),
+        )?;
+        run(
+            &install,
+            Command::new("apt-get")
+                .args(["install", "-y", "-q", "--no-install-recommends"])
+                .args(&packages)
+                .env("DEBIAN_FRONTEND", "noninteractive"),
+        )?;
+        let still: Vec<&str> = REQUIREMENTS
+            .iter()
+            .filter(|r| !(r.present)())
+            .map(|r| r.what)
+            .collect();
+        if still.is_empty() {
+            Ok(())
+        } else {
+            Err(format!("still missing after apt-get: {}", still.join(", ")))
+        }
+    } else {
+        Err(format!(
+            "missing system packages; run:\n    sudo apt-get update && sudo {install}\n(then run the command again)"
+        ))
+    }
+}
+
+fn is_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim() == "0")
+        .unwrap_or(false)
+}
+
+fn on_path(tool: &str) -> bool {
+    std::env::var_os("PATH")
+        .map(|p| std::env::split_paths(&p).any(|d| d.join(tool).is_file()))
+        .unwrap_or(false)
+}
+
+fn any_exists(paths: &[&str]) -> bool {
+    paths.iter().any(|p| Path::new(p).exists())
+}
+
+fn dir_has(dirs: &[&str], pred: impl Fn(&str) -> bool) -> bool {
+    dirs.iter().any(|d| {
+        std::fs::read_dir(d)
+            .map(|rd| {
+                rd.filter_map(Result::ok)
+                    .any(|e| pred(&e.file_name().to_string_lossy()))
+            })
+            .unwrap_or(false)
+    })
+}
+
+fn has_vulkan_loader() -> bool {
+    any_exists(&[
+        "/usr/lib/x86_64-linux-gnu/libvulkan.so.1",
+        "/usr/lib/aarch64-linux-gnu/libvulkan.so.1",
+        "/usr/lib64/libvulkan.so.1",
+        "/usr/lib/libvulkan.so.1",
+        "/usr/local/lib/libvulkan.so.1",
+    ])
+}
+
+fn has_lavapipe() -> bool {
+    dir_has(
+        &[
+            "/usr/share/vulkan/icd.d",
+            "/etc/vulkan/icd.d",
+            "/usr/local/share/vulkan/icd.d",
+        ],
+        |n| n.starts_with("lvp_icd"),
+    )
+}
+
+fn has_validation_layer() -> bool {
+    dir_has(
+        &[
+            "/usr/share/vulkan/explicit_layer.d",
+            "/etc/vulkan/explicit_layer.d",
+            "/usr/local/share/vulkan/explicit_layer.d",
+        ],
+        |n| n.eq_ignore_ascii_case("VkLayer_khronos_validation.json"),
+    )
+}
+
+// ---------------------------------------------------------------------------------------------
+// Shaders: GLSL in shaders/, SPIR-V committed in shaders/spv/.
+
+const STAGES: &[&str] = &["vert", "frag", "comp"];
+
+/// The one glslc command line of the project (also what the staleness check reproduces).
+fn glslc(src: &Path, out: &Path, root: &Path) -> Command {
+    let mut c = Command::new("glslc");
+    c.arg("--target-env=vulkan1.2")
+        .arg("-O")
+        .arg("-I")
+        .arg(root.join("shaders/common"))
+        .arg(src)
+        .arg("-o")
+        .arg(out);
+    c
+}
+
+fn shader_sources(root: &Path) -> Result<Vec<PathBuf>, String> {
+    let dir = root.join("shaders");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .map_err(|e| format!("reading {}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension()
+                .and_then(|x| x.to_str())
+                .is_some_and(|x| STAGES.contains(&x))
+        })
+        .collect();
+    v.sort();
+    Ok(v)
+}
+
+fn spv_path(root: &Path, src: &Path) -> PathBuf {
+    let name = src
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    root.join("shaders/spv").join(format!("{name}.spv"))
+}
+
+fn spirv_val(spv: &Path) -> Result<(), String> {
+    let out = Command::new("spirv-val")
+        .args(["--target-env", "vulkan1.2"])
+        .arg(spv)
+        .output()
+        .map_err(|e| format!("spirv-val: {e}"))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(format!(
+            "spirv-val {}: {}",
+            spv.display(),
+            String::from_utf8_lossy(&out.stderr)
+        ))
+    }
+}
+
+fn compile_shaders(root: &Path) -> Result<(), String> {
+    for src in shader_sources(root)? {
+        let out = spv_path(root, &src);
+        run(
+            &format!("glslc {}", src.display()),
+            &mut glslc(&src, &out, root),
+        )?;
+        spirv_val(&out)?;
+    }
+    println!("shaders compiled and validated");
+    Ok(())
+}
+
+/// Recompiles every shader to a temporary file and compares it with the committed module;
+/// runs spirv-val on every committed module; flags modules without a source.
+fn check_shaders(root: &Path) -> Result<(), String> {
+    println!("==> shader check (staleness + spirv-val)");
+    let tmp = std::env::temp_dir().join(format!("tilegraph-shader-check-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
+    let mut problems = Vec::new();
+    let sources = shader_sources(root)?;
+    for src in &sources {
+        let committed = spv_path(root, src);
+        let fresh = tmp.join(committed.file_name().unwrap_or_default());
+        let out = glslc(src, &fresh, root)
+            .output()
+            .map_err(|e| format!("glslc: {e}"))?;
+        if !out.status.success() {
+            problems.push(format!(
+                "{} does not compile: {}",
+                src.display(),
+                String::from_utf8_lossy(&out.stderr)
+            ));
+            continue;
+        }
+        match (std::fs::read(&committed), std::fs::read(&fresh)) {
+            (Ok(a), Ok(b)) if a == b => {}
+            (Ok(_), Ok(_)) => problems.push(format!(
+                "{} is stale against {} (run `cargo xtask shaders` and commit)",
+                committed.display(),
+                src.display()
+            )),
+            (Err(_), _) => problems.push(format!(
+                "{} has no committed module {}",
+                src.display(),
+                committed.display()
+            )),
+            (_, Err(e)) => problems.push(format!("reading fresh module: {e}")),
+        }
+        if let Err(e) = spirv_val(&committed) {
+            problems.push(e);
+        }
+    }
+    let spv_dir = root.join("shaders/spv");
+    if let Ok(rd) = std::fs::read_dir(&spv_dir) {
+        for e in rd.filter_map(Result::ok) {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if let Some(stem) = name.strip_suffix(".spv") {
+                if !root.join("shaders").join(stem).exists() {
+                    problems.push(format!("shaders/spv/{name} has no source shaders/{stem}"));
+                }
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    if problems.is_empty() {
+        println!("{} shader modules up to date and valid", sources.len());
+        Ok(())
+    } else {
+        Err(problems.join("\n"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The committed SPIR-V matches its GLSL and passes spirv-val (skipped without the tools,
+    /// which `cargo xtask test` installs).
+    #[test]
+    fn committed_shaders_are_fresh_and_valid() {
+        if !on_path("glslc") || !on_path("spirv-val") {
+            eprintln!("skipped: glslc/spirv-val not on PATH (cargo xtask deps installs them)");
+            return;
+        }
+        if let Err(e) = check_shaders(&root()) {
+            panic!("{e}");
+        }
+    }
+}

@@ -1,0 +1,106 @@
+//! The `tilegraph` binary as a user runs it.
+
+use std::process::Command;
+
+fn tilegraph(args: &[&str], env: &[(&str, &str)]) -> (bool, String, String) {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_tilegraph"));
+    c.args(args).env_remove("TILEGRAPH_PROFILE");
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    let out = c.output().expect("run tilegraph");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn devices_json(env: &[(&str, &str)]) -> Vec<serde_json::Value> {
+    let (ok, out, err) = tilegraph(&["devices", "--json"], env);
+    assert!(ok, "tilegraph devices --json failed: {err}");
+    serde_json::from_str::<Vec<serde_json::Value>>(&out)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {out}"))
+}
+
+#[test]
+fn devices_json_names_the_profile_and_memory_per_use() {
+    let devices = devices_json(&[]);
+    assert!(
+        !devices.is_empty(),
+        "no Vulkan device (lavapipe is installed by cargo xtask deps)"
+    );
+    for d in &devices {
+        for key in [
+            "name",
+            "vendor_id",
+            "device_id",
+            "driver_id",
+            "device_type",
+            "profile",
+            "matched_by",
+            "memory",
+        ] {
+            assert!(d.get(key).is_some(), "missing {key} in {d}");
+        }
+        for use_ in [
+            "static_geometry",
+            "gpu_only",
+            "streaming",
+            "readback",
+            "staging",
+            "transient_attachment",
+        ] {
+            assert!(
+                d["memory"][use_]["type_index"].is_u64(),
+                "memory.{use_} in {d}"
+            );
+        }
+        if d["name"]
+            .as_str()
+            .is_some_and(|n| n.starts_with("llvmpipe"))
+        {
+            assert_eq!(d["profile"], "lavapipe");
+            assert_eq!(d["forced"], false);
+        }
+    }
+}
+
+#[test]
+fn a_forced_profile_is_named_and_said_to_be_forced() {
+    for d in devices_json(&[("TILEGRAPH_PROFILE", "adreno-7xx")]) {
+        assert_eq!(d["profile"], "adreno-7xx");
+        assert_eq!(d["forced"], true);
+        assert!(
+            d["matched_by"]
+                .as_str()
+                .unwrap_or_default()
+                .contains("forced"),
+            "{d}"
+        );
+    }
+}
+
+#[test]
+fn an_unknown_forced_profile_is_an_error_naming_it() {
+    let (ok, _, err) = tilegraph(&["devices"], &[("TILEGRAPH_PROFILE", "voodoo-2")]);
+    assert!(!ok);
+    assert!(
+        err.contains("voodoo-2") && err.contains("lavapipe"),
+        "{err}"
+    );
+}
+
+#[test]
+fn demo_writes_a_png() {
+    let out = std::env::temp_dir().join(format!("tilegraph-demo-{}.png", std::process::id()));
+    let (ok, stdout, err) = tilegraph(
+        &["demo", "--out", out.to_str().unwrap(), "--size", "64x36"],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "demo failed: {err}");
+    assert!(stdout.contains("profile"), "{stdout}");
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    std::fs::remove_file(&out).ok();
+}
