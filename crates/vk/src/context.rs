@@ -595,6 +595,24 @@ impl Context {
         Ok(())
     }
 
+    /// `vkCmdWriteTimestamp2` through core 1.3 or VK_KHR_synchronization2.
+    pub fn cmd_write_timestamp2(
+        &self,
+        cb: vk::CommandBuffer,
+        stage: vk::PipelineStageFlags2,
+        pool: vk::QueryPool,
+        query: u32,
+    ) -> Result<(), VkError> {
+        match &self.sync2 {
+            // SAFETY: synchronization2 was enabled at device creation; the query was reset.
+            Sync2::Core => unsafe { self.device.cmd_write_timestamp2(cb, stage, pool, query) },
+            // SAFETY: as above, through the extension.
+            Sync2::Khr(k) => unsafe { k.cmd_write_timestamp2(cb, stage, pool, query) },
+            Sync2::Missing => return Err(missing_feature(Feature::Synchronization2)),
+        }
+        Ok(())
+    }
+
     pub fn cmd_begin_rendering(
         &self,
         cb: vk::CommandBuffer,

@@ -12,6 +12,7 @@ mod error;
 mod features;
 pub mod first_frame;
 mod instance;
+pub mod queries;
 pub mod shader;
 mod validation;
 

@@ -1,0 +1,363 @@
+//! GPU timing without stalls: a ring of query pools, one slot per frame in flight.
+//!
+//! seed 002: measure GPU time with timer queries from a *pool* that is read frames later, never
+//! waiting for the GPU — a frame's results are read only after that frame's fence has signalled,
+//! with `vkGetQueryPoolResults` and no WAIT flag. Each pass gets a timestamp before and after it;
+//! where the device supports pipeline-statistics queries, each pass also counts vertex and fragment
+//! shader invocations. Medians over frames come from [`TimingHistory`].
+
+use std::collections::BTreeMap;
+
+use ash::vk;
+use serde::Serialize;
+
+use crate::error::{VkError, VkResultExt};
+use crate::{Context, Feature};
+
+/// One pass's measurements for one frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PassTiming {
+    pub name: String,
+    /// Raw begin/end timestamps (ticks), for monotonicity checks.
+    pub begin_ticks: u64,
+    pub end_ticks: u64,
+    pub gpu_ms: f64,
+    /// Vertex shader invocations (pipeline statistics), when supported.
+    pub vertex_invocations: Option<u64>,
+    /// Fragment shader invocations (pipeline statistics), when supported.
+    pub fragment_invocations: Option<u64>,
+}
+
+/// Every pass of one frame, in execution order.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameTimings {
+    pub frame: u64,
+    pub passes: Vec<PassTiming>,
+}
+
+struct Slot {
+    timestamps: vk::QueryPool,
+    stats: vk::QueryPool,
+    /// Names of the passes recorded into this slot, in order; empty when the slot holds nothing.
+    names: Vec<String>,
+    frame: u64,
+    /// Whether statistics queries were begun (and so must be read) for each pass.
+    has_stats: Vec<bool>,
+}
+
+/// The ring. `capacity_passes` bounds how many passes one frame may time.
+pub struct QueryRing {
+    slots: Vec<Slot>,
+    capacity_passes: u32,
+    period_ns: f64,
+    valid_mask: u64,
+    stats_supported: bool,
+}
+
+const STATS: vk::QueryPipelineStatisticFlags = vk::QueryPipelineStatisticFlags::from_raw(
+    vk::QueryPipelineStatisticFlags::VERTEX_SHADER_INVOCATIONS.as_raw()
+        | vk::QueryPipelineStatisticFlags::FRAGMENT_SHADER_INVOCATIONS.as_raw(),
+);
+
+impl QueryRing {
+    /// A ring of `slots` frames (frames in flight + 1 is plenty), each timing up to
+    /// `capacity_passes` passes.
+    pub fn new(ctx: &Context, slots: usize, capacity_passes: u32) -> Result<Self, VkError> {
+        if ctx.physical.limits.timestamp_valid_bits == 0 {
+            return Err(VkError::MissingRequired {
+                device: ctx.physical.identity.device_name.clone(),
+                what: "queue capability",
+                missing: "timestamps on the graphics queue".into(),
+            });
+        }
+        let stats_supported = ctx.has_feature(Feature::PipelineStatisticsQuery);
+        let bits = ctx.physical.limits.timestamp_valid_bits;
+        let mut ring = QueryRing {
+            slots: Vec::with_capacity(slots),
+            capacity_passes: capacity_passes.max(1),
+            period_ns: f64::from(ctx.physical.limits.timestamp_period_ns),
+            valid_mask: if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 },
+            stats_supported,
+        };
+        for i in 0..slots.max(1) {
+            let ts_info = vk::QueryPoolCreateInfo::default()
+                .query_type(vk::QueryType::TIMESTAMP)
+                .query_count(2 * ring.capacity_passes);
+            // SAFETY: valid create info.
+            let timestamps = unsafe { ctx.device.create_query_pool(&ts_info, None) }.vk("vkCreateQueryPool");
+            let timestamps = match timestamps {
+                Ok(p) => p,
+                Err(e) => {
+                    ring.destroy(ctx);
+                    return Err(e);
+                }
+            };
+            let mut stats = vk::QueryPool::null();
+            if stats_supported {
+                let info = vk::QueryPoolCreateInfo::default()
+                    .query_type(vk::QueryType::PIPELINE_STATISTICS)
+                    .query_count(ring.capacity_passes)
+                    .pipeline_statistics(STATS);
+                // SAFETY: pipeline statistics were enabled on this device.
+                match unsafe { ctx.device.create_query_pool(&info, None) }.vk("vkCreateQueryPool") {
+                    Ok(p) => stats = p,
+                    Err(e) => {
+                        // SAFETY: unused pool.
+                        unsafe { ctx.device.destroy_query_pool(timestamps, None) };
+                        ring.destroy(ctx);
+                        return Err(e);
+                    }
+                }
+            }
+            ctx.set_name(timestamps, &format!("timestamps[{i}]"));
+            ring.slots.push(Slot { timestamps, stats, names: Vec::new(), frame: 0, has_stats: Vec::new() });
+        }
+        Ok(ring)
+    }
+
+    pub fn slots(&self) -> usize {
+        self.slots.len()
+    }
+
+    pub fn capacity_passes(&self) -> u32 {
+        self.capacity_passes
+    }
+
+    pub fn statistics_supported(&self) -> bool {
+        self.stats_supported
+    }
+
+    /// Starts recording frame `frame` into `slot`: resets its queries on the GPU timeline. The
+    /// caller guarantees the slot's previous frame has completed (its fence signalled) and has
+    /// been collected (or is abandoned).
+    pub fn begin_frame(&mut self, ctx: &Context, cb: vk::CommandBuffer, slot: usize, frame: u64) -> Result<(), VkError> {
+        let cap = self.capacity_passes;
+        let s = self.slot_mut(slot)?;
+        s.names.clear();
+        s.has_stats.clear();
+        s.frame = frame;
+        // SAFETY: cb is recording outside a render pass; the pools are not in use by the GPU
+        // (the caller waited on this slot's fence).
+        unsafe {
+            ctx.device.cmd_reset_query_pool(cb, s.timestamps, 0, 2 * cap);
+            if s.stats != vk::QueryPool::null() {
+                ctx.device.cmd_reset_query_pool(cb, s.stats, 0, cap);
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the "before" timestamp of a pass and returns its index in the frame. With
+    /// `statistics`, begins a pipeline-statistics query (call outside or at the start of a
+    /// render pass the query is wholly inside, per the spec's rules on query scope).
+    pub fn begin_pass(&mut self, ctx: &Context, cb: vk::CommandBuffer, slot: usize, name: &str, statistics: bool) -> Result<u32, VkError> {
+        let cap = self.capacity_passes;
+        let stats_ok = self.stats_supported;
+        let s = self.slot_mut(slot)?;
+        let index = s.names.len() as u32;
+        if index >= cap {
+            return Err(VkError::Invalid {
+                what: format!("timing pass {name:?}"),
+                reason: format!("more than {cap} passes in one frame; raise the query ring capacity"),
+            });
+        }
+        s.names.push(name.to_string());
+        let stats = statistics && stats_ok;
+        s.has_stats.push(stats);
+        ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::TOP_OF_PIPE, s.timestamps, 2 * index)?;
+        // SAFETY: queries were reset in begin_frame; each index is begun once per frame.
+        unsafe {
+            if stats {
+                ctx.device.cmd_begin_query(cb, s.stats, index, vk::QueryControlFlags::empty());
+            }
+        }
+        Ok(index)
+    }
+
+    /// Writes the "after" timestamp of pass `index` (and ends its statistics query).
+    pub fn end_pass(&mut self, ctx: &Context, cb: vk::CommandBuffer, slot: usize, index: u32) -> Result<(), VkError> {
+        let s = self.slot_mut(slot)?;
+        let stats = s.has_stats.get(index as usize).copied().unwrap_or(false);
+        if stats {
+            // SAFETY: matches the cmd_begin_query of begin_pass on the same command buffer.
+            unsafe { ctx.device.cmd_end_query(cb, s.stats, index) };
+        }
+        ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::BOTTOM_OF_PIPE, s.timestamps, 2 * index + 1)
+    }
+
+    /// Reads a completed slot without waiting. `Ok(None)` when the slot holds nothing or its
+    /// results are not available yet (the caller should only ask after the frame's fence).
+    pub fn collect(&mut self, ctx: &Context, slot: usize) -> Result<Option<FrameTimings>, VkError> {
+        let period_ns = self.period_ns;
+        let mask = self.valid_mask;
+        let s = self.slot_mut(slot)?;
+        let n = s.names.len();
+        if n == 0 {
+            return Ok(None);
+        }
+        // [value, availability] pairs.
+        let mut ts = vec![[0u64; 2]; 2 * n];
+        // SAFETY: queries 0..2n were written in this slot's frame; no WAIT flag: never stalls.
+        let r = unsafe {
+            ctx.device.get_query_pool_results(
+                s.timestamps,
+                0,
+                &mut ts,
+                vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WITH_AVAILABILITY,
+            )
+        };
+        match r {
+            Ok(()) | Err(vk::Result::NOT_READY) => {}
+            Err(e) => return Err(VkError::call("vkGetQueryPoolResults", e)),
+        }
+        if ts.iter().any(|[_, avail]| *avail == 0) {
+            return Ok(None);
+        }
+        let mut stats = vec![[0u64; 3]; n];
+        let any_stats = s.has_stats.iter().any(|b| *b);
+        if any_stats {
+            // SAFETY: as above; statistics layout: [vertex, fragment, availability].
+            let r = unsafe {
+                ctx.device.get_query_pool_results(
+                    s.stats,
+                    0,
+                    &mut stats,
+                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WITH_AVAILABILITY,
+                )
+            };
+            match r {
+                Ok(()) | Err(vk::Result::NOT_READY) => {}
+                Err(e) => return Err(VkError::call("vkGetQueryPoolResults", e)),
+            }
+        }
+        let passes = (0..n)
+            .map(|i| {
+                let begin = ts[2 * i][0] & mask;
+                let end = ts[2 * i + 1][0] & mask;
+                let st = s.has_stats[i] && stats[i][2] != 0;
+                PassTiming {
+                    name: s.names[i].clone(),
+                    begin_ticks: begin,
+                    end_ticks: end,
+                    gpu_ms: end.wrapping_sub(begin) as f64 * period_ns / 1e6,
+                    vertex_invocations: st.then_some(stats[i][0]),
+                    fragment_invocations: st.then_some(stats[i][1]),
+                }
+            })
+            .collect();
+        let frame = s.frame;
+        s.names.clear();
+        s.has_stats.clear();
+        Ok(Some(FrameTimings { frame, passes }))
+    }
+
+    fn slot_mut(&mut self, slot: usize) -> Result<&mut Slot, VkError> {
+        let n = self.slots.len();
+        self.slots.get_mut(slot).ok_or_else(|| VkError::Invalid {
+            what: "query ring".into(),
+            reason: format!("slot {slot} out of {n}"),
+        })
+    }
+
+    /// Destroys the pools; the caller guarantees the GPU is done with them.
+    pub fn destroy(&mut self, ctx: &Context) {
+        for s in self.slots.drain(..) {
+            // SAFETY: no GPU work references the pools any more (caller's guarantee).
+            unsafe {
+                ctx.device.destroy_query_pool(s.timestamps, None);
+                if s.stats != vk::QueryPool::null() {
+                    ctx.device.destroy_query_pool(s.stats, None);
+                }
+            }
+        }
+    }
+}
+
+/// Per-pass history over frames, for medians.
+#[derive(Debug, Default, Clone)]
+pub struct TimingHistory {
+    by_pass: BTreeMap<String, Vec<f64>>,
+    order: Vec<String>,
+    frames: u64,
+}
+
+/// Median GPU time of one pass over the recorded frames.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PassMedian {
+    pub name: String,
+    pub median_gpu_ms: f64,
+    pub samples: usize,
+}
+
+impl TimingHistory {
+    pub fn record(&mut self, frame: &FrameTimings) {
+        self.frames += 1;
+        for p in &frame.passes {
+            if !self.by_pass.contains_key(&p.name) {
+                self.order.push(p.name.clone());
+            }
+            self.by_pass.entry(p.name.clone()).or_default().push(p.gpu_ms);
+        }
+    }
+
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// Median per pass, in first-seen order.
+    pub fn medians(&self) -> Vec<PassMedian> {
+        self.order
+            .iter()
+            .filter_map(|name| {
+                let v = self.by_pass.get(name)?;
+                Some(PassMedian { name: name.clone(), median_gpu_ms: median(v)?, samples: v.len() })
+            })
+            .collect()
+    }
+}
+
+/// Median of a sample (mean of the middle two for even sizes); `None` when empty.
+pub fn median(values: &[f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    Some(if v.len() % 2 == 1 { v[m] } else { (v[m - 1] + v[m]) / 2.0 })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_of_odd_even_and_empty() {
+        assert_eq!(median(&[]), None);
+        assert_eq!(median(&[3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), Some(2.5));
+        assert_eq!(median(&[f64::NAN, 1.0]), Some(1.0));
+    }
+
+    #[test]
+    fn history_keeps_first_seen_order() {
+        let mut h = TimingHistory::default();
+        let t = |n: &str, ms| PassTiming {
+            name: n.into(),
+            begin_ticks: 0,
+            end_ticks: 1,
+            gpu_ms: ms,
+            vertex_invocations: None,
+            fragment_invocations: None,
+        };
+        h.record(&FrameTimings { frame: 0, passes: vec![t("b", 1.0), t("a", 5.0)] });
+        h.record(&FrameTimings { frame: 1, passes: vec![t("b", 3.0), t("a", 7.0)] });
+        let m = h.medians();
+        assert_eq!(m.iter().map(|p| p.name.as_str()).collect::<Vec<_>>(), ["b", "a"]);
+        assert_eq!(m[0].median_gpu_ms, 2.0);
+        assert_eq!(h.frames(), 2);
+    }
+}
