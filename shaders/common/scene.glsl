@@ -1,0 +1,89 @@
+// Shared declarations of the scene passes. Each struct mirrors a Rust #[repr(C)] type; the
+// test `shader_layouts` (crates/passes) checks sizes and offsets against the SPIR-V.
+#ifndef TILEGRAPH_SCENE_GLSL
+#define TILEGRAPH_SCENE_GLSL
+
+// tilegraph_scene::GpuInstance (80 bytes): camera-relative affine model matrix as three rows,
+// camera-relative bounds.
+struct Instance {
+    vec4 model_rows[3];
+    vec3 center;
+    uint mesh;
+    vec3 half_extents;
+    float radius;
+};
+
+// tilegraph_scene::GpuMesh (48 bytes).
+struct Mesh {
+    uint first_index;
+    uint index_count;
+    int vertex_offset;
+    uint material;
+    vec3 aabb_min;
+    uint pad0;
+    vec3 aabb_max;
+    uint pad1;
+};
+
+// tilegraph_scene::GpuMaterial (32 bytes). class: 0 opaque, 1 alpha-tested, 2 blended.
+struct Material {
+    vec4 base_color;
+    uint class_code;
+    float alpha_cutoff;
+    uint double_sided;
+    uint pad;
+};
+
+// tilegraph_passes::FrameUniforms (std140).
+layout(set = 0, binding = 0, std140) uniform Frame {
+    mat4 view_proj;        // camera-relative view (eye at origin) times projection
+    vec4 light_dir;        // xyz: unit direction towards the light, w: ambient term
+    vec4 light_color;      // rgb: light colour, a: unused
+    uvec4 params;          // x: heavy ALU iterations, y: visbuf instance-id bits, z, w: viewport px
+    vec4 viewport;         // xy: viewport size in px, zw: 1 / size
+    mat4 inv_view_proj;    // for the visibility-buffer resolve's per-pixel rays
+    vec4 depth_params;     // x: depth of the near plane (1 reverse-Z, 0 standard), y: mid depth
+} frame;
+
+layout(set = 0, binding = 1, std430) readonly buffer Instances { Instance instances[]; };
+// Draw list: gl_InstanceIndex (which includes firstInstance) indexes this to get the instance id.
+layout(set = 0, binding = 2, std430) readonly buffer DrawList { uint draw_instances[]; };
+layout(set = 0, binding = 3, std430) readonly buffer Meshes { Mesh meshes[]; };
+layout(set = 0, binding = 4, std430) readonly buffer Materials { Material materials[]; };
+
+vec3 instance_transform(Instance inst, vec3 p) {
+    vec4 h = vec4(p, 1.0);
+    return vec3(dot(inst.model_rows[0], h), dot(inst.model_rows[1], h), dot(inst.model_rows[2], h));
+}
+
+// Normals: the inverse-transpose of the linear part, computed per vertex (uniform scale is
+// common, but glTF allows anything).
+vec3 instance_normal(Instance inst, vec3 n) {
+    mat3 m = mat3(inst.model_rows[0].xyz, inst.model_rows[1].xyz, inst.model_rows[2].xyz); // rows as columns = transpose
+    mat3 linear = transpose(m);
+    return normalize(transpose(inverse(linear)) * n);
+}
+
+// Textures are not shipped, so alpha-tested materials get their coverage from a procedural
+// leaf mask on the UVs: a lobed disc. The same function runs in the pre-pass and in the colour
+// pass, so both discard exactly the same fragments (EQUAL depth test stays exact).
+float leaf_alpha(vec2 uv, float base_alpha) {
+    vec2 p = uv * 2.0 - 1.0;
+    float r = length(p);
+    float lobes = 0.75 + 0.25 * cos(5.0 * atan(p.y, p.x));
+    return base_alpha * (r < lobes ? 1.0 : 0.0);
+}
+
+// Lambert + ambient with a directional light, plus `iterations` of ALU work that cannot be
+// optimised away (models an expensive material; the result is scaled to ~0 contribution).
+vec3 shade(vec3 base, vec3 n, uint iterations) {
+    float ndl = max(dot(normalize(n), frame.light_dir.xyz), 0.0);
+    vec3 c = base * (frame.light_dir.w + ndl * frame.light_color.rgb);
+    float acc = 0.0;
+    for (uint i = 0u; i < iterations; ++i) {
+        acc = fract(sin(acc * 12.9898 + float(i) * 78.233 + n.x) * 43758.5453);
+    }
+    return c + vec3(acc * 1e-6);
+}
+
+#endif

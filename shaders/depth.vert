@@ -1,0 +1,11 @@
+#version 450
+// Depth pre-pass, opaque: positions only, no fragment shader (seed 003: "the Fragment Shader
+// does not even need to exist").
+#include "scene.glsl"
+
+layout(location = 0) in vec3 in_position;
+
+void main() {
+    Instance inst = instances[draw_instances[gl_InstanceIndex]];
+    gl_Position = frame.view_proj * vec4(instance_transform(inst, in_position), 1.0);
+}

@@ -1,0 +1,15 @@
+#version 450
+// Depth pre-pass, alpha-tested: position and UV, for the discard in depth_alpha.frag.
+#include "scene.glsl"
+
+layout(location = 0) in vec3 in_position;
+layout(location = 2) in vec2 in_uv;
+layout(location = 0) out vec2 v_uv;
+layout(location = 1) flat out uint v_material;
+
+void main() {
+    Instance inst = instances[draw_instances[gl_InstanceIndex]];
+    gl_Position = frame.view_proj * vec4(instance_transform(inst, in_position), 1.0);
+    v_uv = in_uv;
+    v_material = meshes[inst.mesh].material;
+}
