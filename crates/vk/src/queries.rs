@@ -76,7 +76,11 @@ impl QueryRing {
             slots: Vec::with_capacity(slots),
             capacity_passes: capacity_passes.max(1),
             period_ns: f64::from(ctx.physical.limits.timestamp_period_ns),
-            valid_mask: if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 },
+            valid_mask: if bits >= 64 {
+                u64::MAX
+            } else {
+                (1u64 << bits) - 1
+            },
             stats_supported,
         };
         for i in 0..slots.max(1) {
@@ -84,7 +88,8 @@ impl QueryRing {
                 .query_type(vk::QueryType::TIMESTAMP)
                 .query_count(2 * ring.capacity_passes);
             // SAFETY: valid create info.
-            let timestamps = unsafe { ctx.device.create_query_pool(&ts_info, None) }.vk("vkCreateQueryPool");
+            let timestamps =
+                unsafe { ctx.device.create_query_pool(&ts_info, None) }.vk("vkCreateQueryPool");
             let timestamps = match timestamps {
                 Ok(p) => p,
                 Err(e) => {
@@ -110,7 +115,13 @@ impl QueryRing {
                 }
             }
             ctx.set_name(timestamps, &format!("timestamps[{i}]"));
-            ring.slots.push(Slot { timestamps, stats, names: Vec::new(), frame: 0, has_stats: Vec::new() });
+            ring.slots.push(Slot {
+                timestamps,
+                stats,
+                names: Vec::new(),
+                frame: 0,
+                has_stats: Vec::new(),
+            });
         }
         Ok(ring)
     }
@@ -130,7 +141,13 @@ impl QueryRing {
     /// Starts recording frame `frame` into `slot`: resets its queries on the GPU timeline. The
     /// caller guarantees the slot's previous frame has completed (its fence signalled) and has
     /// been collected (or is abandoned).
-    pub fn begin_frame(&mut self, ctx: &Context, cb: vk::CommandBuffer, slot: usize, frame: u64) -> Result<(), VkError> {
+    pub fn begin_frame(
+        &mut self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        slot: usize,
+        frame: u64,
+    ) -> Result<(), VkError> {
         let cap = self.capacity_passes;
         let s = self.slot_mut(slot)?;
         s.names.clear();
@@ -139,7 +156,8 @@ impl QueryRing {
         // SAFETY: cb is recording outside a render pass; the pools are not in use by the GPU
         // (the caller waited on this slot's fence).
         unsafe {
-            ctx.device.cmd_reset_query_pool(cb, s.timestamps, 0, 2 * cap);
+            ctx.device
+                .cmd_reset_query_pool(cb, s.timestamps, 0, 2 * cap);
             if s.stats != vk::QueryPool::null() {
                 ctx.device.cmd_reset_query_pool(cb, s.stats, 0, cap);
             }
@@ -150,7 +168,14 @@ impl QueryRing {
     /// Writes the "before" timestamp of a pass and returns its index in the frame. With
     /// `statistics`, begins a pipeline-statistics query (call outside or at the start of a
     /// render pass the query is wholly inside, per the spec's rules on query scope).
-    pub fn begin_pass(&mut self, ctx: &Context, cb: vk::CommandBuffer, slot: usize, name: &str, statistics: bool) -> Result<u32, VkError> {
+    pub fn begin_pass(
+        &mut self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        slot: usize,
+        name: &str,
+        statistics: bool,
+    ) -> Result<u32, VkError> {
         let cap = self.capacity_passes;
         let stats_ok = self.stats_supported;
         let s = self.slot_mut(slot)?;
@@ -158,31 +183,50 @@ impl QueryRing {
         if index >= cap {
             return Err(VkError::Invalid {
                 what: format!("timing pass {name:?}"),
-                reason: format!("more than {cap} passes in one frame; raise the query ring capacity"),
+                reason: format!(
+                    "more than {cap} passes in one frame; raise the query ring capacity"
+                ),
             });
         }
         s.names.push(name.to_string());
         let stats = statistics && stats_ok;
         s.has_stats.push(stats);
-        ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::TOP_OF_PIPE, s.timestamps, 2 * index)?;
+        ctx.cmd_write_timestamp2(
+            cb,
+            vk::PipelineStageFlags2::TOP_OF_PIPE,
+            s.timestamps,
+            2 * index,
+        )?;
         // SAFETY: queries were reset in begin_frame; each index is begun once per frame.
         unsafe {
             if stats {
-                ctx.device.cmd_begin_query(cb, s.stats, index, vk::QueryControlFlags::empty());
+                ctx.device
+                    .cmd_begin_query(cb, s.stats, index, vk::QueryControlFlags::empty());
             }
         }
         Ok(index)
     }
 
     /// Writes the "after" timestamp of pass `index` (and ends its statistics query).
-    pub fn end_pass(&mut self, ctx: &Context, cb: vk::CommandBuffer, slot: usize, index: u32) -> Result<(), VkError> {
+    pub fn end_pass(
+        &mut self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        slot: usize,
+        index: u32,
+    ) -> Result<(), VkError> {
         let s = self.slot_mut(slot)?;
         let stats = s.has_stats.get(index as usize).copied().unwrap_or(false);
         if stats {
             // SAFETY: matches the cmd_begin_query of begin_pass on the same command buffer.
             unsafe { ctx.device.cmd_end_query(cb, s.stats, index) };
         }
-        ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::BOTTOM_OF_PIPE, s.timestamps, 2 * index + 1)
+        ctx.cmd_write_timestamp2(
+            cb,
+            vk::PipelineStageFlags2::BOTTOM_OF_PIPE,
+            s.timestamps,
+            2 * index + 1,
+        )
     }
 
     /// Reads a completed slot without waiting. `Ok(None)` when the slot holds nothing or its
@@ -296,7 +340,10 @@ impl TimingHistory {
             if !self.by_pass.contains_key(&p.name) {
                 self.order.push(p.name.clone());
             }
-            self.by_pass.entry(p.name.clone()).or_default().push(p.gpu_ms);
+            self.by_pass
+                .entry(p.name.clone())
+                .or_default()
+                .push(p.gpu_ms);
         }
     }
 
@@ -310,7 +357,11 @@ impl TimingHistory {
             .iter()
             .filter_map(|name| {
                 let v = self.by_pass.get(name)?;
-                Some(PassMedian { name: name.clone(), median_gpu_ms: median(v)?, samples: v.len() })
+                Some(PassMedian {
+                    name: name.clone(),
+                    median_gpu_ms: median(v)?,
+                    samples: v.len(),
+                })
             })
             .collect()
     }
@@ -327,7 +378,11 @@ pub fn median(values: &[f64]) -> Option<f64> {
     }
     v.sort_by(f64::total_cmp);
     let m = v.len() / 2;
-    Some(if v.len() % 2 == 1 { v[m] } else { (v[m - 1] + v[m]) / 2.0 })
+    Some(if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        (v[m - 1] + v[m]) / 2.0
+    })
 }
 
 #[cfg(test)]
@@ -353,10 +408,19 @@ mod tests {
             vertex_invocations: None,
             fragment_invocations: None,
         };
-        h.record(&FrameTimings { frame: 0, passes: vec![t("b", 1.0), t("a", 5.0)] });
-        h.record(&FrameTimings { frame: 1, passes: vec![t("b", 3.0), t("a", 7.0)] });
+        h.record(&FrameTimings {
+            frame: 0,
+            passes: vec![t("b", 1.0), t("a", 5.0)],
+        });
+        h.record(&FrameTimings {
+            frame: 1,
+            passes: vec![t("b", 3.0), t("a", 7.0)],
+        });
         let m = h.medians();
-        assert_eq!(m.iter().map(|p| p.name.as_str()).collect::<Vec<_>>(), ["b", "a"]);
+        assert_eq!(
+            m.iter().map(|p| p.name.as_str()).collect::<Vec<_>>(),
+            ["b", "a"]
+        );
         assert_eq!(m[0].median_gpu_ms, 2.0);
         assert_eq!(h.frames(), 2);
     }

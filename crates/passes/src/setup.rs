@@ -1,0 +1,353 @@
+//! Frame setup: from what the scene holds and what the profile says, which passes this frame
+//! has — and, for every pass left out, why. DESIGN.md: "a pass such as the alpha-tested pre-pass
+//! exists only when the scene has something for it to do".
+
+use serde::Serialize;
+use tilegraph_profile::{DepthPrepass, Profile};
+use tilegraph_scene::{MaterialClass, Scene};
+
+/// How the frame decides what gets shaded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Technique {
+    /// Forward colour passes only; the depth pre-pass follows the profile.
+    Forward,
+    /// Forward with a depth pre-pass, whatever the profile says (forced).
+    Prepass,
+    /// Visibility buffer: id pass, then resolve.
+    Visbuf,
+}
+
+impl Technique {
+    pub fn parse(s: &str) -> Option<Technique> {
+        match s {
+            "forward" => Some(Technique::Forward),
+            "prepass" => Some(Technique::Prepass),
+            "visbuf" => Some(Technique::Visbuf),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Technique::Forward => "forward",
+            Technique::Prepass => "prepass",
+            Technique::Visbuf => "visbuf",
+        }
+    }
+}
+
+/// Every pass the frame setup knows about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PassKind {
+    DepthPrepassOpaque,
+    DepthPrepassAlpha,
+    Opaque,
+    AlphaTested,
+    Transparent,
+    VisbufWrite,
+    VisbufResolve,
+}
+
+impl PassKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            PassKind::DepthPrepassOpaque => "depth-prepass",
+            PassKind::DepthPrepassAlpha => "depth-prepass-alpha",
+            PassKind::Opaque => "opaque",
+            PassKind::AlphaTested => "alpha-tested",
+            PassKind::Transparent => "transparent",
+            PassKind::VisbufWrite => "visbuf-write",
+            PassKind::VisbufResolve => "visbuf-resolve",
+        }
+    }
+}
+
+/// One decision of the frame setup.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct PassDecision {
+    pub pass: PassKind,
+    pub included: bool,
+    pub reason: String,
+}
+
+/// What the scene holds, by material class (instances, not materials: a material nobody uses
+/// needs no pass).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct SceneContent {
+    pub opaque: usize,
+    pub alpha_tested: usize,
+    pub blended: usize,
+}
+
+impl SceneContent {
+    pub fn of(scene: &Scene) -> Self {
+        let mut c = SceneContent::default();
+        for i in scene.instances() {
+            match scene.instance_material(i).map(|m| m.class) {
+                Some(MaterialClass::Opaque) | None => c.opaque += 1,
+                Some(MaterialClass::AlphaTested { .. }) => c.alpha_tested += 1,
+                Some(MaterialClass::Blended) => c.blended += 1,
+            }
+        }
+        c
+    }
+}
+
+/// The frame setup's verdict: the passes in the order the profile recommends, with reasons.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct FrameSetup {
+    pub technique: Technique,
+    pub decisions: Vec<PassDecision>,
+}
+
+impl FrameSetup {
+    pub fn includes(&self, pass: PassKind) -> bool {
+        self.decisions.iter().any(|d| d.pass == pass && d.included)
+    }
+
+    pub fn included(&self) -> impl Iterator<Item = PassKind> + '_ {
+        self.decisions.iter().filter(|d| d.included).map(|d| d.pass)
+    }
+
+    /// Whether the colour pass tests depth EQUAL against a pre-pass (no depth writes).
+    pub fn has_prepass(&self) -> bool {
+        self.includes(PassKind::DepthPrepassOpaque) || self.includes(PassKind::DepthPrepassAlpha)
+    }
+}
+
+/// Decides the passes of a frame. Pure: the same scene content, profile and technique give the
+/// same setup.
+pub fn decide(content: SceneContent, profile: &Profile, technique: Technique) -> FrameSetup {
+    let mut d = Vec::new();
+    let mut say = |pass, included, reason: String| {
+        d.push(PassDecision {
+            pass,
+            included,
+            reason,
+        })
+    };
+    let any_depth_geometry = content.opaque + content.alpha_tested > 0;
+    match technique {
+        Technique::Forward | Technique::Prepass => {
+            let prepass_wanted = match (technique, profile.passes.depth_prepass) {
+                (Technique::Prepass, _) => Some("forced by --technique prepass".to_string()),
+                (_, DepthPrepass::Recommended) => Some(format!(
+                    "profile {} recommends a depth pre-pass",
+                    profile.name
+                )),
+                (_, DepthPrepass::NotNeeded) => None,
+            };
+            match (&prepass_wanted, content.opaque) {
+                (Some(why), n) if n > 0 => say(PassKind::DepthPrepassOpaque, true, format!("{why}; {n} opaque instances")),
+                (Some(_), _) => say(PassKind::DepthPrepassOpaque, false, "no opaque instances".into()),
+                (None, _) => say(
+                    PassKind::DepthPrepassOpaque,
+                    false,
+                    format!("profile {} removes hidden surfaces in hardware ({:?}): a pre-pass only adds vertex work", profile.name, profile.gpu.hidden_surface_removal),
+                ),
+            }
+            let alpha_prepass = prepass_wanted.is_some()
+                && (profile.passes.alpha_tested_prepass || technique == Technique::Prepass);
+            match (alpha_prepass, content.alpha_tested) {
+                (true, n) if n > 0 => say(
+                    PassKind::DepthPrepassAlpha,
+                    true,
+                    format!("{n} alpha-tested instances: discard once, in depth only (seed 001)"),
+                ),
+                (true, _) => say(
+                    PassKind::DepthPrepassAlpha,
+                    false,
+                    "the scene has no alpha-tested instances".into(),
+                ),
+                (false, 0) => say(
+                    PassKind::DepthPrepassAlpha,
+                    false,
+                    "the scene has no alpha-tested instances".into(),
+                ),
+                (false, _) => say(
+                    PassKind::DepthPrepassAlpha,
+                    false,
+                    "no depth pre-pass on this profile".into(),
+                ),
+            }
+            if content.opaque > 0 {
+                say(
+                    PassKind::Opaque,
+                    true,
+                    format!("{} opaque instances", content.opaque),
+                );
+            } else {
+                say(PassKind::Opaque, false, "no opaque instances".into());
+            }
+            if content.alpha_tested > 0 {
+                say(
+                    PassKind::AlphaTested,
+                    true,
+                    format!("{} alpha-tested instances", content.alpha_tested),
+                );
+            } else {
+                say(
+                    PassKind::AlphaTested,
+                    false,
+                    "the scene has no alpha-tested instances".into(),
+                );
+            }
+            say(
+                PassKind::VisbufWrite,
+                false,
+                format!(
+                    "technique {} does not use a visibility buffer",
+                    technique.name()
+                ),
+            );
+            say(
+                PassKind::VisbufResolve,
+                false,
+                format!(
+                    "technique {} does not use a visibility buffer",
+                    technique.name()
+                ),
+            );
+        }
+        Technique::Visbuf => {
+            for p in [PassKind::DepthPrepassOpaque, PassKind::DepthPrepassAlpha] {
+                say(
+                    p,
+                    false,
+                    "the visibility buffer shades each pixel once already".into(),
+                );
+            }
+            for p in [PassKind::Opaque, PassKind::AlphaTested] {
+                say(
+                    p,
+                    false,
+                    "opaque and alpha-tested geometry is shaded by the visibility-buffer resolve"
+                        .into(),
+                );
+            }
+            if any_depth_geometry {
+                say(
+                    PassKind::VisbufWrite,
+                    true,
+                    format!(
+                        "{} instances write ids",
+                        content.opaque + content.alpha_tested
+                    ),
+                );
+                say(
+                    PassKind::VisbufResolve,
+                    true,
+                    if profile.is_tiler() {
+                        format!(
+                            "subpass reading the id as an input attachment: ids stay on chip on {}",
+                            profile.name
+                        )
+                    } else {
+                        format!(
+                            "full-screen pass sampling the id ({} is immediate-mode)",
+                            profile.name
+                        )
+                    },
+                );
+            } else {
+                say(
+                    PassKind::VisbufWrite,
+                    false,
+                    "no opaque or alpha-tested instances".into(),
+                );
+                say(
+                    PassKind::VisbufResolve,
+                    false,
+                    "no opaque or alpha-tested instances".into(),
+                );
+            }
+        }
+    }
+    if content.blended > 0 {
+        say(
+            PassKind::Transparent,
+            true,
+            format!("{} blended instances, back to front", content.blended),
+        );
+    } else {
+        say(PassKind::Transparent, false, "nothing is blended".into());
+    }
+    FrameSetup {
+        technique,
+        decisions: d,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tilegraph_profile::ProfileSet;
+
+    fn profile(name: &str) -> Profile {
+        ProfileSet::embedded().unwrap().get(name).unwrap().clone()
+    }
+
+    const MIXED: SceneContent = SceneContent {
+        opaque: 10,
+        alpha_tested: 5,
+        blended: 2,
+    };
+    const OPAQUE_ONLY: SceneContent = SceneContent {
+        opaque: 10,
+        alpha_tested: 0,
+        blended: 0,
+    };
+
+    #[test]
+    fn powervr_skips_the_prepass_unless_forced() {
+        let s = decide(MIXED, &profile("powervr-b"), Technique::Forward);
+        assert!(!s.includes(PassKind::DepthPrepassOpaque));
+        assert!(!s.includes(PassKind::DepthPrepassAlpha));
+        let why = &s
+            .decisions
+            .iter()
+            .find(|d| d.pass == PassKind::DepthPrepassOpaque)
+            .unwrap()
+            .reason;
+        assert!(why.contains("removes hidden surfaces"), "{why}");
+        let forced = decide(MIXED, &profile("powervr-b"), Technique::Prepass);
+        assert!(
+            forced.includes(PassKind::DepthPrepassOpaque)
+                && forced.includes(PassKind::DepthPrepassAlpha)
+        );
+    }
+
+    #[test]
+    fn adreno_and_lavapipe_prepass_when_recommended() {
+        for p in ["adreno-7xx", "lavapipe"] {
+            let s = decide(MIXED, &profile(p), Technique::Forward);
+            assert!(s.includes(PassKind::DepthPrepassOpaque), "{p}");
+            assert!(s.includes(PassKind::DepthPrepassAlpha), "{p}");
+            assert!(s.includes(PassKind::Transparent));
+        }
+    }
+
+    #[test]
+    fn passes_for_absent_content_are_left_out_with_a_reason() {
+        let s = decide(OPAQUE_ONLY, &profile("adreno-7xx"), Technique::Forward);
+        for p in [
+            PassKind::DepthPrepassAlpha,
+            PassKind::AlphaTested,
+            PassKind::Transparent,
+        ] {
+            let d = s.decisions.iter().find(|d| d.pass == p).unwrap();
+            assert!(!d.included, "{p:?}");
+            assert!(!d.reason.is_empty());
+        }
+    }
+
+    #[test]
+    fn visbuf_replaces_the_colour_passes() {
+        let s = decide(MIXED, &profile("mali-valhall"), Technique::Visbuf);
+        assert!(s.includes(PassKind::VisbufWrite) && s.includes(PassKind::VisbufResolve));
+        assert!(!s.includes(PassKind::Opaque) && !s.includes(PassKind::DepthPrepassOpaque));
+        assert!(s.includes(PassKind::Transparent));
+    }
+}

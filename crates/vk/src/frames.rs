@@ -1,0 +1,235 @@
+//! Frames in flight: each slot has its own command pool, command buffer and fence, so the CPU
+//! records frame N+1 while the GPU runs frame N, and nothing a slot used is touched again before
+//! its fence says the GPU is done with it.
+
+use ash::vk;
+
+use crate::error::{VkError, VkResultExt};
+use crate::Context;
+
+/// Default number of frames in flight.
+pub const DEFAULT_FRAMES_IN_FLIGHT: usize = 2;
+
+struct FrameSlot {
+    pool: vk::CommandPool,
+    cb: vk::CommandBuffer,
+    fence: vk::Fence,
+    /// Whether work was submitted with this fence since it was last waited for.
+    in_flight: bool,
+    /// Frame number last recorded into the slot.
+    frame: u64,
+}
+
+/// The ring of frame slots.
+pub struct FrameRing {
+    slots: Vec<FrameSlot>,
+    next_frame: u64,
+}
+
+/// The slot being recorded: its command buffer is in the recording state.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameToken {
+    pub slot: usize,
+    pub frame: u64,
+    pub cb: vk::CommandBuffer,
+    /// The frame previously recorded into this slot, now known complete, if any (its query
+    /// results can be read without waiting).
+    pub completed_frame: Option<u64>,
+}
+
+impl FrameRing {
+    pub fn new(ctx: &Context, frames_in_flight: usize) -> Result<Self, VkError> {
+        let mut ring = FrameRing {
+            slots: Vec::new(),
+            next_frame: 0,
+        };
+        for i in 0..frames_in_flight.max(1) {
+            match Self::slot(ctx, i) {
+                Ok(s) => ring.slots.push(s),
+                Err(e) => {
+                    ring.destroy(ctx);
+                    return Err(e);
+                }
+            }
+        }
+        Ok(ring)
+    }
+
+    fn slot(ctx: &Context, i: usize) -> Result<FrameSlot, VkError> {
+        let d = &ctx.device;
+        let info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(ctx.queue_family)
+            .flags(vk::CommandPoolCreateFlags::TRANSIENT);
+        // SAFETY: valid device and queue family.
+        let pool = unsafe { d.create_command_pool(&info, None) }.vk("vkCreateCommandPool")?;
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        // SAFETY: pool is live.
+        let cb = match unsafe { d.allocate_command_buffers(&alloc) } {
+            Ok(v) if !v.is_empty() => v[0],
+            Ok(_) => vk::CommandBuffer::null(),
+            Err(r) => {
+                // SAFETY: unused pool.
+                unsafe { d.destroy_command_pool(pool, None) };
+                return Err(VkError::call("vkAllocateCommandBuffers", r));
+            }
+        };
+        // SAFETY: valid device; created signalled-free, first wait is skipped by `in_flight`.
+        let fence = match unsafe { d.create_fence(&vk::FenceCreateInfo::default(), None) } {
+            Ok(f) => f,
+            Err(r) => {
+                // SAFETY: unused pool.
+                unsafe { d.destroy_command_pool(pool, None) };
+                return Err(VkError::call("vkCreateFence", r));
+            }
+        };
+        ctx.set_name(cb, &format!("frame slot {i}"));
+        Ok(FrameSlot {
+            pool,
+            cb,
+            fence,
+            in_flight: false,
+            frame: 0,
+        })
+    }
+
+    pub fn frames_in_flight(&self) -> usize {
+        self.slots.len()
+    }
+
+    /// The slot the next frame will use.
+    pub fn next_slot(&self) -> usize {
+        (self.next_frame % self.slots.len() as u64) as usize
+    }
+
+    /// Waits for the next slot's previous frame (normally long finished), resets its command pool
+    /// and begins recording.
+    pub fn begin(&mut self, ctx: &Context) -> Result<FrameToken, VkError> {
+        let slot = self.next_slot();
+        let frame = self.next_frame;
+        let s = &mut self.slots[slot];
+        let mut completed_frame = None;
+        if s.in_flight {
+            // SAFETY: the fence was submitted with this slot's last frame.
+            unsafe { ctx.device.wait_for_fences(&[s.fence], true, u64::MAX) }
+                .vk("vkWaitForFences")?;
+            // SAFETY: signalled fence, no pending submission uses it.
+            unsafe { ctx.device.reset_fences(&[s.fence]) }.vk("vkResetFences")?;
+            s.in_flight = false;
+            completed_frame = Some(s.frame);
+        }
+        // SAFETY: the GPU finished every command buffer of this pool (fence above).
+        unsafe {
+            ctx.device
+                .reset_command_pool(s.pool, vk::CommandPoolResetFlags::empty())
+        }
+        .vk("vkResetCommandPool")?;
+        let begin = vk::CommandBufferBeginInfo::default()
+            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+        // SAFETY: reset command buffer.
+        unsafe { ctx.device.begin_command_buffer(s.cb, &begin) }.vk("vkBeginCommandBuffer")?;
+        s.frame = frame;
+        self.next_frame += 1;
+        Ok(FrameToken {
+            slot,
+            frame,
+            cb: s.cb,
+            completed_frame,
+        })
+    }
+
+    /// Ends recording and submits; the slot's fence signals when the GPU is done.
+    pub fn submit(&mut self, ctx: &Context, token: FrameToken) -> Result<(), VkError> {
+        let s = self
+            .slots
+            .get_mut(token.slot)
+            .ok_or_else(|| VkError::Invalid {
+                what: "frame ring".into(),
+                reason: format!("slot {} does not exist", token.slot),
+            })?;
+        // SAFETY: the command buffer is recording (begin was called for this token).
+        unsafe { ctx.device.end_command_buffer(s.cb) }.vk("vkEndCommandBuffer")?;
+        let cbs = [s.cb];
+        let submit = vk::SubmitInfo::default().command_buffers(&cbs);
+        // SAFETY: executable command buffer, unsignalled fence.
+        unsafe { ctx.device.queue_submit(ctx.queue, &[submit], s.fence) }.vk("vkQueueSubmit")?;
+        s.in_flight = true;
+        Ok(())
+    }
+
+    /// Submits the commands recorded so far and continues recording in a fresh command buffer of
+    /// the same slot (seed 001: a flush before the occlusion-query render pass on Adreno).
+    pub fn flush(&mut self, ctx: &Context, token: &mut FrameToken) -> Result<(), VkError> {
+        let s = self
+            .slots
+            .get_mut(token.slot)
+            .ok_or_else(|| VkError::Invalid {
+                what: "frame ring".into(),
+                reason: format!("slot {} does not exist", token.slot),
+            })?;
+        // SAFETY: recording command buffer of this slot.
+        unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
+        let cbs = [token.cb];
+        let submit = vk::SubmitInfo::default().command_buffers(&cbs);
+        // SAFETY: executable command buffer; no fence: the slot's fence covers the final submit,
+        // and queue order makes it cover this one too.
+        unsafe {
+            ctx.device
+                .queue_submit(ctx.queue, &[submit], vk::Fence::null())
+        }
+        .vk("vkQueueSubmit")?;
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(s.pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        // SAFETY: live pool; buffers are freed with the pool reset at the slot's next use.
+        let cb = unsafe { ctx.device.allocate_command_buffers(&alloc) }
+            .vk("vkAllocateCommandBuffers")?;
+        let cb = cb.first().copied().ok_or_else(|| VkError::Invalid {
+            what: "frame ring".into(),
+            reason: "no command buffer allocated".into(),
+        })?;
+        let begin = vk::CommandBufferBeginInfo::default()
+            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+        // SAFETY: fresh command buffer.
+        unsafe { ctx.device.begin_command_buffer(cb, &begin) }.vk("vkBeginCommandBuffer")?;
+        // The slot's final submit must use the new buffer.
+        s.cb = cb;
+        token.cb = cb;
+        Ok(())
+    }
+
+    /// Waits for every slot (before reading results or tearing down).
+    pub fn wait_all(&mut self, ctx: &Context) -> Result<Vec<u64>, VkError> {
+        let mut done = Vec::new();
+        for s in &mut self.slots {
+            if s.in_flight {
+                // SAFETY: fence submitted with this slot's last frame.
+                unsafe { ctx.device.wait_for_fences(&[s.fence], true, u64::MAX) }
+                    .vk("vkWaitForFences")?;
+                // SAFETY: signalled, unused.
+                unsafe { ctx.device.reset_fences(&[s.fence]) }.vk("vkResetFences")?;
+                s.in_flight = false;
+                done.push(s.frame);
+            }
+        }
+        Ok(done)
+    }
+
+    /// Slot that recorded `frame`, if it is still the last frame of that slot.
+    pub fn slot_of(&self, frame: u64) -> Option<usize> {
+        self.slots.iter().position(|s| s.frame == frame)
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        for s in self.slots.drain(..) {
+            // SAFETY: caller waited for the GPU (wait_all or device idle).
+            unsafe {
+                ctx.device.destroy_fence(s.fence, None);
+                ctx.device.destroy_command_pool(s.pool, None);
+            }
+        }
+    }
+}

@@ -1,0 +1,321 @@
+//! Graphics and compute pipeline creation from a small description, so passes state what they
+//! want (depth test, blend, cull, target) instead of filling Vulkan structs by hand.
+
+use ash::vk;
+
+use crate::error::{VkError, VkResultExt};
+use crate::shader::create_shader_module;
+use crate::Context;
+
+/// Where a graphics pipeline renders.
+#[derive(Debug, Clone, Copy)]
+pub enum RenderTarget<'a> {
+    /// Dynamic rendering with these formats.
+    Dynamic {
+        color: &'a [vk::Format],
+        depth: vk::Format,
+    },
+    /// A subpass of a render pass (the tiler path).
+    Subpass {
+        render_pass: vk::RenderPass,
+        subpass: u32,
+        color_count: u32,
+    },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Blend {
+    /// Colour written as is.
+    Opaque,
+    /// Straight alpha blending (src alpha, 1 - src alpha).
+    Alpha,
+    /// No colour written at all (depth-only or side-effect-only pipelines).
+    NoColorWrites,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DepthState {
+    pub test: bool,
+    pub write: bool,
+    pub compare: vk::CompareOp,
+}
+
+impl DepthState {
+    pub const OFF: DepthState = DepthState {
+        test: false,
+        write: false,
+        compare: vk::CompareOp::ALWAYS,
+    };
+}
+
+/// The vertex layout of the scene's shared vertex buffer (`tilegraph_scene::Vertex`, 32 bytes):
+/// location 0 position, 1 normal, 2 uv; `attributes` picks which locations the shader reads.
+#[derive(Debug, Clone, Copy)]
+pub struct VertexLayout<'a> {
+    pub stride: u32,
+    /// (location, format, offset)
+    pub attributes: &'a [(u32, vk::Format, u32)],
+}
+
+/// One shader stage: SPIR-V bytes and optional u32 specialization constants (id, value).
+#[derive(Debug, Clone, Copy)]
+pub struct Stage<'a> {
+    pub name: &'a str,
+    pub spirv: &'a [u8],
+    pub specialization: &'a [(u32, u32)],
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct GraphicsDesc<'a> {
+    pub name: &'a str,
+    pub vertex: Stage<'a>,
+    pub fragment: Option<Stage<'a>>,
+    pub vertex_layout: Option<VertexLayout<'a>>,
+    pub layout: vk::PipelineLayout,
+    pub target: RenderTarget<'a>,
+    pub depth: DepthState,
+    pub blend: Blend,
+    pub cull: vk::CullModeFlags,
+    pub samples: vk::SampleCountFlags,
+}
+
+struct SpecData {
+    entries: Vec<vk::SpecializationMapEntry>,
+    data: Vec<u8>,
+}
+
+fn spec(consts: &[(u32, u32)]) -> SpecData {
+    let entries = consts
+        .iter()
+        .enumerate()
+        .map(|(i, (id, _))| vk::SpecializationMapEntry {
+            constant_id: *id,
+            offset: (i * 4) as u32,
+            size: 4,
+        })
+        .collect();
+    let data = consts.iter().flat_map(|(_, v)| v.to_le_bytes()).collect();
+    SpecData { entries, data }
+}
+
+/// Creates a graphics pipeline (dynamic viewport and scissor, triangle lists, CCW front faces:
+/// the projection's y flip keeps glTF's counter-clockwise fronts counter-clockwise on screen).
+pub fn create_graphics_pipeline(
+    ctx: &Context,
+    desc: &GraphicsDesc<'_>,
+) -> Result<vk::Pipeline, VkError> {
+    let mut modules = Vec::new();
+    let result = (|| {
+        let vs = create_shader_module(ctx, desc.vertex.name, desc.vertex.spirv)?;
+        modules.push(vs);
+        let vs_spec = spec(desc.vertex.specialization);
+        let vs_info = vk::SpecializationInfo::default()
+            .map_entries(&vs_spec.entries)
+            .data(&vs_spec.data);
+        let mut stages = vec![vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::VERTEX)
+            .module(vs)
+            .name(c"main")
+            .specialization_info(&vs_info)];
+        let fs_spec = desc.fragment.map(|f| spec(f.specialization));
+        let fs_info = fs_spec.as_ref().map(|s| {
+            vk::SpecializationInfo::default()
+                .map_entries(&s.entries)
+                .data(&s.data)
+        });
+        if let (Some(f), Some(info)) = (desc.fragment, fs_info.as_ref()) {
+            let fs = create_shader_module(ctx, f.name, f.spirv)?;
+            modules.push(fs);
+            stages.push(
+                vk::PipelineShaderStageCreateInfo::default()
+                    .stage(vk::ShaderStageFlags::FRAGMENT)
+                    .module(fs)
+                    .name(c"main")
+                    .specialization_info(info),
+            );
+        }
+        let bindings: Vec<vk::VertexInputBindingDescription> = desc
+            .vertex_layout
+            .iter()
+            .map(|l| vk::VertexInputBindingDescription {
+                binding: 0,
+                stride: l.stride,
+                input_rate: vk::VertexInputRate::VERTEX,
+            })
+            .collect();
+        let attributes: Vec<vk::VertexInputAttributeDescription> = desc
+            .vertex_layout
+            .iter()
+            .flat_map(|l| l.attributes.iter())
+            .map(
+                |&(location, format, offset)| vk::VertexInputAttributeDescription {
+                    location,
+                    binding: 0,
+                    format,
+                    offset,
+                },
+            )
+            .collect();
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
+            .vertex_binding_descriptions(&bindings)
+            .vertex_attribute_descriptions(&attributes);
+        let assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport_state = vk::PipelineViewportStateCreateInfo::default()
+            .viewport_count(1)
+            .scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(desc.cull)
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let multisample =
+            vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(desc.samples);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(desc.depth.test)
+            .depth_write_enable(desc.depth.write)
+            .depth_compare_op(desc.depth.compare);
+        let color_count = match desc.target {
+            RenderTarget::Dynamic { color, .. } => color.len() as u32,
+            RenderTarget::Subpass { color_count, .. } => color_count,
+        };
+        let attachment = match desc.blend {
+            Blend::Opaque => vk::PipelineColorBlendAttachmentState::default()
+                .color_write_mask(vk::ColorComponentFlags::RGBA),
+            Blend::NoColorWrites => vk::PipelineColorBlendAttachmentState::default(),
+            Blend::Alpha => vk::PipelineColorBlendAttachmentState::default()
+                .blend_enable(true)
+                .src_color_blend_factor(vk::BlendFactor::SRC_ALPHA)
+                .dst_color_blend_factor(vk::BlendFactor::ONE_MINUS_SRC_ALPHA)
+                .color_blend_op(vk::BlendOp::ADD)
+                .src_alpha_blend_factor(vk::BlendFactor::ONE)
+                .dst_alpha_blend_factor(vk::BlendFactor::ONE_MINUS_SRC_ALPHA)
+                .alpha_blend_op(vk::BlendOp::ADD)
+                .color_write_mask(vk::ColorComponentFlags::RGBA),
+        };
+        let attachments = vec![attachment; color_count as usize];
+        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&attachments);
+        let dynamic = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic_state = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic);
+        let mut info = vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&assembly)
+            .viewport_state(&viewport_state)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic_state)
+            .layout(desc.layout);
+        let color_formats: Vec<vk::Format>;
+        let mut rendering;
+        match desc.target {
+            RenderTarget::Dynamic { color, depth } => {
+                color_formats = color.to_vec();
+                rendering = vk::PipelineRenderingCreateInfo::default()
+                    .color_attachment_formats(&color_formats)
+                    .depth_attachment_format(depth);
+                info = info.push_next(&mut rendering);
+            }
+            RenderTarget::Subpass {
+                render_pass,
+                subpass,
+                ..
+            } => {
+                info = info.render_pass(render_pass).subpass(subpass);
+            }
+        }
+        // SAFETY: every referenced state struct outlives the call.
+        let pipelines = unsafe {
+            ctx.device
+                .create_graphics_pipelines(vk::PipelineCache::null(), &[info], None)
+        }
+        .map_err(|(_, r)| VkError::call("vkCreateGraphicsPipelines", r))?;
+        let p = pipelines.first().copied().ok_or_else(|| VkError::Invalid {
+            what: desc.name.to_string(),
+            reason: "no pipeline returned".into(),
+        })?;
+        ctx.set_name(p, desc.name);
+        Ok(p)
+    })();
+    for m in modules {
+        // SAFETY: modules are only needed during pipeline creation.
+        unsafe { ctx.device.destroy_shader_module(m, None) };
+    }
+    result
+}
+
+/// Creates a compute pipeline.
+pub fn create_compute_pipeline(
+    ctx: &Context,
+    stage: &Stage<'_>,
+    layout: vk::PipelineLayout,
+) -> Result<vk::Pipeline, VkError> {
+    let module = create_shader_module(ctx, stage.name, stage.spirv)?;
+    let s = spec(stage.specialization);
+    let spec_info = vk::SpecializationInfo::default()
+        .map_entries(&s.entries)
+        .data(&s.data);
+    let info = vk::ComputePipelineCreateInfo::default()
+        .stage(
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::COMPUTE)
+                .module(module)
+                .name(c"main")
+                .specialization_info(&spec_info),
+        )
+        .layout(layout);
+    // SAFETY: module and layout are live.
+    let r = unsafe {
+        ctx.device
+            .create_compute_pipelines(vk::PipelineCache::null(), &[info], None)
+    };
+    // SAFETY: only needed during creation.
+    unsafe { ctx.device.destroy_shader_module(module, None) };
+    let p = r
+        .map_err(|(_, r)| VkError::call("vkCreateComputePipelines", r))?
+        .first()
+        .copied()
+        .ok_or_else(|| VkError::Invalid {
+            what: stage.name.to_string(),
+            reason: "no pipeline returned".into(),
+        })?;
+    ctx.set_name(p, stage.name);
+    Ok(p)
+}
+
+/// A descriptor-set layout from (binding, type, stages) triples.
+pub fn create_set_layout(
+    ctx: &Context,
+    bindings: &[(u32, vk::DescriptorType, vk::ShaderStageFlags)],
+) -> Result<vk::DescriptorSetLayout, VkError> {
+    let b: Vec<vk::DescriptorSetLayoutBinding> = bindings
+        .iter()
+        .map(|&(binding, ty, stages)| {
+            vk::DescriptorSetLayoutBinding::default()
+                .binding(binding)
+                .descriptor_type(ty)
+                .descriptor_count(1)
+                .stage_flags(stages)
+        })
+        .collect();
+    let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&b);
+    // SAFETY: valid create info.
+    unsafe { ctx.device.create_descriptor_set_layout(&info, None) }
+        .vk("vkCreateDescriptorSetLayout")
+}
+
+/// A pipeline layout from set layouts and an optional push-constant range.
+pub fn create_pipeline_layout(
+    ctx: &Context,
+    sets: &[vk::DescriptorSetLayout],
+    push: Option<vk::PushConstantRange>,
+) -> Result<vk::PipelineLayout, VkError> {
+    let ranges: Vec<vk::PushConstantRange> = push.into_iter().collect();
+    let info = vk::PipelineLayoutCreateInfo::default()
+        .set_layouts(sets)
+        .push_constant_ranges(&ranges);
+    // SAFETY: valid create info.
+    unsafe { ctx.device.create_pipeline_layout(&info, None) }.vk("vkCreatePipelineLayout")
+}
