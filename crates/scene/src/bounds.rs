@@ -1,0 +1,184 @@
+//! Axis-aligned boxes and spheres, in f32 (mesh-local) and f64 (world).
+
+use glam::{DVec3, Mat3, Vec3};
+use serde::Serialize;
+
+/// An axis-aligned box in f32, used for mesh-local bounds (small coordinates).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Aabb {
+    /// The empty box: min = +inf, max = -inf, so that any point extends it.
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn new(min: Vec3, max: Vec3) -> Self {
+        Aabb { min, max }
+    }
+
+    pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Self {
+        points.into_iter().fold(Aabb::EMPTY, |b, p| b.including(p))
+    }
+
+    #[must_use]
+    pub fn including(self, p: Vec3) -> Self {
+        Aabb {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    pub fn half_extents(&self) -> Vec3 {
+        (self.max - self.min) * 0.5
+    }
+}
+
+/// An axis-aligned box in f64, used for world bounds (coordinates may be large).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct DAabb {
+    pub min: DVec3,
+    pub max: DVec3,
+}
+
+impl DAabb {
+    pub const EMPTY: DAabb = DAabb {
+        min: DVec3::splat(f64::INFINITY),
+        max: DVec3::splat(f64::NEG_INFINITY),
+    };
+
+    pub fn new(min: DVec3, max: DVec3) -> Self {
+        DAabb { min, max }
+    }
+
+    #[must_use]
+    pub fn union(self, other: DAabb) -> Self {
+        DAabb {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
+    }
+
+    #[must_use]
+    pub fn including(self, p: DVec3) -> Self {
+        DAabb {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+
+    pub fn center(&self) -> DVec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    pub fn half_extents(&self) -> DVec3 {
+        (self.max - self.min) * 0.5
+    }
+
+    pub fn contains(&self, p: DVec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+
+    /// Whether `other` lies inside this box, with `slack` of tolerance on every side.
+    pub fn contains_box(&self, other: &DAabb, slack: f64) -> bool {
+        other.min.cmpge(self.min - slack).all() && other.max.cmple(self.max + slack).all()
+    }
+}
+
+/// A sphere in world space (f64 centre so it survives large coordinates).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct DSphere {
+    pub center: DVec3,
+    pub radius: f64,
+}
+
+/// World bounds of one transformed local box, sharing one centre between the AABB and the sphere.
+///
+/// The centre is the transformed centre of the local box, kept in f64. The AABB half extents are
+/// `|M| * e` (Arvo's method: exact for the transformed box). The sphere radius is the distance from
+/// that centre to the farthest transformed corner, which is exact for the box (a parallelepiped's
+/// farthest point from its centre is a corner) and never larger than the AABB's half diagonal.
+pub(crate) fn transformed_bounds(
+    linear: Mat3,
+    translation: DVec3,
+    local: &Aabb,
+) -> (DVec3, Vec3, f32) {
+    let c = local.center();
+    let e = local.half_extents();
+    let center = translation + (linear * c).as_dvec3();
+    let abs = Mat3::from_cols(
+        linear.x_axis.abs(),
+        linear.y_axis.abs(),
+        linear.z_axis.abs(),
+    );
+    let half = abs * e;
+    let corners = [
+        Vec3::new(e.x, e.y, e.z),
+        Vec3::new(-e.x, e.y, e.z),
+        Vec3::new(e.x, -e.y, e.z),
+        Vec3::new(e.x, e.y, -e.z),
+    ];
+    let radius = corners
+        .iter()
+        .map(|&k| (linear * k).length_squared())
+        .fold(0.0f32, f32::max)
+        .sqrt();
+    (center, half, radius)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Quat;
+
+    #[test]
+    fn transformed_bounds_contain_every_transformed_corner() {
+        let local = Aabb::new(Vec3::new(-1.0, 0.0, -2.0), Vec3::new(3.0, 5.0, 1.0));
+        let linear = Mat3::from_quat(Quat::from_euler(glam::EulerRot::YXZ, 0.7, 0.3, -1.1))
+            * Mat3::from_diagonal(Vec3::new(2.0, 0.5, 3.0));
+        let t = DVec3::new(1e6, -3.0, 7.0);
+        let (c, half, r) = transformed_bounds(linear, t, &local);
+        for i in 0..8 {
+            let p = Vec3::new(
+                if i & 1 == 0 { local.min.x } else { local.max.x },
+                if i & 2 == 0 { local.min.y } else { local.max.y },
+                if i & 4 == 0 { local.min.z } else { local.max.z },
+            );
+            let w = t + (linear * p).as_dvec3();
+            let d = w - c;
+            assert!(
+                d.abs().cmple(half.as_dvec3() + 1e-4).all(),
+                "corner {i} outside AABB"
+            );
+            assert!(
+                d.length() <= f64::from(r) + 1e-4,
+                "corner {i} outside sphere"
+            );
+        }
+        assert!(f64::from(r) <= half.as_dvec3().length() + 1e-4);
+    }
+
+    #[test]
+    fn empty_box_grows_to_points() {
+        let b = Aabb::from_points([Vec3::ONE, -Vec3::ONE]);
+        assert!(!b.is_empty());
+        assert!(Aabb::EMPTY.is_empty());
+        assert_eq!(b.center(), Vec3::ZERO);
+    }
+}

@@ -1,0 +1,1008 @@
+//! Cameras and camera paths, in tilegraph's conventions:
+//!
+//! - world space is glTF's: right-handed, y up, metres;
+//! - the view matrix is `look_at_rh`, built with the eye at the origin (camera-relative
+//!   rendering: instance translations have the eye subtracted in f64, see [`crate::Transform`]);
+//! - projections map to Vulkan clip space, depth in [0, 1], and include the y flip, so NDC
+//!   y = -1 is the top row of the image;
+//! - the default projection is reverse-Z with an infinite far plane (near -> depth 1,
+//!   infinity -> depth 0). [`DepthConvention`] tells culling code which compare to use.
+
+use std::path::Path;
+
+use glam::{DMat4, DVec3, Mat4, Vec3, Vec4};
+use serde::{Deserialize, Serialize};
+
+use crate::bounds::DAabb;
+use crate::error::SceneError;
+
+/// Which way depth grows, so that culling and depth tests pick the right compare.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DepthConvention {
+    /// near -> 0, far -> 1; depth test LESS, clear to 1, HiZ keeps the max.
+    Standard,
+    /// near -> 1, far (or infinity) -> 0; depth test GREATER, clear to 0, HiZ keeps the min.
+    #[default]
+    Reverse,
+}
+
+impl DepthConvention {
+    /// The depth-buffer clear value (the farthest depth).
+    pub fn far_depth(self) -> f32 {
+        match self {
+            DepthConvention::Standard => 1.0,
+            DepthConvention::Reverse => 0.0,
+        }
+    }
+
+    /// The depth of the near plane.
+    pub fn near_depth(self) -> f32 {
+        match self {
+            DepthConvention::Standard => 0.0,
+            DepthConvention::Reverse => 1.0,
+        }
+    }
+
+    /// Whether depth `a` is strictly closer to the camera than depth `b`.
+    pub fn is_closer(self, a: f32, b: f32) -> bool {
+        match self {
+            DepthConvention::Standard => a < b,
+            DepthConvention::Reverse => a > b,
+        }
+    }
+
+    /// The closer of two depths (what a HiZ pyramid must *not* keep: it keeps the farther).
+    pub fn closer(self, a: f32, b: f32) -> f32 {
+        if self.is_closer(a, b) {
+            a
+        } else {
+            b
+        }
+    }
+
+    /// The farther of two depths (what a conservative HiZ pyramid keeps per texel).
+    pub fn farther(self, a: f32, b: f32) -> f32 {
+        if self.is_closer(a, b) {
+            b
+        } else {
+            a
+        }
+    }
+}
+
+/// A projection into Vulkan clip space (y flipped, depth in [0, 1]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Projection {
+    Perspective {
+        fov_y_rad: f32,
+        near: f32,
+        /// `None`: infinite far plane.
+        far: Option<f32>,
+        depth: DepthConvention,
+    },
+    Orthographic {
+        /// Half the visible height in metres (glTF's `ymag`); the width follows the aspect.
+        half_height: f32,
+        near: f32,
+        far: f32,
+        depth: DepthConvention,
+    },
+}
+
+impl Default for Projection {
+    /// 60 degrees vertical, near 0.1 m, reverse-Z, infinite far plane.
+    fn default() -> Self {
+        Projection::Perspective {
+            fov_y_rad: 60f32.to_radians(),
+            near: 0.1,
+            far: None,
+            depth: DepthConvention::Reverse,
+        }
+    }
+}
+
+/// Multiplies the y row by -1: Vulkan's framebuffer y points down, glTF's world y points up.
+const FLIP_Y: Mat4 = Mat4::from_cols(Vec4::X, Vec4::new(0.0, -1.0, 0.0, 0.0), Vec4::Z, Vec4::W);
+
+impl Projection {
+    pub fn depth_convention(&self) -> DepthConvention {
+        match *self {
+            Projection::Perspective { depth, .. } | Projection::Orthographic { depth, .. } => depth,
+        }
+    }
+
+    pub fn near(&self) -> f32 {
+        match *self {
+            Projection::Perspective { near, .. } | Projection::Orthographic { near, .. } => near,
+        }
+    }
+
+    /// The far plane; `None` when it is at infinity.
+    pub fn far(&self) -> Option<f32> {
+        match *self {
+            Projection::Perspective { far, .. } => far,
+            Projection::Orthographic { far, .. } => Some(far),
+        }
+    }
+
+    /// The projection matrix for a viewport of `aspect` = width / height.
+    ///
+    /// Reverse-Z with a finite far plane is the standard matrix with near and far swapped, which
+    /// maps near -> 1 and far -> 0 (the same trick for orthographic).
+    pub fn matrix(&self, aspect: f32) -> Mat4 {
+        let m = match *self {
+            Projection::Perspective {
+                fov_y_rad,
+                near,
+                far,
+                depth,
+            } => match (far, depth) {
+                (None, DepthConvention::Reverse) => {
+                    Mat4::perspective_infinite_reverse_rh(fov_y_rad, aspect, near)
+                }
+                (None, DepthConvention::Standard) => {
+                    Mat4::perspective_infinite_rh(fov_y_rad, aspect, near)
+                }
+                (Some(far), DepthConvention::Standard) => {
+                    Mat4::perspective_rh(fov_y_rad, aspect, near, far)
+                }
+                (Some(far), DepthConvention::Reverse) => {
+                    Mat4::perspective_rh(fov_y_rad, aspect, far, near)
+                }
+            },
+            Projection::Orthographic {
+                half_height,
+                near,
+                far,
+                depth,
+            } => {
+                let hw = half_height * aspect;
+                match depth {
+                    DepthConvention::Standard => {
+                        Mat4::orthographic_rh(-hw, hw, -half_height, half_height, near, far)
+                    }
+                    DepthConvention::Reverse => {
+                        Mat4::orthographic_rh(-hw, hw, -half_height, half_height, far, near)
+                    }
+                }
+            }
+        };
+        FLIP_Y * m
+    }
+
+    /// Checks the parameters; `Err((field, reason))`.
+    fn check(&self) -> Result<(), (&'static str, String)> {
+        let near = self.near();
+        if !near.is_finite() || near <= 0.0 {
+            return Err(("near", format!("must be finite and > 0, got {near}")));
+        }
+        if let Some(far) = self.far() {
+            if !far.is_finite() {
+                return Err(("far", format!("must be finite or null, got {far}")));
+            }
+            if far <= near {
+                return Err(("far", format!("{far} must be greater than near {near}")));
+            }
+        }
+        match *self {
+            Projection::Perspective { fov_y_rad, .. } => {
+                let deg = fov_y_rad.to_degrees();
+                if !(fov_y_rad.is_finite() && deg > 0.0 && deg < 180.0) {
+                    return Err(("fov_y_deg", format!("must be in (0, 180), got {deg}")));
+                }
+            }
+            Projection::Orthographic { half_height, .. } => {
+                if !(half_height.is_finite() && half_height > 0.0) {
+                    return Err(("half_height", format!("must be > 0, got {half_height}")));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A camera: where it is, what it looks at, and how it projects.
+///
+/// The eye and target are f64 so that a camera 10^6 m from the origin still resolves
+/// millimetres; only the direction (a unit vector) is rounded to f32.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub eye: DVec3,
+    pub target: DVec3,
+    pub up: Vec3,
+    pub projection: Projection,
+}
+
+impl Camera {
+    /// A camera with the default projection (reverse-Z, infinite far, 60 degrees, near 0.1 m).
+    pub fn looking_at(eye: DVec3, target: DVec3) -> Self {
+        Camera {
+            eye,
+            target,
+            up: Vec3::Y,
+            projection: Projection::default(),
+        }
+    }
+
+    /// Checks the camera: finite values, a view direction, an up not parallel to it, and a
+    /// valid projection. `Err((field, reason))`.
+    pub(crate) fn check(&self) -> Result<(), (&'static str, String)> {
+        if !self.eye.is_finite() {
+            return Err(("eye", format!("non-finite value {:?}", self.eye.to_array())));
+        }
+        if !self.target.is_finite() {
+            return Err((
+                "target",
+                format!("non-finite value {:?}", self.target.to_array()),
+            ));
+        }
+        if !self.up.is_finite() {
+            return Err(("up", format!("non-finite value {:?}", self.up.to_array())));
+        }
+        let dir = self.target - self.eye;
+        // f64 direction: eye and target may be 10^6 apart from the origin yet centimetres apart.
+        if dir.length() < 1e-9 {
+            return Err(("target", "equals eye: zero-length view direction".into()));
+        }
+        let up = self.up.as_dvec3();
+        if up.length() < 1e-9 {
+            return Err(("up", "zero-length up vector".into()));
+        }
+        // Below ~0.06 degrees the f32 cross product in look_at loses the right vector.
+        let sin = dir.normalize().cross(up.normalize()).length();
+        if sin < 1e-3 {
+            return Err(("up", "parallel to the view direction".into()));
+        }
+        self.projection.check()
+    }
+
+    /// The unit view direction, computed in f64 before rounding.
+    pub fn forward(&self) -> Vec3 {
+        (self.target - self.eye)
+            .normalize_or(DVec3::NEG_Z)
+            .as_vec3()
+    }
+
+    /// The view matrix with the eye at the origin: what camera-relative model matrices pair with.
+    pub fn view_relative(&self) -> Mat4 {
+        Mat4::look_to_rh(Vec3::ZERO, self.forward(), self.up)
+    }
+
+    /// The absolute view matrix in f64 (`look_at_rh`), for CPU references on small worlds.
+    pub fn view_world(&self) -> DMat4 {
+        DMat4::look_at_rh(self.eye, self.target, self.up.as_dvec3())
+    }
+
+    pub fn matrices(&self, aspect: f32) -> FrameMatrices {
+        let view = self.view_relative();
+        let projection = self.projection.matrix(aspect);
+        FrameMatrices {
+            eye: self.eye,
+            view,
+            projection,
+            view_projection: projection * view,
+            depth: self.projection.depth_convention(),
+        }
+    }
+
+    #[must_use]
+    pub fn translated(mut self, offset: DVec3) -> Self {
+        self.eye += offset;
+        self.target += offset;
+        self
+    }
+}
+
+/// The matrices of one frame, camera-relative: they apply to positions from which the eye has
+/// already been subtracted (in f64).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameMatrices {
+    pub eye: DVec3,
+    pub view: Mat4,
+    pub projection: Mat4,
+    pub view_projection: Mat4,
+    pub depth: DepthConvention,
+}
+
+/// One frame of a camera path, with the previous frame's matrices for reprojection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraFrame {
+    pub index: usize,
+    pub camera: Camera,
+    /// The camera jumps here: history (last frame's visibility, reprojection) does not apply.
+    pub cut: bool,
+    pub current: FrameMatrices,
+    /// Last frame's matrices; equal to `current` on the first frame and on a cut.
+    pub previous: FrameMatrices,
+    /// Maps a position relative to the *current* eye to the previous frame's clip space:
+    /// `previous.view_projection * translate(current.eye - previous.eye)` (difference in f64).
+    pub reproject: Mat4,
+}
+
+/// One key of a camera path: a camera, and whether the path cuts (jumps) to it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathKey {
+    pub camera: Camera,
+    pub cut: bool,
+}
+
+/// A sequence of cameras, one per frame, that a benchmark replays.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraPath {
+    name: String,
+    keys: Vec<PathKey>,
+}
+
+/// A point a fly-through passes: where the eye is and what it looks at.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Waypoint {
+    pub eye: DVec3,
+    pub target: DVec3,
+}
+
+impl Waypoint {
+    pub fn new(eye: DVec3, target: DVec3) -> Self {
+        Waypoint { eye, target }
+    }
+}
+
+fn path_error(file: &str, frame: Option<usize>, field: &str, reason: String) -> SceneError {
+    SceneError::CameraPath {
+        file: file.to_string(),
+        frame,
+        field: field.to_string(),
+        reason,
+    }
+}
+
+/// Uniform Catmull-Rom between `p1` and `p2` at `t` in [0, 1].
+fn catmull_rom(p0: DVec3, p1: DVec3, p2: DVec3, p3: DVec3, t: f64) -> DVec3 {
+    let t2 = t * t;
+    let t3 = t2 * t;
+    0.5 * ((2.0 * p1)
+        + (p2 - p0) * t
+        + (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3) * t2
+        + (3.0 * p1 - p0 - 3.0 * p2 + p3) * t3)
+}
+
+impl CameraPath {
+    /// A path from explicit keys; every key is checked.
+    pub fn new(name: impl Into<String>, keys: Vec<PathKey>) -> Result<Self, SceneError> {
+        let name = name.into();
+        if keys.is_empty() {
+            return Err(path_error(&name, None, "frames", "no frame".into()));
+        }
+        for (i, k) in keys.iter().enumerate() {
+            k.camera
+                .check()
+                .map_err(|(field, reason)| path_error(&name, Some(i), field, reason))?;
+        }
+        Ok(CameraPath { name, keys })
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    pub fn keys(&self) -> &[PathKey] {
+        &self.keys
+    }
+
+    pub fn len(&self) -> usize {
+        self.keys.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.keys.is_empty()
+    }
+
+    /// A Catmull-Rom fly-through: eye and target each follow a spline through the waypoints,
+    /// `frames_per_segment` frames between consecutive waypoints, plus the last waypoint.
+    pub fn catmull_rom(
+        name: impl Into<String>,
+        waypoints: &[Waypoint],
+        frames_per_segment: usize,
+        projection: Projection,
+    ) -> Result<Self, SceneError> {
+        let frames = vec![frames_per_segment; waypoints.len().saturating_sub(1)];
+        CameraPath::catmull_rom_timed(name, waypoints, &frames, projection)
+    }
+
+    /// A Catmull-Rom fly-through with its own frame count per segment (`frames[i]` frames from
+    /// waypoint i to i + 1): few frames on a segment whose target swings make a fast turn.
+    pub fn catmull_rom_timed(
+        name: impl Into<String>,
+        waypoints: &[Waypoint],
+        frames: &[usize],
+        projection: Projection,
+    ) -> Result<Self, SceneError> {
+        let name = name.into();
+        let n = waypoints.len();
+        if n < 2 || frames.len() != n - 1 || frames.contains(&0) {
+            return Err(path_error(
+                &name,
+                None,
+                "waypoints",
+                format!(
+                    "a spline needs at least 2 waypoints and a positive frame count per segment \
+                     (got {n} waypoints, {} counts)",
+                    frames.len()
+                ),
+            ));
+        }
+        // Phantom end points continue the first and last segments straight on.
+        let at = |i: isize, f: fn(&Waypoint) -> DVec3| -> DVec3 {
+            if i < 0 {
+                2.0 * f(&waypoints[0]) - f(&waypoints[1])
+            } else if i as usize >= n {
+                2.0 * f(&waypoints[n - 1]) - f(&waypoints[n - 2])
+            } else {
+                f(&waypoints[i as usize])
+            }
+        };
+        let key = |eye: DVec3, target: DVec3| PathKey {
+            camera: Camera {
+                eye,
+                target,
+                up: Vec3::Y,
+                projection,
+            },
+            cut: false,
+        };
+        let mut keys = Vec::with_capacity(frames.iter().sum::<usize>() + 1);
+        for (s, &count) in frames.iter().enumerate() {
+            let s = s as isize;
+            for k in 0..count {
+                let t = k as f64 / count as f64;
+                let eye = catmull_rom(
+                    at(s - 1, |w| w.eye),
+                    at(s, |w| w.eye),
+                    at(s + 1, |w| w.eye),
+                    at(s + 2, |w| w.eye),
+                    t,
+                );
+                let target = catmull_rom(
+                    at(s - 1, |w| w.target),
+                    at(s, |w| w.target),
+                    at(s + 1, |w| w.target),
+                    at(s + 2, |w| w.target),
+                    t,
+                );
+                keys.push(key(eye, target));
+            }
+        }
+        let last = waypoints[n - 1];
+        keys.push(key(last.eye, last.target));
+        CameraPath::new(name, keys)
+    }
+
+    /// An orbit around `center` at `radius` and `height` above it, `revolutions` turns over
+    /// `frames` frames, always looking at the centre.
+    pub fn orbit(
+        name: impl Into<String>,
+        center: DVec3,
+        radius: f64,
+        height: f64,
+        frames: usize,
+        revolutions: f64,
+        projection: Projection,
+    ) -> Result<Self, SceneError> {
+        let keys = (0..frames)
+            .map(|i| {
+                let a = std::f64::consts::TAU * revolutions * i as f64 / frames.max(1) as f64;
+                PathKey {
+                    camera: Camera {
+                        eye: center + DVec3::new(radius * a.cos(), height, radius * a.sin()),
+                        target: center,
+                        up: Vec3::Y,
+                        projection,
+                    },
+                    cut: false,
+                }
+            })
+            .collect();
+        CameraPath::new(name, keys)
+    }
+
+    /// The default path of a scene without a designed one (glTF files): one orbit that keeps
+    /// the whole bounds in view.
+    pub(crate) fn orbit_bounds(bounds: &DAabb) -> Self {
+        let center = bounds.center();
+        let r = bounds.half_extents().length().max(1e-3);
+        let projection = Projection::Perspective {
+            fov_y_rad: 60f32.to_radians(),
+            near: (r * 1e-3) as f32,
+            far: None,
+            depth: DepthConvention::Reverse,
+        };
+        let frames = 240;
+        let keys = (0..frames)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / frames as f64;
+                PathKey {
+                    camera: Camera {
+                        eye: center + DVec3::new(2.5 * r * a.cos(), 0.6 * r, 2.5 * r * a.sin()),
+                        target: center,
+                        up: Vec3::Y,
+                        projection,
+                    },
+                    cut: false,
+                }
+            })
+            .collect();
+        CameraPath {
+            name: "orbit".into(),
+            keys,
+        }
+    }
+
+    /// This path followed by `next`, with a cut at the join.
+    #[must_use]
+    pub fn then_cut(mut self, next: CameraPath) -> Self {
+        let start = self.keys.len();
+        self.keys.extend(next.keys);
+        if let Some(k) = self.keys.get_mut(start) {
+            k.cut = true;
+        }
+        self
+    }
+
+    #[must_use]
+    pub fn translated(&self, offset: DVec3) -> Self {
+        CameraPath {
+            name: self.name.clone(),
+            keys: self
+                .keys
+                .iter()
+                .map(|k| PathKey {
+                    camera: k.camera.translated(offset),
+                    cut: k.cut,
+                })
+                .collect(),
+        }
+    }
+
+    pub fn camera(&self, index: usize) -> Option<Camera> {
+        self.keys.get(index).map(|k| k.camera)
+    }
+
+    /// Frame `index` with the previous frame's matrices, for a viewport of `aspect`.
+    pub fn frame(&self, index: usize, aspect: f32) -> Option<CameraFrame> {
+        let key = self.keys.get(index)?;
+        let current = key.camera.matrices(aspect);
+        let previous = match index.checked_sub(1).and_then(|p| self.keys.get(p)) {
+            Some(prev) if !key.cut => prev.camera.matrices(aspect),
+            _ => current,
+        };
+        let delta = (current.eye - previous.eye).as_vec3();
+        Some(CameraFrame {
+            index,
+            camera: key.camera,
+            cut: key.cut || index == 0,
+            current,
+            previous,
+            reproject: previous.view_projection * Mat4::from_translation(delta),
+        })
+    }
+
+    /// Every frame in order.
+    pub fn frames(&self, aspect: f32) -> impl Iterator<Item = CameraFrame> + '_ {
+        (0..self.keys.len()).filter_map(move |i| self.frame(i, aspect))
+    }
+
+    /// Parses the JSON format documented in docs/SCENES.md; `source` names the file in errors.
+    pub fn from_json_str(text: &str, source: &str) -> Result<Self, SceneError> {
+        let doc: JsonPath = serde_json::from_str(text).map_err(|e| {
+            path_error(
+                source,
+                None,
+                "json",
+                format!("line {}, column {}: {e}", e.line(), e.column()),
+            )
+        })?;
+        if doc.frames.is_empty() {
+            return Err(path_error(source, None, "frames", "empty array".into()));
+        }
+        let mut keys = Vec::with_capacity(doc.frames.len());
+        for (i, f) in doc.frames.iter().enumerate() {
+            let err = |field: &str, reason: String| path_error(source, Some(i), field, reason);
+            let vec3 = |field: &str, v: [f64; 3]| -> Result<DVec3, SceneError> {
+                let d = DVec3::from_array(v);
+                if d.is_finite() {
+                    Ok(d)
+                } else {
+                    Err(err(field, format!("non-finite value {v:?}")))
+                }
+            };
+            let eye = vec3("eye", f.eye)?;
+            let target = vec3("target", f.target)?;
+            let up = vec3("up", f.up)?;
+            // f64 -> f32 can overflow to infinity (1e39); check after the cast.
+            let up32 = up.as_vec3();
+            if !up32.is_finite() {
+                return Err(err("up", format!("{:?} does not fit f32", f.up)));
+            }
+            let near = f.near as f32;
+            let far = f.far.map(|x| x as f32);
+            let fov_y_rad = (f.fov_y_deg as f32).to_radians();
+            let projection = Projection::Perspective {
+                fov_y_rad,
+                near,
+                far,
+                depth: f.depth,
+            };
+            let camera = Camera {
+                eye,
+                target,
+                up: up32,
+                projection,
+            };
+            camera
+                .check()
+                .map_err(|(field, reason)| err(field, reason))?;
+            keys.push(PathKey { camera, cut: f.cut });
+        }
+        CameraPath::new(source, keys)
+    }
+
+    /// Loads a camera path JSON file.
+    pub fn load_json(path: &Path) -> Result<Self, SceneError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        CameraPath::from_json_str(&text, &file)
+    }
+
+    /// Writes the path in the JSON format (orthographic keys are not representable and are
+    /// written with a 60-degree perspective, and logged).
+    pub fn to_json(&self) -> String {
+        let frames = self
+            .keys
+            .iter()
+            .map(|k| {
+                let c = &k.camera;
+                let (fov_y_deg, near, far, depth) = match c.projection {
+                    Projection::Perspective {
+                        fov_y_rad,
+                        near,
+                        far,
+                        depth,
+                    } => (
+                        f64::from(fov_y_rad.to_degrees()),
+                        f64::from(near),
+                        far.map(f64::from),
+                        depth,
+                    ),
+                    Projection::Orthographic {
+                        near, far, depth, ..
+                    } => {
+                        log::warn!(
+                            "camera path {}: orthographic key written as perspective",
+                            self.name
+                        );
+                        (60.0, f64::from(near), Some(f64::from(far)), depth)
+                    }
+                };
+                JsonFrame {
+                    eye: c.eye.to_array(),
+                    target: c.target.to_array(),
+                    up: c.up.as_dvec3().to_array(),
+                    fov_y_deg,
+                    near,
+                    far,
+                    cut: k.cut,
+                    depth,
+                }
+            })
+            .collect();
+        serde_json::to_string_pretty(&JsonPath { frames }).unwrap_or_default()
+    }
+}
+
+fn default_up() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn default_fov() -> f64 {
+    60.0
+}
+fn default_near() -> f64 {
+    0.1
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JsonPath {
+    frames: Vec<JsonFrame>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JsonFrame {
+    eye: [f64; 3],
+    target: [f64; 3],
+    #[serde(default = "default_up")]
+    up: [f64; 3],
+    #[serde(default = "default_fov")]
+    fov_y_deg: f64,
+    #[serde(default = "default_near")]
+    near: f64,
+    #[serde(default)]
+    far: Option<f64>,
+    #[serde(default)]
+    cut: bool,
+    #[serde(default)]
+    depth: DepthConvention,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn clip(m: Mat4, p: Vec3) -> Vec3 {
+        let c = m * p.extend(1.0);
+        c.truncate() / c.w
+    }
+
+    fn persp(far: Option<f32>, depth: DepthConvention) -> Projection {
+        Projection::Perspective {
+            fov_y_rad: 1.0,
+            near: 0.5,
+            far,
+            depth,
+        }
+    }
+
+    #[test]
+    fn depth_ranges_follow_each_convention() {
+        use DepthConvention::*;
+        let cases = [
+            (persp(None, Reverse), 1.0, None),
+            (persp(None, Standard), 0.0, None),
+            (persp(Some(100.0), Reverse), 1.0, Some(0.0)),
+            (persp(Some(100.0), Standard), 0.0, Some(1.0)),
+            (
+                Projection::Orthographic {
+                    half_height: 5.0,
+                    near: 0.5,
+                    far: 100.0,
+                    depth: Reverse,
+                },
+                1.0,
+                Some(0.0),
+            ),
+            (
+                Projection::Orthographic {
+                    half_height: 5.0,
+                    near: 0.5,
+                    far: 100.0,
+                    depth: Standard,
+                },
+                0.0,
+                Some(1.0),
+            ),
+        ];
+        for (p, near_depth, far_depth) in cases {
+            let m = p.matrix(1.5);
+            let d_near = clip(m, Vec3::new(0.0, 0.0, -0.5)).z;
+            assert!(
+                (d_near - near_depth).abs() < 1e-5,
+                "{p:?}: near -> {d_near}"
+            );
+            assert_eq!(p.depth_convention().near_depth(), near_depth);
+            if let Some(fd) = far_depth {
+                let d_far = clip(m, Vec3::new(0.0, 0.0, -100.0)).z;
+                assert!((d_far - fd).abs() < 1e-4, "{p:?}: far -> {d_far}");
+                assert_eq!(p.depth_convention().far_depth(), fd);
+            } else {
+                let d_inf = clip(m, Vec3::new(0.0, 0.0, -1e9)).z;
+                assert!((d_inf - p.depth_convention().far_depth()).abs() < 1e-6);
+            }
+            // Something halfway is strictly between, and closer than the far end.
+            let mid = clip(m, Vec3::new(0.0, 0.0, -10.0)).z;
+            assert!(p
+                .depth_convention()
+                .is_closer(mid, p.depth_convention().far_depth()));
+        }
+    }
+
+    #[test]
+    fn projection_flips_y_so_up_is_the_top_row() {
+        for p in [
+            persp(None, DepthConvention::Reverse),
+            persp(Some(10.0), DepthConvention::Standard),
+            Projection::Orthographic {
+                half_height: 1.0,
+                near: 0.1,
+                far: 10.0,
+                depth: DepthConvention::Reverse,
+            },
+        ] {
+            let above = clip(p.matrix(1.0), Vec3::new(0.0, 0.5, -2.0));
+            assert!(
+                above.y < 0.0,
+                "{p:?}: world-up must map to NDC y < 0 (top row)"
+            );
+        }
+    }
+
+    #[test]
+    fn default_projection_matches_glam_reverse_infinite_with_y_flip() {
+        let p = Projection::default();
+        let mut expected = Mat4::perspective_infinite_reverse_rh(60f32.to_radians(), 2.0, 0.1);
+        expected.x_axis.y *= -1.0;
+        expected.y_axis.y *= -1.0;
+        expected.z_axis.y *= -1.0;
+        expected.w_axis.y *= -1.0;
+        assert!(p.matrix(2.0).abs_diff_eq(expected, 1e-6));
+        assert_eq!(p.depth_convention(), DepthConvention::Reverse);
+    }
+
+    #[test]
+    fn relative_view_equals_absolute_view_near_the_origin() {
+        let cam = Camera::looking_at(DVec3::new(3.0, 2.0, 5.0), DVec3::new(-1.0, 0.5, 0.0));
+        let p = DVec3::new(0.3, 1.0, -2.0);
+        let abs = cam.view_world().transform_point3(p);
+        let rel = cam
+            .view_relative()
+            .transform_point3((p - cam.eye).as_vec3());
+        assert!((abs.as_vec3() - rel).length() < 1e-5);
+        let lookat = Mat4::look_at_rh(cam.eye.as_vec3(), cam.target.as_vec3(), Vec3::Y);
+        assert!((lookat.transform_point3(p.as_vec3()) - rel).length() < 1e-5);
+    }
+
+    #[test]
+    fn reprojection_maps_a_static_point_to_last_frames_clip_position() {
+        let proj = Projection::default();
+        let path = CameraPath::catmull_rom(
+            "t",
+            &[
+                Waypoint::new(DVec3::new(1e6, 1.7, 0.0), DVec3::new(1e6, 1.7, -10.0)),
+                Waypoint::new(
+                    DVec3::new(1e6 + 5.0, 1.7, -5.0),
+                    DVec3::new(1e6 + 10.0, 1.7, -5.0),
+                ),
+            ],
+            10,
+            proj,
+        )
+        .unwrap();
+        let point = DVec3::new(1e6 + 1.0, 2.0, -20.0);
+        for f in path.frames(1.0).skip(1) {
+            let prev_cam = path.camera(f.index - 1).unwrap();
+            let expected =
+                f.previous.view_projection * (point - prev_cam.eye).as_vec3().extend(1.0);
+            let got = f.reproject * (point - f.camera.eye).as_vec3().extend(1.0);
+            let (e, g) = (expected / expected.w, got / got.w);
+            // Relative: the point leaves the view (NDC x in the hundreds) as the camera turns.
+            assert!(
+                (e - g).length() < 1e-5 * e.length().max(1.0),
+                "frame {}: {e} vs {g}",
+                f.index
+            );
+        }
+        let first = path.frame(0, 1.0).unwrap();
+        assert!(first.cut);
+        assert_eq!(first.previous, first.current);
+    }
+
+    #[test]
+    fn catmull_rom_passes_through_waypoints_and_cuts_are_marked() {
+        let w = [
+            Waypoint::new(DVec3::ZERO, DVec3::NEG_Z),
+            Waypoint::new(DVec3::X * 4.0, DVec3::new(4.0, 0.0, -1.0)),
+            Waypoint::new(DVec3::new(4.0, 0.0, 4.0), DVec3::new(5.0, 0.0, 4.0)),
+        ];
+        let a = CameraPath::catmull_rom("a", &w, 8, Projection::default()).unwrap();
+        assert_eq!(a.len(), 17);
+        assert_eq!(a.camera(0).unwrap().eye, w[0].eye);
+        assert!((a.camera(8).unwrap().eye - w[1].eye).length() < 1e-12);
+        assert_eq!(a.camera(16).unwrap().eye, w[2].eye);
+        let b =
+            CameraPath::orbit("b", DVec3::ZERO, 10.0, 2.0, 5, 1.0, Projection::default()).unwrap();
+        let ab = a.then_cut(b);
+        assert_eq!(ab.len(), 22);
+        let cut = ab.frame(17, 1.0).unwrap();
+        assert!(cut.cut);
+        assert_eq!(cut.previous, cut.current);
+        assert!(!ab.frame(18, 1.0).unwrap().cut);
+    }
+
+    #[test]
+    fn json_round_trips_and_defaults_apply() {
+        let text = r#"{"frames": [
+            {"eye": [0, 1.7, 0], "target": [0, 1.7, -1], "up": [0, 1, 0], "fov_y_deg": 60, "near": 0.1, "far": null},
+            {"eye": [1, 1.7, 0], "target": [1, 1.7, -1], "fov_y_deg": 90, "near": 0.5, "far": 1000, "cut": true}
+        ]}"#;
+        let p = CameraPath::from_json_str(text, "t.json").unwrap();
+        assert_eq!(p.len(), 2);
+        assert_eq!(p.camera(0).unwrap().projection.far(), None);
+        assert_eq!(p.camera(1).unwrap().projection.far(), Some(1000.0));
+        assert!(p.keys()[1].cut);
+        let again = CameraPath::from_json_str(&p.to_json(), "t.json").unwrap();
+        assert_eq!(again.keys(), p.keys());
+    }
+
+    #[test]
+    fn malformed_json_paths_name_the_frame_and_field() {
+        let frame = |body: &str| {
+            format!(r#"{{"frames": [{{"eye": [0,0,0], "target": [0,0,-1]}}, {{{body}}}]}}"#)
+        };
+        let cases = [
+            (frame(r#""eye": [1,2,3], "target": [1,2,3]"#), "target"),
+            (frame(r#""eye": [0,0,0], "target": [0,5,0]"#), "up"),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "up": [0,0,0]"#),
+                "up",
+            ),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "near": 0"#),
+                "near",
+            ),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "near": -1"#),
+                "near",
+            ),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "near": 1, "far": 1"#),
+                "far",
+            ),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "near": 1, "far": 0.5"#),
+                "far",
+            ),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "fov_y_deg": 0"#),
+                "fov_y_deg",
+            ),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "fov_y_deg": 180"#),
+                "fov_y_deg",
+            ),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "fov_y_deg": -5"#),
+                "fov_y_deg",
+            ),
+            (
+                frame(r#""eye": [1e39,0,0], "target": [0,0,-1], "up": [0, 1e39, 0]"#),
+                "up",
+            ),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "near": 1e-50"#),
+                "near",
+            ),
+        ];
+        for (text, field) in cases {
+            match CameraPath::from_json_str(&text, "bad.json") {
+                Err(SceneError::CameraPath {
+                    frame: Some(1),
+                    field: f,
+                    file,
+                    ..
+                }) => {
+                    assert_eq!(f, field, "{text}");
+                    assert_eq!(file, "bad.json");
+                }
+                other => panic!("{text}: expected a camera-path error on frame 1, got {other:?}"),
+            }
+        }
+        for text in [
+            r#"{"frames": []}"#,
+            r#"{"frames": [{"eye": [NaN, 0, 0], "target": [0,0,-1]}]}"#,
+            r#"{"frames": [{"eye": [0, 0], "target": [0,0,-1]}]}"#,
+            r#"{"frames": [{"eye": [0, 0, 0], "target": [0,0,-1], "fov": 3}]}"#,
+            "not json",
+        ] {
+            assert!(
+                matches!(
+                    CameraPath::from_json_str(text, "bad.json"),
+                    Err(SceneError::CameraPath { .. })
+                ),
+                "{text}"
+            );
+        }
+    }
+}

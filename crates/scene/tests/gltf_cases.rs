@@ -1,0 +1,482 @@
+//! Hand-built glTF files: what must load (strips, fans, missing normals and UVs, sparse
+//! accessors, hierarchies, every buffer source) and what must fail with a typed error naming the
+//! element (missing/truncated buffers, out-of-range accessors and indices, NaN and infinity,
+//! loops, empty scenes, files that are not glTF).
+
+use glam::{DVec3, Vec3};
+use serde_json::{json, Value};
+use tilegraph_scene::{
+    load_gltf_bytes, Limits, MaterialClass, MemoryResources, NoResources, Scene, SceneError,
+};
+
+/// Little-endian bytes of f32s / u16s / u32s.
+fn f32s(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+fn u16s(v: &[u16]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// A unit quad in the xz plane: 4 positions (48 bytes), 4 normals (48), 6 u16 indices (12).
+fn quad_bin() -> Vec<u8> {
+    let mut b = f32s(&[0., 0., 0., 1., 0., 0., 1., 0., 1., 0., 0., 1.]);
+    b.extend(f32s(&[0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1., 0.]));
+    b.extend(u16s(&[0, 2, 1, 0, 3, 2]));
+    b
+}
+
+/// The quad's document with an external buffer `quad.bin`.
+fn quad_doc() -> Value {
+    json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "translation": [10.0, 0.0, 0.0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 0}]}],
+        "materials": [{"alphaMode": "MASK", "alphaCutoff": 0.25, "doubleSided": true,
+                       "pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.5, 0.25, 1.0]}}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 0, "byteOffset": 48, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 96},
+            {"buffer": 0, "byteOffset": 96, "byteLength": 12}
+        ],
+        "buffers": [{"uri": "quad.bin", "byteLength": 108}]
+    })
+}
+
+fn load_doc(doc: &Value, bin: &[u8]) -> Result<Scene, SceneError> {
+    let mut res = MemoryResources::default();
+    res.files.insert("quad.bin".into(), bin.to_vec());
+    load_gltf_bytes(
+        doc.to_string().as_bytes(),
+        "quad.gltf",
+        &res,
+        &Limits::default(),
+    )
+}
+
+fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut doc = doc.clone();
+    doc["buffers"][0].as_object_mut().unwrap().remove("uri");
+    let json = doc.to_string();
+    let mut json = json.into_bytes();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
+    out.extend((json.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(json);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    out
+}
+
+/// Asserts `result` is the error `kind` at `pointer`, and that its message names the file.
+#[track_caller]
+fn expect_err(result: Result<Scene, SceneError>, kind: &str, pointer: Option<&str>) -> SceneError {
+    match result {
+        Ok(s) => panic!(
+            "expected a {kind} error, loaded {} instances",
+            s.instances().len()
+        ),
+        Err(e) => {
+            assert_eq!(e.kind(), kind, "{e}");
+            if let Some(p) = pointer {
+                assert_eq!(e.pointer(), Some(p), "{e}");
+            }
+            e
+        }
+    }
+}
+
+#[test]
+fn the_quad_loads_from_every_buffer_source() {
+    let doc = quad_doc();
+    let bin = quad_bin();
+    let external = load_doc(&doc, &bin).unwrap();
+    let from_glb = load_gltf_bytes(
+        &glb(&doc, &bin),
+        "quad.glb",
+        &NoResources,
+        &Limits::default(),
+    )
+    .unwrap();
+    let mut data_uri = doc.clone();
+    use base64::Engine as _;
+    data_uri["buffers"][0]["uri"] = json!(format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    ));
+    let embedded = load_gltf_bytes(
+        data_uri.to_string().as_bytes(),
+        "q.gltf",
+        &NoResources,
+        &Limits::default(),
+    )
+    .unwrap();
+    for s in [&external, &from_glb, &embedded] {
+        let info = s.info();
+        assert_eq!((info.instances, info.meshes, info.triangles), (1, 1, 2));
+        assert_eq!(info.materials.alpha_tested, 1);
+        let m = s.materials()[0];
+        assert_eq!(m.class, MaterialClass::AlphaTested { cutoff: 0.25 });
+        assert!(m.double_sided);
+        assert_eq!(m.base_color, [1.0, 0.5, 0.25, 1.0]);
+        let b = s.bounds();
+        assert_eq!(b.min, DVec3::new(10.0, 0.0, 0.0));
+        assert_eq!(b.max, DVec3::new(11.0, 0.0, 1.0));
+        // Missing TEXCOORD_0: zeros.
+        assert!(s.vertices().iter().all(|v| v.uv == [0.0, 0.0]));
+        assert_eq!(s.meshes()[0].local_aabb.max, Vec3::new(1.0, 0.0, 1.0));
+    }
+}
+
+#[test]
+fn hierarchy_composes_and_meshes_split_into_primitives() {
+    let mut doc = quad_doc();
+    // A parent that scales by 2 and turns 90 degrees about y; the mesh gets a second primitive.
+    doc["nodes"] = json!([
+        {"children": [1], "scale": [2.0, 2.0, 2.0], "rotation": [0.0, 0.70710677, 0.0, 0.70710677]},
+        {"mesh": 0, "translation": [1.0, 0.0, 0.0]}
+    ]);
+    doc["meshes"][0]["primitives"] = json!([
+        {"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2},
+        {"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 0}
+    ]);
+    let s = load_doc(&doc, &quad_bin()).unwrap();
+    let c = s.gltf_counts().unwrap();
+    assert_eq!(
+        (c.nodes, c.meshes, c.primitives, c.nodes_in_scene),
+        (2, 1, 2, 2)
+    );
+    assert_eq!(s.instances().len(), 2, "one instance per primitive");
+    assert_eq!(s.meshes().len(), 2);
+    // The two primitives share the vertex accessors, so they share vertices.
+    assert_eq!(s.vertices().len(), 4);
+    assert_eq!(s.meshes()[0].vertex_offset, s.meshes()[1].vertex_offset);
+    // Default material appended for the primitive without one.
+    assert_eq!(s.materials().len(), 2);
+    // Local (1,0,0) -> parent: rotate 90 about y -> (0,0,-1), scale 2 -> (0,0,-2).
+    let t = s.instances()[0].transform;
+    assert!(
+        (t.translation - DVec3::new(0.0, 0.0, -2.0)).length() < 1e-6,
+        "{:?}",
+        t.translation
+    );
+    let corner = t.transform_point(Vec3::new(1.0, 0.0, 1.0));
+    assert!(
+        (corner - DVec3::new(2.0, 0.0, -4.0)).length() < 1e-5,
+        "{corner:?}"
+    );
+}
+
+#[test]
+fn strips_fans_and_unindexed_primitives_load_with_computed_normals() {
+    let mut doc = quad_doc();
+    // Positions only, no indices: 4 vertices as a strip (2 triangles) and as a fan (2).
+    for (mode, tris) in [(5, 2), (6, 2), (4, 1)] {
+        doc["meshes"][0]["primitives"] = json!([{"attributes": {"POSITION": 0}, "mode": mode}]);
+        let s = load_doc(&doc, &quad_bin()).unwrap();
+        assert_eq!(s.triangles_drawn(), tris, "mode {mode}");
+        // Flat normals: one vertex per corner, each normal perpendicular to the quad.
+        assert_eq!(s.vertices().len() as u64, 3 * tris);
+        for v in s.vertices() {
+            assert!(
+                (Vec3::from_array(v.normal).abs() - Vec3::Y).length() < 1e-6,
+                "{:?}",
+                v.normal
+            );
+        }
+    }
+    // Points and lines are skipped; with nothing else the scene is empty.
+    doc["meshes"][0]["primitives"] = json!([{"attributes": {"POSITION": 0}, "mode": 1}]);
+    expect_err(load_doc(&doc, &quad_bin()), "empty-scene", None);
+}
+
+#[test]
+fn sparse_accessors_and_small_index_types_load() {
+    let mut bin = quad_bin();
+    // Sparse: replace vertex 2's position with (1, 5, 1): index u8 [2] at 108, value at 112.
+    bin.extend([2u8, 0, 0, 0]);
+    bin.extend(f32s(&[1.0, 5.0, 1.0]));
+    // u8 indices at 124.
+    bin.extend([0u8, 2, 1, 0, 3, 2, 0, 0]);
+    let mut doc = quad_doc();
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    doc["bufferViews"] = json!([
+        {"buffer": 0, "byteOffset": 0, "byteLength": 96},
+        {"buffer": 0, "byteOffset": 96, "byteLength": 12},
+        {"buffer": 0, "byteOffset": 108, "byteLength": 16},
+        {"buffer": 0, "byteOffset": 124, "byteLength": 6}
+    ]);
+    doc["accessors"][0]["sparse"] = json!({"count": 1,
+        "indices": {"bufferView": 2, "componentType": 5121},
+        "values": {"bufferView": 2, "byteOffset": 4}});
+    doc["accessors"][2] =
+        json!({"bufferView": 3, "componentType": 5121, "count": 6, "type": "SCALAR"});
+    let s = load_doc(&doc, &bin).unwrap();
+    assert_eq!(s.bounds().max.y, 5.0);
+    assert_eq!(s.triangles_drawn(), 2);
+}
+
+#[test]
+fn bad_buffers_name_the_buffer() {
+    let doc = quad_doc();
+    let bin = quad_bin();
+    // Missing external file.
+    let e = expect_err(
+        load_gltf_bytes(
+            doc.to_string().as_bytes(),
+            "quad.gltf",
+            &NoResources,
+            &Limits::default(),
+        ),
+        "buffer",
+        Some("/buffers/0/uri"),
+    );
+    assert!(e.to_string().starts_with("quad.gltf: "), "{e}");
+    // Truncated external file.
+    expect_err(load_doc(&doc, &bin[..100]), "buffer", Some("/buffers/0"));
+    // Truncated GLB BIN chunk (byteLength larger than the chunk): the header no longer matches.
+    let g = glb(&doc, &bin);
+    expect_err(
+        load_gltf_bytes(
+            &g[..g.len() - 8],
+            "quad.glb",
+            &NoResources,
+            &Limits::default(),
+        ),
+        "glb",
+        Some(""),
+    );
+    // A GLB whose JSON wants more bytes than its BIN chunk has.
+    let mut d = doc.clone();
+    d["buffers"][0]["byteLength"] = json!(200);
+    expect_err(
+        load_gltf_bytes(&glb(&d, &bin), "quad.glb", &NoResources, &Limits::default()),
+        "buffer",
+        Some("/buffers/0"),
+    );
+    // A placeholder buffer that is used.
+    let mut d = doc.clone();
+    d["buffers"][0].as_object_mut().unwrap().remove("uri");
+    expect_err(load_doc(&d, &bin), "buffer", Some("/buffers/0"));
+}
+
+#[test]
+fn out_of_range_accessors_views_and_indices_are_caught_before_reading() {
+    let bin = quad_bin();
+    let mut d = quad_doc();
+    d["accessors"][0]["count"] = json!(40);
+    expect_err(load_doc(&d, &bin), "out-of-bounds", Some("/accessors/0"));
+
+    let mut d = quad_doc();
+    d["bufferViews"][1]["byteLength"] = json!(4000);
+    expect_err(
+        load_doc(&d, &bin),
+        "out-of-bounds",
+        Some("/bufferViews/1/byteLength"),
+    );
+
+    let mut d = quad_doc();
+    d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(9);
+    expect_err(
+        load_doc(&d, &bin),
+        "unresolved-reference",
+        Some("/meshes/0/primitives/0/attributes/POSITION"),
+    );
+
+    let mut d = quad_doc();
+    d["meshes"][0]["primitives"][0]["indices"] = json!(3);
+    expect_err(
+        load_doc(&d, &bin),
+        "unresolved-reference",
+        Some("/meshes/0/primitives/0/indices"),
+    );
+
+    // An index (7) past the 4 vertices.
+    let mut b = bin.clone();
+    b[96 + 2..96 + 4].copy_from_slice(&7u16.to_le_bytes());
+    let e = expect_err(
+        load_doc(&quad_doc(), &b),
+        "index-out-of-range",
+        Some("/meshes/0/primitives/0/indices"),
+    );
+    assert!(matches!(
+        e,
+        SceneError::IndexOutOfRange {
+            index: 7,
+            position: 1,
+            vertex_count: 4,
+            ..
+        }
+    ));
+
+    // Positions that are not VEC3 floats.
+    let mut d = quad_doc();
+    d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(2);
+    expect_err(
+        load_doc(&d, &bin),
+        "invalid",
+        Some("/meshes/0/primitives/0/attributes/POSITION"),
+    );
+
+    // Attribute counts that differ.
+    let mut d = quad_doc();
+    d["accessors"][1]["count"] = json!(3);
+    expect_err(
+        load_doc(&d, &bin),
+        "invalid",
+        Some("/meshes/0/primitives/0/attributes/NORMAL"),
+    );
+}
+
+#[test]
+fn non_finite_values_are_errors_not_nans_in_the_scene() {
+    let bin = quad_bin();
+    // 1e39 overflows f32: an infinite translation.
+    let mut d = quad_doc();
+    d["nodes"][0]["translation"] = json!([1e39, 0.0, 0.0]);
+    expect_err(
+        load_doc(&d, &bin),
+        "non-finite",
+        Some("/nodes/0/translation"),
+    );
+    let mut d = quad_doc();
+    d["nodes"][0] = json!({"mesh": 0, "matrix": [1,0,0,0, 0,1e39,0,0, 0,0,1,0, 0,0,0,1]});
+    expect_err(load_doc(&d, &bin), "non-finite", Some("/nodes/0/matrix"));
+    let mut d = quad_doc();
+    d["nodes"][0]["rotation"] = json!([0.0, 0.0, 0.0, 0.0]);
+    expect_err(load_doc(&d, &bin), "invalid", Some("/nodes/0/rotation"));
+    // A world transform that overflows through the hierarchy.
+    let mut d = quad_doc();
+    d["nodes"] = json!([{"children": [1], "scale": [1e30, 1e30, 1e30]}, {"mesh": 0, "scale": [1e30, 1e30, 1e30]}]);
+    expect_err(load_doc(&d, &bin), "non-finite", Some("/nodes/1"));
+    // NaN and infinity in the position data.
+    for bad in [f32::NAN, f32::INFINITY] {
+        let mut b = bin.clone();
+        b[16..20].copy_from_slice(&bad.to_le_bytes());
+        let e = expect_err(
+            load_doc(&quad_doc(), &b),
+            "non-finite",
+            Some("/accessors/0"),
+        );
+        assert!(e.to_string().contains("/meshes/0/primitives/0"), "{e}");
+    }
+}
+
+#[test]
+fn broken_hierarchies_and_scenes() {
+    let bin = quad_bin();
+    let mut d = quad_doc();
+    d["scenes"] = json!([{"nodes": []}]);
+    expect_err(load_doc(&d, &bin), "invalid", Some("/scenes/0/nodes"));
+    // A loop is found whether or not a scene reaches it.
+    d["nodes"] = json!([{"children": [1]}, {"children": [0], "mesh": 0}]);
+    d.as_object_mut().unwrap().remove("scenes");
+    d.as_object_mut().unwrap().remove("scene");
+    expect_err(load_doc(&d, &bin), "hierarchy", None);
+
+    let mut d = quad_doc();
+    d["nodes"] = json!([{"children": [2]}, {"children": [2]}, {"mesh": 0}]);
+    d["scenes"] = json!([{"nodes": [0, 1]}]);
+    expect_err(load_doc(&d, &bin), "hierarchy", Some("/nodes/1/children/0"));
+
+    let mut d = quad_doc();
+    d["scene"] = json!(3);
+    expect_err(load_doc(&d, &bin), "unresolved-reference", Some("/scene"));
+
+    // No mesh anywhere: the empty-scene error.
+    let mut d = quad_doc();
+    d["nodes"] = json!([{"name": "empty"}]);
+    let e = expect_err(load_doc(&d, &bin), "empty-scene", None);
+    assert!(e.to_string().contains("quad.gltf"), "{e}");
+}
+
+#[test]
+fn files_that_are_not_gltf() {
+    let none = NoResources;
+    let l = Limits::default();
+    expect_err(
+        load_gltf_bytes(b"\x89PNG\r\n\x1a\n....", "x.gltf", &none, &l),
+        "not-gltf",
+        Some(""),
+    );
+    expect_err(load_gltf_bytes(b"", "x.gltf", &none, &l), "json", Some(""));
+    expect_err(
+        load_gltf_bytes(b"{\"asset\": ", "x.gltf", &none, &l),
+        "json",
+        Some(""),
+    );
+    expect_err(
+        load_gltf_bytes(b"[1, 2]", "x.gltf", &none, &l),
+        "invalid",
+        Some(""),
+    );
+    expect_err(
+        load_gltf_bytes(b"{\"asset\": {\"version\": \"1.0\"}}", "x.gltf", &none, &l),
+        "invalid",
+        Some("/asset/version"),
+    );
+    expect_err(
+        load_gltf_bytes(b"glTF\x01\0\0\0", "x.glb", &none, &l),
+        "glb",
+        Some(""),
+    );
+    expect_err(
+        load_gltf_bytes(b"PK\x03\x04", "x.glb", &none, &l),
+        "glb",
+        Some(""),
+    );
+    let required = json!({"asset": {"version": "2.0"}, "extensionsUsed": ["KHR_draco_mesh_compression"],
+        "extensionsRequired": ["KHR_draco_mesh_compression"]});
+    expect_err(
+        load_gltf_bytes(required.to_string().as_bytes(), "x.gltf", &none, &l),
+        "unsupported-extension",
+        Some("/extensionsRequired/0"),
+    );
+}
+
+#[test]
+fn limits_stop_hostile_counts_before_allocating() {
+    // An accessor without a bufferView is all zeros: a count of 2^31 would be 24 GiB of
+    // positions. Tiny file, huge allocation: the limit refuses it.
+    let mut d = quad_doc();
+    d["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"componentType": 5126, "count": 2147483647u64, "type": "VEC3"}));
+    d["meshes"][0]["primitives"] = json!([{"attributes": {"POSITION": 3}}]);
+    expect_err(
+        load_doc(&d, &quad_bin()),
+        "limit-exceeded",
+        Some("/meshes/0/primitives/0"),
+    );
+    let limits = Limits {
+        max_instances: 3,
+        ..Limits::default()
+    };
+    let mut d = quad_doc();
+    d["nodes"] = json!([{"mesh": 0}, {"mesh": 0}, {"mesh": 0}, {"mesh": 0}]);
+    d["scenes"] = json!([{"nodes": [0, 1, 2, 3]}]);
+    let mut res = MemoryResources::default();
+    res.files.insert("quad.bin".into(), quad_bin());
+    expect_err(
+        load_gltf_bytes(d.to_string().as_bytes(), "quad.gltf", &res, &limits),
+        "limit-exceeded",
+        Some("/nodes/3"),
+    );
+}
