@@ -264,24 +264,25 @@ impl HizPyramid {
     ) -> Result<Self, CullError> {
         extent.check_len("depth buffer", depth.len())?;
         let w = extent.width_px();
-        for (i, &d) in depth.iter().enumerate() {
-            let (x_px, y_px) = (i as u32 % w, i as u32 / w);
-            if !d.is_finite() {
-                return Err(CullError::NonFiniteDepth {
+        // One pass for the common (valid) case; the pixel position is only worked out for the
+        // error.
+        if let Some(i) = depth.iter().position(|&d| !format.is_representable(d)) {
+            let (x_px, y_px, value) = (i as u32 % w, i as u32 / w, depth[i]);
+            return Err(if value.is_finite() {
+                CullError::NotD16Quantized {
                     what: "depth buffer",
                     x_px,
                     y_px,
-                    value: d,
-                });
-            }
-            if !format.is_representable(d) {
-                return Err(CullError::NotD16Quantized {
+                    value,
+                }
+            } else {
+                CullError::NonFiniteDepth {
                     what: "depth buffer",
                     x_px,
                     y_px,
-                    value: d,
-                });
-            }
+                    value,
+                }
+            });
         }
 
         let extents = level_extents(extent, mode);
@@ -493,19 +494,39 @@ fn reduce(
     mode: NpotMode,
     convention: DepthConvention,
 ) -> Vec<f32> {
+    // Pick the reduction once so the inner loop is a plain min or max.
+    match convention {
+        DepthConvention::Standard => reduce_with(src, dst, level, mode, f32::max),
+        DepthConvention::Reverse => reduce_with(src, dst, level, mode, f32::min),
+    }
+}
+
+fn reduce_with(
+    src: &HizLevel,
+    dst: Extent2d,
+    level: u32,
+    mode: NpotMode,
+    farther: impl Fn(f32, f32) -> f32,
+) -> Vec<f32> {
     let (sw, sh) = (src.extent.width_px(), src.extent.height_px());
     let (dw, dh) = (dst.width_px(), dst.height_px());
-    let xs: Vec<(u32, u32)> = (0..dw)
-        .map(|t| source_range(mode, level, t, dw, sw))
+    let xs: Vec<(usize, usize)> = (0..dw)
+        .map(|t| {
+            let (lo, hi) = source_range(mode, level, t, dw, sw);
+            (lo as usize, hi as usize)
+        })
         .collect();
     let mut out = Vec::with_capacity(dst.pixel_count());
     for ty in 0..dh {
         let (y0, y1) = source_range(mode, level, ty, dh, sh);
+        let rows: Vec<&[f32]> = (y0..=y1)
+            .map(|y| &src.texels[y as usize * sw as usize..(y as usize + 1) * sw as usize])
+            .collect();
         for &(x0, x1) in &xs {
-            let mut v = src.at(x0, y0);
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    v = convention.farther(v, src.at(x, y));
+            let mut v = rows[0][x0];
+            for row in &rows {
+                for &d in &row[x0..=x1] {
+                    v = farther(v, d);
                 }
             }
             out.push(v);
