@@ -1,0 +1,504 @@
+//! Memory aliasing: resources that are never alive at the same time share memory.
+//!
+//! The graph cannot know the driver's `VkMemoryRequirements`, so `compile` runs
+//! [`assign_aliases`] on estimates: an image takes `w * h * bytes_per_pixel * samples` summed
+//! over its mips, a buffer its size, and both are aligned to [`ESTIMATED_ALIGNMENT_BYTES`]
+//! (64 KiB). 64 KiB is at least every alignment and every `bufferImageGranularity` that shipping
+//! drivers report, and because every resource starts on a 64 KiB boundary, a buffer and an image
+//! in one block never share a granularity page. The executor re-runs the same function with the
+//! real requirements ([`crate::Plan::reassign_aliases`] also rebuilds the barriers that the new
+//! placement needs); when it does, it must fold `bufferImageGranularity` into the alignments.
+//!
+//! The algorithm is a sweep over first use: at each resource, retire those whose last use is
+//! earlier, then place it at the lowest aligned gap of the block that grows least (best fit),
+//! or in a new block. Blocks are only sizes; the executor allocates them.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use crate::declare::ResourceId;
+use crate::error::GraphError;
+use crate::plan::StepRange;
+
+/// Alignment the compile-time estimate assumes for every resource placed in a block.
+pub const ESTIMATED_ALIGNMENT_BYTES: u64 = 64 * 1024;
+
+/// Which kind of memory a block is allocated from (the executor maps it to a profile
+/// `MemoryUse`: `DeviceLocal` to `gpu_only`, `LazilyAllocated` to `transient_attachment`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum MemoryClass {
+    DeviceLocal,
+    /// Transient attachments: on a tiler nothing is committed, so these are never aliased
+    /// (sharing would save nothing and add barriers).
+    LazilyAllocated,
+}
+
+impl MemoryClass {
+    pub const fn name(self) -> &'static str {
+        match self {
+            MemoryClass::DeviceLocal => "device-local",
+            MemoryClass::LazilyAllocated => "lazily-allocated",
+        }
+    }
+}
+
+/// What memory a resource needs from the graph.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum MemoryNeed {
+    /// None: imported (the caller owns it) or unused.
+    External,
+    /// A block of its own.
+    Dedicated(MemoryClass),
+    /// A place in a block shared with resources whose lifetimes do not overlap.
+    Shared(MemoryClass),
+}
+
+/// Input of [`assign_aliases`] for one resource.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct AliasLifetime {
+    pub lifetime: Option<StepRange>,
+    pub memory: MemoryNeed,
+}
+
+/// Size and alignment of one resource: estimated by the graph, or `VkMemoryRequirements`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MemoryRequirements {
+    pub size_bytes: u64,
+    /// A power of two (0 is read as 1).
+    pub alignment_bytes: u64,
+}
+
+/// Index into [`AliasAssignment::blocks`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct BlockIndex(pub u32);
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MemoryBlock {
+    pub class: MemoryClass,
+    pub size_bytes: u64,
+    /// Largest alignment of anything placed in it: allocate the block at least this aligned.
+    pub alignment_bytes: u64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct MemorySlot {
+    pub block: BlockIndex,
+    pub offset_bytes: u64,
+    pub size_bytes: u64,
+}
+
+impl MemorySlot {
+    pub const fn end_bytes(&self) -> u64 {
+        self.offset_bytes.saturating_add(self.size_bytes)
+    }
+
+    /// Same block and overlapping bytes.
+    pub const fn overlaps(&self, other: &MemorySlot) -> bool {
+        self.block.0 == other.block.0
+            && self.offset_bytes < other.end_bytes()
+            && other.offset_bytes < self.end_bytes()
+    }
+}
+
+/// `to` takes over bytes that `from` used earlier in the frame: `to`'s first barrier waits for
+/// `from`'s last accesses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct AliasHandoff {
+    pub to: ResourceId,
+    pub from: ResourceId,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct AliasAssignment {
+    pub blocks: Vec<MemoryBlock>,
+    /// Per resource (index = [`ResourceId`]).
+    pub slots: Vec<Option<MemorySlot>>,
+    /// Sorted by `to`, then `from`.
+    pub handoffs: Vec<AliasHandoff>,
+    /// Bytes the resources would take, each in its own allocation.
+    pub requested_bytes: u64,
+    /// Bytes of all blocks.
+    pub allocated_bytes: u64,
+}
+
+impl AliasAssignment {
+    pub fn saved_bytes(&self) -> u64 {
+        self.requested_bytes.saturating_sub(self.allocated_bytes)
+    }
+
+    /// Resources whose first barrier must wait for `to`'s predecessors in memory.
+    pub fn predecessors(&self, to: ResourceId) -> impl Iterator<Item = ResourceId> + '_ {
+        let start = self.handoffs.partition_point(|h| h.to < to);
+        self.handoffs[start..]
+            .iter()
+            .take_while(move |h| h.to == to)
+            .map(|h| h.from)
+    }
+}
+
+struct Placed {
+    offset: u64,
+    end: u64,
+    resource: u32,
+}
+
+struct BlockState {
+    class: MemoryClass,
+    size: u64,
+    alignment: u64,
+    /// Allocations alive now, sorted by offset.
+    active: Vec<Placed>,
+    /// The most recent occupant of each byte range (sorted, disjoint): who a newcomer follows.
+    recent: Vec<Placed>,
+}
+
+const fn align_up(value: u64, alignment: u64) -> u64 {
+    // alignment is a power of two; saturate instead of wrapping on absurd sizes.
+    match value.checked_add(alignment - 1) {
+        Some(v) => v & !(alignment - 1),
+        None => !(alignment - 1),
+    }
+}
+
+impl BlockState {
+    /// Lowest aligned offset where `size` bytes fit between the active allocations (the last gap
+    /// is open: placing there may grow the block).
+    fn lowest_gap(&self, size: u64, alignment: u64) -> u64 {
+        let mut cursor = 0u64;
+        for placed in &self.active {
+            let candidate = align_up(cursor, alignment);
+            if candidate.saturating_add(size) <= placed.offset {
+                return candidate;
+            }
+            cursor = cursor.max(placed.end);
+        }
+        align_up(cursor, alignment)
+    }
+
+    fn place(&mut self, offset: u64, size: u64, resource: u32, handoffs: &mut Vec<u32>) {
+        let end = offset.saturating_add(size);
+        let at = self.active.partition_point(|p| p.offset < offset);
+        self.active.insert(
+            at,
+            Placed {
+                offset,
+                end,
+                resource,
+            },
+        );
+        // Everyone who last held some of [offset, end) hands it over; keep the pieces outside.
+        let mut recent = Vec::with_capacity(self.recent.len() + 2);
+        for p in self.recent.drain(..) {
+            if p.end <= offset || p.offset >= end {
+                recent.push(p);
+                continue;
+            }
+            handoffs.push(p.resource);
+            if p.offset < offset {
+                recent.push(Placed {
+                    offset: p.offset,
+                    end: offset,
+                    resource: p.resource,
+                });
+            }
+            if p.end > end {
+                recent.push(Placed {
+                    offset: end,
+                    end: p.end,
+                    resource: p.resource,
+                });
+            }
+        }
+        let at = recent.partition_point(|p| p.offset < offset);
+        recent.insert(
+            at,
+            Placed {
+                offset,
+                end,
+                resource,
+            },
+        );
+        self.recent = recent;
+    }
+
+    fn retire(&mut self, resource: u32) {
+        if let Some(i) = self.active.iter().position(|p| p.resource == resource) {
+            self.active.remove(i);
+        }
+    }
+}
+
+/// Places every resource that needs memory into blocks; resources of one class whose
+/// lifetimes do not overlap may share bytes. `lifetimes[i]` and `requirements[i]` describe
+/// resource `i`. Deterministic, and depends only on the order of lifetimes, so any strictly
+/// increasing renumbering of steps gives the same assignment.
+pub fn assign_aliases(
+    lifetimes: &[AliasLifetime],
+    requirements: &[MemoryRequirements],
+) -> Result<AliasAssignment, GraphError> {
+    if lifetimes.len() != requirements.len() {
+        return Err(GraphError::AliasInputMismatch {
+            lifetimes: lifetimes.len(),
+            requirements: requirements.len(),
+        });
+    }
+    let mut alignments = Vec::with_capacity(requirements.len());
+    for (index, req) in requirements.iter().enumerate() {
+        let alignment = req.alignment_bytes.max(1);
+        if !alignment.is_power_of_two() {
+            return Err(GraphError::InvalidAlignment {
+                index,
+                alignment_bytes: req.alignment_bytes,
+            });
+        }
+        alignments.push(alignment);
+    }
+
+    let mut out = AliasAssignment {
+        slots: vec![None; lifetimes.len()],
+        ..AliasAssignment::default()
+    };
+
+    // Shared resources, swept by first use; bigger first on ties so they open the blocks.
+    let mut shared: Vec<u32> = (0..lifetimes.len() as u32)
+        .filter(|&i| {
+            let l = &lifetimes[i as usize];
+            matches!(l.memory, MemoryNeed::Shared(_)) && l.lifetime.is_some()
+        })
+        .collect();
+    shared.sort_by_key(|&i| {
+        let first = lifetimes[i as usize].lifetime.map_or(0, |l| l.first.0);
+        (first, Reverse(requirements[i as usize].size_bytes), i)
+    });
+
+    let mut blocks: Vec<BlockState> = Vec::new();
+    let mut expiring: BinaryHeap<Reverse<(u32, u32, u32)>> = BinaryHeap::new();
+    let mut handoff_from: Vec<u32> = Vec::new();
+    for &i in &shared {
+        let (Some(range), MemoryNeed::Shared(class)) =
+            (lifetimes[i as usize].lifetime, lifetimes[i as usize].memory)
+        else {
+            continue;
+        };
+        while let Some(&Reverse((last, resource, block))) = expiring.peek() {
+            if last >= range.first.0 {
+                break;
+            }
+            expiring.pop();
+            if let Some(b) = blocks.get_mut(block as usize) {
+                b.retire(resource);
+            }
+        }
+        let size = requirements[i as usize].size_bytes;
+        let alignment = alignments[i as usize];
+        // (growth, block, offset): least growth, then lowest block, then lowest offset.
+        let mut best = (size, blocks.len(), 0u64);
+        for (b, block) in blocks.iter().enumerate() {
+            if block.class != class {
+                continue;
+            }
+            let offset = block.lowest_gap(size, alignment);
+            let growth = offset.saturating_add(size).saturating_sub(block.size);
+            if (growth, b, offset) < best {
+                best = (growth, b, offset);
+            }
+        }
+        let (_, b, offset) = best;
+        if b == blocks.len() {
+            blocks.push(BlockState {
+                class,
+                size: 0,
+                alignment: 1,
+                active: Vec::new(),
+                recent: Vec::new(),
+            });
+        }
+        let block = &mut blocks[b];
+        handoff_from.clear();
+        block.place(offset, size, i, &mut handoff_from);
+        block.size = block.size.max(offset.saturating_add(size));
+        block.alignment = block.alignment.max(alignment);
+        handoff_from.sort_unstable();
+        handoff_from.dedup();
+        for &from in &handoff_from {
+            out.handoffs.push(AliasHandoff {
+                to: ResourceId(i),
+                from: ResourceId(from),
+            });
+        }
+        out.slots[i as usize] = Some(MemorySlot {
+            block: BlockIndex(b as u32),
+            offset_bytes: offset,
+            size_bytes: size,
+        });
+        out.requested_bytes = out.requested_bytes.saturating_add(size);
+        expiring.push(Reverse((range.last.0, i, b as u32)));
+    }
+    out.blocks = blocks
+        .into_iter()
+        .map(|b| MemoryBlock {
+            class: b.class,
+            size_bytes: b.size,
+            alignment_bytes: b.alignment,
+        })
+        .collect();
+
+    // Dedicated resources: one block each, in resource order.
+    for (i, l) in lifetimes.iter().enumerate() {
+        let MemoryNeed::Dedicated(class) = l.memory else {
+            continue;
+        };
+        if l.lifetime.is_none() {
+            continue;
+        }
+        let size = requirements[i].size_bytes;
+        out.slots[i] = Some(MemorySlot {
+            block: BlockIndex(out.blocks.len() as u32),
+            offset_bytes: 0,
+            size_bytes: size,
+        });
+        out.blocks.push(MemoryBlock {
+            class,
+            size_bytes: size,
+            alignment_bytes: alignments[i],
+        });
+        out.requested_bytes = out.requested_bytes.saturating_add(size);
+    }
+    out.allocated_bytes = out
+        .blocks
+        .iter()
+        .fold(0u64, |acc, b| acc.saturating_add(b.size_bytes));
+    out.handoffs.sort_unstable();
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::StepIndex;
+
+    fn shared(first: u32, last: u32) -> AliasLifetime {
+        AliasLifetime {
+            lifetime: Some(StepRange {
+                first: StepIndex(first),
+                last: StepIndex(last),
+            }),
+            memory: MemoryNeed::Shared(MemoryClass::DeviceLocal),
+        }
+    }
+
+    fn req(size_bytes: u64) -> MemoryRequirements {
+        MemoryRequirements {
+            size_bytes,
+            alignment_bytes: 256,
+        }
+    }
+
+    #[test]
+    fn disjoint_lifetimes_share_one_block() {
+        let lifetimes = [shared(0, 1), shared(2, 3), shared(4, 5)];
+        let reqs = [req(1000), req(800), req(1000)];
+        let a = assign_aliases(&lifetimes, &reqs).unwrap();
+        assert_eq!(a.blocks.len(), 1);
+        assert_eq!(a.blocks[0].size_bytes, 1000);
+        assert_eq!(a.requested_bytes, 2800);
+        assert_eq!(a.saved_bytes(), 1800);
+        // Each follows whoever last held its bytes: 2 covers what 1 and the tail of 0 held.
+        let h = |to, from| AliasHandoff {
+            to: ResourceId(to),
+            from: ResourceId(from),
+        };
+        assert_eq!(a.handoffs, vec![h(1, 0), h(2, 0), h(2, 1)]);
+    }
+
+    #[test]
+    fn overlapping_lifetimes_never_share_bytes() {
+        let lifetimes = [shared(0, 2), shared(1, 3), shared(2, 4)];
+        let reqs = [req(100), req(100), req(100)];
+        let a = assign_aliases(&lifetimes, &reqs).unwrap();
+        let slots: Vec<_> = a.slots.iter().map(|s| s.unwrap()).collect();
+        for i in 0..3 {
+            for j in (i + 1)..3 {
+                assert!(!slots[i].overlaps(&slots[j]), "{i} and {j} overlap");
+            }
+        }
+        assert_eq!(a.saved_bytes(), 0);
+    }
+
+    #[test]
+    fn small_resources_pack_into_a_big_retired_block() {
+        // A big image dies, then two small buffers live at once: both fit in its bytes.
+        let lifetimes = [shared(0, 0), shared(1, 2), shared(1, 2)];
+        let reqs = [req(4096), req(1024), req(1024)];
+        let a = assign_aliases(&lifetimes, &reqs).unwrap();
+        assert_eq!(a.blocks.len(), 1);
+        assert_eq!(a.blocks[0].size_bytes, 4096);
+        let (s1, s2) = (a.slots[1].unwrap(), a.slots[2].unwrap());
+        assert!(!s1.overlaps(&s2));
+        assert_eq!(
+            a.predecessors(ResourceId(2)).collect::<Vec<_>>(),
+            vec![ResourceId(0)]
+        );
+    }
+
+    #[test]
+    fn dedicated_and_external_resources() {
+        let lifetimes = [
+            AliasLifetime {
+                lifetime: Some(StepRange {
+                    first: StepIndex(0),
+                    last: StepIndex(0),
+                }),
+                memory: MemoryNeed::Dedicated(MemoryClass::LazilyAllocated),
+            },
+            AliasLifetime {
+                lifetime: Some(StepRange {
+                    first: StepIndex(1),
+                    last: StepIndex(1),
+                }),
+                memory: MemoryNeed::External,
+            },
+        ];
+        let a = assign_aliases(&lifetimes, &[req(64), req(64)]).unwrap();
+        assert_eq!(a.blocks.len(), 1);
+        assert_eq!(a.blocks[0].class, MemoryClass::LazilyAllocated);
+        assert!(a.slots[1].is_none());
+    }
+
+    #[test]
+    fn alignment_is_respected_and_checked() {
+        let lifetimes = [shared(0, 5), shared(1, 5)];
+        let reqs = [
+            req(100),
+            MemoryRequirements {
+                size_bytes: 100,
+                alignment_bytes: 4096,
+            },
+        ];
+        let a = assign_aliases(&lifetimes, &reqs).unwrap();
+        assert_eq!(a.slots[1].unwrap().offset_bytes % 4096, 0);
+        let bad = [MemoryRequirements {
+            size_bytes: 1,
+            alignment_bytes: 3,
+        }];
+        assert!(matches!(
+            assign_aliases(&lifetimes[..1], &bad),
+            Err(GraphError::InvalidAlignment { .. })
+        ));
+        assert!(matches!(
+            assign_aliases(&lifetimes, &bad),
+            Err(GraphError::AliasInputMismatch { .. })
+        ));
+    }
+
+    #[test]
+    fn renumbering_steps_keeps_the_assignment() {
+        let a_lifetimes = [shared(0, 1), shared(2, 3), shared(1, 2), shared(4, 4)];
+        let b_lifetimes = [shared(1, 3), shared(5, 7), shared(3, 5), shared(9, 9)];
+        let reqs = [req(300), req(500), req(200), req(800)];
+        assert_eq!(
+            assign_aliases(&a_lifetimes, &reqs).unwrap(),
+            assign_aliases(&b_lifetimes, &reqs).unwrap()
+        );
+    }
+}

@@ -1,0 +1,238 @@
+//! What one pass does to one resource, merged over its declared uses: stages, access mask,
+//! layout, and whether it reads the old content and writes new content. Every later phase
+//! works on these summaries.
+
+use crate::declare::{Coverage, PassKind, PassUse, ResourceDesc, ResourceId, UseKind};
+use crate::types::{AccessFlags, ClearValue, Format, Layout, PipelineStages};
+
+/// One pass's combined access to one resource.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Access {
+    pub resource: ResourceId,
+    /// [`UseKind::bit`] of every declared use.
+    pub roles: u16,
+    pub stages: PipelineStages,
+    pub access: AccessFlags,
+    /// Layout the pass needs (images); `Undefined` for buffers.
+    pub layout: Layout,
+    /// The pass needs the content left by earlier writes: an explicit read, or a write that
+    /// neither clears nor covers everything.
+    pub reads_prior: bool,
+    /// A declared read (sampled, input, storage read, depth test without write...).
+    pub explicit_read: bool,
+    pub writes: bool,
+    /// Some use binds it to the render pass.
+    pub attachment: bool,
+    /// Some use reaches it through memory (descriptor, vertex input, transfer).
+    pub non_attachment: bool,
+    pub clear: Option<ClearValue>,
+    /// The first declared use (for messages).
+    pub first_kind: UseKind,
+}
+
+/// Shader stages that a descriptor use in a pass of this kind may touch.
+fn shader_stages(kind: PassKind) -> PipelineStages {
+    match kind {
+        PassKind::Raster => PipelineStages::VERTEX_SHADER | PipelineStages::FRAGMENT_SHADER,
+        PassKind::Compute => PipelineStages::COMPUTE_SHADER,
+        PassKind::Transfer => PipelineStages::ALL_TRANSFER,
+    }
+}
+
+pub(crate) const DEPTH_TESTS: PipelineStages = PipelineStages::from_bits(
+    PipelineStages::EARLY_FRAGMENT_TESTS.bits() | PipelineStages::LATE_FRAGMENT_TESTS.bits(),
+);
+
+/// Read-only layout of an image read through a shader: depth formats stay in the depth
+/// read-only layout so a depth test and a sampler can share it.
+fn shader_read_layout(format: Option<Format>) -> Layout {
+    match format {
+        Some(f) if f.is_depth_stencil() => Layout::DepthStencilReadOnly,
+        _ => Layout::ShaderReadOnly,
+    }
+}
+
+/// Summarizes one declared use.
+pub(crate) fn summarize_use(
+    pass_kind: PassKind,
+    coverage: Coverage,
+    u: &PassUse,
+    desc: &ResourceDesc,
+) -> Access {
+    let format = desc.image().map(|d| d.format);
+    let is_image = format.is_some();
+    let keeps_old = coverage == Coverage::Partial;
+    let (stages, access, layout, reads_prior) = match u.kind {
+        UseKind::ColorAttachment { clear } => {
+            let reads = clear.is_none() && keeps_old;
+            let mut access = AccessFlags::COLOR_ATTACHMENT_WRITE;
+            if reads {
+                access |= AccessFlags::COLOR_ATTACHMENT_READ;
+            }
+            (
+                PipelineStages::COLOR_ATTACHMENT_OUTPUT,
+                access,
+                Layout::ColorAttachment,
+                reads,
+            )
+        }
+        UseKind::DepthStencilAttachment { clear } => (
+            DEPTH_TESTS,
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
+                | AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            Layout::DepthStencilAttachment,
+            clear.is_none() && keeps_old,
+        ),
+        UseKind::DepthStencilReadOnly => (
+            DEPTH_TESTS,
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ,
+            Layout::DepthStencilReadOnly,
+            true,
+        ),
+        UseKind::InputAttachment => (
+            PipelineStages::FRAGMENT_SHADER,
+            AccessFlags::INPUT_ATTACHMENT_READ,
+            shader_read_layout(format),
+            true,
+        ),
+        // A resolve overwrites every pixel of its target.
+        UseKind::ResolveTarget { .. } => (
+            PipelineStages::COLOR_ATTACHMENT_OUTPUT,
+            AccessFlags::COLOR_ATTACHMENT_WRITE,
+            Layout::ColorAttachment,
+            false,
+        ),
+        UseKind::Sampled => (
+            shader_stages(pass_kind),
+            AccessFlags::SHADER_SAMPLED_READ,
+            shader_read_layout(format),
+            true,
+        ),
+        UseKind::StorageRead => (
+            shader_stages(pass_kind),
+            AccessFlags::SHADER_STORAGE_READ,
+            Layout::General,
+            true,
+        ),
+        UseKind::StorageWrite => (
+            shader_stages(pass_kind),
+            AccessFlags::SHADER_STORAGE_WRITE,
+            Layout::General,
+            keeps_old,
+        ),
+        UseKind::StorageReadWrite => (
+            shader_stages(pass_kind),
+            AccessFlags::SHADER_STORAGE_READ | AccessFlags::SHADER_STORAGE_WRITE,
+            Layout::General,
+            true,
+        ),
+        UseKind::Uniform => (
+            shader_stages(pass_kind),
+            AccessFlags::UNIFORM_READ,
+            Layout::Undefined,
+            true,
+        ),
+        UseKind::Vertex => (
+            PipelineStages::VERTEX_ATTRIBUTE_INPUT,
+            AccessFlags::VERTEX_ATTRIBUTE_READ,
+            Layout::Undefined,
+            true,
+        ),
+        UseKind::Index => (
+            PipelineStages::INDEX_INPUT,
+            AccessFlags::INDEX_READ,
+            Layout::Undefined,
+            true,
+        ),
+        UseKind::Indirect => (
+            PipelineStages::DRAW_INDIRECT,
+            AccessFlags::INDIRECT_COMMAND_READ,
+            Layout::Undefined,
+            true,
+        ),
+        UseKind::TransferSrc => (
+            PipelineStages::ALL_TRANSFER,
+            AccessFlags::TRANSFER_READ,
+            Layout::TransferSrc,
+            true,
+        ),
+        UseKind::TransferDst => (
+            PipelineStages::ALL_TRANSFER,
+            AccessFlags::TRANSFER_WRITE,
+            Layout::TransferDst,
+            keeps_old,
+        ),
+    };
+    let attachment = u.kind.is_attachment();
+    Access {
+        resource: u.resource,
+        roles: u.kind.bit(),
+        stages,
+        access,
+        layout: if is_image { layout } else { Layout::Undefined },
+        reads_prior,
+        explicit_read: u.kind.reads(),
+        writes: u.kind.writes(),
+        attachment,
+        non_attachment: !attachment,
+        clear: u.kind.clear_value(),
+        first_kind: u.kind,
+    }
+}
+
+/// Folds another read into an existing access. Only reads that agree on the layout combine
+/// (the caller has checked).
+pub(crate) fn merge_reads(into: &mut Access, other: &Access) {
+    into.roles |= other.roles;
+    into.stages |= other.stages;
+    into.access |= other.access;
+    into.reads_prior |= other.reads_prior;
+    into.explicit_read |= other.explicit_read;
+    into.attachment |= other.attachment;
+    into.non_attachment |= other.non_attachment;
+}
+
+/// Bit of a use kind, for tests on `roles`.
+pub(crate) const fn role(kind: UseKind) -> u16 {
+    kind.bit()
+}
+
+/// Two uses of one resource in one pass that cannot be combined.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct UseConflict {
+    pub resource: ResourceId,
+    pub first: &'static str,
+    pub second: &'static str,
+}
+
+/// Appends one pass's accesses to `out`, one per resource: reads that agree on the layout
+/// combine, anything else is a conflict.
+pub(crate) fn push_pass_accesses<'d>(
+    kind: PassKind,
+    coverage: Coverage,
+    uses: &[PassUse],
+    desc_of: impl Fn(ResourceId) -> Option<&'d ResourceDesc>,
+    out: &mut Vec<Access>,
+) -> Result<(), UseConflict> {
+    let start = out.len();
+    for u in uses {
+        let Some(desc) = desc_of(u.resource) else {
+            continue;
+        };
+        let a = summarize_use(kind, coverage, u, desc);
+        match out[start..].iter_mut().find(|x| x.resource == u.resource) {
+            None => out.push(a),
+            Some(existing) => {
+                if existing.writes || a.writes || existing.layout != a.layout {
+                    return Err(UseConflict {
+                        resource: u.resource,
+                        first: existing.first_kind.name(),
+                        second: u.kind.name(),
+                    });
+                }
+                merge_reads(existing, &a);
+            }
+        }
+    }
+    Ok(())
+}

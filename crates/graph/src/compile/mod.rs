@@ -1,0 +1,466 @@
+//! `compile`: declarations in, [`Plan`] out, as a sequence of named phases, each a function
+//! from one plain data stage to the next:
+//!
+//! ```text
+//! validate_declarations -> cull_unused_passes -> order_passes -> merge_render_passes
+//!   -> resource_lifetimes -> infer_load_store -> assign_aliases -> plan_barriers
+//!   -> estimate_traffic
+//! ```
+//!
+//! Merging comes before load/store inference because "never leaves the render pass" (DONT_CARE
+//! store, transient) is a property of the merged render pass; aliasing comes before barriers
+//! because memory handed from one resource to another needs a barrier of its own.
+
+pub(crate) mod access;
+pub(crate) mod barriers;
+mod cull;
+mod load_store;
+mod merge;
+mod order;
+mod validate;
+
+use tilegraph_profile::{Architecture, Profile};
+
+use crate::alias::{
+    assign_aliases, AliasLifetime, MemoryClass, MemoryNeed, MemoryRequirements,
+    ESTIMATED_ALIGNMENT_BYTES,
+};
+use crate::declare::{
+    GraphBuilder, Origin, PassDecl, PassId, ResourceDecl, ResourceDesc, ResourceId, UseKind,
+};
+use crate::error::GraphError;
+use crate::plan::{
+    CulledPass, FlushReason, Plan, PlanResource, PlannedPass, Residency, Step, StepIndex,
+    StepRange, SubpassIndex, Usage,
+};
+use crate::traffic::{estimate_traffic, TrafficModel};
+use crate::types::{BufferUsage, ImageUsage};
+
+use access::{push_pass_accesses, role, Access};
+use barriers::{
+    final_states, plan_barriers, step_lifetimes, BarrierPlan, PassAccesses, ResourceSync,
+};
+use load_store::{build_timeline, infer_load_store, resource_lifetimes, LoadStoreInput};
+use merge::GroupKind;
+
+/// A compiled frame: the plan, and the payloads of the surviving passes.
+#[derive(Debug, Clone)]
+pub struct CompiledGraph<P> {
+    pub plan: Plan,
+    /// Indexed by `PassId`; `None` for culled passes (their payloads are dropped) and for
+    /// payloads already taken.
+    payloads: Vec<Option<P>>,
+}
+
+impl<P> CompiledGraph<P> {
+    pub fn plan(&self) -> &Plan {
+        &self.plan
+    }
+
+    pub fn payload(&self, pass: PassId) -> Option<&P> {
+        self.payloads.get(pass.index()).and_then(Option::as_ref)
+    }
+
+    pub fn payload_mut(&mut self, pass: PassId) -> Option<&mut P> {
+        self.payloads.get_mut(pass.index()).and_then(Option::as_mut)
+    }
+
+    /// Moves a payload out (e.g. an `FnOnce` recording callback).
+    pub fn take_payload(&mut self, pass: PassId) -> Option<P> {
+        self.payloads.get_mut(pass.index()).and_then(Option::take)
+    }
+
+    /// The plan and the payloads in execution order (`plan.passes[i]` owns `payloads[i]`).
+    pub fn into_parts(self) -> (Plan, Vec<(PassId, P)>) {
+        let mut payloads = self.payloads;
+        let ordered = self
+            .plan
+            .passes
+            .iter()
+            .filter_map(|p| {
+                payloads
+                    .get_mut(p.id.index())
+                    .and_then(Option::take)
+                    .map(|payload| (p.id, payload))
+            })
+            .collect();
+        (self.plan, ordered)
+    }
+}
+
+impl<P> GraphBuilder<P> {
+    /// Compiles the declared frame for `profile`. Deterministic: the same declarations and
+    /// profile give an identical plan.
+    pub fn compile(self, profile: &Profile) -> Result<CompiledGraph<P>, GraphError> {
+        compile(self, profile)
+    }
+}
+
+/// The graph's memory estimate for a resource (see [`crate::alias`]).
+pub fn estimated_requirements(desc: &ResourceDesc) -> MemoryRequirements {
+    MemoryRequirements {
+        size_bytes: desc.size_bytes(),
+        alignment_bytes: ESTIMATED_ALIGNMENT_BYTES,
+    }
+}
+
+fn memory_need(residency: Residency) -> MemoryNeed {
+    match residency {
+        Residency::Imported | Residency::Unused => MemoryNeed::External,
+        Residency::Exported => MemoryNeed::Dedicated(MemoryClass::DeviceLocal),
+        Residency::Transient => MemoryNeed::Dedicated(MemoryClass::LazilyAllocated),
+        Residency::FrameLocal => MemoryNeed::Shared(MemoryClass::DeviceLocal),
+    }
+}
+
+fn resource_sync(desc: &ResourceDesc, origin: &Origin) -> ResourceSync {
+    ResourceSync {
+        is_image: desc.image().is_some(),
+        is_depth: desc.image().is_some_and(|d| d.format.is_depth_stencil()),
+        import: match origin {
+            Origin::Imported(import) => Some(*import),
+            Origin::Created => None,
+        },
+    }
+}
+
+/// Usage flags from the roles of every surviving access.
+fn infer_usage(desc: &ResourceDesc, roles: u16, residency: Residency) -> Usage {
+    let has = |kind: UseKind| roles & role(kind) != 0;
+    match desc {
+        ResourceDesc::Image(_) => {
+            let mut u = ImageUsage::NONE;
+            if has(UseKind::ColorAttachment { clear: None })
+                || has(UseKind::ResolveTarget {
+                    source: ResourceId(0),
+                })
+            {
+                u |= ImageUsage::COLOR_ATTACHMENT;
+            }
+            if has(UseKind::DepthStencilAttachment { clear: None })
+                || has(UseKind::DepthStencilReadOnly)
+            {
+                u |= ImageUsage::DEPTH_STENCIL_ATTACHMENT;
+            }
+            if has(UseKind::InputAttachment) {
+                u |= ImageUsage::INPUT_ATTACHMENT;
+            }
+            if has(UseKind::Sampled) {
+                u |= ImageUsage::SAMPLED;
+            }
+            if has(UseKind::StorageRead)
+                || has(UseKind::StorageWrite)
+                || has(UseKind::StorageReadWrite)
+            {
+                u |= ImageUsage::STORAGE;
+            }
+            if has(UseKind::TransferSrc) {
+                u |= ImageUsage::TRANSFER_SRC;
+            }
+            if has(UseKind::TransferDst) {
+                u |= ImageUsage::TRANSFER_DST;
+            }
+            if residency == Residency::Transient {
+                u |= ImageUsage::TRANSIENT_ATTACHMENT;
+            }
+            Usage::Image(u)
+        }
+        ResourceDesc::Buffer(_) => {
+            let mut u = BufferUsage::NONE;
+            if has(UseKind::Uniform) {
+                u |= BufferUsage::UNIFORM_BUFFER;
+            }
+            if has(UseKind::StorageRead)
+                || has(UseKind::StorageWrite)
+                || has(UseKind::StorageReadWrite)
+            {
+                u |= BufferUsage::STORAGE_BUFFER;
+            }
+            if has(UseKind::Vertex) {
+                u |= BufferUsage::VERTEX_BUFFER;
+            }
+            if has(UseKind::Index) {
+                u |= BufferUsage::INDEX_BUFFER;
+            }
+            if has(UseKind::Indirect) {
+                u |= BufferUsage::INDIRECT_BUFFER;
+            }
+            if has(UseKind::TransferSrc) {
+                u |= BufferUsage::TRANSFER_SRC;
+            }
+            if has(UseKind::TransferDst) {
+                u |= BufferUsage::TRANSFER_DST;
+            }
+            Usage::Buffer(u)
+        }
+    }
+}
+
+/// Sets each planned pass's step and subpass from the steps.
+fn locate_passes(steps: &[Step], passes: &mut [PlannedPass]) {
+    let max_id = passes.iter().map(|p| p.id.index() + 1).max().unwrap_or(0);
+    let mut slot = vec![usize::MAX; max_id];
+    for (i, p) in passes.iter().enumerate() {
+        slot[p.id.index()] = i;
+    }
+    let mut set = |id: PassId, step: usize, subpass: Option<SubpassIndex>| {
+        if let Some(&i) = slot.get(id.index()) {
+            if let Some(p) = passes.get_mut(i) {
+                p.step = StepIndex(step as u32);
+                p.subpass = subpass;
+            }
+        }
+    };
+    for (i, step) in steps.iter().enumerate() {
+        match step {
+            Step::RenderPass(rp) => {
+                for (s, sub) in rp.subpasses.iter().enumerate() {
+                    set(sub.pass, i, Some(SubpassIndex(s as u32)));
+                }
+            }
+            Step::Compute { pass } | Step::Transfer { pass } => set(*pass, i, None),
+            Step::Barriers(_) | Step::Flush(_) => {}
+        }
+    }
+}
+
+fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph<P>, GraphError> {
+    let GraphBuilder {
+        resources,
+        passes,
+        payloads,
+        exports,
+        dependencies,
+    } = graph;
+    let n_resources = resources.len();
+
+    let analysis =
+        validate::validate_declarations(&resources, &passes, &exports, &dependencies, profile)?;
+    let culling = cull::cull_unused_passes(&analysis, &passes, &exports);
+    let order = order::order_passes(
+        &analysis,
+        &passes,
+        n_resources,
+        &culling.alive,
+        &dependencies,
+        profile,
+    )?;
+    let groups = merge::merge_render_passes(&order, &analysis, &passes, n_resources, profile);
+    let timeline = build_timeline(&groups, &order, &analysis, n_resources);
+    let mut exported = vec![false; n_resources];
+    for e in &exports {
+        exported[e.index()] = true;
+    }
+    let (group_lifetimes, residency) = resource_lifetimes(
+        &timeline, &groups, &analysis, &resources, &exported, profile,
+    );
+    let render_passes = infer_load_store(&LoadStoreInput {
+        groups: &groups,
+        order: &order,
+        analysis: &analysis,
+        passes: &passes,
+        resources: &resources,
+        exported: &exported,
+        residency: &residency,
+        timeline: &timeline,
+    });
+
+    // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
+    // on the order of lifetimes.
+    let requirements: Vec<MemoryRequirements> = resources
+        .iter()
+        .map(|r| estimated_requirements(&r.desc))
+        .collect();
+    let alias_input: Vec<AliasLifetime> = group_lifetimes
+        .iter()
+        .zip(&residency)
+        .map(|(life, &res)| AliasLifetime {
+            lifetime: life.map(|(first, last)| StepRange {
+                first: StepIndex(first),
+                last: StepIndex(last),
+            }),
+            memory: memory_need(res),
+        })
+        .collect();
+    let aliasing = assign_aliases(&alias_input, &requirements)?;
+
+    let mut work = Vec::with_capacity(groups.len() + 1);
+    for (group, rp) in groups.iter().zip(render_passes) {
+        if group.flush_before {
+            work.push(Step::Flush(FlushReason::BeforeOcclusionQueries));
+        }
+        let first = order[group.start];
+        work.push(match (group.kind, rp) {
+            (GroupKind::Render, Some(rp)) => Step::RenderPass(rp),
+            (GroupKind::Transfer, _) => Step::Transfer { pass: first },
+            _ => Step::Compute { pass: first },
+        });
+    }
+    let sync: Vec<ResourceSync> = resources
+        .iter()
+        .map(|r| resource_sync(&r.desc, &r.origin))
+        .collect();
+    let pass_accesses = PassAccesses {
+        accesses: &analysis.accesses,
+        ranges: &analysis.pass_ranges,
+    };
+    let BarrierPlan { steps } = plan_barriers(work, &pass_accesses, &sync, &aliasing);
+    let lifetimes = step_lifetimes(&steps, &pass_accesses, n_resources);
+    let finals = final_states(&steps, &pass_accesses, &sync);
+
+    let mut roles = vec![0u16; n_resources];
+    for &p in &order {
+        for a in analysis.accesses_of(p.index()) {
+            roles[a.resource.index()] |= a.roles;
+        }
+    }
+
+    let mut payload_slots: Vec<Option<P>> = payloads.into_iter().map(Some).collect();
+    let mut decls: Vec<Option<PassDecl>> = passes.into_iter().map(Some).collect();
+    let mut planned: Vec<PlannedPass> = Vec::with_capacity(order.len());
+    for &id in &order {
+        let Some(d) = decls.get_mut(id.index()).and_then(Option::take) else {
+            continue;
+        };
+        planned.push(PlannedPass {
+            id,
+            name: d.name,
+            kind: d.kind,
+            class: d.class,
+            coverage: d.coverage,
+            retention: d.retention,
+            uses: d.uses,
+            step: StepIndex(0),
+            subpass: None,
+        });
+    }
+    locate_passes(&steps, &mut planned);
+    let mut culled = Vec::with_capacity(culling.culled.len());
+    for (id, reason) in culling.culled {
+        if let Some(slot) = payload_slots.get_mut(id.index()) {
+            *slot = None;
+        }
+        let Some(d) = decls.get_mut(id.index()).and_then(Option::take) else {
+            continue;
+        };
+        culled.push(CulledPass {
+            id,
+            name: d.name,
+            kind: d.kind,
+            class: d.class,
+            uses: d.uses,
+            reason,
+        });
+    }
+
+    let plan_resources: Vec<PlanResource> = resources
+        .into_iter()
+        .enumerate()
+        .map(|(i, ResourceDecl { name, desc, origin })| PlanResource {
+            id: ResourceId(i as u32),
+            name,
+            desc,
+            origin,
+            residency: residency[i],
+            usage: infer_usage(&desc, roles[i], residency[i]),
+            lifetime: lifetimes[i],
+            memory: aliasing.slots[i],
+            estimated_size_bytes: requirements[i].size_bytes,
+            estimated_alignment_bytes: requirements[i].alignment_bytes,
+            final_state: finals[i],
+        })
+        .collect();
+
+    let model = match profile.gpu.architecture {
+        Architecture::Tiler => TrafficModel::Tiler,
+        Architecture::Immediate => TrafficModel::Immediate,
+    };
+    let traffic = estimate_traffic(model, &steps, &planned, &plan_resources, &pass_accesses);
+
+    Ok(CompiledGraph {
+        plan: Plan {
+            profile: profile.name.clone(),
+            passes: planned,
+            culled,
+            resources: plan_resources,
+            steps,
+            aliasing,
+            traffic,
+        },
+        payloads: payload_slots,
+    })
+}
+
+/// Re-derives every planned pass's accesses (indexed by `PassId`) from its declared uses.
+fn plan_accesses(plan: &Plan) -> (Vec<Access>, Vec<(u32, u32)>) {
+    let max_id = plan
+        .passes
+        .iter()
+        .map(|p| p.id.index() + 1)
+        .max()
+        .unwrap_or(0);
+    let mut ranges = vec![(0u32, 0u32); max_id];
+    let mut accesses = Vec::new();
+    for p in &plan.passes {
+        let start = accesses.len() as u32;
+        // Validated at compile time: a conflict cannot occur here; if it did, the pass would
+        // simply keep the accesses summarized so far.
+        let _ = push_pass_accesses(
+            p.kind,
+            p.coverage,
+            &p.uses,
+            |id| plan.resources.get(id.index()).map(|r| &r.desc),
+            &mut accesses,
+        );
+        ranges[p.id.index()] = (start, accesses.len() as u32);
+    }
+    (accesses, ranges)
+}
+
+impl Plan {
+    /// Re-runs aliasing with the real `VkMemoryRequirements` (one per resource, index =
+    /// `ResourceId`; the executor must fold `bufferImageGranularity` into the alignments) and
+    /// rebuilds the barriers the new placement needs. Memory slots, lifetimes' step numbers and
+    /// each pass's step are updated; passes, render passes and traffic are unchanged.
+    pub fn reassign_aliases(
+        &mut self,
+        requirements: &[MemoryRequirements],
+    ) -> Result<(), GraphError> {
+        let aliasing = assign_aliases(&self.alias_lifetimes(), requirements)?;
+        let (accesses, ranges) = plan_accesses(self);
+        let pass_accesses = PassAccesses {
+            accesses: &accesses,
+            ranges: &ranges,
+        };
+        let sync: Vec<ResourceSync> = self
+            .resources
+            .iter()
+            .map(|r| resource_sync(&r.desc, &r.origin))
+            .collect();
+        let work: Vec<Step> = std::mem::take(&mut self.steps)
+            .into_iter()
+            .filter(|s| !matches!(s, Step::Barriers(_)))
+            .collect();
+        let BarrierPlan { steps } = plan_barriers(work, &pass_accesses, &sync, &aliasing);
+        let lifetimes = step_lifetimes(&steps, &pass_accesses, self.resources.len());
+        for (i, r) in self.resources.iter_mut().enumerate() {
+            r.lifetime = lifetimes[i];
+            r.memory = aliasing.slots[i];
+        }
+        locate_passes(&steps, &mut self.passes);
+        self.steps = steps;
+        self.aliasing = aliasing;
+        Ok(())
+    }
+
+    /// The memory estimates compile used (index = `ResourceId`).
+    pub fn estimated_requirements(&self) -> Vec<MemoryRequirements> {
+        self.resources
+            .iter()
+            .map(|r| MemoryRequirements {
+                size_bytes: r.estimated_size_bytes,
+                alignment_bytes: r.estimated_alignment_bytes,
+            })
+            .collect()
+    }
+}

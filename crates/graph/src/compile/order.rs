@@ -1,0 +1,206 @@
+//! Phase 2, `order_passes`: dependencies first, then the profile's class order, then
+//! declaration order.
+//!
+//! Edges come from resources (read-after-write, write-after-read, write-after-write, in
+//! declaration order, between surviving passes) and from explicit `add_dependency` calls; only
+//! the latter can form a cycle. Among passes that are ready, the scheduler picks the lowest
+//! *effective* class rank: a pass inherits the rank of the most urgent pass that waits on it, so
+//! a post-process pass that feeds an opaque pass is not held back behind transparents. With the
+//! profile's order (occlusion queries after transparents) this puts occlusion-query passes
+//! after all opaque, alpha-tested and transparent work that does not depend on them (seed 001).
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, VecDeque};
+
+use tilegraph_profile::Profile;
+
+use crate::declare::{PassDecl, PassId};
+use crate::error::GraphError;
+
+use super::validate::Analysis;
+
+const NONE: u32 = u32::MAX;
+
+/// Successor lists (CSR) of the surviving passes.
+struct Edges {
+    start: Vec<u32>,
+    targets: Vec<u32>,
+}
+
+impl Edges {
+    fn of(&self, p: usize) -> &[u32] {
+        &self.targets[self.start[p] as usize..self.start[p + 1] as usize]
+    }
+}
+
+fn dependency_edges(
+    analysis: &Analysis,
+    n_resources: usize,
+    alive: &[bool],
+    dependencies: &[(PassId, PassId)],
+) -> Edges {
+    let n = alive.len();
+    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(analysis.accesses.len() * 2);
+    let mut last_writer = vec![NONE; n_resources];
+    // Readers since the last write, per resource, as linked lists in one vector.
+    let mut reader_head = vec![NONE; n_resources];
+    let mut readers: Vec<(u32, u32)> = Vec::new();
+    for p in (0..n).filter(|&p| alive[p]) {
+        let pu = p as u32;
+        for a in analysis.accesses_of(p) {
+            let r = a.resource.index();
+            let w = last_writer[r];
+            // Every access orders after the last write: a read needs its data, a write must
+            // not be overtaken by the older one.
+            if w != NONE && w != pu {
+                pairs.push((w, pu));
+            }
+            if a.writes {
+                let mut node = reader_head[r];
+                while node != NONE {
+                    let (q, next) = readers[node as usize];
+                    if q != pu {
+                        pairs.push((q, pu));
+                    }
+                    node = next;
+                }
+            }
+        }
+        for a in analysis.accesses_of(p) {
+            let r = a.resource.index();
+            if a.writes {
+                last_writer[r] = pu;
+                reader_head[r] = NONE;
+            } else {
+                readers.push((pu, reader_head[r]));
+                reader_head[r] = (readers.len() - 1) as u32;
+            }
+        }
+    }
+    for &(before, after) in dependencies {
+        if alive[before.index()] && alive[after.index()] {
+            pairs.push((before.0, after.0));
+        }
+    }
+    // Counting sort by source.
+    let mut start = vec![0u32; n + 1];
+    for &(from, _) in &pairs {
+        start[from as usize + 1] += 1;
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut targets = vec![0u32; pairs.len()];
+    for &(from, to) in &pairs {
+        targets[fill[from as usize] as usize] = to;
+        fill[from as usize] += 1;
+    }
+    Edges { start, targets }
+}
+
+/// Names the passes of one cycle among `remaining` (passes Kahn's algorithm could not free).
+fn find_cycle(edges: &Edges, remaining: &[bool], passes: &[PassDecl]) -> GraphError {
+    let n = remaining.len();
+    let mut preds: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for p in (0..n).filter(|&p| remaining[p]) {
+        for &s in edges.of(p) {
+            if remaining[s as usize] {
+                preds[s as usize].push(p as u32);
+            }
+        }
+    }
+    // Every remaining pass has a remaining predecessor, so walking backwards must repeat.
+    let Some(mut v) = (0..n).find(|&p| remaining[p]) else {
+        return GraphError::Cycle { passes: Vec::new() };
+    };
+    let mut seen_at = vec![NONE; n];
+    let mut path: Vec<u32> = Vec::new();
+    while seen_at[v] == NONE {
+        seen_at[v] = path.len() as u32;
+        path.push(v as u32);
+        match preds[v].iter().min() {
+            Some(&u) => v = u as usize,
+            None => break,
+        }
+    }
+    let from = seen_at[v].min(path.len() as u32) as usize;
+    let mut cycle: Vec<u32> = path[from..].to_vec();
+    cycle.reverse();
+    if let Some(&first) = cycle.first() {
+        cycle.push(first);
+    }
+    GraphError::Cycle {
+        passes: cycle
+            .iter()
+            .map(|&p| passes[p as usize].name.clone())
+            .collect(),
+    }
+}
+
+pub(crate) fn order_passes(
+    analysis: &Analysis,
+    passes: &[PassDecl],
+    n_resources: usize,
+    alive: &[bool],
+    dependencies: &[(PassId, PassId)],
+    profile: &Profile,
+) -> Result<Vec<PassId>, GraphError> {
+    let n = passes.len();
+    let edges = dependency_edges(analysis, n_resources, alive, dependencies);
+    let mut indegree = vec![0u32; n];
+    for &t in &edges.targets {
+        indegree[t as usize] += 1;
+    }
+
+    // A first topological order (FIFO), to find cycles and to propagate urgency backwards.
+    let alive_count = alive.iter().filter(|&&a| a).count();
+    let mut remaining = indegree.clone();
+    let mut queue: VecDeque<u32> = (0..n as u32)
+        .filter(|&p| alive[p as usize] && remaining[p as usize] == 0)
+        .collect();
+    let mut topo: Vec<u32> = Vec::with_capacity(alive_count);
+    while let Some(p) = queue.pop_front() {
+        topo.push(p);
+        for &s in edges.of(p as usize) {
+            remaining[s as usize] -= 1;
+            if remaining[s as usize] == 0 {
+                queue.push_back(s);
+            }
+        }
+    }
+    if topo.len() < alive_count {
+        let stuck: Vec<bool> = (0..n).map(|p| alive[p] && remaining[p] > 0).collect();
+        return Err(find_cycle(&edges, &stuck, passes));
+    }
+
+    let rank: Vec<usize> = passes
+        .iter()
+        .map(|p| profile.passes.class_rank(p.class))
+        .collect();
+    let mut effective = rank.clone();
+    for &p in topo.iter().rev() {
+        let p = p as usize;
+        for &s in edges.of(p) {
+            effective[p] = effective[p].min(effective[s as usize]);
+        }
+    }
+
+    let mut ready: BinaryHeap<Reverse<(usize, usize, u32)>> = topo
+        .iter()
+        .filter(|&&p| indegree[p as usize] == 0)
+        .map(|&p| Reverse((effective[p as usize], rank[p as usize], p)))
+        .collect();
+    let mut order = Vec::with_capacity(alive_count);
+    while let Some(Reverse((_, _, p))) = ready.pop() {
+        order.push(PassId(p));
+        for &s in edges.of(p as usize) {
+            let s = s as usize;
+            indegree[s] -= 1;
+            if indegree[s] == 0 {
+                ready.push(Reverse((effective[s], rank[s], s as u32)));
+            }
+        }
+    }
+    Ok(order)
+}

@@ -1,0 +1,135 @@
+//! Graphviz DOT: passes are boxes, resources ellipses, edges say how a pass uses a resource
+//! (resource -> pass for reads, pass -> resource for writes), each render pass is a cluster, and
+//! culled passes are grey and dashed.
+
+use std::fmt::Write as _;
+
+use crate::declare::{PassId, PassUse, ResourceDesc};
+use crate::plan::{Plan, Residency, Step};
+
+fn quote(text: &str) -> String {
+    let mut out = String::with_capacity(text.len() + 2);
+    out.push('"');
+    for c in text.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            '\n' => out.push_str("\\n"),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
+fn pass_node(id: PassId) -> String {
+    format!("p{}", id.0)
+}
+
+fn edges(out: &mut String, pass: PassId, uses: &[PassUse], culled: bool) {
+    let style = if culled {
+        ", color=grey60, fontcolor=grey60, style=dashed"
+    } else {
+        ""
+    };
+    for u in uses {
+        let (from, to) = if u.kind.writes() {
+            (pass_node(pass), format!("r{}", u.resource.0))
+        } else {
+            (format!("r{}", u.resource.0), pass_node(pass))
+        };
+        let _ = writeln!(
+            out,
+            "  {from} -> {to} [label={}{style}];",
+            quote(u.kind.name())
+        );
+    }
+}
+
+impl Plan {
+    /// The plan as a Graphviz digraph (`dot -Tsvg`).
+    pub fn to_dot(&self) -> String {
+        let mut out = String::new();
+        out.push_str("digraph plan {\n");
+        let _ = writeln!(
+            out,
+            "  label={};",
+            quote(&format!("tilegraph plan ({})", self.profile))
+        );
+        out.push_str("  rankdir=LR;\n  node [fontname=\"monospace\", fontsize=10];\n");
+        out.push_str("  edge [fontname=\"monospace\", fontsize=8];\n");
+        for (i, step) in self.steps.iter().enumerate() {
+            let Step::RenderPass(rp) = step else { continue };
+            let _ = writeln!(out, "  subgraph cluster_step{i} {{");
+            let _ = writeln!(
+                out,
+                "    label={}; style=rounded; color=steelblue;",
+                quote(&format!("render pass (step {i}) {} px", rp.render_area_px))
+            );
+            for s in &rp.subpasses {
+                let _ = writeln!(out, "    {};", pass_node(s.pass));
+            }
+            out.push_str("  }\n");
+        }
+        for p in &self.passes {
+            let label = format!(
+                "{}\n{} {} (step {})",
+                p.name,
+                p.kind.name(),
+                p.class.name(),
+                p.step.0
+            );
+            let _ = writeln!(
+                out,
+                "  {} [shape=box, label={}];",
+                pass_node(p.id),
+                quote(&label)
+            );
+        }
+        for p in &self.culled {
+            let label = format!("{}\nculled", p.name);
+            let _ = writeln!(
+                out,
+                "  {} [shape=box, style=\"dashed,filled\", fillcolor=grey90, color=grey60, \
+                 fontcolor=grey50, label={}];",
+                pass_node(p.id),
+                quote(&label)
+            );
+        }
+        for r in &self.resources {
+            if r.residency == Residency::Unused
+                && !self
+                    .culled
+                    .iter()
+                    .any(|c| c.uses.iter().any(|u| u.resource == r.id))
+            {
+                continue;
+            }
+            let desc = match &r.desc {
+                ResourceDesc::Image(d) => format!("{} {}", d.extent_px, d.format),
+                ResourceDesc::Buffer(d) => format!("{} B", d.size_bytes),
+            };
+            let style = match r.residency {
+                Residency::Transient => ", style=dashed",
+                Residency::Imported | Residency::Exported => ", style=bold",
+                Residency::Unused => ", color=grey60, fontcolor=grey50",
+                Residency::FrameLocal => "",
+            };
+            let label = format!("{}\n{}\n{}", r.name, desc, r.residency.name());
+            let _ = writeln!(
+                out,
+                "  r{} [shape=ellipse, label={}{style}];",
+                r.id.0,
+                quote(&label)
+            );
+        }
+        for p in &self.passes {
+            edges(&mut out, p.id, &p.uses, false);
+        }
+        for p in &self.culled {
+            edges(&mut out, p.id, &p.uses, true);
+        }
+        out.push_str("}\n");
+        out
+    }
+}

@@ -1,0 +1,408 @@
+//! The compiled plan: plain data (indices, enums, names) that the Vulkan executor walks, that
+//! `Display` prints as a table and [`Plan::to_dot`] draws.
+
+use tilegraph_profile::PassClass;
+
+use crate::alias::{AliasAssignment, AliasLifetime, MemoryClass, MemoryNeed, MemorySlot};
+use crate::declare::{
+    Coverage, Origin, PassId, PassKind, PassUse, ResourceDesc, ResourceId, ResourceState, Retention,
+};
+use crate::traffic::TrafficEstimate;
+use crate::types::{
+    AccessFlags, BufferUsage, ClearValue, DependencyFlags, Extent2d, Format, ImageUsage, Layout,
+    LoadOp, PipelineStages, SampleCount, StoreOp,
+};
+
+/// Index into [`Plan::steps`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct StepIndex(pub u32);
+
+impl StepIndex {
+    pub const fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+/// Index into [`RenderPass::attachments`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct AttachmentIndex(pub u32);
+
+/// Index into [`RenderPass::subpasses`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct SubpassIndex(pub u32);
+
+/// First and last step (inclusive) that use a resource.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct StepRange {
+    pub first: StepIndex,
+    pub last: StepIndex,
+}
+
+impl StepRange {
+    pub const fn overlaps(self, other: StepRange) -> bool {
+        self.first.0 <= other.last.0 && other.first.0 <= self.last.0
+    }
+}
+
+/// The compiled frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// Name of the profile it was compiled for.
+    pub profile: String,
+    /// Surviving passes in execution order.
+    pub passes: Vec<PlannedPass>,
+    /// Culled passes in declaration order, with the reason.
+    pub culled: Vec<CulledPass>,
+    /// Every declared resource, indexed by [`ResourceId`].
+    pub resources: Vec<PlanResource>,
+    /// What the executor records, in order.
+    pub steps: Vec<Step>,
+    pub aliasing: AliasAssignment,
+    pub traffic: TrafficEstimate,
+}
+
+/// A pass that survived culling.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannedPass {
+    pub id: PassId,
+    pub name: String,
+    pub kind: PassKind,
+    pub class: PassClass,
+    pub coverage: Coverage,
+    pub retention: Retention,
+    pub uses: Vec<PassUse>,
+    /// The step that records it (a render pass, compute or transfer step).
+    pub step: StepIndex,
+    /// Its subpass when `step` is a render pass.
+    pub subpass: Option<SubpassIndex>,
+}
+
+/// A pass removed because nothing needed what it writes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CulledPass {
+    pub id: PassId,
+    pub name: String,
+    pub kind: PassKind,
+    pub class: PassClass,
+    pub uses: Vec<PassUse>,
+    pub reason: CullReason,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CullReason {
+    /// It writes no resource, so nothing can depend on it (and it is not `Retention::Always`).
+    NoOutputs,
+    /// Nothing reads what it writes before it is overwritten, and none of it is exported.
+    OutputsUnused,
+    /// Only passes that were themselves culled read what it writes.
+    ConsumersCulled { consumers: Vec<PassId> },
+}
+
+/// How a resource's memory is provided.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Residency {
+    /// Owned by the caller.
+    Imported,
+    /// Created by the graph and exported (survives the frame): dedicated memory, never aliased.
+    Exported,
+    /// Created for this frame; may share memory with resources not alive at the same time.
+    FrameLocal,
+    /// Whole life inside one render pass, never loaded nor stored: TRANSIENT_ATTACHMENT usage
+    /// and lazily allocated memory (profiles with `transient_attachments`).
+    Transient,
+    /// No surviving pass uses it: nothing to allocate.
+    Unused,
+}
+
+impl Residency {
+    pub const fn name(self) -> &'static str {
+        match self {
+            Residency::Imported => "imported",
+            Residency::Exported => "exported",
+            Residency::FrameLocal => "frame",
+            Residency::Transient => "transient",
+            Residency::Unused => "unused",
+        }
+    }
+}
+
+/// Usage flags inferred from the surviving passes' declared uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Usage {
+    Image(ImageUsage),
+    Buffer(BufferUsage),
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanResource {
+    pub id: ResourceId,
+    pub name: String,
+    pub desc: ResourceDesc,
+    pub origin: Origin,
+    pub residency: Residency,
+    pub usage: Usage,
+    /// First and last step that use it; `None` when unused.
+    pub lifetime: Option<StepRange>,
+    /// Where it lives in [`AliasAssignment::blocks`]; `None` for imported and unused resources.
+    pub memory: Option<MemorySlot>,
+    /// The graph's size estimate (every mip and sample; a buffer's size).
+    pub estimated_size_bytes: u64,
+    /// The conservative alignment the estimate assumes (see [`crate::alias`]).
+    pub estimated_alignment_bytes: u64,
+    /// The state the frame leaves it in: the imported `final_state`, or for created resources
+    /// the state after their last use (what next frame's import of a history image declares).
+    pub final_state: ResourceState,
+}
+
+impl PlanResource {
+    pub fn is_image(&self) -> bool {
+        matches!(self.desc, ResourceDesc::Image(_))
+    }
+
+    pub fn format(&self) -> Option<Format> {
+        self.desc.image().map(|d| d.format)
+    }
+
+    /// What [`crate::assign_aliases`] needs about this resource.
+    pub fn alias_lifetime(&self) -> AliasLifetime {
+        let memory = match self.residency {
+            Residency::Imported | Residency::Unused => MemoryNeed::External,
+            Residency::Exported => MemoryNeed::Dedicated(MemoryClass::DeviceLocal),
+            Residency::Transient => MemoryNeed::Dedicated(MemoryClass::LazilyAllocated),
+            Residency::FrameLocal => MemoryNeed::Shared(MemoryClass::DeviceLocal),
+        };
+        AliasLifetime {
+            lifetime: self.lifetime,
+            memory,
+        }
+    }
+}
+
+/// One thing the executor records, in order.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Step {
+    /// One `vkCmdPipelineBarrier2`.
+    Barriers(BarrierBatch),
+    RenderPass(RenderPass),
+    /// Record the compute pass's payload.
+    Compute {
+        pass: PassId,
+    },
+    /// Record the transfer pass's payload.
+    Transfer {
+        pass: PassId,
+    },
+    /// Submit what was recorded so far before going on.
+    Flush(FlushReason),
+}
+
+impl Step {
+    pub const fn name(&self) -> &'static str {
+        match self {
+            Step::Barriers(_) => "barriers",
+            Step::RenderPass(_) => "render pass",
+            Step::Compute { .. } => "compute",
+            Step::Transfer { .. } => "transfer",
+            Step::Flush(_) => "flush",
+        }
+    }
+
+    /// Steps that record passes (everything but barriers and flushes).
+    pub const fn is_work(&self) -> bool {
+        matches!(
+            self,
+            Step::RenderPass(_) | Step::Compute { .. } | Step::Transfer { .. }
+        )
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FlushReason {
+    /// seed 001: on Adreno, occlusion queries go in a render pass of their own after a flush, so
+    /// the driver can run that pass in direct mode.
+    BeforeOcclusionQueries,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct BarrierBatch {
+    pub images: Vec<ImageBarrier>,
+    pub buffers: Vec<BufferBarrier>,
+}
+
+impl BarrierBatch {
+    pub fn is_empty(&self) -> bool {
+        self.images.is_empty() && self.buffers.is_empty()
+    }
+
+    pub fn len(&self) -> usize {
+        self.images.len() + self.buffers.len()
+    }
+}
+
+/// Why a barrier exists.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Hazard {
+    ReadAfterWrite,
+    WriteAfterRead,
+    WriteAfterWrite,
+    /// A layout change (which is a read and a write of the whole image).
+    LayoutTransition,
+    /// First use of memory that an earlier resource used.
+    Aliasing,
+    /// Leaving an imported resource in the state its import asks for.
+    Release,
+}
+
+impl Hazard {
+    pub const fn name(self) -> &'static str {
+        match self {
+            Hazard::ReadAfterWrite => "RAW",
+            Hazard::WriteAfterRead => "WAR",
+            Hazard::WriteAfterWrite => "WAW",
+            Hazard::LayoutTransition => "layout",
+            Hazard::Aliasing => "alias",
+            Hazard::Release => "release",
+        }
+    }
+}
+
+/// A synchronization2 image barrier over the whole image (every mip, one layer, every aspect of
+/// its format).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageBarrier {
+    pub resource: ResourceId,
+    pub src_stages: PipelineStages,
+    pub src_access: AccessFlags,
+    pub dst_stages: PipelineStages,
+    pub dst_access: AccessFlags,
+    pub old_layout: Layout,
+    pub new_layout: Layout,
+    pub hazard: Hazard,
+}
+
+/// A synchronization2 buffer barrier over the whole buffer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BufferBarrier {
+    pub resource: ResourceId,
+    pub src_stages: PipelineStages,
+    pub src_access: AccessFlags,
+    pub dst_stages: PipelineStages,
+    pub dst_access: AccessFlags,
+    pub hazard: Hazard,
+}
+
+/// One `VkRenderPass` (with its framebuffer), one subpass per merged raster pass.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderPass {
+    pub render_area_px: Extent2d,
+    pub attachments: Vec<Attachment>,
+    pub subpasses: Vec<Subpass>,
+    pub dependencies: Vec<SubpassDependency>,
+    /// Bytes per pixel the attachments occupy in tile memory (resolve targets excluded).
+    pub on_chip_bytes_per_px: u32,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Attachment {
+    pub resource: ResourceId,
+    pub format: Format,
+    pub samples: SampleCount,
+    pub load_op: LoadOp,
+    pub store_op: StoreOp,
+    /// Equal to `load_op`/`store_op` for formats with stencil (seed 001: depth and stencil are
+    /// invalidated together), `DontCare` otherwise.
+    pub stencil_load_op: LoadOp,
+    pub stencil_store_op: StoreOp,
+    pub initial_layout: Layout,
+    pub final_layout: Layout,
+    /// Set when `load_op` is `Clear`.
+    pub clear: Option<ClearValue>,
+    /// `Transient` attachments are lazily allocated and carry TRANSIENT_ATTACHMENT usage.
+    pub residency: Residency,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct AttachmentRef {
+    pub attachment: AttachmentIndex,
+    pub layout: Layout,
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Subpass {
+    /// The logical pass whose payload records this subpass.
+    pub pass: PassId,
+    pub colors: Vec<AttachmentRef>,
+    /// Empty, or one entry per colour attachment (`None` where that colour is not resolved).
+    pub resolves: Vec<Option<AttachmentRef>>,
+    pub depth_stencil: Option<AttachmentRef>,
+    pub inputs: Vec<AttachmentRef>,
+    /// Attachments used before and after this subpass but not by it, whose content must stay.
+    pub preserve: Vec<AttachmentIndex>,
+}
+
+/// A dependency between two subpasses of one render pass (always by region: merging requires
+/// same-pixel access).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SubpassDependency {
+    pub src_subpass: SubpassIndex,
+    pub dst_subpass: SubpassIndex,
+    pub src_stages: PipelineStages,
+    pub src_access: AccessFlags,
+    pub dst_stages: PipelineStages,
+    pub dst_access: AccessFlags,
+    pub flags: DependencyFlags,
+}
+
+impl Plan {
+    /// The planned pass with this id (linear search; the executor walks `steps` instead).
+    pub fn pass(&self, id: PassId) -> Option<&PlannedPass> {
+        self.passes.iter().find(|p| p.id == id)
+    }
+
+    pub fn pass_by_name(&self, name: &str) -> Option<&PlannedPass> {
+        self.passes.iter().find(|p| p.name == name)
+    }
+
+    pub fn resource(&self, id: ResourceId) -> Option<&PlanResource> {
+        self.resources.get(id.index())
+    }
+
+    pub fn resource_by_name(&self, name: &str) -> Option<&PlanResource> {
+        self.resources.iter().find(|r| r.name == name)
+    }
+
+    /// Render passes in execution order with their step index.
+    pub fn render_passes(&self) -> impl Iterator<Item = (StepIndex, &RenderPass)> {
+        self.steps.iter().enumerate().filter_map(|(i, s)| match s {
+            Step::RenderPass(rp) => Some((StepIndex(i as u32), rp)),
+            _ => None,
+        })
+    }
+
+    /// Every barrier of the plan with the step it belongs to.
+    pub fn barrier_count(&self) -> usize {
+        self.steps
+            .iter()
+            .map(|s| match s {
+                Step::Barriers(b) => b.len(),
+                _ => 0,
+            })
+            .sum()
+    }
+
+    /// Per resource, what [`crate::assign_aliases`] needs (index = [`ResourceId`]).
+    pub fn alias_lifetimes(&self) -> Vec<AliasLifetime> {
+        self.resources
+            .iter()
+            .map(PlanResource::alias_lifetime)
+            .collect()
+    }
+
+    /// The attachment's render pass's view of where a resource is bound, for display and tests.
+    pub fn attachment_of(&self, step: StepIndex, resource: ResourceId) -> Option<&Attachment> {
+        match self.steps.get(step.index()) {
+            Some(Step::RenderPass(rp)) => rp.attachments.iter().find(|a| a.resource == resource),
+            _ => None,
+        }
+    }
+}

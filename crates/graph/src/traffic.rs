@@ -1,0 +1,256 @@
+//! Phase 8, `estimate_traffic`: bytes moved between the GPU and system memory per frame.
+//!
+//! **Tiler model** (profiles with `architecture = "tiler"`): attachments live in tile memory
+//! during a render pass, so a render pass costs one read of every attachment it LOADs and one
+//! write of every attachment it STOREs (`width * height * bytes_per_pixel * samples`; a resolve
+//! target's store is counted as resolve). Whatever happens between subpasses stays on chip.
+//!
+//! **Immediate model** (`architecture = "immediate"`): no tile memory; every raster pass reads
+//! each attachment whose old content it uses (LOAD, blending, depth test, input attachment) and
+//! writes each attachment it writes (a clear counts as a write; a resolve reads the multisampled
+//! source and writes the target). Caches are ignored.
+//!
+//! **Both models** add, per pass, one full read of every sampled image (all mips, once per pass
+//! however often the shader samples it), storage reads and writes of the whole image or buffer,
+//! uniform/vertex/index/indirect buffers read once, and transfer sources read and destinations
+//! written once.
+//!
+//! **Naive plan**, for comparison: every raster pass is its own render pass and loads and stores
+//! every attachment it declares; the other traffic is the same. Both numbers are in the plan.
+
+use crate::compile::access::{role, Access};
+use crate::compile::barriers::PassAccesses;
+use crate::declare::{InitialContent, Origin, PassKind, ResourceDesc, ResourceId, UseKind};
+use crate::plan::{PlanResource, PlannedPass, Step};
+use crate::types::{LoadOp, StoreOp};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TrafficModel {
+    Tiler,
+    Immediate,
+}
+
+impl TrafficModel {
+    pub const fn name(self) -> &'static str {
+        match self {
+            TrafficModel::Tiler => "tiler",
+            TrafficModel::Immediate => "immediate",
+        }
+    }
+}
+
+/// Bytes per frame, by kind of traffic.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct TrafficBreakdown {
+    /// Tiler: LOADs into tile memory. Immediate: attachment reads.
+    pub attachment_read_bytes: u64,
+    /// Tiler: STOREs out of tile memory. Immediate: attachment writes.
+    pub attachment_write_bytes: u64,
+    /// Multisample resolves written to memory.
+    pub resolve_write_bytes: u64,
+    pub sampled_read_bytes: u64,
+    pub storage_read_bytes: u64,
+    pub storage_write_bytes: u64,
+    /// Uniform, vertex, index and indirect buffers.
+    pub buffer_read_bytes: u64,
+    pub transfer_read_bytes: u64,
+    pub transfer_write_bytes: u64,
+}
+
+impl TrafficBreakdown {
+    pub fn total_bytes(&self) -> u64 {
+        [
+            self.attachment_read_bytes,
+            self.attachment_write_bytes,
+            self.resolve_write_bytes,
+            self.sampled_read_bytes,
+            self.storage_read_bytes,
+            self.storage_write_bytes,
+            self.buffer_read_bytes,
+            self.transfer_read_bytes,
+            self.transfer_write_bytes,
+        ]
+        .iter()
+        .fold(0u64, |acc, &b| acc.saturating_add(b))
+    }
+
+    /// Named parts, for printing.
+    pub fn parts(&self) -> [(&'static str, u64); 9] {
+        [
+            ("attachment reads/loads", self.attachment_read_bytes),
+            ("attachment writes/stores", self.attachment_write_bytes),
+            ("resolves", self.resolve_write_bytes),
+            ("sampled reads", self.sampled_read_bytes),
+            ("storage reads", self.storage_read_bytes),
+            ("storage writes", self.storage_write_bytes),
+            ("uniform/vertex/index/indirect", self.buffer_read_bytes),
+            ("transfer reads", self.transfer_read_bytes),
+            ("transfer writes", self.transfer_write_bytes),
+        ]
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct TrafficEstimate {
+    pub model: TrafficModel,
+    /// The compiled plan.
+    pub planned: TrafficBreakdown,
+    /// Every raster pass alone, loading and storing every attachment.
+    pub naive: TrafficBreakdown,
+}
+
+fn add(slot: &mut u64, bytes: u64) {
+    *slot = slot.saturating_add(bytes);
+}
+
+/// Bytes of one load or store of an attachment (mip 0, all samples).
+fn attachment_bytes(desc: &ResourceDesc) -> u64 {
+    match desc {
+        ResourceDesc::Image(d) => d.attachment_bytes(),
+        ResourceDesc::Buffer(d) => d.size_bytes,
+    }
+}
+
+/// Traffic that does not go through attachments: descriptors, vertex input, transfers.
+fn memory_traffic(a: &Access, desc: &ResourceDesc, out: &mut TrafficBreakdown) {
+    let bytes = desc.size_bytes();
+    let has = |kind: UseKind| a.roles & role(kind) != 0;
+    if has(UseKind::Sampled) {
+        add(&mut out.sampled_read_bytes, bytes);
+    }
+    if has(UseKind::StorageRead) || has(UseKind::StorageReadWrite) {
+        add(&mut out.storage_read_bytes, bytes);
+    }
+    if has(UseKind::StorageWrite) || has(UseKind::StorageReadWrite) {
+        add(&mut out.storage_write_bytes, bytes);
+    }
+    if has(UseKind::Uniform)
+        || has(UseKind::Vertex)
+        || has(UseKind::Index)
+        || has(UseKind::Indirect)
+    {
+        add(&mut out.buffer_read_bytes, bytes);
+    }
+    if has(UseKind::TransferSrc) {
+        add(&mut out.transfer_read_bytes, bytes);
+    }
+    if has(UseKind::TransferDst) {
+        add(&mut out.transfer_write_bytes, bytes);
+    }
+}
+
+pub(crate) fn estimate_traffic(
+    model: TrafficModel,
+    steps: &[Step],
+    passes: &[PlannedPass],
+    resources: &[PlanResource],
+    accesses: &PassAccesses<'_>,
+) -> TrafficEstimate {
+    let desc = |r: ResourceId| resources.get(r.index()).map(|x| &x.desc);
+    let mut planned = TrafficBreakdown::default();
+    let mut naive = TrafficBreakdown::default();
+
+    // Traffic common to both plans, and the naive attachment traffic.
+    for pass in passes {
+        for a in accesses.of(pass.id) {
+            let Some(d) = desc(a.resource) else { continue };
+            memory_traffic(a, d, &mut planned);
+            memory_traffic(a, d, &mut naive);
+            if pass.kind == PassKind::Raster && a.attachment {
+                add(&mut naive.attachment_read_bytes, attachment_bytes(d));
+                add(&mut naive.attachment_write_bytes, attachment_bytes(d));
+            }
+        }
+    }
+
+    match model {
+        TrafficModel::Tiler => {
+            for step in steps {
+                let Step::RenderPass(rp) = step else { continue };
+                for (i, att) in rp.attachments.iter().enumerate() {
+                    let Some(d) = desc(att.resource) else {
+                        continue;
+                    };
+                    let bytes = attachment_bytes(d);
+                    if att.load_op == LoadOp::Load {
+                        add(&mut planned.attachment_read_bytes, bytes);
+                    }
+                    if att.store_op == StoreOp::Store {
+                        let resolve_only = rp.subpasses.iter().all(|s| {
+                            let idx = crate::plan::AttachmentIndex(i as u32);
+                            !s.colors.iter().any(|r| r.attachment == idx)
+                                && s.depth_stencil.is_none_or(|r| r.attachment != idx)
+                                && !s.inputs.iter().any(|r| r.attachment == idx)
+                        });
+                        if resolve_only {
+                            add(&mut planned.resolve_write_bytes, bytes);
+                        } else {
+                            add(&mut planned.attachment_write_bytes, bytes);
+                        }
+                    }
+                }
+            }
+        }
+        TrafficModel::Immediate => {
+            let mut has_content: Vec<bool> = resources
+                .iter()
+                .map(|r| {
+                    matches!(r.origin, Origin::Imported(i) if i.content == InitialContent::Preserve)
+                })
+                .collect();
+            for pass in passes {
+                if pass.kind == PassKind::Raster {
+                    for a in accesses.of(pass.id).iter().filter(|a| a.attachment) {
+                        immediate_attachment(pass, a, &has_content, &desc, &mut planned);
+                    }
+                }
+                for a in accesses.of(pass.id).iter().filter(|a| a.writes) {
+                    if let Some(c) = has_content.get_mut(a.resource.index()) {
+                        *c = true;
+                    }
+                }
+            }
+        }
+    }
+    TrafficEstimate {
+        model,
+        planned,
+        naive,
+    }
+}
+
+/// One raster pass's traffic for one attachment on an immediate GPU.
+fn immediate_attachment<'r>(
+    pass: &PlannedPass,
+    a: &Access,
+    has_content: &[bool],
+    desc: &impl Fn(ResourceId) -> Option<&'r ResourceDesc>,
+    planned: &mut TrafficBreakdown,
+) {
+    let Some(d) = desc(a.resource) else { return };
+    let bytes = attachment_bytes(d);
+    let old = has_content
+        .get(a.resource.index())
+        .copied()
+        .unwrap_or(false);
+    if a.explicit_read || (a.reads_prior && old) {
+        add(&mut planned.attachment_read_bytes, bytes);
+    }
+    if a.roles
+        & role(UseKind::ResolveTarget {
+            source: ResourceId(0),
+        })
+        != 0
+    {
+        add(&mut planned.resolve_write_bytes, bytes);
+        let source = pass.uses.iter().find_map(|u| match u.kind {
+            UseKind::ResolveTarget { source } if u.resource == a.resource => Some(source),
+            _ => None,
+        });
+        if let Some(sd) = source.and_then(desc) {
+            add(&mut planned.attachment_read_bytes, attachment_bytes(sd));
+        }
+    } else if a.writes {
+        add(&mut planned.attachment_write_bytes, bytes);
+    }
+}
