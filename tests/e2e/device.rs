@@ -122,3 +122,34 @@ fn an_unknown_device_name_is_a_typed_error() {
         Ok(_) => panic!("expected DeviceNotFound, got a device"),
     }
 }
+
+/// Proves synchronization validation is on: two unsynchronized writes to one buffer.
+#[test]
+fn a_deliberate_sync_hazard_is_caught() {
+    let g = gpu(None).unwrap();
+    let b = g
+        .create_buffer(
+            "hazard",
+            256,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryUse::GpuOnly,
+        )
+        .unwrap();
+    g.submit_and_wait(|cb| {
+        // SAFETY: deliberately racing writes (WAW) for the layer to catch; valid otherwise.
+        unsafe {
+            g.device.cmd_fill_buffer(cb, b.raw, 0, 256, 1);
+            g.device.cmd_fill_buffer(cb, b.raw, 0, 256, 2);
+        }
+        Ok(())
+    })
+    .unwrap();
+    g.destroy_buffer(b);
+    let messages = g.take_validation_messages();
+    assert!(
+        messages
+            .iter()
+            .any(|m| m.contains("SYNC-HAZARD-WRITE-AFTER-WRITE")),
+        "synchronization validation did not report the WAW hazard: {messages:?}"
+    );
+}

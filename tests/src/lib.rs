@@ -63,3 +63,5 @@ pub fn gpu_with(profile: Option<&str>, features: FeatureRequest) -> Result<Gpu, 
         ctx: Context::new(options(profile, features))?,
     })
 }
+
+pub mod frames;

@@ -99,6 +99,11 @@ impl FrameRing {
         self.slots.len()
     }
 
+    /// The frame number the next [`FrameRing::begin`] hands out.
+    pub fn next_frame(&self) -> u64 {
+        self.next_frame
+    }
+
     /// The slot the next frame will use.
     pub fn next_slot(&self) -> usize {
         (self.next_frame % self.slots.len() as u64) as usize

@@ -9,12 +9,14 @@
 
 mod context;
 mod error;
+pub mod executor;
 mod features;
 pub mod first_frame;
 pub mod frames;
 mod instance;
 pub mod pipeline;
 pub mod queries;
+pub mod readback;
 pub mod shader;
 mod validation;
 

@@ -1,0 +1,170 @@
+//! Executing compiled plans on lavapipe, validation (with synchronization validation) on.
+
+use tilegraph_e2e::frames::{
+    classic_mobile_frame, destroy_target, externals, target, visbuf_frame, Frame, Kit,
+};
+use tilegraph_e2e::gpu;
+use tilegraph_graph::Residency;
+use tilegraph_vk::ash::vk;
+use tilegraph_vk::executor::Executor;
+use tilegraph_vk::readback::read_image;
+
+const W: u32 = 160;
+const H: u32 = 90;
+
+fn px(bytes: &[u8], x: u32, y: u32) -> [u8; 4] {
+    let i = ((y * W + x) * 4) as usize;
+    [bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]
+}
+
+fn close(a: [u8; 4], b: [u8; 4]) -> bool {
+    a.iter().zip(b).all(|(x, y)| x.abs_diff(y) <= 2)
+}
+
+struct Outcome {
+    pixels: Vec<u8>,
+    render_passes: u32,
+    subpasses: u32,
+    allocations_after_first: Vec<u64>,
+    timings_ok: bool,
+}
+
+fn run(
+    profile: &str,
+    make: fn(&std::rc::Rc<std::cell::RefCell<Kit>>, u32, u32) -> Frame,
+    frames: usize,
+) -> (Outcome, tilegraph_graph::Plan) {
+    let g = gpu(Some(profile)).unwrap();
+    let kit = Kit::new(&g).unwrap();
+    let frame = make(&kit, W, H);
+    let target_id = frame.target;
+    let mut compiled = frame.graph.compile(g.profile()).unwrap();
+    let plan = compiled.plan.clone();
+    let (image, handle) = target(&g, W, H).unwrap();
+    let ext = externals(target_id, &handle);
+    let mut exec = Executor::new(&g).unwrap();
+    let mut allocations = Vec::new();
+    let mut stats = None;
+    for _ in 0..frames {
+        let s = exec
+            .execute(
+                &g,
+                &plan,
+                &ext,
+                &mut |id, pc| match compiled.payload_mut(id) {
+                    Some(p) => p(pc),
+                    None => Ok(()),
+                },
+            )
+            .unwrap();
+        allocations.push(s.allocations);
+        stats = Some(s);
+    }
+    exec.finish(&g).unwrap();
+    let pixels = read_image(&g, &handle, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, 0).unwrap();
+    let timings_ok = exec.latest_timings().is_some_and(|t| {
+        t.passes.len() == plan.passes.len()
+            && t.passes
+                .iter()
+                .all(|p| p.end_ticks >= p.begin_ticks && p.begin_ticks > 0)
+            && t.passes
+                .windows(2)
+                .all(|w| w[1].begin_ticks >= w[0].begin_ticks)
+    });
+    let stats = stats.unwrap();
+    exec.destroy(&g);
+    kit.borrow_mut().destroy(&g);
+    destroy_target(&g, image, handle);
+    (
+        Outcome {
+            pixels,
+            render_passes: stats.render_passes,
+            subpasses: stats.subpasses,
+            allocations_after_first: allocations[1..].to_vec(),
+            timings_ok,
+        },
+        plan,
+    )
+}
+
+#[test]
+fn classic_mobile_frame_renders_under_every_profile() {
+    for profile in [
+        "lavapipe",
+        "mali-valhall",
+        "adreno-7xx",
+        "powervr-b",
+        "desktop-nvidia",
+    ] {
+        let (o, plan) = run(profile, classic_mobile_frame, 4);
+        if std::env::var_os("SHOW_PLAN").is_some() {
+            eprintln!(
+                "{profile}: {} render pass(es), {} subpasses\n{plan}",
+                o.render_passes, o.subpasses
+            );
+        }
+        // Left: red (near quad) inverted; right: green (far quad) inverted; centre: the blue
+        // glass blended over red at 50% then inverted.
+        assert!(
+            close(px(&o.pixels, 10, 45), [0, 255, 255, 255]),
+            "{profile} left {:?}",
+            px(&o.pixels, 10, 45)
+        );
+        assert!(
+            close(px(&o.pixels, 150, 45), [255, 0, 255, 255]),
+            "{profile} right {:?}",
+            px(&o.pixels, 150, 45)
+        );
+        assert!(
+            close(px(&o.pixels, 75, 45), [127, 255, 127, 255]),
+            "{profile} centre {:?}",
+            px(&o.pixels, 75, 45)
+        );
+        assert!(
+            o.allocations_after_first.iter().all(|a| *a == 0),
+            "{profile}: steady-state allocations {:?}",
+            o.allocations_after_first
+        );
+        assert!(
+            o.timings_ok,
+            "{profile}: timestamps missing, zero or not monotone"
+        );
+        if plan.passes.len() == 4 && profile != "lavapipe" && profile != "desktop-nvidia" {
+            // Tilers: one render pass, four subpasses; depth and scene colour never leave the tile.
+            assert_eq!((o.render_passes, o.subpasses), (1, 4), "{profile}\n{plan}");
+            for name in ["depth", "scene-color"] {
+                assert_eq!(
+                    plan.resource_by_name(name).unwrap().residency,
+                    Residency::Transient,
+                    "{profile} {name}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn visbuf_frame_keeps_ids_on_chip_and_resolves_them() {
+    for profile in ["mali-valhall", "adreno-7xx", "lavapipe"] {
+        let (o, plan) = run(profile, visbuf_frame, 3);
+        // id 7 -> (7/255, 0, 1); id 9 -> (9/255, 0, 1).
+        assert!(
+            close(px(&o.pixels, 10, 45), [7, 0, 255, 255]),
+            "{profile} left {:?}",
+            px(&o.pixels, 10, 45)
+        );
+        assert!(
+            close(px(&o.pixels, 150, 45), [9, 0, 255, 255]),
+            "{profile} right {:?}",
+            px(&o.pixels, 150, 45)
+        );
+        assert!(o.allocations_after_first.iter().all(|a| *a == 0));
+        if profile != "lavapipe" {
+            assert_eq!((o.render_passes, o.subpasses), (1, 2), "{profile}\n{plan}");
+            assert_eq!(
+                plan.resource_by_name("visbuf-id").unwrap().residency,
+                Residency::Transient
+            );
+        }
+    }
+}
