@@ -1,7 +1,8 @@
 //! Executing compiled plans on lavapipe, validation (with synchronization validation) on.
 
 use tilegraph_e2e::frames::{
-    classic_mobile_frame, destroy_target, externals, target, visbuf_frame, Frame, Kit,
+    aliasing_frame, classic_mobile_frame, destroy_target, externals, target, visbuf_frame, Frame,
+    Kit,
 };
 use tilegraph_e2e::gpu;
 use tilegraph_graph::Residency;
@@ -27,6 +28,7 @@ struct Outcome {
     subpasses: u32,
     allocations_after_first: Vec<u64>,
     timings_ok: bool,
+    aliasing_used: bool,
 }
 
 fn run(
@@ -62,8 +64,13 @@ fn run(
     }
     exec.finish(&g).unwrap();
     let pixels = read_image(&g, &handle, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, 0).unwrap();
+    let stats_supported = g.has_feature(tilegraph_vk::Feature::PipelineStatisticsQuery);
     let timings_ok = exec.latest_timings().is_some_and(|t| {
-        t.passes.len() == plan.passes.len()
+        (!stats_supported
+            || t.passes
+                .iter()
+                .all(|p| p.vertex_invocations.is_some() && p.fragment_invocations.is_some()))
+            && t.passes.len() == plan.passes.len()
             && t.passes
                 .iter()
                 .all(|p| p.end_ticks >= p.begin_ticks && p.begin_ticks > 0)
@@ -82,6 +89,7 @@ fn run(
             subpasses: stats.subpasses,
             allocations_after_first: allocations[1..].to_vec(),
             timings_ok,
+            aliasing_used: stats.aliasing_used,
         },
         plan,
     )
@@ -166,5 +174,40 @@ fn visbuf_frame_keeps_ids_on_chip_and_resolves_them() {
                 Residency::Transient
             );
         }
+    }
+}
+
+#[test]
+fn aliased_images_in_sequence_render_correctly() {
+    for profile in ["lavapipe", "mali-valhall"] {
+        let (o, plan) = run(profile, aliasing_frame, 3);
+        assert!(
+            plan.aliasing.saved_bytes() > 0,
+            "{profile}: the plan did not alias a and b\n{plan}"
+        );
+        let (a, b) = (
+            plan.resource_by_name("a").unwrap(),
+            plan.resource_by_name("b").unwrap(),
+        );
+        let (sa, sb) = (a.memory.unwrap(), b.memory.unwrap());
+        assert!(
+            sa.overlaps(&sb),
+            "{profile}: a and b do not share memory\n{plan}"
+        );
+        assert!(
+            o.aliasing_used,
+            "{profile}: real memory requirements forced dedicated memory"
+        );
+        assert!(
+            close(px(&o.pixels, 10, 45), [255, 0, 0, 255]),
+            "{profile} left {:?}",
+            px(&o.pixels, 10, 45)
+        );
+        assert!(
+            close(px(&o.pixels, 150, 45), [0, 0, 255, 255]),
+            "{profile} right {:?}",
+            px(&o.pixels, 150, 45)
+        );
+        assert!(o.allocations_after_first.iter().all(|a| *a == 0));
     }
 }

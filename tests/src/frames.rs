@@ -63,6 +63,8 @@ pub enum Kind {
     /// Full-screen input-attachment reads.
     Post,
     Resolve,
+    /// Flat colour, no depth attachment.
+    Flat,
 }
 
 /// Pipelines and descriptor sets shared by a frame's payloads, created on first use per
@@ -181,6 +183,7 @@ impl Kit {
                     Blend::Opaque,
                     self.input_layout,
                 ),
+                Kind::Flat => (Some(COLOR_FS), DepthState::OFF, Blend::Opaque, self.layout),
             };
         let p = create_graphics_pipeline(
             pc.ctx,
@@ -351,7 +354,11 @@ pub fn target(ctx: &Context, w: u32, h: u32) -> Result<(Image, ImageHandle), VkE
         .array_layers(1)
         .samples(vk::SampleCountFlags::TYPE_1)
         .tiling(vk::ImageTiling::OPTIMAL)
-        .usage(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC)
+        .usage(
+            vk::ImageUsageFlags::COLOR_ATTACHMENT
+                | vk::ImageUsageFlags::TRANSFER_SRC
+                | vk::ImageUsageFlags::TRANSFER_DST,
+        )
         .initial_layout(vk::ImageLayout::UNDEFINED);
     let image = ctx.create_image("target", &info, tilegraph_profile::MemoryUse::GpuOnly)?;
     let view_info = vk::ImageViewCreateInfo::default()
@@ -524,6 +531,101 @@ pub fn visbuf_frame(kit: &Rc<RefCell<Kit>>, w: u32, h: u32) -> Frame {
     .input(ids)
     .color(target)
     .coverage(Coverage::Full);
+    g.export(target);
+    Frame { graph: g, target }
+}
+
+/// Copies all of `src` (in TRANSFER_SRC_OPTIMAL) into the `dst_x` column offset of `dst` (in
+/// TRANSFER_DST_OPTIMAL), `width` pixels wide: the layouts the graph puts transfer uses in.
+fn copy(src: ImageId, dst: ImageId, dst_x: i32, width: u32, height: u32) -> Payload {
+    Box::new(move |pc: &mut PassContext<'_>| {
+        let s = pc.image(src)?.raw;
+        let d = pc.image(dst)?.raw;
+        let layers = vk::ImageSubresourceLayers {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: 1,
+        };
+        let region = vk::ImageCopy::default()
+            .src_subresource(layers)
+            .dst_subresource(layers)
+            .dst_offset(vk::Offset3D {
+                x: dst_x,
+                y: 0,
+                z: 0,
+            })
+            .extent(vk::Extent3D {
+                width,
+                height,
+                depth: 1,
+            });
+        // SAFETY: the plan put src in TRANSFER_SRC and dst in TRANSFER_DST before this pass.
+        unsafe {
+            pc.ctx.device.cmd_copy_image(
+                pc.cb,
+                s,
+                vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                d,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                &[region],
+            )
+        };
+        Ok(())
+    })
+}
+
+/// Two frame-local images never alive together (A: draw, copy out; then B: draw, copy out), so
+/// the graph lets them share memory. Expected: left half red (from A), right half blue (from B).
+pub fn aliasing_frame(kit: &Rc<RefCell<Kit>>, w: u32, h: u32) -> Frame {
+    let half = Extent2d::new(w / 2, h);
+    let mut g: GraphBuilder<Payload> = GraphBuilder::new();
+    let target = g.import_image(
+        "backbuffer",
+        ImageDesc::new(Extent2d::new(w, h), Format::R8G8B8A8_UNORM),
+        target_import(),
+    );
+    let a = g.create_image("a", ImageDesc::new(half, Format::R8G8B8A8_UNORM));
+    let b = g.create_image("b", ImageDesc::new(half, Format::R8G8B8A8_UNORM));
+    let red = Quad {
+        rect: FULL,
+        depth: 0.0,
+        color: [1.0, 0.0, 0.0, 1.0],
+        id: 0,
+    };
+    let blue = Quad {
+        rect: FULL,
+        depth: 0.0,
+        color: [0.0, 0.0, 1.0, 1.0],
+        id: 0,
+    };
+    g.raster_pass(
+        "draw-a",
+        PassClass::Opaque,
+        draw(kit, Kind::Flat, 1, vec![red], None),
+    )
+    .color_clear(a, ClearColor::BLACK);
+    let copy_a = g
+        .transfer_pass("copy-a", PassClass::Transfer, copy(a, target, 0, w / 2, h))
+        .transfer_src(a)
+        .transfer_dst(target)
+        .id();
+    // Explicit order: without it the profile's class order would draw both first, and a and b
+    // would be alive together.
+    g.raster_pass(
+        "draw-b",
+        PassClass::Opaque,
+        draw(kit, Kind::Flat, 1, vec![blue], None),
+    )
+    .color_clear(b, ClearColor::BLACK)
+    .after(copy_a);
+    g.transfer_pass(
+        "copy-b",
+        PassClass::Transfer,
+        copy(b, target, (w / 2) as i32, w / 2, h),
+    )
+    .transfer_src(b)
+    .transfer_dst(target);
     g.export(target);
     Frame { graph: g, target }
 }

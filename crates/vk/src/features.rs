@@ -79,9 +79,12 @@ impl FeatureRequest {
         self.optional.extend(f);
         self
     }
-    /// What the executor itself always needs.
+    /// What the executor itself needs (barriers, dynamic rendering), and the pipeline
+    /// statistics it reports per pass where the device has them.
     pub fn executor() -> Self {
-        Self::default().require([Feature::Synchronization2, Feature::DynamicRendering])
+        Self::default()
+            .require([Feature::Synchronization2, Feature::DynamicRendering])
+            .want([Feature::PipelineStatisticsQuery])
     }
 }
 
