@@ -10,8 +10,9 @@ mod support;
 use glam::{DVec3, Mat4, Vec3};
 use support::{look, render_boxes, Render};
 use tilegraph_cull::{
-    project_aabb, Aabb, DepthConvention, DepthFormat, Extent2d, FarPlane, Frustum, FrustumPlane,
-    HizOutcome, HizPyramid, NpotMode, PlaneTest, Projection, SatTest, ScreenProjection,
+    project_aabb, project_sphere, Aabb, DepthConvention, DepthFormat, Extent2d, FarPlane, Frustum,
+    FrustumPlane, HizOutcome, HizPyramid, NpotMode, PlaneTest, Projection, SatTest,
+    ScreenProjection, Sphere,
 };
 
 struct World {
@@ -350,6 +351,88 @@ fn tiny_near_plane() -> Vec<Row> {
     ]
 }
 
+/// The same near-plane cases for spheres (exact tangent-plane projection), against a HiZ of a
+/// wall at 5 m.
+fn spheres() -> Vec<Row> {
+    let p = Projection::tilegraph_default(FOV, 1.0, 0.1).unwrap();
+    let view = forward();
+    let extent = Extent2d::new(64, 64).unwrap();
+    let frustum =
+        Frustum::from_clip_from_world(&(p.matrix() * view), DepthConvention::Reverse).unwrap();
+    let wall_depth =
+        render_boxes(&view, &p, extent, DepthFormat::D32Float, &[wall(5.0, 50.0)]).depth;
+    let hiz = HizPyramid::build(
+        &wall_depth,
+        extent,
+        DepthConvention::Reverse,
+        DepthFormat::D32Float,
+        NpotMode::EdgeAware,
+    )
+    .unwrap();
+    let case = |c: Vec3, r: f32| {
+        let s = Sphere::new(c, r).unwrap();
+        let proj = project_sphere(&s, &view, &p).unwrap();
+        (
+            frustum.test_sphere(&s).unwrap(),
+            proj,
+            hiz.test_projection(&proj).unwrap(),
+        )
+    };
+    let describe = |(plane, proj, hiz): &(PlaneTest, ScreenProjection, HizOutcome)| {
+        let proj = match proj {
+            ScreenProjection::Projected(_) => "rect".to_string(),
+            other => format!("{other:?}"),
+        };
+        let hiz = match hiz {
+            HizOutcome::Occluded(p) => format!("Occluded@L{}", p.level),
+            HizOutcome::Visible(p) => format!("Visible@L{}", p.level),
+            other => format!("{other:?}"),
+        };
+        format!("planes {plane:?}; proj {proj}; HiZ {hiz}")
+    };
+    let inside = case(Vec3::new(0.2, 0.1, -0.3), 1.0);
+    let crossing = case(Vec3::new(0.05, 0.0, -0.1), 0.08);
+    let behind = case(Vec3::new(0.0, 0.0, 30.0), 2.0);
+    let hidden = case(Vec3::new(0.3, 0.2, -30.0), 0.05);
+    let in_front = case(Vec3::new(0.3, 0.2, -3.0), 0.05);
+    vec![
+        row(
+            "sphere: camera inside",
+            "r = 1 m around the eye",
+            "CameraInside -> kept",
+            describe(&inside),
+            inside.1 == ScreenProjection::CameraInside
+                && !inside.0.is_outside()
+                && !inside.2.is_culled(),
+        ),
+        row(
+            "sphere: crossing the near plane",
+            "r = 8 cm, centre 10 cm ahead (near 0.1 m), not containing the eye",
+            "TouchesNearPlane -> kept",
+            describe(&crossing),
+            crossing.1 == ScreenProjection::TouchesNearPlane
+                && !crossing.0.is_outside()
+                && !crossing.2.is_culled(),
+        ),
+        row(
+            "sphere: behind the camera",
+            "r = 2 m, 30 m behind",
+            "BeforeNearPlane (no rect); planes reject",
+            describe(&behind),
+            behind.1 == ScreenProjection::BeforeNearPlane
+                && behind.0.is_outside()
+                && !behind.2.is_culled(),
+        ),
+        row(
+            "sphere: small, behind / in front of a wall",
+            "r = 5 cm at 30 m / at 3 m, wall at 5 m, 64x64",
+            "culled / kept",
+            format!("{} || {}", describe(&hidden), describe(&in_front)),
+            hidden.2.is_culled() && matches!(in_front.2, HizOutcome::Visible(_)),
+        ),
+    ]
+}
+
 fn camera_inside_and_behind() -> Vec<Row> {
     let p = Projection::tilegraph_default(FOV, 1.0, 0.1).unwrap();
     let w = World::new(
@@ -662,6 +745,7 @@ fn extremes_matrix() {
         standard_and_ortho(),
         tiny_near_plane(),
         camera_inside_and_behind(),
+        spheres(),
         zero_extent(),
         large_coordinates(),
         viewports(),
