@@ -174,11 +174,15 @@ pub fn project_obb(
     projection: &Projection,
 ) -> Result<ScreenProjection, CullError> {
     obb_world.validate("obb")?;
-    let view = affine_view(view_from_world)?;
-    let in_view = Obb::new(obb_world.local, view * obb_world.world_from_local)?;
-    let center = in_view.center_f64();
-    let half_edges = in_view.half_edges_f64();
-    let corners = in_view.corners_f64();
+    affine_view(view_from_world)?;
+    // Composed in f64: an f32 view * world_from_local product would add its own rounding to
+    // the corners (and hence to the nearest depth).
+    let view = view_from_world.as_dmat4();
+    let center = view.transform_point3(obb_world.center_f64());
+    let half_edges = obb_world
+        .half_edges_f64()
+        .map(|e| view.transform_vector3(e));
+    let corners = obb_world.corners_f64().map(|c| view.transform_point3(c));
     let near = f64::from(projection.near_m());
 
     if projection.is_perspective() && eye_inside(center, half_edges) {
