@@ -396,6 +396,10 @@ fn broken_hierarchies_and_scenes() {
     expect_err(load_doc(&d, &bin), "hierarchy", Some("/nodes/1/children/0"));
 
     let mut d = quad_doc();
+    d["scenes"] = json!([{"nodes": [0, 0]}]);
+    expect_err(load_doc(&d, &bin), "invalid", Some("/scenes/0/nodes/1"));
+
+    let mut d = quad_doc();
     d["scene"] = json!(3);
     expect_err(load_doc(&d, &bin), "unresolved-reference", Some("/scene"));
 

@@ -92,12 +92,13 @@ pub struct Limits {
 }
 
 impl Default for Limits {
-    /// 2^26 vertices (2 GiB of vertex data), 2^28 indices (1 GiB), 2^26 instances.
+    /// 2^26 vertices (2 GiB of vertex data), 2^28 indices (1 GiB), 2^24 instances (about
+    /// 2 GiB of instances: a 1 MB file can instance a 10k-primitive mesh from 10k nodes).
     fn default() -> Self {
         Limits {
             max_vertices: 1 << 26,
             max_indices: 1 << 28,
-            max_instances: 1 << 26,
+            max_instances: 1 << 24,
         }
     }
 }
@@ -522,11 +523,17 @@ fn scene_roots(doc: &Doc, parent: &[Option<usize>], ctx: &Ctx) -> Result<Vec<usi
         if nodes.is_empty() {
             return Err(ctx.invalid(format!("/scenes/{s}/nodes"), "empty array".into()));
         }
+        let mut listed = vec![false; doc.nodes.len()];
         for (j, &node) in nodes.iter().enumerate() {
             let i = node as usize;
             let p = format!("/scenes/{s}/nodes/{j}");
             if i >= doc.nodes.len() {
                 return Err(ctx.unresolved(p, "/nodes", i, doc.nodes.len()));
+            }
+            // A root listed twice would be drawn twice (and a long list of one big subtree
+            // would multiply the instance count): the schema's uniqueItems.
+            if std::mem::replace(&mut listed[i], true) {
+                return Err(ctx.invalid(p, format!("node {i} is listed twice")));
             }
             if let Some(par) = parent[i] {
                 return Err(ctx.invalid(
