@@ -1,10 +1,10 @@
 //! `graph_compile`: compile time of a realistic frame of 10, 100 and 1000 passes.
 //!
 //! The frame is built from 10-pass "views" (think main view, shadow cascades, reflection
-//! probes): GPU culling, depth pre-pass, HiZ build, opaque, alpha-tested, transparent,
-//! occlusion queries, bloom at half resolution, tonemap, and a debug overlay nobody reads
-//! (culled). Each view samples the previous view's output, and the last one writes the
-//! swapchain. Only `compile` is timed (the builder is cloned outside the measurement).
+//! probes): GPU culling (against the previous view's HiZ), depth pre-pass, HiZ build, opaque,
+//! alpha-tested, transparent, occlusion queries, bloom at half resolution, tonemap, and a debug
+//! overlay nobody reads (culled). Each view samples the previous view's output, and the last
+//! one writes the swapchain. Only `compile` is timed (the builder is cloned outside the measurement).
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};
 use tilegraph_graph::{
@@ -23,7 +23,7 @@ pub fn realistic_frame(views: usize) -> GraphBuilder<u32> {
         final_state: ResourceState::UNDEFINED,
     };
     let instances = g.import_buffer("instances", 4 << 20, static_input);
-    let geometry = g.import_buffer("geometry", 64 << 20, static_input);
+    let geometry = g.import_buffer("geometry", 16 << 20, static_input);
     let camera = g.import_buffer("camera", 4096, static_input);
     let environment = g.import_image(
         "environment",
@@ -44,6 +44,7 @@ pub fn realistic_frame(views: usize) -> GraphBuilder<u32> {
     );
     g.export(swapchain);
     let mut previous = environment;
+    let mut previous_hiz = None;
     let mut payload = 0u32;
     let mut next = || {
         payload += 1;
@@ -80,11 +81,15 @@ pub fn realistic_frame(views: usize) -> GraphBuilder<u32> {
             ImageDesc::new(full, Format::R8G8B8A8_UNORM),
         );
 
-        g.compute_pass(format!("cull{v}"), PassClass::Compute, next())
-            .storage_read(instances)
+        // Culling tests against the previous view's HiZ pyramid.
+        let mut cull = g.compute_pass(format!("cull{v}"), PassClass::Compute, next());
+        cull.storage_read(instances)
             .uniform(camera)
             .storage_write(args)
             .coverage(Coverage::Full);
+        if let Some(hiz) = previous_hiz {
+            cull.sampled(hiz);
+        }
         g.raster_pass(format!("depth_prepass{v}"), PassClass::DepthPrepass, next())
             .indirect(args)
             .vertex(geometry)
@@ -131,6 +136,7 @@ pub fn realistic_frame(views: usize) -> GraphBuilder<u32> {
             .color(debug)
             .coverage(Coverage::Full);
         previous = ldr;
+        previous_hiz = Some(hiz);
     }
     g
 }

@@ -9,12 +9,13 @@
 //! real requirements ([`crate::Plan::reassign_aliases`] also rebuilds the barriers that the new
 //! placement needs); when it does, it must fold `bufferImageGranularity` into the alignments.
 //!
-//! The algorithm is a sweep over first use: at each resource, retire those whose last use is
-//! earlier, then place it at the lowest aligned gap of the block that grows least (best fit),
-//! or in a new block. Blocks are only sizes; the executor allocates them.
+//! The algorithm is a sweep over first use (ties: larger first): retire the resources whose
+//! last use is earlier, then place the resource in the tightest gap of a partly used block,
+//! else the smallest empty block that holds it, else the largest empty block grown to fit, else
+//! a new block. Blocks are kept in ordered sets, so a placement costs O(log blocks). Blocks are
+//! only sizes; the executor allocates them.
 
 use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 
 use crate::declare::ResourceId;
 use crate::error::GraphError;
@@ -136,20 +137,24 @@ impl AliasAssignment {
     }
 }
 
+#[derive(Clone, Copy)]
 struct Placed {
     offset: u64,
     end: u64,
     resource: u32,
+    /// Still in use (else: retired, kept as the last holder of its bytes).
+    alive: bool,
 }
 
 struct BlockState {
     class: MemoryClass,
     size: u64,
     alignment: u64,
-    /// Allocations alive now, sorted by offset.
-    active: Vec<Placed>,
-    /// The most recent occupant of each byte range (sorted, disjoint): who a newcomer follows.
-    recent: Vec<Placed>,
+    /// The most recent occupant of each byte range, sorted and disjoint. Allocations alive now
+    /// are among them (nothing can be placed over a live one).
+    occupants: Vec<Placed>,
+    live: u32,
+    live_bytes: u64,
 }
 
 const fn align_up(value: u64, alignment: u64) -> u64 {
@@ -161,70 +166,138 @@ const fn align_up(value: u64, alignment: u64) -> u64 {
 }
 
 impl BlockState {
-    /// Lowest aligned offset where `size` bytes fit between the active allocations (the last gap
-    /// is open: placing there may grow the block).
-    fn lowest_gap(&self, size: u64, alignment: u64) -> u64 {
+    fn free_bytes(&self) -> u64 {
+        self.size.saturating_sub(self.live_bytes)
+    }
+
+    /// Lowest aligned offset where `size` bytes fit between the live allocations and inside
+    /// the block.
+    fn gap_within(&self, size: u64, alignment: u64) -> Option<u64> {
         let mut cursor = 0u64;
-        for placed in &self.active {
+        for placed in self.occupants.iter().filter(|p| p.alive) {
             let candidate = align_up(cursor, alignment);
             if candidate.saturating_add(size) <= placed.offset {
-                return candidate;
+                return Some(candidate);
             }
             cursor = cursor.max(placed.end);
         }
-        align_up(cursor, alignment)
+        let candidate = align_up(cursor, alignment);
+        (candidate.saturating_add(size) <= self.size).then_some(candidate)
     }
 
     fn place(&mut self, offset: u64, size: u64, resource: u32, handoffs: &mut Vec<u32>) {
         let end = offset.saturating_add(size);
-        let at = self.active.partition_point(|p| p.offset < offset);
-        self.active.insert(
-            at,
-            Placed {
-                offset,
-                end,
-                resource,
-            },
-        );
-        // Everyone who last held some of [offset, end) hands it over; keep the pieces outside.
-        let mut recent = Vec::with_capacity(self.recent.len() + 2);
-        for p in self.recent.drain(..) {
-            if p.end <= offset || p.offset >= end {
-                recent.push(p);
-                continue;
-            }
-            handoffs.push(p.resource);
-            if p.offset < offset {
-                recent.push(Placed {
-                    offset: p.offset,
+        self.live += 1;
+        self.live_bytes = self.live_bytes.saturating_add(size);
+        // Everyone who last held some of [offset, end) hands it over; pieces outside stay.
+        let first = self.occupants.partition_point(|p| p.end <= offset);
+        let last = first + self.occupants[first..].partition_point(|p| p.offset < end);
+        let mut pieces: [Option<Placed>; 3] = [None, None, None];
+        if first < last {
+            let head = &self.occupants[first];
+            if head.offset < offset {
+                pieces[0] = Some(Placed {
                     end: offset,
-                    resource: p.resource,
+                    ..*head
                 });
             }
-            if p.end > end {
-                recent.push(Placed {
+            let tail = &self.occupants[last - 1];
+            if tail.end > end {
+                pieces[2] = Some(Placed {
                     offset: end,
-                    end: p.end,
-                    resource: p.resource,
+                    ..*tail
                 });
             }
+            handoffs.extend(self.occupants[first..last].iter().map(|p| p.resource));
         }
-        let at = recent.partition_point(|p| p.offset < offset);
-        recent.insert(
-            at,
-            Placed {
-                offset,
-                end,
-                resource,
-            },
-        );
-        self.recent = recent;
+        pieces[1] = Some(Placed {
+            offset,
+            end,
+            resource,
+            alive: true,
+        });
+        self.occupants
+            .splice(first..last, pieces.into_iter().flatten());
     }
 
     fn retire(&mut self, resource: u32) {
-        if let Some(i) = self.active.iter().position(|p| p.resource == resource) {
-            self.active.remove(i);
+        if let Some(p) = self
+            .occupants
+            .iter_mut()
+            .find(|p| p.alive && p.resource == resource)
+        {
+            p.alive = false;
+            self.live -= 1;
+            self.live_bytes = self.live_bytes.saturating_sub(p.end - p.offset);
         }
+    }
+}
+
+/// Blocks of one sweep, indexed for best fit: empty blocks by size, partly used ones by free
+/// bytes (sorted vectors: there are few blocks, and they beat tree nodes).
+#[derive(Default)]
+struct Blocks {
+    blocks: Vec<BlockState>,
+    empty: Vec<(MemoryClass, u64, u32)>,
+    partial: Vec<(MemoryClass, u64, u32)>,
+}
+
+fn remove_sorted(set: &mut Vec<(MemoryClass, u64, u32)>, key: (MemoryClass, u64, u32)) {
+    if let Ok(i) = set.binary_search(&key) {
+        set.remove(i);
+    }
+}
+
+fn insert_sorted(set: &mut Vec<(MemoryClass, u64, u32)>, key: (MemoryClass, u64, u32)) {
+    if let Err(i) = set.binary_search(&key) {
+        set.insert(i, key);
+    }
+}
+
+impl Blocks {
+    fn unindex(&mut self, b: u32) {
+        let block = &self.blocks[b as usize];
+        if block.live == 0 {
+            remove_sorted(&mut self.empty, (block.class, block.size, b));
+        } else {
+            remove_sorted(&mut self.partial, (block.class, block.free_bytes(), b));
+        }
+    }
+
+    fn index(&mut self, b: u32) {
+        let block = &self.blocks[b as usize];
+        if block.live == 0 {
+            insert_sorted(&mut self.empty, (block.class, block.size, b));
+        } else if block.free_bytes() > 0 {
+            insert_sorted(&mut self.partial, (block.class, block.free_bytes(), b));
+        }
+    }
+
+    /// Where a resource goes: a gap in a partly used block (tightest first), else the smallest
+    /// empty block that holds it, else the largest empty block grown to fit, else a new block.
+    fn choose(&self, class: MemoryClass, size: u64, alignment: u64) -> (u32, u64) {
+        let from = self.partial.partition_point(|k| *k < (class, size, 0));
+        for &(c, _, b) in &self.partial[from..] {
+            if c != class {
+                break;
+            }
+            if let Some(offset) = self.blocks[b as usize].gap_within(size, alignment) {
+                return (b, offset);
+            }
+        }
+        let fit = self.empty.partition_point(|k| *k < (class, size, 0));
+        if let Some(&(c, _, b)) = self.empty.get(fit) {
+            if c == class {
+                return (b, 0);
+            }
+        }
+        if fit > 0 {
+            let (c, _, b) = self.empty[fit - 1];
+            if c == class {
+                return (b, 0);
+            }
+        }
+        (self.blocks.len() as u32, 0)
     }
 }
 
@@ -260,64 +333,67 @@ pub fn assign_aliases(
     };
 
     // Shared resources, swept by first use; bigger first on ties so they open the blocks.
-    let mut shared: Vec<u32> = (0..lifetimes.len() as u32)
-        .filter(|&i| {
-            let l = &lifetimes[i as usize];
-            matches!(l.memory, MemoryNeed::Shared(_)) && l.lifetime.is_some()
+    let mut shared: Vec<(u32, Reverse<u64>, u32)> = lifetimes
+        .iter()
+        .enumerate()
+        .filter_map(|(i, l)| match (l.memory, l.lifetime) {
+            (MemoryNeed::Shared(_), Some(range)) => {
+                Some((range.first.0, Reverse(requirements[i].size_bytes), i as u32))
+            }
+            _ => None,
         })
         .collect();
-    shared.sort_by_key(|&i| {
-        let first = lifetimes[i as usize].lifetime.map_or(0, |l| l.first.0);
-        (first, Reverse(requirements[i as usize].size_bytes), i)
-    });
+    shared.sort_unstable();
 
-    let mut blocks: Vec<BlockState> = Vec::new();
-    let mut expiring: BinaryHeap<Reverse<(u32, u32, u32)>> = BinaryHeap::new();
+    // The same resources by last use: retiring is a cursor over this order.
+    let mut expiry: Vec<(u32, u32)> = shared
+        .iter()
+        .map(|&(_, _, i)| (lifetimes[i as usize].lifetime.map_or(0, |l| l.last.0), i))
+        .collect();
+    expiry.sort_unstable();
+    let mut expired = 0usize;
+    let mut block_of: Vec<u32> = vec![u32::MAX; lifetimes.len()];
+
+    let mut blocks = Blocks::default();
     let mut handoff_from: Vec<u32> = Vec::new();
-    for &i in &shared {
-        let (Some(range), MemoryNeed::Shared(class)) =
-            (lifetimes[i as usize].lifetime, lifetimes[i as usize].memory)
-        else {
+    for &(first, _, i) in &shared {
+        let MemoryNeed::Shared(class) = lifetimes[i as usize].memory else {
             continue;
         };
-        while let Some(&Reverse((last, resource, block))) = expiring.peek() {
-            if last >= range.first.0 {
+        while let Some(&(last, resource)) = expiry.get(expired) {
+            if last >= first {
                 break;
             }
-            expiring.pop();
-            if let Some(b) = blocks.get_mut(block as usize) {
-                b.retire(resource);
+            expired += 1;
+            let b = block_of[resource as usize];
+            if b == u32::MAX {
+                continue;
             }
+            blocks.unindex(b);
+            blocks.blocks[b as usize].retire(resource);
+            blocks.index(b);
         }
         let size = requirements[i as usize].size_bytes;
         let alignment = alignments[i as usize];
-        // (growth, block, offset): least growth, then lowest block, then lowest offset.
-        let mut best = (size, blocks.len(), 0u64);
-        for (b, block) in blocks.iter().enumerate() {
-            if block.class != class {
-                continue;
-            }
-            let offset = block.lowest_gap(size, alignment);
-            let growth = offset.saturating_add(size).saturating_sub(block.size);
-            if (growth, b, offset) < best {
-                best = (growth, b, offset);
-            }
-        }
-        let (_, b, offset) = best;
-        if b == blocks.len() {
-            blocks.push(BlockState {
+        let (b, offset) = blocks.choose(class, size, alignment);
+        if b as usize == blocks.blocks.len() {
+            blocks.blocks.push(BlockState {
                 class,
                 size: 0,
                 alignment: 1,
-                active: Vec::new(),
-                recent: Vec::new(),
+                occupants: Vec::with_capacity(4),
+                live: 0,
+                live_bytes: 0,
             });
+        } else {
+            blocks.unindex(b);
         }
-        let block = &mut blocks[b];
+        let block = &mut blocks.blocks[b as usize];
         handoff_from.clear();
         block.place(offset, size, i, &mut handoff_from);
         block.size = block.size.max(offset.saturating_add(size));
         block.alignment = block.alignment.max(alignment);
+        blocks.index(b);
         handoff_from.sort_unstable();
         handoff_from.dedup();
         for &from in &handoff_from {
@@ -327,14 +403,15 @@ pub fn assign_aliases(
             });
         }
         out.slots[i as usize] = Some(MemorySlot {
-            block: BlockIndex(b as u32),
+            block: BlockIndex(b),
             offset_bytes: offset,
             size_bytes: size,
         });
         out.requested_bytes = out.requested_bytes.saturating_add(size);
-        expiring.push(Reverse((range.last.0, i, b as u32)));
+        block_of[i as usize] = b;
     }
     out.blocks = blocks
+        .blocks
         .into_iter()
         .map(|b| MemoryBlock {
             class: b.class,

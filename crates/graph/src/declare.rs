@@ -302,7 +302,8 @@ pub enum UseKind {
     StorageRead,
     StorageWrite,
     /// Read and written by one pass (e.g. every HiZ mip built in one dispatch with the payload's
-    /// own barriers between mips); one use, not a conflict.
+    /// own barriers between mips); one use, not a conflict. Its reads see its own writes, and
+    /// the old content unless the pass has `Coverage::Full`.
     StorageReadWrite,
     Uniform,
     Vertex,

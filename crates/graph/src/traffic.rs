@@ -165,9 +165,22 @@ pub(crate) fn estimate_traffic(
 
     match model {
         TrafficModel::Tiler => {
+            let mut on_chip: Vec<bool> = Vec::new();
             for step in steps {
                 let Step::RenderPass(rp) = step else { continue };
-                for (i, att) in rp.attachments.iter().enumerate() {
+                // Attachments only resolved into stay out of tile memory: their store is a
+                // resolve.
+                on_chip.clear();
+                on_chip.resize(rp.attachments.len(), false);
+                for s in &rp.subpasses {
+                    let refs = s.colors.iter().chain(&s.inputs).chain(&s.depth_stencil);
+                    for r in refs {
+                        if let Some(flag) = on_chip.get_mut(r.attachment.0 as usize) {
+                            *flag = true;
+                        }
+                    }
+                }
+                for (att, &on_chip) in rp.attachments.iter().zip(&on_chip) {
                     let Some(d) = desc(att.resource) else {
                         continue;
                     };
@@ -176,16 +189,10 @@ pub(crate) fn estimate_traffic(
                         add(&mut planned.attachment_read_bytes, bytes);
                     }
                     if att.store_op == StoreOp::Store {
-                        let resolve_only = rp.subpasses.iter().all(|s| {
-                            let idx = crate::plan::AttachmentIndex(i as u32);
-                            !s.colors.iter().any(|r| r.attachment == idx)
-                                && s.depth_stencil.is_none_or(|r| r.attachment != idx)
-                                && !s.inputs.iter().any(|r| r.attachment == idx)
-                        });
-                        if resolve_only {
-                            add(&mut planned.resolve_write_bytes, bytes);
-                        } else {
+                        if on_chip {
                             add(&mut planned.attachment_write_bytes, bytes);
+                        } else {
+                            add(&mut planned.resolve_write_bytes, bytes);
                         }
                     }
                 }

@@ -120,11 +120,13 @@ pub(crate) fn summarize_use(
             Layout::General,
             keeps_old,
         ),
+        // Reads what the pass itself writes (HiZ mips), and the old content unless the pass
+        // covers everything.
         UseKind::StorageReadWrite => (
             shader_stages(pass_kind),
             AccessFlags::SHADER_STORAGE_READ | AccessFlags::SHADER_STORAGE_WRITE,
             Layout::General,
-            true,
+            keeps_old,
         ),
         UseKind::Uniform => (
             shader_stages(pass_kind),
@@ -171,7 +173,8 @@ pub(crate) fn summarize_use(
         access,
         layout: if is_image { layout } else { Layout::Undefined },
         reads_prior,
-        explicit_read: u.kind.reads(),
+        // A read-write use may read only its own writes: not a read of earlier content.
+        explicit_read: u.kind.reads() && !matches!(u.kind, UseKind::StorageReadWrite),
         writes: u.kind.writes(),
         attachment,
         non_attachment: !attachment,

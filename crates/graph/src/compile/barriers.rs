@@ -17,7 +17,7 @@
 //! their declared state and end with a barrier into their final state.
 
 use crate::alias::AliasAssignment;
-use crate::declare::{Import, InitialContent, PassId};
+use crate::declare::{Import, InitialContent, PassId, ResourceId, ResourceState};
 use crate::plan::{
     BarrierBatch, BufferBarrier, Hazard, ImageBarrier, RenderPass, Step, StepIndex, StepRange,
 };
@@ -210,7 +210,7 @@ fn sync(st: &mut SyncState, u: &SyncUse, is_image: bool) -> Option<BarrierParts>
 }
 
 fn push_barrier(batch: &mut BarrierBatch, resource: usize, is_image: bool, b: BarrierParts) {
-    let resource = crate::declare::ResourceId(resource as u32);
+    let resource = ResourceId(resource as u32);
     if is_image {
         batch.images.push(ImageBarrier {
             resource,
@@ -264,6 +264,18 @@ fn load_store_access(is_depth: bool, load: LoadOp) -> (PipelineStages, AccessFla
 
 pub(crate) struct BarrierPlan {
     pub steps: Vec<Step>,
+    /// The state each resource is left in (imported: their final state).
+    pub final_states: Vec<ResourceState>,
+}
+
+const NONE: u32 = u32::MAX;
+
+/// An attachment's accesses over all subpasses of its render pass.
+#[derive(Debug, Clone, Copy)]
+struct AttachmentUse {
+    first: Option<Access>,
+    stages: PipelineStages,
+    access: AccessFlags,
 }
 
 struct Planner<'a> {
@@ -272,6 +284,11 @@ struct Planner<'a> {
     states: Vec<SyncState>,
     /// The next barrier of this resource is its aliasing handoff.
     alias_pending: Vec<bool>,
+    /// Scratch, per resource: its attachment in the current render pass, or its entry in
+    /// `others`, or `NONE`.
+    slot: Vec<u32>,
+    attachment_uses: Vec<AttachmentUse>,
+    others: Vec<(usize, SyncUse)>,
 }
 
 impl Planner<'_> {
@@ -284,10 +301,7 @@ impl Planner<'_> {
         let mut any = false;
         let mut stages = PipelineStages::NONE;
         let mut access = AccessFlags::NONE;
-        for pred in self
-            .aliasing
-            .predecessors(crate::declare::ResourceId(r as u32))
-        {
+        for pred in self.aliasing.predecessors(ResourceId(r as u32)) {
             if let Some(p) = self.states.get(pred.index()) {
                 stages |= p.write_stages | p.read_stages;
                 access |= p.write_access.writes();
@@ -302,17 +316,13 @@ impl Planner<'_> {
         }
     }
 
-    fn barrier(&mut self, r: usize, u: &SyncUse, batch: &mut BarrierBatch) -> bool {
+    fn barrier(&mut self, r: usize, u: &SyncUse, batch: &mut BarrierBatch) {
         let is_image = self.resources[r].is_image;
-        match sync(&mut self.states[r], u, is_image) {
-            Some(mut parts) => {
-                if std::mem::take(&mut self.alias_pending[r]) {
-                    parts.hazard = Hazard::Aliasing;
-                }
-                push_barrier(batch, r, is_image, parts);
-                true
+        if let Some(mut parts) = sync(&mut self.states[r], u, is_image) {
+            if std::mem::take(&mut self.alias_pending[r]) {
+                parts.hazard = Hazard::Aliasing;
             }
-            None => false,
+            push_barrier(batch, r, is_image, parts);
         }
     }
 
@@ -322,37 +332,55 @@ impl Planner<'_> {
         accesses: &PassAccesses<'_>,
         batch: &mut BarrierBatch,
     ) {
-        for att in &mut rp.attachments {
+        // Gather every subpass's accesses in one sweep: per attachment, and per other resource.
+        self.attachment_uses.clear();
+        self.others.clear();
+        for (i, att) in rp.attachments.iter().enumerate() {
+            self.slot[att.resource.index()] = i as u32;
+            self.attachment_uses.push(AttachmentUse {
+                first: None,
+                stages: PipelineStages::NONE,
+                access: AccessFlags::NONE,
+            });
+        }
+        let n_attachments = rp.attachments.len() as u32;
+        for s in &rp.subpasses {
+            for a in accesses.of(s.pass) {
+                let r = a.resource.index();
+                let slot = self.slot[r];
+                let u = SyncUse::of(a);
+                if slot == NONE {
+                    self.slot[r] = n_attachments + self.others.len() as u32;
+                    self.others.push((r, u));
+                } else if slot < n_attachments {
+                    let au = &mut self.attachment_uses[slot as usize];
+                    au.first.get_or_insert(*a);
+                    au.stages |= a.stages;
+                    au.access |= a.access;
+                } else {
+                    let (_, o) = &mut self.others[(slot - n_attachments) as usize];
+                    o.stages |= u.stages;
+                    o.access |= u.access;
+                    o.reads |= u.reads;
+                    o.writes |= u.writes;
+                }
+            }
+        }
+
+        for (i, att) in rp.attachments.iter_mut().enumerate() {
             let r = att.resource.index();
             self.touch(r);
-            let Some(first) = rp.subpasses.iter().find_map(|s| {
-                accesses
-                    .of(s.pass)
-                    .iter()
-                    .find(|a| a.resource == att.resource)
-            }) else {
-                continue;
-            };
+            let au = self.attachment_uses[i];
+            let Some(first) = au.first else { continue };
             let is_depth = self.resources[r].is_depth;
             let (load_stages, load_access, _) = load_store_access(is_depth, att.load_op);
             let loads = att.load_op == LoadOp::Load;
-            // Later subpasses are ordered by subpass dependencies, but a shader read of the
-            // attachment in a later subpass (sampled depth) must see earlier writes too.
-            let mut stages = first.stages | load_stages;
-            let mut access = first.access | load_access;
-            for s in &rp.subpasses {
-                for a in accesses
-                    .of(s.pass)
-                    .iter()
-                    .filter(|a| a.resource == att.resource)
-                {
-                    stages |= a.stages;
-                    access |= a.access;
-                }
-            }
+            // Later subpasses are ordered by subpass dependencies, but the barrier before the
+            // render pass covers every stage that touches the attachment in it (a sampled
+            // read of a read-only depth attachment, say).
             let u = SyncUse {
-                stages,
-                access,
+                stages: au.stages | load_stages,
+                access: au.access | load_access,
                 layout: first.layout,
                 reads: loads,
                 writes: !loads || first.writes,
@@ -366,58 +394,32 @@ impl Planner<'_> {
                 att.initial_layout = self.states[r].layout;
             }
         }
-        // Descriptor, vertex and index resources of every subpass: one barrier before.
-        let mut others: Vec<(usize, SyncUse)> = Vec::new();
-        for s in &rp.subpasses {
-            for a in accesses.of(s.pass).iter().filter(|a| {
-                !a.attachment && !rp.attachments.iter().any(|att| att.resource == a.resource)
-            }) {
-                let r = a.resource.index();
-                let u = SyncUse::of(a);
-                match others.iter_mut().find(|(x, _)| *x == r) {
-                    Some((_, o)) => {
-                        o.stages |= u.stages;
-                        o.access |= u.access;
-                        o.reads |= u.reads;
-                        o.writes |= u.writes;
-                    }
-                    None => others.push((r, u)),
-                }
-            }
-        }
-        for (r, u) in &others {
-            self.touch(*r);
-            self.barrier(*r, u, batch);
+        for k in 0..self.others.len() {
+            let (r, u) = self.others[k];
+            self.touch(r);
+            self.barrier(r, &u, batch);
         }
 
         // After the render pass: every attachment was written by its store op.
-        for att in &rp.attachments {
+        for (i, att) in rp.attachments.iter().enumerate() {
             let r = att.resource.index();
+            self.slot[r] = NONE;
             let is_depth = self.resources[r].is_depth;
             let (store_stages, _, store_access) = load_store_access(is_depth, att.load_op);
-            let mut stages = store_stages;
-            let mut write_access = store_access;
-            for s in &rp.subpasses {
-                for a in accesses
-                    .of(s.pass)
-                    .iter()
-                    .filter(|a| a.resource == att.resource)
-                {
-                    stages |= a.stages;
-                    write_access |= a.access.writes();
-                }
-            }
+            let au = self.attachment_uses[i];
             let st = &mut self.states[r];
             st.layout = att.final_layout;
-            st.write_stages = stages;
-            st.write_access = write_access;
+            st.write_stages = au.stages | store_stages;
+            st.write_access = au.access.writes() | store_access;
             st.read_stages = PipelineStages::NONE;
             st.visible_stages = PipelineStages::NONE;
             st.visible_access = AccessFlags::NONE;
         }
-        for (r, u) in &others {
-            let is_image = self.resources[*r].is_image;
-            self.states[*r].apply(u, is_image);
+        for k in 0..self.others.len() {
+            let (r, u) = self.others[k];
+            self.slot[r] = NONE;
+            let is_image = self.resources[r].is_image;
+            self.states[r].apply(&u, is_image);
         }
     }
 
@@ -449,6 +451,9 @@ pub(crate) fn plan_barriers(
         aliasing,
         states: resources.iter().map(SyncState::initial).collect(),
         alias_pending: vec![false; resources.len()],
+        slot: vec![NONE; resources.len()],
+        attachment_uses: Vec::new(),
+        others: Vec::new(),
     };
     let mut steps = Vec::with_capacity(work.len() * 2 + 1);
     for mut step in work {
@@ -466,13 +471,28 @@ pub(crate) fn plan_barriers(
         steps.push(step);
     }
 
-    // Leave imported resources as their import asks.
+    // Leave imported resources as their import asks; the rest as their last use left them.
     let mut batch = BarrierBatch::default();
+    let mut final_states = Vec::with_capacity(resources.len());
     for (r, res) in resources.iter().enumerate() {
+        let st = &mut planner.states[r];
         let Some(import) = res.import else {
+            final_states.push(ResourceState {
+                layout: st.layout,
+                stages: st.write_stages | st.read_stages,
+                access: st.write_access,
+            });
             continue;
         };
-        let fin = import.final_state;
+        let mut fin = import.final_state;
+        if fin.layout == Layout::Undefined || !res.is_image {
+            // No layout asked for: keep the current one (a transition to Undefined is invalid).
+            fin.layout = if res.is_image {
+                st.layout
+            } else {
+                Layout::Undefined
+            };
+        }
         let u = SyncUse {
             stages: fin.stages,
             access: fin.access,
@@ -481,15 +501,19 @@ pub(crate) fn plan_barriers(
             writes: !fin.access.writes().is_empty(),
             discard: false,
         };
-        if let Some(mut parts) = sync(&mut planner.states[r], &u, res.is_image) {
+        if let Some(mut parts) = sync(st, &u, res.is_image) {
             parts.hazard = Hazard::Release;
             push_barrier(&mut batch, r, res.is_image, parts);
         }
+        final_states.push(fin);
     }
     if !batch.is_empty() {
         steps.push(Step::Barriers(batch));
     }
-    BarrierPlan { steps }
+    BarrierPlan {
+        steps,
+        final_states,
+    }
 }
 
 /// First and last work step using each resource.
@@ -525,59 +549,6 @@ pub(crate) fn step_lifetimes(
             Step::Compute { pass } | Step::Transfer { pass } => {
                 for a in accesses.of(*pass) {
                     mark(a.resource.index(), index);
-                }
-            }
-            Step::Barriers(_) | Step::Flush(_) => {}
-        }
-    }
-    out
-}
-
-/// The state the frame leaves each created resource in (imported ones end in their
-/// `final_state`), for next frame's import of history resources.
-pub(crate) fn final_states(
-    steps: &[Step],
-    accesses: &PassAccesses<'_>,
-    resources: &[ResourceSync],
-) -> Vec<crate::declare::ResourceState> {
-    let mut out: Vec<crate::declare::ResourceState> = resources
-        .iter()
-        .map(|r| match r.import {
-            Some(import) => import.final_state,
-            None => crate::declare::ResourceState::UNDEFINED,
-        })
-        .collect();
-    for step in steps {
-        let mut set = |a: &Access, layout: Layout| {
-            let r = a.resource.index();
-            if resources.get(r).is_some_and(|x| x.import.is_none()) {
-                out[r] = crate::declare::ResourceState {
-                    layout: if resources[r].is_image {
-                        layout
-                    } else {
-                        Layout::Undefined
-                    },
-                    stages: a.stages,
-                    access: a.access,
-                };
-            }
-        };
-        match step {
-            Step::RenderPass(rp) => {
-                for s in &rp.subpasses {
-                    for a in accesses.of(s.pass) {
-                        let layout = rp
-                            .attachments
-                            .iter()
-                            .find(|att| att.resource == a.resource)
-                            .map_or(a.layout, |att| att.final_layout);
-                        set(a, layout);
-                    }
-                }
-            }
-            Step::Compute { pass } | Step::Transfer { pass } => {
-                for a in accesses.of(*pass) {
-                    set(a, a.layout);
                 }
             }
             Step::Barriers(_) | Step::Flush(_) => {}

@@ -130,7 +130,6 @@ pub(crate) fn resource_lifetimes(
 /// Per-attachment bookkeeping while the subpasses of one render pass are laid out.
 #[derive(Debug, Clone, Copy)]
 struct AttachmentTrack {
-    first_subpass: u32,
     last_subpass: u32,
     last_stages: PipelineStages,
     layout: Layout,
@@ -189,10 +188,12 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Option<RenderP
     let mut cursor = vec![0u32; n_resources];
     let mut attachment_of = vec![(NONE, NONE); n_resources];
     let mut out = Vec::with_capacity(input.groups.len());
+    let mut scratch = Scratch::default();
     for (g, group) in input.groups.iter().enumerate() {
         let rp = match group.kind {
             GroupKind::Render => Some(build_render_pass(
                 input,
+                &mut scratch,
                 g as u32,
                 group,
                 &written_before,
@@ -213,22 +214,34 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Option<RenderP
     out
 }
 
+/// Buffers reused from one render pass to the next.
+#[derive(Default)]
+struct Scratch {
+    tracks: Vec<AttachmentTrack>,
+    readers: Vec<(u32, u32, PipelineStages)>,
+}
+
 fn build_render_pass(
     input: &LoadStoreInput<'_>,
+    scratch: &mut Scratch,
     g: u32,
     group: &Group,
     written_before: &[bool],
     cursor: &mut [u32],
     attachment_of: &mut [(u32, u32)],
 ) -> RenderPass {
-    let mut attachments: Vec<Attachment> = Vec::new();
-    let mut tracks: Vec<AttachmentTrack> = Vec::new();
+    let attachment_uses: usize = input.order[group.start..group.end]
+        .iter()
+        .map(|p| input.passes[p.index()].uses.len())
+        .sum();
+    let mut attachments: Vec<Attachment> = Vec::with_capacity(attachment_uses);
     let mut subpasses: Vec<Subpass> = Vec::with_capacity(group.end - group.start);
     let mut deps: Vec<SubpassDependency> = Vec::new();
+    let tracks = &mut scratch.tracks;
+    tracks.clear();
     // (attachment, subpass, stages) of reads since the attachment's last write.
-    let mut readers: Vec<(u32, u32, PipelineStages)> = Vec::new();
-    // Attachments used by each subpass, for preserve lists.
-    let mut used: Vec<Vec<u32>> = Vec::with_capacity(group.end - group.start);
+    let readers = &mut scratch.readers;
+    readers.clear();
 
     for (s, &p) in input.order[group.start..group.end].iter().enumerate() {
         let s = s as u32;
@@ -242,7 +255,6 @@ fn build_render_pass(
             inputs: Vec::new(),
             preserve: Vec::new(),
         };
-        let mut used_here: Vec<u32> = Vec::new();
         let mut resolve_refs: Vec<(crate::declare::ResourceId, AttachmentRef)> = Vec::new();
         for u in decl.uses.iter().filter(|u| u.kind.is_attachment()) {
             let r = u.resource.index();
@@ -256,7 +268,6 @@ fn build_render_pass(
                 attachment_of[r] = (g, index);
                 attachments.push(new_attachment(input, r, a, written_before[r]));
                 tracks.push(AttachmentTrack {
-                    first_subpass: s,
                     last_subpass: NONE,
                     last_stages: PipelineStages::NONE,
                     layout: a.layout,
@@ -282,11 +293,18 @@ fn build_render_pass(
             }
             let track = &mut tracks[index as usize];
             track.on_chip |= !matches!(u.kind, UseKind::ResolveTarget { .. });
-            if used_here.contains(&index) {
+            if track.last_subpass == s {
                 continue;
             }
-            used_here.push(index);
-            track_subpass_use(&mut deps, &mut readers, track, index, s, a);
+            // Used before and now, not in between: the subpasses between keep it.
+            if track.last_subpass != NONE {
+                for gap in (track.last_subpass + 1)..s {
+                    subpasses[gap as usize]
+                        .preserve
+                        .push(AttachmentIndex(index));
+                }
+            }
+            track_subpass_use(&mut deps, readers, track, index, s, a);
             if let Some(att) = attachments.get_mut(index as usize) {
                 att.final_layout = a.layout;
             }
@@ -305,17 +323,9 @@ fn build_render_pass(
                 .collect();
         }
         subpasses.push(subpass);
-        used.push(used_here);
     }
-
-    for (index, track) in tracks.iter().enumerate() {
-        for s in (track.first_subpass + 1)..track.last_subpass {
-            if !used[s as usize].contains(&(index as u32)) {
-                subpasses[s as usize]
-                    .preserve
-                    .push(AttachmentIndex(index as u32));
-            }
-        }
+    for subpass in &mut subpasses {
+        subpass.preserve.sort_unstable();
     }
 
     // Store: does anything after this render pass need the content?
@@ -345,7 +355,7 @@ fn build_render_pass(
     deps.sort_by_key(|d| (d.src_subpass, d.dst_subpass));
     let on_chip_bytes_per_px = attachments
         .iter()
-        .zip(&tracks)
+        .zip(scratch.tracks.iter())
         .filter(|(_, t)| t.on_chip)
         .map(|(a, _)| a.format.bytes_per_pixel() * a.samples.count())
         .sum();

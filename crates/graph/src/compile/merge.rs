@@ -1,9 +1,10 @@
 //! Phase 3, `merge_render_passes`: group consecutive raster passes into render passes.
 //!
 //! A raster pass joins the render pass before it when the profile allows merging, the render
-//! areas are equal, and every resource the two share is touched only as an attachment by both
-//! (so any read of the earlier pass's output is an input-attachment or attachment read at the
-//! same pixel), or only read by both in one layout. A clear in a later subpass cannot be a load
+//! areas are equal, it shares at least one attachment with the render pass (merging unrelated
+//! passes saves no traffic and only grows the tile footprint), and every resource the two share
+//! is touched only as an attachment by both (so any read of the earlier pass's output is an
+//! input-attachment or attachment read at the same pixel), or only read by both in one layout. A clear in a later subpass cannot be a load
 //! op, so it starts a new render pass. On tilers this keeps intermediate attachments in tile
 //! memory; on immediate GPUs (`MergePolicy::Allowed`) the same merge is harmless and keeps plans
 //! alike across profiles.
@@ -85,7 +86,8 @@ pub(crate) fn merge_render_passes(
                     && !(queries_alone && g.queries_only != is_query(pass)) =>
             {
                 let g_index = (groups.len() - 1) as u32;
-                analysis.accesses_of(p).iter().all(|a| {
+                let mut connected = false;
+                let compatible = analysis.accesses_of(p).iter().all(|a| {
                     let t = &touch[a.resource.index()];
                     if t.group != g_index {
                         return true;
@@ -94,8 +96,12 @@ pub(crate) fn merge_render_passes(
                         return false;
                     }
                     let same_pixel = !a.non_attachment && !t.non_attachment;
+                    connected |= same_pixel;
                     same_pixel || (!a.writes && !t.written && a.layout == t.layout)
-                })
+                });
+                // A pass that shares no attachment with the render pass gains nothing from
+                // joining it and would only add to its tile-memory footprint.
+                compatible && connected
             }
             _ => false,
         };

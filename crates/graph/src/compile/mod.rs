@@ -37,9 +37,7 @@ use crate::traffic::{estimate_traffic, TrafficModel};
 use crate::types::{BufferUsage, ImageUsage};
 
 use access::{push_pass_accesses, role, Access};
-use barriers::{
-    final_states, plan_barriers, step_lifetimes, BarrierPlan, PassAccesses, ResourceSync,
-};
+use barriers::{plan_barriers, step_lifetimes, BarrierPlan, PassAccesses, ResourceSync};
 use load_store::{build_timeline, infer_load_store, resource_lifetimes, LoadStoreInput};
 use merge::GroupKind;
 
@@ -304,9 +302,11 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         accesses: &analysis.accesses,
         ranges: &analysis.pass_ranges,
     };
-    let BarrierPlan { steps } = plan_barriers(work, &pass_accesses, &sync, &aliasing);
+    let BarrierPlan {
+        steps,
+        final_states: finals,
+    } = plan_barriers(work, &pass_accesses, &sync, &aliasing);
     let lifetimes = step_lifetimes(&steps, &pass_accesses, n_resources);
-    let finals = final_states(&steps, &pass_accesses, &sync);
 
     let mut roles = vec![0u16; n_resources];
     for &p in &order {
@@ -441,7 +441,7 @@ impl Plan {
             .into_iter()
             .filter(|s| !matches!(s, Step::Barriers(_)))
             .collect();
-        let BarrierPlan { steps } = plan_barriers(work, &pass_accesses, &sync, &aliasing);
+        let BarrierPlan { steps, .. } = plan_barriers(work, &pass_accesses, &sync, &aliasing);
         let lifetimes = step_lifetimes(&steps, &pass_accesses, self.resources.len());
         for (i, r) in self.resources.iter_mut().enumerate() {
             r.lifetime = lifetimes[i];

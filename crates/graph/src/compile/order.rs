@@ -44,7 +44,7 @@ fn dependency_edges(
     let mut last_writer = vec![NONE; n_resources];
     // Readers since the last write, per resource, as linked lists in one vector.
     let mut reader_head = vec![NONE; n_resources];
-    let mut readers: Vec<(u32, u32)> = Vec::new();
+    let mut readers: Vec<(u32, u32)> = Vec::with_capacity(analysis.accesses.len());
     for p in (0..n).filter(|&p| alive[p]) {
         let pu = p as u32;
         for a in analysis.accesses_of(p) {
@@ -153,26 +153,33 @@ pub(crate) fn order_passes(
         indegree[t as usize] += 1;
     }
 
-    // A first topological order (FIFO), to find cycles and to propagate urgency backwards.
+    // A first topological order, to find cycles and to propagate urgency backwards. Resource
+    // edges always point forward in declaration order, so without explicit dependencies the
+    // declaration order is one.
     let alive_count = alive.iter().filter(|&&a| a).count();
-    let mut remaining = indegree.clone();
-    let mut queue: VecDeque<u32> = (0..n as u32)
-        .filter(|&p| alive[p as usize] && remaining[p as usize] == 0)
-        .collect();
-    let mut topo: Vec<u32> = Vec::with_capacity(alive_count);
-    while let Some(p) = queue.pop_front() {
-        topo.push(p);
-        for &s in edges.of(p as usize) {
-            remaining[s as usize] -= 1;
-            if remaining[s as usize] == 0 {
-                queue.push_back(s);
+    let topo: Vec<u32> = if dependencies.is_empty() {
+        (0..n as u32).filter(|&p| alive[p as usize]).collect()
+    } else {
+        let mut remaining = indegree.clone();
+        let mut queue: VecDeque<u32> = (0..n as u32)
+            .filter(|&p| alive[p as usize] && remaining[p as usize] == 0)
+            .collect();
+        let mut topo: Vec<u32> = Vec::with_capacity(alive_count);
+        while let Some(p) = queue.pop_front() {
+            topo.push(p);
+            for &s in edges.of(p as usize) {
+                remaining[s as usize] -= 1;
+                if remaining[s as usize] == 0 {
+                    queue.push_back(s);
+                }
             }
         }
-    }
-    if topo.len() < alive_count {
-        let stuck: Vec<bool> = (0..n).map(|p| alive[p] && remaining[p] > 0).collect();
-        return Err(find_cycle(&edges, &stuck, passes));
-    }
+        if topo.len() < alive_count {
+            let stuck: Vec<bool> = (0..n).map(|p| alive[p] && remaining[p] > 0).collect();
+            return Err(find_cycle(&edges, &stuck, passes));
+        }
+        topo
+    };
 
     let rank: Vec<usize> = passes
         .iter()

@@ -292,7 +292,7 @@ pub(crate) fn validate_declarations(
     // What each read sees: the last writer declared before the reading pass.
     let mut last_writer: Vec<Option<PassId>> = vec![None; resources.len()];
     let mut producer_ranges = Vec::with_capacity(passes.len());
-    let mut producers = Vec::new();
+    let mut producers = Vec::with_capacity(accesses.len());
     for (p, pass) in passes.iter().enumerate() {
         let start = producers.len();
         let (a0, a1) = pass_ranges[p];
