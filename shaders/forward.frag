@@ -2,26 +2,6 @@
 // Forward colour: Lambert + ambient, optional heavy ALU loop. MATERIAL_CLASS selects the
 // variant: 0 opaque (with a depth pre-pass the depth test is EQUAL and writes are off),
 // 1 alpha-tested (discard with the same leaf mask as the pre-pass), 2 blended (alpha out).
-#include "scene.glsl"
-
-layout(constant_id = 0) const uint MATERIAL_CLASS = 0u;
-
-layout(location = 0) in vec3 v_normal;
-layout(location = 1) in vec2 v_uv;
-layout(location = 2) flat in uint v_material;
-layout(location = 0) out vec4 o_color;
-
-void main() {
-    Material m = materials[v_material];
-    float alpha = m.base_color.a;
-    if (MATERIAL_CLASS == 1u) {
-        alpha = leaf_alpha(v_uv, m.base_color.a);
-        if (alpha < m.alpha_cutoff) {
-            discard;
-        }
-        alpha = 1.0;
-    }
-    vec3 n = gl_FrontFacing ? v_normal : -v_normal;
-    vec3 c = shade(m.base_color.rgb, n, frame.params.x);
-    o_color = vec4(c, MATERIAL_CLASS == 2u ? alpha : 1.0);
-}
+// This variant lets the hardware choose when to test depth: required when the shader may
+// discard while depth writes are on (alpha-tested without a pre-pass).
+#include "forward_body.glsl"

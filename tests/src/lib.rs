@@ -65,3 +65,19 @@ pub fn gpu_with(profile: Option<&str>, features: FeatureRequest) -> Result<Gpu, 
 }
 
 pub mod frames;
+
+/// `$TILEGRAPH_TEST_DATA` or `../shared/data` beside the repository.
+pub fn test_data_dir() -> std::path::PathBuf {
+    std::env::var_os("TILEGRAPH_TEST_DATA")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| {
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
+        })
+}
+
+/// A file of the test data, if the data directory is there.
+pub fn test_data(relative: &str) -> Option<std::path::PathBuf> {
+    let p = test_data_dir().join(relative);
+    p.exists().then_some(p)
+}
+pub mod golden;

@@ -59,6 +59,14 @@ fn main() -> ExitCode {
             }
         }),
         "bench" => ensure_system().and_then(|_| bench(rest)),
+        "bless" => ensure_system().and_then(|_| {
+            run(
+                "regenerate golden images (tests/golden)",
+                cargo()
+                    .args(["test", "-p", "tilegraph-e2e", "--test", "passes", "golden"])
+                    .env("TILEGRAPH_BLESS", "1"),
+            )
+        }),
         "deps" => ensure_system(),
         _ => {
             eprintln!(

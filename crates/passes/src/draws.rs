@@ -113,6 +113,12 @@ fn draw_for(scene: &Scene, mesh: u32, first_instance: u32, instance_count: u32) 
 /// and nearest-first per group is what coarse front-to-back sorting means in practice.
 fn grouped(scene: &Scene, items: &mut [Item], order: SortOrder, out: &mut Vec<u32>) -> Vec<Draw> {
     match order {
+        SortOrder::BackToFront => items.sort_by(|a, b| {
+            a.mesh
+                .cmp(&b.mesh)
+                .then(b.distance_sq.total_cmp(&a.distance_sq))
+                .then(a.instance.cmp(&b.instance))
+        }),
         SortOrder::FrontToBack => items.sort_by(|a, b| {
             a.mesh
                 .cmp(&b.mesh)
@@ -136,8 +142,10 @@ fn grouped(scene: &Scene, items: &mut [Item], order: SortOrder, out: &mut Vec<u3
         groups.push((nearest, mesh, start..end));
         start = end;
     }
-    if order == SortOrder::FrontToBack {
-        groups.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    match order {
+        SortOrder::FrontToBack => groups.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))),
+        SortOrder::BackToFront => groups.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1))),
+        SortOrder::ByState | SortOrder::None => {}
     }
     let mut draws = Vec::with_capacity(groups.len());
     for (_, mesh, range) in groups {

@@ -101,6 +101,8 @@ struct FrameBuffers {
     uniforms: Buffer,
     instances: Buffer,
     draw_list: Buffer,
+    /// `Counters` of `forward_count.frag`: fragments shaded per material class.
+    counters: Buffer,
     set: vk::DescriptorSet,
 }
 
@@ -220,6 +222,7 @@ impl GpuScene {
                 (4, ssbo, all),
                 (5, ssbo, all),
                 (6, ssbo, all),
+                (7, ssbo, all),
             ],
         )?;
         let n = frames_in_flight.max(1) as u32;
@@ -230,7 +233,7 @@ impl GpuScene {
             },
             vk::DescriptorPoolSize {
                 ty: ssbo,
-                descriptor_count: 6 * n,
+                descriptor_count: 7 * n,
             },
         ];
         let pool_info = vk::DescriptorPoolCreateInfo::default()
@@ -277,6 +280,12 @@ impl GpuScene {
             vk::BufferUsageFlags::STORAGE_BUFFER,
             MemoryUse::Streaming,
         )?;
+        let counters = ctx.create_buffer(
+            &format!("fragment counters[{i}]"),
+            16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryUse::Readback,
+        )?;
         let layouts = [self.set_layout];
         let alloc = vk::DescriptorSetAllocateInfo::default()
             .descriptor_pool(self.pool)
@@ -292,6 +301,7 @@ impl GpuScene {
             (4, vk::DescriptorType::STORAGE_BUFFER, self.materials.raw),
             (5, vk::DescriptorType::STORAGE_BUFFER, self.vertices.raw),
             (6, vk::DescriptorType::STORAGE_BUFFER, self.indices.raw),
+            (7, vk::DescriptorType::STORAGE_BUFFER, counters.raw),
         ];
         let buffer_infos: Vec<[vk::DescriptorBufferInfo; 1]> = infos
             .iter()
@@ -320,6 +330,7 @@ impl GpuScene {
             uniforms,
             instances,
             draw_list,
+            counters,
             set,
         })
     }
@@ -347,8 +358,27 @@ impl GpuScene {
             .ok_or_else(|| bad("instances"))?;
         write_bytes(&mut f.draw_list, bytemuck::cast_slice(&draws.instances))
             .ok_or_else(|| bad("draw list"))?;
+        write_bytes(&mut f.counters, &[0u8; 16]).ok_or_else(|| bad("fragment counters"))?;
         let _ = ctx;
         Ok(())
+    }
+
+    /// Fragments shaded per material class (opaque, alpha-tested, blended) by the frame last
+    /// recorded into `slot`, when it counted them (`forward_count.frag`). Call after the frame
+    /// completed.
+    pub fn fragment_counts(&self, ctx: &Context, slot: usize) -> Result<[u32; 3], VkError> {
+        let f = self.frames.get(slot).ok_or_else(|| VkError::Invalid {
+            what: "frame slot".into(),
+            reason: format!("{slot} out of range"),
+        })?;
+        ctx.invalidate_mapped(&f.counters)?;
+        let m = f.counters.mapped().ok_or_else(|| VkError::Invalid {
+            what: "fragment counters".into(),
+            reason: "not host-visible".into(),
+        })?;
+        let word =
+            |i: usize| u32::from_le_bytes([m[4 * i], m[4 * i + 1], m[4 * i + 2], m[4 * i + 3]]);
+        Ok([word(0), word(1), word(2)])
     }
 
     /// The descriptor set (set 0) of a frame slot.
@@ -361,6 +391,7 @@ impl GpuScene {
             ctx.destroy_buffer(f.uniforms);
             ctx.destroy_buffer(f.instances);
             ctx.destroy_buffer(f.draw_list);
+            ctx.destroy_buffer(f.counters);
         }
         // SAFETY: the caller waited for the GPU; sets are freed with the pool.
         unsafe {

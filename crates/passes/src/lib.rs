@@ -8,6 +8,8 @@
 
 pub mod draws;
 pub mod gpu_scene;
+pub mod render;
 pub mod setup;
 
+pub use render::{required_features, FrameReport, RenderError, RenderOptions, SceneRenderer};
 pub use setup::{decide, FrameSetup, PassDecision, PassKind, SceneContent, Technique};

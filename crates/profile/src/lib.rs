@@ -133,6 +133,9 @@ pub enum DepthPrepass {
 #[serde(rename_all = "snake_case")]
 pub enum SortOrder {
     FrontToBack,
+    /// Farthest first: no profile asks for it; measurements use it as the worst case for
+    /// early depth rejection (what a pre-pass must make irrelevant).
+    BackToFront,
     /// Minimise state changes; depth order does not matter to the hardware.
     ByState,
     None,

@@ -757,6 +757,12 @@ impl Executor {
         self.frames.next_slot()
     }
 
+    /// Waits until the next frame's slot is free and returns it: per-frame buffers of that slot
+    /// may be written now, before [`Executor::execute`] records the frame.
+    pub fn acquire_slot(&mut self, ctx: &Context) -> Result<usize, VkError> {
+        self.frames.wait_next(ctx)
+    }
+
     /// Per-pass median GPU times over every frame collected so far.
     pub fn medians(&self) -> Vec<PassMedian> {
         self.history.medians()

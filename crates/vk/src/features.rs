@@ -38,10 +38,13 @@ pub enum Feature {
     FragmentStoresAndAtomics,
     /// Depth clamp (shadow casters, near-plane crossing proxies).
     DepthClamp,
+    /// The `geometryShader` feature: what Vulkan asks for before a fragment shader may read
+    /// `gl_PrimitiveID` (the visibility buffer's triangle id), even with no geometry shader.
+    GeometryShader,
 }
 
 impl Feature {
-    pub const ALL: [Feature; 12] = [
+    pub const ALL: [Feature; 13] = [
         Feature::Synchronization2,
         Feature::DynamicRendering,
         Feature::DrawIndirectCount,
@@ -54,6 +57,7 @@ impl Feature {
         Feature::ConditionalRendering,
         Feature::FragmentStoresAndAtomics,
         Feature::DepthClamp,
+        Feature::GeometryShader,
     ];
 }
 
@@ -122,6 +126,7 @@ impl FeatureStructs {
             Feature::ConditionalRendering => b(self.cond.conditional_rendering),
             Feature::FragmentStoresAndAtomics => b(self.core.fragment_stores_and_atomics),
             Feature::DepthClamp => b(self.core.depth_clamp),
+            Feature::GeometryShader => b(self.core.geometry_shader),
         }
     }
 
@@ -142,6 +147,7 @@ impl FeatureStructs {
             Feature::ConditionalRendering => self.cond.conditional_rendering = t,
             Feature::FragmentStoresAndAtomics => self.core.fragment_stores_and_atomics = t,
             Feature::DepthClamp => self.core.depth_clamp = t,
+            Feature::GeometryShader => self.core.geometry_shader = t,
         }
     }
 

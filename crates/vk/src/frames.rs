@@ -16,6 +16,8 @@ struct FrameSlot {
     fence: vk::Fence,
     /// Whether work was submitted with this fence since it was last waited for.
     in_flight: bool,
+    /// A frame found complete by [`FrameRing::wait_next`] and not yet reported by `begin`.
+    completed: Option<u64>,
     /// Frame number last recorded into the slot.
     frame: u64,
 }
@@ -91,6 +93,7 @@ impl FrameRing {
             cb,
             fence,
             in_flight: false,
+            completed: None,
             frame: 0,
         })
     }
@@ -109,13 +112,12 @@ impl FrameRing {
         (self.next_frame % self.slots.len() as u64) as usize
     }
 
-    /// Waits for the next slot's previous frame (normally long finished), resets its command pool
-    /// and begins recording.
-    pub fn begin(&mut self, ctx: &Context) -> Result<FrameToken, VkError> {
+    /// Waits until the GPU is done with the next slot's previous frame, so its per-frame
+    /// buffers may be rewritten, and returns the slot. `begin` does this too; call it first when
+    /// the CPU must write the slot's data before recording.
+    pub fn wait_next(&mut self, ctx: &Context) -> Result<usize, VkError> {
         let slot = self.next_slot();
-        let frame = self.next_frame;
         let s = &mut self.slots[slot];
-        let mut completed_frame = None;
         if s.in_flight {
             // SAFETY: the fence was submitted with this slot's last frame.
             unsafe { ctx.device.wait_for_fences(&[s.fence], true, u64::MAX) }
@@ -123,8 +125,18 @@ impl FrameRing {
             // SAFETY: signalled fence, no pending submission uses it.
             unsafe { ctx.device.reset_fences(&[s.fence]) }.vk("vkResetFences")?;
             s.in_flight = false;
-            completed_frame = Some(s.frame);
+            s.completed = Some(s.frame);
         }
+        Ok(slot)
+    }
+
+    /// Waits for the next slot's previous frame (normally long finished), resets its command pool
+    /// and begins recording.
+    pub fn begin(&mut self, ctx: &Context) -> Result<FrameToken, VkError> {
+        let slot = self.wait_next(ctx)?;
+        let frame = self.next_frame;
+        let s = &mut self.slots[slot];
+        let completed_frame = s.completed.take();
         // SAFETY: the GPU finished every command buffer of this pool (fence above).
         unsafe {
             ctx.device
@@ -210,6 +222,9 @@ impl FrameRing {
     pub fn wait_all(&mut self, ctx: &Context) -> Result<Vec<u64>, VkError> {
         let mut done = Vec::new();
         for s in &mut self.slots {
+            if let Some(f) = s.completed.take() {
+                done.push(f);
+            }
             if s.in_flight {
                 // SAFETY: fence submitted with this slot's last frame.
                 unsafe { ctx.device.wait_for_fences(&[s.fence], true, u64::MAX) }
@@ -217,6 +232,7 @@ impl FrameRing {
                 // SAFETY: signalled, unused.
                 unsafe { ctx.device.reset_fences(&[s.fence]) }.vk("vkResetFences")?;
                 s.in_flight = false;
+                s.completed = None;
                 done.push(s.frame);
             }
         }

@@ -1,0 +1,1006 @@
+//! Rendering a scene: the frame setup's passes declared on a graph, compiled for the profile,
+//! executed by `tilegraph-vk`.
+//!
+//! Pass by pass (seed 003 for the pre-pass recipe, seed 001 for the order):
+//! - `depth-prepass`: positions only, no fragment shader, depth writes on;
+//! - `depth-prepass-alpha`: alpha-tested geometry with its discard, depth writes on;
+//! - `opaque` / `alpha-tested`: colour; after a pre-pass depth compares EQUAL with writes off;
+//! - `visbuf-write` + `visbuf-resolve`: ids, then shading per pixel (input attachment on tilers);
+//! - `transparent`: blended back to front, depth tested, not written.
+//!
+//! The graph merges them into subpasses of one render pass where the profile says so, so depth
+//! (and ids) never leave tile memory.
+
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::rc::Rc;
+
+use ash::vk;
+use tilegraph_graph::{
+    AccessFlags, ClearColor, ClearDepthStencil, Coverage, Extent2d, Format, GraphBuilder,
+    GraphError, ImageDesc, ImageId, Import, InitialContent, Layout, PassClass, PipelineStages,
+    Plan, ResourceState,
+};
+use tilegraph_profile::{MemoryUse, Profile};
+use tilegraph_scene::{Camera, DepthConvention, Scene};
+use tilegraph_vk::ash;
+use tilegraph_vk::executor::{Executor, External, FrameStats, ImageHandle, PassContext};
+use tilegraph_vk::first_frame::RgbaImage;
+use tilegraph_vk::pipeline::{
+    create_graphics_pipeline, create_pipeline_layout, create_set_layout, Blend, DepthState,
+    GraphicsDesc, RenderTarget, Stage, VertexLayout,
+};
+use tilegraph_vk::queries::PassMedian;
+use tilegraph_vk::{Context, Image, VkError};
+
+use crate::draws::{self, Draw, DrawList};
+use crate::gpu_scene::{visbuf_instance_bits, FrameUniforms, GpuScene, Lighting};
+use crate::setup::{decide, FrameSetup, PassKind, SceneContent, Technique};
+
+/// Errors of rendering a scene: each names what failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error(transparent)]
+    Vk(#[from] VkError),
+    #[error("compiling the frame graph: {0}")]
+    Graph(#[from] GraphError),
+    #[error("visibility buffer: {instances} instances and meshes of up to {max_triangles} triangles do not fit a 32-bit id")]
+    VisbufIdOverflow {
+        instances: usize,
+        max_triangles: u32,
+    },
+    #[error("technique {technique} needs device feature {feature}, which {device:?} does not have (or it was not requested)")]
+    MissingFeature {
+        technique: &'static str,
+        feature: tilegraph_vk::Feature,
+        device: String,
+    },
+    #[error("invalid render size {width}x{height}")]
+    Size { width: u32, height: u32 },
+}
+
+/// How to render.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderOptions {
+    pub technique: Technique,
+    pub width: u32,
+    pub height: u32,
+    pub lighting: Lighting,
+    pub clear_color: [f32; 4],
+    /// Count the fragments each colour pass shades (an atomic per fragment; needs
+    /// `fragmentStoresAndAtomics`). For measurement runs, not for shipping frames.
+    pub count_fragments: bool,
+    /// Overrides the profile's opaque draw order (measurements: `BackToFront` is the worst
+    /// case for early depth rejection).
+    pub opaque_order: Option<tilegraph_profile::SortOrder>,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            technique: Technique::Forward,
+            width: 320,
+            height: 180,
+            lighting: Lighting::default(),
+            clear_color: [0.55, 0.65, 0.78, 1.0],
+            count_fragments: false,
+            opaque_order: None,
+        }
+    }
+}
+
+/// What one frame did.
+#[derive(Debug, Clone)]
+pub struct FrameReport {
+    pub setup: FrameSetup,
+    pub plan: Plan,
+    pub stats: FrameStats,
+    pub draws: usize,
+    pub triangles: u64,
+}
+
+mod spv {
+    pub const DEPTH_VS: &[u8] = include_bytes!("../../../shaders/spv/depth.vert.spv");
+    pub const DEPTH_ALPHA_VS: &[u8] = include_bytes!("../../../shaders/spv/depth_alpha.vert.spv");
+    pub const DEPTH_ALPHA_FS: &[u8] = include_bytes!("../../../shaders/spv/depth_alpha.frag.spv");
+    pub const FORWARD_VS: &[u8] = include_bytes!("../../../shaders/spv/forward.vert.spv");
+    pub const FORWARD_FS: &[u8] = include_bytes!("../../../shaders/spv/forward.frag.spv");
+    pub const FORWARD_EARLY_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_early.frag.spv");
+    pub const FORWARD_COUNT_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_count.frag.spv");
+    pub const VISBUF_VS: &[u8] = include_bytes!("../../../shaders/spv/visbuf.vert.spv");
+    pub const VISBUF_FS: &[u8] = include_bytes!("../../../shaders/spv/visbuf.frag.spv");
+    pub const FULLSCREEN_VS: &[u8] = include_bytes!("../../../shaders/spv/fullscreen.vert.spv");
+    pub const RESOLVE_INPUT_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/visbuf_resolve_input.frag.spv");
+    pub const RESOLVE_SAMPLED_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/visbuf_resolve_sampled.frag.spv");
+}
+
+/// Pipeline variants of the scene passes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Variant {
+    DepthOpaque,
+    DepthAlpha,
+    /// Forward colour; `class` 0 opaque, 1 alpha-tested, 2 blended; `equal` after a pre-pass.
+    Forward {
+        class: u32,
+        equal: bool,
+    },
+    Visbuf {
+        alpha: bool,
+    },
+    ResolveInput,
+    ResolveSampled,
+}
+
+const POSITION: (u32, vk::Format, u32) = (0, vk::Format::R32G32B32_SFLOAT, 0);
+const NORMAL: (u32, vk::Format, u32) = (1, vk::Format::R32G32B32_SFLOAT, 12);
+const UV: (u32, vk::Format, u32) = (2, vk::Format::R32G32_SFLOAT, 24);
+const VERTEX_STRIDE: u32 = 32;
+
+/// Shared by every payload of a frame: pipelines per (render pass, subpass, variant), the
+/// per-frame-slot descriptor sets, and this frame's draw list.
+struct Shared {
+    scene_layout: vk::PipelineLayout,
+    input_set_layout: vk::DescriptorSetLayout,
+    sampled_set_layout: vk::DescriptorSetLayout,
+    input_layout: vk::PipelineLayout,
+    sampled_layout: vk::PipelineLayout,
+    pool: vk::DescriptorPool,
+    sampler: vk::Sampler,
+    pipelines: HashMap<(vk::RenderPass, u32, Variant, bool), vk::Pipeline>,
+    resolve_sets: HashMap<(usize, bool), vk::DescriptorSet>,
+    scene_sets: Vec<vk::DescriptorSet>,
+    vertex_buffer: vk::Buffer,
+    index_buffer: vk::Buffer,
+    draws: DrawList,
+    depth: DepthConvention,
+    count_fragments: bool,
+}
+
+impl Shared {
+    fn compare(&self) -> vk::CompareOp {
+        match self.depth {
+            DepthConvention::Reverse => vk::CompareOp::GREATER,
+            DepthConvention::Standard => vk::CompareOp::LESS,
+        }
+    }
+
+    fn pipeline(
+        &mut self,
+        pc: &PassContext<'_>,
+        variant: Variant,
+        double_sided: bool,
+        color_count: u32,
+    ) -> Result<vk::Pipeline, VkError> {
+        let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: "scene passes record inside a render pass".into(),
+        })?;
+        let key = (rp, subpass, variant, double_sided);
+        if let Some(p) = self.pipelines.get(&key) {
+            return Ok(*p);
+        }
+        let write = DepthState {
+            test: true,
+            write: true,
+            compare: self.compare(),
+        };
+        let stage = |name, spirv| Stage {
+            name,
+            spirv,
+            specialization: &[],
+        };
+        let pos_only = [POSITION];
+        let pos_uv = [POSITION, UV];
+        let all = [POSITION, NORMAL, UV];
+        let class_spec: [(u32, u32); 1];
+        let (vs, fs, attrs, depth, blend, layout): VariantState = match variant {
+            Variant::DepthOpaque => (
+                stage("depth.vert", spv::DEPTH_VS),
+                None,
+                &pos_only,
+                write,
+                Blend::NoColorWrites,
+                self.scene_layout,
+            ),
+            Variant::DepthAlpha => (
+                stage("depth_alpha.vert", spv::DEPTH_ALPHA_VS),
+                Some(stage("depth_alpha.frag", spv::DEPTH_ALPHA_FS)),
+                &pos_uv,
+                write,
+                Blend::NoColorWrites,
+                self.scene_layout,
+            ),
+            Variant::Forward { class, equal } => {
+                class_spec = [(0, class)];
+                let depth = match (class, equal) {
+                    (2, _) => DepthState {
+                        test: true,
+                        write: false,
+                        compare: self.compare(),
+                    },
+                    (_, true) => DepthState {
+                        test: true,
+                        write: false,
+                        compare: vk::CompareOp::EQUAL,
+                    },
+                    _ => write,
+                };
+                let blend = if class == 2 {
+                    Blend::Alpha
+                } else {
+                    Blend::Opaque
+                };
+                // Early fragment tests unless a discard decides what depth is written (alpha
+                // tested without a pre-pass): seed 003, discard disables early-Z.
+                let (fs_name, fs) = match (class == 1 && !equal, self.count_fragments) {
+                    (true, _) => ("forward.frag", spv::FORWARD_FS),
+                    (false, true) => ("forward_count.frag", spv::FORWARD_COUNT_FS),
+                    (false, false) => ("forward_early.frag", spv::FORWARD_EARLY_FS),
+                };
+                (
+                    stage("forward.vert", spv::FORWARD_VS),
+                    Some(Stage {
+                        name: fs_name,
+                        spirv: fs,
+                        specialization: &class_spec,
+                    }),
+                    &all,
+                    depth,
+                    blend,
+                    self.scene_layout,
+                )
+            }
+            Variant::Visbuf { alpha } => {
+                class_spec = [(0, u32::from(alpha))];
+                (
+                    stage("visbuf.vert", spv::VISBUF_VS),
+                    Some(Stage {
+                        name: "visbuf.frag",
+                        spirv: spv::VISBUF_FS,
+                        specialization: &class_spec,
+                    }),
+                    &pos_uv,
+                    write,
+                    Blend::Opaque,
+                    self.scene_layout,
+                )
+            }
+            Variant::ResolveInput => (
+                stage("fullscreen.vert", spv::FULLSCREEN_VS),
+                Some(stage("visbuf_resolve_input.frag", spv::RESOLVE_INPUT_FS)),
+                &[],
+                DepthState::OFF,
+                Blend::Opaque,
+                self.input_layout,
+            ),
+            Variant::ResolveSampled => (
+                stage("fullscreen.vert", spv::FULLSCREEN_VS),
+                Some(stage(
+                    "visbuf_resolve_sampled.frag",
+                    spv::RESOLVE_SAMPLED_FS,
+                )),
+                &[],
+                DepthState::OFF,
+                Blend::Opaque,
+                self.sampled_layout,
+            ),
+        };
+        let vertex_layout = (!attrs.is_empty()).then_some(VertexLayout {
+            stride: VERTEX_STRIDE,
+            attributes: attrs,
+        });
+        let fullscreen = matches!(variant, Variant::ResolveInput | Variant::ResolveSampled);
+        let p = create_graphics_pipeline(
+            pc.ctx,
+            &GraphicsDesc {
+                name: pc.pass_name,
+                vertex: vs,
+                fragment: fs,
+                vertex_layout,
+                layout,
+                target: RenderTarget::Subpass {
+                    render_pass: rp,
+                    subpass,
+                    color_count,
+                },
+                depth,
+                blend,
+                cull: if double_sided || fullscreen {
+                    vk::CullModeFlags::NONE
+                } else {
+                    vk::CullModeFlags::BACK
+                },
+                samples: vk::SampleCountFlags::TYPE_1,
+            },
+        )?;
+        self.pipelines.insert(key, p);
+        Ok(p)
+    }
+
+    /// Binds the scene and records `draws` with `variant` (two pipelines: single- and
+    /// double-sided).
+    fn record_draws(
+        &mut self,
+        pc: &PassContext<'_>,
+        variant: Variant,
+        draws: &[Draw],
+        color_count: u32,
+    ) -> Result<(), VkError> {
+        if draws.is_empty() {
+            return Ok(());
+        }
+        let set = *self
+            .scene_sets
+            .get(pc.frame_slot)
+            .ok_or_else(|| VkError::Invalid {
+                what: "scene".into(),
+                reason: "no descriptor set for this frame slot".into(),
+            })?;
+        pc.set_full_viewport();
+        let d = &pc.ctx.device;
+        // SAFETY: recording inside the subpass; buffers and set are live.
+        unsafe {
+            d.cmd_bind_vertex_buffers(pc.cb, 0, &[self.vertex_buffer], &[0]);
+            d.cmd_bind_index_buffer(pc.cb, self.index_buffer, 0, vk::IndexType::UINT32);
+            d.cmd_bind_descriptor_sets(
+                pc.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.scene_layout,
+                0,
+                &[set],
+                &[],
+            );
+        }
+        for sided in [false, true] {
+            let mut bound = false;
+            for draw in draws.iter().filter(|d| d.double_sided == sided) {
+                if !bound {
+                    let p = self.pipeline(pc, variant, sided, color_count)?;
+                    // SAFETY: as above.
+                    unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
+                    bound = true;
+                }
+                // SAFETY: the draw's ranges lie inside the scene's buffers (built from the scene).
+                unsafe {
+                    d.cmd_draw_indexed(
+                        pc.cb,
+                        draw.index_count,
+                        draw.instance_count,
+                        draw.first_index,
+                        draw.vertex_offset,
+                        draw.first_instance,
+                    )
+                };
+            }
+        }
+        Ok(())
+    }
+
+    fn record_resolve(
+        &mut self,
+        pc: &PassContext<'_>,
+        ids: ImageId,
+        input: bool,
+    ) -> Result<(), VkError> {
+        let variant = if input {
+            Variant::ResolveInput
+        } else {
+            Variant::ResolveSampled
+        };
+        let pipeline = self.pipeline(pc, variant, false, 1)?;
+        let scene_set = *self
+            .scene_sets
+            .get(pc.frame_slot)
+            .ok_or_else(|| VkError::Invalid {
+                what: "scene".into(),
+                reason: "no descriptor set for this frame slot".into(),
+            })?;
+        let key = (pc.frame_slot, input);
+        let set = match self.resolve_sets.get(&key) {
+            Some(s) => *s,
+            None => {
+                let layouts = [if input {
+                    self.input_set_layout
+                } else {
+                    self.sampled_set_layout
+                }];
+                let alloc = vk::DescriptorSetAllocateInfo::default()
+                    .descriptor_pool(self.pool)
+                    .set_layouts(&layouts);
+                // SAFETY: the pool holds enough sets for every slot and variant.
+                let s = unsafe { pc.ctx.device.allocate_descriptor_sets(&alloc) }
+                    .map_err(|r| VkError::call("vkAllocateDescriptorSets", r))?[0];
+                self.resolve_sets.insert(key, s);
+                s
+            }
+        };
+        let view = pc.image(ids)?.view;
+        let info = [vk::DescriptorImageInfo {
+            sampler: self.sampler,
+            image_view: view,
+            image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+        }];
+        let ty = if input {
+            vk::DescriptorType::INPUT_ATTACHMENT
+        } else {
+            vk::DescriptorType::COMBINED_IMAGE_SAMPLER
+        };
+        let write = vk::WriteDescriptorSet::default()
+            .dst_set(set)
+            .dst_binding(0)
+            .descriptor_type(ty)
+            .image_info(&info);
+        let layout = if input {
+            self.input_layout
+        } else {
+            self.sampled_layout
+        };
+        pc.set_full_viewport();
+        let d = &pc.ctx.device;
+        // SAFETY: the slot's previous frame completed (executor guarantee), so the set is idle;
+        // recording inside the resolve subpass.
+        unsafe {
+            d.update_descriptor_sets(&[write], &[]);
+            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            d.cmd_bind_descriptor_sets(
+                pc.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                layout,
+                0,
+                &[scene_set, set],
+                &[],
+            );
+            d.cmd_draw(pc.cb, 3, 1, 0, 0);
+        }
+        Ok(())
+    }
+}
+
+type Payload = Box<dyn FnMut(&mut PassContext<'_>) -> Result<(), VkError>>;
+/// Picks one class of draws out of the frame's draw list.
+type SelectDraws = fn(&DrawList) -> &[Draw];
+/// (vertex stage, fragment stage, vertex attributes, depth state, blend, layout) of a variant.
+type VariantState<'a> = (
+    Stage<'a>,
+    Option<Stage<'a>>,
+    &'a [(u32, vk::Format, u32)],
+    DepthState,
+    Blend,
+    vk::PipelineLayout,
+);
+
+/// Device features a technique needs (request them when creating the context).
+pub fn required_features(technique: Technique) -> tilegraph_vk::FeatureRequest {
+    let r = tilegraph_vk::FeatureRequest::default();
+    match technique {
+        Technique::Visbuf => r.require([tilegraph_vk::Feature::GeometryShader]),
+        Technique::Forward | Technique::Prepass => r,
+    }
+}
+
+/// Renders one scene frame after frame.
+pub struct SceneRenderer {
+    options: RenderOptions,
+    gpu: GpuScene,
+    executor: Executor,
+    shared: Rc<RefCell<Shared>>,
+    target: Image,
+    target_handle: ImageHandle,
+    content: SceneContent,
+    instance_bits: Option<u32>,
+    frames: u64,
+    last_slot: usize,
+}
+
+impl SceneRenderer {
+    pub fn new(ctx: &Context, scene: &Scene, options: RenderOptions) -> Result<Self, RenderError> {
+        let (w, h) = (options.width, options.height);
+        if w == 0
+            || h == 0
+            || w > ctx.physical.limits.max_image_dimension_2d
+            || h > ctx.physical.limits.max_image_dimension_2d
+        {
+            return Err(RenderError::Size {
+                width: w,
+                height: h,
+            });
+        }
+        let max_tris = scene
+            .meshes()
+            .iter()
+            .map(|m| m.triangle_count())
+            .max()
+            .unwrap_or(0);
+        let instance_bits = visbuf_instance_bits(scene.instances().len(), max_tris);
+        if options.technique == Technique::Visbuf && instance_bits.is_none() {
+            return Err(RenderError::VisbufIdOverflow {
+                instances: scene.instances().len(),
+                max_triangles: max_tris,
+            });
+        }
+        let mut needed = required_features(options.technique);
+        if options.count_fragments {
+            needed
+                .required
+                .insert(tilegraph_vk::Feature::FragmentStoresAndAtomics);
+        }
+        for f in needed.required {
+            if !ctx.has_feature(f) {
+                return Err(RenderError::MissingFeature {
+                    technique: options.technique.name(),
+                    feature: f,
+                    device: ctx.physical.identity.device_name.clone(),
+                });
+            }
+        }
+        let executor = Executor::new(ctx)?;
+        let gpu = GpuScene::new(ctx, scene, executor.frames_in_flight())?;
+        let all = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+        let scene_layout = create_pipeline_layout(ctx, &[gpu.set_layout], None)?;
+        let input_set_layout = create_set_layout(
+            ctx,
+            &[(
+                0,
+                vk::DescriptorType::INPUT_ATTACHMENT,
+                vk::ShaderStageFlags::FRAGMENT,
+            )],
+        )?;
+        let sampled_set_layout =
+            create_set_layout(ctx, &[(0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER, all)])?;
+        let input_layout = create_pipeline_layout(ctx, &[gpu.set_layout, input_set_layout], None)?;
+        let sampled_layout =
+            create_pipeline_layout(ctx, &[gpu.set_layout, sampled_set_layout], None)?;
+        let n = executor.frames_in_flight() as u32;
+        let sizes = [
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::INPUT_ATTACHMENT,
+                descriptor_count: n,
+            },
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+                descriptor_count: n,
+            },
+        ];
+        let pool_info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(2 * n)
+            .pool_sizes(&sizes);
+        // SAFETY: valid create info.
+        let pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
+            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
+        let sampler_info = vk::SamplerCreateInfo::default()
+            .mag_filter(vk::Filter::NEAREST)
+            .min_filter(vk::Filter::NEAREST)
+            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+            .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .max_lod(0.0);
+        // SAFETY: valid create info.
+        let sampler = unsafe { ctx.device.create_sampler(&sampler_info, None) }
+            .map_err(|r| VkError::call("vkCreateSampler", r))?;
+        let scene_sets = (0..executor.frames_in_flight())
+            .filter_map(|s| gpu.set(s))
+            .collect();
+        let depth = scene
+            .camera_path()
+            .camera(0)
+            .map_or(DepthConvention::Reverse, |c| {
+                c.projection.depth_convention()
+            });
+        let shared = Rc::new(RefCell::new(Shared {
+            scene_layout,
+            input_set_layout,
+            sampled_set_layout,
+            input_layout,
+            sampled_layout,
+            pool,
+            sampler,
+            pipelines: HashMap::new(),
+            resolve_sets: HashMap::new(),
+            scene_sets,
+            vertex_buffer: gpu.vertices.raw,
+            index_buffer: gpu.indices.raw,
+            draws: DrawList::default(),
+            depth,
+            count_fragments: options.count_fragments,
+        }));
+        let (target, target_handle) = create_target(ctx, w, h)?;
+        Ok(SceneRenderer {
+            options,
+            gpu,
+            executor,
+            shared,
+            target,
+            target_handle,
+            content: SceneContent::of(scene),
+            instance_bits,
+            frames: 0,
+            last_slot: 0,
+        })
+    }
+
+    pub fn options(&self) -> &RenderOptions {
+        &self.options
+    }
+
+    /// Sets the heavy-material ALU iterations for the next frames.
+    pub fn set_heavy_iterations(&mut self, iterations: u32) {
+        self.options.lighting.heavy_iterations = iterations;
+    }
+
+    /// Which passes this renderer's frames have on `profile`.
+    pub fn setup(&self, profile: &Profile) -> FrameSetup {
+        decide(self.content, profile, self.options.technique)
+    }
+
+    /// Renders one frame from `camera`.
+    pub fn render(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        camera: &Camera,
+    ) -> Result<FrameReport, RenderError> {
+        let (w, h) = (self.options.width, self.options.height);
+        let m = camera.matrices(w as f32 / h as f32);
+        let profile = ctx.profile().clone();
+        let setup = self.setup(&profile);
+        let draws = draws::build(
+            scene,
+            m.eye,
+            self.options
+                .opaque_order
+                .unwrap_or(profile.passes.opaque_sort),
+            None,
+        );
+        let uniforms = FrameUniforms::new(
+            m.view_projection,
+            m.depth,
+            (w, h),
+            &self.options.lighting,
+            self.instance_bits.unwrap_or(32),
+        );
+        let slot = self.executor.acquire_slot(ctx)?;
+        self.gpu
+            .write_frame(ctx, slot, scene, m.eye, &uniforms, &draws)?;
+        self.last_slot = slot;
+        let report_draws = draws.opaque.len() + draws.alpha_tested.len() + draws.blended.len();
+        let triangles = draws.triangles();
+        {
+            let mut s = self.shared.borrow_mut();
+            s.draws = draws;
+            s.depth = m.depth;
+        }
+        let (graph, target_id) = self.declare(&setup, &profile, m.depth, self.frames == 0);
+        let (plan, payloads) = graph.compile(&profile)?.into_parts();
+        let mut payloads: HashMap<_, _> = payloads.into_iter().collect();
+        let externals = HashMap::from([(target_id.0, External::Image(self.target_handle.clone()))]);
+        let stats =
+            self.executor.execute(
+                ctx,
+                &plan,
+                &externals,
+                &mut |id, pc| match payloads.get_mut(&id) {
+                    Some(p) => p(pc),
+                    None => Ok(()),
+                },
+            )?;
+        self.frames += 1;
+        Ok(FrameReport {
+            setup,
+            plan,
+            stats,
+            draws: report_draws,
+            triangles,
+        })
+    }
+
+    fn declare(
+        &self,
+        setup: &FrameSetup,
+        profile: &Profile,
+        depth_convention: DepthConvention,
+        first_frame: bool,
+    ) -> (GraphBuilder<Payload>, ImageId) {
+        let (w, h) = (self.options.width, self.options.height);
+        let extent = Extent2d::new(w, h);
+        let mut g: GraphBuilder<Payload> = GraphBuilder::new();
+        // The target survives frames: after the first it is in TRANSFER_SRC from the last
+        // frame's release, read by the readback copy.
+        let leftover = ResourceState::image(
+            Layout::TransferSrc,
+            PipelineStages::COPY,
+            AccessFlags::TRANSFER_READ,
+        );
+        let target = g.import_image(
+            "color",
+            ImageDesc::new(extent, Format::R8G8B8A8_UNORM),
+            Import {
+                initial: if first_frame {
+                    ResourceState::UNDEFINED
+                } else {
+                    leftover
+                },
+                content: InitialContent::Discard,
+                final_state: leftover,
+            },
+        );
+        let depth = g.create_image("depth", ImageDesc::new(extent, Format::D32_SFLOAT));
+        let depth_clear = ClearDepthStencil {
+            depth: depth_convention_far(depth_convention),
+            stencil: 0,
+        };
+        let color_clear = ClearColor::Float(self.options.clear_color);
+        let mut color_cleared = false;
+        let mut depth_cleared = false;
+        let prepass = setup.has_prepass();
+        let shared = &self.shared;
+        let payload = |variant: Variant, which: fn(&DrawList) -> &[Draw], colors: u32| -> Payload {
+            let shared = shared.clone();
+            Box::new(move |pc: &mut PassContext<'_>| {
+                let mut s = shared.borrow_mut();
+                let draws: Vec<Draw> = which(&s.draws).to_vec();
+                s.record_draws(pc, variant, &draws, colors)
+            })
+        };
+        for pass in setup.included() {
+            match pass {
+                PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha => {
+                    let (variant, which): (Variant, SelectDraws) =
+                        if pass == PassKind::DepthPrepassOpaque {
+                            (Variant::DepthOpaque, |d| &d.opaque)
+                        } else {
+                            (Variant::DepthAlpha, |d| &d.alpha_tested)
+                        };
+                    let mut p = g.raster_pass(
+                        pass.name(),
+                        PassClass::DepthPrepass,
+                        payload(variant, which, 0),
+                    );
+                    depth_use(&mut p, depth, &mut depth_cleared, depth_clear, false);
+                }
+                PassKind::Opaque | PassKind::AlphaTested => {
+                    let (class, which, pclass): (u32, SelectDraws, PassClass) =
+                        if pass == PassKind::Opaque {
+                            (0, |d| &d.opaque, PassClass::Opaque)
+                        } else {
+                            (1, |d| &d.alpha_tested, PassClass::AlphaTested)
+                        };
+                    let mut p = g.raster_pass(
+                        pass.name(),
+                        pclass,
+                        payload(
+                            Variant::Forward {
+                                class,
+                                equal: prepass,
+                            },
+                            which,
+                            1,
+                        ),
+                    );
+                    color_use(&mut p, target, &mut color_cleared, color_clear);
+                    depth_use(&mut p, depth, &mut depth_cleared, depth_clear, prepass);
+                }
+                PassKind::VisbufWrite => {
+                    let ids = g.create_image("visbuf-id", ImageDesc::new(extent, Format::R32_UINT));
+                    let shared_w = shared.clone();
+                    let write: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+                        let mut s = shared_w.borrow_mut();
+                        let (opaque, alpha) =
+                            (s.draws.opaque.clone(), s.draws.alpha_tested.clone());
+                        s.record_draws(pc, Variant::Visbuf { alpha: false }, &opaque, 1)?;
+                        s.record_draws(pc, Variant::Visbuf { alpha: true }, &alpha, 1)
+                    });
+                    let mut p = g.raster_pass(pass.name(), PassClass::Opaque, write);
+                    p.color_clear(ids, ClearColor::Uint([u32::MAX; 4]));
+                    depth_use(&mut p, depth, &mut depth_cleared, depth_clear, false);
+                    // The resolve right after: an input-attachment subpass on tilers, a sampled
+                    // full-screen pass elsewhere (setup's reason says which).
+                    let input = profile.is_tiler();
+                    let shared_r = shared.clone();
+                    let resolve: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+                        shared_r.borrow_mut().record_resolve(pc, ids, input)
+                    });
+                    let mut r =
+                        g.raster_pass(PassKind::VisbufResolve.name(), PassClass::Opaque, resolve);
+                    if input {
+                        r.input(ids);
+                    } else {
+                        r.sampled(ids);
+                    }
+                    color_use(&mut r, target, &mut color_cleared, color_clear);
+                }
+                PassKind::VisbufResolve => {} // declared with the write
+                PassKind::Transparent => {
+                    let mut p = g.raster_pass(
+                        pass.name(),
+                        PassClass::Transparent,
+                        payload(
+                            Variant::Forward {
+                                class: 2,
+                                equal: false,
+                            },
+                            |d| &d.blended,
+                            1,
+                        ),
+                    );
+                    color_use(&mut p, target, &mut color_cleared, color_clear);
+                    depth_use(&mut p, depth, &mut depth_cleared, depth_clear, true);
+                }
+            }
+        }
+        if !color_cleared {
+            // Nothing drew (an empty view of an empty scene): still produce a cleared image.
+            let mut p = g.raster_pass(
+                "clear",
+                PassClass::Opaque,
+                Box::new(|_: &mut PassContext<'_>| Ok(())) as Payload,
+            );
+            p.color_clear(target, color_clear).coverage(Coverage::Full);
+        }
+        g.export(target);
+        (g, target)
+    }
+
+    /// Waits for the frames in flight, collecting their GPU timings.
+    pub fn finish(&mut self, ctx: &Context) -> Result<(), RenderError> {
+        Ok(self.executor.finish(ctx)?)
+    }
+
+    /// Median GPU time per pass over the frames rendered so far (call [`Self::finish`] first).
+    pub fn medians(&self) -> Vec<PassMedian> {
+        self.executor.medians()
+    }
+
+    /// Fragments shaded by the opaque, alpha-tested and blended colour passes of the last frame
+    /// (with `count_fragments`; waits for the GPU).
+    pub fn fragment_counts(&mut self, ctx: &Context) -> Result<[u32; 3], RenderError> {
+        self.executor.finish(ctx)?;
+        Ok(self.gpu.fragment_counts(ctx, self.last_slot)?)
+    }
+
+    pub fn executor(&self) -> &Executor {
+        &self.executor
+    }
+
+    /// Reads the last frame's image (waits for the GPU).
+    pub fn read_image(&mut self, ctx: &Context) -> Result<RgbaImage, RenderError> {
+        self.executor.finish(ctx)?;
+        let pixels = tilegraph_vk::readback::read_image(
+            ctx,
+            &self.target_handle,
+            vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+            0,
+        )?;
+        Ok(RgbaImage {
+            width: self.options.width,
+            height: self.options.height,
+            pixels,
+        })
+    }
+
+    pub fn destroy(self, ctx: &Context) {
+        let SceneRenderer {
+            gpu,
+            executor,
+            shared,
+            target,
+            target_handle,
+            ..
+        } = self;
+        executor.destroy(ctx);
+        if let Ok(s) = Rc::try_unwrap(shared).map(RefCell::into_inner) {
+            // SAFETY: the executor waited for every frame; nothing uses these any more.
+            unsafe {
+                for (_, p) in s.pipelines {
+                    ctx.device.destroy_pipeline(p, None);
+                }
+                ctx.device.destroy_sampler(s.sampler, None);
+                ctx.device.destroy_descriptor_pool(s.pool, None);
+                ctx.device.destroy_pipeline_layout(s.scene_layout, None);
+                ctx.device.destroy_pipeline_layout(s.input_layout, None);
+                ctx.device.destroy_pipeline_layout(s.sampled_layout, None);
+                ctx.device
+                    .destroy_descriptor_set_layout(s.input_set_layout, None);
+                ctx.device
+                    .destroy_descriptor_set_layout(s.sampled_set_layout, None);
+            }
+        }
+        gpu.destroy(ctx);
+        // SAFETY: GPU idle.
+        unsafe { ctx.device.destroy_image_view(target_handle.view, None) };
+        ctx.destroy_image(target);
+    }
+}
+
+fn depth_convention_far(c: DepthConvention) -> f32 {
+    match c {
+        DepthConvention::Reverse => 0.0,
+        DepthConvention::Standard => 1.0,
+    }
+}
+
+fn color_use(
+    p: &mut tilegraph_graph::RasterPassBuilder<'_, Payload>,
+    target: ImageId,
+    cleared: &mut bool,
+    clear: ClearColor,
+) {
+    if *cleared {
+        p.color(target);
+    } else {
+        p.color_clear(target, clear);
+        *cleared = true;
+    }
+}
+
+fn depth_use(
+    p: &mut tilegraph_graph::RasterPassBuilder<'_, Payload>,
+    depth: ImageId,
+    cleared: &mut bool,
+    clear: ClearDepthStencil,
+    read_only: bool,
+) {
+    if !*cleared {
+        p.depth_stencil_clear(depth, clear);
+        *cleared = true;
+    } else if read_only {
+        p.depth_stencil_read_only(depth);
+    } else {
+        p.depth_stencil(depth);
+    }
+}
+
+fn create_target(ctx: &Context, w: u32, h: u32) -> Result<(Image, ImageHandle), VkError> {
+    let format = vk::Format::R8G8B8A8_UNORM;
+    let info = vk::ImageCreateInfo::default()
+        .image_type(vk::ImageType::TYPE_2D)
+        .format(format)
+        .extent(vk::Extent3D {
+            width: w,
+            height: h,
+            depth: 1,
+        })
+        .mip_levels(1)
+        .array_layers(1)
+        .samples(vk::SampleCountFlags::TYPE_1)
+        .tiling(vk::ImageTiling::OPTIMAL)
+        .usage(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC)
+        .initial_layout(vk::ImageLayout::UNDEFINED);
+    let image = ctx.create_image("color target", &info, MemoryUse::GpuOnly)?;
+    let view_info = vk::ImageViewCreateInfo::default()
+        .image(image.raw)
+        .view_type(vk::ImageViewType::TYPE_2D)
+        .format(format)
+        .subresource_range(vk::ImageSubresourceRange {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            base_mip_level: 0,
+            level_count: 1,
+            base_array_layer: 0,
+            layer_count: 1,
+        });
+    // SAFETY: live image with bound memory.
+    let view = match unsafe { ctx.device.create_image_view(&view_info, None) } {
+        Ok(v) => v,
+        Err(r) => {
+            ctx.destroy_image(image);
+            return Err(VkError::call("vkCreateImageView", r));
+        }
+    };
+    let handle = ImageHandle {
+        raw: image.raw,
+        view,
+        full_view: view,
+        mip_views: Vec::new(),
+        format,
+        extent: vk::Extent2D {
+            width: w,
+            height: h,
+        },
+        mip_levels: 1,
+        aspect: vk::ImageAspectFlags::COLOR,
+    };
+    Ok((image, handle))
+}

@@ -1,0 +1,273 @@
+//! The shipped visibility passes on real and procedural scenes (lavapipe, validation on):
+//! forward with and without a depth pre-pass give the same image exactly, the visibility
+//! buffer matches forward within 40 dB PSNR, the pre-pass removes overdraw (pipeline
+//! statistics), and each profile selects the passes its rules say.
+
+use tilegraph_e2e::gpu_with;
+use tilegraph_graph::Plan;
+use tilegraph_passes::{
+    required_features, FrameReport, PassKind, RenderOptions, SceneRenderer, Technique,
+};
+use tilegraph_profile::SortOrder;
+use tilegraph_scene::Scene;
+use tilegraph_vk::first_frame::RgbaImage;
+
+const W: u32 = 160;
+const H: u32 = 90;
+
+struct Rendered {
+    image: RgbaImage,
+    report: FrameReport,
+    /// Fragments shaded by the opaque, alpha-tested and blended passes (when counted).
+    fragments: Option<[u32; 3]>,
+    timings: Option<tilegraph_vk::queries::FrameTimings>,
+}
+
+fn render_with(
+    profile: &str,
+    scene: &Scene,
+    technique: Technique,
+    frame: usize,
+    count: bool,
+) -> Rendered {
+    render_ordered(profile, scene, technique, frame, count, None)
+}
+
+fn render_ordered(
+    profile: &str,
+    scene: &Scene,
+    technique: Technique,
+    frame: usize,
+    count: bool,
+    order: Option<SortOrder>,
+) -> Rendered {
+    let features =
+        required_features(technique).want([tilegraph_vk::Feature::FragmentStoresAndAtomics]);
+    let g = gpu_with(Some(profile), features).unwrap();
+    let options = RenderOptions {
+        technique,
+        width: W,
+        height: H,
+        count_fragments: count,
+        opaque_order: order,
+        ..Default::default()
+    };
+    let mut r = SceneRenderer::new(&g, scene, options).unwrap();
+    let cam = scene.camera_path().camera(frame).unwrap();
+    let report = r.render(&g, scene, &cam).unwrap();
+    let image = r.read_image(&g).unwrap();
+    // Timings of the frame, for the statistics checks below.
+    r.finish(&g).unwrap();
+    let mut report = report;
+    report.stats.frame = r.executor().latest_timings().map_or(0, |t| t.frame);
+    let fragments = if count {
+        Some(r.fragment_counts(&g).unwrap())
+    } else {
+        None
+    };
+    let timings = r.executor().latest_timings().cloned();
+    r.destroy(&g);
+    Rendered {
+        image,
+        report,
+        fragments,
+        timings,
+    }
+}
+
+fn render(profile: &str, scene: &Scene, technique: Technique) -> Rendered {
+    render_with(profile, scene, technique, 0, false)
+}
+
+fn psnr(a: &RgbaImage, b: &RgbaImage) -> f64 {
+    let mse: f64 = a
+        .pixels
+        .chunks_exact(4)
+        .zip(b.pixels.chunks_exact(4))
+        .flat_map(|(p, q)| (0..3).map(move |c| (f64::from(p[c]) - f64::from(q[c])).powi(2)))
+        .sum::<f64>()
+        / (a.pixels.len() / 4 * 3) as f64;
+    if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    }
+}
+
+fn pass_names(plan: &Plan) -> Vec<&str> {
+    plan.passes.iter().map(|p| p.name.as_str()).collect()
+}
+
+fn scenes() -> Vec<(String, Scene)> {
+    let mut v: Vec<(String, Scene)> = ["city:400", "forest:300", "field:300", "interior:300"]
+        .iter()
+        .map(|s| (s.to_string(), tilegraph_scene::load(s).unwrap()))
+        .collect();
+    match tilegraph_e2e::test_data("scenes/FlightHelmet/FlightHelmet.gltf") {
+        Some(path) => v.push((
+            "FlightHelmet".into(),
+            tilegraph_scene::load(path.to_str().unwrap()).unwrap(),
+        )),
+        None => eprintln!(
+            "skipping FlightHelmet: {} not found",
+            tilegraph_e2e::test_data_dir().display()
+        ),
+    }
+    v
+}
+
+#[test]
+fn forward_and_prepass_match_exactly_and_visbuf_within_40db() {
+    let mut table = String::from("scene         prepass==forward  visbuf PSNR (dB)\n");
+    for (name, scene) in scenes() {
+        let forward = render("lavapipe", &scene, Technique::Forward);
+        let prepass = render("lavapipe", &scene, Technique::Prepass);
+        let visbuf = render("lavapipe", &scene, Technique::Visbuf);
+        assert!(
+            pass_names(&prepass.report.plan).contains(&"depth-prepass"),
+            "{name}: {:?}",
+            pass_names(&prepass.report.plan)
+        );
+        assert!(
+            pass_names(&visbuf.report.plan).contains(&"visbuf-resolve"),
+            "{name}"
+        );
+        assert!(
+            !pass_names(&visbuf.report.plan).contains(&"opaque"),
+            "{name}"
+        );
+        // The image is not just the clear colour: something was drawn.
+        let clear = &forward.image.pixels[..4];
+        assert!(
+            forward.image.pixels.chunks_exact(4).any(|p| p != clear),
+            "{name}: nothing drawn"
+        );
+        assert!(
+            forward.image == prepass.image,
+            "{name}: forward and pre-pass images differ"
+        );
+        let p = psnr(&forward.image, &visbuf.image);
+        table.push_str(&format!(
+            "{name:<13} {:<17} {p:.1}\n",
+            forward.image == prepass.image
+        ));
+        assert!(
+            p >= 40.0,
+            "{name}: visibility buffer PSNR {p:.1} dB < 40 dB"
+        );
+    }
+    println!("{table}");
+}
+
+#[test]
+fn prepass_removes_overdraw_of_the_main_pass() {
+    // A street view of the city: buildings behind buildings.
+    let scene = tilegraph_scene::load("city:2000").unwrap();
+    let pixels = f64::from(W * H);
+    // Drawn back to front, the worst order for early depth rejection. powervr-b leaves the
+    // pre-pass out (hardware HSR), so on lavapipe it shows the overdraw; with the pre-pass the
+    // colour pass shades each pixel once whatever the order.
+    let worst = Some(SortOrder::BackToFront);
+    let without = render_ordered("powervr-b", &scene, Technique::Forward, 0, true, worst);
+    let with = render_ordered("lavapipe", &scene, Technique::Prepass, 0, true, worst);
+    let sorted = render_with("lavapipe", &scene, Technique::Forward, 0, true);
+    assert!(!without.report.setup.includes(PassKind::DepthPrepassOpaque));
+    assert!(with.report.setup.includes(PassKind::DepthPrepassOpaque));
+    let (a, b) = (
+        f64::from(without.fragments.unwrap()[0]),
+        f64::from(with.fragments.unwrap()[0]),
+    );
+    // Pipeline statistics, where the device counts after the depth test, say the same; lavapipe
+    // counts rasterized fragments, so the shader counts what it shades.
+    let stat = |r: &Rendered| {
+        r.timings
+            .as_ref()
+            .and_then(|t| t.passes.iter().find(|p| p.name == "opaque"))
+            .and_then(|p| p.fragment_invocations)
+    };
+    println!(
+        "opaque pass on {pixels} px: {a} fragments shaded without pre-pass ({:.2}x), {b} with ({:.2}x); pipeline statistics: {:?} / {:?}",
+        a / pixels,
+        b / pixels,
+        stat(&without),
+        stat(&with)
+    );
+    println!("front to back with the pre-pass: {:?}", sorted.fragments);
+    assert!(
+        a > 1.5 * pixels,
+        "the view has too little overdraw ({a}) to show anything"
+    );
+    assert!(
+        b <= 1.1 * pixels,
+        "{b} fragments shaded for {pixels} pixels after the pre-pass"
+    );
+    assert!(
+        with.image == render("lavapipe", &scene, Technique::Prepass).image,
+        "counting changed the image"
+    );
+}
+
+#[test]
+fn profiles_select_the_passes_their_rules_say() {
+    let scene = tilegraph_scene::load("forest:300").unwrap(); // opaque trunks, alpha-tested leaves
+    let lava = render("lavapipe", &scene, Technique::Forward).report;
+    let pvr = render("powervr-b", &scene, Technique::Forward).report;
+    let adreno = render("adreno-7xx", &scene, Technique::Forward).report;
+    for (r, prepass) in [(&lava, true), (&pvr, false), (&adreno, true)] {
+        assert_eq!(
+            r.setup.includes(PassKind::DepthPrepassOpaque),
+            prepass,
+            "{}",
+            r.plan.profile
+        );
+        assert_eq!(pass_names(&r.plan).contains(&"depth-prepass"), prepass);
+        // Nothing is blended in the forest: the transparent pass is left out, with the reason.
+        let t = r
+            .setup
+            .decisions
+            .iter()
+            .find(|d| d.pass == PassKind::Transparent)
+            .unwrap();
+        assert!(!t.included && t.reason.contains("blended"), "{t:?}");
+    }
+    let why = &pvr
+        .setup
+        .decisions
+        .iter()
+        .find(|d| d.pass == PassKind::DepthPrepassOpaque)
+        .unwrap()
+        .reason;
+    assert!(why.contains("powervr-b"), "{why}");
+    // On the tiler the pre-pass and colour passes share one render pass: depth stays on chip.
+    assert_eq!(adreno.plan.render_passes().count(), 1, "{}", adreno.plan);
+    assert_eq!(
+        adreno.plan.resource_by_name("depth").unwrap().residency,
+        tilegraph_graph::Residency::Transient
+    );
+}
+
+/// Golden images (tests/golden/, forward at 160x90 on lavapipe). `cargo xtask bless`
+/// regenerates them; on a mismatch a diff image is written next to the golden.
+#[test]
+fn forward_frames_match_their_golden_images() {
+    let bless = std::env::var_os("TILEGRAPH_BLESS").is_some();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("golden");
+    let mut failures = Vec::new();
+    for (name, scene) in scenes() {
+        let img = render("lavapipe", &scene, Technique::Forward).image;
+        let path = dir.join(format!("{}-forward.png", name.replace(':', "-")));
+        if bless {
+            tilegraph_e2e::golden::write_png(&path, &img).unwrap();
+            continue;
+        }
+        match tilegraph_e2e::golden::compare(&path, &img, 2) {
+            Ok(()) => {}
+            Err(e) => failures.push(format!("{name}: {e}")),
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "golden mismatches (TILEGRAPH_BLESS=1 or `cargo xtask bless` regenerates):\n{}",
+        failures.join("\n")
+    );
+}
