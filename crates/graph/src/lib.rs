@@ -23,6 +23,8 @@ mod display;
 mod dot;
 mod error;
 mod plan;
+#[cfg(test)]
+mod testing;
 mod traffic;
 mod types;
 

@@ -77,3 +77,132 @@ pub(crate) fn cull_unused_passes(
     }
     Culling { alive, culled }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::*;
+    use crate::*;
+
+    fn culled(plan: &Plan) -> Vec<(&str, &CullReason)> {
+        plan.culled
+            .iter()
+            .map(|c| (c.name.as_str(), &c.reason))
+            .collect()
+    }
+
+    #[test]
+    fn passes_whose_writes_reach_no_export_are_culled_with_the_reason() {
+        let mut g = GraphBuilder::new();
+        let ssao = rgba8(&mut g, "ssao");
+        let blurred = rgba8(&mut g, "ssao_blurred");
+        let debug = rgba8(&mut g, "debug");
+        let out = swapchain(&mut g);
+        let ssao_pass = g
+            .raster_pass("ssao", PassClass::Other, ())
+            .color_clear(ssao, ClearColor::BLACK)
+            .id();
+        let blur = g
+            .raster_pass("ssao_blur", PassClass::Other, ())
+            .sampled(ssao)
+            .color(blurred)
+            .coverage(Coverage::Full)
+            .id();
+        g.raster_pass("stats", PassClass::Other, ())
+            .sampled(ssao)
+            .render_area(EXTENT);
+        g.raster_pass("debug", PassClass::Other, ())
+            .color_clear(debug, ClearColor::BLACK);
+        g.raster_pass("post", PassClass::Post, ())
+            .color_clear(out, ClearColor::BLACK);
+        let plan = compile(g, &tiler());
+        assert_eq!(order(&plan), ["post"]);
+        assert_eq!(
+            culled(&plan),
+            [
+                (
+                    "ssao",
+                    &CullReason::ConsumersCulled {
+                        consumers: vec![blur, PassId(2)]
+                    }
+                ),
+                ("ssao_blur", &CullReason::OutputsUnused),
+                ("stats", &CullReason::NoOutputs),
+                ("debug", &CullReason::OutputsUnused),
+            ]
+        );
+        assert_eq!(plan.culled[0].id, ssao_pass);
+        // What culled passes alone used is not allocated.
+        for name in ["ssao", "ssao_blurred", "debug"] {
+            let r = plan.resource_by_name(name).map(|r| (r.residency, r.memory));
+            assert_eq!(r, Some((Residency::Unused, None)), "{name}");
+        }
+    }
+
+    #[test]
+    fn a_write_overwritten_before_anyone_reads_it_is_culled() {
+        let mut g = GraphBuilder::new();
+        let out = swapchain(&mut g);
+        g.raster_pass("splash", PassClass::Other, ())
+            .color_clear(out, ClearColor::BLACK);
+        g.raster_pass("post", PassClass::Post, ())
+            .color(out)
+            .coverage(Coverage::Full);
+        let plan = compile(g, &tiler());
+        assert_eq!(order(&plan), ["post"]);
+        assert_eq!(culled(&plan), [("splash", &CullReason::OutputsUnused)]);
+    }
+
+    #[test]
+    fn drawing_over_old_content_keeps_its_writer() {
+        let mut g = GraphBuilder::new();
+        let out = swapchain(&mut g);
+        g.raster_pass("scene", PassClass::Opaque, ())
+            .color_clear(out, ClearColor::BLACK);
+        g.raster_pass("ui", PassClass::Post, ()).color(out);
+        let plan = compile(g, &tiler());
+        assert_eq!(order(&plan), ["scene", "ui"]);
+        assert!(plan.culled.is_empty());
+    }
+
+    #[test]
+    fn passes_with_effects_outside_the_graph_are_kept() {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let out = swapchain(&mut g);
+        g.raster_pass("prepass", PassClass::DepthPrepass, ())
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("queries", PassClass::OcclusionQuery, ())
+            .depth_stencil_read_only(depth)
+            .retention(Retention::Always);
+        g.raster_pass("post", PassClass::Post, ())
+            .color_clear(out, ClearColor::BLACK);
+        let plan = compile(g, &tiler());
+        // The profile's class order puts occlusion queries before post.
+        assert_eq!(order(&plan), ["prepass", "queries", "post"]);
+    }
+
+    #[test]
+    fn culled_payloads_are_dropped_and_the_rest_come_back_in_plan_order() {
+        let mut g: GraphBuilder<&str> = GraphBuilder::new();
+        let tmp = g.create_image("tmp", ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM));
+        let out = g.import_image(
+            "swapchain",
+            ImageDesc::new(EXTENT, Format::B8G8R8A8_SRGB),
+            Import::SWAPCHAIN,
+        );
+        g.export(out);
+        let unused = g
+            .raster_pass("unused", PassClass::Other, "unused payload")
+            .color_clear(tmp, ClearColor::BLACK)
+            .id();
+        let post = g
+            .raster_pass("post", PassClass::Post, "post payload")
+            .color_clear(out, ClearColor::BLACK)
+            .id();
+        let mut compiled = g.compile(&tiler()).unwrap();
+        assert_eq!(compiled.payload(unused), None);
+        assert_eq!(compiled.payload(post), Some(&"post payload"));
+        assert_eq!(compiled.take_payload(post), Some("post payload"));
+        assert_eq!(compiled.payload(post), None);
+    }
+}

@@ -463,3 +463,242 @@ fn track_subpass_use(
     track.last_stages = a.stages;
     track.layout = a.layout;
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::*;
+    use crate::*;
+
+    #[test]
+    fn load_is_clear_dont_care_or_load_from_the_first_use() {
+        let mut g = GraphBuilder::new();
+        let cleared = rgba8(&mut g, "cleared");
+        let covered = rgba8(&mut g, "covered");
+        let kept = history(&mut g, "kept");
+        let dropped = g.import_image(
+            "dropped",
+            ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM),
+            Import::SWAPCHAIN,
+        );
+        for r in [cleared, covered, kept, dropped] {
+            g.export(r);
+        }
+        g.raster_pass("a", PassClass::Opaque, ())
+            .color_clear(cleared, ClearColor::BLACK);
+        g.raster_pass("b", PassClass::Post, ())
+            .color(covered)
+            .coverage(Coverage::Full);
+        // Blending over imported content that is kept: LOAD. Over discarded content: nothing to
+        // load.
+        g.raster_pass("c", PassClass::Transparent, ()).color(kept);
+        g.raster_pass("d", PassClass::Transparent, ())
+            .color(dropped);
+        let plan = compile(g, &tiler());
+        let load = |name| attachment(&plan, name).load_op;
+        assert_eq!(load("cleared"), LoadOp::Clear);
+        assert_eq!(
+            attachment(&plan, "cleared").clear,
+            Some(ClearValue::Color(ClearColor::BLACK))
+        );
+        assert_eq!(load("covered"), LoadOp::DontCare);
+        assert_eq!(load("kept"), LoadOp::Load);
+        assert_eq!(load("dropped"), LoadOp::DontCare);
+    }
+
+    #[test]
+    fn store_only_what_a_later_pass_or_an_export_reads() {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let color = rgba8(&mut g, "color");
+        let out = swapchain(&mut g);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("post", PassClass::Post, ())
+            .sampled(color)
+            .color(out)
+            .coverage(Coverage::Full);
+        let plan = compile(g, &tiler());
+        assert_eq!(attachment(&plan, "color").store_op, StoreOp::Store);
+        assert_eq!(attachment(&plan, "depth").store_op, StoreOp::DontCare);
+        assert_eq!(attachment(&plan, "swapchain").store_op, StoreOp::Store);
+    }
+
+    #[test]
+    fn content_overwritten_before_it_is_read_is_not_stored() {
+        let mut g = GraphBuilder::new();
+        let scratch = rgba8(&mut g, "scratch");
+        let a = rgba8(&mut g, "a");
+        let b = rgba8(&mut g, "b");
+        g.export(a);
+        g.export(b);
+        g.raster_pass("first", PassClass::Opaque, ())
+            .color_clear(scratch, ClearColor::BLACK)
+            .color_clear(a, ClearColor::BLACK);
+        g.raster_pass("second", PassClass::Opaque, ())
+            .color_clear(scratch, ClearColor::TRANSPARENT);
+        g.raster_pass("third", PassClass::Post, ())
+            .sampled(scratch)
+            .color(b)
+            .coverage(Coverage::Full);
+        let plan = compile(g, &tiler());
+        let stores: Vec<StoreOp> = attachments(&plan, "scratch")
+            .iter()
+            .map(|a| a.store_op)
+            .collect();
+        assert_eq!(stores, [StoreOp::DontCare, StoreOp::Store]);
+    }
+
+    #[test]
+    fn depth_and_stencil_are_invalidated_together() {
+        // seed 001: invalidating only the depth or the stencil of D24S8 has no effect.
+        for (format, stencil) in [
+            (Format::D24_UNORM_S8_UINT, true),
+            (Format::D32_SFLOAT_S8_UINT, true),
+            (Format::D32_SFLOAT, false),
+        ] {
+            let mut g = GraphBuilder::new();
+            let depth = g.create_image("depth", ImageDesc::new(EXTENT, format));
+            let out = swapchain(&mut g);
+            g.raster_pass("opaque", PassClass::Opaque, ())
+                .color_clear(out, ClearColor::BLACK)
+                .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+            g.raster_pass("fog", PassClass::Post, ())
+                .sampled(depth)
+                .color(out);
+            let plan = compile(g, &tiler());
+            let a = attachment(&plan, "depth");
+            assert_eq!((a.load_op, a.store_op), (LoadOp::Clear, StoreOp::Store));
+            let expected = if stencil {
+                (a.load_op, a.store_op)
+            } else {
+                (LoadOp::DontCare, StoreOp::DontCare)
+            };
+            assert_eq!(
+                (a.stencil_load_op, a.stencil_store_op),
+                expected,
+                "{format}"
+            );
+        }
+    }
+
+    #[test]
+    fn attachments_that_never_leave_the_render_pass_are_transient_on_tilers() {
+        let build = || {
+            let mut g = GraphBuilder::new();
+            let depth = d24s8(&mut g, "depth");
+            let out = swapchain(&mut g);
+            g.raster_pass("opaque", PassClass::Opaque, ())
+                .color_clear(out, ClearColor::BLACK)
+                .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+            g
+        };
+        let plan = compile(build(), &tiler());
+        let depth = plan.resource_by_name("depth").cloned();
+        assert_eq!(
+            depth.as_ref().map(|d| d.residency),
+            Some(Residency::Transient)
+        );
+        assert_eq!(
+            depth.as_ref().map(|d| d.usage),
+            Some(Usage::Image(
+                ImageUsage::DEPTH_STENCIL_ATTACHMENT | ImageUsage::TRANSIENT_ATTACHMENT
+            ))
+        );
+        let block = depth
+            .and_then(|d| d.memory)
+            .map(|m| plan.aliasing.blocks[m.block.0 as usize].class);
+        assert_eq!(block, Some(MemoryClass::LazilyAllocated));
+        assert_eq!(attachment(&plan, "depth").residency, Residency::Transient);
+
+        // No lazily allocated memory on desktop: ordinary (aliasable) memory, still not stored.
+        let plan = compile(build(), &desktop());
+        let depth = plan.resource_by_name("depth");
+        assert_eq!(depth.map(|d| d.residency), Some(Residency::FrameLocal));
+        assert_eq!(
+            depth.map(|d| d.usage),
+            Some(Usage::Image(ImageUsage::DEPTH_STENCIL_ATTACHMENT))
+        );
+        assert_eq!(attachment(&plan, "depth").store_op, StoreOp::DontCare);
+    }
+
+    #[test]
+    fn msaa_stays_on_chip_and_only_the_resolve_is_written() {
+        let mut g = GraphBuilder::new();
+        let msaa = g.create_image(
+            "msaa",
+            ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM).with_samples(SampleCount::S4),
+        );
+        let msaa_depth = g.create_image(
+            "msaa_depth",
+            ImageDesc::new(EXTENT, Format::D24_UNORM_S8_UINT).with_samples(SampleCount::S4),
+        );
+        let resolved = rgba8(&mut g, "resolved");
+        g.export(resolved);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(msaa, ClearColor::BLACK)
+            .depth_stencil_clear(msaa_depth, ClearDepthStencil::REVERSE_Z)
+            .resolve(msaa, resolved);
+        let plan = compile(g, &tiler());
+        assert_eq!(attachment(&plan, "msaa").store_op, StoreOp::DontCare);
+        assert_eq!(attachment(&plan, "msaa").residency, Residency::Transient);
+        let r = attachment(&plan, "resolved");
+        assert_eq!((r.load_op, r.store_op), (LoadOp::DontCare, StoreOp::Store));
+        let Some((_, rp)) = plan.render_passes().next() else {
+            panic!("no render pass")
+        };
+        let subpass = &rp.subpasses[0];
+        assert_eq!(subpass.colors.len(), 1);
+        assert_eq!(subpass.resolves.len(), 1);
+        assert_eq!(
+            subpass.resolves[0].map(|r| rp.attachments[r.attachment.0 as usize].resource),
+            plan.resource_by_name("resolved").map(|r| r.id)
+        );
+        // Only the resolved image reaches memory; the resolve target takes no tile memory.
+        assert_eq!(plan.traffic.planned.resolve_write_bytes, PIXELS * 4);
+        assert_eq!(plan.traffic.planned.total_bytes(), PIXELS * 4);
+        assert_eq!(rp.on_chip_bytes_per_px, 4 * 4 + 4 * 4);
+    }
+
+    #[test]
+    fn preserved_attachments_and_subpass_dependencies() {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let color = rgba8(&mut g, "color");
+        let out = swapchain(&mut g);
+        g.raster_pass("prepass", PassClass::DepthPrepass, ())
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK)
+            .depth_stencil_read_only(depth);
+        g.raster_pass("post", PassClass::Post, ())
+            .input(color)
+            .color(out)
+            .coverage(Coverage::Full);
+        g.raster_pass("decals", PassClass::Post, ())
+            .color(out)
+            .depth_stencil_read_only(depth);
+        let plan = compile(g, &tiler());
+        let Some((_, rp)) = plan.render_passes().next() else {
+            panic!("no render pass")
+        };
+        assert_eq!(rp.subpasses.len(), 4);
+        // depth (attachment #0) is used by subpasses 0, 1 and 3: subpass 2 must keep it.
+        assert_eq!(rp.subpasses[2].preserve, [AttachmentIndex(0)]);
+        let deps: Vec<(u32, u32)> = rp
+            .dependencies
+            .iter()
+            .map(|d| (d.src_subpass.0, d.dst_subpass.0))
+            .collect();
+        assert_eq!(deps, [(0, 1), (0, 3), (1, 2), (2, 3)]);
+        let input_dep = rp.dependencies[2];
+        assert_eq!(
+            input_dep.src_stages,
+            PipelineStages::COLOR_ATTACHMENT_OUTPUT
+        );
+        assert_eq!(input_dep.src_access, AccessFlags::COLOR_ATTACHMENT_WRITE);
+        assert_eq!(input_dep.dst_stages, PipelineStages::FRAGMENT_SHADER);
+        assert_eq!(input_dep.dst_access, AccessFlags::INPUT_ATTACHMENT_READ);
+        assert_eq!(input_dep.flags, DependencyFlags::BY_REGION);
+    }
+}

@@ -152,3 +152,168 @@ pub(crate) fn merge_render_passes(
     }
     groups
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::*;
+    use crate::*;
+
+    /// Subpass pass names of each render pass.
+    fn render_passes(plan: &Plan) -> Vec<Vec<&str>> {
+        plan.render_passes()
+            .map(|(_, rp)| {
+                rp.subpasses
+                    .iter()
+                    .map(|s| plan.pass(s.pass).map_or("?", |p| p.name.as_str()))
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// prepass -> opaque -> post reading the colour at the same pixel.
+    fn chain() -> GraphBuilder<()> {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let color = rgba8(&mut g, "color");
+        let out = swapchain(&mut g);
+        g.raster_pass("prepass", PassClass::DepthPrepass, ())
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK)
+            .depth_stencil_read_only(depth);
+        g.raster_pass("post", PassClass::Post, ())
+            .input(color)
+            .color(out)
+            .coverage(Coverage::Full);
+        g
+    }
+
+    #[test]
+    fn same_pixel_chains_merge_unless_the_profile_says_never() {
+        let merged = [vec!["prepass", "opaque", "post"]];
+        assert_eq!(render_passes(&compile(chain(), &tiler())), merged);
+        // Immediate GPUs: allowed, and done the same way.
+        assert_eq!(render_passes(&compile(chain(), &desktop())), merged);
+        assert_eq!(
+            render_passes(&compile(chain(), &never_merge())),
+            [vec!["prepass"], vec!["opaque"], vec!["post"]]
+        );
+    }
+
+    #[test]
+    fn sampling_an_earlier_output_splits_the_render_pass() {
+        let mut g = GraphBuilder::new();
+        let color = rgba8(&mut g, "color");
+        let out = swapchain(&mut g);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK);
+        g.raster_pass("blur", PassClass::Post, ())
+            .sampled(color)
+            .color(out)
+            .coverage(Coverage::Full);
+        assert_eq!(
+            render_passes(&compile(g, &tiler())),
+            [vec!["opaque"], vec!["blur"]]
+        );
+    }
+
+    #[test]
+    fn an_input_attachment_must_match_the_render_area() {
+        let mut g = GraphBuilder::new();
+        let color = rgba8(&mut g, "color");
+        let half = g.create_image(
+            "half",
+            ImageDesc::new(Extent2d::new(32, 16), Format::R8G8B8A8_UNORM),
+        );
+        g.export(half);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK);
+        g.raster_pass("downsample", PassClass::Post, ())
+            .input(color)
+            .color(half)
+            .coverage(Coverage::Full);
+        let err = compile_err(g, &tiler());
+        // The input attachment must match the render area too: an input read is at the same
+        // pixel.
+        assert!(matches!(err, GraphError::ExtentMismatch { .. }), "{err}");
+    }
+
+    #[test]
+    fn a_clear_after_the_first_subpass_starts_a_render_pass() {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let out = swapchain(&mut g);
+        g.raster_pass("world", PassClass::Opaque, ())
+            .color_clear(out, ClearColor::BLACK)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        // The weapon view model clears depth and draws over the world.
+        g.raster_pass("view_model", PassClass::Transparent, ())
+            .color(out)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        let plan = compile(g, &tiler());
+        assert_eq!(render_passes(&plan), [vec!["world"], vec!["view_model"]]);
+        assert_eq!(attachments(&plan, "depth")[0].store_op, StoreOp::DontCare);
+    }
+
+    #[test]
+    fn unrelated_passes_of_one_size_stay_apart() {
+        let mut g = GraphBuilder::new();
+        let a = rgba8(&mut g, "a");
+        let b = rgba8(&mut g, "b");
+        g.export(a);
+        g.export(b);
+        g.raster_pass("one", PassClass::Opaque, ())
+            .color_clear(a, ClearColor::BLACK);
+        g.raster_pass("two", PassClass::Opaque, ())
+            .color_clear(b, ClearColor::BLACK);
+        assert_eq!(
+            render_passes(&compile(g, &tiler())),
+            [vec!["one"], vec!["two"]]
+        );
+    }
+
+    fn frame_with_queries() -> GraphBuilder<()> {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let out = swapchain(&mut g);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(out, ClearColor::BLACK)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("queries", PassClass::OcclusionQuery, ())
+            .depth_stencil_read_only(depth)
+            .retention(Retention::Always);
+        g.raster_pass("transparent", PassClass::Transparent, ())
+            .color(out)
+            .depth_stencil_read_only(depth);
+        g
+    }
+
+    #[test]
+    fn occlusion_queries_get_their_own_render_pass_after_a_flush_on_adreno() {
+        // seed 001: queries in a render pass of their own, after a flush, so the driver picks
+        // direct mode for it.
+        let plan = compile(frame_with_queries(), &tiler());
+        assert_eq!(
+            render_passes(&plan),
+            [vec!["opaque", "transparent"], vec!["queries"]]
+        );
+        let kinds: Vec<&str> = plan.steps.iter().map(Step::name).collect();
+        let flush = kinds.iter().position(|&k| k == "flush");
+        let queries = plan.pass_by_name("queries").map(|p| p.step.index());
+        assert!(
+            matches!((flush, queries), (Some(f), Some(q)) if f < q && f > 0),
+            "{kinds:?}"
+        );
+        // Depth now leaves the first render pass for the queries: the plan shows the cost.
+        assert_eq!(attachments(&plan, "depth")[0].store_op, StoreOp::Store);
+        assert_eq!(attachments(&plan, "depth")[1].load_op, LoadOp::Load);
+
+        // Mali keeps queries with the drawing: one render pass, no flush.
+        let mali = compile(frame_with_queries(), &profile("mali-valhall"));
+        assert_eq!(
+            render_passes(&mali),
+            [vec!["opaque", "transparent", "queries"]]
+        );
+        assert!(!mali.steps.iter().any(|s| matches!(s, Step::Flush(_))));
+    }
+}

@@ -211,3 +211,158 @@ pub(crate) fn order_passes(
     }
     Ok(order)
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::*;
+    use crate::*;
+
+    #[test]
+    fn independent_passes_follow_the_class_order() {
+        // Declared transparent-first, but they do not depend on each other.
+        let mut g = GraphBuilder::new();
+        let a = rgba8(&mut g, "a");
+        let b = rgba8(&mut g, "b");
+        let c = g.create_buffer("c", 256);
+        g.export(a);
+        g.export(b);
+        g.export(c);
+        g.raster_pass("particles", PassClass::Transparent, ())
+            .color_clear(a, ClearColor::BLACK);
+        g.raster_pass("shadows", PassClass::Opaque, ())
+            .color_clear(b, ClearColor::BLACK);
+        g.compute_pass("cull", PassClass::Compute, ())
+            .storage_write(c);
+        assert_eq!(
+            order(&compile(g, &tiler())),
+            ["cull", "shadows", "particles"]
+        );
+    }
+
+    #[test]
+    fn dependencies_come_before_the_class_order() {
+        // Post-class pass that opaque work reads: it must run first, and it pulls its urgency
+        // (opaque's rank) ahead of the unrelated transparent pass.
+        let mut g = GraphBuilder::new();
+        let lut = rgba8(&mut g, "lut");
+        let scene = rgba8(&mut g, "scene");
+        let glass = rgba8(&mut g, "glass");
+        g.export(scene);
+        g.export(glass);
+        g.raster_pass("glass", PassClass::Transparent, ())
+            .color_clear(glass, ClearColor::BLACK);
+        g.raster_pass("bake_lut", PassClass::Post, ())
+            .color_clear(lut, ClearColor::BLACK);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .sampled(lut)
+            .color_clear(scene, ClearColor::BLACK);
+        assert_eq!(
+            order(&compile(g, &tiler())),
+            ["bake_lut", "opaque", "glass"]
+        );
+    }
+
+    #[test]
+    fn occlusion_queries_go_after_the_drawing_that_does_not_need_them() {
+        // seed 001: opaque, alpha-tested, transparent, then the occlusion queries.
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let out = swapchain(&mut g);
+        g.raster_pass("prepass", PassClass::DepthPrepass, ())
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("queries", PassClass::OcclusionQuery, ())
+            .depth_stencil_read_only(depth)
+            .retention(Retention::Always);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(out, ClearColor::BLACK)
+            .depth_stencil_read_only(depth);
+        g.raster_pass("transparent", PassClass::Transparent, ())
+            .color(out)
+            .depth_stencil_read_only(depth);
+        assert_eq!(
+            order(&compile(g, &tiler())),
+            ["prepass", "opaque", "transparent", "queries"]
+        );
+    }
+
+    #[test]
+    fn declaration_order_breaks_ties() {
+        let mut g = GraphBuilder::new();
+        let names = ["c", "a", "b"];
+        for name in names {
+            let buf = g.create_buffer(name, 64);
+            g.export(buf);
+            g.compute_pass(name, PassClass::Compute, ())
+                .storage_write(buf);
+        }
+        assert_eq!(order(&compile(g, &tiler())), names);
+    }
+
+    #[test]
+    fn explicit_dependencies_order_and_can_form_a_cycle() {
+        let mut g = GraphBuilder::new();
+        let a = g.create_buffer("a", 64);
+        let b = g.create_buffer("b", 64);
+        g.export(a);
+        g.export(b);
+        let first = g
+            .compute_pass("first", PassClass::Compute, ())
+            .storage_write(a)
+            .id();
+        let second = g
+            .compute_pass("second", PassClass::Compute, ())
+            .storage_write(b)
+            .id();
+        let mut ordered = g.clone();
+        ordered.add_dependency(second, first);
+        assert_eq!(order(&compile(ordered, &tiler())), ["second", "first"]);
+
+        let mut cyclic = g.clone();
+        cyclic.add_dependency(second, first);
+        cyclic.add_dependency(first, second);
+        assert_eq!(
+            compile_err(cyclic, &tiler()),
+            GraphError::Cycle {
+                passes: vec!["second".into(), "first".into(), "second".into()]
+            }
+        );
+
+        let mut g2 = GraphBuilder::new();
+        let x = g2.create_buffer("x", 64);
+        let y = g2.create_buffer("y", 64);
+        g2.export(y);
+        let producer = g2
+            .compute_pass("producer", PassClass::Compute, ())
+            .storage_write(x)
+            .id();
+        g2.compute_pass("consumer", PassClass::Compute, ())
+            .storage_read(x)
+            .storage_write(y)
+            .after(producer);
+        let consumer = PassId(1);
+        g2.add_dependency(consumer, producer);
+        assert!(matches!(
+            compile_err(g2, &tiler()),
+            GraphError::Cycle { passes } if passes.contains(&"producer".to_string())
+                && passes.contains(&"consumer".to_string())
+        ));
+    }
+
+    #[test]
+    fn a_pass_after_itself_is_a_cycle() {
+        let mut g = GraphBuilder::new();
+        let a = g.create_buffer("a", 64);
+        g.export(a);
+        let p = g
+            .compute_pass("narcissus", PassClass::Compute, ())
+            .storage_write(a)
+            .id();
+        g.add_dependency(p, p);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::Cycle {
+                passes: vec!["narcissus".into(), "narcissus".into()]
+            }
+        );
+    }
+}

@@ -340,3 +340,407 @@ pub(crate) fn validate_declarations(
         last_writer,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::*;
+    use crate::*;
+
+    #[test]
+    fn read_before_write_names_the_pass_and_the_resource() {
+        let mut g = GraphBuilder::new();
+        let hdr = rgba8(&mut g, "hdr");
+        let out = swapchain(&mut g);
+        g.raster_pass("post", PassClass::Post, ())
+            .sampled(hdr)
+            .color(out);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::ReadBeforeWrite {
+                pass: "post".into(),
+                resource: "hdr".into(),
+                usage: "sampled",
+            }
+        );
+    }
+
+    #[test]
+    fn declaration_order_is_program_order() {
+        // Written only by a pass declared later: still read before write.
+        let mut g = GraphBuilder::new();
+        let hdr = rgba8(&mut g, "hdr");
+        let out = swapchain(&mut g);
+        g.raster_pass("post", PassClass::Post, ())
+            .sampled(hdr)
+            .color(out);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(hdr, ClearColor::BLACK);
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::ReadBeforeWrite { pass, .. } if pass == "post"
+        ));
+    }
+
+    #[test]
+    fn imported_content_can_be_read_discarded_content_cannot() {
+        let mut g = GraphBuilder::new();
+        let prev = history(&mut g, "history");
+        let out = swapchain(&mut g);
+        g.raster_pass("taa", PassClass::Post, ())
+            .sampled(prev)
+            .color(out)
+            .coverage(Coverage::Full);
+        assert_eq!(compile(g, &tiler()).passes.len(), 1);
+
+        let mut g = GraphBuilder::new();
+        let acquired = g.import_image(
+            "acquired",
+            ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM),
+            Import::SWAPCHAIN,
+        );
+        let out = swapchain(&mut g);
+        g.raster_pass("copy", PassClass::Post, ())
+            .input(acquired)
+            .color(out);
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::ReadBeforeWrite { resource, usage: "input", .. } if resource == "acquired"
+        ));
+    }
+
+    #[test]
+    fn a_write_and_another_use_of_one_resource_conflict() {
+        let mut g = GraphBuilder::new();
+        let img = rgba8(&mut g, "feedback");
+        g.export(img);
+        g.raster_pass("loop", PassClass::Post, ())
+            .color_clear(img, ClearColor::BLACK)
+            .sampled(img);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::ConflictingUses {
+                pass: "loop".into(),
+                resource: "feedback".into(),
+                first: "color",
+                second: "sampled",
+            }
+        );
+
+        let mut g = GraphBuilder::new();
+        let buf = g.create_buffer("counts", 256);
+        g.export(buf);
+        g.compute_pass("count", PassClass::Compute, ())
+            .storage_write(buf)
+            .storage_read(buf);
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::ConflictingUses {
+                first: "storage-w",
+                second: "storage-r",
+                ..
+            }
+        ));
+    }
+
+    #[test]
+    fn reads_that_agree_on_the_layout_combine() {
+        // One buffer as vertex and index data, depth tested and sampled (soft particles),
+        // storage read-write as one use: none of these conflict.
+        let mut g = GraphBuilder::new();
+        let mesh = g.import_buffer(
+            "mesh",
+            4096,
+            Import {
+                initial: ResourceState::UNDEFINED,
+                content: InitialContent::Preserve,
+                final_state: ResourceState::UNDEFINED,
+            },
+        );
+        let depth = d24s8(&mut g, "depth");
+        let hiz = g.create_image(
+            "hiz",
+            ImageDesc::new(EXTENT, Format::R32_SFLOAT).with_mip_levels(EXTENT.full_mip_count()),
+        );
+        let out = swapchain(&mut g);
+        g.raster_pass("prepass", PassClass::DepthPrepass, ())
+            .vertex(mesh)
+            .index(mesh)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.compute_pass("hiz", PassClass::Compute, ())
+            .sampled(depth)
+            .storage_read_write(hiz)
+            .coverage(Coverage::Full);
+        g.raster_pass("particles", PassClass::Transparent, ())
+            .vertex(mesh)
+            .index(mesh)
+            .depth_stencil_read_only(depth)
+            .sampled(depth)
+            .sampled(hiz)
+            .color_clear(out, ClearColor::BLACK);
+        let plan = compile(g, &tiler());
+        assert_eq!(order(&plan), ["prepass", "hiz", "particles"]);
+        assert_eq!(
+            plan.resource_by_name("mesh").map(|r| r.usage),
+            Some(Usage::Buffer(
+                BufferUsage::VERTEX_BUFFER | BufferUsage::INDEX_BUFFER
+            ))
+        );
+    }
+
+    #[test]
+    fn attachments_of_one_pass_share_one_extent_and_sample_count() {
+        let mut g = GraphBuilder::new();
+        let color = rgba8(&mut g, "color");
+        let depth = g.create_image(
+            "small_depth",
+            ImageDesc::new(Extent2d::new(32, 32), Format::D32_SFLOAT),
+        );
+        g.export(color);
+        g.raster_pass("draw", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::ExtentMismatch {
+                pass: "draw".into(),
+                resource: "small_depth".into(),
+                expected_px: EXTENT,
+                found_px: Extent2d::new(32, 32),
+            }
+        );
+
+        let mut g = GraphBuilder::new();
+        let color = rgba8(&mut g, "color");
+        let depth = g.create_image(
+            "msaa_depth",
+            ImageDesc::new(EXTENT, Format::D32_SFLOAT).with_samples(SampleCount::S4),
+        );
+        g.export(color);
+        g.raster_pass("draw", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::SampleCountMismatch {
+                expected: 1,
+                found: 4,
+                ..
+            }
+        ));
+    }
+
+    #[test]
+    fn color_attachments_are_limited_by_the_profile() {
+        let mobile = profile("generic-mobile");
+        assert_eq!(mobile.render_pass.max_color_attachments, 4);
+        let mut g = GraphBuilder::new();
+        let targets: Vec<ImageId> = (0..5)
+            .map(|i| rgba8(&mut g, &format!("gbuffer{i}")))
+            .collect();
+        for &t in &targets {
+            g.export(t);
+        }
+        let mut pass = g.raster_pass("gbuffer", PassClass::Opaque, ());
+        for &t in &targets {
+            pass.color_clear(t, ClearColor::BLACK);
+        }
+        assert_eq!(
+            compile_err(g.clone(), &mobile),
+            GraphError::TooManyColorAttachments {
+                pass: "gbuffer".into(),
+                count: 5,
+                max: 4,
+                profile: "generic-mobile".into(),
+            }
+        );
+        assert_eq!(compile(g, &tiler()).passes.len(), 1);
+    }
+
+    #[test]
+    fn formats_must_fit_the_attachment() {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        g.export(depth);
+        g.raster_pass("wrong", PassClass::Opaque, ())
+            .color_clear(depth, ClearColor::BLACK);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::FormatMismatch {
+                pass: "wrong".into(),
+                resource: "depth".into(),
+                format: "D24S8",
+                usage: "color",
+            }
+        );
+
+        let mut g = GraphBuilder::new();
+        let color = rgba8(&mut g, "color");
+        g.export(color);
+        g.raster_pass("wrong", PassClass::Opaque, ())
+            .depth_stencil_clear(color, ClearDepthStencil::REVERSE_Z);
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::FormatMismatch { usage: "depth", .. }
+        ));
+    }
+
+    #[test]
+    fn resolves_need_a_multisampled_colour_of_the_pass() {
+        let msaa_desc =
+            ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM).with_samples(SampleCount::S4);
+        let cases: [(&str, bool, SampleCount, SampleCount); 3] = [
+            (
+                "the source is not a colour attachment of the pass",
+                false,
+                SampleCount::S4,
+                SampleCount::S1,
+            ),
+            (
+                "the source is not multisampled",
+                true,
+                SampleCount::S1,
+                SampleCount::S1,
+            ),
+            (
+                "the target is multisampled",
+                true,
+                SampleCount::S4,
+                SampleCount::S4,
+            ),
+        ];
+        for (reason, attach, source_samples, target_samples) in cases {
+            let mut g = GraphBuilder::new();
+            let msaa = g.create_image("msaa", msaa_desc.with_samples(source_samples));
+            let resolved = g.create_image(
+                "resolved",
+                ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM).with_samples(target_samples),
+            );
+            g.export(resolved);
+            let mut pass = g.raster_pass("draw", PassClass::Opaque, ());
+            if attach {
+                pass.color_clear(msaa, ClearColor::BLACK);
+            }
+            pass.resolve(msaa, resolved);
+            assert_eq!(
+                compile_err(g, &tiler()),
+                GraphError::InvalidResolve {
+                    pass: "draw".into(),
+                    source_image: "msaa".into(),
+                    target: "resolved".into(),
+                    reason,
+                }
+            );
+        }
+    }
+
+    #[test]
+    fn a_raster_pass_needs_a_render_area() {
+        let mut g = GraphBuilder::new();
+        let queries = g.create_buffer("visible", 64);
+        g.export(queries);
+        g.raster_pass("raster_cull", PassClass::OcclusionQuery, ())
+            .storage_write(queries);
+        assert_eq!(
+            compile_err(g.clone(), &tiler()),
+            GraphError::MissingRenderArea {
+                pass: "raster_cull".into()
+            }
+        );
+        let mut g = GraphBuilder::new();
+        let queries = g.create_buffer("visible", 64);
+        g.export(queries);
+        g.raster_pass("raster_cull", PassClass::OcclusionQuery, ())
+            .storage_write(queries)
+            .render_area(EXTENT);
+        assert_eq!(compile(g, &tiler()).passes.len(), 1);
+    }
+
+    #[test]
+    fn malformed_resources_are_rejected() {
+        let cases: [(ImageDesc, &str); 4] = [
+            (
+                ImageDesc::new(Extent2d::new(0, 16), Format::R8_UNORM),
+                "zero extent",
+            ),
+            (
+                ImageDesc::new(Extent2d::new(40_000, 16), Format::R8_UNORM),
+                "extent over 32768 px",
+            ),
+            (
+                ImageDesc::new(Extent2d::new(27, 13), Format::R8_UNORM).with_mip_levels(6),
+                "more mip levels than the extent has",
+            ),
+            (
+                ImageDesc::new(EXTENT, Format::R8_UNORM)
+                    .with_samples(SampleCount::S4)
+                    .with_mip_levels(2),
+                "a multisampled image has one mip level",
+            ),
+        ];
+        for (desc, reason) in cases {
+            let mut g: GraphBuilder<()> = GraphBuilder::new();
+            g.create_image("bad", desc);
+            assert_eq!(
+                compile_err(g, &tiler()),
+                GraphError::InvalidResource {
+                    resource: "bad".into(),
+                    reason
+                }
+            );
+        }
+        let mut g: GraphBuilder<()> = GraphBuilder::new();
+        g.create_buffer("empty", 0);
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::InvalidResource {
+                reason: "zero size",
+                ..
+            }
+        ));
+    }
+
+    #[test]
+    fn exports_must_name_something_that_has_content() {
+        let mut g: GraphBuilder<()> = GraphBuilder::new();
+        g.export(ResourceId(7));
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::ExportOfUnknownResource { index: 7 }
+        );
+
+        let mut g: GraphBuilder<()> = GraphBuilder::new();
+        let never = rgba8(&mut g, "never_written");
+        g.export(never);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::ExportOfCulledResource {
+                resource: "never_written".into()
+            }
+        );
+    }
+
+    #[test]
+    fn handles_from_elsewhere_are_rejected() {
+        let mut g: GraphBuilder<()> = GraphBuilder::new();
+        let out = swapchain(&mut g);
+        g.raster_pass("post", PassClass::Post, ())
+            .sampled(ImageId(ResourceId(42)))
+            .color(out);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::UnknownResource {
+                pass: "post".into(),
+                index: 42
+            }
+        );
+
+        let mut g: GraphBuilder<()> = GraphBuilder::new();
+        let out = swapchain(&mut g);
+        let post = g.raster_pass("post", PassClass::Post, ()).color(out).id();
+        g.add_dependency(PassId(9), post);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::UnknownPass { index: 9 }
+        );
+    }
+}

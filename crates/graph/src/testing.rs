@@ -1,0 +1,158 @@
+//! Helpers for the unit tests next to each phase.
+
+use tilegraph_profile::{MergePolicy, Profile, ProfileSet};
+
+use crate::*;
+
+/// Small extent: byte counts in assertions stay readable (64 * 32 = 2048 pixels).
+pub(crate) const EXTENT: Extent2d = Extent2d::new(64, 32);
+pub(crate) const PIXELS: u64 = 64 * 32;
+
+pub(crate) fn profile(name: &str) -> Profile {
+    ProfileSet::embedded()
+        .expect("embedded profiles load")
+        .get(name)
+        .expect("profile exists")
+        .clone()
+}
+
+pub(crate) fn tiler() -> Profile {
+    profile("adreno-7xx")
+}
+
+pub(crate) fn desktop() -> Profile {
+    profile("desktop-nvidia")
+}
+
+/// adreno-7xx with merging switched off.
+pub(crate) fn never_merge() -> Profile {
+    let mut p = tiler();
+    p.render_pass.merge_subpasses = MergePolicy::Never;
+    p
+}
+
+pub(crate) fn rgba8(g: &mut GraphBuilder<()>, name: &str) -> ImageId {
+    g.create_image(name, ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM))
+}
+
+pub(crate) fn d24s8(g: &mut GraphBuilder<()>, name: &str) -> ImageId {
+    g.create_image(name, ImageDesc::new(EXTENT, Format::D24_UNORM_S8_UINT))
+}
+
+/// An imported swapchain-like image, exported.
+pub(crate) fn swapchain(g: &mut GraphBuilder<()>) -> ImageId {
+    let id = g.import_image(
+        "swapchain",
+        ImageDesc::new(EXTENT, Format::B8G8R8A8_SRGB),
+        Import::SWAPCHAIN,
+    );
+    g.export(id);
+    id
+}
+
+/// An imported image whose content is kept (history), in `ShaderReadOnly`.
+pub(crate) fn history(g: &mut GraphBuilder<()>, name: &str) -> ImageId {
+    g.import_image(
+        name,
+        ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM),
+        Import {
+            initial: ResourceState::SHADER_READ,
+            content: InitialContent::Preserve,
+            final_state: ResourceState::SHADER_READ,
+        },
+    )
+}
+
+pub(crate) fn compile(g: GraphBuilder<()>, profile: &Profile) -> Plan {
+    match g.compile(profile) {
+        Ok(c) => c.plan,
+        Err(e) => panic!("compile failed: {e}"),
+    }
+}
+
+pub(crate) fn compile_err(g: GraphBuilder<()>, profile: &Profile) -> GraphError {
+    match g.compile(profile) {
+        Ok(c) => panic!("compile succeeded:\n{}", c.plan),
+        Err(e) => e,
+    }
+}
+
+pub(crate) fn order(plan: &Plan) -> Vec<&str> {
+    plan.passes.iter().map(|p| p.name.as_str()).collect()
+}
+
+/// Every render pass attachment of the named resource, in step order.
+pub(crate) fn attachments<'p>(plan: &'p Plan, name: &str) -> Vec<&'p Attachment> {
+    let Some(r) = plan.resource_by_name(name) else {
+        panic!("no resource {name}")
+    };
+    plan.render_passes()
+        .flat_map(|(_, rp)| rp.attachments.iter())
+        .filter(|a| a.resource == r.id)
+        .collect()
+}
+
+/// The only attachment of the named resource.
+pub(crate) fn attachment<'p>(plan: &'p Plan, name: &str) -> &'p Attachment {
+    let all = attachments(plan, name);
+    assert_eq!(
+        all.len(),
+        1,
+        "{name} is attached {} times:\n{plan}",
+        all.len()
+    );
+    all[0]
+}
+
+/// Every barrier (image and buffer) of the named resource: (step, hazard, src, dst).
+pub(crate) fn barriers_of(
+    plan: &Plan,
+    name: &str,
+) -> Vec<(
+    usize,
+    Hazard,
+    (PipelineStages, AccessFlags),
+    (PipelineStages, AccessFlags),
+)> {
+    let Some(r) = plan.resource_by_name(name) else {
+        panic!("no resource {name}")
+    };
+    let mut out = Vec::new();
+    for (i, step) in plan.steps.iter().enumerate() {
+        let Step::Barriers(batch) = step else {
+            continue;
+        };
+        for b in batch.images.iter().filter(|b| b.resource == r.id) {
+            out.push((
+                i,
+                b.hazard,
+                (b.src_stages, b.src_access),
+                (b.dst_stages, b.dst_access),
+            ));
+        }
+        for b in batch.buffers.iter().filter(|b| b.resource == r.id) {
+            out.push((
+                i,
+                b.hazard,
+                (b.src_stages, b.src_access),
+                (b.dst_stages, b.dst_access),
+            ));
+        }
+    }
+    out
+}
+
+/// Image barriers of the named resource.
+pub(crate) fn image_barriers<'p>(plan: &'p Plan, name: &str) -> Vec<&'p ImageBarrier> {
+    let Some(r) = plan.resource_by_name(name) else {
+        panic!("no resource {name}")
+    };
+    plan.steps
+        .iter()
+        .filter_map(|s| match s {
+            Step::Barriers(b) => Some(b.images.iter().filter(|b| b.resource == r.id)),
+            _ => None,
+        })
+        .flatten()
+        .collect()
+}
