@@ -2,11 +2,13 @@
 
 mod devices;
 mod image_io;
+mod render;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use tilegraph_passes::Technique;
 
 #[derive(Parser)]
 #[command(
@@ -28,7 +30,8 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// The demo: device discovery, then a rendered frame written as PNG.
+    /// The demo: device discovery, then the embedded city drawn with the profile's passes,
+    /// its per-pass GPU time table, and the frame as PNG.
     Demo {
         /// Where to write the frame.
         #[arg(long, default_value = "target/demo/frame.png")]
@@ -36,7 +39,46 @@ enum Command {
         /// Frame size, WxH.
         #[arg(long, default_value = "320x180", value_parser = parse_size)]
         size: (u32, u32),
+        /// Frames to render (timings are medians over them).
+        #[arg(long, default_value_t = 16)]
+        frames: u32,
     },
+    /// Render a scene with a technique and profile; print the passes chosen and the per-pass
+    /// GPU time table; write the image.
+    Render {
+        /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
+        scene: String,
+        #[arg(long, default_value = "forward", value_parser = parse_technique)]
+        technique: Technique,
+        /// Force a profile (as TILEGRAPH_PROFILE does).
+        #[arg(long)]
+        profile: Option<String>,
+        #[arg(long, default_value = "320x180", value_parser = parse_size)]
+        size: (u32, u32),
+        #[arg(long, default_value = "frame.png")]
+        out: PathBuf,
+        /// Frames to render (timings are medians over them).
+        #[arg(long, default_value_t = 16)]
+        frames: u32,
+        /// ALU iterations of the heavy material (0 = plain Lambert).
+        #[arg(long, default_value_t = 0)]
+        heavy: u32,
+        /// Which frame of the scene's camera path to look from.
+        #[arg(long, default_value_t = 0)]
+        camera_frame: usize,
+    },
+    /// Instance, mesh and triangle counts, bounds and material classes of a scene.
+    SceneInfo {
+        /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
+        scene: String,
+        /// One JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn parse_technique(s: &str) -> Result<Technique, String> {
+    Technique::parse(s).ok_or_else(|| format!("unknown technique {s:?} (forward, prepass, visbuf)"))
 }
 
 /// Errors of the CLI: each names what failed.
@@ -50,6 +92,12 @@ pub enum CliError {
     Write { path: PathBuf, reason: String },
     #[error("JSON: {0}")]
     Json(#[from] serde_json::Error),
+    #[error(transparent)]
+    Scene(#[from] tilegraph_scene::SceneError),
+    #[error(transparent)]
+    Render(#[from] tilegraph_passes::RenderError),
+    #[error("{0}")]
+    Usage(String),
 }
 
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -69,7 +117,31 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Devices { json } => devices::run(json),
-        Command::Demo { out, size } => demo(&out, size),
+        Command::Demo { out, size, frames } => demo(&out, size, frames),
+        Command::Render {
+            scene,
+            technique,
+            profile,
+            size,
+            out,
+            frames,
+            heavy,
+            camera_frame,
+        } => tilegraph_scene::load(&scene)
+            .map_err(CliError::from)
+            .and_then(|s| {
+                render::run(&render::RenderArgs {
+                    scene: &s,
+                    technique,
+                    profile: profile.as_deref(),
+                    size,
+                    frames,
+                    heavy,
+                    camera_frame,
+                    out: &out,
+                })
+            }),
+        Command::SceneInfo { scene, json } => scene_info(&scene, json),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -80,18 +152,29 @@ fn main() -> ExitCode {
     }
 }
 
-fn demo(out: &std::path::Path, (width, height): (u32, u32)) -> Result<(), CliError> {
+fn demo(out: &std::path::Path, size: (u32, u32), frames: u32) -> Result<(), CliError> {
     devices::run(false)?;
-    let ctx = tilegraph_vk::Context::new(tilegraph_vk::ContextOptions::from_env())?;
-    println!(
-        "\nrendering on {:?} with profile {} ({})",
-        ctx.physical.identity.device_name,
-        ctx.profile().name,
-        ctx.selection.matched_by
-    );
-    let img = tilegraph_vk::first_frame::render_triangle(&ctx, width, height)?;
-    image_io::write_png(out, &img)?;
-    ctx.check_validation()?;
-    println!("wrote {} ({width}x{height})", out.display());
+    println!();
+    let scene = tilegraph_scene::default_scene()?;
+    render::run(&render::RenderArgs {
+        scene: &scene,
+        technique: Technique::Forward,
+        profile: None,
+        size,
+        frames,
+        heavy: 0,
+        camera_frame: 0,
+        out,
+    })
+}
+
+fn scene_info(spec: &str, json: bool) -> Result<(), CliError> {
+    let scene = tilegraph_scene::load(spec)?;
+    let info = scene.info();
+    if json {
+        println!("{}", serde_json::to_string(&info)?);
+    } else {
+        println!("{info}");
+    }
     Ok(())
 }

@@ -104,3 +104,54 @@ fn demo_writes_a_png() {
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
     std::fs::remove_file(&out).ok();
 }
+
+#[test]
+fn scene_info_json_has_the_documented_fields() {
+    let (ok, out, err) = tilegraph(&["scene-info", "city:500", "--json"], &[]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["instances"], 500);
+    for k in ["meshes", "triangles"] {
+        assert!(v[k].as_u64().is_some_and(|n| n > 0), "{k} in {v}");
+    }
+    for k in ["opaque", "alpha_tested", "blended"] {
+        assert!(v["materials"][k].is_u64(), "materials.{k} in {v}");
+    }
+    assert_eq!(v["bounds"]["min"].as_array().map(Vec::len), Some(3));
+    assert_eq!(v["bounds"]["max"].as_array().map(Vec::len), Some(3));
+    let (ok, _, err) = tilegraph(&["scene-info", "/nonexistent.gltf"], &[]);
+    assert!(!ok && err.contains("nonexistent"), "{err}");
+}
+
+#[test]
+fn render_writes_the_image_and_the_timing_table() {
+    let out = std::env::temp_dir().join(format!("tilegraph-render-{}.png", std::process::id()));
+    let (ok, stdout, err) = tilegraph(
+        &[
+            "render",
+            "forest:200",
+            "--technique",
+            "prepass",
+            "--profile",
+            "adreno-7xx",
+            "--size",
+            "80x45",
+            "--frames",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "{err}");
+    for want in [
+        "depth-prepass",
+        "alpha-tested",
+        "GPU time per pass",
+        "left out",
+    ] {
+        assert!(stdout.contains(want), "missing {want:?} in {stdout}");
+    }
+    assert_eq!(&std::fs::read(&out).unwrap()[..4], b"\x89PNG");
+    std::fs::remove_file(&out).ok();
+}
