@@ -104,55 +104,43 @@ pub(crate) fn attachment<'p>(plan: &'p Plan, name: &str) -> &'p Attachment {
     all[0]
 }
 
-/// Every barrier (image and buffer) of the named resource: (step, hazard, src, dst).
-pub(crate) fn barriers_of(
-    plan: &Plan,
-    name: &str,
-) -> Vec<(
-    usize,
-    Hazard,
-    (PipelineStages, AccessFlags),
-    (PipelineStages, AccessFlags),
-)> {
+/// One barrier of a resource, image or buffer, with the step it is in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct SeenBarrier {
+    pub step: usize,
+    pub hazard: Hazard,
+    pub src: (PipelineStages, AccessFlags),
+    pub dst: (PipelineStages, AccessFlags),
+    /// `(old, new)` for images.
+    pub layouts: Option<(Layout, Layout)>,
+}
+
+/// Every barrier of the named resource, in step order.
+pub(crate) fn barriers_of(plan: &Plan, name: &str) -> Vec<SeenBarrier> {
     let Some(r) = plan.resource_by_name(name) else {
         panic!("no resource {name}")
     };
     let mut out = Vec::new();
-    for (i, step) in plan.steps.iter().enumerate() {
-        let Step::Barriers(batch) = step else {
-            continue;
-        };
+    for (step, s) in plan.steps.iter().enumerate() {
+        let Step::Barriers(batch) = s else { continue };
         for b in batch.images.iter().filter(|b| b.resource == r.id) {
-            out.push((
-                i,
-                b.hazard,
-                (b.src_stages, b.src_access),
-                (b.dst_stages, b.dst_access),
-            ));
+            out.push(SeenBarrier {
+                step,
+                hazard: b.hazard,
+                src: (b.src_stages, b.src_access),
+                dst: (b.dst_stages, b.dst_access),
+                layouts: Some((b.old_layout, b.new_layout)),
+            });
         }
         for b in batch.buffers.iter().filter(|b| b.resource == r.id) {
-            out.push((
-                i,
-                b.hazard,
-                (b.src_stages, b.src_access),
-                (b.dst_stages, b.dst_access),
-            ));
+            out.push(SeenBarrier {
+                step,
+                hazard: b.hazard,
+                src: (b.src_stages, b.src_access),
+                dst: (b.dst_stages, b.dst_access),
+                layouts: None,
+            });
         }
     }
     out
-}
-
-/// Image barriers of the named resource.
-pub(crate) fn image_barriers<'p>(plan: &'p Plan, name: &str) -> Vec<&'p ImageBarrier> {
-    let Some(r) = plan.resource_by_name(name) else {
-        panic!("no resource {name}")
-    };
-    plan.steps
-        .iter()
-        .filter_map(|s| match s {
-            Step::Barriers(b) => Some(b.images.iter().filter(|b| b.resource == r.id)),
-            _ => None,
-        })
-        .flatten()
-        .collect()
 }

@@ -556,3 +556,318 @@ pub(crate) fn step_lifetimes(
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::*;
+    use crate::*;
+
+    fn static_buffer(g: &mut GraphBuilder<()>, name: &str) -> BufferId {
+        g.import_buffer(
+            name,
+            1024,
+            Import {
+                initial: ResourceState::UNDEFINED,
+                content: InitialContent::Preserve,
+                final_state: ResourceState::UNDEFINED,
+            },
+        )
+    }
+
+    #[test]
+    fn read_after_write_waits_for_the_writer() {
+        let mut g = GraphBuilder::new();
+        let instances = static_buffer(&mut g, "instances");
+        let args = g.create_buffer("args", 256);
+        let out = swapchain(&mut g);
+        g.compute_pass("cull", PassClass::Compute, ())
+            .storage_read(instances)
+            .storage_write(args)
+            .coverage(Coverage::Full);
+        g.raster_pass("draw", PassClass::Opaque, ())
+            .indirect(args)
+            .color_clear(out, ClearColor::BLACK);
+        let plan = compile(g, &tiler());
+        let seen = barriers_of(&plan, "args");
+        assert_eq!(seen.len(), 1, "{plan}");
+        assert_eq!(seen[0].hazard, Hazard::ReadAfterWrite);
+        assert_eq!(
+            seen[0].src,
+            (
+                PipelineStages::COMPUTE_SHADER,
+                AccessFlags::SHADER_STORAGE_WRITE
+            )
+        );
+        assert_eq!(
+            seen[0].dst,
+            (
+                PipelineStages::DRAW_INDIRECT,
+                AccessFlags::INDIRECT_COMMAND_READ
+            )
+        );
+        // The static input was never written in the frame: nothing to wait for.
+        assert!(barriers_of(&plan, "instances").is_empty());
+    }
+
+    #[test]
+    fn reads_after_reads_need_nothing_more() {
+        let mut g = GraphBuilder::new();
+        let data = g.create_buffer("data", 256);
+        let a = g.create_buffer("a", 256);
+        let b = g.create_buffer("b", 256);
+        g.export(a);
+        g.export(b);
+        g.compute_pass("produce", PassClass::Compute, ())
+            .storage_write(data);
+        g.compute_pass("read_a", PassClass::Compute, ())
+            .storage_read(data)
+            .storage_write(a);
+        g.compute_pass("read_b", PassClass::Compute, ())
+            .storage_read(data)
+            .storage_write(b);
+        let plan = compile(g, &tiler());
+        let seen = barriers_of(&plan, "data");
+        assert_eq!(seen.len(), 1, "{plan}");
+        assert_eq!(seen[0].hazard, Hazard::ReadAfterWrite);
+    }
+
+    #[test]
+    fn write_after_read_is_an_execution_dependency() {
+        let mut g = GraphBuilder::new();
+        let data = g.create_buffer("data", 256);
+        let copy = g.create_buffer("copy", 256);
+        g.export(data);
+        g.export(copy);
+        g.compute_pass("produce", PassClass::Compute, ())
+            .storage_write(data);
+        g.transfer_pass("snapshot", PassClass::Transfer, ())
+            .transfer_src(data)
+            .transfer_dst(copy);
+        g.compute_pass("update", PassClass::Compute, ())
+            .storage_read_write(data);
+        let plan = compile(g, &tiler());
+        let seen = barriers_of(&plan, "data");
+        assert_eq!(seen.len(), 2, "{plan}");
+        assert_eq!(seen[1].hazard, Hazard::ReadAfterWrite);
+        // update reads what produce wrote (already visible to transfer, not to compute) and
+        // overwrites what snapshot read.
+        assert_eq!(
+            seen[1].src.0,
+            PipelineStages::COMPUTE_SHADER | PipelineStages::ALL_TRANSFER
+        );
+        assert_eq!(seen[1].src.1, AccessFlags::SHADER_STORAGE_WRITE);
+
+        let mut g = GraphBuilder::new();
+        let data = g.create_buffer("data", 256);
+        let copy = g.create_buffer("copy", 256);
+        g.export(data);
+        g.export(copy);
+        g.compute_pass("produce", PassClass::Compute, ())
+            .storage_write(data);
+        g.transfer_pass("snapshot", PassClass::Transfer, ())
+            .transfer_src(data)
+            .transfer_dst(copy);
+        g.transfer_pass("reset", PassClass::Transfer, ())
+            .transfer_dst(data)
+            .coverage(Coverage::Full);
+        let plan = compile(g, &tiler());
+        let seen = barriers_of(&plan, "data");
+        // produce's write was made visible to transfer reads, not writes: the barrier orders
+        // reset after it (WAW) and after snapshot's read (WAR) at once.
+        assert_eq!(seen[1].hazard, Hazard::WriteAfterWrite);
+        assert_eq!(
+            seen[1].src,
+            (
+                PipelineStages::COMPUTE_SHADER | PipelineStages::ALL_TRANSFER,
+                AccessFlags::SHADER_STORAGE_WRITE
+            )
+        );
+        assert_eq!(seen[1].layouts, None);
+
+        // A read-only history: overwriting it after it was read needs only the read to finish.
+        let mut g = GraphBuilder::new();
+        let lut = history(&mut g, "lut");
+        let out = swapchain(&mut g);
+        g.raster_pass("grade", PassClass::Post, ())
+            .sampled(lut)
+            .color(out)
+            .coverage(Coverage::Full);
+        g.compute_pass("rebuild_lut", PassClass::Other, ())
+            .storage_write(lut)
+            .coverage(Coverage::Full);
+        g.export(lut);
+        let plan = compile(g, &tiler());
+        let seen = barriers_of(&plan, "lut");
+        assert_eq!(seen[0].hazard, Hazard::LayoutTransition);
+        // Waits for this frame's read and for the reads the import declared (last frame's).
+        assert_eq!(
+            seen[0].src,
+            (
+                PipelineStages::VERTEX_SHADER
+                    | PipelineStages::FRAGMENT_SHADER
+                    | PipelineStages::COMPUTE_SHADER,
+                AccessFlags::NONE
+            )
+        );
+        // Its old content is not needed: the transition starts from Undefined.
+        assert_eq!(seen[0].layouts, Some((Layout::Undefined, Layout::General)));
+    }
+
+    #[test]
+    fn layout_changes_between_passes_are_barriers_and_inside_render_passes_are_dependencies() {
+        let mut g = GraphBuilder::new();
+        let color = rgba8(&mut g, "color");
+        let out = swapchain(&mut g);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK);
+        g.raster_pass("post", PassClass::Post, ())
+            .sampled(color)
+            .color(out)
+            .coverage(Coverage::Full);
+        let plan = compile(g, &tiler());
+        let seen = barriers_of(&plan, "color");
+        assert_eq!(seen.len(), 1);
+        assert_eq!(seen[0].hazard, Hazard::LayoutTransition);
+        assert_eq!(
+            seen[0].layouts,
+            Some((Layout::ColorAttachment, Layout::ShaderReadOnly))
+        );
+        // Nothing touched it before its render pass: the render pass starts from Undefined.
+        assert_eq!(attachment(&plan, "color").initial_layout, Layout::Undefined);
+        // The swapchain: acquired (wait at colour output), then released for presentation.
+        let swap = barriers_of(&plan, "swapchain");
+        assert_eq!(swap.len(), 2);
+        assert_eq!(
+            swap[0].layouts,
+            Some((Layout::Undefined, Layout::ColorAttachment))
+        );
+        assert_eq!(swap[0].src.0, PipelineStages::COLOR_ATTACHMENT_OUTPUT);
+        assert_eq!(swap[1].hazard, Hazard::Release);
+        assert_eq!(
+            swap[1].layouts,
+            Some((Layout::ColorAttachment, Layout::Present))
+        );
+    }
+
+    #[test]
+    fn imported_history_starts_from_its_state_and_created_exports_report_theirs() {
+        let mut g = GraphBuilder::new();
+        let prev = history(&mut g, "history");
+        let next = rgba8(&mut g, "next_history");
+        g.export(next);
+        g.raster_pass("taa", PassClass::Post, ())
+            .sampled(prev)
+            .color(next)
+            .coverage(Coverage::Full);
+        g.raster_pass("accumulate", PassClass::Post, ()).color(prev);
+        g.export(prev);
+        let plan = compile(g, &tiler());
+        let seen = barriers_of(&plan, "history");
+        // Written after being sampled (WAR + layout), then left in its requested final state.
+        assert_eq!(
+            seen.iter()
+                .map(|b| (b.hazard, b.layouts))
+                .collect::<Vec<_>>(),
+            [
+                (
+                    Hazard::LayoutTransition,
+                    Some((Layout::ShaderReadOnly, Layout::ColorAttachment))
+                ),
+                (
+                    Hazard::Release,
+                    Some((Layout::ColorAttachment, Layout::ShaderReadOnly))
+                ),
+            ]
+        );
+        assert_eq!(attachment(&plan, "history").load_op, LoadOp::Load);
+        let next = plan.resource_by_name("next_history").map(|r| r.final_state);
+        assert_eq!(
+            next,
+            Some(ResourceState::image(
+                Layout::ColorAttachment,
+                PipelineStages::COLOR_ATTACHMENT_OUTPUT,
+                AccessFlags::COLOR_ATTACHMENT_WRITE
+            ))
+        );
+        assert_eq!(
+            plan.resource_by_name("next_history").map(|r| r.residency),
+            Some(Residency::Exported)
+        );
+    }
+
+    #[test]
+    fn readback_is_released_to_the_host() {
+        let mut g = GraphBuilder::new();
+        let counters = g.create_buffer("counters", 64);
+        let readback = g.import_buffer(
+            "readback",
+            64,
+            Import {
+                initial: ResourceState::UNDEFINED,
+                content: InitialContent::Discard,
+                final_state: ResourceState::HOST_READ,
+            },
+        );
+        g.export(readback);
+        g.compute_pass("count", PassClass::Compute, ())
+            .storage_write(counters)
+            .coverage(Coverage::Full);
+        g.transfer_pass("copy", PassClass::Transfer, ())
+            .transfer_src(counters)
+            .transfer_dst(readback)
+            .coverage(Coverage::Full);
+        let plan = compile(g, &tiler());
+        let seen = barriers_of(&plan, "readback");
+        assert_eq!(seen.len(), 1);
+        assert_eq!(seen[0].hazard, Hazard::Release);
+        assert_eq!(
+            seen[0].src,
+            (PipelineStages::ALL_TRANSFER, AccessFlags::TRANSFER_WRITE)
+        );
+        assert_eq!(seen[0].dst, (PipelineStages::HOST, AccessFlags::HOST_READ));
+    }
+
+    #[test]
+    fn memory_taken_over_from_another_resource_waits_for_it() {
+        let mut g = GraphBuilder::new();
+        let first = rgba8(&mut g, "first");
+        let second = rgba8(&mut g, "second");
+        let out = swapchain(&mut g);
+        g.raster_pass("draw_first", PassClass::Opaque, ())
+            .color_clear(first, ClearColor::BLACK);
+        g.raster_pass("use_first", PassClass::Post, ())
+            .sampled(first)
+            .color(out)
+            .coverage(Coverage::Full);
+        g.raster_pass("draw_second", PassClass::Post, ())
+            .color_clear(second, ClearColor::BLACK);
+        g.raster_pass("use_second", PassClass::Post, ())
+            .sampled(second)
+            .color(out);
+        let plan = compile(g, &desktop());
+        let slot = |name| plan.resource_by_name(name).and_then(|r| r.memory);
+        assert_eq!(
+            slot("first").map(|s| s.block),
+            slot("second").map(|s| s.block)
+        );
+        assert_eq!(plan.aliasing.saved_bytes(), PIXELS * 4);
+        let seen = barriers_of(&plan, "second");
+        assert_eq!(seen[0].hazard, Hazard::Aliasing);
+        // first was last sampled: the new owner's transition waits for those reads.
+        assert_eq!(
+            seen[0].src,
+            (
+                PipelineStages::VERTEX_SHADER | PipelineStages::FRAGMENT_SHADER,
+                AccessFlags::NONE
+            )
+        );
+        assert_eq!(
+            seen[0].layouts,
+            Some((Layout::Undefined, Layout::ColorAttachment))
+        );
+        assert_eq!(
+            attachment(&plan, "second").initial_layout,
+            Layout::ColorAttachment
+        );
+    }
+}
