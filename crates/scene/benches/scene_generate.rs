@@ -53,20 +53,16 @@ fn gpu_records_1m(c: &mut Criterion) {
             black_box(out.len())
         })
     });
-    // The same records from one thread, for comparison on this machine.
-    group.bench_function("gpu_instances_city_1M_one_thread", |b| {
-        let eye = DVec3::new(1e6 + 12.5, 1.7, -3.0);
-        b.iter(|| {
-            out.clear();
-            out.extend(
-                scene
-                    .instances()
-                    .iter()
-                    .map(|i| i.gpu_record(black_box(eye))),
-            );
-            black_box(out.len())
-        })
-    });
+    // The same records from one and from two threads, for comparison on this machine.
+    for threads in [1, 2] {
+        group.bench_function(format!("gpu_instances_city_1M_threads_{threads}"), |b| {
+            let eye = DVec3::new(1e6 + 12.5, 1.7, -3.0);
+            b.iter(|| {
+                scene.write_gpu_instances_threads(black_box(eye), &mut out, threads);
+                black_box(out.len())
+            })
+        });
+    }
     group.finish();
 }
 

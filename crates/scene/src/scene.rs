@@ -205,34 +205,47 @@ pub struct Instance {
     pub bounds: InstanceBounds,
 }
 
+/// What a record needs from an instance's mesh: its material id and class code.
+#[derive(Clone, Copy, Debug, Default)]
+struct RecordMaterial {
+    material: u32,
+    class: u32,
+}
+
 impl Instance {
     /// The per-frame record for the GPU, relative to the camera at `eye`.
     #[inline]
-    pub fn gpu_record(&self, eye: DVec3) -> GpuInstance {
+    fn gpu_record(&self, eye: DVec3, index: u32, m: RecordMaterial) -> GpuInstance {
         let t = (self.transform.translation - eye).as_vec3();
         let c = (self.bounds.center - eye).as_vec3();
-        let m = self.transform.linear;
+        let l = self.transform.linear;
         GpuInstance {
             model_rows: [
-                [m.x_axis.x, m.y_axis.x, m.z_axis.x, t.x],
-                [m.x_axis.y, m.y_axis.y, m.z_axis.y, t.y],
-                [m.x_axis.z, m.y_axis.z, m.z_axis.z, t.z],
+                [l.x_axis.x, l.y_axis.x, l.z_axis.x, t.x],
+                [l.x_axis.y, l.y_axis.y, l.z_axis.y, t.y],
+                [l.x_axis.z, l.y_axis.z, l.z_axis.z, t.z],
             ],
             center: c.to_array(),
             mesh: self.mesh.0,
             half_extents: self.bounds.half_extents.to_array(),
             radius: self.bounds.radius,
+            material: m.material,
+            class: m.class,
+            instance: index,
+            _pad: 0,
         }
     }
 }
 
-/// Per-instance record uploaded each frame. 80 bytes, std430 layout:
+/// Per-instance record uploaded each frame. 96 bytes, std430 layout:
 ///
 /// ```glsl
 /// struct Instance {
-///     vec4 model_rows[3];   // rows of the camera-relative 3x4 model matrix
-///     vec3 center; uint mesh;       // camera-relative bounds centre (AABB and sphere)
-///     vec3 half_extents; float radius;
+///     vec4 model_rows[3];               // rows of the camera-relative 3x4 model matrix
+///     vec3 center; uint mesh;           // camera-relative bounds centre (AABB and sphere)
+///     vec3 half_extents; float radius;  // world AABB half extents, bounding-sphere radius
+///     uint material; uint class;        // class: 0 opaque, 1 alpha-tested, 2 blended
+///     uint instance; uint pad;          // index in Scene::instances (ids survive compaction)
 /// };
 /// ```
 ///
@@ -246,6 +259,10 @@ pub struct GpuInstance {
     pub mesh: u32,
     pub half_extents: [f32; 3],
     pub radius: f32,
+    pub material: u32,
+    pub class: u32,
+    pub instance: u32,
+    pub _pad: u32,
 }
 
 impl GpuInstance {
@@ -397,35 +414,58 @@ impl Scene {
 
     /// Fills `out` with this frame's camera-relative instance records, in instance order.
     ///
-    /// One pass, no allocation when `out` is the previous frame's buffer (it is overwritten in
-    /// place); split across threads for large scenes. See the `scene_generate` bench for timings.
+    /// Uses half the available cores (the rest of the frame, and the driver, need the others):
+    /// one thread on a 2-core machine, where measurements showed a second thread losing as often
+    /// as winning. See [`Self::write_gpu_instances_threads`] to choose.
     pub fn write_gpu_instances(&self, eye: DVec3, out: &mut Vec<GpuInstance>) {
+        let cores = std::thread::available_parallelism().map_or(1, |t| t.get());
+        self.write_gpu_instances_threads(eye, out, cores / 2);
+    }
+
+    /// Fills `out` with this frame's records using at most `max_threads` threads.
+    ///
+    /// No allocation when `out` is the previous frame's buffer: it is overwritten in place. Below
+    /// 65,536 instances the work stays on the calling thread (spawning would cost more). See the
+    /// `scene_generate` bench for timings.
+    pub fn write_gpu_instances_threads(
+        &self,
+        eye: DVec3,
+        out: &mut Vec<GpuInstance>,
+        max_threads: usize,
+    ) {
         let n = self.instances.len();
-        // Reused from the previous frame, the buffer is overwritten in place: no clearing pass.
         if out.len() != n {
             out.clear();
             out.resize(n, GpuInstance::default());
         }
-        // The work is a stream of ~190 bytes per instance; past a few hundred thousand
-        // instances a second thread helps on machines whose cores do not share one memory
-        // channel's bandwidth. Below that, spawning costs more than it saves.
-        let threads = std::thread::available_parallelism()
-            .map_or(1, |t| t.get())
-            .min(8);
-        if n < PARALLEL_RECORDS_MIN || threads < 2 {
-            for (dst, src) in out.iter_mut().zip(&self.instances) {
-                *dst = src.gpu_record(eye);
+        let per_mesh: Vec<RecordMaterial> = self
+            .meshes
+            .iter()
+            .map(|m| RecordMaterial {
+                material: m.material.0,
+                class: self.material(m.material).map_or(0, |x| x.class.gpu_code()),
+            })
+            .collect();
+        let per_mesh = &per_mesh;
+        let fill = move |dst: &mut [GpuInstance], src: &[Instance], first: usize| {
+            for (k, (d, s)) in dst.iter_mut().zip(src).enumerate() {
+                let m = per_mesh.get(s.mesh.index()).copied().unwrap_or_default();
+                *d = s.gpu_record(eye, (first + k) as u32, m);
             }
+        };
+        let threads = max_threads.clamp(1, 8);
+        if n < PARALLEL_RECORDS_MIN || threads < 2 {
+            fill(out, &self.instances, 0);
             return;
         }
         let chunk = n.div_ceil(threads);
         std::thread::scope(|scope| {
-            for (dst, src) in out.chunks_mut(chunk).zip(self.instances.chunks(chunk)) {
-                scope.spawn(move || {
-                    for (d, s) in dst.iter_mut().zip(src) {
-                        *d = s.gpu_record(eye);
-                    }
-                });
+            for (k, (dst, src)) in out
+                .chunks_mut(chunk)
+                .zip(self.instances.chunks(chunk))
+                .enumerate()
+            {
+                scope.spawn(move || fill(dst, src, k * chunk));
             }
         });
     }
@@ -893,11 +933,14 @@ mod tests {
         assert_eq!(size_of::<Vertex>(), 32);
         assert_eq!(offset_of!(Vertex, normal), 12);
         assert_eq!(offset_of!(Vertex, uv), 24);
-        assert_eq!(size_of::<GpuInstance>(), 80);
+        assert_eq!(size_of::<GpuInstance>(), 96);
         assert_eq!(offset_of!(GpuInstance, center), 48);
         assert_eq!(offset_of!(GpuInstance, mesh), 60);
         assert_eq!(offset_of!(GpuInstance, half_extents), 64);
         assert_eq!(offset_of!(GpuInstance, radius), 76);
+        assert_eq!(offset_of!(GpuInstance, material), 80);
+        assert_eq!(offset_of!(GpuInstance, class), 84);
+        assert_eq!(offset_of!(GpuInstance, instance), 88);
         assert_eq!(size_of::<GpuMesh>(), 48);
         assert_eq!(offset_of!(GpuMesh, aabb_min), 16);
         assert_eq!(offset_of!(GpuMesh, aabb_max), 32);
@@ -966,5 +1009,7 @@ mod tests {
         let m = rec[0].model_matrix();
         assert_eq!(m.w_axis.truncate(), Vec3::new(0.25, 0.0, 0.0));
         assert_eq!(rec[0].mesh, 0);
+        assert_eq!(rec[0].material, 0);
+        assert_eq!(rec[0].instance, 0);
     }
 }

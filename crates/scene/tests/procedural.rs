@@ -275,12 +275,20 @@ fn specs_and_the_default_scene() {
 
 #[test]
 fn gpu_records_match_instances() {
-    let s = gen(ProceduralKind::Interior, 1_000, 1);
+    // Above the threading threshold, so the split path is checked against the serial one.
+    let s = gen(ProceduralKind::Interior, 70_000, 1);
     let eye = DVec3::new(3.0, 1.6, -2.0);
     let recs = s.gpu_instances(eye);
     assert_eq!(recs.len(), s.instances().len());
-    for (r, i) in recs.iter().zip(s.instances()) {
+    let mut serial = Vec::new();
+    s.write_gpu_instances_threads(eye, &mut serial, 1);
+    assert_eq!(serial, recs);
+    for (k, (r, i)) in recs.iter().zip(s.instances()).enumerate() {
         assert_eq!(r.mesh, i.mesh.0);
+        assert_eq!(r.instance as usize, k);
+        let m = s.instance_material(i).unwrap();
+        assert_eq!(r.material, s.meshes()[i.mesh.index()].material.0);
+        assert_eq!(r.class, m.class.gpu_code());
         let p = Vec3::new(0.3, 0.7, -0.2);
         let expect = (i.transform.transform_point(p) - eye).as_vec3();
         assert!((r.model_matrix().transform_point3(p) - expect).length() < 1e-4);
