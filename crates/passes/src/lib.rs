@@ -8,6 +8,7 @@
 
 pub mod draws;
 pub mod gpu_scene;
+pub mod hiz;
 pub mod render;
 pub mod setup;
 

@@ -1,0 +1,1 @@
+//! GPU hierarchical-Z pyramid build (see docs/CULLING.md for the algorithm it must match).

@@ -1,0 +1,1 @@
+//! The GPU HiZ pyramid equals the CPU reference (tilegraph-cull) exactly.
