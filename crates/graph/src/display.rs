@@ -409,3 +409,55 @@ mod tests {
         assert_eq!(fmt_bytes(1920 * 1080 * 4), "7.91 MiB");
     }
 }
+
+#[cfg(test)]
+mod plan_tests {
+    use crate::testing::*;
+    use crate::*;
+
+    fn frame() -> GraphBuilder<()> {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let unused = rgba8(&mut g, "debug");
+        let out = swapchain(&mut g);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(out, ClearColor::BLACK)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("debug \"view\"", PassClass::Other, ())
+            .sampled(depth)
+            .color(unused)
+            .coverage(Coverage::Full);
+        g
+    }
+
+    #[test]
+    fn the_table_shows_order_culling_ops_barriers_memory_and_traffic() {
+        let text = compile(frame(), &tiler()).to_string();
+        for needle in [
+            "plan for adreno-7xx: 1 passes, 1 culled, 1 render pass, 2 barriers",
+            "nothing reads what it writes",
+            "CLEAR/DONT_CARE",
+            "swapchain  release  ColorAttachment -> Present",
+            "transient",
+            "traffic (tiler model, per frame): planned 8.0 KiB vs naive 32.0 KiB",
+        ] {
+            assert!(text.contains(needle), "missing {needle:?} in\n{text}");
+        }
+    }
+
+    #[test]
+    fn dot_draws_render_passes_as_clusters_and_culled_passes_grey() {
+        let dot = compile(frame(), &tiler()).to_dot();
+        assert!(dot.starts_with("digraph plan {"));
+        assert!(dot.trim_end().ends_with('}'));
+        assert!(dot.contains("subgraph cluster_step1 {"), "{dot}");
+        assert!(dot.contains("p1 [shape=box, style=\"dashed,filled\", fillcolor=grey90"));
+        // Names are escaped.
+        assert!(
+            dot.contains("label=\"debug \\\"view\\\"\\nculled\""),
+            "{dot}"
+        );
+        assert!(dot.contains("p0 -> r0 [label=\"depth\"];"));
+        assert!(dot.contains("r0 -> p1 [label=\"sampled\", color=grey60"));
+    }
+}

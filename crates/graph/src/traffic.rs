@@ -261,3 +261,90 @@ fn immediate_attachment<'r>(
         add(&mut planned.attachment_write_bytes, bytes);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::*;
+    use crate::*;
+
+    /// prepass, opaque, transparent, post (same pixel): 4-byte formats everywhere.
+    fn classic() -> GraphBuilder<()> {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let color = rgba8(&mut g, "color");
+        let out = swapchain(&mut g);
+        g.raster_pass("prepass", PassClass::DepthPrepass, ())
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK)
+            .depth_stencil_read_only(depth);
+        g.raster_pass("transparent", PassClass::Transparent, ())
+            .color(color)
+            .depth_stencil_read_only(depth);
+        g.raster_pass("post", PassClass::Post, ())
+            .input(color)
+            .color(out)
+            .coverage(Coverage::Full);
+        g
+    }
+
+    #[test]
+    fn a_merged_frame_on_a_tiler_moves_only_the_presented_image() {
+        let plan = compile(classic(), &tiler());
+        assert_eq!(plan.traffic.model, TrafficModel::Tiler);
+        assert_eq!(plan.traffic.planned.attachment_write_bytes, PIXELS * 4);
+        assert_eq!(plan.traffic.planned.total_bytes(), PIXELS * 4);
+        // Naive: each pass loads and stores each attachment: 1 + 2 + 2 + 2 attachments.
+        assert_eq!(plan.traffic.naive.attachment_read_bytes, PIXELS * 4 * 7);
+        assert_eq!(plan.traffic.naive.total_bytes(), PIXELS * 4 * 14);
+    }
+
+    #[test]
+    fn the_immediate_model_counts_every_attachment_access() {
+        let plan = compile(classic(), &desktop());
+        assert_eq!(plan.traffic.model, TrafficModel::Immediate);
+        // Reads: depth tested twice, colour blended once and read as input once.
+        assert_eq!(plan.traffic.planned.attachment_read_bytes, PIXELS * 4 * 4);
+        // Writes: depth clear, colour clear, colour blend, presented image.
+        assert_eq!(plan.traffic.planned.attachment_write_bytes, PIXELS * 4 * 4);
+        assert_eq!(
+            plan.traffic.naive,
+            compile(classic(), &tiler()).traffic.naive
+        );
+    }
+
+    #[test]
+    fn memory_accesses_count_whole_resources_once_per_pass() {
+        let mut g = GraphBuilder::new();
+        let mesh = g.import_buffer(
+            "mesh",
+            1000,
+            Import {
+                initial: ResourceState::UNDEFINED,
+                content: InitialContent::Preserve,
+                final_state: ResourceState::UNDEFINED,
+            },
+        );
+        let pyramid_desc =
+            ImageDesc::new(Extent2d::new(8, 4), Format::R32_SFLOAT).with_mip_levels(4);
+        let pyramid = g.create_image("pyramid", pyramid_desc);
+        let counts = g.create_buffer("counts", 64);
+        g.export(counts);
+        g.compute_pass("build", PassClass::Compute, ())
+            .storage_read_write(pyramid)
+            .coverage(Coverage::Full);
+        g.compute_pass("test", PassClass::Compute, ())
+            .sampled(pyramid)
+            .storage_read(mesh)
+            .storage_write(counts);
+        let plan = compile(g, &tiler());
+        let pyramid_bytes = (32 + 8 + 2 + 1) * 4;
+        assert_eq!(pyramid_desc.total_bytes(), pyramid_bytes);
+        let t = plan.traffic.planned;
+        assert_eq!(t.sampled_read_bytes, pyramid_bytes);
+        assert_eq!(t.storage_read_bytes, pyramid_bytes + 1000);
+        assert_eq!(t.storage_write_bytes, pyramid_bytes + 64);
+        assert_eq!(t.attachment_read_bytes + t.attachment_write_bytes, 0);
+        assert_eq!(plan.traffic.naive, t);
+    }
+}
