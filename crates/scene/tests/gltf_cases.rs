@@ -334,6 +334,24 @@ fn out_of_range_accessors_views_and_indices_are_caught_before_reading() {
         Some("/meshes/0/primitives/0/attributes/POSITION"),
     );
 
+    // Offsets near u64::MAX on a placeholder buffer (its byteLength is never checked against
+    // bytes): must be an error, not an overflow.
+    let huge = json!({"asset": {"version": "2.0"},
+        "buffers": [{"byteLength": 18446744073709551615u64}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 18446744073709551000u64, "byteLength": 600}],
+        "accessors": [{"bufferView": 0, "byteOffset": 18446744073709551000u64, "componentType": 5126,
+                       "count": 1, "type": "VEC3"}]});
+    expect_err(
+        load_gltf_bytes(
+            huge.to_string().as_bytes(),
+            "huge.gltf",
+            &NoResources,
+            &Limits::default(),
+        ),
+        "out-of-bounds",
+        Some("/accessors/0/byteOffset"),
+    );
+
     // Attribute counts that differ.
     let mut d = quad_doc();
     d["accessors"][1]["count"] = json!(3);

@@ -398,13 +398,18 @@ fn check_accessor(
                     "matrix accessors must start on a 4-byte boundary".into(),
                 ));
             }
-            if (view.offset + byte_offset) % csize != 0 {
+            // Checked: a placeholder buffer's byteLength is never compared with real bytes, so
+            // a view offset near u64::MAX can reach here.
+            let Some(total) = view.offset.checked_add(byte_offset) else {
+                return Err(ctx.out_of_bounds(
+                    format!("{p}/byteOffset"),
+                    format!("{byte_offset} past bufferView {vi} overflows"),
+                ));
+            };
+            if total % csize != 0 {
                 return Err(ctx.invalid(
                     p,
-                    format!(
-                        "total offset {} is not a multiple of the component size {csize}",
-                        view.offset + byte_offset
-                    ),
+                    format!("total offset {total} is not a multiple of the component size {csize}"),
                 ));
             }
             let stride = view.stride.unwrap_or(esize);
@@ -430,7 +435,7 @@ fn check_accessor(
                     ),
                 ));
             }
-            Some((view.buffer, view.offset + byte_offset, stride))
+            Some((view.buffer, total, stride))
         }
     };
     let sparse = match &a.sparse {

@@ -795,7 +795,7 @@ impl Flatten<'_, '_, '_> {
                     "indices",
                     self.builder.index_count(),
                     count,
-                    self.limits.max_indices,
+                    self.index_limit(),
                 )?;
                 let raw = self.reader.read_indices(ii)?;
                 if let Some((position, &index)) =
@@ -817,7 +817,7 @@ impl Flatten<'_, '_, '_> {
                     "indices",
                     self.builder.index_count(),
                     n,
-                    self.limits.max_indices,
+                    self.index_limit(),
                 )?;
                 (0..n as u32).collect()
             }
@@ -891,6 +891,11 @@ impl Flatten<'_, '_, '_> {
             return Err(self.ctx.limit(pp.to_string(), what, total, limit));
         }
         Ok(())
+    }
+
+    /// Mesh ranges are u32 (`first_index`, `index_count`), whatever the caller's limit.
+    fn index_limit(&self) -> usize {
+        self.limits.max_indices.min(u32::MAX as usize)
     }
 
     fn push_vertices(&mut self, vertices: &[Vertex], pp: &str) -> Result<(u32, u32), SceneError> {
