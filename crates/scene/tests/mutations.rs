@@ -27,10 +27,21 @@ impl Rng {
 }
 
 /// One mutation of `input`: a truncation, 1-4 byte flips, or (for text) a digit replaced by
-/// another digit, which keeps JSON valid and so reaches the checks behind the parser.
+/// another digit or grown by up to 19 more, which keeps JSON valid and so reaches the checks
+/// behind the parser (huge offsets and counts included).
 fn mutate(input: &[u8], rng: &mut Rng) -> Vec<u8> {
     let mut v = input.to_vec();
-    match rng.below(4) {
+    match rng.below(5) {
+        4 => {
+            let digits: Vec<usize> = (0..v.len()).filter(|&i| v[i].is_ascii_digit()).collect();
+            if !digits.is_empty() {
+                let at = digits[rng.below(digits.len())];
+                let grow: Vec<u8> = (0..1 + rng.below(19))
+                    .map(|_| b'0' + rng.below(10) as u8)
+                    .collect();
+                v.splice(at..at, grow);
+            }
+        }
         0 => v.truncate(rng.below(v.len())),
         1 => {
             for _ in 0..1 + rng.below(4) {
