@@ -217,7 +217,11 @@ pub fn load_gltf_bytes(
         ctx: &ctx,
     };
 
-    let mut builder = SceneBuilder::new(name);
+    // The scene is named after the file; errors (ctx) keep the whole path.
+    let short = Path::new(name)
+        .file_name()
+        .map_or(name.into(), |f| f.to_string_lossy());
+    let mut builder = SceneBuilder::new(short);
     builder.set_source(SceneSource::Gltf {
         path: name.to_string(),
     });
