@@ -205,17 +205,10 @@ pub struct Instance {
     pub bounds: InstanceBounds,
 }
 
-/// What a record needs from an instance's mesh: its material id and class code.
-#[derive(Clone, Copy, Debug, Default)]
-struct RecordMaterial {
-    material: u32,
-    class: u32,
-}
-
 impl Instance {
     /// The per-frame record for the GPU, relative to the camera at `eye`.
     #[inline]
-    fn gpu_record(&self, eye: DVec3, index: u32, m: RecordMaterial) -> GpuInstance {
+    pub fn gpu_record(&self, eye: DVec3) -> GpuInstance {
         let t = (self.transform.translation - eye).as_vec3();
         let c = (self.bounds.center - eye).as_vec3();
         let l = self.transform.linear;
@@ -229,28 +222,26 @@ impl Instance {
             mesh: self.mesh.0,
             half_extents: self.bounds.half_extents.to_array(),
             radius: self.bounds.radius,
-            material: m.material,
-            class: m.class,
-            instance: index,
-            _pad: 0,
         }
     }
 }
 
-/// Per-instance record uploaded each frame. 96 bytes, std430 layout:
+/// Per-instance record uploaded each frame. 80 bytes, std430 layout (mirrored by `Instance` in
+/// shaders/common/scene.glsl, checked by crates/passes' `shader_layouts` test):
 ///
 /// ```glsl
 /// struct Instance {
 ///     vec4 model_rows[3];               // rows of the camera-relative 3x4 model matrix
 ///     vec3 center; uint mesh;           // camera-relative bounds centre (AABB and sphere)
 ///     vec3 half_extents; float radius;  // world AABB half extents, bounding-sphere radius
-///     uint material; uint class;        // class: 0 opaque, 1 alpha-tested, 2 blended
-///     uint instance; uint pad;          // index in Scene::instances (ids survive compaction)
 /// };
 /// ```
 ///
-/// The model matrix is stored as three rows (the affine 3x4) to save 16 bytes per instance; the
-/// vertex shader computes `world = vec4(pos, 1) * mat3x4(rows...)`.
+/// The material id and class are one indirection away, `meshes[mesh].material` and
+/// `materials[...].class` ([`GpuMesh`], [`GpuMaterial`]), which keeps the record at 80 bytes: it
+/// is streamed every frame, so every 16 bytes is about 15% of the per-frame cost. The instance
+/// index is the record's position in the array. The model matrix is stored as three rows (the
+/// affine 3x4) to save 16 bytes; the vertex shader computes `world = vec4(pos, 1) * mat3x4(rows)`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuInstance {
@@ -259,10 +250,6 @@ pub struct GpuInstance {
     pub mesh: u32,
     pub half_extents: [f32; 3],
     pub radius: f32,
-    pub material: u32,
-    pub class: u32,
-    pub instance: u32,
-    pub _pad: u32,
 }
 
 impl GpuInstance {
@@ -438,34 +425,20 @@ impl Scene {
             out.clear();
             out.resize(n, GpuInstance::default());
         }
-        let per_mesh: Vec<RecordMaterial> = self
-            .meshes
-            .iter()
-            .map(|m| RecordMaterial {
-                material: m.material.0,
-                class: self.material(m.material).map_or(0, |x| x.class.gpu_code()),
-            })
-            .collect();
-        let per_mesh = &per_mesh;
-        let fill = move |dst: &mut [GpuInstance], src: &[Instance], first: usize| {
-            for (k, (d, s)) in dst.iter_mut().zip(src).enumerate() {
-                let m = per_mesh.get(s.mesh.index()).copied().unwrap_or_default();
-                *d = s.gpu_record(eye, (first + k) as u32, m);
+        let fill = move |dst: &mut [GpuInstance], src: &[Instance]| {
+            for (d, s) in dst.iter_mut().zip(src) {
+                *d = s.gpu_record(eye);
             }
         };
         let threads = max_threads.clamp(1, 8);
         if n < PARALLEL_RECORDS_MIN || threads < 2 {
-            fill(out, &self.instances, 0);
+            fill(out, &self.instances);
             return;
         }
         let chunk = n.div_ceil(threads);
         std::thread::scope(|scope| {
-            for (k, (dst, src)) in out
-                .chunks_mut(chunk)
-                .zip(self.instances.chunks(chunk))
-                .enumerate()
-            {
-                scope.spawn(move || fill(dst, src, k * chunk));
+            for (dst, src) in out.chunks_mut(chunk).zip(self.instances.chunks(chunk)) {
+                scope.spawn(move || fill(dst, src));
             }
         });
     }
@@ -933,14 +906,11 @@ mod tests {
         assert_eq!(size_of::<Vertex>(), 32);
         assert_eq!(offset_of!(Vertex, normal), 12);
         assert_eq!(offset_of!(Vertex, uv), 24);
-        assert_eq!(size_of::<GpuInstance>(), 96);
+        assert_eq!(size_of::<GpuInstance>(), 80);
         assert_eq!(offset_of!(GpuInstance, center), 48);
         assert_eq!(offset_of!(GpuInstance, mesh), 60);
         assert_eq!(offset_of!(GpuInstance, half_extents), 64);
         assert_eq!(offset_of!(GpuInstance, radius), 76);
-        assert_eq!(offset_of!(GpuInstance, material), 80);
-        assert_eq!(offset_of!(GpuInstance, class), 84);
-        assert_eq!(offset_of!(GpuInstance, instance), 88);
         assert_eq!(size_of::<GpuMesh>(), 48);
         assert_eq!(offset_of!(GpuMesh, aabb_min), 16);
         assert_eq!(offset_of!(GpuMesh, aabb_max), 32);
@@ -1009,7 +979,5 @@ mod tests {
         let m = rec[0].model_matrix();
         assert_eq!(m.w_axis.truncate(), Vec3::new(0.25, 0.0, 0.0));
         assert_eq!(rec[0].mesh, 0);
-        assert_eq!(rec[0].material, 0);
-        assert_eq!(rec[0].instance, 0);
     }
 }
