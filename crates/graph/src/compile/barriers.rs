@@ -383,7 +383,9 @@ impl Planner<'_> {
                 access: au.access | load_access,
                 layout: first.layout,
                 reads: loads,
-                writes: !loads || first.writes,
+                // Even a read-only attachment is written by its store op: earlier reads of it
+                // (a sampler, say) must finish first.
+                writes: true,
                 discard: !loads,
             };
             if self.states[r].is_fresh() && !loads && !self.alias_pending[r] {

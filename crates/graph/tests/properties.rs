@@ -1,0 +1,1041 @@
+//! Property tests on random graphs of up to 200 passes.
+//!
+//! Random numbers are interpreted into a graph: mostly valid ones (reads only of resources that
+//! have content, attachments of matching extent and samples), and in "chaos" mode arbitrary
+//! declarations (unknown handles, wrong formats, cycles) that must fail with an error, never a
+//! panic. Every plan that compiles is checked by an independent model of the rules:
+//!
+//! - every read is ordered after the write it reads;
+//! - no two resources whose memory overlaps are alive at the same time;
+//! - every hazard between two steps has a barrier, and layouts chain from barrier to use;
+//! - no culled pass contributes to an export;
+//! - compiling twice gives the same plan.
+
+mod common;
+
+use common::profile;
+use proptest::prelude::*;
+use tilegraph_graph::*;
+use tilegraph_profile::{MergePolicy, Profile};
+
+const EXTENTS: [Extent2d; 2] = [Extent2d::new(16, 16), Extent2d::new(8, 4)];
+const FORMATS: [Format; 6] = [
+    Format::R8G8B8A8_UNORM,
+    Format::R16G16B16A16_SFLOAT,
+    Format::R32_UINT,
+    Format::D24_UNORM_S8_UINT,
+    Format::D32_SFLOAT,
+    Format::B10G11R11_UFLOAT_PACK32,
+];
+const CLASSES: [PassClass; 9] = [
+    PassClass::Compute,
+    PassClass::DepthPrepass,
+    PassClass::Opaque,
+    PassClass::AlphaTested,
+    PassClass::Transparent,
+    PassClass::OcclusionQuery,
+    PassClass::Post,
+    PassClass::Transfer,
+    PassClass::Other,
+];
+
+#[derive(Debug, Clone)]
+struct ResSpec {
+    image: bool,
+    extent: u8,
+    format: u8,
+    msaa: bool,
+    mips: bool,
+    size: u16,
+    /// 0, 1: created; 2: imported, content kept; 3: imported, content dropped.
+    import: u8,
+    final_layout: u8,
+}
+
+#[derive(Debug, Clone)]
+struct PassSpec {
+    kind: u8,
+    class: u8,
+    extent: u8,
+    full: bool,
+    always: bool,
+    uses: Vec<(u8, u16, bool)>,
+}
+
+#[derive(Debug, Clone)]
+struct Spec {
+    resources: Vec<ResSpec>,
+    passes: Vec<PassSpec>,
+    exports: Vec<u16>,
+    dependencies: Vec<(u16, u16)>,
+    profile: u8,
+    chaos: bool,
+}
+
+fn res_spec() -> impl Strategy<Value = ResSpec> {
+    (
+        prop::bool::weighted(0.7),
+        0u8..2,
+        0u8..6,
+        prop::bool::weighted(0.15),
+        prop::bool::weighted(0.2),
+        1u16..4096,
+        0u8..4,
+        0u8..4,
+    )
+        .prop_map(
+            |(image, extent, format, msaa, mips, size, import, final_layout)| ResSpec {
+                image,
+                extent,
+                format,
+                msaa,
+                mips,
+                size,
+                import,
+                final_layout,
+            },
+        )
+}
+
+fn pass_spec() -> impl Strategy<Value = PassSpec> {
+    (
+        0u8..3,
+        0u8..9,
+        0u8..2,
+        prop::bool::weighted(0.3),
+        prop::bool::weighted(0.05),
+        prop::collection::vec((0u8..16, any::<u16>(), any::<bool>()), 0..6),
+    )
+        .prop_map(|(kind, class, extent, full, always, uses)| PassSpec {
+            kind,
+            class,
+            extent,
+            full,
+            always,
+            uses,
+        })
+}
+
+fn spec(max_passes: usize) -> impl Strategy<Value = Spec> {
+    (
+        prop::collection::vec(res_spec(), 1..40),
+        prop::collection::vec(pass_spec(), 0..=max_passes),
+        prop::collection::vec(any::<u16>(), 0..4),
+        prop::collection::vec((any::<u16>(), any::<u16>()), 0..3),
+        0u8..7,
+        prop::bool::weighted(0.2),
+    )
+        .prop_map(
+            |(resources, passes, exports, dependencies, profile, chaos)| Spec {
+                resources,
+                passes,
+                exports,
+                dependencies,
+                profile,
+                chaos,
+            },
+        )
+}
+
+fn pick_profile(index: u8) -> Profile {
+    let names = [
+        "adreno-7xx",
+        "mali-valhall",
+        "powervr-b",
+        "generic-mobile",
+        "lavapipe",
+        "desktop-nvidia",
+    ];
+    match names.get(index as usize) {
+        Some(name) => profile(name),
+        None => {
+            let mut p = profile("adreno-7xx");
+            p.render_pass.merge_subpasses = MergePolicy::Never;
+            p
+        }
+    }
+}
+
+/// What the test itself believes each pass does to each resource.
+#[derive(Debug, Clone, Copy)]
+struct MirrorUse {
+    resource: u32,
+    /// Needs the content earlier writes left (explicit read, or a write that keeps old content).
+    reads_prior: bool,
+    writes: bool,
+}
+
+struct Built {
+    graph: GraphBuilder<u32>,
+    mirror: Vec<Vec<MirrorUse>>,
+    exports: Vec<u32>,
+}
+
+fn image_desc(r: &ResSpec) -> ImageDesc {
+    let extent = EXTENTS[r.extent as usize % 2];
+    let format = FORMATS[r.format as usize % FORMATS.len()];
+    let mut desc = ImageDesc::new(extent, format);
+    if r.msaa {
+        desc = desc.with_samples(SampleCount::S4);
+    } else if r.mips {
+        desc = desc.with_mip_levels(extent.full_mip_count());
+    }
+    desc
+}
+
+fn final_state(code: u8, image: bool) -> ResourceState {
+    match (code, image) {
+        (0, true) => ResourceState::PRESENT,
+        (1, true) => ResourceState::SHADER_READ,
+        (2, _) => ResourceState::HOST_READ,
+        _ => ResourceState::UNDEFINED,
+    }
+}
+
+fn build(spec: &Spec) -> Built {
+    let mut g: GraphBuilder<u32> = GraphBuilder::new();
+    let mut descs: Vec<Option<ImageDesc>> = Vec::new();
+    let mut has_content: Vec<bool> = Vec::new();
+    for (i, r) in spec.resources.iter().enumerate() {
+        let name = format!("r{i}");
+        let import = Import {
+            initial: if r.image {
+                ResourceState::SHADER_READ
+            } else {
+                ResourceState::UNDEFINED
+            },
+            content: if r.import == 2 {
+                InitialContent::Preserve
+            } else {
+                InitialContent::Discard
+            },
+            final_state: final_state(r.final_layout, r.image),
+        };
+        if r.image {
+            let desc = image_desc(r);
+            if r.import >= 2 {
+                g.import_image(name, desc, import);
+            } else {
+                g.create_image(name, desc);
+            }
+            descs.push(Some(desc));
+        } else {
+            if r.import >= 2 {
+                g.import_buffer(name, u64::from(r.size), import);
+            } else {
+                g.create_buffer(name, u64::from(r.size));
+            }
+            descs.push(None);
+        }
+        has_content.push(r.import == 2);
+    }
+    let n = descs.len();
+    let mut mirror: Vec<Vec<MirrorUse>> = Vec::new();
+    for (p, pass) in spec.passes.iter().enumerate() {
+        let kind =
+            [PassKind::Raster, PassKind::Compute, PassKind::Transfer][pass.kind as usize % 3];
+        let class = CLASSES[pass.class as usize % CLASSES.len()];
+        let coverage = if pass.full {
+            Coverage::Full
+        } else {
+            Coverage::Partial
+        };
+        let extent = EXTENTS[pass.extent as usize % 2];
+        let mut uses: Vec<(ResourceId, UseKind)> = Vec::new();
+        let mut used = vec![false; n];
+        let mut samples: Option<SampleCount> = None;
+        let mut colors = 0;
+        for &(k, pick, clear) in &pass.uses {
+            if spec.chaos {
+                let resource = ResourceId(u32::from(pick) % (n as u32 + 2));
+                let use_kind = chaos_kind(kind, k, clear, resource);
+                uses.push((resource, use_kind));
+                continue;
+            }
+            let Some(use_kind) = valid_kind(kind, k, clear) else {
+                continue;
+            };
+            let fits = |i: usize| -> bool {
+                if used[i] {
+                    return false;
+                }
+                let d = descs[i];
+                let content = has_content[i];
+                match use_kind {
+                    UseKind::ColorAttachment { .. } => d.is_some_and(|d| {
+                        !d.format.is_depth_stencil()
+                            && d.extent_px == extent
+                            && samples.is_none_or(|s| s == d.samples)
+                            && d.mip_levels == 1
+                    }),
+                    UseKind::DepthStencilAttachment { .. } => d.is_some_and(|d| {
+                        d.format.is_depth_stencil()
+                            && d.extent_px == extent
+                            && samples.is_none_or(|s| s == d.samples)
+                            && d.mip_levels == 1
+                    }),
+                    UseKind::DepthStencilReadOnly => {
+                        content
+                            && d.is_some_and(|d| {
+                                d.format.is_depth_stencil()
+                                    && d.extent_px == extent
+                                    && samples.is_none_or(|s| s == d.samples)
+                                    && d.mip_levels == 1
+                            })
+                    }
+                    UseKind::InputAttachment => {
+                        content && d.is_some_and(|d| d.extent_px == extent && d.mip_levels == 1)
+                    }
+                    UseKind::Sampled => content && d.is_some(),
+                    UseKind::StorageRead | UseKind::TransferSrc => content,
+                    UseKind::Uniform | UseKind::Vertex | UseKind::Index | UseKind::Indirect => {
+                        content && d.is_none()
+                    }
+                    UseKind::StorageWrite | UseKind::StorageReadWrite | UseKind::TransferDst => {
+                        d.is_none_or(|d| d.samples == SampleCount::S1)
+                    }
+                    UseKind::ResolveTarget { .. } => false,
+                }
+            };
+            let candidates: Vec<usize> = (0..n).filter(|&i| fits(i)).collect();
+            if candidates.is_empty() {
+                continue;
+            }
+            let i = candidates[pick as usize % candidates.len()];
+            let is_attachment = matches!(
+                use_kind,
+                UseKind::ColorAttachment { .. }
+                    | UseKind::DepthStencilAttachment { .. }
+                    | UseKind::DepthStencilReadOnly
+            );
+            if is_attachment {
+                samples = samples.or(descs[i].map(|d| d.samples));
+            }
+            if matches!(use_kind, UseKind::ColorAttachment { .. }) {
+                if colors == 4 {
+                    continue;
+                }
+                colors += 1;
+            }
+            used[i] = true;
+            uses.push((ResourceId(i as u32), use_kind));
+            // A multisampled colour may be resolved into a matching single-sample image.
+            if let (UseKind::ColorAttachment { .. }, Some(d)) = (use_kind, descs[i]) {
+                if d.samples != SampleCount::S1 && clear {
+                    let target = (0..n).find(|&t| {
+                        !used[t]
+                            && descs[t].is_some_and(|td| {
+                                td.samples == SampleCount::S1
+                                    && td.format == d.format
+                                    && td.extent_px == d.extent_px
+                                    && td.mip_levels == 1
+                            })
+                    });
+                    if let Some(t) = target {
+                        used[t] = true;
+                        uses.push((
+                            ResourceId(t as u32),
+                            UseKind::ResolveTarget {
+                                source: ResourceId(i as u32),
+                            },
+                        ));
+                    }
+                }
+            }
+        }
+
+        let payload = p as u32;
+        let id = match kind {
+            PassKind::Raster => {
+                let mut b = g.raster_pass(format!("p{p}"), class, payload);
+                for &(r, u) in &uses {
+                    raster_use(&mut b, r, u);
+                }
+                let attached = uses.iter().any(|(_, u)| u.is_attachment());
+                if !attached && (!spec.chaos || pass.full) {
+                    b.render_area(extent);
+                }
+                b.coverage(coverage);
+                if pass.always {
+                    b.retention(Retention::Always);
+                }
+                b.id()
+            }
+            PassKind::Compute => {
+                let mut b = g.compute_pass(format!("p{p}"), class, payload);
+                for &(r, u) in &uses {
+                    match u {
+                        UseKind::Sampled => b.sampled(ImageId(r)),
+                        UseKind::StorageRead => b.storage_read(r),
+                        UseKind::StorageWrite => b.storage_write(r),
+                        UseKind::StorageReadWrite => b.storage_read_write(r),
+                        UseKind::Uniform => b.uniform(BufferId(r)),
+                        _ => b.indirect(BufferId(r)),
+                    };
+                }
+                b.coverage(coverage);
+                if pass.always {
+                    b.retention(Retention::Always);
+                }
+                b.id()
+            }
+            PassKind::Transfer => {
+                let mut b = g.transfer_pass(format!("p{p}"), class, payload);
+                for &(r, u) in &uses {
+                    match u {
+                        UseKind::TransferSrc => b.transfer_src(r),
+                        _ => b.transfer_dst(r),
+                    };
+                }
+                b.coverage(coverage);
+                if pass.always {
+                    b.retention(Retention::Always);
+                }
+                b.id()
+            }
+        };
+        assert_eq!(id, PassId(p as u32));
+
+        let mut m: Vec<MirrorUse> = Vec::new();
+        for &(r, u) in &uses {
+            let keeps_old = coverage == Coverage::Partial;
+            let (reads_prior, writes) = match u {
+                UseKind::ColorAttachment { clear } => (clear.is_none() && keeps_old, true),
+                UseKind::DepthStencilAttachment { clear } => (clear.is_none() && keeps_old, true),
+                UseKind::ResolveTarget { .. } => (false, true),
+                UseKind::StorageWrite | UseKind::TransferDst => (keeps_old, true),
+                UseKind::StorageReadWrite => (keeps_old, true),
+                _ => (true, false),
+            };
+            match m.iter_mut().find(|x| x.resource == r.0) {
+                Some(x) => {
+                    x.reads_prior |= reads_prior;
+                    x.writes |= writes;
+                }
+                None => m.push(MirrorUse {
+                    resource: r.0,
+                    reads_prior,
+                    writes,
+                }),
+            }
+            if writes {
+                if let Some(c) = has_content.get_mut(r.index()) {
+                    *c = true;
+                }
+            }
+        }
+        mirror.push(m);
+    }
+
+    let mut exports = Vec::new();
+    for &e in &spec.exports {
+        let index = if spec.chaos {
+            u32::from(e) % (n as u32 + 1)
+        } else {
+            let with_content: Vec<usize> = (0..n).filter(|&i| has_content[i]).collect();
+            if with_content.is_empty() {
+                continue;
+            }
+            with_content[e as usize % with_content.len()] as u32
+        };
+        g.export(ResourceId(index));
+        exports.push(index);
+    }
+    let passes = spec.passes.len().max(1) as u32;
+    for &(a, b) in &spec.dependencies {
+        let (a, b) = (u32::from(a) % (passes + 1), u32::from(b) % (passes + 1));
+        // Valid graphs only get forward dependencies (no cycles); chaos gets anything.
+        if spec.chaos || (a < b && b < spec.passes.len() as u32) {
+            g.add_dependency(PassId(a), PassId(b));
+        }
+    }
+    Built {
+        graph: g,
+        mirror,
+        exports,
+    }
+}
+
+fn valid_kind(kind: PassKind, k: u8, clear: bool) -> Option<UseKind> {
+    Some(match kind {
+        PassKind::Raster => match k {
+            0..=3 => UseKind::ColorAttachment {
+                clear: clear.then_some(ClearColor::BLACK),
+            },
+            4 | 5 => UseKind::DepthStencilAttachment {
+                clear: clear.then_some(ClearDepthStencil::REVERSE_Z),
+            },
+            6 => UseKind::DepthStencilReadOnly,
+            7 => UseKind::InputAttachment,
+            8 => UseKind::Sampled,
+            9 => UseKind::StorageRead,
+            10 => UseKind::StorageWrite,
+            11 => UseKind::Vertex,
+            12 => UseKind::Index,
+            13 => UseKind::Indirect,
+            14 => UseKind::Uniform,
+            _ => return None,
+        },
+        PassKind::Compute => match k % 6 {
+            0 => UseKind::Sampled,
+            1 => UseKind::StorageRead,
+            2 => UseKind::StorageWrite,
+            3 => UseKind::StorageReadWrite,
+            4 => UseKind::Uniform,
+            _ => UseKind::Indirect,
+        },
+        PassKind::Transfer => {
+            if k % 2 == 0 {
+                UseKind::TransferSrc
+            } else {
+                UseKind::TransferDst
+            }
+        }
+    })
+}
+
+fn chaos_kind(kind: PassKind, k: u8, clear: bool, resource: ResourceId) -> UseKind {
+    match (kind, k) {
+        (PassKind::Raster, 15) => UseKind::ResolveTarget {
+            source: ResourceId(resource.0.wrapping_add(1)),
+        },
+        (PassKind::Raster, 7) => UseKind::InputAttachment,
+        _ => valid_kind(kind, k, clear).unwrap_or(UseKind::Sampled),
+    }
+}
+
+fn raster_use(b: &mut RasterPassBuilder<'_, u32>, r: ResourceId, u: UseKind) {
+    let image = ImageId(r);
+    match u {
+        UseKind::ColorAttachment { clear: Some(c) } => b.color_clear(image, c),
+        UseKind::ColorAttachment { clear: None } => b.color(image),
+        UseKind::DepthStencilAttachment { clear: Some(c) } => b.depth_stencil_clear(image, c),
+        UseKind::DepthStencilAttachment { clear: None } => b.depth_stencil(image),
+        UseKind::DepthStencilReadOnly => b.depth_stencil_read_only(image),
+        UseKind::InputAttachment => b.input(image),
+        UseKind::ResolveTarget { source } => b.resolve(ImageId(source), image),
+        UseKind::Sampled => b.sampled(image),
+        UseKind::StorageRead => b.storage_read(r),
+        UseKind::StorageWrite => b.storage_write(r),
+        UseKind::StorageReadWrite => b.storage_read_write(r),
+        UseKind::Vertex => b.vertex(BufferId(r)),
+        UseKind::Index => b.index(BufferId(r)),
+        UseKind::Indirect => b.indirect(BufferId(r)),
+        UseKind::Uniform => b.uniform(BufferId(r)),
+        UseKind::TransferSrc | UseKind::TransferDst => b,
+    };
+}
+
+/// The last pass declared before `pass` that writes `resource`.
+fn producer(mirror: &[Vec<MirrorUse>], pass: usize, resource: u32) -> Option<usize> {
+    (0..pass)
+        .rev()
+        .find(|&q| mirror[q].iter().any(|u| u.resource == resource && u.writes))
+}
+
+/// Position in execution order of every surviving pass (by `PassId`).
+fn positions(plan: &Plan, n: usize) -> Vec<Option<usize>> {
+    let mut pos = vec![None; n];
+    for (i, p) in plan.passes.iter().enumerate() {
+        pos[p.id.index()] = Some(i);
+    }
+    pos
+}
+
+fn check_reads_after_writes(plan: &Plan, mirror: &[Vec<MirrorUse>]) -> Result<(), String> {
+    let pos = positions(plan, mirror.len());
+    for p in &plan.passes {
+        for u in mirror[p.id.index()].iter().filter(|u| u.reads_prior) {
+            if let Some(w) = producer(mirror, p.id.index(), u.resource) {
+                match (pos[w], pos[p.id.index()]) {
+                    (Some(wp), Some(rp)) if wp < rp => {}
+                    _ => {
+                        return Err(format!(
+                            "{} reads r{} written by p{w}, which is culled or later",
+                            p.name, u.resource
+                        ))
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_culled_contribute_nothing(
+    plan: &Plan,
+    mirror: &[Vec<MirrorUse>],
+    exports: &[u32],
+) -> Result<(), String> {
+    let pos = positions(plan, mirror.len());
+    for c in &plan.culled {
+        let c_index = c.id.index();
+        if pos[c_index].is_some() {
+            return Err(format!("{} is both culled and planned", c.name));
+        }
+        for p in &plan.passes {
+            for u in mirror[p.id.index()].iter().filter(|u| u.reads_prior) {
+                if producer(mirror, p.id.index(), u.resource) == Some(c_index) {
+                    return Err(format!("{} reads what culled {} wrote", p.name, c.name));
+                }
+            }
+        }
+        for &e in exports {
+            if producer(mirror, mirror.len(), e) == Some(c_index) {
+                return Err(format!(
+                    "culled {} is the last writer of export r{e}",
+                    c.name
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_aliasing(plan: &Plan) -> Result<(), String> {
+    for a in &plan.resources {
+        for b in &plan.resources {
+            if a.id >= b.id {
+                continue;
+            }
+            if let (Some(sa), Some(sb), Some(la), Some(lb)) =
+                (a.memory, b.memory, a.lifetime, b.lifetime)
+            {
+                if sa.overlaps(&sb) && la.overlaps(lb) {
+                    return Err(format!(
+                        "{} and {} share memory while alive",
+                        a.name, b.name
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The stages a use touches, as the test models them (independently of the compiler).
+fn stages_of(kind: PassKind, u: &UseKind, format: Option<Format>) -> PipelineStages {
+    let shader = match kind {
+        PassKind::Raster => PipelineStages::VERTEX_SHADER | PipelineStages::FRAGMENT_SHADER,
+        PassKind::Compute => PipelineStages::COMPUTE_SHADER,
+        PassKind::Transfer => PipelineStages::ALL_TRANSFER,
+    };
+    let tests = PipelineStages::EARLY_FRAGMENT_TESTS | PipelineStages::LATE_FRAGMENT_TESTS;
+    match u {
+        UseKind::ColorAttachment { .. } | UseKind::ResolveTarget { .. } => {
+            PipelineStages::COLOR_ATTACHMENT_OUTPUT
+        }
+        UseKind::DepthStencilAttachment { .. } | UseKind::DepthStencilReadOnly => tests,
+        UseKind::InputAttachment => {
+            // An input attachment is also loaded and stored by its render pass.
+            let store = if format.is_some_and(|f| f.is_depth_stencil()) {
+                tests
+            } else {
+                PipelineStages::COLOR_ATTACHMENT_OUTPUT
+            };
+            PipelineStages::FRAGMENT_SHADER | store
+        }
+        UseKind::Sampled
+        | UseKind::StorageRead
+        | UseKind::StorageWrite
+        | UseKind::StorageReadWrite
+        | UseKind::Uniform => shader,
+        UseKind::Vertex => PipelineStages::VERTEX_ATTRIBUTE_INPUT,
+        UseKind::Index => PipelineStages::INDEX_INPUT,
+        UseKind::Indirect => PipelineStages::DRAW_INDIRECT,
+        UseKind::TransferSrc | UseKind::TransferDst => PipelineStages::ALL_TRANSFER,
+    }
+}
+
+/// One work step's access to one resource.
+#[derive(Debug, Clone, Copy)]
+struct StepAccess {
+    step: usize,
+    stages: PipelineStages,
+    writes: bool,
+}
+
+/// Per resource, its accesses by work step, in step order.
+fn step_accesses(plan: &Plan) -> Vec<Vec<StepAccess>> {
+    let kind_of = |id: PassId| plan.pass(id).map(|p| p.kind);
+    let mut out: Vec<Vec<StepAccess>> = vec![Vec::new(); plan.resources.len()];
+    let mut add = |r: ResourceId, step: usize, stages: PipelineStages, writes: bool| {
+        let list = &mut out[r.index()];
+        match list.last_mut() {
+            Some(last) if last.step == step => {
+                last.stages |= stages;
+                last.writes |= writes;
+            }
+            _ => list.push(StepAccess {
+                step,
+                stages,
+                writes,
+            }),
+        }
+    };
+    for (i, s) in plan.steps.iter().enumerate() {
+        let passes: Vec<PassId> = match s {
+            Step::RenderPass(rp) => {
+                // Every attachment is written by its store op.
+                for a in &rp.attachments {
+                    add(a.resource, i, PipelineStages::NONE, true);
+                }
+                rp.subpasses.iter().map(|s| s.pass).collect()
+            }
+            Step::Compute { pass } | Step::Transfer { pass } => vec![*pass],
+            Step::Barriers(_) | Step::Flush(_) => continue,
+        };
+        for id in passes {
+            let (Some(p), Some(kind)) = (plan.pass(id), kind_of(id)) else {
+                continue;
+            };
+            for u in &p.uses {
+                let format = plan.resources[u.resource.index()].format();
+                add(
+                    u.resource,
+                    i,
+                    stages_of(kind, &u.kind, format),
+                    u.kind.writes(),
+                );
+            }
+        }
+    }
+    out
+}
+
+fn barriers_between(
+    plan: &Plan,
+    r: ResourceId,
+    from: usize,
+    to: usize,
+) -> Vec<(PipelineStages, PipelineStages)> {
+    plan.steps[from + 1..to]
+        .iter()
+        .filter_map(|s| match s {
+            Step::Barriers(b) => Some(
+                b.images
+                    .iter()
+                    .filter(|x| x.resource == r)
+                    .map(|x| (x.src_stages, x.dst_stages))
+                    .chain(
+                        b.buffers
+                            .iter()
+                            .filter(|x| x.resource == r)
+                            .map(|x| (x.src_stages, x.dst_stages)),
+                    )
+                    .collect::<Vec<_>>(),
+            ),
+            _ => None,
+        })
+        .flatten()
+        .collect()
+}
+
+fn check_hazards(plan: &Plan) -> Result<(), String> {
+    let accesses = step_accesses(plan);
+    // Consecutive accesses of one resource where either writes need a barrier on it between
+    // them that waits for the first and blocks the second.
+    for (r, list) in accesses.iter().enumerate() {
+        let id = ResourceId(r as u32);
+        for pair in list.windows(2) {
+            let (a, b) = (pair[0], pair[1]);
+            if !(a.writes || b.writes) {
+                continue;
+            }
+            let found = barriers_between(plan, id, a.step, b.step);
+            if !found
+                .iter()
+                .any(|(src, dst)| src.contains(a.stages) && dst.contains(b.stages))
+            {
+                return Err(format!(
+                    "{}: step {} then step {}: no barrier covers {} -> {} (found {found:?})",
+                    plan.resources[r].name, a.step, b.step, a.stages, b.stages
+                ));
+            }
+        }
+    }
+    // Memory handed from one resource to another: the new owner's first barrier waits for the
+    // old owner's last accesses.
+    for h in &plan.aliasing.handoffs {
+        let (Some(from_last), Some(to_first)) = (
+            accesses[h.from.index()].last().copied(),
+            accesses[h.to.index()].first().copied(),
+        ) else {
+            continue;
+        };
+        let found = barriers_between(plan, h.to, from_last.step, to_first.step);
+        if !found.iter().any(|(src, _)| src.contains(from_last.stages)) {
+            return Err(format!(
+                "{} takes memory of {} without waiting for it",
+                plan.resources[h.to.index()].name,
+                plan.resources[h.from.index()].name
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The layout an image needs for a use.
+fn layout_for(u: &UseKind, format: Format) -> Layout {
+    let depth = format.is_depth_stencil();
+    match u {
+        UseKind::StorageRead | UseKind::StorageWrite | UseKind::StorageReadWrite => Layout::General,
+        UseKind::Sampled | UseKind::InputAttachment if depth => Layout::DepthStencilReadOnly,
+        UseKind::Sampled | UseKind::InputAttachment => Layout::ShaderReadOnly,
+        UseKind::TransferSrc => Layout::TransferSrc,
+        UseKind::TransferDst => Layout::TransferDst,
+        UseKind::ColorAttachment { .. } | UseKind::ResolveTarget { .. } => Layout::ColorAttachment,
+        UseKind::DepthStencilAttachment { .. } => Layout::DepthStencilAttachment,
+        UseKind::DepthStencilReadOnly => Layout::DepthStencilReadOnly,
+        UseKind::Uniform | UseKind::Vertex | UseKind::Index | UseKind::Indirect => {
+            Layout::Undefined
+        }
+    }
+}
+
+fn check_layouts(plan: &Plan) -> Result<(), String> {
+    let mut layout: Vec<Layout> = plan
+        .resources
+        .iter()
+        .map(|r| match r.origin {
+            Origin::Imported(i) if i.content == InitialContent::Preserve => i.initial.layout,
+            _ => Layout::Undefined,
+        })
+        .collect();
+    let name = |r: ResourceId| plan.resources[r.index()].name.clone();
+    for (i, s) in plan.steps.iter().enumerate() {
+        match s {
+            Step::Barriers(b) => {
+                for x in &b.images {
+                    let current = layout[x.resource.index()];
+                    if x.old_layout != current && x.old_layout != Layout::Undefined {
+                        return Err(format!(
+                            "step {i}: {} barrier from {} but it is {current}",
+                            name(x.resource),
+                            x.old_layout
+                        ));
+                    }
+                    if x.new_layout == Layout::Undefined {
+                        return Err(format!(
+                            "step {i}: {} transitions to Undefined",
+                            name(x.resource)
+                        ));
+                    }
+                    layout[x.resource.index()] = x.new_layout;
+                }
+            }
+            Step::RenderPass(rp) => {
+                for a in &rp.attachments {
+                    let current = layout[a.resource.index()];
+                    if a.initial_layout != current && a.initial_layout != Layout::Undefined {
+                        return Err(format!(
+                            "step {i}: {} starts the render pass in {} but it is {current}",
+                            name(a.resource),
+                            a.initial_layout
+                        ));
+                    }
+                }
+                for sub in &rp.subpasses {
+                    let Some(p) = plan.pass(sub.pass) else {
+                        continue;
+                    };
+                    for u in p.uses.iter().filter(|u| !u.kind.is_attachment()) {
+                        if let Some(f) = plan.resources[u.resource.index()].format() {
+                            let needed = layout_for(&u.kind, f);
+                            if rp.attachments.iter().all(|a| a.resource != u.resource)
+                                && layout[u.resource.index()] != needed
+                            {
+                                return Err(format!(
+                                    "step {i}: {} used as {} in {} but is {}",
+                                    name(u.resource),
+                                    u.kind,
+                                    p.name,
+                                    layout[u.resource.index()]
+                                ));
+                            }
+                        }
+                    }
+                }
+                for a in &rp.attachments {
+                    layout[a.resource.index()] = a.final_layout;
+                }
+            }
+            Step::Compute { pass } | Step::Transfer { pass } => {
+                let Some(p) = plan.pass(*pass) else { continue };
+                for u in &p.uses {
+                    if let Some(f) = plan.resources[u.resource.index()].format() {
+                        if layout[u.resource.index()] != layout_for(&u.kind, f) {
+                            return Err(format!(
+                                "step {i}: {} used as {} but is {}",
+                                name(u.resource),
+                                u.kind,
+                                layout[u.resource.index()]
+                            ));
+                        }
+                    }
+                }
+            }
+            Step::Flush(_) => {}
+        }
+    }
+    for r in &plan.resources {
+        if let (Origin::Imported(i), true) = (r.origin, r.is_image()) {
+            let wanted = i.final_state.layout;
+            if wanted != Layout::Undefined && layout[r.id.index()] != wanted {
+                return Err(format!(
+                    "{} ends in {} not {wanted}",
+                    r.name,
+                    layout[r.id.index()]
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_structure(plan: &Plan) -> Result<(), String> {
+    let mut seen = vec![
+        0u32;
+        plan.passes
+            .iter()
+            .map(|p| p.id.index() + 1)
+            .max()
+            .unwrap_or(0)
+    ];
+    for s in &plan.steps {
+        let ids: Vec<PassId> = match s {
+            Step::RenderPass(rp) => rp.subpasses.iter().map(|s| s.pass).collect(),
+            Step::Compute { pass } | Step::Transfer { pass } => vec![*pass],
+            _ => continue,
+        };
+        for id in ids {
+            match seen.get_mut(id.index()) {
+                Some(c) => *c += 1,
+                None => return Err(format!("step records unknown pass {id}")),
+            }
+        }
+    }
+    for p in &plan.passes {
+        if seen[p.id.index()] != 1 {
+            return Err(format!(
+                "{} is recorded {} times",
+                p.name,
+                seen[p.id.index()]
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Inside a render pass, consecutive subpass uses of an attachment where either writes need a
+/// subpass dependency from the first to the second.
+fn check_subpass_dependencies(plan: &Plan) -> Result<(), String> {
+    for (step, rp) in plan.render_passes() {
+        for (index, a) in rp.attachments.iter().enumerate() {
+            let format = plan.resources[a.resource.index()].format();
+            let mut previous: Option<(u32, PipelineStages, bool)> = None;
+            for (s, sub) in rp.subpasses.iter().enumerate() {
+                let Some(p) = plan.pass(sub.pass) else {
+                    continue;
+                };
+                let uses: Vec<&PassUse> =
+                    p.uses.iter().filter(|u| u.resource == a.resource).collect();
+                if uses.is_empty() {
+                    continue;
+                }
+                let mut stages = PipelineStages::NONE;
+                let mut writes = false;
+                for u in &uses {
+                    stages |= stages_of(p.kind, &u.kind, format);
+                    writes |= u.kind.writes();
+                }
+                if let Some((ps, pstages, pwrites)) = previous {
+                    if pwrites || writes {
+                        let covered = rp.dependencies.iter().any(|d| {
+                            d.src_subpass.0 == ps
+                                && d.dst_subpass.0 == s as u32
+                                && d.src_stages.intersects(pstages)
+                                && d.dst_stages.intersects(stages)
+                        });
+                        if !covered {
+                            return Err(format!(
+                                "step {}: attachment #{index} {}: subpass {ps} -> {s} has no dependency",
+                                step.0, plan.resources[a.resource.index()].name
+                            ));
+                        }
+                    }
+                }
+                previous = Some((s as u32, stages, writes));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn check_plan(plan: &Plan, built: &Built) -> Result<(), String> {
+    check_subpass_dependencies(plan)?;
+    check_structure(plan)?;
+    check_reads_after_writes(plan, &built.mirror)?;
+    check_culled_contribute_nothing(plan, &built.mirror, &built.exports)?;
+    check_aliasing(plan)?;
+    check_layouts(plan)?;
+    check_hazards(plan)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn compiled_plans_keep_every_rule(spec in spec(200)) {
+        let built = build(&spec);
+        let profile = pick_profile(spec.profile);
+        let first = built.graph.clone().compile(&profile);
+        let second = built.graph.clone().compile(&profile);
+        match (first, second) {
+            (Ok(a), Ok(b)) => {
+                prop_assert_eq!(&a.plan, &b.plan, "compile is not deterministic");
+                if let Err(e) = check_plan(&a.plan, &built) {
+                    return Err(TestCaseError::fail(format!("{e}\n{}", a.plan)));
+                }
+            }
+            (Err(a), Err(b)) => {
+                prop_assert_eq!(a.clone(), b, "errors differ between runs");
+                prop_assert!(spec.chaos, "a valid graph failed to compile: {}", a);
+            }
+            (a, b) => prop_assert!(false, "runs disagree: {:?} vs {:?}", a.is_ok(), b.is_ok()),
+        }
+    }
+}
+
+#[test]
+fn the_generator_mostly_makes_graphs_that_compile() {
+    // The properties above would be vacuous if most random graphs failed to compile.
+    use proptest::strategy::ValueTree;
+    use proptest::test_runner::TestRunner;
+    let mut runner = TestRunner::deterministic();
+    let strategy = spec(200);
+    let (mut ok, mut total, mut culled, mut merged) = (0, 0, 0, 0);
+    for _ in 0..64 {
+        let Ok(tree) = strategy.new_tree(&mut runner) else {
+            continue;
+        };
+        let mut s = tree.current();
+        s.chaos = false;
+        let built = build(&s);
+        total += 1;
+        if let Ok(c) = built.graph.compile(&pick_profile(s.profile)) {
+            ok += 1;
+            culled += usize::from(!c.plan.culled.is_empty());
+            merged += usize::from(c.plan.render_passes().any(|(_, rp)| rp.subpasses.len() > 1));
+        }
+    }
+    assert_eq!(ok, total, "every non-chaos graph compiles");
+    assert!(
+        culled > total / 4,
+        "culling exercised in {culled} of {total}"
+    );
+    assert!(
+        merged > total / 8,
+        "merging exercised in {merged} of {total}"
+    );
+}
