@@ -9,9 +9,13 @@ layout(local_size_x = 8, local_size_y = 8) in;
 // The depth view (DEPTH aspect only, one mip), read with texelFetch: no sampler, no filtering.
 layout(set = 0, binding = 0) uniform texture2D depth_image;
 
-// The f32 nearest to k / 65535 (ties cannot occur: 65535 is odd), in integer arithmetic. The
-// UNORM -> float conversion of a D16 texel, like GLSL division, need not be correctly rounded
-// (lavapipe's is off by one ulp for some codes); the CPU reference holds exactly this value.
+// The f32 nearest to k / 65535, exactly, in integer arithmetic: the UNORM -> float conversion of
+// a D16 texel, like GLSL division, need not be correctly rounded (lavapipe's is one ulp off for
+// 512 of the 65536 codes); the CPU reference holds exactly this value.
+// For 0 < k < 65535, k / (2^16 - 1) in binary is k's 16 bits repeated forever: 0.kkkk... . With
+// k' = k rotated (16 bits) so that its leading one is on top, the significand is the first 24
+// bits of k'k'k'..., and the rest is never exactly a half (it repeats a non-zero pattern), so
+// round to nearest is "add the 25th bit", k' bit 7.
 float d16_exact(uint k) {
     if (k == 0u) {
         return 0.0;
@@ -19,28 +23,12 @@ float d16_exact(uint k) {
     if (k >= 65535u) {
         return 1.0;
     }
-    // k in [2^m, 2^(m+1)) and k < 65535, so k / 65535 lies in [2^(m-16), 2^(m-15)).
-    int m = findMSB(k);
-    // The 24-bit significand floor(k * 2^(39-m) / 65535) by long division; q stays below 2^24.
-    uint q = 0u;
-    uint r = k;
-    for (int i = 0; i < 39 - m; ++i) {
-        r <<= 1;
-        q <<= 1;
-        if (r >= 65535u) {
-            r -= 65535u;
-            q |= 1u;
-        }
-    }
-    if (2u * r > 65535u) {
-        q += 1u;
-    }
-    int e = m - 16;
-    if (q == (1u << 24)) {
-        q >>= 1;
-        e += 1;
-    }
-    return uintBitsToFloat((uint(e + 127) << 23) | (q & 0x7FFFFFu));
+    int m = findMSB(k); // k / 65535 lies in [2^(m-16), 2^(m-15))
+    uint p = uint(15 - m);
+    uint kr = ((k << p) | (k >> (16u - p))) & 0xFFFFu;
+    uint q = ((kr << 8) | (kr >> 8)) + ((kr >> 7) & 1u);
+    // q < 2^24: it would need k' = 0xFFFF, i.e. k = 65535.
+    return uintBitsToFloat((uint(m - 16 + 127) << 23) | (q & 0x7FFFFFu));
 }
 
 void main() {

@@ -877,25 +877,28 @@ fn gpu_cost_per_mode() {
         "HiZ build GPU time, median of 10 ({}):",
         g.physical.identity.device_name
     );
-    println!("| extent | mode | levels | texels | gpu_ms |");
-    println!("|---|---|---|---|---|");
+    println!("| extent | format | mode | levels | texels written | gpu_ms |");
+    println!("|---|---|---|---|---|---|");
     for size in [(1920u32, 1080u32), (27, 13)] {
         let n = size.0 as usize * size.1 as usize;
-        let depth = Depth::random(DepthFormat::D32Float, n, 0xC057);
-        let image = DepthImage::upload(&g, size, &depth).unwrap();
-        for mode in MODES {
-            let layout = HizLayout::new(size, mode, DepthConvention::Reverse, D32).unwrap();
-            let ms = median_build_ms(&g, &mut builder, &image, &layout, 10).unwrap();
-            assert!(ms.is_finite() && ms >= 0.0);
-            println!(
-                "| {}x{} | {mode:?} | {} | {} | {ms:.3} |",
-                size.0,
-                size.1,
-                layout.levels.len(),
-                layout.total_texels
-            );
+        for format in [DepthFormat::D32Float, DepthFormat::D16Unorm] {
+            let depth = Depth::random(format, n, 0xC057);
+            let image = DepthImage::upload(&g, size, &depth).unwrap();
+            for mode in MODES {
+                let layout = HizLayout::new(size, mode, DepthConvention::Reverse, format).unwrap();
+                let ms = median_build_ms(&g, &mut builder, &image, &layout, 10).unwrap();
+                assert!(ms.is_finite() && ms >= 0.0);
+                println!(
+                    "| {}x{} | {} | {mode:?} | {} | {} | {ms:.3} |",
+                    size.0,
+                    size.1,
+                    depth.name(),
+                    layout.levels.len(),
+                    layout.total_texels
+                );
+            }
+            image.destroy(&g);
         }
-        image.destroy(&g);
     }
     builder.destroy(&g);
 }
