@@ -2,6 +2,7 @@
 // HiZ level k from level k-1: each texel is the farthest (max Standard / min Reverse) of the
 // source texels its rule picks (see hiz.glsl). Pure min/max, so the result is bit-identical to
 // tilegraph_cull::HizPyramid::build.
+#define HIZ_BUILD
 #include "hiz.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;

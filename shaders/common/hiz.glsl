@@ -1,6 +1,8 @@
-// Shared declarations of the HiZ pyramid build (hiz_copy.comp, hiz_reduce.comp). The push
+// Shared declarations of the HiZ pyramid (docs/CULLING.md, "GPU pyramid build"). Helpers and
+// constants for every shader that reads the pyramid; the build shaders (hiz_copy.comp,
+// hiz_reduce.comp) define HIZ_BUILD first to also get their push constants and binding. The push
 // constants mirror tilegraph_passes::hiz::HizPush (32 bytes; tests/e2e/hiz.rs checks the size and
-// offsets against the SPIR-V). See docs/CULLING.md, "GPU pyramid build".
+// offsets against the SPIR-V).
 #ifndef TILEGRAPH_HIZ_GLSL
 #define TILEGRAPH_HIZ_GLSL
 
@@ -21,6 +23,7 @@ const uint HIZ_COPY_D16 = 1u;
 const uint HIZ_STANDARD_MAX = 0u;
 const uint HIZ_REVERSE_MIN = 1u;
 
+#ifdef HIZ_BUILD
 layout(push_constant) uniform HizPush {
     uint src_offset;   // first texel of the source level in the pyramid buffer (reduce only)
     uint dst_offset;   // first texel of the level this dispatch writes
@@ -34,5 +37,29 @@ layout(push_constant) uniform HizPush {
 layout(std430, set = 0, binding = 1) buffer Pyramid {
     float texels[];
 } pyramid;
+#endif
+
+// The f32 nearest to k / 65535 (tilegraph_cull::dequantize_d16), exactly, in integer arithmetic.
+// The UNORM -> float conversion of a D16 texel need not be correctly rounded (lavapipe's is one
+// ulp off for 512 of the 65536 codes), nor need GLSL's `c / 65535.0`: a shader that compares
+// with the pyramid's D16 values forms its depths with this function.
+// For 0 < k < 65535, k / (2^16 - 1) in binary is k's 16 bits repeated forever: 0.kkkk... . With
+// k' = k rotated (16 bits) so that its leading one is on top, the significand is the first 24
+// bits of k'k'k'..., and the rest is never exactly a half (it repeats a non-zero pattern), so
+// round to nearest is "add the 25th bit", k' bit 7.
+float hiz_d16_exact(uint k) {
+    if (k == 0u) {
+        return 0.0;
+    }
+    if (k >= 65535u) {
+        return 1.0;
+    }
+    int m = findMSB(k); // k / 65535 lies in [2^(m-16), 2^(m-15))
+    uint p = uint(15 - m);
+    uint kr = ((k << p) | (k >> (16u - p))) & 0xFFFFu;
+    uint q = ((kr << 8) | (kr >> 8)) + ((kr >> 7) & 1u);
+    // q < 2^24: it would need k' = 0xFFFF, i.e. k = 65535.
+    return uintBitsToFloat((uint(m - 16 + 127) << 23) | (q & 0x7FFFFFu));
+}
 
 #endif
