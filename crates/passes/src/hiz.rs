@@ -8,9 +8,9 @@
 //!
 //! [`HizBuilder::record`] records one compute dispatch per level: level 0 copies the depth image
 //! (`texelFetch`, no sampler; D16 values are re-derived as the correctly rounded `k / 65535`,
-//! which the UNORM conversion does not promise), every further level reduces the one before it with pure min/max
-//! (max for `DepthConvention::Standard`, min for `Reverse`), reading the source range the mode's
-//! rule picks ([`ReduceRule`]). A buffer barrier separates consecutive levels.
+//! which the UNORM conversion does not promise), every further level reduces the one before it
+//! with pure min/max (max for `DepthConvention::Standard`, min for `Reverse`), reading the source
+//! range the mode's rule picks ([`ReduceRule`]). A buffer barrier separates consecutive levels.
 
 use bytemuck::{Pod, Zeroable};
 use tilegraph_cull::{level_extents, Extent2d};
@@ -387,7 +387,8 @@ impl HizBuilder {
     }
 
     /// Records the whole build: level 0 from `depth_view` (a DEPTH-aspect, single-mip view of an
-    /// image whose extent is `layout`'s level 0, sampled in `depth_layout`), then every level.
+    /// image whose extent is `layout`'s level 0 and whose format is `layout.format`, sampled in
+    /// `depth_layout`), then every level. `pyramid` must hold at least `layout.size_bytes()`.
     ///
     /// The caller has already made the depth image readable by compute shaders in
     /// `depth_layout` and made earlier accesses to `pyramid` safe (a graph pass declaring it
