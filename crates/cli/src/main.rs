@@ -1,5 +1,6 @@
 //! `tilegraph`: the command-line face of the library. Thin: parsing, printing, files.
 
+mod cullcheck;
 mod devices;
 mod image_io;
 mod render;
@@ -8,6 +9,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use tilegraph_passes::cull::Culling;
 use tilegraph_passes::Technique;
 
 #[derive(Parser)]
@@ -67,6 +69,31 @@ enum Command {
         #[arg(long, default_value_t = 0)]
         camera_frame: usize,
     },
+    /// Render every frame of a camera path with a culling technique and with the exact oracle;
+    /// report visible, drawn, false negatives and positives, and image equality per frame.
+    CullCheck {
+        /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
+        scene: String,
+        /// none | frustum | hiz | hiz-2phase
+        #[arg(long, value_parser = parse_culling)]
+        technique: Culling,
+        /// Camera path JSON (docs/SCENES.md); the scene's own test path when absent.
+        #[arg(long)]
+        camera_path: Option<PathBuf>,
+        #[arg(long, default_value = "320x180", value_parser = parse_size)]
+        size: (u32, u32),
+        /// Force a profile (as TILEGRAPH_PROFILE does).
+        #[arg(long)]
+        profile: Option<String>,
+        /// Only the first N frames of the path.
+        #[arg(long)]
+        frames: Option<usize>,
+        /// HiZ pyramid for non-power-of-two sizes: edge-aware | pad-to-pow2.
+        #[arg(long, default_value = "edge-aware", value_parser = parse_npot)]
+        hiz_npot: tilegraph_cull::NpotMode,
+        #[arg(long)]
+        json: bool,
+    },
     /// Instance, mesh and triangle counts, bounds and material classes of a scene.
     SceneInfo {
         /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
@@ -75,6 +102,19 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+}
+
+fn parse_culling(s: &str) -> Result<Culling, String> {
+    Culling::parse(s)
+        .ok_or_else(|| format!("unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase)"))
+}
+
+fn parse_npot(s: &str) -> Result<tilegraph_cull::NpotMode, String> {
+    match s {
+        "edge-aware" => Ok(tilegraph_cull::NpotMode::EdgeAware),
+        "pad-to-pow2" => Ok(tilegraph_cull::NpotMode::PadToPow2),
+        _ => Err(format!("unknown HiZ mode {s:?} (edge-aware, pad-to-pow2)")),
+    }
 }
 
 fn parse_technique(s: &str) -> Result<Technique, String> {
@@ -142,6 +182,25 @@ fn main() -> ExitCode {
                 })
             }),
         Command::SceneInfo { scene, json } => scene_info(&scene, json),
+        Command::CullCheck {
+            scene,
+            technique,
+            camera_path,
+            size,
+            profile,
+            frames,
+            hiz_npot,
+            json,
+        } => cullcheck::run(&cullcheck::Args {
+            scene: &scene,
+            culling: technique,
+            camera_path: camera_path.as_deref(),
+            size,
+            profile: profile.as_deref(),
+            frames,
+            hiz_npot,
+            json,
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

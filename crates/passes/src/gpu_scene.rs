@@ -104,6 +104,8 @@ struct FrameBuffers {
     /// `Counters` of `forward_count.frag`: fragments shaded per material class.
     counters: Buffer,
     set: vk::DescriptorSet,
+    /// Set 0 for GPU-culled draws (binding 2 = the culling shader's draw list).
+    culled_set: Option<vk::DescriptorSet>,
 }
 
 /// Everything the scene passes bind: set 0 of `scene.glsl`.
@@ -229,15 +231,15 @@ impl GpuScene {
         let sizes = [
             vk::DescriptorPoolSize {
                 ty: vk::DescriptorType::UNIFORM_BUFFER,
-                descriptor_count: n,
+                descriptor_count: 2 * n,
             },
             vk::DescriptorPoolSize {
                 ty: ssbo,
-                descriptor_count: 7 * n,
+                descriptor_count: 2 * 7 * n,
             },
         ];
         let pool_info = vk::DescriptorPoolCreateInfo::default()
-            .max_sets(n)
+            .max_sets(2 * n)
             .pool_sizes(&sizes);
         // SAFETY: valid create info.
         let pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
@@ -286,22 +288,44 @@ impl GpuScene {
             vk::BufferUsageFlags::STORAGE_BUFFER,
             MemoryUse::Readback,
         )?;
+        let set = self.scene_set(
+            ctx,
+            [uniforms.raw, instances.raw, draw_list.raw, counters.raw],
+        )?;
+        Ok(FrameBuffers {
+            uniforms,
+            instances,
+            draw_list,
+            counters,
+            set,
+            culled_set: None,
+        })
+    }
+
+    /// Allocates and writes a set 0 over `[uniforms, instances, draw list, counters]` and the
+    /// scene's static buffers.
+    fn scene_set(
+        &self,
+        ctx: &Context,
+        per_frame: [vk::Buffer; 4],
+    ) -> Result<vk::DescriptorSet, VkError> {
         let layouts = [self.set_layout];
         let alloc = vk::DescriptorSetAllocateInfo::default()
             .descriptor_pool(self.pool)
             .set_layouts(&layouts);
-        // SAFETY: the pool was sized for one set per frame.
+        // SAFETY: the pool holds two sets per frame slot (plain and culled).
         let set = unsafe { ctx.device.allocate_descriptor_sets(&alloc) }
             .map_err(|r| VkError::call("vkAllocateDescriptorSets", r))?[0];
+        let [uniforms, instances, draw_list, counters] = per_frame;
         let infos = [
-            (0, vk::DescriptorType::UNIFORM_BUFFER, uniforms.raw),
-            (1, vk::DescriptorType::STORAGE_BUFFER, instances.raw),
-            (2, vk::DescriptorType::STORAGE_BUFFER, draw_list.raw),
+            (0, vk::DescriptorType::UNIFORM_BUFFER, uniforms),
+            (1, vk::DescriptorType::STORAGE_BUFFER, instances),
+            (2, vk::DescriptorType::STORAGE_BUFFER, draw_list),
             (3, vk::DescriptorType::STORAGE_BUFFER, self.meshes.raw),
             (4, vk::DescriptorType::STORAGE_BUFFER, self.materials.raw),
             (5, vk::DescriptorType::STORAGE_BUFFER, self.vertices.raw),
             (6, vk::DescriptorType::STORAGE_BUFFER, self.indices.raw),
-            (7, vk::DescriptorType::STORAGE_BUFFER, counters.raw),
+            (7, vk::DescriptorType::STORAGE_BUFFER, counters),
         ];
         let buffer_infos: Vec<[vk::DescriptorBufferInfo; 1]> = infos
             .iter()
@@ -324,15 +348,28 @@ impl GpuScene {
                     .buffer_info(bi)
             })
             .collect();
-        // SAFETY: every buffer is live; the set is not in use.
+        // SAFETY: every buffer is live; the set is new.
         unsafe { ctx.device.update_descriptor_sets(&writes, &[]) };
-        Ok(FrameBuffers {
-            uniforms,
-            instances,
-            draw_list,
-            counters,
-            set,
-        })
+        Ok(set)
+    }
+
+    /// Creates, per frame slot, the set that GPU-culled draws bind: the same as the plain one
+    /// but with the draw list the culling shader writes (`draw_ids`).
+    pub fn add_culled_sets(&mut self, ctx: &Context, draw_ids: vk::Buffer) -> Result<(), VkError> {
+        for i in 0..self.frames.len() {
+            let f = &self.frames[i];
+            let set = self.scene_set(
+                ctx,
+                [f.uniforms.raw, f.instances.raw, draw_ids, f.counters.raw],
+            )?;
+            self.frames[i].culled_set = Some(set);
+        }
+        Ok(())
+    }
+
+    /// The culled-draw set of a frame slot (after [`Self::add_culled_sets`]).
+    pub fn culled_set(&self, slot: usize) -> Option<vk::DescriptorSet> {
+        self.frames.get(slot).and_then(|f| f.culled_set)
     }
 
     /// Writes this frame's uniforms, camera-relative instances and draw list into `slot`'s

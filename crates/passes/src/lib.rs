@@ -6,6 +6,8 @@
 //! - [`draws`]: instanced draw lists sorted as the profile asks.
 //! - [`gpu_scene`]: the scene's buffers on the GPU and the per-frame data.
 
+pub mod cull;
+pub mod cullcheck;
 pub mod draws;
 pub mod gpu_scene;
 pub mod hiz;

@@ -16,13 +16,15 @@ use std::collections::HashMap;
 use std::rc::Rc;
 
 use ash::vk;
+use tilegraph_cull::NpotMode;
+use tilegraph_graph::BufferId;
 use tilegraph_graph::{
     AccessFlags, ClearColor, ClearDepthStencil, Coverage, Extent2d, Format, GraphBuilder,
     GraphError, ImageDesc, ImageId, Import, InitialContent, Layout, PassClass, PipelineStages,
     Plan, ResourceState,
 };
 use tilegraph_profile::{MemoryUse, Profile};
-use tilegraph_scene::{Camera, DepthConvention, Scene};
+use tilegraph_scene::{Camera, CameraFrame, DepthConvention, Scene};
 use tilegraph_vk::ash;
 use tilegraph_vk::executor::{Executor, External, FrameStats, ImageHandle, PassContext};
 use tilegraph_vk::first_frame::RgbaImage;
@@ -33,6 +35,7 @@ use tilegraph_vk::pipeline::{
 use tilegraph_vk::queries::PassMedian;
 use tilegraph_vk::{Context, Image, VkError};
 
+use crate::cull::{gpu_planes, list_index, CullParams, CullState, Culling, Phase};
 use crate::draws::{self, Draw, DrawList};
 use crate::gpu_scene::{visbuf_instance_bits, FrameUniforms, GpuScene, Lighting};
 use crate::setup::{decide, FrameSetup, PassKind, SceneContent, Technique};
@@ -73,6 +76,14 @@ pub struct RenderOptions {
     /// Overrides the profile's opaque draw order (measurements: `BackToFront` is the worst
     /// case for early depth rejection).
     pub opaque_order: Option<tilegraph_profile::SortOrder>,
+    /// GPU culling before drawing (opaque and alpha-tested instances; blended ones are frustum
+    /// culled on the CPU and sorted back to front).
+    pub culling: Culling,
+    /// How the HiZ pyramid handles non-power-of-two sizes (seed 000's two fixes).
+    pub hiz_mode: NpotMode,
+    /// Keep the visibility buffer's ids after the frame (the oracle reads them back):
+    /// the id attachment becomes an imported image, so it is stored.
+    pub capture_ids: bool,
 }
 
 impl Default for RenderOptions {
@@ -85,6 +96,9 @@ impl Default for RenderOptions {
             clear_color: [0.55, 0.65, 0.78, 1.0],
             count_fragments: false,
             opaque_order: None,
+            culling: Culling::None,
+            hiz_mode: NpotMode::EdgeAware,
+            capture_ids: false,
         }
     }
 }
@@ -158,6 +172,31 @@ struct Shared {
     draws: DrawList,
     depth: DepthConvention,
     count_fragments: bool,
+    cull: Option<CullState>,
+    culled_sets: Vec<vk::DescriptorSet>,
+}
+
+/// Graph handles of the culling buffers in this frame's graph.
+#[derive(Debug, Clone, Copy)]
+struct CullBuffers {
+    commands: BufferId,
+    counts: BufferId,
+    draw_ids: BufferId,
+    visibility: BufferId,
+    pyramid: Option<BufferId>,
+}
+
+/// What has been declared so far in a frame (first uses clear).
+struct Declared {
+    target: ImageId,
+    depth: ImageId,
+    ids: Option<ImageId>,
+    depth_clear: ClearDepthStencil,
+    color_clear: ClearColor,
+    color_cleared: bool,
+    depth_cleared: bool,
+    prepass: bool,
+    gpu: Option<CullBuffers>,
 }
 
 impl Shared {
@@ -380,6 +419,49 @@ impl Shared {
         Ok(())
     }
 
+    /// Records the culling shader's lists of one material class and phase (single- and
+    /// double-sided, each with its pipeline) as indirect draws with a GPU count.
+    fn record_indirect(
+        &mut self,
+        pc: &PassContext<'_>,
+        variant: Variant,
+        class: u32,
+        phase: u32,
+        color_count: u32,
+    ) -> Result<(), VkError> {
+        let set = *self
+            .culled_sets
+            .get(pc.frame_slot)
+            .ok_or_else(|| VkError::Invalid {
+                what: "scene".into(),
+                reason: "no culled descriptor set for this frame slot".into(),
+            })?;
+        pc.set_full_viewport();
+        let d = &pc.ctx.device;
+        // SAFETY: recording inside the subpass; buffers and set are live.
+        unsafe {
+            d.cmd_bind_vertex_buffers(pc.cb, 0, &[self.vertex_buffer], &[0]);
+            d.cmd_bind_index_buffer(pc.cb, self.index_buffer, 0, vk::IndexType::UINT32);
+            d.cmd_bind_descriptor_sets(
+                pc.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.scene_layout,
+                0,
+                &[set],
+                &[],
+            );
+        }
+        for sided in [false, true] {
+            let p = self.pipeline(pc, variant, sided, color_count)?;
+            // SAFETY: as above.
+            unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
+            if let Some(cull) = self.cull.as_ref() {
+                cull.record_draws(pc.ctx, pc.cb, list_index(class, sided, phase));
+            }
+        }
+        Ok(())
+    }
+
     fn record_resolve(
         &mut self,
         pc: &PassContext<'_>,
@@ -494,6 +576,10 @@ pub struct SceneRenderer {
     instance_bits: Option<u32>,
     frames: u64,
     last_slot: usize,
+    /// The captured id image (with `capture_ids`).
+    ids_target: Option<(Image, ImageHandle)>,
+    /// Per instance: whether its material is blended.
+    blended: Vec<bool>,
 }
 
 impl SceneRenderer {
@@ -523,6 +609,9 @@ impl SceneRenderer {
             });
         }
         let mut needed = required_features(options.technique);
+        if options.culling != Culling::None {
+            needed.required.extend(CullState::required_features());
+        }
         if options.count_fragments {
             needed
                 .required
@@ -606,8 +695,33 @@ impl SceneRenderer {
             draws: DrawList::default(),
             depth,
             count_fragments: options.count_fragments,
+            cull: None,
+            culled_sets: Vec::new(),
         }));
-        let (target, target_handle) = create_target(ctx, w, h)?;
+        let mut gpu = gpu;
+        if options.culling != Culling::None {
+            let cull = CullState::new(
+                ctx,
+                options.culling,
+                scene.instances().len() as u32,
+                (w, h),
+                depth,
+                options.hiz_mode,
+                gpu.set_layout,
+                executor.frames_in_flight(),
+            )?;
+            gpu.add_culled_sets(ctx, cull.draw_ids.raw)?;
+            let mut s = shared.borrow_mut();
+            s.culled_sets = (0..executor.frames_in_flight())
+                .filter_map(|i| gpu.culled_set(i))
+                .collect();
+            s.cull = Some(cull);
+        }
+        let (target, target_handle) = create_target(ctx, w, h, vk::Format::R8G8B8A8_UNORM)?;
+        let ids_target = match options.capture_ids && options.technique == Technique::Visbuf {
+            true => Some(create_target(ctx, w, h, vk::Format::R32_UINT)?),
+            false => None,
+        };
         Ok(SceneRenderer {
             options,
             gpu,
@@ -619,6 +733,16 @@ impl SceneRenderer {
             instance_bits,
             frames: 0,
             last_slot: 0,
+            ids_target,
+            blended: scene
+                .instances()
+                .iter()
+                .map(|i| {
+                    scene
+                        .instance_material(i)
+                        .is_some_and(|m| m.class == tilegraph_scene::MaterialClass::Blended)
+                })
+                .collect(),
         })
     }
 
@@ -633,28 +757,56 @@ impl SceneRenderer {
 
     /// Which passes this renderer's frames have on `profile`.
     pub fn setup(&self, profile: &Profile) -> FrameSetup {
-        decide(self.content, profile, self.options.technique)
+        decide(self.content, profile, self.options.technique).with_culling(self.options.culling)
     }
 
-    /// Renders one frame from `camera`.
+    /// Renders one frame from a lone `camera` (no previous frame: a cut).
     pub fn render(
         &mut self,
         ctx: &Context,
         scene: &Scene,
         camera: &Camera,
     ) -> Result<FrameReport, RenderError> {
+        let m = camera.matrices(self.options.width as f32 / self.options.height as f32);
+        let frame = CameraFrame {
+            index: 0,
+            camera: *camera,
+            cut: true,
+            current: m,
+            previous: m,
+            reproject: m.view_projection,
+        };
+        self.render_frame(ctx, scene, &frame)
+    }
+
+    /// Renders one frame of a camera path (its previous matrices feed single-phase HiZ).
+    pub fn render_frame(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        frame: &CameraFrame,
+    ) -> Result<FrameReport, RenderError> {
         let (w, h) = (self.options.width, self.options.height);
-        let m = camera.matrices(w as f32 / h as f32);
+        let m = frame.current;
         let profile = ctx.profile().clone();
         let setup = self.setup(&profile);
-        let draws = draws::build(
-            scene,
-            m.eye,
-            self.options
-                .opaque_order
-                .unwrap_or(profile.passes.opaque_sort),
-            None,
-        );
+        let culling = self.options.culling;
+        // With GPU culling on, the CPU lists serve only blended geometry: frustum-cull it here.
+        let blended_mask = match culling {
+            Culling::None => None,
+            _ => Some(
+                crate::cull::cpu_frustum_mask(scene, &m)?
+                    .into_iter()
+                    .zip(&self.blended)
+                    .map(|(v, b)| v || !b)
+                    .collect::<Vec<bool>>(),
+            ),
+        };
+        let order = self
+            .options
+            .opaque_order
+            .unwrap_or(profile.passes.opaque_sort);
+        let draws = draws::build(scene, m.eye, order, blended_mask.as_deref());
         let uniforms = FrameUniforms::new(
             m.view_projection,
             m.depth,
@@ -666,7 +818,42 @@ impl SceneRenderer {
         self.gpu
             .write_frame(ctx, slot, scene, m.eye, &uniforms, &draws)?;
         self.last_slot = slot;
-        let report_draws = draws.opaque.len() + draws.alpha_tested.len() + draws.blended.len();
+        if let Some(cull) = self.shared.borrow_mut().cull.as_mut() {
+            cull.write_order(
+                slot,
+                &crate::cull::gpu_order(&draws, scene.instances().len()),
+            )?;
+            let planes = gpu_planes(m.view_projection, m.depth)?;
+            let levels = cull
+                .hiz_layout
+                .as_ref()
+                .map_or(0, |l| l.levels.len() as u32);
+            let (pw, ph) = cull
+                .hiz_layout
+                .as_ref()
+                .and_then(|l| l.levels.first())
+                .map_or((w, h), |l| (l.width, l.height));
+            let reverse = u32::from(m.depth == DepthConvention::Reverse);
+            let n = cull.instance_count;
+            let mk = |phase: Phase, view_proj: glam::Mat4, levels: u32| CullParams {
+                planes,
+                hiz_view_proj: view_proj.to_cols_array_2d(),
+                info: [n, phase as u32, levels, reverse],
+                screen: [pw, ph, n.max(1), 0],
+            };
+            let first = match culling {
+                Culling::Hiz => mk(
+                    Phase::HizPrevious,
+                    frame.reproject,
+                    if cull.pyramid_valid { levels } else { 0 },
+                ),
+                Culling::HizTwoPhase => mk(Phase::Early, m.view_projection, 0),
+                _ => mk(Phase::Frustum, m.view_projection, 0),
+            };
+            cull.write_params(slot, 0, &first)?;
+            cull.write_params(slot, 1, &mk(Phase::Late, m.view_projection, levels))?;
+        }
+        let cpu_draws = draws.opaque.len() + draws.alpha_tested.len() + draws.blended.len();
         let triangles = draws.triangles();
         {
             let mut s = self.shared.borrow_mut();
@@ -676,7 +863,7 @@ impl SceneRenderer {
         let (graph, target_id) = self.declare(&setup, &profile, m.depth, self.frames == 0);
         let (plan, payloads) = graph.compile(&profile)?.into_parts();
         let mut payloads: HashMap<_, _> = payloads.into_iter().collect();
-        let externals = HashMap::from([(target_id.0, External::Image(self.target_handle.clone()))]);
+        let externals = self.externals(target_id, &plan);
         let stats =
             self.executor.execute(
                 ctx,
@@ -692,9 +879,72 @@ impl SceneRenderer {
             setup,
             plan,
             stats,
-            draws: report_draws,
+            draws: cpu_draws,
             triangles,
         })
+    }
+
+    /// Physical resources of the imported ones: the target and the culling buffers.
+    fn externals(
+        &self,
+        target: ImageId,
+        plan: &Plan,
+    ) -> HashMap<tilegraph_graph::ResourceId, External> {
+        let mut ext = HashMap::from([(target.0, External::Image(self.target_handle.clone()))]);
+        if let (Some((_, h)), Some(r)) = (&self.ids_target, plan.resource_by_name("visbuf-id")) {
+            ext.insert(r.id, External::Image(h.clone()));
+        }
+        if let Some(cull) = self.shared.borrow().cull.as_ref() {
+            let named = [
+                ("cull-commands", Some(&cull.commands)),
+                ("cull-counts", Some(&cull.counts)),
+                ("cull-draw-ids", Some(&cull.draw_ids)),
+                ("visibility", Some(&cull.visibility)),
+                ("hiz-pyramid", cull.pyramid.as_ref()),
+            ];
+            for (name, buffer) in named {
+                if let (Some(r), Some(b)) = (plan.resource_by_name(name), buffer) {
+                    ext.insert(r.id, External::Buffer(CullState::handle(b)));
+                }
+            }
+        }
+        ext
+    }
+
+    /// The instance owning each pixel of the last frame (`u32::MAX` for background), from the
+    /// captured visibility buffer (`capture_ids`); waits for the GPU.
+    pub fn read_instance_ids(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {
+        self.executor.finish(ctx)?;
+        let Some((_, h)) = &self.ids_target else {
+            return Ok(None);
+        };
+        let bytes =
+            tilegraph_vk::readback::read_image(ctx, h, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, 0)?;
+        let tri_bits = 32 - self.instance_bits.unwrap_or(32);
+        Ok(Some(
+            bytes
+                .chunks_exact(4)
+                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .map(|id| {
+                    if id == u32::MAX {
+                        u32::MAX
+                    } else if tri_bits >= 32 {
+                        0
+                    } else {
+                        id >> tri_bits
+                    }
+                })
+                .collect(),
+        ))
+    }
+
+    /// The instances the last frame drew through GPU culling (waits), or `None` without culling.
+    pub fn drawn_instances(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {
+        self.executor.finish(ctx)?;
+        match self.shared.borrow().cull.as_ref() {
+            Some(c) => Ok(Some(c.drawn_instances(ctx)?)),
+            None => Ok(None),
+        }
     }
 
     fn declare(
@@ -706,6 +956,7 @@ impl SceneRenderer {
     ) -> (GraphBuilder<Payload>, ImageId) {
         let (w, h) = (self.options.width, self.options.height);
         let extent = Extent2d::new(w, h);
+        let culling = self.options.culling;
         let mut g: GraphBuilder<Payload> = GraphBuilder::new();
         // The target survives frames: after the first it is in TRANSFER_SRC from the last
         // frame's release, read by the readback copy.
@@ -728,120 +979,365 @@ impl SceneRenderer {
             },
         );
         let depth = g.create_image("depth", ImageDesc::new(extent, Format::D32_SFLOAT));
-        let depth_clear = ClearDepthStencil {
-            depth: depth_convention_far(depth_convention),
-            stencil: 0,
-        };
-        let color_clear = ClearColor::Float(self.options.clear_color);
-        let mut color_cleared = false;
-        let mut depth_cleared = false;
-        let prepass = setup.has_prepass();
-        let shared = &self.shared;
-        let payload = |variant: Variant, which: fn(&DrawList) -> &[Draw], colors: u32| -> Payload {
-            let shared = shared.clone();
-            Box::new(move |pc: &mut PassContext<'_>| {
-                let mut s = shared.borrow_mut();
-                let draws: Vec<Draw> = which(&s.draws).to_vec();
-                s.record_draws(pc, variant, &draws, colors)
-            })
-        };
-        for pass in setup.included() {
-            match pass {
-                PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha => {
-                    let (variant, which): (Variant, SelectDraws) =
-                        if pass == PassKind::DepthPrepassOpaque {
-                            (Variant::DepthOpaque, |d| &d.opaque)
-                        } else {
-                            (Variant::DepthAlpha, |d| &d.alpha_tested)
-                        };
-                    let mut p = g.raster_pass(
-                        pass.name(),
-                        PassClass::DepthPrepass,
-                        payload(variant, which, 0),
-                    );
-                    depth_use(&mut p, depth, &mut depth_cleared, depth_clear, false);
-                }
-                PassKind::Opaque | PassKind::AlphaTested => {
-                    let (class, which, pclass): (u32, SelectDraws, PassClass) =
-                        if pass == PassKind::Opaque {
-                            (0, |d| &d.opaque, PassClass::Opaque)
-                        } else {
-                            (1, |d| &d.alpha_tested, PassClass::AlphaTested)
-                        };
-                    let mut p = g.raster_pass(
-                        pass.name(),
-                        pclass,
-                        payload(
-                            Variant::Forward {
-                                class,
-                                equal: prepass,
-                            },
-                            which,
-                            1,
-                        ),
-                    );
-                    color_use(&mut p, target, &mut color_cleared, color_clear);
-                    depth_use(&mut p, depth, &mut depth_cleared, depth_clear, prepass);
-                }
-                PassKind::VisbufWrite => {
-                    let ids = g.create_image("visbuf-id", ImageDesc::new(extent, Format::R32_UINT));
-                    let shared_w = shared.clone();
-                    let write: Payload = Box::new(move |pc: &mut PassContext<'_>| {
-                        let mut s = shared_w.borrow_mut();
-                        let (opaque, alpha) =
-                            (s.draws.opaque.clone(), s.draws.alpha_tested.clone());
-                        s.record_draws(pc, Variant::Visbuf { alpha: false }, &opaque, 1)?;
-                        s.record_draws(pc, Variant::Visbuf { alpha: true }, &alpha, 1)
-                    });
-                    let mut p = g.raster_pass(pass.name(), PassClass::Opaque, write);
-                    p.color_clear(ids, ClearColor::Uint([u32::MAX; 4]));
-                    depth_use(&mut p, depth, &mut depth_cleared, depth_clear, false);
-                    // The resolve right after: an input-attachment subpass on tilers, a sampled
-                    // full-screen pass elsewhere (setup's reason says which).
-                    let input = profile.is_tiler();
-                    let shared_r = shared.clone();
-                    let resolve: Payload = Box::new(move |pc: &mut PassContext<'_>| {
-                        shared_r.borrow_mut().record_resolve(pc, ids, input)
-                    });
-                    let mut r =
-                        g.raster_pass(PassKind::VisbufResolve.name(), PassClass::Opaque, resolve);
-                    if input {
-                        r.input(ids);
+        let ids = self.ids_target.as_ref().map(|_| {
+            let ids = g.import_image(
+                "visbuf-id",
+                ImageDesc::new(extent, Format::R32_UINT),
+                Import {
+                    initial: if first_frame {
+                        ResourceState::UNDEFINED
                     } else {
-                        r.sampled(ids);
-                    }
-                    color_use(&mut r, target, &mut color_cleared, color_clear);
-                }
-                PassKind::VisbufResolve => {} // declared with the write
-                PassKind::Transparent => {
-                    let mut p = g.raster_pass(
-                        pass.name(),
-                        PassClass::Transparent,
-                        payload(
-                            Variant::Forward {
-                                class: 2,
-                                equal: false,
-                            },
-                            |d| &d.blended,
-                            1,
-                        ),
-                    );
-                    color_use(&mut p, target, &mut color_cleared, color_clear);
-                    depth_use(&mut p, depth, &mut depth_cleared, depth_clear, true);
-                }
+                        leftover
+                    },
+                    content: InitialContent::Discard,
+                    final_state: leftover,
+                },
+            );
+            g.export(ids);
+            ids
+        });
+        let mut f = Declared {
+            target,
+            depth,
+            ids,
+            depth_clear: ClearDepthStencil {
+                depth: depth_convention_far(depth_convention),
+                stencil: 0,
+            },
+            color_clear: ClearColor::Float(self.options.clear_color),
+            color_cleared: false,
+            depth_cleared: false,
+            prepass: setup.has_prepass(),
+            gpu: None,
+        };
+        let shared = &self.shared;
+        let two_phase = culling == Culling::HizTwoPhase;
+        if let Some(cull) = shared.borrow().cull.as_ref() {
+            f.gpu = Some(self.declare_culling_buffers(&mut g, cull));
+        }
+        if let Some(b) = f.gpu {
+            let fill: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+                let counts = pc.buffer(b.counts)?;
+                // SAFETY: the graph put the counts buffer in TRANSFER_DST for this pass.
+                unsafe {
+                    pc.ctx
+                        .device
+                        .cmd_fill_buffer(pc.cb, counts.raw, 0, vk::WHOLE_SIZE, 0)
+                };
+                Ok(())
+            });
+            g.transfer_pass("cull-reset", PassClass::Compute, fill)
+                .transfer_dst(b.counts);
+            let mut c = g.compute_pass(
+                if two_phase { "cull-early" } else { "cull" },
+                PassClass::Compute,
+                self.dispatch(0),
+            );
+            c.storage_read_write(b.counts)
+                .storage_write(b.commands)
+                .storage_write(b.draw_ids);
+            if two_phase {
+                c.storage_read(b.visibility);
+            }
+            if let (Culling::Hiz, Some(p)) = (culling, b.pyramid) {
+                c.storage_read(p);
             }
         }
-        if !color_cleared {
+        let phases: &[u32] = if two_phase { &[0, 1] } else { &[0] };
+        for &phase in phases {
+            if phase == 1 {
+                if let Some(b) = f.gpu {
+                    self.declare_hiz_build(&mut g, f.depth, b);
+                    let mut c = g.compute_pass("cull-late", PassClass::Compute, self.dispatch(1));
+                    c.storage_read_write(b.counts)
+                        .storage_write(b.commands)
+                        .storage_write(b.draw_ids)
+                        .storage_read_write(b.visibility);
+                    if let Some(p) = b.pyramid {
+                        c.storage_read(p);
+                    }
+                }
+            }
+            let suffix = match (two_phase, phase) {
+                (false, _) => "",
+                (true, 0) => "-early",
+                (true, _) => "-late",
+            };
+            for pass in setup.included() {
+                self.declare_geometry(&mut g, &mut f, pass, phase, suffix, profile);
+            }
+        }
+        if setup.includes(PassKind::VisbufResolve) {
+            if let Some(ids) = f.ids {
+                let input = profile.is_tiler();
+                let shared_r = shared.clone();
+                let resolve: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+                    shared_r.borrow_mut().record_resolve(pc, ids, input)
+                });
+                let mut r =
+                    g.raster_pass(PassKind::VisbufResolve.name(), PassClass::Opaque, resolve);
+                if input {
+                    r.input(ids);
+                } else {
+                    r.sampled(ids);
+                }
+                color_use(&mut r, target, &mut f.color_cleared, f.color_clear);
+            }
+        }
+        if setup.includes(PassKind::Transparent) {
+            let mut p = g.raster_pass(
+                PassKind::Transparent.name(),
+                PassClass::Transparent,
+                self.cpu_draws(
+                    Variant::Forward {
+                        class: 2,
+                        equal: false,
+                    },
+                    |d| &d.blended,
+                    1,
+                ),
+            );
+            color_use(&mut p, target, &mut f.color_cleared, f.color_clear);
+            depth_use(&mut p, depth, &mut f.depth_cleared, f.depth_clear, true);
+        }
+        if let (Culling::Hiz, Some(b)) = (culling, f.gpu) {
+            // Next frame's occluders: this frame's depth.
+            self.declare_hiz_build(&mut g, f.depth, b);
+        }
+        if !f.color_cleared {
             // Nothing drew (an empty view of an empty scene): still produce a cleared image.
             let mut p = g.raster_pass(
                 "clear",
                 PassClass::Opaque,
                 Box::new(|_: &mut PassContext<'_>| Ok(())) as Payload,
             );
-            p.color_clear(target, color_clear).coverage(Coverage::Full);
+            p.color_clear(target, f.color_clear)
+                .coverage(Coverage::Full);
         }
         g.export(target);
         (g, target)
+    }
+
+    /// Imports the persistent culling buffers into this frame's graph.
+    fn declare_culling_buffers(
+        &self,
+        g: &mut GraphBuilder<Payload>,
+        cull: &CullState,
+    ) -> CullBuffers {
+        // Conservative boundary states: whatever touched them last frame, this frame waits for.
+        let any = ResourceState::buffer(
+            PipelineStages::ALL_COMMANDS,
+            AccessFlags::MEMORY_READ.union(AccessFlags::MEMORY_WRITE),
+        );
+        let import = |content| Import {
+            initial: any,
+            content,
+            final_state: any,
+        };
+        let discard = import(InitialContent::Discard);
+        let keep = import(InitialContent::Preserve);
+        let commands = g.import_buffer("cull-commands", cull.commands.size, discard);
+        let counts = g.import_buffer("cull-counts", cull.counts.size, discard);
+        let draw_ids = g.import_buffer("cull-draw-ids", cull.draw_ids.size, discard);
+        let visibility = g.import_buffer("visibility", cull.visibility.size, keep);
+        let pyramid = cull
+            .pyramid
+            .as_ref()
+            .map(|p| g.import_buffer("hiz-pyramid", p.size, keep));
+        // What the next frame reads survives this one.
+        g.export(visibility);
+        if let Some(p) = pyramid {
+            g.export(p);
+        }
+        // Tools read the drawn set back after the frame.
+        g.export(counts);
+        g.export(draw_ids);
+        CullBuffers {
+            commands,
+            counts,
+            draw_ids,
+            visibility,
+            pyramid,
+        }
+    }
+
+    fn declare_hiz_build(&self, g: &mut GraphBuilder<Payload>, depth: ImageId, b: CullBuffers) {
+        let Some(pyramid) = b.pyramid else { return };
+        let shared = self.shared.clone();
+        let build: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+            let view = pc.image(depth)?.view;
+            let buffer = pc.buffer(pyramid)?;
+            let mut s = shared.borrow_mut();
+            let cull = s.cull.as_mut().ok_or_else(|| VkError::Invalid {
+                what: "hiz-build".into(),
+                reason: "no culling state".into(),
+            })?;
+            let layout = cull.hiz_layout.clone().ok_or_else(|| VkError::Invalid {
+                what: "hiz-build".into(),
+                reason: "no pyramid layout".into(),
+            })?;
+            let builder = cull.hiz.as_mut().ok_or_else(|| VkError::Invalid {
+                what: "hiz-build".into(),
+                reason: "no pyramid builder".into(),
+            })?;
+            // The graph samples depth formats in DEPTH_STENCIL_READ_ONLY_OPTIMAL.
+            builder.record(
+                pc.ctx,
+                pc.cb,
+                pc.frame_slot,
+                view,
+                vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
+                buffer,
+                &layout,
+            )?;
+            cull.pyramid_valid = true;
+            Ok(())
+        });
+        g.compute_pass("hiz-build", PassClass::Compute, build)
+            .sampled(depth)
+            .storage_read_write(pyramid);
+    }
+
+    fn dispatch(&self, which: usize) -> Payload {
+        let shared = self.shared.clone();
+        Box::new(move |pc: &mut PassContext<'_>| {
+            let s = shared.borrow();
+            let scene_set = *s
+                .scene_sets
+                .get(pc.frame_slot)
+                .ok_or_else(|| VkError::Invalid {
+                    what: "cull".into(),
+                    reason: "no scene set".into(),
+                })?;
+            match s.cull.as_ref() {
+                Some(c) => c.record_dispatch(pc.ctx, pc.cb, scene_set, pc.frame_slot, which),
+                None => Ok(()),
+            }
+        })
+    }
+
+    fn cpu_draws(&self, variant: Variant, which: SelectDraws, colors: u32) -> Payload {
+        let shared = self.shared.clone();
+        Box::new(move |pc: &mut PassContext<'_>| {
+            let mut s = shared.borrow_mut();
+            let draws: Vec<Draw> = which(&s.draws).to_vec();
+            s.record_draws(pc, variant, &draws, colors)
+        })
+    }
+
+    /// Draws of one material class: the CPU list, or the culling shader's indirect lists.
+    fn class_draws(
+        &self,
+        variant: Variant,
+        class: u32,
+        phase: u32,
+        colors: u32,
+        gpu: bool,
+    ) -> Payload {
+        if !gpu {
+            return self.cpu_draws(
+                variant,
+                if class == 0 {
+                    |d: &DrawList| &d.opaque[..]
+                } else {
+                    |d: &DrawList| &d.alpha_tested[..]
+                },
+                colors,
+            );
+        }
+        let shared = self.shared.clone();
+        Box::new(move |pc: &mut PassContext<'_>| {
+            shared
+                .borrow_mut()
+                .record_indirect(pc, variant, class, phase, colors)
+        })
+    }
+
+    fn declare_geometry(
+        &self,
+        g: &mut GraphBuilder<Payload>,
+        f: &mut Declared,
+        pass: PassKind,
+        phase: u32,
+        suffix: &str,
+        _profile: &Profile,
+    ) {
+        let gpu = f.gpu;
+        let name = format!("{}{suffix}", pass.name());
+        let uses_lists = |p: &mut tilegraph_graph::RasterPassBuilder<'_, Payload>| {
+            if let Some(b) = gpu {
+                p.indirect(b.commands)
+                    .indirect(b.counts)
+                    .storage_read(b.draw_ids);
+            }
+        };
+        match pass {
+            PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha => {
+                let (variant, class) = if pass == PassKind::DepthPrepassOpaque {
+                    (Variant::DepthOpaque, 0)
+                } else {
+                    (Variant::DepthAlpha, 1)
+                };
+                let mut p = g.raster_pass(
+                    name,
+                    PassClass::DepthPrepass,
+                    self.class_draws(variant, class, phase, 0, gpu.is_some()),
+                );
+                depth_use(&mut p, f.depth, &mut f.depth_cleared, f.depth_clear, false);
+                uses_lists(&mut p);
+            }
+            PassKind::Opaque | PassKind::AlphaTested => {
+                let (class, pclass) = if pass == PassKind::Opaque {
+                    (0, PassClass::Opaque)
+                } else {
+                    (1, PassClass::AlphaTested)
+                };
+                let variant = Variant::Forward {
+                    class,
+                    equal: f.prepass,
+                };
+                let mut p = g.raster_pass(
+                    name,
+                    pclass,
+                    self.class_draws(variant, class, phase, 1, gpu.is_some()),
+                );
+                color_use(&mut p, f.target, &mut f.color_cleared, f.color_clear);
+                depth_use(
+                    &mut p,
+                    f.depth,
+                    &mut f.depth_cleared,
+                    f.depth_clear,
+                    f.prepass,
+                );
+                uses_lists(&mut p);
+            }
+            PassKind::VisbufWrite => {
+                let extent = Extent2d::new(self.options.width, self.options.height);
+                let ids = *f.ids.get_or_insert_with(|| {
+                    g.create_image("visbuf-id", ImageDesc::new(extent, Format::R32_UINT))
+                });
+                let opaque =
+                    self.class_draws(Variant::Visbuf { alpha: false }, 0, phase, 1, gpu.is_some());
+                let alpha =
+                    self.class_draws(Variant::Visbuf { alpha: true }, 1, phase, 1, gpu.is_some());
+                let mut both = [opaque, alpha];
+                let write: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+                    for p in &mut both {
+                        p(pc)?;
+                    }
+                    Ok(())
+                });
+                let mut p = g.raster_pass(name, PassClass::Opaque, write);
+                if phase == 0 {
+                    p.color_clear(ids, ClearColor::Uint([u32::MAX; 4]));
+                } else {
+                    p.color(ids);
+                }
+                depth_use(&mut p, f.depth, &mut f.depth_cleared, f.depth_clear, false);
+                uses_lists(&mut p);
+            }
+            PassKind::VisbufResolve | PassKind::Transparent => {} // after the geometry phases
+        }
     }
 
     /// Waits for the frames in flight, collecting their GPU timings.
@@ -888,10 +1384,14 @@ impl SceneRenderer {
             shared,
             target,
             target_handle,
+            ids_target,
             ..
         } = self;
         executor.destroy(ctx);
-        if let Ok(s) = Rc::try_unwrap(shared).map(RefCell::into_inner) {
+        if let Ok(mut s) = Rc::try_unwrap(shared).map(RefCell::into_inner) {
+            if let Some(c) = s.cull.take() {
+                c.destroy(ctx);
+            }
             // SAFETY: the executor waited for every frame; nothing uses these any more.
             unsafe {
                 for (_, p) in s.pipelines {
@@ -912,6 +1412,11 @@ impl SceneRenderer {
         // SAFETY: GPU idle.
         unsafe { ctx.device.destroy_image_view(target_handle.view, None) };
         ctx.destroy_image(target);
+        if let Some((image, handle)) = ids_target {
+            // SAFETY: GPU idle.
+            unsafe { ctx.device.destroy_image_view(handle.view, None) };
+            ctx.destroy_image(image);
+        }
     }
 }
 
@@ -953,8 +1458,17 @@ fn depth_use(
     }
 }
 
-fn create_target(ctx: &Context, w: u32, h: u32) -> Result<(Image, ImageHandle), VkError> {
-    let format = vk::Format::R8G8B8A8_UNORM;
+fn create_target(
+    ctx: &Context,
+    w: u32,
+    h: u32,
+    format: vk::Format,
+) -> Result<(Image, ImageHandle), VkError> {
+    let extra = if format == vk::Format::R32_UINT {
+        vk::ImageUsageFlags::INPUT_ATTACHMENT | vk::ImageUsageFlags::SAMPLED
+    } else {
+        vk::ImageUsageFlags::empty()
+    };
     let info = vk::ImageCreateInfo::default()
         .image_type(vk::ImageType::TYPE_2D)
         .format(format)
@@ -967,9 +1481,9 @@ fn create_target(ctx: &Context, w: u32, h: u32) -> Result<(Image, ImageHandle), 
         .array_layers(1)
         .samples(vk::SampleCountFlags::TYPE_1)
         .tiling(vk::ImageTiling::OPTIMAL)
-        .usage(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC)
+        .usage(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC | extra)
         .initial_layout(vk::ImageLayout::UNDEFINED);
-    let image = ctx.create_image("color target", &info, MemoryUse::GpuOnly)?;
+    let image = ctx.create_image("render target", &info, MemoryUse::GpuOnly)?;
     let view_info = vk::ImageViewCreateInfo::default()
         .image(image.raw)
         .view_type(vk::ImageViewType::TYPE_2D)

@@ -111,6 +111,25 @@ impl FrameSetup {
         self.decisions.iter().filter(|d| d.included).map(|d| d.pass)
     }
 
+    /// Adjusts the setup for a culling technique: two-phase occlusion culling draws geometry in
+    /// two phases with a pyramid build between them, so the depth pre-pass is left out (it
+    /// would need two phases of its own to stay exact).
+    pub fn with_culling(mut self, culling: crate::cull::Culling) -> FrameSetup {
+        if culling == crate::cull::Culling::HizTwoPhase {
+            for d in &mut self.decisions {
+                if matches!(
+                    d.pass,
+                    PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha
+                ) && d.included
+                {
+                    d.included = false;
+                    d.reason = "two-phase occlusion culling draws in two phases; a pre-pass would need two phases of its own".into();
+                }
+            }
+        }
+        self
+    }
+
     /// Whether the colour pass tests depth EQUAL against a pre-pass (no depth writes).
     pub fn has_prepass(&self) -> bool {
         self.includes(PassKind::DepthPrepassOpaque) || self.includes(PassKind::DepthPrepassAlpha)

@@ -1,0 +1,78 @@
+//! `tilegraph cull-check`: a culling technique against the exact oracle along a camera path.
+
+use std::path::Path;
+
+use tilegraph_passes::cull::Culling;
+use tilegraph_passes::cullcheck::cull_check;
+use tilegraph_scene::CameraPath;
+use tilegraph_vk::{Context, ContextOptions, Feature};
+
+use crate::CliError;
+
+pub struct Args<'a> {
+    pub scene: &'a str,
+    pub culling: Culling,
+    pub camera_path: Option<&'a Path>,
+    pub size: (u32, u32),
+    pub profile: Option<&'a str>,
+    pub frames: Option<usize>,
+    pub hiz_npot: tilegraph_cull::NpotMode,
+    pub json: bool,
+}
+
+pub fn run(a: &Args<'_>) -> Result<(), CliError> {
+    let scene = tilegraph_scene::load(a.scene)?;
+    let path = match a.camera_path {
+        Some(p) => CameraPath::load_json(p)?,
+        None => scene.camera_path().clone(),
+    };
+    let mut options = ContextOptions::from_env();
+    if let Some(p) = a.profile {
+        options.profile = Some(p.to_string());
+    }
+    // The oracle's visibility buffer and the GPU culling lists.
+    options.features.required.extend([
+        Feature::GeometryShader,
+        Feature::DrawIndirectCount,
+        Feature::MultiDrawIndirect,
+    ]);
+    let ctx = Context::new(options)?;
+    let report = cull_check(&ctx, &scene, a.culling, &path, a.size, a.frames, a.hiz_npot)?;
+    ctx.check_validation()?;
+    if a.json {
+        println!("{}", serde_json::to_string(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{} on {:?} ({} instances culled on the GPU), profile {}, {}x{}, {} frames",
+        report.technique,
+        report.scene,
+        report.totals.instances,
+        report.profile,
+        a.size.0,
+        a.size.1,
+        report.totals.frames
+    );
+    println!(
+        "{:>6} {:>4} {:>8} {:>8} {:>6} {:>8} {:>12}",
+        "frame", "cut", "visible", "drawn", "FN", "FP", "image equal"
+    );
+    for f in &report.frames {
+        println!(
+            "{:>6} {:>4} {:>8} {:>8} {:>6} {:>8} {:>12}",
+            f.frame,
+            if f.cut { "cut" } else { "" },
+            f.visible,
+            f.drawn,
+            f.false_negatives,
+            f.false_positives,
+            f.image_equal
+        );
+    }
+    let t = &report.totals;
+    println!(
+        "totals: visible {} drawn {} FN {} (in {} frames) FP {} (rate {:.3}); images equal {}/{}; triangles drawn {}; culling GPU {:.3} ms of {:.3} ms per frame (medians)",
+        t.visible, t.drawn, t.false_negatives, t.frames_with_false_negatives, t.false_positives, t.false_positive_rate, t.frames_image_equal, t.frames, t.triangles_drawn, t.cull_gpu_ms, t.frame_gpu_ms
+    );
+    Ok(())
+}

@@ -1,0 +1,588 @@
+//! GPU-driven culling: frustum, HiZ against last frame's pyramid, and two-phase occlusion
+//! culling (seeds 000, 002, 004), as compute passes that write indirect draws.
+//!
+//! The buffers live as long as the renderer (they carry visibility and the pyramid from frame to
+//! frame, and tools read the drawn set back); each frame imports them into its graph, so the
+//! graph orders the culling compute, the indirect draws and the pyramid build and puts the
+//! barriers between them.
+
+use ash::vk;
+use bytemuck::{Pod, Zeroable};
+use glam::Mat4;
+use serde::Serialize;
+use tilegraph_cull::{DepthConvention as CullDepth, Frustum, NpotMode};
+use tilegraph_profile::MemoryUse;
+use tilegraph_scene::DepthConvention;
+use tilegraph_vk::ash;
+use tilegraph_vk::executor::BufferHandle;
+use tilegraph_vk::pipeline::{
+    create_compute_pipeline, create_pipeline_layout, create_set_layout, Stage,
+};
+use tilegraph_vk::{Buffer, Context, Feature, VkError};
+
+use crate::hiz::{HizBuilder, HizLayout};
+
+/// Which culling a frame runs before drawing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Culling {
+    /// Everything is drawn (the CPU draw lists).
+    None,
+    /// GPU frustum culling.
+    Frustum,
+    /// Frustum + HiZ against the previous frame's pyramid with the previous matrices: cheap,
+    /// but wrong for a frame after a cut or a fast turn (false negatives, measured).
+    Hiz,
+    /// Two-phase occlusion culling: last frame's visible set, pyramid from that depth, then the
+    /// rest; no dependence on the previous camera.
+    HizTwoPhase,
+}
+
+impl Culling {
+    pub fn parse(s: &str) -> Option<Culling> {
+        match s {
+            "none" => Some(Culling::None),
+            "frustum" => Some(Culling::Frustum),
+            "hiz" => Some(Culling::Hiz),
+            "hiz-2phase" => Some(Culling::HizTwoPhase),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Culling::None => "none",
+            Culling::Frustum => "frustum",
+            Culling::Hiz => "hiz",
+            Culling::HizTwoPhase => "hiz-2phase",
+        }
+    }
+
+    pub fn uses_pyramid(self) -> bool {
+        matches!(self, Culling::Hiz | Culling::HizTwoPhase)
+    }
+}
+
+/// Draw lists the culling shader writes: opaque and alpha-tested, single- and double-sided,
+/// for the early (or only) phase and the late phase.
+pub const LISTS_PER_PHASE: u32 = 4;
+pub const LIST_COUNT: u32 = 2 * LISTS_PER_PHASE;
+
+/// List index of a class (0 opaque, 1 alpha-tested) and sidedness in a phase (0 early/only,
+/// 1 late).
+pub fn list_index(class: u32, double_sided: bool, phase: u32) -> u32 {
+    phase * LISTS_PER_PHASE + class * 2 + u32::from(double_sided)
+}
+
+/// `CullParams` of `shaders/cull.comp` (std140).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct CullParams {
+    pub planes: [[f32; 4]; 6],
+    pub hiz_view_proj: [[f32; 4]; 4],
+    /// x instances, y phase, z HiZ levels (0 = none), w 1 for reverse-Z.
+    pub info: [u32; 4],
+    /// x, y pyramid level-0 size; z list stride.
+    pub screen: [u32; 4],
+}
+
+/// The phase argument of `cull.comp`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    Frustum = 0,
+    HizPrevious = 1,
+    Early = 2,
+    Late = 3,
+}
+
+fn cull_convention(c: DepthConvention) -> CullDepth {
+    match c {
+        DepthConvention::Reverse => CullDepth::Reverse,
+        DepthConvention::Standard => CullDepth::Standard,
+    }
+}
+
+/// Frustum planes of a camera-relative view-projection, for the shader (absent far plane of an
+/// infinite projection becomes a plane every point passes).
+pub fn gpu_planes(view_proj: Mat4, convention: DepthConvention) -> Result<[[f32; 4]; 6], VkError> {
+    let f =
+        Frustum::from_clip_from_world(&view_proj, cull_convention(convention)).map_err(|e| {
+            VkError::Invalid {
+                what: "frustum".into(),
+                reason: e.to_string(),
+            }
+        })?;
+    Ok(f.gpu_planes().map(|p| p.to_array()))
+}
+
+/// The persistent culling state of one renderer.
+pub struct CullState {
+    pub culling: Culling,
+    pub instance_count: u32,
+    pub commands: Buffer,
+    pub counts: Buffer,
+    pub draw_ids: Buffer,
+    pub visibility: Buffer,
+    pub pyramid: Option<Buffer>,
+    pub levels: Option<Buffer>,
+    pub hiz_layout: Option<HizLayout>,
+    pub hiz: Option<HizBuilder>,
+    params: Vec<Buffer>,
+    /// Per frame slot: each instance's list entry in CPU draw order (`Order` of cull.comp).
+    order: Vec<Buffer>,
+    set_layout: vk::DescriptorSetLayout,
+    pub pipeline_layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+    pool: vk::DescriptorPool,
+    sets: Vec<vk::DescriptorSet>,
+    /// Whether the pyramid holds a previous frame's depth (single-phase HiZ needs one).
+    pub pyramid_valid: bool,
+}
+
+const CULL_SPV: &[u8] = include_bytes!("../../../shaders/spv/cull.comp.spv");
+
+impl CullState {
+    /// Device features GPU culling needs.
+    pub fn required_features() -> [Feature; 2] {
+        [Feature::DrawIndirectCount, Feature::MultiDrawIndirect]
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        ctx: &Context,
+        culling: Culling,
+        instance_count: u32,
+        extent: (u32, u32),
+        depth: DepthConvention,
+        mode: NpotMode,
+        scene_set_layout: vk::DescriptorSetLayout,
+        frames_in_flight: usize,
+    ) -> Result<Self, VkError> {
+        let n = u64::from(instance_count.max(1));
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let gpu = MemoryUse::GpuOnly;
+        let commands = ctx.create_buffer(
+            "cull commands",
+            n * u64::from(LIST_COUNT) * 20,
+            storage | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
+            gpu,
+        )?;
+        let counts = ctx.create_buffer(
+            "cull counts",
+            u64::from(LIST_COUNT) * 4,
+            storage
+                | vk::BufferUsageFlags::INDIRECT_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_DST
+                | vk::BufferUsageFlags::TRANSFER_SRC,
+            gpu,
+        )?;
+        let draw_ids = ctx.create_buffer(
+            "cull draw ids",
+            n * u64::from(LIST_COUNT) * 4,
+            storage | vk::BufferUsageFlags::TRANSFER_SRC,
+            gpu,
+        )?;
+        let visibility = ctx.create_buffer(
+            "visibility",
+            n * 4,
+            storage | vk::BufferUsageFlags::TRANSFER_DST,
+            gpu,
+        )?;
+        let (pyramid, levels, hiz_layout, hiz) = if culling.uses_pyramid() {
+            // The renderer's depth attachment is D32_SFLOAT.
+            let layout = HizLayout::new(
+                extent,
+                mode,
+                cull_convention(depth),
+                tilegraph_cull::DepthFormat::D32Float,
+            )?;
+            let pyramid = ctx.create_buffer(
+                "hiz pyramid",
+                layout.size_bytes(),
+                storage | vk::BufferUsageFlags::TRANSFER_SRC,
+                gpu,
+            )?;
+            let table = level_table(&layout);
+            let levels =
+                crate::gpu_scene::upload(ctx, "hiz levels", bytemuck::cast_slice(&table), storage)?;
+            let builder = HizBuilder::new(ctx, frames_in_flight)?;
+            (Some(pyramid), Some(levels), Some(layout), Some(builder))
+        } else {
+            (None, None, None, None)
+        };
+        let c = vk::ShaderStageFlags::COMPUTE;
+        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
+        let set_layout = create_set_layout(
+            ctx,
+            &[
+                (0, vk::DescriptorType::UNIFORM_BUFFER, c),
+                (1, ssbo, c),
+                (2, ssbo, c),
+                (3, ssbo, c),
+                (4, ssbo, c),
+                (5, ssbo, c),
+                (6, ssbo, c),
+                (7, ssbo, c),
+            ],
+        )?;
+        let pipeline_layout = create_pipeline_layout(ctx, &[scene_set_layout, set_layout], None)?;
+        let pipeline = create_compute_pipeline(
+            ctx,
+            &Stage {
+                name: "cull.comp",
+                spirv: CULL_SPV,
+                specialization: &[],
+            },
+            pipeline_layout,
+        )?;
+        let slots = frames_in_flight.max(1) as u32;
+        let sizes = [
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::UNIFORM_BUFFER,
+                descriptor_count: 4 * slots,
+            },
+            vk::DescriptorPoolSize {
+                ty: ssbo,
+                descriptor_count: 28 * slots,
+            },
+        ];
+        let pool_info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(4 * slots)
+            .pool_sizes(&sizes);
+        // SAFETY: valid create info.
+        let pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
+            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
+        let mut state = CullState {
+            culling,
+            instance_count,
+            commands,
+            counts,
+            draw_ids,
+            visibility,
+            pyramid,
+            levels,
+            hiz_layout,
+            hiz,
+            params: Vec::new(),
+            order: Vec::new(),
+            set_layout,
+            pipeline_layout,
+            pipeline,
+            pool,
+            sets: Vec::new(),
+            pyramid_valid: false,
+        };
+        // Two parameter blocks per slot: the early (or only) and the late dispatch.
+        for i in 0..2 * slots {
+            let b = ctx.create_buffer(
+                &format!("cull params[{i}]"),
+                std::mem::size_of::<CullParams>() as u64,
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                MemoryUse::Streaming,
+            )?;
+            state.params.push(b);
+        }
+        for i in 0..slots {
+            let b = ctx.create_buffer(
+                &format!("cull order[{i}]"),
+                n * 4,
+                storage,
+                MemoryUse::Streaming,
+            )?;
+            state.order.push(b);
+        }
+        for i in 0..2 * slots as usize {
+            let set = state.write_set(ctx, i)?;
+            state.sets.push(set);
+        }
+        Ok(state)
+    }
+
+    fn write_set(&self, ctx: &Context, index: usize) -> Result<vk::DescriptorSet, VkError> {
+        let layouts = [self.set_layout];
+        let alloc = vk::DescriptorSetAllocateInfo::default()
+            .descriptor_pool(self.pool)
+            .set_layouts(&layouts);
+        // SAFETY: the pool holds a set per parameter block.
+        let set = unsafe { ctx.device.allocate_descriptor_sets(&alloc) }
+            .map_err(|r| VkError::call("vkAllocateDescriptorSets", r))?[0];
+        // Without a pyramid the shader never reads bindings 5 and 6; bind small live buffers.
+        let pyramid = self.pyramid.as_ref().map_or(self.counts.raw, |b| b.raw);
+        let levels = self.levels.as_ref().map_or(self.counts.raw, |b| b.raw);
+        let buffers = [
+            (
+                0,
+                vk::DescriptorType::UNIFORM_BUFFER,
+                self.params[index].raw,
+            ),
+            (1, vk::DescriptorType::STORAGE_BUFFER, self.commands.raw),
+            (2, vk::DescriptorType::STORAGE_BUFFER, self.counts.raw),
+            (3, vk::DescriptorType::STORAGE_BUFFER, self.draw_ids.raw),
+            (4, vk::DescriptorType::STORAGE_BUFFER, self.visibility.raw),
+            (5, vk::DescriptorType::STORAGE_BUFFER, pyramid),
+            (6, vk::DescriptorType::STORAGE_BUFFER, levels),
+            (
+                7,
+                vk::DescriptorType::STORAGE_BUFFER,
+                self.order[index / 2].raw,
+            ),
+        ];
+        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = buffers
+            .iter()
+            .map(|(_, _, b)| {
+                [vk::DescriptorBufferInfo {
+                    buffer: *b,
+                    offset: 0,
+                    range: vk::WHOLE_SIZE,
+                }]
+            })
+            .collect();
+        let writes: Vec<vk::WriteDescriptorSet> = buffers
+            .iter()
+            .zip(&infos)
+            .map(|((binding, ty, _), info)| {
+                vk::WriteDescriptorSet::default()
+                    .dst_set(set)
+                    .dst_binding(*binding)
+                    .descriptor_type(*ty)
+                    .buffer_info(info)
+            })
+            .collect();
+        // SAFETY: every buffer is live; the set is new.
+        unsafe { ctx.device.update_descriptor_sets(&writes, &[]) };
+        Ok(set)
+    }
+
+    /// Writes the parameters of the dispatch `which` (0 early/only, 1 late) of frame slot `slot`.
+    pub fn write_params(
+        &mut self,
+        slot: usize,
+        which: usize,
+        params: &CullParams,
+    ) -> Result<(), VkError> {
+        let i = 2 * slot + which;
+        let b = self.params.get_mut(i).ok_or_else(|| VkError::Invalid {
+            what: "cull params".into(),
+            reason: format!("slot {slot}"),
+        })?;
+        let m = b.mapped_mut().ok_or_else(|| VkError::Invalid {
+            what: "cull params".into(),
+            reason: "not host-visible".into(),
+        })?;
+        m[..std::mem::size_of::<CullParams>()].copy_from_slice(bytemuck::bytes_of(params));
+        Ok(())
+    }
+
+    /// Writes frame slot `slot`'s draw order: for each instance, its list entry
+    /// (`list * stride + position`, see [`gpu_order`]).
+    pub fn write_order(&mut self, slot: usize, order: &[u32]) -> Result<(), VkError> {
+        let b = self.order.get_mut(slot).ok_or_else(|| VkError::Invalid {
+            what: "cull order".into(),
+            reason: format!("slot {slot}"),
+        })?;
+        let m = b.mapped_mut().ok_or_else(|| VkError::Invalid {
+            what: "cull order".into(),
+            reason: "not host-visible".into(),
+        })?;
+        let bytes: &[u8] = bytemuck::cast_slice(order);
+        m.get_mut(..bytes.len())
+            .ok_or_else(|| VkError::Invalid {
+                what: "cull order".into(),
+                reason: "too many instances".into(),
+            })?
+            .copy_from_slice(bytes);
+        Ok(())
+    }
+
+    /// Records the culling dispatch (the graph put the barriers around it).
+    pub fn record_dispatch(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        scene_set: vk::DescriptorSet,
+        slot: usize,
+        which: usize,
+    ) -> Result<(), VkError> {
+        let set = *self
+            .sets
+            .get(2 * slot + which)
+            .ok_or_else(|| VkError::Invalid {
+                what: "cull".into(),
+                reason: format!("no set for slot {slot}"),
+            })?;
+        let groups = self.instance_count.div_ceil(64).max(1);
+        // SAFETY: recording outside a render pass; pipeline, layout and sets are live.
+        unsafe {
+            ctx.device
+                .cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, self.pipeline);
+            ctx.device.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::COMPUTE,
+                self.pipeline_layout,
+                0,
+                &[scene_set, set],
+                &[],
+            );
+            ctx.device.cmd_dispatch(cb, groups, 1, 1);
+        }
+        Ok(())
+    }
+
+    /// Records one `vkCmdDrawIndexedIndirectCount` per list.
+    pub fn record_draws(&self, ctx: &Context, cb: vk::CommandBuffer, list: u32) {
+        let stride = u64::from(self.instance_count.max(1));
+        // SAFETY: inside a render pass with a pipeline, vertex/index buffers and sets bound;
+        // commands hold `stride` entries per list; the count is at most `stride` (one per instance).
+        unsafe {
+            ctx.device.cmd_draw_indexed_indirect_count(
+                cb,
+                self.commands.raw,
+                u64::from(list) * stride * 20,
+                self.counts.raw,
+                u64::from(list) * 4,
+                self.instance_count.max(1),
+                20,
+            );
+        }
+    }
+
+    pub fn handle(b: &Buffer) -> BufferHandle {
+        BufferHandle {
+            raw: b.raw,
+            size: b.size,
+        }
+    }
+
+    /// The instances drawn by the last frame: entries whose command has instanceCount 1 (reads
+    /// the counts, commands and draw ids back; waits).
+    pub fn drawn_instances(&self, ctx: &Context) -> Result<Vec<u32>, VkError> {
+        let counts = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.counts))?;
+        let commands = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.commands))?;
+        let ids = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.draw_ids))?;
+        let word = |b: &[u8], i: usize| {
+            b.get(4 * i..4 * i + 4)
+                .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+        };
+        let stride = self.instance_count.max(1) as usize;
+        let mut out = Vec::new();
+        for list in 0..LIST_COUNT as usize {
+            let n = (word(&counts, list) as usize).min(stride);
+            out.extend(
+                (0..n)
+                    .map(|k| list * stride + k)
+                    .filter(|&at| word(&commands, 5 * at + 1) == 1)
+                    .map(|at| word(&ids, at)),
+            );
+        }
+        out.sort_unstable();
+        out.dedup();
+        Ok(out)
+    }
+
+    pub fn destroy(self, ctx: &Context) {
+        if let Some(h) = self.hiz {
+            h.destroy(ctx);
+        }
+        // SAFETY: the GPU is idle (caller's guarantee).
+        unsafe {
+            ctx.device.destroy_pipeline(self.pipeline, None);
+            ctx.device
+                .destroy_pipeline_layout(self.pipeline_layout, None);
+            ctx.device.destroy_descriptor_pool(self.pool, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+        for b in [
+            Some(self.commands),
+            Some(self.counts),
+            Some(self.draw_ids),
+            Some(self.visibility),
+            self.pyramid,
+            self.levels,
+        ]
+        .into_iter()
+        .flatten()
+        {
+            ctx.destroy_buffer(b);
+        }
+        for b in self.params.into_iter().chain(self.order) {
+            ctx.destroy_buffer(b);
+        }
+    }
+}
+
+/// `Levels` of `cull.comp`: per level (offset, width, height, 0) and the pixel -> texel scale.
+pub fn level_table(layout: &HizLayout) -> Vec<[u32; 4]> {
+    let mut out = Vec::with_capacity(2 * layout.levels.len());
+    let (w0, h0) = layout
+        .levels
+        .first()
+        .map_or((1, 1), |l| (l.width, l.height));
+    let (p_w, p_h) = layout.levels.get(1).map_or((1, 1), |l| (l.width, l.height));
+    for (k, l) in layout.levels.iter().enumerate() {
+        out.push([l.offset_texels as u32, l.width, l.height, 0]);
+        let scale = match (layout.mode, k) {
+            (_, 0) => [1, 1, 1, 1],
+            (NpotMode::PadToPow2, k) => {
+                let f = 1u32 << (k - 1);
+                [p_w, w0 * f, p_h, h0 * f]
+            }
+            (_, k) => [1, 1 << k, 1, 1 << k],
+        };
+        out.push(scale);
+    }
+    out
+}
+
+/// CPU plane-test frustum culling (the reference's conservative test) of every instance, in
+/// camera-relative f64 bounds: `mask[i]` = not rejected. Used for blended geometry, which the
+/// GPU lists leave to the CPU so it can be sorted back to front.
+pub fn cpu_frustum_mask(
+    scene: &tilegraph_scene::Scene,
+    m: &tilegraph_scene::FrameMatrices,
+) -> Result<Vec<bool>, VkError> {
+    let invalid = |e: tilegraph_cull::CullError| VkError::Invalid {
+        what: "frustum".into(),
+        reason: e.to_string(),
+    };
+    let frustum = Frustum::from_clip_from_world(&m.view_projection, cull_convention(m.depth))
+        .map_err(invalid)?;
+    scene
+        .instances()
+        .iter()
+        .map(|inst| {
+            let b = inst.bounds.aabb();
+            let aabb =
+                tilegraph_cull::Aabb::from_world_f64(b.min, b.max, m.eye).map_err(invalid)?;
+            Ok(!matches!(
+                frustum.test_aabb(&aabb).map_err(invalid)?,
+                tilegraph_cull::PlaneTest::Outside(_)
+            ))
+        })
+        .collect()
+}
+
+/// Each instance's entry in the GPU lists, in the order the CPU draw list draws it (single-sided
+/// draws of a class first, then double-sided, as [`crate::render`] records them): `list *
+/// stride + position`, `u32::MAX` for blended instances (not culled on the GPU).
+pub fn gpu_order(draws: &crate::draws::DrawList, instance_count: usize) -> Vec<u32> {
+    let stride = instance_count.max(1) as u32;
+    let mut order = vec![u32::MAX; instance_count];
+    for (class, list_draws) in [(0u32, &draws.opaque), (1, &draws.alpha_tested)] {
+        for sided in [false, true] {
+            let list = list_index(class, sided, 0);
+            let mut position = 0u32;
+            for d in list_draws.iter().filter(|d| d.double_sided == sided) {
+                for k in d.first_instance..d.first_instance + d.instance_count {
+                    if let Some(&id) = draws.instances.get(k as usize) {
+                        if let Some(o) = order.get_mut(id as usize) {
+                            *o = list * stride + position;
+                            position += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    order
+}

@@ -1,0 +1,277 @@
+//! Measuring a culling technique against the exact oracle, frame by frame.
+//!
+//! For every frame of a camera path three renderers run on the same device: the **oracle**
+//! (visibility buffer of every instance, no culling, ids read back: V = the instances that own at
+//! least one pixel), the **reference** (forward, no culling) and the **technique** (forward with
+//! the culling under test; D = what its GPU lists drew). Then FN = V \ D (visible but culled:
+//! holes, popping), FP = D \ V (hidden but drawn: wasted work), and whether the technique's image
+//! equals the reference bit for bit. Blended instances are outside the comparison: no technique
+//! culls them on the GPU (they are frustum-culled on the CPU and sorted), and the visibility buffer
+//! does not hold them.
+
+use serde::Serialize;
+use tilegraph_scene::{CameraPath, Scene};
+use tilegraph_vk::Context;
+
+use crate::cull::Culling;
+use crate::render::{RenderError, RenderOptions, SceneRenderer};
+use crate::setup::Technique;
+
+/// One frame's comparison.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameCheck {
+    pub frame: usize,
+    /// The camera jumped to this frame.
+    pub cut: bool,
+    pub visible: usize,
+    pub drawn: usize,
+    pub false_negatives: usize,
+    pub false_positives: usize,
+    pub image_equal: bool,
+    /// Pixels where the technique's image differs from the unculled one.
+    pub image_diff_pixels: usize,
+    /// Of those, pixels whose owner in the oracle was drawn by the technique: a draw-order tie
+    /// between coplanar or intersecting surfaces (two-phase culling draws some instances in its
+    /// second phase), not a culling error. A culling error shows as a difference at a pixel whose
+    /// owner was culled.
+    pub image_diff_pixels_owner_drawn: usize,
+    /// Triangles of the drawn instances.
+    pub triangles_drawn: u64,
+    /// Up to 8 instance ids that were visible but culled (for debugging).
+    pub false_negative_ids: Vec<u32>,
+}
+
+/// Totals over the path.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Totals {
+    pub frames: usize,
+    /// Opaque and alpha-tested instances (what the comparison covers).
+    pub instances: usize,
+    pub visible: usize,
+    pub drawn: usize,
+    pub false_negatives: usize,
+    pub false_positives: usize,
+    /// FP / drawn.
+    pub false_positive_rate: f64,
+    pub frames_with_false_negatives: usize,
+    pub frames_image_equal: usize,
+    pub triangles_drawn: u64,
+    /// Median GPU milliseconds of the culling passes (culling compute and pyramid builds),
+    /// summed, and of the whole frame, from timestamps.
+    pub cull_gpu_ms: f64,
+    pub frame_gpu_ms: f64,
+}
+
+/// The whole report (`tilegraph cull-check --json`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CullCheck {
+    pub technique: String,
+    pub scene: String,
+    pub profile: String,
+    pub size: [u32; 2],
+    pub frames: Vec<FrameCheck>,
+    pub totals: Totals,
+}
+
+/// Runs `culling` along `path` (every frame, or the first `max_frames`).
+pub fn cull_check(
+    ctx: &Context,
+    scene: &Scene,
+    culling: Culling,
+    path: &CameraPath,
+    size: (u32, u32),
+    max_frames: Option<usize>,
+    hiz_mode: tilegraph_cull::NpotMode,
+) -> Result<CullCheck, RenderError> {
+    let base = RenderOptions {
+        width: size.0,
+        height: size.1,
+        hiz_mode,
+        ..Default::default()
+    };
+    let mut oracle = SceneRenderer::new(
+        ctx,
+        scene,
+        RenderOptions {
+            technique: Technique::Visbuf,
+            capture_ids: true,
+            ..base.clone()
+        },
+    )?;
+    let mut reference = SceneRenderer::new(
+        ctx,
+        scene,
+        RenderOptions {
+            technique: Technique::Forward,
+            ..base.clone()
+        },
+    )?;
+    let mut tested = SceneRenderer::new(
+        ctx,
+        scene,
+        RenderOptions {
+            technique: Technique::Forward,
+            culling,
+            ..base
+        },
+    )?;
+    let result = run(
+        ctx,
+        scene,
+        culling,
+        path,
+        size,
+        max_frames,
+        &mut oracle,
+        &mut reference,
+        &mut tested,
+    );
+    oracle.destroy(ctx);
+    reference.destroy(ctx);
+    tested.destroy(ctx);
+    result
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run(
+    ctx: &Context,
+    scene: &Scene,
+    culling: Culling,
+    path: &CameraPath,
+    size: (u32, u32),
+    max_frames: Option<usize>,
+    oracle: &mut SceneRenderer,
+    reference: &mut SceneRenderer,
+    tested: &mut SceneRenderer,
+) -> Result<CullCheck, RenderError> {
+    let aspect = size.0 as f32 / size.1 as f32;
+    let n = scene.instances().len();
+    let blended: Vec<bool> = scene
+        .instances()
+        .iter()
+        .map(|i| {
+            scene
+                .instance_material(i)
+                .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
+        })
+        .collect();
+    let tri = |i: usize| {
+        scene
+            .instances()
+            .get(i)
+            .and_then(|inst| scene.mesh(inst.mesh))
+            .map_or(0, |m| u64::from(m.triangle_count()))
+    };
+    let count = max_frames.map_or(path.len(), |m| m.min(path.len()));
+    let mut frames = Vec::with_capacity(count);
+    for index in 0..count {
+        let Some(frame) = path.frame(index, aspect) else {
+            break;
+        };
+        oracle.render_frame(ctx, scene, &frame)?;
+        let ids = oracle.read_instance_ids(ctx)?.unwrap_or_default();
+        let mut visible = vec![false; n];
+        for &id in &ids {
+            if let Some(v) = visible.get_mut(id as usize) {
+                *v = true;
+            }
+        }
+        reference.render_frame(ctx, scene, &frame)?;
+        let want = reference.read_image(ctx)?;
+        tested.render_frame(ctx, scene, &frame)?;
+        let got = tested.read_image(ctx)?;
+        let mut drawn = vec![false; n];
+        match tested.drawn_instances(ctx)? {
+            Some(list) => {
+                for id in list {
+                    if let Some(d) = drawn.get_mut(id as usize) {
+                        *d = true;
+                    }
+                }
+            }
+            None => drawn.iter_mut().for_each(|d| *d = true),
+        }
+        let mut check = FrameCheck {
+            frame: index,
+            cut: frame.cut,
+            visible: 0,
+            drawn: 0,
+            false_negatives: 0,
+            false_positives: 0,
+            image_equal: got == want,
+            image_diff_pixels: 0,
+            image_diff_pixels_owner_drawn: 0,
+            triangles_drawn: 0,
+            false_negative_ids: Vec::new(),
+        };
+        for (p, (a, b)) in got
+            .pixels
+            .chunks_exact(4)
+            .zip(want.pixels.chunks_exact(4))
+            .enumerate()
+        {
+            if a != b {
+                check.image_diff_pixels += 1;
+                let owner = ids.get(p).copied().unwrap_or(u32::MAX) as usize;
+                if drawn.get(owner).copied().unwrap_or(false) {
+                    check.image_diff_pixels_owner_drawn += 1;
+                }
+            }
+        }
+        for i in (0..n).filter(|&i| !blended[i]) {
+            check.visible += usize::from(visible[i]);
+            if drawn[i] {
+                check.drawn += 1;
+                check.triangles_drawn += tri(i);
+            }
+            match (visible[i], drawn[i]) {
+                (true, false) => {
+                    check.false_negatives += 1;
+                    if check.false_negative_ids.len() < 8 {
+                        check.false_negative_ids.push(i as u32);
+                    }
+                }
+                (false, true) => check.false_positives += 1,
+                _ => {}
+            }
+        }
+        frames.push(check);
+    }
+    tested.finish(ctx)?;
+    let medians = tested.medians();
+    let is_cull = |name: &str| name.starts_with("cull") || name.starts_with("hiz");
+    let totals = Totals {
+        frames: frames.len(),
+        instances: blended.iter().filter(|b| !**b).count(),
+        visible: frames.iter().map(|f| f.visible).sum(),
+        drawn: frames.iter().map(|f| f.drawn).sum(),
+        false_negatives: frames.iter().map(|f| f.false_negatives).sum(),
+        false_positives: frames.iter().map(|f| f.false_positives).sum(),
+        false_positive_rate: {
+            let drawn: usize = frames.iter().map(|f| f.drawn).sum();
+            let fp: usize = frames.iter().map(|f| f.false_positives).sum();
+            if drawn == 0 {
+                0.0
+            } else {
+                fp as f64 / drawn as f64
+            }
+        },
+        frames_with_false_negatives: frames.iter().filter(|f| f.false_negatives > 0).count(),
+        frames_image_equal: frames.iter().filter(|f| f.image_equal).count(),
+        triangles_drawn: frames.iter().map(|f| f.triangles_drawn).sum(),
+        cull_gpu_ms: medians
+            .iter()
+            .filter(|m| is_cull(&m.name))
+            .map(|m| m.median_gpu_ms)
+            .sum(),
+        frame_gpu_ms: medians.iter().map(|m| m.median_gpu_ms).sum(),
+    };
+    Ok(CullCheck {
+        technique: culling.name().to_string(),
+        scene: scene.name().to_string(),
+        profile: ctx.profile().name.clone(),
+        size: [size.0, size.1],
+        frames,
+        totals,
+    })
+}

@@ -1,0 +1,146 @@
+#version 450
+// GPU-driven culling, one thread per instance (seeds 000, 002, 004). Writes each instance's
+// VkDrawIndexedIndirectCommand (instanceCount 1 = drawn, 0 = culled) at its fixed entry of the
+// list of its draw class, and the instance id into the GPU draw list, for
+// vkCmdDrawIndexedIndirectCount.
+//
+// Phases (cull.info.y):
+//   0 frustum      frustum only;
+//   1 hiz          frustum + HiZ test against the previous frame's pyramid, projected with the
+//                  previous frame's matrices (reprojected to the current eye);
+//   2 early        two-phase, first half: what was visible last frame and is in the frustum;
+//   3 late         two-phase, second half: test everything in the frustum against the pyramid
+//                  of the early depth; draw what is visible and was not drawn early; the result
+//                  is next frame's visibility.
+// Blended instances are not culled here (they are sorted back to front on the CPU).
+#include "scene.glsl"
+
+layout(local_size_x = 64) in;
+
+layout(set = 1, binding = 0, std140) uniform CullParams {
+    vec4 planes[6];        // camera-relative frustum planes (xyz normal, w distance); (0,0,0,1) = absent
+    mat4 hiz_view_proj;    // camera-relative position -> clip space of the frame the pyramid was built in
+    uvec4 info;            // x: instances, y: phase, z: HiZ levels (0 = no pyramid), w: 1 reverse-Z
+    uvec4 screen;          // x, y: pyramid level-0 size (px), z: list stride (instances)
+} cull;
+layout(set = 1, binding = 1, std430) writeonly buffer Commands { uint commands[]; }; // 5 uints each
+layout(set = 1, binding = 2, std430) buffer Counts { uint counts[]; };              // 8 lists
+layout(set = 1, binding = 3, std430) writeonly buffer DrawIds { uint draw_ids[]; };
+layout(set = 1, binding = 4, std430) buffer Visibility { uint visible_last[]; };     // 0 / 1 per instance
+layout(set = 1, binding = 5, std430) readonly buffer Pyramid { float pyramid[]; };
+// Per level: (offset, width, height, 0), then (texels_x, pixels_x, texels_y, pixels_y): level-0
+// pixel p maps to texel min(p * texels / pixels, size - 1) (docs/CULLING.md).
+layout(set = 1, binding = 6, std430) readonly buffer Levels { uvec4 levels[]; };
+// Per instance: its entry in its list, list * stride + position, in the CPU draw order (the
+// order an unculled frame draws in), so the culled frame draws the survivors in the same order
+// and ties between coplanar surfaces resolve the same way. ~0u for blended instances.
+layout(set = 1, binding = 7, std430) readonly buffer Order { uint order[]; };
+
+bool frustum_visible(Instance inst) {
+    for (int i = 0; i < 6; ++i) {
+        vec4 pl = cull.planes[i];
+        float s = dot(pl.xyz, inst.center) + dot(abs(pl.xyz), inst.half_extents) + pl.w;
+        // Relative slack: an f32 evaluation must never reject a box that touches the frustum.
+        float slack = 1e-5 * (abs(dot(pl.xyz, inst.center)) + dot(abs(pl.xyz), inst.half_extents) + abs(pl.w));
+        if (s < -slack) {
+            return false;
+        }
+    }
+    return true;
+}
+
+bool farther(float a, float b) { return cull.info.w == 1u ? a < b : a > b; }
+
+// Conservative HiZ test of the instance's AABB (8 corners) against the pyramid.
+bool hiz_visible(Instance inst) {
+    if (cull.info.z == 0u) {
+        return true;
+    }
+    bool reverse = cull.info.w == 1u;
+    vec2 lo = vec2(1e30), hi = vec2(-1e30);
+    float nearest = reverse ? 0.0 : 1.0;
+    for (uint i = 0u; i < 8u; ++i) {
+        vec3 s = vec3((i & 1u) != 0u ? 1.0 : -1.0, (i & 2u) != 0u ? 1.0 : -1.0, (i & 4u) != 0u ? 1.0 : -1.0);
+        vec4 clip = cull.hiz_view_proj * vec4(inst.center + s * inst.half_extents, 1.0);
+        if (clip.w <= 1e-6) {
+            return true; // touches or crosses the near plane, or the camera is inside: visible
+        }
+        vec3 ndc = clip.xyz / clip.w;
+        if (reverse ? ndc.z >= 1.0 : ndc.z <= 0.0) {
+            return true; // at or in front of the near plane
+        }
+        lo = min(lo, ndc.xy);
+        hi = max(hi, ndc.xy);
+        nearest = reverse ? max(nearest, ndc.z) : min(nearest, ndc.z);
+    }
+    vec2 size = vec2(cull.screen.xy);
+    ivec2 pmin = ivec2(floor((lo * 0.5 + 0.5) * size));
+    ivec2 pmax = ivec2(floor((hi * 0.5 + 0.5) * size));
+    ivec2 smax = ivec2(cull.screen.xy) - 1;
+    if (any(lessThan(pmax, ivec2(0))) || any(greaterThan(pmin, smax))) {
+        return true; // off screen: the frustum test's business
+    }
+    uvec2 a = uvec2(clamp(pmin, ivec2(0), smax));
+    uvec2 b = uvec2(clamp(pmax, ivec2(0), smax));
+    // Rounding margin: move the nearest depth 4 ulps towards the camera.
+    nearest = uintBitsToFloat(reverse ? floatBitsToUint(nearest) + 4u : max(floatBitsToUint(nearest), 4u) - 4u);
+    for (uint k = 0u; k < cull.info.z; ++k) {
+        uvec4 l = levels[2u * k];
+        uvec4 sc = levels[2u * k + 1u];
+        uvec2 ext = l.yz;
+        uvec2 t0 = min(uvec2(a.x * sc.x / sc.y, a.y * sc.z / sc.w), ext - 1u);
+        uvec2 t1 = min(uvec2(b.x * sc.x / sc.y, b.y * sc.z / sc.w), ext - 1u);
+        if (t1.x - t0.x <= 1u && t1.y - t0.y <= 1u) {
+            float far = reverse ? 1.0 : 0.0;
+            for (uint y = t0.y; y <= t1.y; ++y) {
+                for (uint x = t0.x; x <= t1.x; ++x) {
+                    float d = pyramid[l.x + y * ext.x + x];
+                    far = farther(d, far) ? d : far;
+                }
+            }
+            return !farther(nearest, far); // occluded only when strictly behind every texel
+        }
+    }
+    return true;
+}
+
+// Writes the instance's command at its fixed entry of list `list`: drawn (instanceCount 1) or
+// not (0). Entries never move, so the frame is deterministic (no atomic append order).
+void emit(uint list, uint id, Instance inst, bool draw) {
+    Mesh m = meshes[inst.mesh];
+    uint entry = order[id];
+    uint position = entry % cull.screen.z;
+    uint at = list * cull.screen.z + position;
+    commands[5u * at + 0u] = m.index_count;
+    commands[5u * at + 1u] = draw ? 1u : 0u;
+    commands[5u * at + 2u] = m.first_index;
+    commands[5u * at + 3u] = uint(m.vertex_offset);
+    commands[5u * at + 4u] = at; // firstInstance: the draw-list entry
+    draw_ids[at] = id;
+    atomicMax(counts[list], position + 1u);
+}
+
+void main() {
+    uint id = gl_GlobalInvocationID.x;
+    if (id >= cull.info.x) {
+        return;
+    }
+    Instance inst = instances[id];
+    if (order[id] == 0xFFFFFFFFu) {
+        return;
+    }
+    uint list = order[id] / cull.screen.z;
+    uint phase = cull.info.y;
+    bool in_frustum = frustum_visible(inst);
+    if (phase == 0u) {
+        emit(list, id, inst, in_frustum);
+    } else if (phase == 1u) {
+        emit(list, id, inst, in_frustum && hiz_visible(inst));
+    } else if (phase == 2u) {
+        emit(list, id, inst, in_frustum && visible_last[id] != 0u);
+    } else {
+        bool visible = in_frustum && hiz_visible(inst);
+        emit(4u + list, id, inst, visible && visible_last[id] == 0u);
+        visible_last[id] = visible ? 1u : 0u;
+    }
+}
