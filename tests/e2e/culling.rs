@@ -135,3 +135,80 @@ fn occlusion_culling_draws_less_than_frustum_culling_in_the_city() {
     assert_eq!(single.frames[0].false_negatives, 0);
     assert!(late(&single) * 2 < late(&frustum));
 }
+
+/// Extremes on the GPU path: a world 10^6 m from the origin (camera-relative transforms), odd
+/// and tiny viewports (non-power-of-two pyramids down to 1x1) — no visible instance culled.
+#[test]
+fn extremes_keep_two_phase_culling_conservative() {
+    let features = FeatureRequest::default().require([
+        Feature::GeometryShader,
+        Feature::DrawIndirectCount,
+        Feature::MultiDrawIndirect,
+    ]);
+    let mut scene = tilegraph_scene::load("city:800").unwrap();
+    let near_origin = {
+        let g = gpu_with(None, features.clone()).unwrap();
+        cull_check(
+            &g,
+            &scene,
+            Culling::HizTwoPhase,
+            &test_path(&scene, 6),
+            SIZE,
+            None,
+            tilegraph_cull::NpotMode::EdgeAware,
+        )
+        .unwrap()
+    };
+    scene.translate(glam::DVec3::new(1.0e6, 0.0, -1.0e6));
+    let mut lines = vec![summary(&near_origin)];
+    for (size, mode) in [
+        (SIZE, tilegraph_cull::NpotMode::EdgeAware),
+        ((27, 13), tilegraph_cull::NpotMode::EdgeAware),
+        ((27, 13), tilegraph_cull::NpotMode::PadToPow2),
+        ((1, 1), tilegraph_cull::NpotMode::EdgeAware),
+        ((3, 3), tilegraph_cull::NpotMode::PadToPow2),
+    ] {
+        let g = gpu_with(None, features.clone()).unwrap();
+        let r = cull_check(
+            &g,
+            &scene,
+            Culling::HizTwoPhase,
+            &test_path(&scene, 6),
+            size,
+            None,
+            mode,
+        )
+        .unwrap();
+        lines.push(format!(
+            "at 1e6 m, {}x{} {mode:?}: {}",
+            size.0,
+            size.1,
+            summary(&r)
+        ));
+        for f in &r.frames {
+            assert_eq!(
+                f.false_negatives, 0,
+                "{size:?} {mode:?}: frame {} culled {:?}",
+                f.frame, f.false_negative_ids
+            );
+            assert_eq!(
+                f.image_diff_pixels, f.image_diff_pixels_owner_drawn,
+                "{size:?} {mode:?}: frame {} has a hole",
+                f.frame
+            );
+        }
+        if size == SIZE {
+            // Far from the origin the view is the same: the same instances are visible.
+            for (a, b) in r.frames.iter().zip(&near_origin.frames) {
+                assert!(
+                    a.visible.abs_diff(b.visible) <= 1,
+                    "frame {}: {} visible at 1e6 m vs {} at the origin",
+                    a.frame,
+                    a.visible,
+                    b.visible
+                );
+            }
+        }
+    }
+    println!("{}", lines.join("\n"));
+}
