@@ -10,8 +10,9 @@
 //                  previous frame's matrices (reprojected to the current eye);
 //   2 early        two-phase, first half: what was visible last frame and is in the frustum;
 //   3 late         two-phase, second half: test everything in the frustum against the pyramid
-//                  of the early depth; draw what is visible and was not drawn early; the result
-//                  is next frame's visibility.
+//                  of the early depth; list what is visible and was not drawn early (and add it
+//                  to the early lists, which the colour pass then draws); the result is next
+//                  frame's visibility.
 // Blended instances are not culled here (they are sorted back to front on the CPU).
 #include "scene.glsl"
 
@@ -140,7 +141,13 @@ void main() {
         emit(list, id, inst, in_frustum && visible_last[id] != 0u);
     } else {
         bool visible = in_frustum && hiz_visible(inst);
-        emit(4u + list, id, inst, visible && visible_last[id] == 0u);
+        bool late = visible && visible_last[id] == 0u;
+        emit(4u + list, id, inst, late);
+        if (late) {
+            // The colour pass draws the early lists completed with the newly visible: the union,
+            // in the unculled order.
+            commands[5u * (list * cull.screen.z + order[id] % cull.screen.z) + 1u] = 1u;
+        }
         visible_last[id] = visible ? 1u : 0u;
     }
 }

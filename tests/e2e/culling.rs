@@ -66,7 +66,17 @@ fn summary(r: &CullCheck) -> String {
 #[test]
 fn conservative_techniques_never_cull_a_visible_instance() {
     let mut lines = Vec::new();
-    for spec in ["city:1500", "forest:800", "interior:800"] {
+    let mut specs: Vec<String> = ["city:1500", "forest:800", "interior:800"]
+        .map(String::from)
+        .to_vec();
+    match tilegraph_e2e::test_data("scenes/FlightHelmet/FlightHelmet.gltf") {
+        Some(p) => specs.push(p.display().to_string()),
+        None => eprintln!(
+            "skipping FlightHelmet: {} not found",
+            tilegraph_e2e::test_data_dir().display()
+        ),
+    }
+    for spec in &specs {
         let scene = tilegraph_scene::load(spec).unwrap();
         for culling in [Culling::Frustum, Culling::HizTwoPhase] {
             let r = check(&scene, culling, 12);
@@ -77,30 +87,7 @@ fn conservative_techniques_never_cull_a_visible_instance() {
                     "{spec} {}: frame {} culled visible instances {:?}",
                     r.technique, f.frame, f.false_negative_ids
                 );
-                if culling == Culling::Frustum {
-                    // Same draw order as the unculled frame: bit for bit.
-                    assert!(
-                        f.image_equal,
-                        "{spec} {}: frame {} differs from the unculled image",
-                        r.technique, f.frame
-                    );
-                } else {
-                    // Two phases change the draw order of instances that became visible: only
-                    // pixels on depth ties between drawn instances may differ, never a pixel
-                    // whose owner was culled, and only a few.
-                    assert_eq!(
-                        f.image_diff_pixels, f.image_diff_pixels_owner_drawn,
-                        "{spec} {}: frame {} has a hole",
-                        r.technique, f.frame
-                    );
-                    assert!(
-                        f.image_diff_pixels * 200 <= (SIZE.0 * SIZE.1) as usize,
-                        "{spec} {}: frame {}: {} pixels differ",
-                        r.technique,
-                        f.frame,
-                        f.image_diff_pixels
-                    );
-                }
+                assert!(f.image_equal, "{spec} {}: frame {} differs from the unculled image in {} pixels ({} owned by drawn instances)", r.technique, f.frame, f.image_diff_pixels, f.image_diff_pixels_owner_drawn);
                 assert!(f.visible > 0, "{spec}: frame {} sees nothing", f.frame);
             }
             assert!(r.totals.drawn >= r.totals.visible);

@@ -1043,6 +1043,11 @@ impl SceneRenderer {
                 c.storage_read(p);
             }
         }
+        // Two-phase with a pre-pass: depth of the early lists, pyramid, late culling, depth of
+        // the late lists, then colour once over the union (the early lists, which the late
+        // dispatch completes) in the unculled order. The visibility buffer draws ids in both
+        // phases instead.
+        let split_depth = two_phase && setup.has_prepass();
         let phases: &[u32] = if two_phase { &[0, 1] } else { &[0] };
         for &phase in phases {
             if phase == 1 {
@@ -1050,7 +1055,7 @@ impl SceneRenderer {
                     self.declare_hiz_build(&mut g, f.depth, b);
                     let mut c = g.compute_pass("cull-late", PassClass::Compute, self.dispatch(1));
                     c.storage_read_write(b.counts)
-                        .storage_write(b.commands)
+                        .storage_read_write(b.commands)
                         .storage_write(b.draw_ids)
                         .storage_read_write(b.visibility);
                     if let Some(p) = b.pyramid {
@@ -1064,7 +1069,22 @@ impl SceneRenderer {
                 (true, _) => "-late",
             };
             for pass in setup.included() {
+                let depth_only = matches!(
+                    pass,
+                    PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha
+                );
+                if split_depth && !depth_only {
+                    continue; // colour after both depth phases
+                }
                 self.declare_geometry(&mut g, &mut f, pass, phase, suffix, profile);
+            }
+        }
+        if split_depth {
+            for pass in setup
+                .included()
+                .filter(|p| matches!(p, PassKind::Opaque | PassKind::AlphaTested))
+            {
+                self.declare_geometry(&mut g, &mut f, pass, 0, "", profile);
             }
         }
         if setup.includes(PassKind::VisbufResolve) {

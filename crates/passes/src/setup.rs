@@ -115,16 +115,23 @@ impl FrameSetup {
     /// two phases with a pyramid build between them, so the depth pre-pass is left out (it
     /// would need two phases of its own to stay exact).
     pub fn with_culling(mut self, culling: crate::cull::Culling) -> FrameSetup {
-        if culling == crate::cull::Culling::HizTwoPhase {
-            for d in &mut self.decisions {
-                if matches!(
-                    d.pass,
-                    PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha
-                ) && d.included
-                {
-                    d.included = false;
-                    d.reason = "two-phase occlusion culling draws in two phases; a pre-pass would need two phases of its own".into();
-                }
+        if culling != crate::cull::Culling::HizTwoPhase || self.technique == Technique::Visbuf {
+            return self;
+        }
+        // Two-phase culling draws depth twice (last frame's visible set, then the newly visible)
+        // and colour once, EQUAL, in the unculled draw order: the pre-pass is part of the
+        // technique, whatever the profile says.
+        let opaque = self.includes(PassKind::Opaque);
+        let alpha = self.includes(PassKind::AlphaTested);
+        for d in &mut self.decisions {
+            let wanted = match d.pass {
+                PassKind::DepthPrepassOpaque => opaque,
+                PassKind::DepthPrepassAlpha => alpha,
+                _ => continue,
+            };
+            if wanted && !d.included {
+                d.included = true;
+                d.reason = "two-phase occlusion culling: depth of last frame's visible set, the pyramid, then the newly visible; colour once".into();
             }
         }
         self
