@@ -103,38 +103,65 @@ fn add(slot: &mut u64, bytes: u64) {
     *slot = slot.saturating_add(bytes);
 }
 
-/// Bytes of one load or store of an attachment (mip 0, all samples).
-fn attachment_bytes(desc: &ResourceDesc) -> u64 {
-    match desc {
-        ResourceDesc::Image(d) => d.attachment_bytes(),
-        ResourceDesc::Buffer(d) => d.size_bytes,
+const SAMPLED: u16 = role(UseKind::Sampled);
+const STORAGE_READS: u16 = role(UseKind::StorageRead) | role(UseKind::StorageReadWrite);
+const STORAGE_WRITES: u16 = role(UseKind::StorageWrite) | role(UseKind::StorageReadWrite);
+const BUFFER_READS: u16 =
+    role(UseKind::Uniform) | role(UseKind::Vertex) | role(UseKind::Index) | role(UseKind::Indirect);
+const TRANSFER_SRC: u16 = role(UseKind::TransferSrc);
+const TRANSFER_DST: u16 = role(UseKind::TransferDst);
+const RESOLVE: u16 = role(UseKind::ResolveTarget {
+    source: ResourceId(0),
+});
+
+/// Per resource: bytes of one attachment load or store (mip 0, all samples), and of the whole
+/// resource (every mip; a buffer's size).
+struct Sizes {
+    attachment: Vec<u64>,
+    whole: Vec<u64>,
+}
+
+impl Sizes {
+    fn of(resources: &[PlanResource]) -> Self {
+        let attachment = resources
+            .iter()
+            .map(|r| match &r.desc {
+                ResourceDesc::Image(d) => d.attachment_bytes(),
+                ResourceDesc::Buffer(d) => d.size_bytes,
+            })
+            .collect();
+        let whole = resources.iter().map(|r| r.estimated_size_bytes).collect();
+        Sizes { attachment, whole }
+    }
+
+    fn attachment(&self, r: ResourceId) -> u64 {
+        self.attachment.get(r.index()).copied().unwrap_or(0)
+    }
+
+    fn whole(&self, r: ResourceId) -> u64 {
+        self.whole.get(r.index()).copied().unwrap_or(0)
     }
 }
 
 /// Traffic that does not go through attachments: descriptors, vertex input, transfers.
-fn memory_traffic(a: &Access, desc: &ResourceDesc, out: &mut TrafficBreakdown) {
-    let bytes = desc.size_bytes();
-    let has = |kind: UseKind| a.roles & role(kind) != 0;
-    if has(UseKind::Sampled) {
+fn memory_traffic(a: &Access, bytes: u64, out: &mut TrafficBreakdown) {
+    let roles = a.roles;
+    if roles & SAMPLED != 0 {
         add(&mut out.sampled_read_bytes, bytes);
     }
-    if has(UseKind::StorageRead) || has(UseKind::StorageReadWrite) {
+    if roles & STORAGE_READS != 0 {
         add(&mut out.storage_read_bytes, bytes);
     }
-    if has(UseKind::StorageWrite) || has(UseKind::StorageReadWrite) {
+    if roles & STORAGE_WRITES != 0 {
         add(&mut out.storage_write_bytes, bytes);
     }
-    if has(UseKind::Uniform)
-        || has(UseKind::Vertex)
-        || has(UseKind::Index)
-        || has(UseKind::Indirect)
-    {
+    if roles & BUFFER_READS != 0 {
         add(&mut out.buffer_read_bytes, bytes);
     }
-    if has(UseKind::TransferSrc) {
+    if roles & TRANSFER_SRC != 0 {
         add(&mut out.transfer_read_bytes, bytes);
     }
-    if has(UseKind::TransferDst) {
+    if roles & TRANSFER_DST != 0 {
         add(&mut out.transfer_write_bytes, bytes);
     }
 }
@@ -146,22 +173,23 @@ pub(crate) fn estimate_traffic(
     resources: &[PlanResource],
     accesses: &PassAccesses<'_>,
 ) -> TrafficEstimate {
-    let desc = |r: ResourceId| resources.get(r.index()).map(|x| &x.desc);
-    let mut planned = TrafficBreakdown::default();
-    let mut naive = TrafficBreakdown::default();
+    let sizes = Sizes::of(resources);
 
     // Traffic common to both plans, and the naive attachment traffic.
+    let mut common = TrafficBreakdown::default();
+    let mut naive_attachments = 0u64;
     for pass in passes {
         for a in accesses.of(pass.id) {
-            let Some(d) = desc(a.resource) else { continue };
-            memory_traffic(a, d, &mut planned);
-            memory_traffic(a, d, &mut naive);
+            memory_traffic(a, sizes.whole(a.resource), &mut common);
             if pass.kind == PassKind::Raster && a.attachment {
-                add(&mut naive.attachment_read_bytes, attachment_bytes(d));
-                add(&mut naive.attachment_write_bytes, attachment_bytes(d));
+                naive_attachments = naive_attachments.saturating_add(sizes.attachment(a.resource));
             }
         }
     }
+    let mut naive = common;
+    add(&mut naive.attachment_read_bytes, naive_attachments);
+    add(&mut naive.attachment_write_bytes, naive_attachments);
+    let mut planned = common;
 
     match model {
         TrafficModel::Tiler => {
@@ -181,10 +209,7 @@ pub(crate) fn estimate_traffic(
                     }
                 }
                 for (att, &on_chip) in rp.attachments.iter().zip(&on_chip) {
-                    let Some(d) = desc(att.resource) else {
-                        continue;
-                    };
-                    let bytes = attachment_bytes(d);
+                    let bytes = sizes.attachment(att.resource);
                     if att.load_op == LoadOp::Load {
                         add(&mut planned.attachment_read_bytes, bytes);
                     }
@@ -208,7 +233,7 @@ pub(crate) fn estimate_traffic(
             for pass in passes {
                 if pass.kind == PassKind::Raster {
                     for a in accesses.of(pass.id).iter().filter(|a| a.attachment) {
-                        immediate_attachment(pass, a, &has_content, &desc, &mut planned);
+                        immediate_attachment(pass, a, &has_content, &sizes, &mut planned);
                     }
                 }
                 for a in accesses.of(pass.id).iter().filter(|a| a.writes) {
@@ -227,15 +252,14 @@ pub(crate) fn estimate_traffic(
 }
 
 /// One raster pass's traffic for one attachment on an immediate GPU.
-fn immediate_attachment<'r>(
+fn immediate_attachment(
     pass: &PlannedPass,
     a: &Access,
     has_content: &[bool],
-    desc: &impl Fn(ResourceId) -> Option<&'r ResourceDesc>,
+    sizes: &Sizes,
     planned: &mut TrafficBreakdown,
 ) {
-    let Some(d) = desc(a.resource) else { return };
-    let bytes = attachment_bytes(d);
+    let bytes = sizes.attachment(a.resource);
     let old = has_content
         .get(a.resource.index())
         .copied()
@@ -243,19 +267,14 @@ fn immediate_attachment<'r>(
     if a.explicit_read || (a.reads_prior && old) {
         add(&mut planned.attachment_read_bytes, bytes);
     }
-    if a.roles
-        & role(UseKind::ResolveTarget {
-            source: ResourceId(0),
-        })
-        != 0
-    {
+    if a.roles & RESOLVE != 0 {
         add(&mut planned.resolve_write_bytes, bytes);
         let source = pass.uses.iter().find_map(|u| match u.kind {
             UseKind::ResolveTarget { source } if u.resource == a.resource => Some(source),
             _ => None,
         });
-        if let Some(sd) = source.and_then(desc) {
-            add(&mut planned.attachment_read_bytes, attachment_bytes(sd));
+        if let Some(source) = source {
+            add(&mut planned.attachment_read_bytes, sizes.attachment(source));
         }
     } else if a.writes {
         add(&mut planned.attachment_write_bytes, bytes);

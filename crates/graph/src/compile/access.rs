@@ -3,16 +3,19 @@
 //! works on these summaries.
 
 use crate::declare::{Coverage, PassKind, PassUse, ResourceDesc, ResourceId, UseKind};
-use crate::types::{AccessFlags, ClearValue, Format, Layout, PipelineStages};
+use crate::types::{AccessFlags, Format, Layout, PipelineStages};
 
 /// One pass's combined access to one resource.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Access {
     pub resource: ResourceId,
-    /// [`UseKind::bit`] of every declared use.
-    pub roles: u16,
+    /// Index of the first declared use in the pass's `uses` (its kind names the access in
+    /// messages, and holds the clear value).
+    pub first_use: u32,
     pub stages: PipelineStages,
     pub access: AccessFlags,
+    /// [`UseKind::bit`] of every declared use.
+    pub roles: u16,
     /// Layout the pass needs (images); `Undefined` for buffers.
     pub layout: Layout,
     /// The pass needs the content left by earlier writes: an explicit read, or a write that
@@ -25,9 +28,8 @@ pub(crate) struct Access {
     pub attachment: bool,
     /// Some use reaches it through memory (descriptor, vertex input, transfer).
     pub non_attachment: bool,
-    pub clear: Option<ClearValue>,
-    /// The first declared use (for messages).
-    pub first_kind: UseKind,
+    /// The first use clears it.
+    pub clears: bool,
 }
 
 /// Shader stages that a descriptor use in a pass of this kind may touch.
@@ -57,6 +59,7 @@ pub(crate) fn summarize_use(
     pass_kind: PassKind,
     coverage: Coverage,
     u: &PassUse,
+    use_index: u32,
     desc: &ResourceDesc,
 ) -> Access {
     let format = desc.image().map(|d| d.format);
@@ -168,6 +171,7 @@ pub(crate) fn summarize_use(
     let attachment = u.kind.is_attachment();
     Access {
         resource: u.resource,
+        first_use: use_index,
         roles: u.kind.bit(),
         stages,
         access,
@@ -178,8 +182,7 @@ pub(crate) fn summarize_use(
         writes: u.kind.writes(),
         attachment,
         non_attachment: !attachment,
-        clear: u.kind.clear_value(),
-        first_kind: u.kind,
+        clears: u.kind.clear_value().is_some(),
     }
 }
 
@@ -218,18 +221,20 @@ pub(crate) fn push_pass_accesses<'d>(
     out: &mut Vec<Access>,
 ) -> Result<(), UseConflict> {
     let start = out.len();
-    for u in uses {
+    for (i, u) in uses.iter().enumerate() {
         let Some(desc) = desc_of(u.resource) else {
             continue;
         };
-        let a = summarize_use(kind, coverage, u, desc);
+        let a = summarize_use(kind, coverage, u, i as u32, desc);
         match out[start..].iter_mut().find(|x| x.resource == u.resource) {
             None => out.push(a),
             Some(existing) => {
                 if existing.writes || a.writes || existing.layout != a.layout {
                     return Err(UseConflict {
                         resource: u.resource,
-                        first: existing.first_kind.name(),
+                        first: uses
+                            .get(existing.first_use as usize)
+                            .map_or("?", |f| f.kind.name()),
                         second: u.kind.name(),
                     });
                 }

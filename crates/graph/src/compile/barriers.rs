@@ -209,7 +209,7 @@ fn sync(st: &mut SyncState, u: &SyncUse, is_image: bool) -> Option<BarrierParts>
     Some(parts)
 }
 
-fn push_barrier(batch: &mut BarrierBatch, resource: usize, is_image: bool, b: BarrierParts) {
+fn push_barrier(batch: &mut BatchScratch, resource: usize, is_image: bool, b: BarrierParts) {
     let resource = ResourceId(resource as u32);
     if is_image {
         batch.images.push(ImageBarrier {
@@ -264,6 +264,8 @@ fn load_store_access(is_depth: bool, load: LoadOp) -> (PipelineStages, AccessFla
 
 pub(crate) struct BarrierPlan {
     pub steps: Vec<Step>,
+    /// Index in `steps` of each work step of the input, in order.
+    pub work_steps: Vec<StepIndex>,
     /// The state each resource is left in (imported: their final state).
     pub final_states: Vec<ResourceState>,
 }
@@ -291,6 +293,28 @@ struct Planner<'a> {
     others: Vec<(usize, SyncUse)>,
 }
 
+/// Barriers gathered for one batch in reused buffers, copied out at exact size.
+#[derive(Default)]
+struct BatchScratch {
+    images: Vec<ImageBarrier>,
+    buffers: Vec<BufferBarrier>,
+}
+
+impl BatchScratch {
+    fn take(&mut self) -> Option<BarrierBatch> {
+        if self.images.is_empty() && self.buffers.is_empty() {
+            return None;
+        }
+        let batch = BarrierBatch {
+            images: self.images.as_slice().to_vec(),
+            buffers: self.buffers.as_slice().to_vec(),
+        };
+        self.images.clear();
+        self.buffers.clear();
+        Some(batch)
+    }
+}
+
 impl Planner<'_> {
     /// First touch: fold in the memory predecessors' last accesses.
     fn touch(&mut self, r: usize) {
@@ -316,7 +340,7 @@ impl Planner<'_> {
         }
     }
 
-    fn barrier(&mut self, r: usize, u: &SyncUse, batch: &mut BarrierBatch) {
+    fn barrier(&mut self, r: usize, u: &SyncUse, batch: &mut BatchScratch) {
         let is_image = self.resources[r].is_image;
         if let Some(mut parts) = sync(&mut self.states[r], u, is_image) {
             if std::mem::take(&mut self.alias_pending[r]) {
@@ -330,7 +354,7 @@ impl Planner<'_> {
         &mut self,
         rp: &mut RenderPass,
         accesses: &PassAccesses<'_>,
-        batch: &mut BarrierBatch,
+        batch: &mut BatchScratch,
     ) {
         // Gather every subpass's accesses in one sweep: per attachment, and per other resource.
         self.attachment_uses.clear();
@@ -425,7 +449,7 @@ impl Planner<'_> {
         }
     }
 
-    fn single_pass(&mut self, pass: PassId, accesses: &PassAccesses<'_>, batch: &mut BarrierBatch) {
+    fn single_pass(&mut self, pass: PassId, accesses: &PassAccesses<'_>, batch: &mut BatchScratch) {
         let list = accesses.of(pass);
         for a in list {
             let r = a.resource.index();
@@ -454,12 +478,13 @@ pub(crate) fn plan_barriers(
         states: resources.iter().map(SyncState::initial).collect(),
         alias_pending: vec![false; resources.len()],
         slot: vec![NONE; resources.len()],
-        attachment_uses: Vec::new(),
-        others: Vec::new(),
+        attachment_uses: Vec::with_capacity(16),
+        others: Vec::with_capacity(16),
     };
     let mut steps = Vec::with_capacity(work.len() * 2 + 1);
+    let mut work_steps = Vec::with_capacity(work.len());
+    let mut batch = BatchScratch::default();
     for mut step in work {
-        let mut batch = BarrierBatch::default();
         match &mut step {
             Step::RenderPass(rp) => planner.render_pass(rp, accesses, &mut batch),
             Step::Compute { pass } | Step::Transfer { pass } => {
@@ -467,14 +492,16 @@ pub(crate) fn plan_barriers(
             }
             Step::Flush(_) | Step::Barriers(_) => {}
         }
-        if !batch.is_empty() {
-            steps.push(Step::Barriers(batch));
+        if let Some(b) = batch.take() {
+            steps.push(Step::Barriers(b));
+        }
+        if step.is_work() {
+            work_steps.push(StepIndex(steps.len() as u32));
         }
         steps.push(step);
     }
 
     // Leave imported resources as their import asks; the rest as their last use left them.
-    let mut batch = BarrierBatch::default();
     let mut final_states = Vec::with_capacity(resources.len());
     for (r, res) in resources.iter().enumerate() {
         let st = &mut planner.states[r];
@@ -509,11 +536,12 @@ pub(crate) fn plan_barriers(
         }
         final_states.push(fin);
     }
-    if !batch.is_empty() {
-        steps.push(Step::Barriers(batch));
+    if let Some(b) = batch.take() {
+        steps.push(Step::Barriers(b));
     }
     BarrierPlan {
         steps,
+        work_steps,
         final_states,
     }
 }

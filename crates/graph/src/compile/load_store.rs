@@ -236,7 +236,8 @@ fn build_render_pass(
         .sum();
     let mut attachments: Vec<Attachment> = Vec::with_capacity(attachment_uses);
     let mut subpasses: Vec<Subpass> = Vec::with_capacity(group.end - group.start);
-    let mut deps: Vec<SubpassDependency> = Vec::new();
+    let mut deps: Vec<SubpassDependency> =
+        Vec::with_capacity(2 * (group.end - group.start).saturating_sub(1));
     let tracks = &mut scratch.tracks;
     tracks.clear();
     // (attachment, subpass, stages) of reads since the attachment's last write.
@@ -247,12 +248,20 @@ fn build_render_pass(
         let s = s as u32;
         let decl = &input.passes[p.index()];
         let accesses = input.analysis.accesses_of(p.index());
+        let (mut colors, mut inputs) = (0, 0);
+        for u in &decl.uses {
+            match u.kind {
+                UseKind::ColorAttachment { .. } => colors += 1,
+                UseKind::InputAttachment => inputs += 1,
+                _ => {}
+            }
+        }
         let mut subpass = Subpass {
             pass: p,
-            colors: Vec::new(),
+            colors: Vec::with_capacity(colors),
             resolves: Vec::new(),
             depth_stencil: None,
-            inputs: Vec::new(),
+            inputs: Vec::with_capacity(inputs),
             preserve: Vec::new(),
         };
         let mut resolve_refs: Vec<(crate::declare::ResourceId, AttachmentRef)> = Vec::new();
@@ -266,7 +275,7 @@ fn build_render_pass(
             } else {
                 let index = attachments.len() as u32;
                 attachment_of[r] = (g, index);
-                attachments.push(new_attachment(input, r, a, written_before[r]));
+                attachments.push(new_attachment(input, decl, r, a, written_before[r]));
                 tracks.push(AttachmentTrack {
                     last_subpass: NONE,
                     last_stages: PipelineStages::NONE,
@@ -370,6 +379,7 @@ fn build_render_pass(
 
 fn new_attachment(
     input: &LoadStoreInput<'_>,
+    decl: &PassDecl,
     r: usize,
     a: &Access,
     has_content: bool,
@@ -383,7 +393,11 @@ fn new_attachment(
             crate::types::SampleCount::S1,
         ),
     };
-    let load_op = if a.clear.is_some() {
+    let clear = decl
+        .uses
+        .get(a.first_use as usize)
+        .and_then(|u| u.kind.clear_value());
+    let load_op = if clear.is_some() {
         LoadOp::Clear
     } else if a.reads_prior && has_content {
         LoadOp::Load
@@ -407,7 +421,7 @@ fn new_attachment(
         initial_layout: a.layout,
         final_layout: a.layout,
         clear: if load_op == LoadOp::Clear {
-            a.clear
+            clear
         } else {
             None
         },

@@ -92,7 +92,7 @@ pub(crate) fn merge_render_passes(
                     if t.group != g_index {
                         return true;
                     }
-                    if a.clear.is_some() {
+                    if a.clears {
                         return false;
                     }
                     let same_pixel = !a.non_attachment && !t.non_attachment;

@@ -304,9 +304,25 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     };
     let BarrierPlan {
         steps,
+        work_steps,
         final_states: finals,
     } = plan_barriers(work, &pass_accesses, &sync, &aliasing);
-    let lifetimes = step_lifetimes(&steps, &pass_accesses, n_resources);
+    // Groups and work steps correspond one to one, in order.
+    let step_of = |group: u32| {
+        work_steps
+            .get(group as usize)
+            .copied()
+            .unwrap_or(StepIndex(0))
+    };
+    let lifetimes: Vec<Option<StepRange>> = group_lifetimes
+        .iter()
+        .map(|life| {
+            life.map(|(first, last)| StepRange {
+                first: step_of(first),
+                last: step_of(last),
+            })
+        })
+        .collect();
 
     let mut roles = vec![0u16; n_resources];
     for &p in &order {

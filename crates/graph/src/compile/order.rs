@@ -12,7 +12,7 @@
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, VecDeque};
 
-use tilegraph_profile::Profile;
+use tilegraph_profile::{PassClass, Profile};
 
 use crate::declare::{PassDecl, PassId};
 use crate::error::GraphError;
@@ -20,6 +20,19 @@ use crate::error::GraphError;
 use super::validate::Analysis;
 
 const NONE: u32 = u32::MAX;
+
+/// Every class, to look up the profile's rank once per class rather than once per pass.
+const CLASSES: [PassClass; 9] = [
+    PassClass::Compute,
+    PassClass::DepthPrepass,
+    PassClass::Opaque,
+    PassClass::AlphaTested,
+    PassClass::Transparent,
+    PassClass::OcclusionQuery,
+    PassClass::Post,
+    PassClass::Transfer,
+    PassClass::Other,
+];
 
 /// Successor lists (CSR) of the surviving passes.
 struct Edges {
@@ -181,9 +194,18 @@ pub(crate) fn order_passes(
         topo
     };
 
+    let class_ranks: Vec<(PassClass, usize)> = CLASSES
+        .iter()
+        .map(|&c| (c, profile.passes.class_rank(c)))
+        .collect();
     let rank: Vec<usize> = passes
         .iter()
-        .map(|p| profile.passes.class_rank(p.class))
+        .map(|p| {
+            class_ranks
+                .iter()
+                .find(|(c, _)| *c == p.class)
+                .map_or(usize::MAX, |&(_, r)| r)
+        })
         .collect();
     let mut effective = rank.clone();
     for &p in topo.iter().rev() {
@@ -193,19 +215,25 @@ pub(crate) fn order_passes(
         }
     }
 
-    let mut ready: BinaryHeap<Reverse<(usize, usize, u32)>> = topo
+    // (effective rank, own rank, declaration index) packed into one integer key.
+    let key = |p: usize| -> u64 {
+        let clamp = |r: usize| r.min(0xffff) as u64;
+        (clamp(effective[p]) << 48) | (clamp(rank[p]) << 32) | p as u64
+    };
+    let mut ready: BinaryHeap<Reverse<u64>> = topo
         .iter()
         .filter(|&&p| indegree[p as usize] == 0)
-        .map(|&p| Reverse((effective[p as usize], rank[p as usize], p)))
+        .map(|&p| Reverse(key(p as usize)))
         .collect();
     let mut order = Vec::with_capacity(alive_count);
-    while let Some(Reverse((_, _, p))) = ready.pop() {
+    while let Some(Reverse(k)) = ready.pop() {
+        let p = (k & 0xffff_ffff) as u32;
         order.push(PassId(p));
         for &s in edges.of(p as usize) {
             let s = s as usize;
             indegree[s] -= 1;
             if indegree[s] == 0 {
-                ready.push(Reverse((effective[s], rank[s], s as u32)));
+                ready.push(Reverse(key(s)));
             }
         }
     }

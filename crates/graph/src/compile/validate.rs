@@ -308,7 +308,10 @@ pub(crate) fn validate_declarations(
                         return Err(GraphError::ReadBeforeWrite {
                             pass: pass.name.clone(),
                             resource: r.name.clone(),
-                            usage: a.first_kind.name(),
+                            usage: pass
+                                .uses
+                                .get(a.first_use as usize)
+                                .map_or("?", |u| u.kind.name()),
                         });
                     }
                 }
