@@ -199,9 +199,16 @@ impl Plan {
                     table(f, "       ", &rows)?;
                 }
                 Step::RenderPass(rp) => {
+                    let budget = match self.tile_budget_bytes_per_px {
+                        Some(b) if rp.on_chip_bytes_per_px > b => {
+                            format!(" of {b}: over the tile budget, the driver shrinks tiles")
+                        }
+                        Some(b) => format!(" of {b}"),
+                        None => String::new(),
+                    };
                     writeln!(
                         f,
-                        "  {i:>3}  render pass {} px, {} subpass{}, on-chip {} B/px",
+                        "  {i:>3}  render pass {} px, {} subpass{}, on-chip {} B/px{budget}",
                         rp.render_area_px,
                         rp.subpasses.len(),
                         if rp.subpasses.len() == 1 { "" } else { "es" },
@@ -443,6 +450,32 @@ mod plan_tests {
         ] {
             assert!(text.contains(needle), "missing {needle:?} in\n{text}");
         }
+    }
+
+    #[test]
+    fn render_passes_over_the_tile_budget_are_flagged() {
+        let mali = profile("mali-valhall");
+        let mut g = GraphBuilder::new();
+        let a = g.create_image("a", ImageDesc::new(EXTENT, Format::R16G16B16A16_SFLOAT));
+        let b = g.create_image("b", ImageDesc::new(EXTENT, Format::R16G16B16A16_SFLOAT));
+        let depth = d24s8(&mut g, "depth");
+        g.export(a);
+        g.export(b);
+        g.raster_pass("gbuffer", PassClass::Opaque, ())
+            .color_clear(a, ClearColor::BLACK)
+            .color_clear(b, ClearColor::BLACK)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        let plan = compile(g, &mali);
+        assert_eq!(plan.tile_budget_bytes_per_px, Some(16));
+        let text = plan.to_string();
+        assert!(
+            text.contains("on-chip 20 B/px of 16: over the tile budget"),
+            "{text}"
+        );
+        assert_eq!(
+            compile(GraphBuilder::new(), &desktop()).tile_budget_bytes_per_px,
+            None
+        );
     }
 
     #[test]

@@ -49,6 +49,10 @@ impl StepRange {
 pub struct Plan {
     /// Name of the profile it was compiled for.
     pub profile: String,
+    /// Tile memory per pixel on tilers (`tile_memory_bytes / (tile_width_px *
+    /// tile_height_px)`): a render pass whose attachments need more makes the driver shrink
+    /// its tiles. `None` on immediate-mode GPUs.
+    pub tile_budget_bytes_per_px: Option<u32>,
     /// Surviving passes in execution order.
     pub passes: Vec<PlannedPass>,
     /// Culled passes in declaration order, with the reason.

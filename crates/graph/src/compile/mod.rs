@@ -102,6 +102,16 @@ pub fn estimated_requirements(desc: &ResourceDesc) -> MemoryRequirements {
     }
 }
 
+/// Bytes of tile memory per pixel, from the profile's tile model (tilers only).
+fn tile_budget_bytes_per_px(profile: &Profile) -> Option<u32> {
+    let gpu = &profile.gpu;
+    let pixels = u64::from(gpu.tile_width_px) * u64::from(gpu.tile_height_px);
+    if !profile.is_tiler() || pixels == 0 {
+        return None;
+    }
+    Some(u32::try_from(gpu.tile_memory_bytes / pixels).unwrap_or(u32::MAX))
+}
+
 fn memory_need(residency: Residency) -> MemoryNeed {
     match residency {
         Residency::Imported | Residency::Unused => MemoryNeed::External,
@@ -396,6 +406,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     Ok(CompiledGraph {
         plan: Plan {
             profile: profile.name.clone(),
+            tile_budget_bytes_per_px: tile_budget_bytes_per_px(profile),
             passes: planned,
             culled,
             resources: plan_resources,
