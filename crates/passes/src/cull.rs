@@ -16,7 +16,8 @@ use tilegraph_scene::DepthConvention;
 use tilegraph_vk::ash;
 use tilegraph_vk::executor::BufferHandle;
 use tilegraph_vk::pipeline::{
-    create_compute_pipeline, create_pipeline_layout, create_set_layout, Stage,
+    allocate_set, create_compute_pipeline, create_pipeline_layout, create_set_layout,
+    write_buffer_set, Stage,
 };
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
 
@@ -36,6 +37,10 @@ pub enum Culling {
     /// Two-phase occlusion culling: last frame's visible set, pyramid from that depth, then the
     /// rest; no dependence on the previous camera.
     HizTwoPhase,
+    /// Hardware occlusion queries on bounding boxes against this frame's depth, read back the
+    /// next frame without waiting: the drawn set lags one frame (false negatives when objects
+    /// appear, measured).
+    Oq,
 }
 
 impl Culling {
@@ -45,6 +50,7 @@ impl Culling {
             "frustum" => Some(Culling::Frustum),
             "hiz" => Some(Culling::Hiz),
             "hiz-2phase" => Some(Culling::HizTwoPhase),
+            "oq" => Some(Culling::Oq),
             _ => None,
         }
     }
@@ -55,7 +61,19 @@ impl Culling {
             Culling::Frustum => "frustum",
             Culling::Hiz => "hiz",
             Culling::HizTwoPhase => "hiz-2phase",
+            Culling::Oq => "oq",
         }
+    }
+
+    /// Whether the technique draws opaque and alpha-tested geometry through the culling
+    /// shader's indirect lists (the others select the CPU draw lists).
+    pub fn uses_gpu_lists(self) -> bool {
+        matches!(self, Culling::Frustum | Culling::Hiz | Culling::HizTwoPhase)
+    }
+
+    /// Whether the technique issues hardware occlusion queries.
+    pub fn uses_queries(self) -> bool {
+        matches!(self, Culling::Oq)
     }
 
     pub fn uses_pyramid(self) -> bool {
@@ -299,57 +317,34 @@ impl CullState {
     }
 
     fn write_set(&self, ctx: &Context, index: usize) -> Result<vk::DescriptorSet, VkError> {
-        let layouts = [self.set_layout];
-        let alloc = vk::DescriptorSetAllocateInfo::default()
-            .descriptor_pool(self.pool)
-            .set_layouts(&layouts);
-        // SAFETY: the pool holds a set per parameter block.
-        let set = unsafe { ctx.device.allocate_descriptor_sets(&alloc) }
-            .map_err(|r| VkError::call("vkAllocateDescriptorSets", r))?[0];
+        // The pool holds a set per parameter block.
+        let set = allocate_set(ctx, self.pool, self.set_layout)?;
         // Without a pyramid the shader never reads bindings 5 and 6; bind small live buffers.
         let pyramid = self.pyramid.as_ref().map_or(self.counts.raw, |b| b.raw);
         let levels = self.levels.as_ref().map_or(self.counts.raw, |b| b.raw);
-        let buffers = [
-            (
-                0,
-                vk::DescriptorType::UNIFORM_BUFFER,
-                self.params[index].raw,
-            ),
-            (1, vk::DescriptorType::STORAGE_BUFFER, self.commands.raw),
-            (2, vk::DescriptorType::STORAGE_BUFFER, self.counts.raw),
-            (3, vk::DescriptorType::STORAGE_BUFFER, self.draw_ids.raw),
-            (4, vk::DescriptorType::STORAGE_BUFFER, self.visibility.raw),
-            (5, vk::DescriptorType::STORAGE_BUFFER, pyramid),
-            (6, vk::DescriptorType::STORAGE_BUFFER, levels),
-            (
-                7,
-                vk::DescriptorType::STORAGE_BUFFER,
-                self.order[index / 2].raw,
-            ),
-        ];
-        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = buffers
-            .iter()
-            .map(|(_, _, b)| {
-                [vk::DescriptorBufferInfo {
-                    buffer: *b,
-                    offset: 0,
-                    range: vk::WHOLE_SIZE,
-                }]
-            })
-            .collect();
-        let writes: Vec<vk::WriteDescriptorSet> = buffers
-            .iter()
-            .zip(&infos)
-            .map(|((binding, ty, _), info)| {
-                vk::WriteDescriptorSet::default()
-                    .dst_set(set)
-                    .dst_binding(*binding)
-                    .descriptor_type(*ty)
-                    .buffer_info(info)
-            })
-            .collect();
-        // SAFETY: every buffer is live; the set is new.
-        unsafe { ctx.device.update_descriptor_sets(&writes, &[]) };
+        let order = self.order.get(index / 2).ok_or_else(|| VkError::Invalid {
+            what: "cull".into(),
+            reason: format!("no order buffer for set {index}"),
+        })?;
+        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
+        write_buffer_set(
+            ctx,
+            set,
+            &[
+                (
+                    0,
+                    vk::DescriptorType::UNIFORM_BUFFER,
+                    self.params[index].raw,
+                ),
+                (1, ssbo, self.commands.raw),
+                (2, ssbo, self.counts.raw),
+                (3, ssbo, self.draw_ids.raw),
+                (4, ssbo, self.visibility.raw),
+                (5, ssbo, pyramid),
+                (6, ssbo, levels),
+                (7, ssbo, order.raw),
+            ],
+        );
         Ok(set)
     }
 

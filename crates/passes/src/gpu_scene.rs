@@ -9,7 +9,7 @@ use glam::{DVec3, Mat4, Vec3};
 use tilegraph_profile::MemoryUse;
 use tilegraph_scene::{DepthConvention, GpuInstance, Scene};
 use tilegraph_vk::ash;
-use tilegraph_vk::pipeline::create_set_layout;
+use tilegraph_vk::pipeline::{allocate_set, create_set_layout, write_buffer_set};
 use tilegraph_vk::{Buffer, Context, VkError};
 
 use crate::draws::DrawList;
@@ -309,47 +309,24 @@ impl GpuScene {
         ctx: &Context,
         per_frame: [vk::Buffer; 4],
     ) -> Result<vk::DescriptorSet, VkError> {
-        let layouts = [self.set_layout];
-        let alloc = vk::DescriptorSetAllocateInfo::default()
-            .descriptor_pool(self.pool)
-            .set_layouts(&layouts);
-        // SAFETY: the pool holds two sets per frame slot (plain and culled).
-        let set = unsafe { ctx.device.allocate_descriptor_sets(&alloc) }
-            .map_err(|r| VkError::call("vkAllocateDescriptorSets", r))?[0];
+        // The pool holds two sets per frame slot (plain and culled).
+        let set = allocate_set(ctx, self.pool, self.set_layout)?;
         let [uniforms, instances, draw_list, counters] = per_frame;
-        let infos = [
-            (0, vk::DescriptorType::UNIFORM_BUFFER, uniforms),
-            (1, vk::DescriptorType::STORAGE_BUFFER, instances),
-            (2, vk::DescriptorType::STORAGE_BUFFER, draw_list),
-            (3, vk::DescriptorType::STORAGE_BUFFER, self.meshes.raw),
-            (4, vk::DescriptorType::STORAGE_BUFFER, self.materials.raw),
-            (5, vk::DescriptorType::STORAGE_BUFFER, self.vertices.raw),
-            (6, vk::DescriptorType::STORAGE_BUFFER, self.indices.raw),
-            (7, vk::DescriptorType::STORAGE_BUFFER, counters),
-        ];
-        let buffer_infos: Vec<[vk::DescriptorBufferInfo; 1]> = infos
-            .iter()
-            .map(|(_, _, b)| {
-                [vk::DescriptorBufferInfo {
-                    buffer: *b,
-                    offset: 0,
-                    range: vk::WHOLE_SIZE,
-                }]
-            })
-            .collect();
-        let writes: Vec<vk::WriteDescriptorSet> = infos
-            .iter()
-            .zip(&buffer_infos)
-            .map(|((binding, ty, _), bi)| {
-                vk::WriteDescriptorSet::default()
-                    .dst_set(set)
-                    .dst_binding(*binding)
-                    .descriptor_type(*ty)
-                    .buffer_info(bi)
-            })
-            .collect();
-        // SAFETY: every buffer is live; the set is new.
-        unsafe { ctx.device.update_descriptor_sets(&writes, &[]) };
+        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
+        write_buffer_set(
+            ctx,
+            set,
+            &[
+                (0, vk::DescriptorType::UNIFORM_BUFFER, uniforms),
+                (1, ssbo, instances),
+                (2, ssbo, draw_list),
+                (3, ssbo, self.meshes.raw),
+                (4, ssbo, self.materials.raw),
+                (5, ssbo, self.vertices.raw),
+                (6, ssbo, self.indices.raw),
+                (7, ssbo, counters),
+            ],
+        );
         Ok(set)
     }
 

@@ -84,6 +84,8 @@ pub struct RenderOptions {
     /// Keep the visibility buffer's ids after the frame (the oracle reads them back):
     /// the id attachment becomes an imported image, so it is stored.
     pub capture_ids: bool,
+    /// Occlusion queries: instances per query (groups of nearby instances share one box).
+    pub oq_group: usize,
 }
 
 impl Default for RenderOptions {
@@ -99,6 +101,7 @@ impl Default for RenderOptions {
             culling: Culling::None,
             hiz_mode: NpotMode::EdgeAware,
             capture_ids: false,
+            oq_group: 1,
         }
     }
 }
@@ -174,6 +177,7 @@ struct Shared {
     count_fragments: bool,
     cull: Option<CullState>,
     culled_sets: Vec<vk::DescriptorSet>,
+    oq: Option<crate::occlusion::OqState>,
 }
 
 /// Graph handles of the culling buffers in this frame's graph.
@@ -360,28 +364,25 @@ impl Shared {
         Ok(p)
     }
 
-    /// Binds the scene and records `draws` with `variant` (two pipelines: single- and
-    /// double-sided).
-    fn record_draws(
-        &mut self,
-        pc: &PassContext<'_>,
-        variant: Variant,
-        draws: &[Draw],
-        color_count: u32,
-    ) -> Result<(), VkError> {
-        if draws.is_empty() {
-            return Ok(());
-        }
-        let set = *self
-            .scene_sets
-            .get(pc.frame_slot)
-            .ok_or_else(|| VkError::Invalid {
-                what: "scene".into(),
-                reason: "no descriptor set for this frame slot".into(),
-            })?;
+    /// Binds the scene's vertex and index buffers and set 0 (the culled variant reads the culling
+    /// shader's draw list), and sets the viewport.
+    fn bind_geometry(&self, pc: &PassContext<'_>, culled: bool) -> Result<(), VkError> {
+        let sets = if culled {
+            &self.culled_sets
+        } else {
+            &self.scene_sets
+        };
+        let set = *sets.get(pc.frame_slot).ok_or_else(|| VkError::Invalid {
+            what: "scene".into(),
+            reason: format!(
+                "no {}descriptor set for frame slot {}",
+                if culled { "culled " } else { "" },
+                pc.frame_slot
+            ),
+        })?;
         pc.set_full_viewport();
         let d = &pc.ctx.device;
-        // SAFETY: recording inside the subpass; buffers and set are live.
+        // SAFETY: recording inside a subpass; buffers and set are live.
         unsafe {
             d.cmd_bind_vertex_buffers(pc.cb, 0, &[self.vertex_buffer], &[0]);
             d.cmd_bind_index_buffer(pc.cb, self.index_buffer, 0, vk::IndexType::UINT32);
@@ -394,6 +395,23 @@ impl Shared {
                 &[],
             );
         }
+        Ok(())
+    }
+
+    /// Binds the scene and records `draws` with `variant` (two pipelines: single- and
+    /// double-sided).
+    fn record_draws(
+        &mut self,
+        pc: &PassContext<'_>,
+        variant: Variant,
+        draws: &[Draw],
+        color_count: u32,
+    ) -> Result<(), VkError> {
+        if draws.is_empty() {
+            return Ok(());
+        }
+        self.bind_geometry(pc, false)?;
+        let d = &pc.ctx.device;
         for sided in [false, true] {
             let mut bound = false;
             for draw in draws.iter().filter(|d| d.double_sided == sided) {
@@ -429,28 +447,8 @@ impl Shared {
         phase: u32,
         color_count: u32,
     ) -> Result<(), VkError> {
-        let set = *self
-            .culled_sets
-            .get(pc.frame_slot)
-            .ok_or_else(|| VkError::Invalid {
-                what: "scene".into(),
-                reason: "no culled descriptor set for this frame slot".into(),
-            })?;
-        pc.set_full_viewport();
+        self.bind_geometry(pc, true)?;
         let d = &pc.ctx.device;
-        // SAFETY: recording inside the subpass; buffers and set are live.
-        unsafe {
-            d.cmd_bind_vertex_buffers(pc.cb, 0, &[self.vertex_buffer], &[0]);
-            d.cmd_bind_index_buffer(pc.cb, self.index_buffer, 0, vk::IndexType::UINT32);
-            d.cmd_bind_descriptor_sets(
-                pc.cb,
-                vk::PipelineBindPoint::GRAPHICS,
-                self.scene_layout,
-                0,
-                &[set],
-                &[],
-            );
-        }
         for sided in [false, true] {
             let p = self.pipeline(pc, variant, sided, color_count)?;
             // SAFETY: as above.
@@ -580,6 +578,8 @@ pub struct SceneRenderer {
     ids_target: Option<(Image, ImageHandle)>,
     /// Per instance: whether its material is blended.
     blended: Vec<bool>,
+    /// Occlusion queries: the opaque and alpha-tested instances the last frame drew.
+    last_drawn: Option<Vec<u32>>,
 }
 
 impl SceneRenderer {
@@ -609,8 +609,13 @@ impl SceneRenderer {
             });
         }
         let mut needed = required_features(options.technique);
-        if options.culling != Culling::None {
+        if options.culling.uses_gpu_lists() {
             needed.required.extend(CullState::required_features());
+        }
+        if options.culling.uses_queries() {
+            needed
+                .required
+                .extend(crate::occlusion::OqState::required_features());
         }
         if options.count_fragments {
             needed
@@ -697,9 +702,30 @@ impl SceneRenderer {
             count_fragments: options.count_fragments,
             cull: None,
             culled_sets: Vec::new(),
+            oq: None,
         }));
         let mut gpu = gpu;
-        if options.culling != Culling::None {
+        let blended: Vec<bool> = scene
+            .instances()
+            .iter()
+            .map(|i| {
+                scene
+                    .instance_material(i)
+                    .is_some_and(|m| m.class == tilegraph_scene::MaterialClass::Blended)
+            })
+            .collect();
+        if options.culling.uses_queries() {
+            let oq = crate::occlusion::OqState::new(
+                ctx,
+                scene,
+                options.oq_group,
+                &blended,
+                gpu.set_layout,
+                executor.frames_in_flight(),
+            )?;
+            shared.borrow_mut().oq = Some(oq);
+        }
+        if options.culling.uses_gpu_lists() {
             let cull = CullState::new(
                 ctx,
                 options.culling,
@@ -734,15 +760,8 @@ impl SceneRenderer {
             frames: 0,
             last_slot: 0,
             ids_target,
-            blended: scene
-                .instances()
-                .iter()
-                .map(|i| {
-                    scene
-                        .instance_material(i)
-                        .is_some_and(|m| m.class == tilegraph_scene::MaterialClass::Blended)
-                })
-                .collect(),
+            blended,
+            last_drawn: None,
         })
     }
 
@@ -802,6 +821,30 @@ impl SceneRenderer {
                     .collect::<Vec<bool>>(),
             ),
         };
+        let slot = self.executor.acquire_slot(ctx)?;
+        // Occlusion queries: the newest complete frame's results select what this frame draws
+        // (read now, never waited for: the acquired slot's frame has completed).
+        let blended_mask = match self.shared.borrow_mut().oq.as_mut() {
+            Some(oq) => {
+                oq.collect(ctx, slot)?;
+                let mask = oq.mask();
+                let combined: Vec<bool> = blended_mask
+                    .unwrap_or_else(|| vec![true; mask.len()])
+                    .into_iter()
+                    .zip(mask)
+                    .map(|(a, b)| a && b)
+                    .collect();
+                self.last_drawn = Some(
+                    (0..combined.len())
+                        .filter(|&i| combined[i] && !self.blended.get(i).copied().unwrap_or(false))
+                        .map(|i| i as u32)
+                        .collect(),
+                );
+                oq.prepare(slot, &m);
+                Some(combined)
+            }
+            None => blended_mask,
+        };
         let order = self
             .options
             .opaque_order
@@ -814,7 +857,6 @@ impl SceneRenderer {
             &self.options.lighting,
             self.instance_bits.unwrap_or(32),
         );
-        let slot = self.executor.acquire_slot(ctx)?;
         self.gpu
             .write_frame(ctx, slot, scene, m.eye, &uniforms, &draws)?;
         self.last_slot = slot;
@@ -941,6 +983,9 @@ impl SceneRenderer {
     /// The instances the last frame drew through GPU culling (waits), or `None` without culling.
     pub fn drawn_instances(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {
         self.executor.finish(ctx)?;
+        if let Some(d) = &self.last_drawn {
+            return Ok(Some(d.clone()));
+        }
         match self.shared.borrow().cull.as_ref() {
             Some(c) => Ok(Some(c.drawn_instances(ctx)?)),
             None => Ok(None),
@@ -1123,6 +1168,29 @@ impl SceneRenderer {
         if let (Culling::Hiz, Some(b)) = (culling, f.gpu) {
             // Next frame's occluders: this frame's depth.
             self.declare_hiz_build(&mut g, f.depth, b);
+        }
+        if culling.uses_queries() && f.depth_cleared {
+            // After all opaque work (the graph's class order), reading depth only; its results
+            // leave the graph through the query pool, hence kept without an export.
+            let shared_q = shared.clone();
+            let queries: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+                let mut s = shared_q.borrow_mut();
+                let depth = s.depth;
+                let set = *s
+                    .scene_sets
+                    .get(pc.frame_slot)
+                    .ok_or_else(|| VkError::Invalid {
+                        what: "occlusion queries".into(),
+                        reason: "no scene set for this frame slot".into(),
+                    })?;
+                match s.oq.as_mut() {
+                    Some(oq) => oq.record(pc, set, depth),
+                    None => Ok(()),
+                }
+            });
+            g.raster_pass("occlusion-queries", PassClass::OcclusionQuery, queries)
+                .depth_stencil_read_only(f.depth)
+                .retention(tilegraph_graph::Retention::Always);
         }
         if !f.color_cleared {
             // Nothing drew (an empty view of an empty scene): still produce a cleared image.
@@ -1411,6 +1479,9 @@ impl SceneRenderer {
         if let Ok(mut s) = Rc::try_unwrap(shared).map(RefCell::into_inner) {
             if let Some(c) = s.cull.take() {
                 c.destroy(ctx);
+            }
+            if let Some(o) = s.oq.take() {
+                o.destroy(ctx);
             }
             // SAFETY: the executor waited for every frame; nothing uses these any more.
             unsafe {

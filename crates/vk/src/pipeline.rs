@@ -319,3 +319,54 @@ pub fn create_pipeline_layout(
     // SAFETY: valid create info.
     unsafe { ctx.device.create_pipeline_layout(&info, None) }.vk("vkCreatePipelineLayout")
 }
+
+/// Allocates one set of `layout` from `pool`.
+pub fn allocate_set(
+    ctx: &Context,
+    pool: vk::DescriptorPool,
+    layout: vk::DescriptorSetLayout,
+) -> Result<vk::DescriptorSet, VkError> {
+    let layouts = [layout];
+    let info = vk::DescriptorSetAllocateInfo::default()
+        .descriptor_pool(pool)
+        .set_layouts(&layouts);
+    // SAFETY: live pool and layout; an exhausted pool is reported as an error.
+    let sets =
+        unsafe { ctx.device.allocate_descriptor_sets(&info) }.vk("vkAllocateDescriptorSets")?;
+    sets.first().copied().ok_or_else(|| VkError::Invalid {
+        what: "descriptor set".into(),
+        reason: "none allocated".into(),
+    })
+}
+
+/// Points each (binding, type, buffer) of `set` at the whole buffer. The caller guarantees the
+/// set is not in use by the GPU.
+pub fn write_buffer_set(
+    ctx: &Context,
+    set: vk::DescriptorSet,
+    bindings: &[(u32, vk::DescriptorType, vk::Buffer)],
+) {
+    let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bindings
+        .iter()
+        .map(|(_, _, b)| {
+            [vk::DescriptorBufferInfo {
+                buffer: *b,
+                offset: 0,
+                range: vk::WHOLE_SIZE,
+            }]
+        })
+        .collect();
+    let writes: Vec<vk::WriteDescriptorSet> = bindings
+        .iter()
+        .zip(&infos)
+        .map(|((binding, ty, _), info)| {
+            vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(*binding)
+                .descriptor_type(*ty)
+                .buffer_info(info)
+        })
+        .collect();
+    // SAFETY: every buffer is live and the set idle (caller's guarantee).
+    unsafe { ctx.device.update_descriptor_sets(&writes, &[]) };
+}
