@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use tilegraph_passes::cull::Culling;
-use tilegraph_passes::cullcheck::cull_check;
+use tilegraph_passes::cullcheck::{cull_check_with, CheckOptions};
 use tilegraph_scene::CameraPath;
 use tilegraph_vk::{Context, ContextOptions, Feature};
 
@@ -17,6 +17,7 @@ pub struct Args<'a> {
     pub profile: Option<&'a str>,
     pub frames: Option<usize>,
     pub hiz_npot: tilegraph_cull::NpotMode,
+    pub oq_group: usize,
     pub json: bool,
 }
 
@@ -35,9 +36,21 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
         Feature::GeometryShader,
         Feature::DrawIndirectCount,
         Feature::MultiDrawIndirect,
+        Feature::HostQueryReset,
     ]);
     let ctx = Context::new(options)?;
-    let report = cull_check(&ctx, &scene, a.culling, &path, a.size, a.frames, a.hiz_npot)?;
+    let report = cull_check_with(
+        &ctx,
+        &scene,
+        a.culling,
+        &path,
+        a.size,
+        a.frames,
+        &CheckOptions {
+            hiz_mode: a.hiz_npot,
+            oq_group: a.oq_group,
+        },
+    )?;
     ctx.check_validation()?;
     if a.json {
         println!("{}", serde_json::to_string(&report)?);

@@ -74,7 +74,7 @@ enum Command {
     CullCheck {
         /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
         scene: String,
-        /// none | frustum | hiz | hiz-2phase
+        /// none | frustum | hiz | hiz-2phase | oq
         #[arg(long, value_parser = parse_culling)]
         technique: Culling,
         /// Camera path JSON (docs/SCENES.md); the scene's own test path when absent.
@@ -91,6 +91,9 @@ enum Command {
         /// HiZ pyramid for non-power-of-two sizes: edge-aware | pad-to-pow2.
         #[arg(long, default_value = "edge-aware", value_parser = parse_npot)]
         hiz_npot: tilegraph_cull::NpotMode,
+        /// Occlusion queries: one query per group of N nearby instances (union box).
+        #[arg(long, default_value_t = 1)]
+        oq_group: usize,
         #[arg(long)]
         json: bool,
     },
@@ -106,7 +109,7 @@ enum Command {
 
 fn parse_culling(s: &str) -> Result<Culling, String> {
     Culling::parse(s)
-        .ok_or_else(|| format!("unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase)"))
+        .ok_or_else(|| format!("unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase, oq)"))
 }
 
 fn parse_npot(s: &str) -> Result<tilegraph_cull::NpotMode, String> {
@@ -190,6 +193,7 @@ fn main() -> ExitCode {
             profile,
             frames,
             hiz_npot,
+            oq_group,
             json,
         } => cullcheck::run(&cullcheck::Args {
             scene: &scene,
@@ -199,6 +203,7 @@ fn main() -> ExitCode {
             profile: profile.as_deref(),
             frames,
             hiz_npot,
+            oq_group,
             json,
         }),
     };

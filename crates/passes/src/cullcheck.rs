@@ -3,7 +3,8 @@
 //! For every frame of a camera path three renderers run on the same device: the **oracle**
 //! (visibility buffer of every instance, no culling, ids read back: V = the instances that own at
 //! least one pixel), the **reference** (forward, no culling) and the **technique** (forward with
-//! the culling under test; D = what its GPU lists drew). Then FN = V \ D (visible but culled:
+//! the culling under test; D = what its GPU lists drew, or for occlusion queries the mask of
+//! query results its CPU draw lists used). Then FN = V \ D (visible but culled:
 //! holes, popping), FP = D \ V (hidden but drawn: wasted work), and whether the technique's image
 //! equals the reference bit for bit. Blended instances are outside the comparison: no technique
 //! culls them on the GPU (they are frustum-culled on the CPU and sorted), and the visibility buffer
@@ -73,6 +74,14 @@ pub struct CullCheck {
     pub totals: Totals,
 }
 
+/// Technique knobs of a check.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CheckOptions {
+    pub hiz_mode: tilegraph_cull::NpotMode,
+    /// Occlusion queries: instances per query.
+    pub oq_group: usize,
+}
+
 /// Runs `culling` along `path` (every frame, or the first `max_frames`).
 pub fn cull_check(
     ctx: &Context,
@@ -83,10 +92,28 @@ pub fn cull_check(
     max_frames: Option<usize>,
     hiz_mode: tilegraph_cull::NpotMode,
 ) -> Result<CullCheck, RenderError> {
+    let options = CheckOptions {
+        hiz_mode,
+        oq_group: 1,
+    };
+    cull_check_with(ctx, scene, culling, path, size, max_frames, &options)
+}
+
+/// [`cull_check`] with every knob.
+pub fn cull_check_with(
+    ctx: &Context,
+    scene: &Scene,
+    culling: Culling,
+    path: &CameraPath,
+    size: (u32, u32),
+    max_frames: Option<usize>,
+    options: &CheckOptions,
+) -> Result<CullCheck, RenderError> {
     let base = RenderOptions {
         width: size.0,
         height: size.1,
-        hiz_mode,
+        hiz_mode: options.hiz_mode,
+        oq_group: options.oq_group,
         ..Default::default()
     };
     let mut oracle = SceneRenderer::new(
@@ -239,7 +266,9 @@ fn run(
     }
     tested.finish(ctx)?;
     let medians = tested.medians();
-    let is_cull = |name: &str| name.starts_with("cull") || name.starts_with("hiz");
+    let is_cull = |name: &str| {
+        name.starts_with("cull") || name.starts_with("hiz") || name.starts_with("occlusion")
+    };
     let totals = Totals {
         frames: frames.len(),
         instances: blended.iter().filter(|b| !**b).count(),

@@ -11,6 +11,7 @@ pub mod cullcheck;
 pub mod draws;
 pub mod gpu_scene;
 pub mod hiz;
+pub mod occlusion;
 pub mod render;
 pub mod setup;
 

@@ -1,0 +1,473 @@
+//! Hardware occlusion queries (`Culling::Oq`, seeds 001 and 002).
+//!
+//! Each opaque or alpha-tested instance (or group of nearby instances, `--oq-group N`) gets one
+//! `VK_QUERY_TYPE_OCCLUSION` query per frame: its camera-relative bounding box (`oq_box.vert`,
+//! 36 vertices, no vertex buffer) is drawn against the frame's depth after all opaque work,
+//! depth tested, nothing written, in a pass of class `PassClass::OcclusionQuery` (the graph puts
+//! it in a render pass of its own after a flush where the profile asks, seed 001).
+//!
+//! Results are never waited for (seed 002: query pools never stall). There is a pool per frame
+//! slot; when a slot is acquired its fence has signalled, so its results (and those of any
+//! later frame that is already complete) are read without `WAIT`; the newest complete frame
+//! decides the next frame's drawn set. A query with no result yet counts as passed: the
+//! instance is drawn. Objects that become visible are drawn one frame late (false negatives,
+//! measured by `cull-check`).
+
+use std::collections::HashMap;
+
+use ash::vk;
+use glam::{DVec3, Mat4, Vec3, Vec4};
+use tilegraph_scene::{DepthConvention, FrameMatrices, Scene};
+use tilegraph_vk::ash;
+use tilegraph_vk::executor::PassContext;
+use tilegraph_vk::pipeline::{
+    create_graphics_pipeline, create_pipeline_layout, Blend, DepthState, GraphicsDesc,
+    RenderTarget, Stage,
+};
+use tilegraph_vk::{Context, VkError};
+
+const BOX_VS: &[u8] = include_bytes!("../../../shaders/spv/oq_box.vert.spv");
+
+/// Push constants of `oq_box.vert`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct BoxPush {
+    pub center: [f32; 4],
+    pub half_extents: [f32; 4],
+}
+
+/// One query: the instances it decides for and their union box (world space, f64).
+#[derive(Debug, Clone, PartialEq)]
+pub struct QueryGroup {
+    pub members: Vec<u32>,
+    pub min: DVec3,
+    pub max: DVec3,
+}
+
+/// Groups of `group_size` consecutive instances in a spatial order (Morton code of the bounds
+/// centre on a 1024^3 grid over the scene), skipping the excluded (blended) ones. With
+/// `group_size` 1, one query per instance.
+pub fn build_groups(scene: &Scene, group_size: usize, excluded: &[bool]) -> Vec<QueryGroup> {
+    let instances = scene.instances();
+    let ids: Vec<u32> = (0..instances.len() as u32)
+        .filter(|&i| !excluded.get(i as usize).copied().unwrap_or(false))
+        .collect();
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for &i in &ids {
+        if let Some(inst) = instances.get(i as usize) {
+            lo = lo.min(inst.bounds.center);
+            hi = hi.max(inst.bounds.center);
+        }
+    }
+    let extent = (hi - lo).max(DVec3::splat(1e-9));
+    let key = |i: u32| -> u64 {
+        let Some(inst) = instances.get(i as usize) else {
+            return 0;
+        };
+        let q = ((inst.bounds.center - lo) / extent * 1023.0).clamp(DVec3::ZERO, DVec3::splat(1023.0));
+        morton3(q.x as u32, q.y as u32, q.z as u32)
+    };
+    let mut sorted = ids;
+    if group_size > 1 {
+        sorted.sort_by_key(|&i| (key(i), i));
+    }
+    sorted
+        .chunks(group_size.max(1))
+        .map(|members| {
+            let mut min = DVec3::splat(f64::INFINITY);
+            let mut max = DVec3::splat(f64::NEG_INFINITY);
+            for &i in members {
+                if let Some(inst) = instances.get(i as usize) {
+                    let b = inst.bounds.aabb();
+                    min = min.min(b.min);
+                    max = max.max(b.max);
+                }
+            }
+            QueryGroup {
+                members: members.to_vec(),
+                min,
+                max,
+            }
+        })
+        .collect()
+}
+
+fn morton3(x: u32, y: u32, z: u32) -> u64 {
+    fn spread(v: u32) -> u64 {
+        let mut v = u64::from(v & 0x3ff);
+        v = (v | (v << 16)) & 0x0300_00ff;
+        v = (v | (v << 8)) & 0x0300_f00f;
+        v = (v | (v << 4)) & 0x030c_30c3;
+        (v | (v << 2)) & 0x0924_9249
+    }
+    spread(x) | (spread(y) << 1) | (spread(z) << 2)
+}
+
+/// Whether a camera-relative box reaches in front of the near plane (or behind the eye): its
+/// rasterization is clipped there, so a query could miss a visible object. Such boxes are not
+/// queried; their instances are drawn.
+pub fn crosses_near_plane(
+    view_proj: Mat4,
+    depth: DepthConvention,
+    center: Vec3,
+    half: Vec3,
+) -> bool {
+    (0..8).any(|c| {
+        let s = Vec3::new(
+            if c & 1 == 0 { -1.0 } else { 1.0 },
+            if c & 2 == 0 { -1.0 } else { 1.0 },
+            if c & 4 == 0 { -1.0 } else { 1.0 },
+        );
+        let p = view_proj * (center + half * s).extend(1.0);
+        p.w <= 0.0
+            || match depth {
+                DepthConvention::Reverse => p.z > p.w,
+                DepthConvention::Standard => p.z < 0.0,
+            }
+    })
+}
+
+/// Per frame slot: the frame whose queries the pool holds, and which queries it issued.
+#[derive(Debug, Default, Clone)]
+struct Pending {
+    frame: u64,
+    issued: Vec<bool>,
+}
+
+/// The persistent occlusion-query state of one renderer.
+pub struct OqState {
+    pub groups: Vec<QueryGroup>,
+    /// Per instance: its group, `u32::MAX` when not queried (blended).
+    group_of: Vec<u32>,
+    /// Per group: the newest known result (passed, or no result yet).
+    passed: Vec<bool>,
+    pools: Vec<vk::QueryPool>,
+    pending: Vec<Option<Pending>>,
+    /// This frame's boxes: (query index, push constants).
+    frame_boxes: Vec<(u32, BoxPush)>,
+    frame_slot: usize,
+    frames: u64,
+    pub pipeline_layout: vk::PipelineLayout,
+    pipelines: HashMap<(vk::RenderPass, u32, bool), vk::Pipeline>,
+}
+
+impl OqState {
+    /// Device features the queries need: host query reset (pools are reset on the CPU when
+    /// their results are read, so no reset command has to sit outside the query render pass).
+    pub fn required_features() -> [tilegraph_vk::Feature; 1] {
+        [tilegraph_vk::Feature::HostQueryReset]
+    }
+
+    pub fn new(
+        ctx: &Context,
+        scene: &Scene,
+        group_size: usize,
+        excluded: &[bool],
+        scene_set_layout: vk::DescriptorSetLayout,
+        frames_in_flight: usize,
+    ) -> Result<Self, VkError> {
+        let groups = build_groups(scene, group_size, excluded);
+        let mut group_of = vec![u32::MAX; scene.instances().len()];
+        for (g, group) in groups.iter().enumerate() {
+            for &i in &group.members {
+                if let Some(slot) = group_of.get_mut(i as usize) {
+                    *slot = g as u32;
+                }
+            }
+        }
+        let push = vk::PushConstantRange {
+            stage_flags: vk::ShaderStageFlags::VERTEX,
+            offset: 0,
+            size: std::mem::size_of::<BoxPush>() as u32,
+        };
+        let pipeline_layout = create_pipeline_layout(ctx, &[scene_set_layout], Some(push))?;
+        let mut state = OqState {
+            passed: vec![true; groups.len()],
+            groups,
+            group_of,
+            pools: Vec::new(),
+            pending: vec![None; frames_in_flight.max(1)],
+            frame_boxes: Vec::new(),
+            frame_slot: 0,
+            frames: 0,
+            pipeline_layout,
+            pipelines: HashMap::new(),
+        };
+        let count = state.query_count();
+        for _ in 0..frames_in_flight.max(1) {
+            let info = vk::QueryPoolCreateInfo::default()
+                .query_type(vk::QueryType::OCCLUSION)
+                .query_count(count);
+            // SAFETY: valid create info.
+            let pool = match unsafe { ctx.device.create_query_pool(&info, None) } {
+                Ok(p) => p,
+                Err(r) => {
+                    state.destroy(ctx);
+                    return Err(VkError::call("vkCreateQueryPool", r));
+                }
+            };
+            // SAFETY: a new pool, unused by the GPU; hostQueryReset is enabled (required).
+            unsafe { ctx.device.reset_query_pool(pool, 0, count) };
+            state.pools.push(pool);
+        }
+        Ok(state)
+    }
+
+    fn query_count(&self) -> u32 {
+        self.groups.len().max(1) as u32
+    }
+
+    /// Reads every complete frame's results without waiting, oldest first (call after the
+    /// executor acquired `slot`: that slot's frame has completed). A read pool is reset on the
+    /// host, ready for reuse.
+    pub fn collect(&mut self, ctx: &Context, slot: usize) -> Result<(), VkError> {
+        let count = self.query_count();
+        let mut order: Vec<(u64, usize)> = self
+            .pending
+            .iter()
+            .enumerate()
+            .filter_map(|(s, p)| p.as_ref().map(|p| (p.frame, s)))
+            .collect();
+        order.sort_unstable();
+        for (_, s) in order {
+            let (Some(pool), Some(Some(p))) = (self.pools.get(s).copied(), self.pending.get(s))
+            else {
+                continue;
+            };
+            // [result, availability] per query.
+            let mut results = vec![[0u32; 2]; count as usize];
+            // SAFETY: the pool has `count` queries; no WAIT flag, so this never stalls.
+            let r = unsafe {
+                ctx.device.get_query_pool_results(
+                    pool,
+                    0,
+                    &mut results,
+                    vk::QueryResultFlags::WITH_AVAILABILITY,
+                )
+            };
+            match r {
+                Ok(()) | Err(vk::Result::NOT_READY) => {}
+                Err(e) => return Err(VkError::call("vkGetQueryPoolResults", e)),
+            }
+            let complete = p
+                .issued
+                .iter()
+                .zip(&results)
+                .all(|(issued, [_, avail])| !issued || *avail != 0);
+            if !complete && s != slot {
+                // Still in flight; frames complete in order, so later ones are too.
+                break;
+            }
+            for ((passed, issued), [value, avail]) in
+                self.passed.iter_mut().zip(&p.issued).zip(&results)
+            {
+                *passed = !issued || *avail == 0 || *value != 0;
+            }
+            // SAFETY: the frame that used the pool has completed (its results are available,
+            // or its slot's fence signalled); hostQueryReset is enabled.
+            unsafe { ctx.device.reset_query_pool(pool, 0, count) };
+            if let Some(p) = self.pending.get_mut(s) {
+                *p = None;
+            }
+        }
+        Ok(())
+    }
+
+    /// Per instance: whether the newest query result lets it be drawn (instances without a
+    /// query, the blended ones, are always drawn here).
+    pub fn mask(&self) -> Vec<bool> {
+        self.group_of
+            .iter()
+            .map(|&g| {
+                g == u32::MAX || self.passed.get(g as usize).copied().unwrap_or(true)
+            })
+            .collect()
+    }
+
+    /// This frame's boxes in slot `slot`, camera-relative to `m.eye`.
+    pub fn prepare(&mut self, slot: usize, m: &FrameMatrices) {
+        self.frame_boxes.clear();
+        let mut issued = vec![false; self.groups.len()];
+        for (q, g) in self.groups.iter().enumerate() {
+            let center = ((g.min + g.max) * 0.5 - m.eye).as_vec3();
+            // Rounding to f32 may shrink the box by an ulp: pad it slightly.
+            let half = ((g.max - g.min) * 0.5).as_vec3() * (1.0 + 1e-5) + Vec3::splat(1e-5);
+            if crosses_near_plane(m.view_projection, m.depth, center, half) {
+                continue;
+            }
+            if let Some(i) = issued.get_mut(q) {
+                *i = true;
+            }
+            self.frame_boxes.push((
+                q as u32,
+                BoxPush {
+                    center: Vec4::from((center, 0.0)).to_array(),
+                    half_extents: Vec4::from((half, 0.0)).to_array(),
+                },
+            ));
+        }
+        self.frames += 1;
+        if let Some(p) = self.pending.get_mut(slot) {
+            *p = Some(Pending {
+                frame: self.frames,
+                issued,
+            });
+        }
+        self.frame_slot = slot;
+    }
+
+    fn pipeline(
+        &mut self,
+        pc: &PassContext<'_>,
+        depth: DepthConvention,
+    ) -> Result<vk::Pipeline, VkError> {
+        let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: "occlusion queries record inside a render pass".into(),
+        })?;
+        let reverse = depth == DepthConvention::Reverse;
+        if let Some(p) = self.pipelines.get(&(rp, subpass, reverse)) {
+            return Ok(*p);
+        }
+        let p = create_graphics_pipeline(
+            pc.ctx,
+            &GraphicsDesc {
+                name: pc.pass_name,
+                vertex: Stage {
+                    name: "oq_box.vert",
+                    spirv: BOX_VS,
+                    specialization: &[],
+                },
+                fragment: None,
+                vertex_layout: None,
+                layout: self.pipeline_layout,
+                target: RenderTarget::Subpass {
+                    render_pass: rp,
+                    subpass,
+                    color_count: 0,
+                },
+                // The box encloses the object: where the object is in front of the depth, so
+                // is the box (or level with it, hence OR_EQUAL).
+                depth: DepthState {
+                    test: true,
+                    write: false,
+                    compare: if reverse {
+                        vk::CompareOp::GREATER_OR_EQUAL
+                    } else {
+                        vk::CompareOp::LESS_OR_EQUAL
+                    },
+                },
+                blend: Blend::NoColorWrites,
+                // Both faces: a box seen from inside still counts.
+                cull: vk::CullModeFlags::NONE,
+                samples: vk::SampleCountFlags::TYPE_1,
+            },
+        )?;
+        self.pipelines.insert((rp, subpass, reverse), p);
+        Ok(p)
+    }
+
+    /// Records this frame's queries (inside the query pass's subpass).
+    pub fn record(
+        &mut self,
+        pc: &PassContext<'_>,
+        scene_set: vk::DescriptorSet,
+        depth: DepthConvention,
+    ) -> Result<(), VkError> {
+        let pool = *self
+            .pools
+            .get(pc.frame_slot)
+            .ok_or_else(|| VkError::Invalid {
+                what: "occlusion queries".into(),
+                reason: format!("no pool for slot {}", pc.frame_slot),
+            })?;
+        if pc.frame_slot != self.frame_slot {
+            return Err(VkError::Invalid {
+                what: "occlusion queries".into(),
+                reason: format!(
+                    "prepared for slot {}, recorded in slot {}",
+                    self.frame_slot, pc.frame_slot
+                ),
+            });
+        }
+        let pipeline = self.pipeline(pc, depth)?;
+        pc.set_full_viewport();
+        let d = &pc.ctx.device;
+        // SAFETY: inside the query subpass; pipeline, layout and set are live; every query of
+        // the pool was reset on the host after its last use (`collect`, `new`).
+        unsafe {
+            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            d.cmd_bind_descriptor_sets(
+                pc.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.pipeline_layout,
+                0,
+                &[scene_set],
+                &[],
+            );
+            for (q, push) in &self.frame_boxes {
+                d.cmd_begin_query(pc.cb, pool, *q, vk::QueryControlFlags::empty());
+                d.cmd_push_constants(
+                    pc.cb,
+                    self.pipeline_layout,
+                    vk::ShaderStageFlags::VERTEX,
+                    0,
+                    bytemuck::bytes_of(push),
+                );
+                d.cmd_draw(pc.cb, 36, 1, 0, 0);
+                d.cmd_end_query(pc.cb, pool, *q);
+            }
+        }
+        Ok(())
+    }
+
+    pub fn destroy(self, ctx: &Context) {
+        // SAFETY: the GPU is idle (caller's guarantee).
+        unsafe {
+            for p in self.pools {
+                ctx.device.destroy_query_pool(p, None);
+            }
+            for (_, p) in self.pipelines {
+                ctx.device.destroy_pipeline(p, None);
+            }
+            ctx.device
+                .destroy_pipeline_layout(self.pipeline_layout, None);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn groups_cover_every_queried_instance_once_and_their_boxes_hold_the_members() {
+        let scene = tilegraph_scene::load("city:300").unwrap();
+        let n = scene.instances().len();
+        let excluded: Vec<bool> = (0..n).map(|i| i % 7 == 0).collect();
+        for size in [1, 4, 16] {
+            let groups = build_groups(&scene, size, &excluded);
+            let mut seen = vec![0; n];
+            for g in &groups {
+                assert!(g.members.len() <= size);
+                for &i in &g.members {
+                    seen[i as usize] += 1;
+                    let b = scene.instances()[i as usize].bounds.aabb();
+                    assert!(b.min.cmpge(g.min).all() && b.max.cmple(g.max).all());
+                }
+            }
+            for (i, s) in seen.iter().enumerate() {
+                assert_eq!(*s, usize::from(!excluded[i]), "instance {i}, groups of {size}");
+            }
+        }
+    }
+
+    #[test]
+    fn morton_keys_interleave_axes() {
+        assert_eq!(morton3(1, 0, 0), 1);
+        assert_eq!(morton3(0, 1, 0), 2);
+        assert_eq!(morton3(0, 0, 1), 4);
+        assert_eq!(morton3(1023, 1023, 1023), (1 << 30) - 1);
+    }
+}
