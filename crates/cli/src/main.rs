@@ -108,8 +108,9 @@ enum Command {
 }
 
 fn parse_culling(s: &str) -> Result<Culling, String> {
-    Culling::parse(s)
-        .ok_or_else(|| format!("unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase, oq)"))
+    Culling::parse(s).ok_or_else(|| {
+        format!("unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase, oq)")
+    })
 }
 
 fn parse_npot(s: &str) -> Result<tilegraph_cull::NpotMode, String> {

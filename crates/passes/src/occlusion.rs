@@ -65,7 +65,8 @@ pub fn build_groups(scene: &Scene, group_size: usize, excluded: &[bool]) -> Vec<
         let Some(inst) = instances.get(i as usize) else {
             return 0;
         };
-        let q = ((inst.bounds.center - lo) / extent * 1023.0).clamp(DVec3::ZERO, DVec3::splat(1023.0));
+        let q =
+            ((inst.bounds.center - lo) / extent * 1023.0).clamp(DVec3::ZERO, DVec3::splat(1023.0));
         morton3(q.x as u32, q.y as u32, q.z as u32)
     };
     let mut sorted = ids;
@@ -279,9 +280,7 @@ impl OqState {
     pub fn mask(&self) -> Vec<bool> {
         self.group_of
             .iter()
-            .map(|&g| {
-                g == u32::MAX || self.passed.get(g as usize).copied().unwrap_or(true)
-            })
+            .map(|&g| g == u32::MAX || self.passed.get(g as usize).copied().unwrap_or(true))
             .collect()
     }
 
@@ -458,7 +457,11 @@ mod tests {
                 }
             }
             for (i, s) in seen.iter().enumerate() {
-                assert_eq!(*s, usize::from(!excluded[i]), "instance {i}, groups of {size}");
+                assert_eq!(
+                    *s,
+                    usize::from(!excluded[i]),
+                    "instance {i}, groups of {size}"
+                );
             }
         }
     }

@@ -1,0 +1,207 @@
+//! Occlusion queries against the exact oracle (lavapipe, validation on): `oq` reads its
+//! results a frame late, so objects that appear are missing for one frame (false negatives,
+//! measured and reported, never hidden); on a still camera it converges to no false negatives
+//! and the unculled image. Grouped queries (`--oq-group N`) draw a superset. On Adreno the query
+//! pass is a render pass of its own after the opaque passes, with a flush before it (seed 001).
+
+use tilegraph_e2e::gpu_with;
+use tilegraph_graph::{PassClass, Step};
+use tilegraph_passes::cull::Culling;
+use tilegraph_passes::cullcheck::{cull_check_with, CheckOptions, CullCheck};
+use tilegraph_passes::{RenderOptions, SceneRenderer};
+use tilegraph_scene::{CameraPath, PathKey, Scene};
+use tilegraph_vk::{Feature, FeatureRequest};
+
+const SIZE: (u32, u32) = (160, 90);
+
+fn features() -> FeatureRequest {
+    FeatureRequest::default().require([
+        Feature::GeometryShader,
+        Feature::DrawIndirectCount,
+        Feature::MultiDrawIndirect,
+        Feature::HostQueryReset,
+    ])
+}
+
+/// The scene's first `frames` path keys (a moving camera).
+fn moving(scene: &Scene, frames: usize) -> CameraPath {
+    let keys: Vec<PathKey> = scene
+        .camera_path()
+        .keys()
+        .iter()
+        .take(frames)
+        .enumerate()
+        .map(|(i, k)| PathKey {
+            camera: k.camera,
+            cut: k.cut && i > 0,
+        })
+        .collect();
+    CameraPath::new(format!("{} moving", scene.name()), keys).unwrap()
+}
+
+/// One camera of the scene's path held for `frames` frames.
+fn still(scene: &Scene, key: usize, frames: usize) -> CameraPath {
+    let k = scene.camera_path().keys()[key];
+    let keys = vec![
+        PathKey {
+            camera: k.camera,
+            cut: false
+        };
+        frames
+    ];
+    CameraPath::new(format!("{} still", scene.name()), keys).unwrap()
+}
+
+fn check(scene: &Scene, culling: Culling, path: &CameraPath, oq_group: usize) -> CullCheck {
+    let g = gpu_with(None, features()).unwrap();
+    cull_check_with(
+        &g,
+        scene,
+        culling,
+        path,
+        SIZE,
+        None,
+        &CheckOptions {
+            hiz_mode: tilegraph_cull::NpotMode::EdgeAware,
+            oq_group,
+        },
+    )
+    .unwrap()
+}
+
+fn summary(r: &CullCheck, what: &str) -> String {
+    let t = &r.totals;
+    let per_frame: Vec<String> = r
+        .frames
+        .iter()
+        .map(|f| format!("{}/{}", f.false_negatives, f.false_positives))
+        .collect();
+    format!(
+        "{:<3} {what:<16} {:<9} frames {:>2}  visible {:>5}  drawn {:>5}  FN {:>3} ({} frames)  FP {:>4} (rate {:.3})  images equal {}/{}  FN/FP per frame {}",
+        r.technique, r.scene, t.frames, t.visible, t.drawn, t.false_negatives,
+        t.frames_with_false_negatives, t.false_positives, t.false_positive_rate,
+        t.frames_image_equal, t.frames, per_frame.join(" ")
+    )
+}
+
+#[test]
+fn queries_lag_one_frame_and_converge_on_a_still_camera() {
+    let scene = tilegraph_scene::load("city:1500").unwrap();
+    let moving_r = check(&scene, Culling::Oq, &moving(&scene, 10), 1);
+    let still_r = check(&scene, Culling::Oq, &still(&scene, 0, 4), 1);
+    println!(
+        "{}\n{}",
+        summary(&moving_r, "moving"),
+        summary(&still_r, "still")
+    );
+    // No result yet on the first frame: everything is drawn.
+    for r in [&moving_r, &still_r] {
+        assert_eq!(r.frames[0].false_negatives, 0);
+        assert!(r.frames[0].image_equal);
+    }
+    // A still camera: from the second frame on, last frame's results are this frame's truth.
+    for f in &still_r.frames[1..] {
+        assert_eq!(
+            f.false_negatives, 0,
+            "still frame {}: {:?}",
+            f.frame, f.false_negative_ids
+        );
+        assert!(f.image_equal, "still frame {}", f.frame);
+        assert!(
+            f.drawn < still_r.frames[0].drawn,
+            "still frame {}: queries culled nothing",
+            f.frame
+        );
+    }
+    // Moving: the queries cull (street level: most of the city is hidden), and whatever false
+    // negatives the one-frame lag causes are counted per frame.
+    let late: usize = moving_r.frames[2..].iter().map(|f| f.drawn).sum();
+    let first: usize = moving_r.frames[0].drawn * (moving_r.frames.len() - 2);
+    assert!(late * 2 < first, "drawn {late} vs {first} unculled");
+}
+
+#[test]
+fn grouped_queries_draw_a_superset() {
+    let scene = tilegraph_scene::load("city:1500").unwrap();
+    let path = still(&scene, 0, 3);
+    let mut lines = Vec::new();
+    let single = check(&scene, Culling::Oq, &path, 1);
+    lines.push(summary(&single, "per instance"));
+    for n in [4, 16] {
+        let grouped = check(&scene, Culling::Oq, &path, n);
+        lines.push(summary(&grouped, &format!("groups of {n}")));
+        for (g, s) in grouped.frames.iter().zip(&single.frames).skip(1) {
+            assert_eq!(g.false_negatives, 0, "groups of {n}: frame {}", g.frame);
+            assert!(g.image_equal, "groups of {n}: frame {}", g.frame);
+            assert!(
+                g.drawn >= s.drawn && g.false_positives >= s.false_positives,
+                "groups of {n}: frame {} drew {} (FP {}) vs {} (FP {}) per instance",
+                g.frame,
+                g.drawn,
+                g.false_positives,
+                s.drawn,
+                s.false_positives
+            );
+        }
+    }
+    println!("{}", lines.join("\n"));
+}
+
+#[test]
+fn adreno_puts_the_queries_in_a_render_pass_of_their_own_after_a_flush() {
+    let scene = tilegraph_scene::load("city:300").unwrap();
+    for (profile, alone) in [("adreno-7xx", true), ("mali-valhall", false)] {
+        let g = gpu_with(Some(profile), features()).unwrap();
+        let mut r = SceneRenderer::new(
+            &g,
+            &scene,
+            RenderOptions {
+                width: SIZE.0,
+                height: SIZE.1,
+                culling: Culling::Oq,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let camera = scene.camera_path().camera(0).unwrap();
+        r.render(&g, &scene, &camera).unwrap();
+        // The second frame reads the first one's results.
+        let report = r.render(&g, &scene, &camera).unwrap();
+        r.finish(&g).unwrap();
+        r.destroy(&g);
+        let plan = &report.plan;
+        let queries = plan.pass_by_name("occlusion-queries").unwrap();
+        assert_eq!(queries.class, PassClass::OcclusionQuery);
+        let q_step = queries.step.index();
+        let drawing: Vec<_> = plan
+            .passes
+            .iter()
+            .filter(|p| matches!(p.class, PassClass::Opaque | PassClass::AlphaTested))
+            .collect();
+        assert!(!drawing.is_empty());
+        for p in &drawing {
+            assert!(
+                p.step.index() <= q_step,
+                "{profile}: {} after the queries",
+                p.name
+            );
+        }
+        let Step::RenderPass(rp) = &plan.steps[q_step] else {
+            panic!("{profile}: the queries are not in a render pass");
+        };
+        let flush = plan.steps[..q_step]
+            .iter()
+            .rposition(|s| matches!(s, Step::Flush(_)));
+        if alone {
+            assert_eq!(rp.subpasses.len(), 1, "{profile}:\n{plan}");
+            assert!(drawing.iter().all(|p| p.step.index() < q_step));
+            let f = flush.unwrap_or_else(|| panic!("{profile}: no flush:\n{plan}"));
+            assert!(
+                plan.steps[f + 1..q_step].iter().all(|s| !s.is_work()),
+                "{profile}: work between the flush and the queries:\n{plan}"
+            );
+        } else {
+            assert!(flush.is_none(), "{profile}:\n{plan}");
+        }
+    }
+}
