@@ -20,6 +20,7 @@ fn features() -> FeatureRequest {
         Feature::DrawIndirectCount,
         Feature::MultiDrawIndirect,
         Feature::HostQueryReset,
+        Feature::ConditionalRendering,
     ])
 }
 
@@ -204,4 +205,86 @@ fn adreno_puts_the_queries_in_a_render_pass_of_their_own_after_a_flush() {
             assert!(flush.is_none(), "{profile}:\n{plan}");
         }
     }
+}
+
+/// The scene's short hard path: first frames, then every 23rd (fast motion), both sides of cuts.
+fn hard_path(scene: &Scene, frames: usize) -> CameraPath {
+    let keys = scene.camera_path().keys();
+    let mut picks: Vec<usize> = (0..4.min(keys.len())).collect();
+    for (i, k) in keys.iter().enumerate() {
+        if k.cut && i > 0 {
+            picks.extend([i - 1, i, (i + 1).min(keys.len() - 1)]);
+        }
+    }
+    picks.extend((4..keys.len()).step_by(23));
+    picks.sort_unstable();
+    picks.dedup();
+    picks.truncate(frames);
+    let selected: Vec<PathKey> = picks
+        .iter()
+        .map(|&i| PathKey {
+            camera: keys[i].camera,
+            cut: keys[i].cut && i > 0,
+        })
+        .collect();
+    CameraPath::new(format!("{} hard path", scene.name()), selected).unwrap()
+}
+
+#[test]
+fn conditional_queries_never_cull_a_visible_instance() {
+    let mut lines = Vec::new();
+    for spec in ["city:1500", "interior:800"] {
+        let scene = tilegraph_scene::load(spec).unwrap();
+        for group in [1, 8] {
+            let r = check(
+                &scene,
+                Culling::OqConditional,
+                &hard_path(&scene, 10),
+                group,
+            );
+            lines.push(summary(&r, &format!("groups of {group}")));
+            for f in &r.frames {
+                assert_eq!(
+                    f.false_negatives, 0,
+                    "{spec} groups of {group}: frame {} culled {:?}",
+                    f.frame, f.false_negative_ids
+                );
+                assert!(
+                    f.image_equal,
+                    "{spec} groups of {group}: frame {} differs in {} pixels",
+                    f.frame, f.image_diff_pixels
+                );
+                assert!(f.visible > 0);
+            }
+            // Same frame, same depth: it culls from the first frame on.
+            assert!(r.totals.drawn < r.totals.instances * r.totals.frames);
+        }
+    }
+    println!("{}", lines.join("\n"));
+}
+
+#[test]
+fn conditional_queries_without_the_extension_are_a_typed_error() {
+    let g = gpu_with(
+        None,
+        FeatureRequest::default().require([Feature::HostQueryReset]),
+    )
+    .unwrap();
+    let scene = tilegraph_scene::load("city:100").unwrap();
+    let err = SceneRenderer::new(
+        &g,
+        &scene,
+        RenderOptions {
+            width: SIZE.0,
+            height: SIZE.1,
+            culling: Culling::OqConditional,
+            ..Default::default()
+        },
+    )
+    .err()
+    .expect("no error without VK_EXT_conditional_rendering");
+    assert!(
+        err.to_string().contains("VK_EXT_conditional_rendering"),
+        "{err}"
+    );
 }

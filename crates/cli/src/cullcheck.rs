@@ -38,6 +38,13 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
         Feature::MultiDrawIndirect,
         Feature::HostQueryReset,
     ]);
+    if a.culling.conditional() {
+        // Asked for only when used: without it, the renderer's typed error names the extension.
+        options
+            .features
+            .optional
+            .insert(Feature::ConditionalRendering);
+    }
     let ctx = Context::new(options)?;
     let report = cull_check_with(
         &ctx,

@@ -74,7 +74,7 @@ enum Command {
     CullCheck {
         /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
         scene: String,
-        /// none | frustum | hiz | hiz-2phase | oq
+        /// none | frustum | hiz | hiz-2phase | oq | oq-conditional
         #[arg(long, value_parser = parse_culling)]
         technique: Culling,
         /// Camera path JSON (docs/SCENES.md); the scene's own test path when absent.
@@ -109,7 +109,9 @@ enum Command {
 
 fn parse_culling(s: &str) -> Result<Culling, String> {
     Culling::parse(s).ok_or_else(|| {
-        format!("unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase, oq)")
+        format!(
+            "unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase, oq, oq-conditional)"
+        )
     })
 }
 

@@ -41,6 +41,10 @@ pub enum Culling {
     /// next frame without waiting: the drawn set lags one frame (false negatives when objects
     /// appear, measured).
     Oq,
+    /// The same queries in the same frame, against a depth pre-pass: results copied to a buffer
+    /// on the GPU, each instance drawn under `VK_EXT_conditional_rendering` on its result.
+    /// Conservative: no false negatives, the unculled image.
+    OqConditional,
 }
 
 impl Culling {
@@ -51,6 +55,7 @@ impl Culling {
             "hiz" => Some(Culling::Hiz),
             "hiz-2phase" => Some(Culling::HizTwoPhase),
             "oq" => Some(Culling::Oq),
+            "oq-conditional" => Some(Culling::OqConditional),
             _ => None,
         }
     }
@@ -62,6 +67,7 @@ impl Culling {
             Culling::Hiz => "hiz",
             Culling::HizTwoPhase => "hiz-2phase",
             Culling::Oq => "oq",
+            Culling::OqConditional => "oq-conditional",
         }
     }
 
@@ -73,7 +79,17 @@ impl Culling {
 
     /// Whether the technique issues hardware occlusion queries.
     pub fn uses_queries(self) -> bool {
-        matches!(self, Culling::Oq)
+        matches!(self, Culling::Oq | Culling::OqConditional)
+    }
+
+    /// Whether colour draws are predicated on this frame's query results on the GPU.
+    pub fn conditional(self) -> bool {
+        self == Culling::OqConditional
+    }
+
+    /// Whether the technique needs a depth pre-pass whatever the profile says.
+    pub fn needs_prepass(self) -> bool {
+        matches!(self, Culling::HizTwoPhase | Culling::OqConditional)
     }
 
     pub fn uses_pyramid(self) -> bool {

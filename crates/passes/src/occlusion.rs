@@ -24,7 +24,7 @@ use tilegraph_vk::pipeline::{
     create_graphics_pipeline, create_pipeline_layout, Blend, DepthState, GraphicsDesc,
     RenderTarget, Stage,
 };
-use tilegraph_vk::{Context, VkError};
+use tilegraph_vk::{Buffer, Context, VkError};
 
 const BOX_VS: &[u8] = include_bytes!("../../../shaders/spv/oq_box.vert.spv");
 
@@ -151,6 +151,10 @@ pub struct OqState {
     frames: u64,
     pub pipeline_layout: vk::PipelineLayout,
     pipelines: HashMap<(vk::RenderPass, u32, bool), vk::Pipeline>,
+    /// Conditional rendering: this frame's results on the GPU, one u32 per query.
+    pub conditions: Option<Buffer>,
+    /// Per query: whether this frame issued it (the others draw unconditionally).
+    current_issued: Vec<bool>,
 }
 
 impl OqState {
@@ -160,10 +164,12 @@ impl OqState {
         [tilegraph_vk::Feature::HostQueryReset]
     }
 
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &Context,
         scene: &Scene,
         group_size: usize,
+        conditional: bool,
         excluded: &[bool],
         scene_set_layout: vk::DescriptorSetLayout,
         frames_in_flight: usize,
@@ -194,8 +200,27 @@ impl OqState {
             frames: 0,
             pipeline_layout,
             pipelines: HashMap::new(),
+            conditions: None,
+            current_issued: Vec::new(),
         };
         let count = state.query_count();
+        if conditional {
+            match ctx.create_buffer(
+                "oq conditions",
+                4 * u64::from(count),
+                vk::BufferUsageFlags::TRANSFER_DST
+                    | vk::BufferUsageFlags::TRANSFER_SRC
+                    | vk::BufferUsageFlags::INDIRECT_BUFFER
+                    | vk::BufferUsageFlags::CONDITIONAL_RENDERING_EXT,
+                tilegraph_profile::MemoryUse::GpuOnly,
+            ) {
+                Ok(b) => state.conditions = Some(b),
+                Err(e) => {
+                    state.destroy(ctx);
+                    return Err(e);
+                }
+            }
+        }
         for _ in 0..frames_in_flight.max(1) {
             let info = vk::QueryPoolCreateInfo::default()
                 .query_type(vk::QueryType::OCCLUSION)
@@ -307,6 +332,7 @@ impl OqState {
             ));
         }
         self.frames += 1;
+        self.current_issued.clone_from(&issued);
         if let Some(p) = self.pending.get_mut(slot) {
             *p = Some(Pending {
                 frame: self.frames,
@@ -421,7 +447,107 @@ impl OqState {
         Ok(())
     }
 
+    /// Conditional rendering: the byte offset of `instance`'s result in [`Self::conditions`],
+    /// or `None` when this frame did not query it (it is drawn unconditionally).
+    pub fn condition_offset(&self, instance: u32) -> Option<u64> {
+        let g = *self.group_of.get(instance as usize)?;
+        self.current_issued
+            .get(g as usize)
+            .copied()
+            .unwrap_or(false)
+            .then_some(4 * u64::from(g))
+    }
+
+    /// Conditional rendering: copies this frame's results into [`Self::conditions`] (waiting on
+    /// the GPU, not the CPU) and makes them visible to the conditional-rendering stage.
+    pub fn record_copy(&self, pc: &PassContext<'_>) -> Result<(), VkError> {
+        let (Some(conditions), Some(&pool)) = (&self.conditions, self.pools.get(pc.frame_slot))
+        else {
+            return Ok(());
+        };
+        let d = &pc.ctx.device;
+        let mut q = 0usize;
+        while q < self.current_issued.len() {
+            if !self.current_issued[q] {
+                q += 1;
+                continue;
+            }
+            let end = (q..self.current_issued.len())
+                .find(|&k| !self.current_issued[k])
+                .unwrap_or(self.current_issued.len());
+            // SAFETY: outside a render pass; queries q..end were issued in this frame's command
+            // buffers before this pass (the graph orders it after the query pass); the buffer
+            // holds a u32 per query and is in TRANSFER_DST use for this pass.
+            unsafe {
+                d.cmd_copy_query_pool_results(
+                    pc.cb,
+                    pool,
+                    q as u32,
+                    (end - q) as u32,
+                    conditions.raw,
+                    4 * q as u64,
+                    4,
+                    vk::QueryResultFlags::WAIT,
+                );
+            }
+            q = end;
+        }
+        // The graph knows the colour passes' read as an indirect-buffer read; the predicate is
+        // read by the conditional-rendering stage, which needs its own barrier.
+        let barrier = [vk::BufferMemoryBarrier2::default()
+            .src_stage_mask(vk::PipelineStageFlags2::COPY)
+            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+            .dst_stage_mask(vk::PipelineStageFlags2::CONDITIONAL_RENDERING_EXT)
+            .dst_access_mask(vk::AccessFlags2::CONDITIONAL_RENDERING_READ_EXT)
+            .buffer(conditions.raw)
+            .offset(0)
+            .size(vk::WHOLE_SIZE)];
+        pc.ctx.cmd_pipeline_barrier2(
+            pc.cb,
+            &vk::DependencyInfo::default().buffer_memory_barriers(&barrier),
+        )
+    }
+
+    /// Conditional rendering: the instances the last frame drew (not queried, or query passed);
+    /// reads the results back (the caller waited for the frame).
+    pub fn conditional_drawn(&self, ctx: &Context) -> Result<Vec<u32>, VkError> {
+        let Some(conditions) = &self.conditions else {
+            return Ok(Vec::new());
+        };
+        let bytes = tilegraph_vk::readback::read_buffer(
+            ctx,
+            tilegraph_vk::executor::BufferHandle {
+                raw: conditions.raw,
+                size: conditions.size,
+            },
+        )?;
+        let result = |g: u32| {
+            let at = 4 * g as usize;
+            bytes
+                .get(at..at + 4)
+                .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+        };
+        Ok(self
+            .group_of
+            .iter()
+            .enumerate()
+            .filter(|(_, &g)| g != u32::MAX)
+            .filter(|(_, &g)| {
+                !self
+                    .current_issued
+                    .get(g as usize)
+                    .copied()
+                    .unwrap_or(false)
+                    || result(g) != 0
+            })
+            .map(|(i, _)| i as u32)
+            .collect())
+    }
+
     pub fn destroy(self, ctx: &Context) {
+        if let Some(b) = self.conditions {
+            ctx.destroy_buffer(b);
+        }
         // SAFETY: the GPU is idle (caller's guarantee).
         unsafe {
             for p in self.pools {

@@ -58,6 +58,12 @@ pub enum RenderError {
         feature: tilegraph_vk::Feature,
         device: String,
     },
+    #[error("culling {culling} needs {extension}, which {device:?} does not have (or it was not requested)")]
+    MissingExtension {
+        culling: &'static str,
+        extension: &'static str,
+        device: String,
+    },
     #[error("invalid render size {width}x{height}")]
     Size { width: u32, height: u32 },
 }
@@ -201,6 +207,9 @@ struct Declared {
     depth_cleared: bool,
     prepass: bool,
     gpu: Option<CullBuffers>,
+    /// Conditional occlusion queries: the results buffer the colour passes are predicated on,
+    /// once the query pass is declared.
+    conditions: Option<BufferId>,
 }
 
 impl Shared {
@@ -411,6 +420,12 @@ impl Shared {
             return Ok(());
         }
         self.bind_geometry(pc, false)?;
+        if matches!(variant, Variant::Forward { class: 0 | 1, .. }) {
+            if let Some(conditions) = self.oq.as_ref().and_then(|o| o.conditions.as_ref()) {
+                let raw = conditions.raw;
+                return self.record_conditional(pc, variant, draws, color_count, raw);
+            }
+        }
         let d = &pc.ctx.device;
         for sided in [false, true] {
             let mut bound = false;
@@ -432,6 +447,70 @@ impl Shared {
                         draw.first_instance,
                     )
                 };
+            }
+        }
+        Ok(())
+    }
+
+    /// Records `draws` one instance at a time, each predicated on its occlusion query's result
+    /// (instances the frame did not query are drawn unconditionally). Same order as the
+    /// instanced draws, so the image equals the unculled one.
+    fn record_conditional(
+        &mut self,
+        pc: &PassContext<'_>,
+        variant: Variant,
+        draws: &[Draw],
+        color_count: u32,
+        conditions: vk::Buffer,
+    ) -> Result<(), VkError> {
+        let cond = pc
+            .ctx
+            .conditional_rendering()
+            .ok_or_else(|| VkError::Invalid {
+                what: pc.pass_name.into(),
+                reason: "VK_EXT_conditional_rendering is not enabled".into(),
+            })?;
+        let d = &pc.ctx.device;
+        for sided in [false, true] {
+            let mut bound = false;
+            for draw in draws.iter().filter(|d| d.double_sided == sided) {
+                if !bound {
+                    let p = self.pipeline(pc, variant, sided, color_count)?;
+                    // SAFETY: inside the subpass; the pipeline is live.
+                    unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
+                    bound = true;
+                }
+                for k in draw.first_instance..draw.first_instance + draw.instance_count {
+                    let offset = self
+                        .draws
+                        .instances
+                        .get(k as usize)
+                        .and_then(|&id| self.oq.as_ref()?.condition_offset(id));
+                    if let Some(offset) = offset {
+                        let begin = vk::ConditionalRenderingBeginInfoEXT::default()
+                            .buffer(conditions)
+                            .offset(offset);
+                        // SAFETY: the buffer has CONDITIONAL_RENDERING usage, the offset is a
+                        // multiple of 4 inside it; the copy pass wrote it and made it visible
+                        // to the conditional-rendering stage.
+                        unsafe { (cond.fp().cmd_begin_conditional_rendering_ext)(pc.cb, &begin) };
+                    }
+                    // SAFETY: the draw's ranges lie inside the scene's buffers.
+                    unsafe {
+                        d.cmd_draw_indexed(
+                            pc.cb,
+                            draw.index_count,
+                            1,
+                            draw.first_index,
+                            draw.vertex_offset,
+                            k,
+                        )
+                    };
+                    if offset.is_some() {
+                        // SAFETY: ends the conditional block begun above, in the same subpass.
+                        unsafe { (cond.fp().cmd_end_conditional_rendering_ext)(pc.cb) };
+                    }
+                }
             }
         }
         Ok(())
@@ -622,6 +701,15 @@ impl SceneRenderer {
                 .required
                 .insert(tilegraph_vk::Feature::FragmentStoresAndAtomics);
         }
+        if options.culling.conditional()
+            && !ctx.has_feature(tilegraph_vk::Feature::ConditionalRendering)
+        {
+            return Err(RenderError::MissingExtension {
+                culling: options.culling.name(),
+                extension: "VK_EXT_conditional_rendering",
+                device: ctx.physical.identity.device_name.clone(),
+            });
+        }
         for f in needed.required {
             if !ctx.has_feature(f) {
                 return Err(RenderError::MissingFeature {
@@ -719,6 +807,7 @@ impl SceneRenderer {
                 ctx,
                 scene,
                 options.oq_group,
+                options.culling.conditional(),
                 &blended,
                 gpu.set_layout,
                 executor.frames_in_flight(),
@@ -825,6 +914,12 @@ impl SceneRenderer {
         // Occlusion queries: the newest complete frame's results select what this frame draws
         // (read now, never waited for: the acquired slot's frame has completed).
         let blended_mask = match self.shared.borrow_mut().oq.as_mut() {
+            Some(oq) if culling.conditional() => {
+                // Same-frame results on the GPU; reading the slot only recycles its pool.
+                oq.collect(ctx, slot)?;
+                oq.prepare(slot, &m);
+                blended_mask
+            }
             Some(oq) => {
                 oq.collect(ctx, slot)?;
                 let mask = oq.mask();
@@ -936,6 +1031,17 @@ impl SceneRenderer {
         if let (Some((_, h)), Some(r)) = (&self.ids_target, plan.resource_by_name("visbuf-id")) {
             ext.insert(r.id, External::Image(h.clone()));
         }
+        if let Some(b) = self
+            .shared
+            .borrow()
+            .oq
+            .as_ref()
+            .and_then(|o| o.conditions.as_ref())
+        {
+            if let Some(r) = plan.resource_by_name("oq-conditions") {
+                ext.insert(r.id, External::Buffer(CullState::handle(b)));
+            }
+        }
         if let Some(cull) = self.shared.borrow().cull.as_ref() {
             let named = [
                 ("cull-commands", Some(&cull.commands)),
@@ -985,6 +1091,11 @@ impl SceneRenderer {
         self.executor.finish(ctx)?;
         if let Some(d) = &self.last_drawn {
             return Ok(Some(d.clone()));
+        }
+        if let Some(oq) = self.shared.borrow().oq.as_ref() {
+            if oq.conditions.is_some() {
+                return Ok(Some(oq.conditional_drawn(ctx)?));
+            }
         }
         match self.shared.borrow().cull.as_ref() {
             Some(c) => Ok(Some(c.drawn_instances(ctx)?)),
@@ -1054,6 +1165,7 @@ impl SceneRenderer {
             depth_cleared: false,
             prepass: setup.has_prepass(),
             gpu: None,
+            conditions: None,
         };
         let shared = &self.shared;
         let two_phase = culling == Culling::HizTwoPhase;
@@ -1121,6 +1233,11 @@ impl SceneRenderer {
                 if split_depth && !depth_only {
                     continue; // colour after both depth phases
                 }
+                if culling.conditional() && !depth_only && f.conditions.is_none() && f.depth_cleared
+                {
+                    // Boxes against the pre-pass depth, then colour predicated on them.
+                    self.declare_queries(&mut g, &mut f);
+                }
                 self.declare_geometry(&mut g, &mut f, pass, phase, suffix, profile);
             }
         }
@@ -1169,28 +1286,9 @@ impl SceneRenderer {
             // Next frame's occluders: this frame's depth.
             self.declare_hiz_build(&mut g, f.depth, b);
         }
-        if culling.uses_queries() && f.depth_cleared {
-            // After all opaque work (the graph's class order), reading depth only; its results
-            // leave the graph through the query pool, hence kept without an export.
-            let shared_q = shared.clone();
-            let queries: Payload = Box::new(move |pc: &mut PassContext<'_>| {
-                let mut s = shared_q.borrow_mut();
-                let depth = s.depth;
-                let set = *s
-                    .scene_sets
-                    .get(pc.frame_slot)
-                    .ok_or_else(|| VkError::Invalid {
-                        what: "occlusion queries".into(),
-                        reason: "no scene set for this frame slot".into(),
-                    })?;
-                match s.oq.as_mut() {
-                    Some(oq) => oq.record(pc, set, depth),
-                    None => Ok(()),
-                }
-            });
-            g.raster_pass("occlusion-queries", PassClass::OcclusionQuery, queries)
-                .depth_stencil_read_only(f.depth)
-                .retention(tilegraph_graph::Retention::Always);
+        if culling.uses_queries() && !culling.conditional() && f.depth_cleared {
+            // After all opaque work (the graph's class order); results are read next frame.
+            self.declare_queries(&mut g, &mut f);
         }
         if !f.color_cleared {
             // Nothing drew (an empty view of an empty scene): still produce a cleared image.
@@ -1247,6 +1345,70 @@ impl SceneRenderer {
             visibility,
             pyramid,
         }
+    }
+
+    /// The occlusion-query pass (reading depth only; its results leave the graph through the
+    /// query pool, hence kept without an export) and, for conditional rendering, the copy of
+    /// its results into the predicate buffer.
+    fn declare_queries(&self, g: &mut GraphBuilder<Payload>, f: &mut Declared) {
+        let shared_q = self.shared.clone();
+        let queries: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+            let mut s = shared_q.borrow_mut();
+            let depth = s.depth;
+            let set = *s
+                .scene_sets
+                .get(pc.frame_slot)
+                .ok_or_else(|| VkError::Invalid {
+                    what: "occlusion queries".into(),
+                    reason: "no scene set for this frame slot".into(),
+                })?;
+            match s.oq.as_mut() {
+                Some(oq) => oq.record(pc, set, depth),
+                None => Ok(()),
+            }
+        });
+        let query_pass = g
+            .raster_pass("occlusion-queries", PassClass::OcclusionQuery, queries)
+            .depth_stencil_read_only(f.depth)
+            .retention(tilegraph_graph::Retention::Always)
+            .id();
+        let size = match self
+            .shared
+            .borrow()
+            .oq
+            .as_ref()
+            .and_then(|o| o.conditions.as_ref())
+        {
+            Some(b) => b.size,
+            None => return,
+        };
+        let any = ResourceState::buffer(
+            PipelineStages::ALL_COMMANDS,
+            AccessFlags::MEMORY_READ.union(AccessFlags::MEMORY_WRITE),
+        );
+        let conditions = g.import_buffer(
+            "oq-conditions",
+            size,
+            Import {
+                initial: any,
+                content: InitialContent::Discard,
+                final_state: any,
+            },
+        );
+        // Tools read the drawn set back after the frame.
+        g.export(conditions);
+        let shared_c = self.shared.clone();
+        let copy: Payload =
+            Box::new(
+                move |pc: &mut PassContext<'_>| match shared_c.borrow().oq.as_ref() {
+                    Some(oq) => oq.record_copy(pc),
+                    None => Ok(()),
+                },
+            );
+        g.transfer_pass("oq-copy-results", PassClass::Transfer, copy)
+            .transfer_dst(conditions)
+            .after(query_pass);
+        f.conditions = Some(conditions);
     }
 
     fn declare_hiz_build(&self, g: &mut GraphBuilder<Payload>, depth: ImageId, b: CullBuffers) {
@@ -1398,6 +1560,11 @@ impl SceneRenderer {
                     f.prepass,
                 );
                 uses_lists(&mut p);
+                if let Some(c) = f.conditions {
+                    // Read by vkCmdBeginConditionalRenderingEXT (the copy pass adds the
+                    // conditional-rendering barrier the graph has no access kind for).
+                    p.indirect(c);
+                }
             }
             PassKind::VisbufWrite => {
                 let extent = Extent2d::new(self.options.width, self.options.height);

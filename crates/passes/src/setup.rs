@@ -115,7 +115,7 @@ impl FrameSetup {
     /// two phases with a pyramid build between them, so the depth pre-pass is left out (it
     /// would need two phases of its own to stay exact).
     pub fn with_culling(mut self, culling: crate::cull::Culling) -> FrameSetup {
-        if culling != crate::cull::Culling::HizTwoPhase || self.technique == Technique::Visbuf {
+        if !culling.needs_prepass() || self.technique == Technique::Visbuf {
             return self;
         }
         // Two-phase culling draws depth twice (last frame's visible set, then the newly visible)
@@ -131,7 +131,11 @@ impl FrameSetup {
             };
             if wanted && !d.included {
                 d.included = true;
-                d.reason = "two-phase occlusion culling: depth of last frame's visible set, the pyramid, then the newly visible; colour once".into();
+                d.reason = match culling {
+                    crate::cull::Culling::OqConditional => "conditional occlusion queries: boxes tested against the pre-pass depth, colour predicated on their results",
+                    _ => "two-phase occlusion culling: depth of last frame's visible set, the pyramid, then the newly visible; colour once",
+                }
+                .into();
             }
         }
         self
