@@ -21,6 +21,7 @@ fn features() -> FeatureRequest {
         Feature::MultiDrawIndirect,
         Feature::HostQueryReset,
         Feature::ConditionalRendering,
+        Feature::FragmentStoresAndAtomics,
     ])
 }
 
@@ -287,4 +288,29 @@ fn conditional_queries_without_the_extension_are_a_typed_error() {
         err.to_string().contains("VK_EXT_conditional_rendering"),
         "{err}"
     );
+}
+
+#[test]
+fn raster_occlusion_never_culls_a_visible_instance() {
+    let mut lines = Vec::new();
+    for spec in ["city:1500", "interior:800", "forest:800"] {
+        let scene = tilegraph_scene::load(spec).unwrap();
+        let r = check(&scene, Culling::RasterOcclusion, &hard_path(&scene, 10), 1);
+        lines.push(summary(&r, ""));
+        for f in &r.frames {
+            assert_eq!(
+                f.false_negatives, 0,
+                "{spec}: frame {} culled {:?}",
+                f.frame, f.false_negative_ids
+            );
+            assert!(
+                f.image_equal,
+                "{spec}: frame {} differs in {} pixels",
+                f.frame, f.image_diff_pixels
+            );
+            assert!(f.visible > 0);
+        }
+        assert!(r.totals.drawn < r.totals.instances * r.totals.frames);
+    }
+    println!("{}", lines.join("\n"));
 }

@@ -45,6 +45,12 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
             .optional
             .insert(Feature::ConditionalRendering);
     }
+    if a.culling == Culling::RasterOcclusion {
+        options
+            .features
+            .optional
+            .insert(Feature::FragmentStoresAndAtomics);
+    }
     let ctx = Context::new(options)?;
     let report = cull_check_with(
         &ctx,

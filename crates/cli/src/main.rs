@@ -74,7 +74,7 @@ enum Command {
     CullCheck {
         /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
         scene: String,
-        /// none | frustum | hiz | hiz-2phase | oq | oq-conditional
+        /// none | frustum | hiz | hiz-2phase | oq | oq-conditional | raster-occlusion
         #[arg(long, value_parser = parse_culling)]
         technique: Culling,
         /// Camera path JSON (docs/SCENES.md); the scene's own test path when absent.
@@ -110,7 +110,7 @@ enum Command {
 fn parse_culling(s: &str) -> Result<Culling, String> {
     Culling::parse(s).ok_or_else(|| {
         format!(
-            "unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase, oq, oq-conditional)"
+            "unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase, oq, oq-conditional, raster-occlusion)"
         )
     })
 }

@@ -45,6 +45,10 @@ pub enum Culling {
     /// on the GPU, each instance drawn under `VK_EXT_conditional_rendering` on its result.
     /// Conservative: no false negatives, the unculled image.
     OqConditional,
+    /// Bounding boxes rasterized against the depth pre-pass with early fragment tests; each
+    /// surviving fragment flags its instance, the culling shader turns flags into indirect
+    /// draws. Conservative: no false negatives, the unculled image.
+    RasterOcclusion,
 }
 
 impl Culling {
@@ -56,6 +60,7 @@ impl Culling {
             "hiz-2phase" => Some(Culling::HizTwoPhase),
             "oq" => Some(Culling::Oq),
             "oq-conditional" => Some(Culling::OqConditional),
+            "raster-occlusion" => Some(Culling::RasterOcclusion),
             _ => None,
         }
     }
@@ -68,13 +73,17 @@ impl Culling {
             Culling::HizTwoPhase => "hiz-2phase",
             Culling::Oq => "oq",
             Culling::OqConditional => "oq-conditional",
+            Culling::RasterOcclusion => "raster-occlusion",
         }
     }
 
     /// Whether the technique draws opaque and alpha-tested geometry through the culling
     /// shader's indirect lists (the others select the CPU draw lists).
     pub fn uses_gpu_lists(self) -> bool {
-        matches!(self, Culling::Frustum | Culling::Hiz | Culling::HizTwoPhase)
+        matches!(
+            self,
+            Culling::Frustum | Culling::Hiz | Culling::HizTwoPhase | Culling::RasterOcclusion
+        )
     }
 
     /// Whether the technique issues hardware occlusion queries.
@@ -89,7 +98,10 @@ impl Culling {
 
     /// Whether the technique needs a depth pre-pass whatever the profile says.
     pub fn needs_prepass(self) -> bool {
-        matches!(self, Culling::HizTwoPhase | Culling::OqConditional)
+        matches!(
+            self,
+            Culling::HizTwoPhase | Culling::OqConditional | Culling::RasterOcclusion
+        )
     }
 
     pub fn uses_pyramid(self) -> bool {

@@ -562,6 +562,183 @@ impl OqState {
     }
 }
 
+/// Raster occlusion (`Culling::RasterOcclusion`): every instance's box drawn against the
+/// pre-pass depth with early fragment tests, surviving fragments flag the instance in the
+/// culling `visibility` buffer, which `cull.comp` (its early phase) turns into indirect draws.
+pub struct RasterOcclusion {
+    set_layout: vk::DescriptorSetLayout,
+    pool: vk::DescriptorPool,
+    set: vk::DescriptorSet,
+    pub pipeline_layout: vk::PipelineLayout,
+    pipelines: HashMap<(vk::RenderPass, u32, bool), vk::Pipeline>,
+    instance_count: u32,
+}
+
+const RASTER_VS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.vert.spv");
+const RASTER_FS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.frag.spv");
+
+impl RasterOcclusion {
+    pub fn new(
+        ctx: &Context,
+        scene_set_layout: vk::DescriptorSetLayout,
+        visibility: &Buffer,
+        instance_count: u32,
+    ) -> Result<Self, VkError> {
+        let set_layout = tilegraph_vk::pipeline::create_set_layout(
+            ctx,
+            &[(
+                0,
+                vk::DescriptorType::STORAGE_BUFFER,
+                vk::ShaderStageFlags::FRAGMENT,
+            )],
+        )?;
+        let sizes = [vk::DescriptorPoolSize {
+            ty: vk::DescriptorType::STORAGE_BUFFER,
+            descriptor_count: 1,
+        }];
+        let pool_info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(1)
+            .pool_sizes(&sizes);
+        // SAFETY: valid create info.
+        let pool = match unsafe { ctx.device.create_descriptor_pool(&pool_info, None) } {
+            Ok(p) => p,
+            Err(r) => {
+                // SAFETY: the layout is unused.
+                unsafe { ctx.device.destroy_descriptor_set_layout(set_layout, None) };
+                return Err(VkError::call("vkCreateDescriptorPool", r));
+            }
+        };
+        let mut state = RasterOcclusion {
+            set_layout,
+            pool,
+            set: vk::DescriptorSet::null(),
+            pipeline_layout: vk::PipelineLayout::null(),
+            pipelines: HashMap::new(),
+            instance_count,
+        };
+        match create_pipeline_layout(ctx, &[scene_set_layout, set_layout], None) {
+            Ok(l) => state.pipeline_layout = l,
+            Err(e) => {
+                state.destroy(ctx);
+                return Err(e);
+            }
+        }
+        match tilegraph_vk::pipeline::allocate_set(ctx, pool, set_layout) {
+            Ok(s) => state.set = s,
+            Err(e) => {
+                state.destroy(ctx);
+                return Err(e);
+            }
+        }
+        let info = [vk::DescriptorBufferInfo {
+            buffer: visibility.raw,
+            offset: 0,
+            range: vk::WHOLE_SIZE,
+        }];
+        let write = vk::WriteDescriptorSet::default()
+            .dst_set(state.set)
+            .dst_binding(0)
+            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+            .buffer_info(&info);
+        // SAFETY: a new set, not in use; the buffer is live as long as the culling state.
+        unsafe { ctx.device.update_descriptor_sets(&[write], &[]) };
+        Ok(state)
+    }
+
+    fn pipeline(
+        &mut self,
+        pc: &PassContext<'_>,
+        depth: DepthConvention,
+    ) -> Result<vk::Pipeline, VkError> {
+        let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: "raster occlusion records inside a render pass".into(),
+        })?;
+        let reverse = depth == DepthConvention::Reverse;
+        if let Some(p) = self.pipelines.get(&(rp, subpass, reverse)) {
+            return Ok(*p);
+        }
+        let p = create_graphics_pipeline(
+            pc.ctx,
+            &GraphicsDesc {
+                name: pc.pass_name,
+                vertex: Stage {
+                    name: "raster_occlusion.vert",
+                    spirv: RASTER_VS,
+                    specialization: &[],
+                },
+                fragment: Some(Stage {
+                    name: "raster_occlusion.frag",
+                    spirv: RASTER_FS,
+                    specialization: &[],
+                }),
+                vertex_layout: None,
+                layout: self.pipeline_layout,
+                target: RenderTarget::Subpass {
+                    render_pass: rp,
+                    subpass,
+                    color_count: 0,
+                },
+                depth: DepthState {
+                    test: true,
+                    write: false,
+                    compare: if reverse {
+                        vk::CompareOp::GREATER_OR_EQUAL
+                    } else {
+                        vk::CompareOp::LESS_OR_EQUAL
+                    },
+                },
+                blend: Blend::NoColorWrites,
+                cull: vk::CullModeFlags::NONE,
+                samples: vk::SampleCountFlags::TYPE_1,
+            },
+        )?;
+        self.pipelines.insert((rp, subpass, reverse), p);
+        Ok(p)
+    }
+
+    /// Records one instanced draw of every instance's box.
+    pub fn record(
+        &mut self,
+        pc: &PassContext<'_>,
+        scene_set: vk::DescriptorSet,
+        depth: DepthConvention,
+    ) -> Result<(), VkError> {
+        let pipeline = self.pipeline(pc, depth)?;
+        pc.set_full_viewport();
+        let d = &pc.ctx.device;
+        // SAFETY: inside the raster-occlusion subpass; pipeline, layout and sets are live; the
+        // graph put the visibility buffer in fragment-shader storage-write use for this pass.
+        unsafe {
+            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            d.cmd_bind_descriptor_sets(
+                pc.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                self.pipeline_layout,
+                0,
+                &[scene_set, self.set],
+                &[],
+            );
+            d.cmd_draw(pc.cb, 36, self.instance_count, 0, 0);
+        }
+        Ok(())
+    }
+
+    pub fn destroy(self, ctx: &Context) {
+        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
+        unsafe {
+            for (_, p) in self.pipelines {
+                ctx.device.destroy_pipeline(p, None);
+            }
+            ctx.device
+                .destroy_pipeline_layout(self.pipeline_layout, None);
+            ctx.device.destroy_descriptor_pool(self.pool, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -184,6 +184,7 @@ struct Shared {
     cull: Option<CullState>,
     culled_sets: Vec<vk::DescriptorSet>,
     oq: Option<crate::occlusion::OqState>,
+    raster: Option<crate::occlusion::RasterOcclusion>,
 }
 
 /// Graph handles of the culling buffers in this frame's graph.
@@ -210,6 +211,8 @@ struct Declared {
     /// Conditional occlusion queries: the results buffer the colour passes are predicated on,
     /// once the query pass is declared.
     conditions: Option<BufferId>,
+    /// Raster occlusion: flags and culling declared (before the first colour pass).
+    flags_declared: bool,
 }
 
 impl Shared {
@@ -691,6 +694,11 @@ impl SceneRenderer {
         if options.culling.uses_gpu_lists() {
             needed.required.extend(CullState::required_features());
         }
+        if options.culling == Culling::RasterOcclusion {
+            needed
+                .required
+                .insert(tilegraph_vk::Feature::FragmentStoresAndAtomics);
+        }
         if options.culling.uses_queries() {
             needed
                 .required
@@ -791,6 +799,7 @@ impl SceneRenderer {
             cull: None,
             culled_sets: Vec::new(),
             oq: None,
+            raster: None,
         }));
         let mut gpu = gpu;
         let blended: Vec<bool> = scene
@@ -827,6 +836,14 @@ impl SceneRenderer {
             )?;
             gpu.add_culled_sets(ctx, cull.draw_ids.raw)?;
             let mut s = shared.borrow_mut();
+            if options.culling == Culling::RasterOcclusion {
+                s.raster = Some(crate::occlusion::RasterOcclusion::new(
+                    ctx,
+                    gpu.set_layout,
+                    &cull.visibility,
+                    scene.instances().len() as u32,
+                )?);
+            }
             s.culled_sets = (0..executor.frames_in_flight())
                 .filter_map(|i| gpu.culled_set(i))
                 .collect();
@@ -984,7 +1001,10 @@ impl SceneRenderer {
                     frame.reproject,
                     if cull.pyramid_valid { levels } else { 0 },
                 ),
-                Culling::HizTwoPhase => mk(Phase::Early, m.view_projection, 0),
+                // Raster occlusion: the early phase reads this frame's flags.
+                Culling::HizTwoPhase | Culling::RasterOcclusion => {
+                    mk(Phase::Early, m.view_projection, 0)
+                }
                 _ => mk(Phase::Frustum, m.view_projection, 0),
             };
             cull.write_params(slot, 0, &first)?;
@@ -1166,39 +1186,15 @@ impl SceneRenderer {
             prepass: setup.has_prepass(),
             gpu: None,
             conditions: None,
+            flags_declared: false,
         };
         let shared = &self.shared;
         let two_phase = culling == Culling::HizTwoPhase;
         if let Some(cull) = shared.borrow().cull.as_ref() {
             f.gpu = Some(self.declare_culling_buffers(&mut g, cull));
         }
-        if let Some(b) = f.gpu {
-            let fill: Payload = Box::new(move |pc: &mut PassContext<'_>| {
-                let counts = pc.buffer(b.counts)?;
-                // SAFETY: the graph put the counts buffer in TRANSFER_DST for this pass.
-                unsafe {
-                    pc.ctx
-                        .device
-                        .cmd_fill_buffer(pc.cb, counts.raw, 0, vk::WHOLE_SIZE, 0)
-                };
-                Ok(())
-            });
-            g.transfer_pass("cull-reset", PassClass::Compute, fill)
-                .transfer_dst(b.counts);
-            let mut c = g.compute_pass(
-                if two_phase { "cull-early" } else { "cull" },
-                PassClass::Compute,
-                self.dispatch(0),
-            );
-            c.storage_read_write(b.counts)
-                .storage_write(b.commands)
-                .storage_write(b.draw_ids);
-            if two_phase {
-                c.storage_read(b.visibility);
-            }
-            if let (Culling::Hiz, Some(p)) = (culling, b.pyramid) {
-                c.storage_read(p);
-            }
+        if let (Some(b), false) = (f.gpu, culling == Culling::RasterOcclusion) {
+            self.declare_cull_dispatch(&mut g, b, two_phase, culling);
         }
         // Two-phase with a pre-pass: depth of the early lists, pyramid, late culling, depth of
         // the late lists, then colour once over the union (the early lists, which the late
@@ -1237,6 +1233,12 @@ impl SceneRenderer {
                 {
                     // Boxes against the pre-pass depth, then colour predicated on them.
                     self.declare_queries(&mut g, &mut f);
+                }
+                if culling == Culling::RasterOcclusion && !depth_only && !f.flags_declared {
+                    if let Some(b) = f.gpu {
+                        self.declare_raster_occlusion(&mut g, &f, b);
+                    }
+                    f.flags_declared = true;
                 }
                 self.declare_geometry(&mut g, &mut f, pass, phase, suffix, profile);
             }
@@ -1411,6 +1413,89 @@ impl SceneRenderer {
         f.conditions = Some(conditions);
     }
 
+    /// The culling dispatch of the early (or only) phase: reset the counts, cull.
+    fn declare_cull_dispatch(
+        &self,
+        g: &mut GraphBuilder<Payload>,
+        b: CullBuffers,
+        two_phase: bool,
+        culling: Culling,
+    ) {
+        let fill: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+            let counts = pc.buffer(b.counts)?;
+            // SAFETY: the graph put the counts buffer in TRANSFER_DST for this pass.
+            unsafe {
+                pc.ctx
+                    .device
+                    .cmd_fill_buffer(pc.cb, counts.raw, 0, vk::WHOLE_SIZE, 0)
+            };
+            Ok(())
+        });
+        g.transfer_pass("cull-reset", PassClass::Compute, fill)
+            .transfer_dst(b.counts);
+        let mut c = g.compute_pass(
+            if two_phase { "cull-early" } else { "cull" },
+            PassClass::Compute,
+            self.dispatch(0),
+        );
+        c.storage_read_write(b.counts)
+            .storage_write(b.commands)
+            .storage_write(b.draw_ids);
+        if two_phase {
+            c.storage_read(b.visibility);
+        }
+        if culling == Culling::RasterOcclusion {
+            // cull.comp's visibility binding is writable (the late phase writes it), so
+            // synchronization validation counts the dispatch as a writer.
+            c.storage_read_write(b.visibility);
+        }
+        if let (Culling::Hiz, Some(p)) = (culling, b.pyramid) {
+            c.storage_read(p);
+        }
+    }
+
+    /// Raster occlusion: clear the flags, rasterize every box against the pre-pass depth
+    /// (flags written by surviving fragments), then cull into the indirect lists from them.
+    fn declare_raster_occlusion(
+        &self,
+        g: &mut GraphBuilder<Payload>,
+        f: &Declared,
+        b: CullBuffers,
+    ) {
+        let clear: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+            let flags = pc.buffer(b.visibility)?;
+            // SAFETY: the graph put the visibility buffer in TRANSFER_DST for this pass.
+            unsafe {
+                pc.ctx
+                    .device
+                    .cmd_fill_buffer(pc.cb, flags.raw, 0, vk::WHOLE_SIZE, 0)
+            };
+            Ok(())
+        });
+        g.transfer_pass("raster-occlusion-clear", PassClass::Compute, clear)
+            .transfer_dst(b.visibility);
+        let shared = self.shared.clone();
+        let boxes: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+            let mut s = shared.borrow_mut();
+            let depth = s.depth;
+            let set = *s
+                .scene_sets
+                .get(pc.frame_slot)
+                .ok_or_else(|| VkError::Invalid {
+                    what: "raster occlusion".into(),
+                    reason: "no scene set for this frame slot".into(),
+                })?;
+            match s.raster.as_mut() {
+                Some(r) => r.record(pc, set, depth),
+                None => Ok(()),
+            }
+        });
+        g.raster_pass("raster-occlusion", PassClass::OcclusionQuery, boxes)
+            .depth_stencil_read_only(f.depth)
+            .storage_write(b.visibility);
+        self.declare_cull_dispatch(g, b, false, Culling::RasterOcclusion);
+    }
+
     fn declare_hiz_build(&self, g: &mut GraphBuilder<Payload>, depth: ImageId, b: CullBuffers) {
         let Some(pyramid) = b.pyramid else { return };
         let shared = self.shared.clone();
@@ -1512,7 +1597,15 @@ impl SceneRenderer {
         suffix: &str,
         _profile: &Profile,
     ) {
-        let gpu = f.gpu;
+        // Raster occlusion tests boxes against the depth of everything: the pre-pass is not
+        // culled (its CPU lists), only colour is.
+        let gpu = match (self.options.culling, pass) {
+            (
+                Culling::RasterOcclusion,
+                PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha,
+            ) => None,
+            _ => f.gpu,
+        };
         let name = format!("{}{suffix}", pass.name());
         let uses_lists = |p: &mut tilegraph_graph::RasterPassBuilder<'_, Payload>| {
             if let Some(b) = gpu {
@@ -1649,6 +1742,9 @@ impl SceneRenderer {
             }
             if let Some(o) = s.oq.take() {
                 o.destroy(ctx);
+            }
+            if let Some(r) = s.raster.take() {
+                r.destroy(ctx);
             }
             // SAFETY: the executor waited for every frame; nothing uses these any more.
             unsafe {

@@ -133,6 +133,7 @@ impl FrameSetup {
                 d.included = true;
                 d.reason = match culling {
                     crate::cull::Culling::OqConditional => "conditional occlusion queries: boxes tested against the pre-pass depth, colour predicated on their results",
+                    crate::cull::Culling::RasterOcclusion => "raster occlusion: boxes rasterized against the pre-pass depth flag the instances the colour passes draw",
                     _ => "two-phase occlusion culling: depth of last frame's visible set, the pyramid, then the newly visible; colour once",
                 }
                 .into();

@@ -1,0 +1,45 @@
+#version 450
+// Raster occlusion: every instance's camera-relative bounding box (instance = gl_InstanceIndex,
+// 36 vertices, no vertex buffer), depth tested against the pre-pass depth, nothing written but
+// the fragment shader's visibility flag. A box that reaches in front of the near plane would be
+// clipped and could miss: it becomes a screen-covering triangle at the near plane instead, which
+// passes the depth test everywhere (conservative: the instance is flagged).
+#include "scene.glsl"
+
+layout(location = 0) flat out uint v_instance;
+
+const uint CORNERS[36] = uint[36](
+    0u, 2u, 1u, 1u, 2u, 3u,  // -z
+    4u, 5u, 6u, 5u, 7u, 6u,  // +z
+    0u, 1u, 4u, 1u, 5u, 4u,  // -y
+    2u, 6u, 3u, 3u, 6u, 7u,  // +y
+    0u, 4u, 2u, 2u, 4u, 6u,  // -x
+    1u, 3u, 5u, 3u, 7u, 5u   // +x
+);
+
+vec3 corner_sign(uint c) {
+    return vec3(float(c & 1u), float((c >> 1u) & 1u), float((c >> 2u) & 1u)) * 2.0 - 1.0;
+}
+
+void main() {
+    uint id = uint(gl_InstanceIndex);
+    Instance inst = instances[id];
+    v_instance = id;
+    // f32 camera-relative bounds: pad by a few ulps so rounding never shrinks the box.
+    vec3 half_size = inst.half_extents * (1.0 + 1e-5) + vec3(1e-5);
+    float near_depth = frame.depth_params.x;
+    bool reverse = near_depth == 1.0;
+    bool crosses = false;
+    for (uint i = 0u; i < 8u; ++i) {
+        vec4 clip = frame.view_proj * vec4(inst.center + corner_sign(i) * half_size, 1.0);
+        crosses = crosses || clip.w <= 0.0 || (reverse ? clip.z > clip.w : clip.z < 0.0);
+    }
+    if (crosses) {
+        uint v = uint(gl_VertexIndex);
+        vec2 p = v < 3u ? vec2(v == 1u ? 3.0 : -1.0, v == 2u ? 3.0 : -1.0) : vec2(0.0);
+        gl_Position = vec4(p, near_depth, 1.0);
+        return;
+    }
+    uint c = CORNERS[gl_VertexIndex];
+    gl_Position = frame.view_proj * vec4(inst.center + half_size * corner_sign(c), 1.0);
+}
