@@ -57,7 +57,8 @@ pub struct Totals {
     pub frames_with_false_negatives: usize,
     pub frames_image_equal: usize,
     pub triangles_drawn: u64,
-    /// Median GPU milliseconds of the culling passes (culling compute and pyramid builds),
+    /// Median GPU milliseconds of the culling passes (culling compute, pyramid builds, query,
+    /// result-copy and raster-occlusion passes),
     /// summed, and of the whole frame, from timestamps.
     pub cull_gpu_ms: f64,
     pub frame_gpu_ms: f64,
@@ -267,7 +268,9 @@ fn run(
     tested.finish(ctx)?;
     let medians = tested.medians();
     let is_cull = |name: &str| {
-        name.starts_with("cull") || name.starts_with("hiz") || name.starts_with("occlusion")
+        ["cull", "hiz", "occlusion", "oq-", "raster-occlusion"]
+            .iter()
+            .any(|p| name.starts_with(p))
     };
     let totals = Totals {
         frames: frames.len(),

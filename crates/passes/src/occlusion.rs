@@ -155,6 +155,8 @@ pub struct OqState {
     pub conditions: Option<Buffer>,
     /// Per query: whether this frame issued it (the others draw unconditionally).
     current_issued: Vec<bool>,
+    /// Per instance: whether this frame's CPU lists hold it (frustum).
+    current_drawable: Vec<bool>,
 }
 
 impl OqState {
@@ -202,6 +204,7 @@ impl OqState {
             pipelines: HashMap::new(),
             conditions: None,
             current_issued: Vec::new(),
+            current_drawable: Vec::new(),
         };
         let count = state.query_count();
         if conditional {
@@ -309,11 +312,23 @@ impl OqState {
             .collect()
     }
 
-    /// This frame's boxes in slot `slot`, camera-relative to `m.eye`.
-    pub fn prepare(&mut self, slot: usize, m: &FrameMatrices) {
+    /// This frame's boxes in slot `slot`, camera-relative to `m.eye`; `drawable` (per
+    /// instance, the CPU frustum test) leaves out groups with no member in the frustum: not
+    /// queried, and not drawn (they are not in the CPU lists either).
+    pub fn prepare(&mut self, slot: usize, m: &FrameMatrices, drawable: Option<&[bool]>) {
         self.frame_boxes.clear();
         let mut issued = vec![false; self.groups.len()];
+        let in_view = |i: u32| drawable.is_none_or(|d| d.get(i as usize).copied().unwrap_or(true));
+        self.current_drawable = self
+            .group_of
+            .iter()
+            .enumerate()
+            .map(|(i, _)| in_view(i as u32))
+            .collect();
         for (q, g) in self.groups.iter().enumerate() {
+            if !g.members.iter().any(|&i| in_view(i)) {
+                continue;
+            }
             let center = ((g.min + g.max) * 0.5 - m.eye).as_vec3();
             // Rounding to f32 may shrink the box by an ulp: pad it slightly.
             let half = ((g.max - g.min) * 0.5).as_vec3() * (1.0 + 1e-5) + Vec3::splat(1e-5);
@@ -532,6 +547,7 @@ impl OqState {
             .iter()
             .enumerate()
             .filter(|(_, &g)| g != u32::MAX)
+            .filter(|(i, _)| self.current_drawable.get(*i).copied().unwrap_or(true))
             .filter(|(_, &g)| {
                 !self
                     .current_issued

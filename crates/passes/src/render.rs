@@ -917,13 +917,16 @@ impl SceneRenderer {
         let setup = self.setup(&profile);
         let culling = self.options.culling;
         // With GPU culling on, the CPU lists serve only blended geometry: frustum-cull it here.
+        // Techniques whose CPU lists draw opaque geometry (queries, and the pre-pass that raster
+        // occlusion tests against) frustum-cull all of it here; the others only blended.
+        let cpu_frustum_all = culling.uses_queries() || culling == Culling::RasterOcclusion;
         let blended_mask = match culling {
             Culling::None => None,
             _ => Some(
                 crate::cull::cpu_frustum_mask(scene, &m)?
                     .into_iter()
                     .zip(&self.blended)
-                    .map(|(v, b)| v || !b)
+                    .map(|(v, b)| v || (!b && !cpu_frustum_all))
                     .collect::<Vec<bool>>(),
             ),
         };
@@ -934,12 +937,15 @@ impl SceneRenderer {
             Some(oq) if culling.conditional() => {
                 // Same-frame results on the GPU; reading the slot only recycles its pool.
                 oq.collect(ctx, slot)?;
-                oq.prepare(slot, &m);
+                oq.prepare(slot, &m, blended_mask.as_deref());
                 blended_mask
             }
             Some(oq) => {
                 oq.collect(ctx, slot)?;
                 let mask = oq.mask();
+                // Every instance in the frustum is queried, drawn or not: a hidden one must be
+                // able to come back.
+                oq.prepare(slot, &m, blended_mask.as_deref());
                 let combined: Vec<bool> = blended_mask
                     .unwrap_or_else(|| vec![true; mask.len()])
                     .into_iter()
@@ -952,7 +958,6 @@ impl SceneRenderer {
                         .map(|i| i as u32)
                         .collect(),
                 );
-                oq.prepare(slot, &m);
                 Some(combined)
             }
             None => blended_mask,
