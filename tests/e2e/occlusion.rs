@@ -314,3 +314,64 @@ fn raster_occlusion_never_culls_a_visible_instance() {
     }
     println!("{}", lines.join("\n"));
 }
+
+/// Same-frame techniques: the boxes are tested after the depth pre-pass and before colour; on
+/// adreno still in a render pass of their own after a flush.
+#[test]
+fn same_frame_techniques_test_boxes_between_the_prepass_and_colour() {
+    let scene = tilegraph_scene::load("city:300").unwrap();
+    for profile in ["adreno-7xx", "mali-valhall"] {
+        for (culling, boxes, before_colour) in [
+            (
+                Culling::OqConditional,
+                "occlusion-queries",
+                "oq-copy-results",
+            ),
+            (Culling::RasterOcclusion, "raster-occlusion", "cull"),
+        ] {
+            let g = gpu_with(Some(profile), features()).unwrap();
+            let mut r = SceneRenderer::new(
+                &g,
+                &scene,
+                RenderOptions {
+                    width: SIZE.0,
+                    height: SIZE.1,
+                    culling,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let camera = scene.camera_path().camera(0).unwrap();
+            let report = r.render(&g, &scene, &camera).unwrap();
+            r.finish(&g).unwrap();
+            r.destroy(&g);
+            let plan = &report.plan;
+            // Execution order (a subpass may share its step with the pre-pass).
+            let step = |name: &str| {
+                plan.passes
+                    .iter()
+                    .position(|p| p.name == name)
+                    .unwrap_or_else(|| panic!("{profile} {culling:?}: no pass {name}:\n{plan}"))
+            };
+            let (prepass, tested, next, opaque) = (
+                step("depth-prepass"),
+                step(boxes),
+                step(before_colour),
+                step("opaque"),
+            );
+            assert!(
+                prepass < tested && tested < next && next < opaque,
+                "{profile} {culling:?}:\n{plan}"
+            );
+            let tested = plan.passes[tested].step.index();
+            let flush_before_boxes = plan.steps[..tested]
+                .iter()
+                .any(|s| matches!(s, Step::Flush(_)));
+            assert_eq!(
+                flush_before_boxes,
+                profile == "adreno-7xx",
+                "{profile} {culling:?}:\n{plan}"
+            );
+        }
+    }
+}
