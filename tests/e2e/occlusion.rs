@@ -288,6 +288,24 @@ fn conditional_queries_without_the_extension_are_a_typed_error() {
         err.to_string().contains("VK_EXT_conditional_rendering"),
         "{err}"
     );
+    // Both same-frame techniques need a depth pre-pass before colour.
+    let g = gpu_with(None, features()).unwrap();
+    for culling in [Culling::OqConditional, Culling::RasterOcclusion] {
+        let err = SceneRenderer::new(
+            &g,
+            &scene,
+            RenderOptions {
+                width: SIZE.0,
+                height: SIZE.1,
+                culling,
+                technique: tilegraph_passes::Technique::Visbuf,
+                ..Default::default()
+            },
+        )
+        .err()
+        .expect("visibility buffer with a same-frame occlusion technique");
+        assert!(err.to_string().contains("does not support"), "{err}");
+    }
 }
 
 #[test]

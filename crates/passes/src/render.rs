@@ -64,6 +64,11 @@ pub enum RenderError {
         extension: &'static str,
         device: String,
     },
+    #[error("culling {culling} does not support the {technique} technique (it needs a depth pre-pass before colour)")]
+    UnsupportedCulling {
+        culling: &'static str,
+        technique: &'static str,
+    },
     #[error("invalid render size {width}x{height}")]
     Size { width: u32, height: u32 },
 }
@@ -709,6 +714,19 @@ impl SceneRenderer {
                 .required
                 .insert(tilegraph_vk::Feature::FragmentStoresAndAtomics);
         }
+        if options.technique == Technique::Visbuf
+            && matches!(
+                options.culling,
+                Culling::OqConditional | Culling::RasterOcclusion
+            )
+        {
+            // Both test boxes against a depth pre-pass before colour; the visibility buffer
+            // has no pre-pass to test against.
+            return Err(RenderError::UnsupportedCulling {
+                culling: options.culling.name(),
+                technique: options.technique.name(),
+            });
+        }
         if options.culling.conditional()
             && !ctx.has_feature(tilegraph_vk::Feature::ConditionalRendering)
         {
@@ -1240,8 +1258,14 @@ impl SceneRenderer {
                     self.declare_queries(&mut g, &mut f);
                 }
                 if culling == Culling::RasterOcclusion && !depth_only && !f.flags_declared {
-                    if let Some(b) = f.gpu {
-                        self.declare_raster_occlusion(&mut g, &f, b);
+                    match (f.gpu, f.depth_cleared) {
+                        (Some(b), true) => self.declare_raster_occlusion(&mut g, &f, b),
+                        // No pre-pass depth (nothing opaque): no boxes to test; the lists
+                        // still get written.
+                        (Some(b), false) => {
+                            self.declare_cull_dispatch(&mut g, b, false, Culling::RasterOcclusion)
+                        }
+                        (None, _) => {}
                     }
                     f.flags_declared = true;
                 }
