@@ -8,6 +8,15 @@
 
 layout(location = 0) flat out uint v_instance;
 
+// 1: the box itself, at full resolution. k > 1: against a 1/k-resolution farthest-depth image,
+// where a small box could miss every low-resolution pixel centre; instead its screen rectangle,
+// grown by one low-resolution pixel, at the box's nearest depth (conservative: the object's
+// depth at any pixel is no nearer than that, the low-resolution depth no nearer than the
+// full-resolution one).
+layout(constant_id = 0) const uint SCALE = 1u;
+
+const uint QUAD[6] = uint[6](0u, 1u, 2u, 2u, 1u, 3u);
+
 const uint CORNERS[36] = uint[36](
     0u, 2u, 1u, 1u, 2u, 3u,  // -z
     4u, 5u, 6u, 5u, 7u, 6u,  // +z
@@ -38,6 +47,29 @@ void main() {
         uint v = uint(gl_VertexIndex);
         vec2 p = v < 3u ? vec2(v == 1u ? 3.0 : -1.0, v == 2u ? 3.0 : -1.0) : vec2(0.0);
         gl_Position = vec4(p, near_depth, 1.0);
+        return;
+    }
+    if (SCALE > 1u) {
+        vec2 lo = vec2(1e30);
+        vec2 hi = vec2(-1e30);
+        float nearest = reverse ? 0.0 : 1.0;
+        for (uint i = 0u; i < 8u; ++i) {
+            vec4 clip = frame.view_proj * vec4(inst.center + corner_sign(i) * half_size, 1.0);
+            vec3 ndc = clip.xyz / clip.w;
+            lo = min(lo, ndc.xy);
+            hi = max(hi, ndc.xy);
+            nearest = reverse ? max(nearest, ndc.z) : min(nearest, ndc.z);
+        }
+        // A few ulps nearer, against rounding in the divide.
+        nearest = reverse ? min(uintBitsToFloat(floatBitsToUint(nearest) + 4u), 1.0)
+                          : uintBitsToFloat(max(floatBitsToUint(nearest), 4u) - 4u);
+        vec2 pad = 2.0 * float(SCALE) * frame.viewport.zw;
+        lo -= pad;
+        hi += pad;
+        uint v = uint(gl_VertexIndex);
+        uint q = v < 6u ? QUAD[v] : 0u;
+        vec2 p = vec2((q & 1u) != 0u ? hi.x : lo.x, (q & 2u) != 0u ? hi.y : lo.y);
+        gl_Position = vec4(v < 6u ? p : lo, nearest, 1.0);
         return;
     }
     uint c = CORNERS[gl_VertexIndex];

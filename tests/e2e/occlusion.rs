@@ -55,6 +55,16 @@ fn still(scene: &Scene, key: usize, frames: usize) -> CameraPath {
 }
 
 fn check(scene: &Scene, culling: Culling, path: &CameraPath, oq_group: usize) -> CullCheck {
+    check_scaled(scene, culling, path, oq_group, 1)
+}
+
+fn check_scaled(
+    scene: &Scene,
+    culling: Culling,
+    path: &CameraPath,
+    oq_group: usize,
+    raster_occlusion_scale: u32,
+) -> CullCheck {
     let g = gpu_with(None, features()).unwrap();
     cull_check_with(
         &g,
@@ -66,6 +76,7 @@ fn check(scene: &Scene, culling: Culling, path: &CameraPath, oq_group: usize) ->
         &CheckOptions {
             hiz_mode: tilegraph_cull::NpotMode::EdgeAware,
             oq_group,
+            raster_occlusion_scale,
         },
     )
     .unwrap()
@@ -392,4 +403,33 @@ fn same_frame_techniques_test_boxes_between_the_prepass_and_colour() {
             );
         }
     }
+}
+
+/// The speed/accuracy knob: screen rectangles against a farthest-depth 1/2 or 1/4 resolution
+/// depth (90 / 4 is not whole: the edge texels are partial) stay conservative and draw more.
+#[test]
+fn reduced_resolution_raster_occlusion_stays_conservative() {
+    let scene = tilegraph_scene::load("city:1500").unwrap();
+    let path = hard_path(&scene, 8);
+    let full = check_scaled(&scene, Culling::RasterOcclusion, &path, 1, 1);
+    let mut lines = vec![summary(&full, "full resolution")];
+    let mut previous = full.totals.drawn;
+    for scale in [2, 4] {
+        let r = check_scaled(&scene, Culling::RasterOcclusion, &path, 1, scale);
+        lines.push(summary(&r, &format!("1/{scale} resolution")));
+        for f in &r.frames {
+            assert_eq!(
+                f.false_negatives, 0,
+                "1/{scale}: frame {} culled {:?}",
+                f.frame, f.false_negative_ids
+            );
+            assert!(f.image_equal, "1/{scale}: frame {}", f.frame);
+        }
+        assert!(
+            r.totals.drawn >= previous,
+            "1/{scale} drew less than a finer depth"
+        );
+        previous = r.totals.drawn;
+    }
+    println!("{}", lines.join("\n"));
 }

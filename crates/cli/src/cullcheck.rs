@@ -18,6 +18,7 @@ pub struct Args<'a> {
     pub frames: Option<usize>,
     pub hiz_npot: tilegraph_cull::NpotMode,
     pub oq_group: usize,
+    pub raster_occlusion_scale: u32,
     pub json: bool,
 }
 
@@ -62,6 +63,7 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
         &CheckOptions {
             hiz_mode: a.hiz_npot,
             oq_group: a.oq_group,
+            raster_occlusion_scale: a.raster_occlusion_scale,
         },
     )?;
     ctx.check_validation()?;

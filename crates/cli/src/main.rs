@@ -94,6 +94,9 @@ enum Command {
         /// Occlusion queries: one query per group of N nearby instances (union box).
         #[arg(long, default_value_t = 1)]
         oq_group: usize,
+        /// Raster occlusion against a conservative 1/N-resolution depth (1, 2 or 4).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=4))]
+        raster_occlusion_scale: u32,
         #[arg(long)]
         json: bool,
     },
@@ -197,6 +200,7 @@ fn main() -> ExitCode {
             frames,
             hiz_npot,
             oq_group,
+            raster_occlusion_scale,
             json,
         } => cullcheck::run(&cullcheck::Args {
             scene: &scene,
@@ -207,6 +211,7 @@ fn main() -> ExitCode {
             frames,
             hiz_npot,
             oq_group,
+            raster_occlusion_scale,
             json,
         }),
     };

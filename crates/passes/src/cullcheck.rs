@@ -81,6 +81,8 @@ pub struct CheckOptions {
     pub hiz_mode: tilegraph_cull::NpotMode,
     /// Occlusion queries: instances per query.
     pub oq_group: usize,
+    /// Raster occlusion: 1, or 2 / 4 for a conservative low-resolution depth.
+    pub raster_occlusion_scale: u32,
 }
 
 /// Runs `culling` along `path` (every frame, or the first `max_frames`).
@@ -96,6 +98,7 @@ pub fn cull_check(
     let options = CheckOptions {
         hiz_mode,
         oq_group: 1,
+        raster_occlusion_scale: 1,
     };
     cull_check_with(ctx, scene, culling, path, size, max_frames, &options)
 }
@@ -115,6 +118,7 @@ pub fn cull_check_with(
         height: size.1,
         hiz_mode: options.hiz_mode,
         oq_group: options.oq_group,
+        raster_occlusion_scale: options.raster_occlusion_scale,
         ..Default::default()
     };
     let mut oracle = SceneRenderer::new(

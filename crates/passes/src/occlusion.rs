@@ -588,6 +588,108 @@ pub struct RasterOcclusion {
     pub pipeline_layout: vk::PipelineLayout,
     pipelines: HashMap<(vk::RenderPass, u32, bool), vk::Pipeline>,
     instance_count: u32,
+    /// 1: full resolution; k > 1: against a conservative ~1/k-resolution depth.
+    pub scale: u32,
+    downsample: Option<Downsample>,
+}
+
+/// The farthest-depth downsampling pass of raster occlusion at reduced resolution.
+struct Downsample {
+    set_layout: vk::DescriptorSetLayout,
+    pool: vk::DescriptorPool,
+    sets: Vec<vk::DescriptorSet>,
+    layout: vk::PipelineLayout,
+    sampler: vk::Sampler,
+    pipelines: HashMap<(vk::RenderPass, u32), vk::Pipeline>,
+}
+
+/// Push constants of `raster_occlusion_downsample.frag`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+struct DownsamplePush {
+    scale: [f32; 4],
+    info: [u32; 4],
+}
+
+const DOWNSAMPLE_FS: &[u8] =
+    include_bytes!("../../../shaders/spv/raster_occlusion_downsample.frag.spv");
+const FULLSCREEN_VS: &[u8] = include_bytes!("../../../shaders/spv/fullscreen.vert.spv");
+
+impl Downsample {
+    fn new(ctx: &Context, frames_in_flight: usize) -> Result<Self, VkError> {
+        let set_layout = tilegraph_vk::pipeline::create_set_layout(
+            ctx,
+            &[(
+                0,
+                vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+                vk::ShaderStageFlags::FRAGMENT,
+            )],
+        )?;
+        let mut d = Downsample {
+            set_layout,
+            pool: vk::DescriptorPool::null(),
+            sets: Vec::new(),
+            layout: vk::PipelineLayout::null(),
+            sampler: vk::Sampler::null(),
+            pipelines: HashMap::new(),
+        };
+        if let Err(e) = d.init(ctx, frames_in_flight.max(1)) {
+            d.destroy(ctx);
+            return Err(e);
+        }
+        Ok(d)
+    }
+
+    fn init(&mut self, ctx: &Context, slots: usize) -> Result<(), VkError> {
+        let push = vk::PushConstantRange {
+            stage_flags: vk::ShaderStageFlags::FRAGMENT,
+            offset: 0,
+            size: std::mem::size_of::<DownsamplePush>() as u32,
+        };
+        self.layout = create_pipeline_layout(ctx, &[self.set_layout], Some(push))?;
+        let sizes = [vk::DescriptorPoolSize {
+            ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+            descriptor_count: slots as u32,
+        }];
+        let pool_info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(slots as u32)
+            .pool_sizes(&sizes);
+        // SAFETY: valid create info.
+        self.pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
+            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
+        for _ in 0..slots {
+            self.sets.push(tilegraph_vk::pipeline::allocate_set(
+                ctx,
+                self.pool,
+                self.set_layout,
+            )?);
+        }
+        let sampler_info = vk::SamplerCreateInfo::default()
+            .mag_filter(vk::Filter::NEAREST)
+            .min_filter(vk::Filter::NEAREST)
+            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+            .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .max_lod(0.0);
+        // SAFETY: valid create info.
+        self.sampler = unsafe { ctx.device.create_sampler(&sampler_info, None) }
+            .map_err(|r| VkError::call("vkCreateSampler", r))?;
+        Ok(())
+    }
+
+    fn destroy(self, ctx: &Context) {
+        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
+        unsafe {
+            for (_, p) in self.pipelines {
+                ctx.device.destroy_pipeline(p, None);
+            }
+            ctx.device.destroy_sampler(self.sampler, None);
+            ctx.device.destroy_pipeline_layout(self.layout, None);
+            ctx.device.destroy_descriptor_pool(self.pool, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
 }
 
 const RASTER_VS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.vert.spv");
@@ -599,6 +701,8 @@ impl RasterOcclusion {
         scene_set_layout: vk::DescriptorSetLayout,
         visibility: &Buffer,
         instance_count: u32,
+        scale: u32,
+        frames_in_flight: usize,
     ) -> Result<Self, VkError> {
         let set_layout = tilegraph_vk::pipeline::create_set_layout(
             ctx,
@@ -631,7 +735,18 @@ impl RasterOcclusion {
             pipeline_layout: vk::PipelineLayout::null(),
             pipelines: HashMap::new(),
             instance_count,
+            scale: scale.max(1),
+            downsample: None,
         };
+        if state.scale > 1 {
+            match Downsample::new(ctx, frames_in_flight) {
+                Ok(d) => state.downsample = Some(d),
+                Err(e) => {
+                    state.destroy(ctx);
+                    return Err(e);
+                }
+            }
+        }
         match create_pipeline_layout(ctx, &[scene_set_layout, set_layout], None) {
             Ok(l) => state.pipeline_layout = l,
             Err(e) => {
@@ -681,7 +796,7 @@ impl RasterOcclusion {
                 vertex: Stage {
                     name: "raster_occlusion.vert",
                     spirv: RASTER_VS,
-                    specialization: &[],
+                    specialization: &[(0, self.scale)],
                 },
                 fragment: Some(Stage {
                     name: "raster_occlusion.frag",
@@ -740,7 +855,129 @@ impl RasterOcclusion {
         Ok(())
     }
 
+    /// The low-resolution size for a full-resolution `extent` (`ceil(extent / scale)`).
+    pub fn low_extent(&self, extent: (u32, u32)) -> (u32, u32) {
+        (
+            extent.0.div_ceil(self.scale).max(1),
+            extent.1.div_ceil(self.scale).max(1),
+        )
+    }
+
+    /// Records the farthest-depth downsampling of `depth` (sampled, full resolution) into the
+    /// current render pass's low-resolution depth attachment.
+    pub fn record_downsample(
+        &mut self,
+        pc: &PassContext<'_>,
+        depth_view: vk::ImageView,
+        full: (u32, u32),
+        convention: DepthConvention,
+    ) -> Result<(), VkError> {
+        let low = self.low_extent(full);
+        let Some(ds) = self.downsample.as_mut() else {
+            return Ok(());
+        };
+        let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: "the depth downsample records inside a render pass".into(),
+        })?;
+        let pipeline = match ds.pipelines.get(&(rp, subpass)) {
+            Some(p) => *p,
+            None => {
+                let p = create_graphics_pipeline(
+                    pc.ctx,
+                    &GraphicsDesc {
+                        name: pc.pass_name,
+                        vertex: Stage {
+                            name: "fullscreen.vert",
+                            spirv: FULLSCREEN_VS,
+                            specialization: &[],
+                        },
+                        fragment: Some(Stage {
+                            name: "raster_occlusion_downsample.frag",
+                            spirv: DOWNSAMPLE_FS,
+                            specialization: &[],
+                        }),
+                        vertex_layout: None,
+                        layout: ds.layout,
+                        target: RenderTarget::Subpass {
+                            render_pass: rp,
+                            subpass,
+                            color_count: 0,
+                        },
+                        depth: DepthState {
+                            test: true,
+                            write: true,
+                            compare: vk::CompareOp::ALWAYS,
+                        },
+                        blend: Blend::NoColorWrites,
+                        cull: vk::CullModeFlags::NONE,
+                        samples: vk::SampleCountFlags::TYPE_1,
+                    },
+                )?;
+                ds.pipelines.insert((rp, subpass), p);
+                p
+            }
+        };
+        let set = *ds.sets.get(pc.frame_slot).ok_or_else(|| VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: format!("no descriptor set for slot {}", pc.frame_slot),
+        })?;
+        let info = [vk::DescriptorImageInfo {
+            sampler: ds.sampler,
+            image_view: depth_view,
+            image_layout: vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
+        }];
+        let write = vk::WriteDescriptorSet::default()
+            .dst_set(set)
+            .dst_binding(0)
+            .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+            .image_info(&info);
+        let push = DownsamplePush {
+            scale: [
+                full.0 as f32 / low.0 as f32,
+                full.1 as f32 / low.1 as f32,
+                0.0,
+                0.0,
+            ],
+            info: [
+                u32::from(convention == DepthConvention::Reverse),
+                full.0,
+                full.1,
+                0,
+            ],
+        };
+        pc.set_full_viewport();
+        let d = &pc.ctx.device;
+        // SAFETY: the slot's previous frame completed (executor guarantee), so its set is idle;
+        // the graph samples depth formats in DEPTH_STENCIL_READ_ONLY_OPTIMAL; recording inside
+        // the downsample subpass.
+        unsafe {
+            d.update_descriptor_sets(&[write], &[]);
+            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            d.cmd_bind_descriptor_sets(
+                pc.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                ds.layout,
+                0,
+                &[set],
+                &[],
+            );
+            d.cmd_push_constants(
+                pc.cb,
+                ds.layout,
+                vk::ShaderStageFlags::FRAGMENT,
+                0,
+                bytemuck::bytes_of(&push),
+            );
+            d.cmd_draw(pc.cb, 3, 1, 0, 0);
+        }
+        Ok(())
+    }
+
     pub fn destroy(self, ctx: &Context) {
+        if let Some(d) = self.downsample {
+            d.destroy(ctx);
+        }
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
             for (_, p) in self.pipelines {

@@ -97,6 +97,9 @@ pub struct RenderOptions {
     pub capture_ids: bool,
     /// Occlusion queries: instances per query (groups of nearby instances share one box).
     pub oq_group: usize,
+    /// Raster occlusion: 1 tests boxes at full resolution; 2 or 4 test screen rectangles
+    /// against a conservative (farthest-depth) 1/2 or 1/4 resolution depth.
+    pub raster_occlusion_scale: u32,
 }
 
 impl Default for RenderOptions {
@@ -113,6 +116,7 @@ impl Default for RenderOptions {
             hiz_mode: NpotMode::EdgeAware,
             capture_ids: false,
             oq_group: 1,
+            raster_occlusion_scale: 1,
         }
     }
 }
@@ -860,6 +864,8 @@ impl SceneRenderer {
                     gpu.set_layout,
                     &cull.visibility,
                     scene.instances().len() as u32,
+                    options.raster_occlusion_scale,
+                    executor.frames_in_flight(),
                 )?);
             }
             s.culled_sets = (0..executor.frames_in_flight())
@@ -1519,8 +1525,38 @@ impl SceneRenderer {
                 None => Ok(()),
             }
         });
+        let scale = self.shared.borrow().raster.as_ref().map_or(1, |r| r.scale);
+        let full = (self.options.width, self.options.height);
+        let tested_depth = if scale > 1 {
+            let low = (full.0.div_ceil(scale).max(1), full.1.div_ceil(scale).max(1));
+            let low_depth = g.create_image(
+                "occlusion-depth",
+                ImageDesc::new(Extent2d::new(low.0, low.1), Format::D32_SFLOAT),
+            );
+            let shared = self.shared.clone();
+            let depth = f.depth;
+            let downsample: Payload = Box::new(move |pc: &mut PassContext<'_>| {
+                let view = pc.image(depth)?.view;
+                let mut s = shared.borrow_mut();
+                let convention = s.depth;
+                match s.raster.as_mut() {
+                    Some(r) => r.record_downsample(pc, view, full, convention),
+                    None => Ok(()),
+                }
+            });
+            g.raster_pass(
+                "raster-occlusion-depth",
+                PassClass::OcclusionQuery,
+                downsample,
+            )
+            .sampled(f.depth)
+            .depth_stencil_clear(low_depth, f.depth_clear);
+            low_depth
+        } else {
+            f.depth
+        };
         g.raster_pass("raster-occlusion", PassClass::OcclusionQuery, boxes)
-            .depth_stencil_read_only(f.depth)
+            .depth_stencil_read_only(tested_depth)
             .storage_write(b.visibility);
         self.declare_cull_dispatch(g, b, false, Culling::RasterOcclusion);
     }
