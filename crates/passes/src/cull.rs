@@ -609,3 +609,42 @@ pub fn gpu_order(draws: &crate::draws::DrawList, instance_count: usize) -> Vec<u
     }
     order
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cli_spellings_round_trip() {
+        for c in [
+            Culling::None,
+            Culling::Frustum,
+            Culling::Hiz,
+            Culling::HizTwoPhase,
+            Culling::Oq,
+            Culling::OqConditional,
+            Culling::RasterOcclusion,
+        ] {
+            assert_eq!(Culling::parse(c.name()), Some(c));
+        }
+        assert_eq!(
+            Culling::parse("oq-conditional"),
+            Some(Culling::OqConditional)
+        );
+        assert_eq!(
+            Culling::parse("raster-occlusion"),
+            Some(Culling::RasterOcclusion)
+        );
+        assert_eq!(Culling::parse("occlusion"), None);
+    }
+
+    #[test]
+    fn same_frame_occlusion_techniques_need_a_prepass_and_the_right_path() {
+        assert!(Culling::OqConditional.needs_prepass() && Culling::OqConditional.uses_queries());
+        assert!(!Culling::OqConditional.uses_gpu_lists());
+        assert!(
+            Culling::RasterOcclusion.needs_prepass() && Culling::RasterOcclusion.uses_gpu_lists()
+        );
+        assert!(!Culling::Oq.needs_prepass() && !Culling::Oq.uses_gpu_lists());
+    }
+}

@@ -1023,6 +1023,35 @@ mod tests {
     }
 
     #[test]
+    fn boxes_reaching_in_front_of_the_near_plane_are_not_queried() {
+        let proj = Mat4::perspective_infinite_reverse_rh(1.0, 16.0 / 9.0, 0.1);
+        let reverse = DepthConvention::Reverse;
+        // In front of the camera (-z), well past the near plane.
+        assert!(!crosses_near_plane(
+            proj,
+            reverse,
+            Vec3::new(0.0, 0.0, -10.0),
+            Vec3::ONE
+        ));
+        // The camera inside the box.
+        assert!(crosses_near_plane(proj, reverse, Vec3::ZERO, Vec3::ONE));
+        // Straddling the near plane.
+        assert!(crosses_near_plane(
+            proj,
+            reverse,
+            Vec3::new(0.0, 0.0, -0.5),
+            Vec3::splat(0.45)
+        ));
+        // Entirely behind the camera.
+        assert!(crosses_near_plane(
+            proj,
+            reverse,
+            Vec3::new(0.0, 0.0, 10.0),
+            Vec3::ONE
+        ));
+    }
+
+    #[test]
     fn morton_keys_interleave_axes() {
         assert_eq!(morton3(1, 0, 0), 1);
         assert_eq!(morton3(0, 1, 0), 2);
