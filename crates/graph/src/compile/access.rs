@@ -54,7 +54,7 @@ fn shader_read_layout(format: Option<Format>) -> Layout {
     }
 }
 
-/// Summarizes one declared use.
+/// Summarizes one declared use (one `match` gives every property).
 pub(crate) fn summarize_use(
     pass_kind: PassKind,
     coverage: Coverage,
@@ -65,124 +65,188 @@ pub(crate) fn summarize_use(
     let format = desc.image().map(|d| d.format);
     let is_image = format.is_some();
     let keeps_old = coverage == Coverage::Partial;
-    let (stages, access, layout, reads_prior) = match u.kind {
-        UseKind::ColorAttachment { clear } => {
-            let reads = clear.is_none() && keeps_old;
-            let mut access = AccessFlags::COLOR_ATTACHMENT_WRITE;
-            if reads {
-                access |= AccessFlags::COLOR_ATTACHMENT_READ;
+    let shader = shader_stages(pass_kind);
+    // (stages, access, layout, reads_prior, explicit_read, writes, attachment, clears)
+    let (stages, access, layout, reads_prior, explicit_read, writes, attachment, clears) =
+        match u.kind {
+            UseKind::ColorAttachment { clear } => {
+                let reads = clear.is_none() && keeps_old;
+                let access = if reads {
+                    AccessFlags::COLOR_ATTACHMENT_WRITE | AccessFlags::COLOR_ATTACHMENT_READ
+                } else {
+                    AccessFlags::COLOR_ATTACHMENT_WRITE
+                };
+                let stages = PipelineStages::COLOR_ATTACHMENT_OUTPUT;
+                let layout = Layout::ColorAttachment;
+                (
+                    stages,
+                    access,
+                    layout,
+                    reads,
+                    false,
+                    true,
+                    true,
+                    clear.is_some(),
+                )
             }
-            (
+            UseKind::DepthStencilAttachment { clear } => (
+                DEPTH_TESTS,
+                AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
+                    | AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                Layout::DepthStencilAttachment,
+                clear.is_none() && keeps_old,
+                false,
+                true,
+                true,
+                clear.is_some(),
+            ),
+            UseKind::DepthStencilReadOnly => (
+                DEPTH_TESTS,
+                AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ,
+                Layout::DepthStencilReadOnly,
+                true,
+                true,
+                false,
+                true,
+                false,
+            ),
+            UseKind::InputAttachment => (
+                PipelineStages::FRAGMENT_SHADER,
+                AccessFlags::INPUT_ATTACHMENT_READ,
+                shader_read_layout(format),
+                true,
+                true,
+                false,
+                true,
+                false,
+            ),
+            // A resolve overwrites every pixel of its target.
+            UseKind::ResolveTarget { .. } => (
                 PipelineStages::COLOR_ATTACHMENT_OUTPUT,
-                access,
+                AccessFlags::COLOR_ATTACHMENT_WRITE,
                 Layout::ColorAttachment,
-                reads,
-            )
-        }
-        UseKind::DepthStencilAttachment { clear } => (
-            DEPTH_TESTS,
-            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
-                | AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
-            Layout::DepthStencilAttachment,
-            clear.is_none() && keeps_old,
-        ),
-        UseKind::DepthStencilReadOnly => (
-            DEPTH_TESTS,
-            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ,
-            Layout::DepthStencilReadOnly,
-            true,
-        ),
-        UseKind::InputAttachment => (
-            PipelineStages::FRAGMENT_SHADER,
-            AccessFlags::INPUT_ATTACHMENT_READ,
-            shader_read_layout(format),
-            true,
-        ),
-        // A resolve overwrites every pixel of its target.
-        UseKind::ResolveTarget { .. } => (
-            PipelineStages::COLOR_ATTACHMENT_OUTPUT,
-            AccessFlags::COLOR_ATTACHMENT_WRITE,
-            Layout::ColorAttachment,
-            false,
-        ),
-        UseKind::Sampled => (
-            shader_stages(pass_kind),
-            AccessFlags::SHADER_SAMPLED_READ,
-            shader_read_layout(format),
-            true,
-        ),
-        UseKind::StorageRead => (
-            shader_stages(pass_kind),
-            AccessFlags::SHADER_STORAGE_READ,
-            Layout::General,
-            true,
-        ),
-        UseKind::StorageWrite => (
-            shader_stages(pass_kind),
-            AccessFlags::SHADER_STORAGE_WRITE,
-            Layout::General,
-            keeps_old,
-        ),
-        // Reads what the pass itself writes (HiZ mips), and the old content unless the pass
-        // covers everything.
-        UseKind::StorageReadWrite => (
-            shader_stages(pass_kind),
-            AccessFlags::SHADER_STORAGE_READ | AccessFlags::SHADER_STORAGE_WRITE,
-            Layout::General,
-            keeps_old,
-        ),
-        UseKind::Uniform => (
-            shader_stages(pass_kind),
-            AccessFlags::UNIFORM_READ,
-            Layout::Undefined,
-            true,
-        ),
-        UseKind::Vertex => (
-            PipelineStages::VERTEX_ATTRIBUTE_INPUT,
-            AccessFlags::VERTEX_ATTRIBUTE_READ,
-            Layout::Undefined,
-            true,
-        ),
-        UseKind::Index => (
-            PipelineStages::INDEX_INPUT,
-            AccessFlags::INDEX_READ,
-            Layout::Undefined,
-            true,
-        ),
-        UseKind::Indirect => (
-            PipelineStages::DRAW_INDIRECT,
-            AccessFlags::INDIRECT_COMMAND_READ,
-            Layout::Undefined,
-            true,
-        ),
-        UseKind::TransferSrc => (
-            PipelineStages::ALL_TRANSFER,
-            AccessFlags::TRANSFER_READ,
-            Layout::TransferSrc,
-            true,
-        ),
-        UseKind::TransferDst => (
-            PipelineStages::ALL_TRANSFER,
-            AccessFlags::TRANSFER_WRITE,
-            Layout::TransferDst,
-            keeps_old,
-        ),
-    };
-    let attachment = u.kind.is_attachment();
+                false,
+                false,
+                true,
+                true,
+                false,
+            ),
+            UseKind::Sampled => (
+                shader,
+                AccessFlags::SHADER_SAMPLED_READ,
+                shader_read_layout(format),
+                true,
+                true,
+                false,
+                false,
+                false,
+            ),
+            UseKind::StorageRead => (
+                shader,
+                AccessFlags::SHADER_STORAGE_READ,
+                Layout::General,
+                true,
+                true,
+                false,
+                false,
+                false,
+            ),
+            UseKind::StorageWrite => (
+                shader,
+                AccessFlags::SHADER_STORAGE_WRITE,
+                Layout::General,
+                keeps_old,
+                false,
+                true,
+                false,
+                false,
+            ),
+            // Reads what the pass itself writes (HiZ mips), and the old content unless the
+            // pass covers everything: not a read of earlier content by itself.
+            UseKind::StorageReadWrite => (
+                shader,
+                AccessFlags::SHADER_STORAGE_READ | AccessFlags::SHADER_STORAGE_WRITE,
+                Layout::General,
+                keeps_old,
+                false,
+                true,
+                false,
+                false,
+            ),
+            UseKind::Uniform => (
+                shader,
+                AccessFlags::UNIFORM_READ,
+                Layout::Undefined,
+                true,
+                true,
+                false,
+                false,
+                false,
+            ),
+            UseKind::Vertex => (
+                PipelineStages::VERTEX_ATTRIBUTE_INPUT,
+                AccessFlags::VERTEX_ATTRIBUTE_READ,
+                Layout::Undefined,
+                true,
+                true,
+                false,
+                false,
+                false,
+            ),
+            UseKind::Index => (
+                PipelineStages::INDEX_INPUT,
+                AccessFlags::INDEX_READ,
+                Layout::Undefined,
+                true,
+                true,
+                false,
+                false,
+                false,
+            ),
+            UseKind::Indirect => (
+                PipelineStages::DRAW_INDIRECT,
+                AccessFlags::INDIRECT_COMMAND_READ,
+                Layout::Undefined,
+                true,
+                true,
+                false,
+                false,
+                false,
+            ),
+            UseKind::TransferSrc => (
+                PipelineStages::ALL_TRANSFER,
+                AccessFlags::TRANSFER_READ,
+                Layout::TransferSrc,
+                true,
+                true,
+                false,
+                false,
+                false,
+            ),
+            UseKind::TransferDst => (
+                PipelineStages::ALL_TRANSFER,
+                AccessFlags::TRANSFER_WRITE,
+                Layout::TransferDst,
+                keeps_old,
+                false,
+                true,
+                false,
+                false,
+            ),
+        };
     Access {
         resource: u.resource,
         first_use: use_index,
-        roles: u.kind.bit(),
         stages,
         access,
+        roles: u.kind.bit(),
         layout: if is_image { layout } else { Layout::Undefined },
         reads_prior,
-        // A read-write use may read only its own writes: not a read of earlier content.
-        explicit_read: u.kind.reads() && !matches!(u.kind, UseKind::StorageReadWrite),
-        writes: u.kind.writes(),
+        explicit_read,
+        writes,
         attachment,
         non_attachment: !attachment,
-        clears: u.kind.clear_value().is_some(),
+        clears,
     }
 }
 

@@ -26,7 +26,7 @@ use crate::alias::{
     ESTIMATED_ALIGNMENT_BYTES,
 };
 use crate::declare::{
-    GraphBuilder, Origin, PassDecl, PassId, ResourceDecl, ResourceDesc, ResourceId, UseKind,
+    GraphBuilder, Origin, PassId, ResourceDecl, ResourceDesc, ResourceId, UseKind,
 };
 use crate::error::GraphError;
 use crate::plan::{
@@ -342,20 +342,21 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     }
 
     let mut payload_slots: Vec<Option<P>> = payloads.into_iter().map(Some).collect();
-    let mut decls: Vec<Option<PassDecl>> = passes.into_iter().map(Some).collect();
+    // Names and uses move from the declarations into the plan; nothing is copied.
+    let mut passes = passes;
     let mut planned: Vec<PlannedPass> = Vec::with_capacity(order.len());
     for &id in &order {
-        let Some(d) = decls.get_mut(id.index()).and_then(Option::take) else {
+        let Some(d) = passes.get_mut(id.index()) else {
             continue;
         };
         planned.push(PlannedPass {
             id,
-            name: d.name,
+            name: std::mem::take(&mut d.name),
             kind: d.kind,
             class: d.class,
             coverage: d.coverage,
             retention: d.retention,
-            uses: d.uses,
+            uses: std::mem::take(&mut d.uses),
             step: StepIndex(0),
             subpass: None,
         });
@@ -366,15 +367,15 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         if let Some(slot) = payload_slots.get_mut(id.index()) {
             *slot = None;
         }
-        let Some(d) = decls.get_mut(id.index()).and_then(Option::take) else {
+        let Some(d) = passes.get_mut(id.index()) else {
             continue;
         };
         culled.push(CulledPass {
             id,
-            name: d.name,
+            name: std::mem::take(&mut d.name),
             kind: d.kind,
             class: d.class,
-            uses: d.uses,
+            uses: std::mem::take(&mut d.uses),
             reason,
         });
     }
