@@ -22,5 +22,5 @@ const uint CORNERS[36] = uint[36](
 void main() {
     uint c = CORNERS[gl_VertexIndex];
     vec3 corner = vec3(float(c & 1u), float((c >> 1u) & 1u), float((c >> 2u) & 1u)) * 2.0 - 1.0;
-    gl_Position = frame.view_proj * vec4(box.center.xyz + box.half_extents.xyz * corner, 1.0);
+    gl_Position = frame.view_proj * vec4(proxy_corner(box.center.xyz, box.half_extents.xyz, corner), 1.0);
 }

@@ -73,5 +73,5 @@ void main() {
         return;
     }
     uint c = CORNERS[gl_VertexIndex];
-    gl_Position = frame.view_proj * vec4(inst.center + half_size * corner_sign(c), 1.0);
+    gl_Position = frame.view_proj * vec4(proxy_corner(inst.center, half_size, corner_sign(c)), 1.0);
 }
