@@ -104,6 +104,9 @@ pub enum GraphError {
         requirements: usize,
     },
 
+    #[error("the plan is not one compile produced: {reason}")]
+    InvalidPlan { reason: &'static str },
+
     #[error("memory requirement #{index}: alignment {alignment_bytes} is not a power of two")]
     InvalidAlignment { index: usize, alignment_bytes: u64 },
 }

@@ -454,6 +454,7 @@ impl Plan {
         &mut self,
         requirements: &[MemoryRequirements],
     ) -> Result<(), GraphError> {
+        self.check_consistency()?;
         let aliasing = assign_aliases(&self.alias_lifetimes(), requirements)?;
         let (accesses, ranges) = plan_accesses(self);
         let pass_accesses = PassAccesses {
@@ -478,6 +479,56 @@ impl Plan {
         locate_passes(&steps, &mut self.passes);
         self.steps = steps;
         self.aliasing = aliasing;
+        Ok(())
+    }
+
+    /// The plan's fields are public: before rebuilding from them, make sure every index points
+    /// at something (a hand-edited plan gets an error, not a panic).
+    fn check_consistency(&self) -> Result<(), GraphError> {
+        let invalid = |reason| Err(GraphError::InvalidPlan { reason });
+        let n = self.resources.len();
+        if self
+            .resources
+            .iter()
+            .enumerate()
+            .any(|(i, r)| r.id.index() != i)
+        {
+            return invalid("resource ids are not their indices");
+        }
+        let max_id = self
+            .passes
+            .iter()
+            .map(|p| p.id.index() + 1)
+            .max()
+            .unwrap_or(0);
+        let mut known = vec![false; max_id];
+        for p in &self.passes {
+            known[p.id.index()] = true;
+            let unknown = p.uses.iter().any(|u| {
+                u.resource.index() >= n
+                    || matches!(u.kind, UseKind::ResolveTarget { source } if source.index() >= n)
+            });
+            if unknown {
+                return invalid("a pass uses an unknown resource");
+            }
+        }
+        let is_known = |id: PassId| known.get(id.index()).copied().unwrap_or(false);
+        for step in &self.steps {
+            match step {
+                Step::RenderPass(rp) => {
+                    if rp.attachments.iter().any(|a| a.resource.index() >= n) {
+                        return invalid("a render pass attaches an unknown resource");
+                    }
+                    if rp.subpasses.iter().any(|s| !is_known(s.pass)) {
+                        return invalid("a subpass records an unknown pass");
+                    }
+                }
+                Step::Compute { pass } | Step::Transfer { pass } if !is_known(*pass) => {
+                    return invalid("a step records an unknown pass");
+                }
+                _ => {}
+            }
+        }
         Ok(())
     }
 
@@ -568,6 +619,27 @@ mod tests {
             Err(GraphError::AliasInputMismatch {
                 lifetimes: plan.resources.len(),
                 requirements: plan.resources.len() - 1
+            })
+        );
+    }
+
+    #[test]
+    fn a_hand_edited_plan_gets_an_error_not_a_panic() {
+        let mut plan = compile(two_chains(), &desktop());
+        let requirements = plan.estimated_requirements();
+        plan.passes[0].uses[0].resource = ResourceId(999);
+        assert_eq!(
+            plan.reassign_aliases(&requirements),
+            Err(GraphError::InvalidPlan {
+                reason: "a pass uses an unknown resource"
+            })
+        );
+        let mut plan = compile(two_chains(), &desktop());
+        plan.passes.pop();
+        assert_eq!(
+            plan.reassign_aliases(&requirements),
+            Err(GraphError::InvalidPlan {
+                reason: "a subpass records an unknown pass"
             })
         );
     }
