@@ -90,11 +90,15 @@ vec3 shade(vec3 base, vec3 n, uint iterations) {
 // (a building or a pole is its own box). Two triangles covering the same plane or edge need not
 // get the same depth or coverage on every GPU (a few ulps apart on NVIDIA; identical on
 // lavapipe), and a proxy a hair behind or inside its own object's silhouette culls a visible
-// object. So a proxy corner is pushed out by 1/1024 of the half size (plus 0.1 mm) and then
-// scaled towards the eye, which keeps its projection (same x/w, y/w) and brings its depth nearer
-// by ~2.4e-4 relative: far more than rounding, far less than any real gap.
+// object; rasterizers also snap vertices to a sub-pixel grid, so a proxy edge can miss a pixel
+// centre its object's (differently snapped) edge covers. So a proxy corner is pushed out by
+// 1/1024 of the half size, 0.1 mm, and a quarter of a pixel's footprint at the box's centre
+// (0.5 / height for a 90-degree view), then scaled towards the eye, which keeps its projection
+// (same x/w, y/w) and brings its depth nearer by ~2.4e-4 relative: far more than rounding, far
+// less than any real gap.
 vec3 proxy_corner(vec3 center, vec3 half_size, vec3 corner_sign) {
-    vec3 grown = half_size * (1.0 + 1.0 / 1024.0) + vec3(1e-4);
+    float pixel = length(center) * 0.5 * frame.viewport.w;
+    vec3 grown = half_size * (1.0 + 1.0 / 1024.0) + vec3(1e-4 + pixel);
     return (center + grown * corner_sign) * (1.0 - 1.0 / 4096.0);
 }
 
