@@ -362,50 +362,19 @@ impl OqState {
         pc: &PassContext<'_>,
         depth: DepthConvention,
     ) -> Result<vk::Pipeline, VkError> {
-        let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
-            what: pc.pass_name.into(),
-            reason: "occlusion queries record inside a render pass".into(),
-        })?;
-        let reverse = depth == DepthConvention::Reverse;
-        if let Some(p) = self.pipelines.get(&(rp, subpass, reverse)) {
-            return Ok(*p);
-        }
-        let p = create_graphics_pipeline(
-            pc.ctx,
-            &GraphicsDesc {
-                name: pc.pass_name,
-                vertex: Stage {
-                    name: "oq_box.vert",
-                    spirv: BOX_VS,
-                    specialization: &[],
-                },
-                fragment: None,
-                vertex_layout: None,
-                layout: self.pipeline_layout,
-                target: RenderTarget::Subpass {
-                    render_pass: rp,
-                    subpass,
-                    color_count: 0,
-                },
-                // The box encloses the object: where the object is in front of the depth, so
-                // is the box (or level with it, hence OR_EQUAL).
-                depth: DepthState {
-                    test: true,
-                    write: false,
-                    compare: if reverse {
-                        vk::CompareOp::GREATER_OR_EQUAL
-                    } else {
-                        vk::CompareOp::LESS_OR_EQUAL
-                    },
-                },
-                blend: Blend::NoColorWrites,
-                // Both faces: a box seen from inside still counts.
-                cull: vk::CullModeFlags::NONE,
-                samples: vk::SampleCountFlags::TYPE_1,
-            },
-        )?;
-        self.pipelines.insert((rp, subpass, reverse), p);
-        Ok(p)
+        let vertex = Stage {
+            name: "oq_box.vert",
+            spirv: BOX_VS,
+            specialization: &[],
+        };
+        proxy_pipeline(
+            pc,
+            &mut self.pipelines,
+            depth,
+            vertex,
+            None,
+            self.pipeline_layout,
+        )
     }
 
     /// Records this frame's queries (inside the query pass's subpass).
@@ -781,51 +750,25 @@ impl RasterOcclusion {
         pc: &PassContext<'_>,
         depth: DepthConvention,
     ) -> Result<vk::Pipeline, VkError> {
-        let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
-            what: pc.pass_name.into(),
-            reason: "raster occlusion records inside a render pass".into(),
-        })?;
-        let reverse = depth == DepthConvention::Reverse;
-        if let Some(p) = self.pipelines.get(&(rp, subpass, reverse)) {
-            return Ok(*p);
-        }
-        let p = create_graphics_pipeline(
-            pc.ctx,
-            &GraphicsDesc {
-                name: pc.pass_name,
-                vertex: Stage {
-                    name: "raster_occlusion.vert",
-                    spirv: RASTER_VS,
-                    specialization: &[(0, self.scale)],
-                },
-                fragment: Some(Stage {
-                    name: "raster_occlusion.frag",
-                    spirv: RASTER_FS,
-                    specialization: &[],
-                }),
-                vertex_layout: None,
-                layout: self.pipeline_layout,
-                target: RenderTarget::Subpass {
-                    render_pass: rp,
-                    subpass,
-                    color_count: 0,
-                },
-                depth: DepthState {
-                    test: true,
-                    write: false,
-                    compare: if reverse {
-                        vk::CompareOp::GREATER_OR_EQUAL
-                    } else {
-                        vk::CompareOp::LESS_OR_EQUAL
-                    },
-                },
-                blend: Blend::NoColorWrites,
-                cull: vk::CullModeFlags::NONE,
-                samples: vk::SampleCountFlags::TYPE_1,
-            },
-        )?;
-        self.pipelines.insert((rp, subpass, reverse), p);
-        Ok(p)
+        let scale = [(0, self.scale)];
+        let vertex = Stage {
+            name: "raster_occlusion.vert",
+            spirv: RASTER_VS,
+            specialization: &scale,
+        };
+        let fragment = Stage {
+            name: "raster_occlusion.frag",
+            spirv: RASTER_FS,
+            specialization: &[],
+        };
+        proxy_pipeline(
+            pc,
+            &mut self.pipelines,
+            depth,
+            vertex,
+            Some(fragment),
+            self.pipeline_layout,
+        )
     }
 
     /// Records one instanced draw of every instance's box.
@@ -990,6 +933,59 @@ impl RasterOcclusion {
                 .destroy_descriptor_set_layout(self.set_layout, None);
         }
     }
+}
+
+/// The pipeline of an occlusion proxy (query box or raster-occlusion box) for the subpass the
+/// pass records into, cached per (render pass, subpass, depth convention): depth tested against
+/// the frame's depth, nothing written, both faces (a box seen from inside still counts). The box
+/// encloses its object, so where the object is in front of the depth the box is too, or level
+/// with it: hence OR_EQUAL.
+fn proxy_pipeline(
+    pc: &PassContext<'_>,
+    cache: &mut HashMap<(vk::RenderPass, u32, bool), vk::Pipeline>,
+    depth: DepthConvention,
+    vertex: Stage<'_>,
+    fragment: Option<Stage<'_>>,
+    layout: vk::PipelineLayout,
+) -> Result<vk::Pipeline, VkError> {
+    let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
+        what: pc.pass_name.into(),
+        reason: "occlusion proxies record inside a render pass".into(),
+    })?;
+    let reverse = depth == DepthConvention::Reverse;
+    if let Some(p) = cache.get(&(rp, subpass, reverse)) {
+        return Ok(*p);
+    }
+    let compare = if reverse {
+        vk::CompareOp::GREATER_OR_EQUAL
+    } else {
+        vk::CompareOp::LESS_OR_EQUAL
+    };
+    let p = create_graphics_pipeline(
+        pc.ctx,
+        &GraphicsDesc {
+            name: pc.pass_name,
+            vertex,
+            fragment,
+            vertex_layout: None,
+            layout,
+            target: RenderTarget::Subpass {
+                render_pass: rp,
+                subpass,
+                color_count: 0,
+            },
+            depth: DepthState {
+                test: true,
+                write: false,
+                compare,
+            },
+            blend: Blend::NoColorWrites,
+            cull: vk::CullModeFlags::NONE,
+            samples: vk::SampleCountFlags::TYPE_1,
+        },
+    )?;
+    cache.insert((rp, subpass, reverse), p);
+    Ok(p)
 }
 
 #[cfg(test)]

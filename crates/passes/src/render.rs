@@ -385,6 +385,17 @@ impl Shared {
         Ok(p)
     }
 
+    /// Set 0 of a frame slot (the plain one), or an error naming who asked.
+    fn scene_set(&self, slot: usize, what: &str) -> Result<vk::DescriptorSet, VkError> {
+        self.scene_sets
+            .get(slot)
+            .copied()
+            .ok_or_else(|| VkError::Invalid {
+                what: what.to_string(),
+                reason: format!("no scene set for frame slot {slot}"),
+            })
+    }
+
     /// Binds the scene's vertex and index buffers and set 0 (the culled variant reads the culling
     /// shader's draw list), and sets the viewport.
     fn bind_geometry(&self, pc: &PassContext<'_>, culled: bool) -> Result<(), VkError> {
@@ -1392,13 +1403,7 @@ impl SceneRenderer {
         let queries: Payload = Box::new(move |pc: &mut PassContext<'_>| {
             let mut s = shared_q.borrow_mut();
             let depth = s.depth;
-            let set = *s
-                .scene_sets
-                .get(pc.frame_slot)
-                .ok_or_else(|| VkError::Invalid {
-                    what: "occlusion queries".into(),
-                    reason: "no scene set for this frame slot".into(),
-                })?;
+            let set = s.scene_set(pc.frame_slot, "occlusion queries")?;
             match s.oq.as_mut() {
                 Some(oq) => oq.record(pc, set, depth),
                 None => Ok(()),
@@ -1513,13 +1518,7 @@ impl SceneRenderer {
         let boxes: Payload = Box::new(move |pc: &mut PassContext<'_>| {
             let mut s = shared.borrow_mut();
             let depth = s.depth;
-            let set = *s
-                .scene_sets
-                .get(pc.frame_slot)
-                .ok_or_else(|| VkError::Invalid {
-                    what: "raster occlusion".into(),
-                    reason: "no scene set for this frame slot".into(),
-                })?;
+            let set = s.scene_set(pc.frame_slot, "raster occlusion")?;
             match s.raster.as_mut() {
                 Some(r) => r.record(pc, set, depth),
                 None => Ok(()),
