@@ -295,12 +295,12 @@ fn run(
         frames_with_false_negatives: frames.iter().filter(|f| f.false_negatives > 0).count(),
         frames_image_equal: frames.iter().filter(|f| f.image_equal).count(),
         triangles_drawn: frames.iter().map(|f| f.triangles_drawn).sum(),
+        // Folded from +0.0: an empty f64 sum is -0.0, which prints as "-0.0 ms".
         cull_gpu_ms: medians
             .iter()
             .filter(|m| is_cull(&m.name))
-            .map(|m| m.median_gpu_ms)
-            .sum(),
-        frame_gpu_ms: medians.iter().map(|m| m.median_gpu_ms).sum(),
+            .fold(0.0, |a, m| a + m.median_gpu_ms),
+        frame_gpu_ms: medians.iter().fold(0.0, |a, m| a + m.median_gpu_ms),
     };
     Ok(CullCheck {
         technique: culling.name().to_string(),

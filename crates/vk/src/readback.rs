@@ -22,8 +22,8 @@ pub fn texel_bytes(format: vk::Format) -> Option<u32> {
 }
 
 /// Copies mip `level` of `image` (currently in `layout`, left in `layout`) to host memory, rows
-/// tightly packed, top row first. `after_stages`/`after_access` describe the last GPU write the
-/// copy must wait for.
+/// tightly packed, top row first. Waits for all earlier GPU work (the copy's barrier starts from
+/// ALL_COMMANDS), so call it after the frame that wrote the image was submitted.
 pub fn read_image(
     ctx: &Context,
     image: &ImageHandle,
