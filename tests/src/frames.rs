@@ -15,8 +15,8 @@ use tilegraph_graph::{
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::{External, ImageHandle, PassContext};
 use tilegraph_vk::pipeline::{
-    create_graphics_pipeline, create_pipeline_layout, create_set_layout, Blend, DepthState,
-    GraphicsDesc, RenderTarget, Stage,
+    allocate_set, create_graphics_pipeline, create_pipeline_layout, create_set_layout, Blend,
+    DepthState, GraphicsDesc, RenderTarget, Stage,
 };
 use tilegraph_vk::{Context, Image, VkError};
 
@@ -227,13 +227,8 @@ impl Kit {
         let set = match self.sets.get(&key) {
             Some(s) => *s,
             None => {
-                let layouts = [self.set_layout];
-                let alloc = vk::DescriptorSetAllocateInfo::default()
-                    .descriptor_pool(self.pool)
-                    .set_layouts(&layouts);
-                // SAFETY: pool sized for the test's sets.
-                let s = unsafe { pc.ctx.device.allocate_descriptor_sets(&alloc) }
-                    .map_err(|r| VkError::call("vkAllocateDescriptorSets", r))?[0];
+                // The pool is sized for the test's sets.
+                let s = allocate_set(pc.ctx, self.pool, self.set_layout)?;
                 self.sets.insert(key, s);
                 s
             }

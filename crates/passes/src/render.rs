@@ -29,8 +29,8 @@ use tilegraph_vk::ash;
 use tilegraph_vk::executor::{Executor, External, FrameStats, ImageHandle, PassContext};
 use tilegraph_vk::first_frame::RgbaImage;
 use tilegraph_vk::pipeline::{
-    create_graphics_pipeline, create_pipeline_layout, create_set_layout, Blend, DepthState,
-    GraphicsDesc, RenderTarget, Stage, VertexLayout,
+    allocate_set, create_graphics_pipeline, create_pipeline_layout, create_set_layout, Blend,
+    DepthState, GraphicsDesc, RenderTarget, Stage, VertexLayout,
 };
 use tilegraph_vk::queries::PassMedian;
 use tilegraph_vk::{Context, Image, VkError};
@@ -585,17 +585,13 @@ impl Shared {
         let set = match self.resolve_sets.get(&key) {
             Some(s) => *s,
             None => {
-                let layouts = [if input {
+                // The pool holds a set per slot and variant.
+                let layout = if input {
                     self.input_set_layout
                 } else {
                     self.sampled_set_layout
-                }];
-                let alloc = vk::DescriptorSetAllocateInfo::default()
-                    .descriptor_pool(self.pool)
-                    .set_layouts(&layouts);
-                // SAFETY: the pool holds enough sets for every slot and variant.
-                let s = unsafe { pc.ctx.device.allocate_descriptor_sets(&alloc) }
-                    .map_err(|r| VkError::call("vkAllocateDescriptorSets", r))?[0];
+                };
+                let s = allocate_set(pc.ctx, self.pool, layout)?;
                 self.resolve_sets.insert(key, s);
                 s
             }
@@ -1461,17 +1457,7 @@ impl SceneRenderer {
         two_phase: bool,
         culling: Culling,
     ) {
-        let fill: Payload = Box::new(move |pc: &mut PassContext<'_>| {
-            let counts = pc.buffer(b.counts)?;
-            // SAFETY: the graph put the counts buffer in TRANSFER_DST for this pass.
-            unsafe {
-                pc.ctx
-                    .device
-                    .cmd_fill_buffer(pc.cb, counts.raw, 0, vk::WHOLE_SIZE, 0)
-            };
-            Ok(())
-        });
-        g.transfer_pass("cull-reset", PassClass::Compute, fill)
+        g.transfer_pass("cull-reset", PassClass::Compute, zero_fill(b.counts))
             .transfer_dst(b.counts);
         let mut c = g.compute_pass(
             if two_phase { "cull-early" } else { "cull" },
@@ -1502,18 +1488,12 @@ impl SceneRenderer {
         f: &Declared,
         b: CullBuffers,
     ) {
-        let clear: Payload = Box::new(move |pc: &mut PassContext<'_>| {
-            let flags = pc.buffer(b.visibility)?;
-            // SAFETY: the graph put the visibility buffer in TRANSFER_DST for this pass.
-            unsafe {
-                pc.ctx
-                    .device
-                    .cmd_fill_buffer(pc.cb, flags.raw, 0, vk::WHOLE_SIZE, 0)
-            };
-            Ok(())
-        });
-        g.transfer_pass("raster-occlusion-clear", PassClass::Compute, clear)
-            .transfer_dst(b.visibility);
+        g.transfer_pass(
+            "raster-occlusion-clear",
+            PassClass::Compute,
+            zero_fill(b.visibility),
+        )
+        .transfer_dst(b.visibility);
         let shared = self.shared.clone();
         let boxes: Payload = Box::new(move |pc: &mut PassContext<'_>| {
             let mut s = shared.borrow_mut();
@@ -1836,6 +1816,20 @@ impl SceneRenderer {
             ctx.destroy_image(image);
         }
     }
+}
+
+/// A transfer payload that zeroes a whole buffer (the graph put it in TRANSFER_DST).
+fn zero_fill(buffer: BufferId) -> Payload {
+    Box::new(move |pc: &mut PassContext<'_>| {
+        let b = pc.buffer(buffer)?;
+        // SAFETY: recording outside a render pass; the buffer is live and a transfer destination.
+        unsafe {
+            pc.ctx
+                .device
+                .cmd_fill_buffer(pc.cb, b.raw, 0, vk::WHOLE_SIZE, 0)
+        };
+        Ok(())
+    })
 }
 
 fn depth_convention_far(c: DepthConvention) -> f32 {
