@@ -15,7 +15,7 @@
 //! a new block. Blocks are kept in ordered sets, so a placement costs O(log blocks). Blocks are
 //! only sizes; the executor allocates them.
 
-use std::cmp::Reverse;
+use smallvec::SmallVec;
 
 use crate::declare::ResourceId;
 use crate::error::GraphError;
@@ -152,7 +152,7 @@ struct BlockState {
     alignment: u64,
     /// The most recent occupant of each byte range, sorted and disjoint. Allocations alive now
     /// are among them (nothing can be placed over a live one).
-    occupants: Vec<Placed>,
+    occupants: SmallVec<[Placed; 4]>,
     live: u32,
     live_bytes: u64,
 }
@@ -216,8 +216,9 @@ impl BlockState {
             resource,
             alive: true,
         });
+        self.occupants.drain(first..last);
         self.occupants
-            .splice(first..last, pieces.into_iter().flatten());
+            .insert_many(first, pieces.into_iter().flatten());
     }
 
     fn retire(&mut self, resource: u32) {
@@ -332,35 +333,49 @@ pub fn assign_aliases(
         ..AliasAssignment::default()
     };
 
-    // Shared resources, swept by first use; bigger first on ties so they open the blocks.
-    let mut shared: Vec<(u32, Reverse<u64>, u32)> = lifetimes
+    // Shared resources, swept by first use; bigger first on ties so they open the blocks. Keys
+    // pack (first use, !size, index) into one integer: one comparison per sort step.
+    let mut shared: Vec<u128> = lifetimes
         .iter()
         .enumerate()
         .filter_map(|(i, l)| match (l.memory, l.lifetime) {
-            (MemoryNeed::Shared(_), Some(range)) => {
-                Some((range.first.0, Reverse(requirements[i].size_bytes), i as u32))
-            }
+            (MemoryNeed::Shared(_), Some(range)) => Some(
+                (u128::from(range.first.0) << 96)
+                    | (u128::from(!requirements[i].size_bytes) << 32)
+                    | i as u128,
+            ),
             _ => None,
         })
         .collect();
     shared.sort_unstable();
 
     // The same resources by last use: retiring is a cursor over this order.
-    let mut expiry: Vec<(u32, u32)> = shared
+    let mut expiry: Vec<u64> = shared
         .iter()
-        .map(|&(_, _, i)| (lifetimes[i as usize].lifetime.map_or(0, |l| l.last.0), i))
+        .map(|&key| {
+            let i = key as u32;
+            let last = lifetimes[i as usize].lifetime.map_or(0, |l| l.last.0);
+            (u64::from(last) << 32) | u64::from(i)
+        })
         .collect();
     expiry.sort_unstable();
     let mut expired = 0usize;
     let mut block_of: Vec<u32> = vec![u32::MAX; lifetimes.len()];
 
-    let mut blocks = Blocks::default();
+    let mut blocks = Blocks {
+        blocks: Vec::with_capacity(shared.len()),
+        empty: Vec::with_capacity(shared.len()),
+        partial: Vec::with_capacity(shared.len()),
+    };
+    out.handoffs.reserve(shared.len());
     let mut handoff_from: Vec<u32> = Vec::new();
-    for &(first, _, i) in &shared {
+    for &key in &shared {
+        let (first, i) = ((key >> 96) as u32, key as u32);
         let MemoryNeed::Shared(class) = lifetimes[i as usize].memory else {
             continue;
         };
-        while let Some(&(last, resource)) = expiry.get(expired) {
+        while let Some(&entry) = expiry.get(expired) {
+            let (last, resource) = ((entry >> 32) as u32, entry as u32);
             if last >= first {
                 break;
             }
@@ -381,7 +396,7 @@ pub fn assign_aliases(
                 class,
                 size: 0,
                 alignment: 1,
-                occupants: Vec::with_capacity(4),
+                occupants: SmallVec::new(),
                 live: 0,
                 live_bytes: 0,
             });

@@ -41,8 +41,9 @@ pub use declare::{
 pub use error::GraphError;
 pub use plan::{
     Attachment, AttachmentIndex, AttachmentRef, BarrierBatch, BufferBarrier, CullReason,
-    CulledPass, FlushReason, Hazard, ImageBarrier, Plan, PlanResource, PlannedPass, RenderPass,
-    Residency, Step, StepIndex, StepRange, Subpass, SubpassDependency, SubpassIndex, Usage,
+    CulledPass, FlushReason, Hazard, ImageBarrier, InlineVec, Plan, PlanResource, PlannedPass,
+    RenderPass, Residency, Step, StepIndex, StepRange, Subpass, SubpassDependency, SubpassIndex,
+    Usage,
 };
 pub use tilegraph_profile::PassClass;
 pub use traffic::{TrafficBreakdown, TrafficEstimate, TrafficModel};

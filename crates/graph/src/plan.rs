@@ -3,6 +3,8 @@
 
 use tilegraph_profile::PassClass;
 
+use smallvec::SmallVec;
+
 use crate::alias::{AliasAssignment, AliasLifetime, MemoryClass, MemoryNeed, MemorySlot};
 use crate::declare::{
     Coverage, Origin, PassId, PassKind, PassUse, ResourceDesc, ResourceId, ResourceState, Retention,
@@ -12,6 +14,12 @@ use crate::types::{
     AccessFlags, BufferUsage, ClearValue, DependencyFlags, Extent2d, Format, ImageUsage, Layout,
     LoadOp, PipelineStages, SampleCount, StoreOp,
 };
+
+/// A short list stored inline up to `N` entries (a [`SmallVec`]: derefs to a slice, grows onto
+/// the heap past `N`). A plan is rebuilt every frame, and its per-subpass and per-barrier-batch
+/// lists hold one to three entries, so inline storage keeps compile from making a heap
+/// allocation for each of them.
+pub type InlineVec<T, const N: usize> = SmallVec<[T; N]>;
 
 /// Index into [`Plan::steps`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -229,8 +237,8 @@ pub enum FlushReason {
 
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct BarrierBatch {
-    pub images: Vec<ImageBarrier>,
-    pub buffers: Vec<BufferBarrier>,
+    pub images: InlineVec<ImageBarrier, 2>,
+    pub buffers: InlineVec<BufferBarrier, 1>,
 }
 
 impl BarrierBatch {
@@ -299,8 +307,8 @@ pub struct BufferBarrier {
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderPass {
     pub render_area_px: Extent2d,
-    pub attachments: Vec<Attachment>,
-    pub subpasses: Vec<Subpass>,
+    pub attachments: InlineVec<Attachment, 2>,
+    pub subpasses: InlineVec<Subpass, 1>,
     pub dependencies: Vec<SubpassDependency>,
     /// Bytes per pixel the attachments occupy in tile memory (resolve targets excluded).
     pub on_chip_bytes_per_px: u32,
@@ -335,13 +343,13 @@ pub struct AttachmentRef {
 pub struct Subpass {
     /// The logical pass whose payload records this subpass.
     pub pass: PassId,
-    pub colors: Vec<AttachmentRef>,
+    pub colors: InlineVec<AttachmentRef, 4>,
     /// Empty, or one entry per colour attachment (`None` where that colour is not resolved).
-    pub resolves: Vec<Option<AttachmentRef>>,
+    pub resolves: InlineVec<Option<AttachmentRef>, 2>,
     pub depth_stencil: Option<AttachmentRef>,
-    pub inputs: Vec<AttachmentRef>,
+    pub inputs: InlineVec<AttachmentRef, 2>,
     /// Attachments used before and after this subpass but not by it, whose content must stay.
-    pub preserve: Vec<AttachmentIndex>,
+    pub preserve: InlineVec<AttachmentIndex, 4>,
 }
 
 /// A dependency between two subpasses of one render pass (always by region: merging requires

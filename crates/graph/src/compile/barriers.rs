@@ -293,7 +293,7 @@ struct Planner<'a> {
     others: Vec<(usize, SyncUse)>,
 }
 
-/// Barriers gathered for one batch in reused buffers, copied out at exact size.
+/// Barriers gathered for one batch in reused buffers, then copied out (inline when short).
 #[derive(Default)]
 struct BatchScratch {
     images: Vec<ImageBarrier>,
@@ -306,8 +306,8 @@ impl BatchScratch {
             return None;
         }
         let batch = BarrierBatch {
-            images: self.images.as_slice().to_vec(),
-            buffers: self.buffers.as_slice().to_vec(),
+            images: self.images.as_slice().into(),
+            buffers: self.buffers.as_slice().into(),
         };
         self.images.clear();
         self.buffers.clear();
@@ -481,11 +481,13 @@ pub(crate) fn plan_barriers(
         attachment_uses: Vec::with_capacity(16),
         others: Vec::with_capacity(16),
     };
-    let mut steps = Vec::with_capacity(work.len() * 2 + 1);
-    let mut work_steps = Vec::with_capacity(work.len());
+    // Plan in place (render passes get their initial layouts), then interleave: each step is
+    // moved once (render passes are a few hundred bytes).
+    let mut work = work;
+    let mut batches: Vec<(usize, BarrierBatch)> = Vec::with_capacity(work.len());
     let mut batch = BatchScratch::default();
-    for mut step in work {
-        match &mut step {
+    for (i, step) in work.iter_mut().enumerate() {
+        match step {
             Step::RenderPass(rp) => planner.render_pass(rp, accesses, &mut batch),
             Step::Compute { pass } | Step::Transfer { pass } => {
                 planner.single_pass(*pass, accesses, &mut batch)
@@ -493,6 +495,14 @@ pub(crate) fn plan_barriers(
             Step::Flush(_) | Step::Barriers(_) => {}
         }
         if let Some(b) = batch.take() {
+            batches.push((i, b));
+        }
+    }
+    let mut steps = Vec::with_capacity(work.len() + batches.len() + 1);
+    let mut work_steps = Vec::with_capacity(work.len());
+    let mut batches = batches.into_iter().peekable();
+    for (i, step) in work.into_iter().enumerate() {
+        if let Some((_, b)) = batches.next_if(|(at, _)| *at == i) {
             steps.push(Step::Barriers(b));
         }
         if step.is_work() {

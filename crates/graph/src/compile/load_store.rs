@@ -12,8 +12,8 @@ use tilegraph_profile::Profile;
 
 use crate::declare::{PassDecl, PassId, ResourceDecl, UseKind};
 use crate::plan::{
-    Attachment, AttachmentIndex, AttachmentRef, RenderPass, Residency, Subpass, SubpassDependency,
-    SubpassIndex,
+    Attachment, AttachmentIndex, AttachmentRef, FlushReason, InlineVec, RenderPass, Residency,
+    Step, Subpass, SubpassDependency, SubpassIndex,
 };
 use crate::types::{
     AccessFlags, DependencyFlags, Extent2d, Layout, LoadOp, PipelineStages, StoreOp,
@@ -180,18 +180,25 @@ pub(crate) struct LoadStoreInput<'a> {
     pub timeline: &'a Timeline,
 }
 
-/// Builds the render pass of every render group (`None` for compute and transfer groups).
-pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Option<RenderPass>> {
+/// The work steps in execution order: one render pass per render group (with its attachments,
+/// load/store ops, subpasses and dependencies), one compute or transfer step per other group,
+/// and a flush before each group that asks for one. Barriers come later (`plan_barriers`).
+pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Step> {
     let n_resources = input.resources.len();
     let mut written_before: Vec<bool> = input.resources.iter().map(has_initial_content).collect();
     // Per resource: cursor into its timeline, and its attachment in the current render pass.
     let mut cursor = vec![0u32; n_resources];
     let mut attachment_of = vec![(NONE, NONE); n_resources];
-    let mut out = Vec::with_capacity(input.groups.len());
+    let flushes = input.groups.iter().filter(|g| g.flush_before).count();
+    let mut out = Vec::with_capacity(input.groups.len() + flushes);
     let mut scratch = Scratch::default();
     for (g, group) in input.groups.iter().enumerate() {
-        let rp = match group.kind {
-            GroupKind::Render => Some(build_render_pass(
+        if group.flush_before {
+            out.push(Step::Flush(FlushReason::BeforeOcclusionQueries));
+        }
+        let first = input.order[group.start];
+        out.push(match group.kind {
+            GroupKind::Render => Step::RenderPass(build_render_pass(
                 input,
                 &mut scratch,
                 g as u32,
@@ -200,8 +207,9 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Option<RenderP
                 &mut cursor,
                 &mut attachment_of,
             )),
-            GroupKind::Compute | GroupKind::Transfer => None,
-        };
+            GroupKind::Compute => Step::Compute { pass: first },
+            GroupKind::Transfer => Step::Transfer { pass: first },
+        });
         for &p in &input.order[group.start..group.end] {
             for a in input.analysis.accesses_of(p.index()) {
                 if a.writes {
@@ -209,7 +217,6 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Option<RenderP
                 }
             }
         }
-        out.push(rp);
     }
     out
 }
@@ -230,12 +237,8 @@ fn build_render_pass(
     cursor: &mut [u32],
     attachment_of: &mut [(u32, u32)],
 ) -> RenderPass {
-    let attachment_uses: usize = input.order[group.start..group.end]
-        .iter()
-        .map(|p| input.passes[p.index()].uses.len())
-        .sum();
-    let mut attachments: Vec<Attachment> = Vec::with_capacity(attachment_uses);
-    let mut subpasses: Vec<Subpass> = Vec::with_capacity(group.end - group.start);
+    let mut attachments: InlineVec<Attachment, 2> = InlineVec::new();
+    let mut subpasses: InlineVec<Subpass, 1> = InlineVec::with_capacity(group.end - group.start);
     let mut deps: Vec<SubpassDependency> =
         Vec::with_capacity(2 * (group.end - group.start).saturating_sub(1));
     let tracks = &mut scratch.tracks;
@@ -258,11 +261,11 @@ fn build_render_pass(
         }
         let mut subpass = Subpass {
             pass: p,
-            colors: Vec::with_capacity(colors),
-            resolves: Vec::new(),
+            colors: InlineVec::with_capacity(colors),
+            resolves: InlineVec::new(),
             depth_stencil: None,
-            inputs: Vec::with_capacity(inputs),
-            preserve: Vec::new(),
+            inputs: InlineVec::with_capacity(inputs),
+            preserve: InlineVec::new(),
         };
         let mut resolve_refs: Vec<(crate::declare::ResourceId, AttachmentRef)> = Vec::new();
         for u in decl.uses.iter().filter(|u| u.kind.is_attachment()) {
@@ -698,7 +701,7 @@ mod tests {
         };
         assert_eq!(rp.subpasses.len(), 4);
         // depth (attachment #0) is used by subpasses 0, 1 and 3: subpass 2 must keep it.
-        assert_eq!(rp.subpasses[2].preserve, [AttachmentIndex(0)]);
+        assert_eq!(rp.subpasses[2].preserve.as_slice(), [AttachmentIndex(0)]);
         let deps: Vec<(u32, u32)> = rp
             .dependencies
             .iter()

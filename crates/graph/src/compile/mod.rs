@@ -30,8 +30,8 @@ use crate::declare::{
 };
 use crate::error::GraphError;
 use crate::plan::{
-    CulledPass, FlushReason, Plan, PlanResource, PlannedPass, Residency, Step, StepIndex,
-    StepRange, SubpassIndex, Usage,
+    CulledPass, Plan, PlanResource, PlannedPass, Residency, Step, StepIndex, StepRange,
+    SubpassIndex, Usage,
 };
 use crate::traffic::{estimate_traffic, TrafficModel};
 use crate::types::{BufferUsage, ImageUsage};
@@ -39,7 +39,6 @@ use crate::types::{BufferUsage, ImageUsage};
 use access::{push_pass_accesses, role, Access};
 use barriers::{plan_barriers, step_lifetimes, BarrierPlan, PassAccesses, ResourceSync};
 use load_store::{build_timeline, infer_load_store, resource_lifetimes, LoadStoreInput};
-use merge::GroupKind;
 
 /// A compiled frame: the plan, and the payloads of the surviving passes.
 #[derive(Debug, Clone)]
@@ -262,7 +261,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     let (group_lifetimes, residency) = resource_lifetimes(
         &timeline, &groups, &analysis, &resources, &exported, profile,
     );
-    let render_passes = infer_load_store(&LoadStoreInput {
+    let work = infer_load_store(&LoadStoreInput {
         groups: &groups,
         order: &order,
         analysis: &analysis,
@@ -292,18 +291,6 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         .collect();
     let aliasing = assign_aliases(&alias_input, &requirements)?;
 
-    let mut work = Vec::with_capacity(groups.len() + 1);
-    for (group, rp) in groups.iter().zip(render_passes) {
-        if group.flush_before {
-            work.push(Step::Flush(FlushReason::BeforeOcclusionQueries));
-        }
-        let first = order[group.start];
-        work.push(match (group.kind, rp) {
-            (GroupKind::Render, Some(rp)) => Step::RenderPass(rp),
-            (GroupKind::Transfer, _) => Step::Transfer { pass: first },
-            _ => Step::Compute { pass: first },
-        });
-    }
     let sync: Vec<ResourceSync> = resources
         .iter()
         .map(|r| resource_sync(&r.desc, &r.origin))
