@@ -335,18 +335,20 @@ pub fn assign_aliases(
 
     // Shared resources, swept by first use; bigger first on ties so they open the blocks. Keys
     // pack (first use, !size, index) into one integer: one comparison per sort step.
-    let mut shared: Vec<u128> = lifetimes
-        .iter()
-        .enumerate()
-        .filter_map(|(i, l)| match (l.memory, l.lifetime) {
-            (MemoryNeed::Shared(_), Some(range)) => Some(
-                (u128::from(range.first.0) << 96)
-                    | (u128::from(!requirements[i].size_bytes) << 32)
-                    | i as u128,
-            ),
-            _ => None,
-        })
-        .collect();
+    let mut shared: Vec<u128> = Vec::with_capacity(lifetimes.len());
+    shared.extend(
+        lifetimes
+            .iter()
+            .enumerate()
+            .filter_map(|(i, l)| match (l.memory, l.lifetime) {
+                (MemoryNeed::Shared(_), Some(range)) => Some(
+                    (u128::from(range.first.0) << 96)
+                        | (u128::from(!requirements[i].size_bytes) << 32)
+                        | i as u128,
+                ),
+                _ => None,
+            }),
+    );
     shared.sort_unstable();
 
     // The same resources by last use: retiring is a cursor over this order.
@@ -425,15 +427,17 @@ pub fn assign_aliases(
         out.requested_bytes = out.requested_bytes.saturating_add(size);
         block_of[i as usize] = b;
     }
-    out.blocks = blocks
-        .blocks
-        .into_iter()
-        .map(|b| MemoryBlock {
+    let dedicated = lifetimes
+        .iter()
+        .filter(|l| matches!(l.memory, MemoryNeed::Dedicated(_)) && l.lifetime.is_some())
+        .count();
+    out.blocks = Vec::with_capacity(blocks.blocks.len() + dedicated);
+    out.blocks
+        .extend(blocks.blocks.into_iter().map(|b| MemoryBlock {
             class: b.class,
             size_bytes: b.size,
             alignment_bytes: b.alignment,
-        })
-        .collect();
+        }));
 
     // Dedicated resources: one block each, in resource order.
     for (i, l) in lifetimes.iter().enumerate() {

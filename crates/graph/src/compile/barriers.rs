@@ -19,7 +19,8 @@
 use crate::alias::AliasAssignment;
 use crate::declare::{Import, InitialContent, PassId, ResourceId, ResourceState};
 use crate::plan::{
-    BarrierBatch, BufferBarrier, Hazard, ImageBarrier, RenderPass, Step, StepIndex, StepRange,
+    BarrierBatch, BufferBarrier, Hazard, ImageBarrier, InlineVec, RenderPass, Step, StepIndex,
+    StepRange,
 };
 use crate::types::{AccessFlags, Layout, LoadOp, PipelineStages};
 
@@ -293,11 +294,11 @@ struct Planner<'a> {
     others: Vec<(usize, SyncUse)>,
 }
 
-/// Barriers gathered for one batch in reused buffers, then copied out (inline when short).
+/// Barriers gathered for one batch (inline storage: most batches hold one to three).
 #[derive(Default)]
 struct BatchScratch {
-    images: Vec<ImageBarrier>,
-    buffers: Vec<BufferBarrier>,
+    images: InlineVec<ImageBarrier, 2>,
+    buffers: InlineVec<BufferBarrier, 1>,
 }
 
 impl BatchScratch {
@@ -305,13 +306,10 @@ impl BatchScratch {
         if self.images.is_empty() && self.buffers.is_empty() {
             return None;
         }
-        let batch = BarrierBatch {
-            images: self.images.as_slice().into(),
-            buffers: self.buffers.as_slice().into(),
-        };
-        self.images.clear();
-        self.buffers.clear();
-        Some(batch)
+        Some(BarrierBatch {
+            images: std::mem::take(&mut self.images),
+            buffers: std::mem::take(&mut self.buffers),
+        })
     }
 }
 

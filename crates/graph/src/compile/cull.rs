@@ -25,7 +25,7 @@ pub(crate) fn cull_unused_passes(
 ) -> Culling {
     let n = passes.len();
     let mut alive = vec![false; n];
-    let mut stack: Vec<usize> = Vec::new();
+    let mut stack: Vec<usize> = Vec::with_capacity(n);
     fn keep(p: usize, alive: &mut [bool], stack: &mut Vec<usize>) {
         if !alive[p] {
             alive[p] = true;
@@ -48,8 +48,9 @@ pub(crate) fn cull_unused_passes(
         }
     }
 
-    let mut culled = Vec::new();
-    if alive.iter().all(|&a| a) {
+    let dead = alive.iter().filter(|&&a| !a).count();
+    let mut culled = Vec::with_capacity(dead);
+    if dead == 0 {
         return Culling { alive, culled };
     }
     // Consumers of culled passes are culled too (a kept consumer would have kept them).

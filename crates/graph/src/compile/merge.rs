@@ -72,7 +72,7 @@ pub(crate) fn merge_render_passes(
         };
         n_resources
     ];
-    let mut groups: Vec<Group> = Vec::new();
+    let mut groups: Vec<Group> = Vec::with_capacity(order.len());
     for (i, &id) in order.iter().enumerate() {
         let p = id.index();
         let pass = &passes[p];

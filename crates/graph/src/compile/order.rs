@@ -171,7 +171,9 @@ pub(crate) fn order_passes(
     // declaration order is one.
     let alive_count = alive.iter().filter(|&&a| a).count();
     let topo: Vec<u32> = if dependencies.is_empty() {
-        (0..n as u32).filter(|&p| alive[p as usize]).collect()
+        let mut topo = Vec::with_capacity(alive_count);
+        topo.extend((0..n as u32).filter(|&p| alive[p as usize]));
+        topo
     } else {
         let mut remaining = indegree.clone();
         let mut queue: VecDeque<u32> = (0..n as u32)
@@ -220,11 +222,12 @@ pub(crate) fn order_passes(
         let clamp = |r: usize| r.min(0xffff) as u64;
         (clamp(effective[p]) << 48) | (clamp(rank[p]) << 32) | p as u64
     };
-    let mut ready: BinaryHeap<Reverse<u64>> = topo
-        .iter()
-        .filter(|&&p| indegree[p as usize] == 0)
-        .map(|&p| Reverse(key(p as usize)))
-        .collect();
+    let mut ready: BinaryHeap<Reverse<u64>> = BinaryHeap::with_capacity(alive_count);
+    ready.extend(
+        topo.iter()
+            .filter(|&&p| indegree[p as usize] == 0)
+            .map(|&p| Reverse(key(p as usize))),
+    );
     let mut order = Vec::with_capacity(alive_count);
     while let Some(Reverse(k)) = ready.pop() {
         let p = (k & 0xffff_ffff) as u32;
