@@ -309,6 +309,9 @@ pub enum UseKind {
     Vertex,
     Index,
     Indirect,
+    /// The predicate of conditional rendering (`vkCmdBeginConditionalRenderingEXT`, needs
+    /// VK_EXT_conditional_rendering): read by its own pipeline stage, not by the draws.
+    ConditionalPredicate,
     TransferSrc,
     TransferDst,
 }
@@ -329,6 +332,7 @@ impl UseKind {
             UseKind::Vertex => "vertex",
             UseKind::Index => "index",
             UseKind::Indirect => "indirect",
+            UseKind::ConditionalPredicate => "predicate",
             UseKind::TransferSrc => "transfer-src",
             UseKind::TransferDst => "transfer-dst",
         }
@@ -399,6 +403,7 @@ impl UseKind {
             UseKind::Indirect => 12,
             UseKind::TransferSrc => 13,
             UseKind::TransferDst => 14,
+            UseKind::ConditionalPredicate => 15,
         }
     }
 }
@@ -656,6 +661,13 @@ macro_rules! common_pass_methods {
 
         pub fn indirect(&mut self, buffer: BufferId) -> &mut Self {
             self.graph.push_use(self.pass, buffer.0, UseKind::Indirect);
+            self
+        }
+
+        /// The pass draws or dispatches under conditional rendering predicated on `buffer`.
+        pub fn predicate(&mut self, buffer: BufferId) -> &mut Self {
+            self.graph
+                .push_use(self.pass, buffer.0, UseKind::ConditionalPredicate);
             self
         }
     };

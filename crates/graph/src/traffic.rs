@@ -106,8 +106,11 @@ fn add(slot: &mut u64, bytes: u64) {
 const SAMPLED: u16 = role(UseKind::Sampled);
 const STORAGE_READS: u16 = role(UseKind::StorageRead) | role(UseKind::StorageReadWrite);
 const STORAGE_WRITES: u16 = role(UseKind::StorageWrite) | role(UseKind::StorageReadWrite);
-const BUFFER_READS: u16 =
-    role(UseKind::Uniform) | role(UseKind::Vertex) | role(UseKind::Index) | role(UseKind::Indirect);
+const BUFFER_READS: u16 = role(UseKind::Uniform)
+    | role(UseKind::Vertex)
+    | role(UseKind::Index)
+    | role(UseKind::Indirect)
+    | role(UseKind::ConditionalPredicate);
 const TRANSFER_SRC: u16 = role(UseKind::TransferSrc);
 const TRANSFER_DST: u16 = role(UseKind::TransferDst);
 const RESOLVE: u16 = role(UseKind::ResolveTarget {

@@ -510,6 +510,7 @@ vk_flags! {
         HOST = 0x4000,
         ALL_GRAPHICS = 0x8000,
         ALL_COMMANDS = 0x1_0000,
+        CONDITIONAL_RENDERING = 0x4_0000,
         COPY = 0x1_0000_0000,
         RESOLVE = 0x2_0000_0000,
         BLIT = 0x4_0000_0000,
@@ -540,6 +541,7 @@ vk_flags! {
         HOST_WRITE = 0x4000,
         MEMORY_READ = 0x8000,
         MEMORY_WRITE = 0x1_0000,
+        CONDITIONAL_RENDERING_READ = 0x10_0000,
         SHADER_SAMPLED_READ = 0x1_0000_0000,
         SHADER_STORAGE_READ = 0x2_0000_0000,
         SHADER_STORAGE_WRITE = 0x4_0000_0000,
@@ -587,6 +589,7 @@ vk_flags! {
         INDEX_BUFFER = 0x40,
         VERTEX_BUFFER = 0x80,
         INDIRECT_BUFFER = 0x100,
+        CONDITIONAL_RENDERING = 0x200,
     }
 }
 

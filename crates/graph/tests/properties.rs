@@ -288,9 +288,11 @@ fn build(spec: &Spec) -> Built {
                     }
                     UseKind::Sampled => content && d.is_some(),
                     UseKind::StorageRead | UseKind::TransferSrc => content,
-                    UseKind::Uniform | UseKind::Vertex | UseKind::Index | UseKind::Indirect => {
-                        content && d.is_none()
-                    }
+                    UseKind::Uniform
+                    | UseKind::Vertex
+                    | UseKind::Index
+                    | UseKind::Indirect
+                    | UseKind::ConditionalPredicate => content && d.is_none(),
                     UseKind::StorageWrite | UseKind::StorageReadWrite | UseKind::TransferDst => {
                         d.is_none_or(|d| d.samples == SampleCount::S1)
                     }
@@ -370,6 +372,7 @@ fn build(spec: &Spec) -> Built {
                         UseKind::StorageWrite => b.storage_write(r),
                         UseKind::StorageReadWrite => b.storage_read_write(r),
                         UseKind::Uniform => b.uniform(BufferId(r)),
+                        UseKind::ConditionalPredicate => b.predicate(BufferId(r)),
                         _ => b.indirect(BufferId(r)),
                     };
                 }
@@ -474,15 +477,17 @@ fn valid_kind(kind: PassKind, k: u8, clear: bool) -> Option<UseKind> {
             12 => UseKind::Index,
             13 => UseKind::Indirect,
             14 => UseKind::Uniform,
+            15 => UseKind::ConditionalPredicate,
             _ => return None,
         },
-        PassKind::Compute => match k % 6 {
+        PassKind::Compute => match k % 7 {
             0 => UseKind::Sampled,
             1 => UseKind::StorageRead,
             2 => UseKind::StorageWrite,
             3 => UseKind::StorageReadWrite,
             4 => UseKind::Uniform,
-            _ => UseKind::Indirect,
+            5 => UseKind::Indirect,
+            _ => UseKind::ConditionalPredicate,
         },
         PassKind::Transfer => {
             if k % 2 == 0 {
@@ -521,6 +526,7 @@ fn raster_use(b: &mut RasterPassBuilder<'_, u32>, r: ResourceId, u: UseKind) {
         UseKind::Vertex => b.vertex(BufferId(r)),
         UseKind::Index => b.index(BufferId(r)),
         UseKind::Indirect => b.indirect(BufferId(r)),
+        UseKind::ConditionalPredicate => b.predicate(BufferId(r)),
         UseKind::Uniform => b.uniform(BufferId(r)),
         UseKind::TransferSrc | UseKind::TransferDst => b,
     };
@@ -643,6 +649,7 @@ fn stages_of(kind: PassKind, u: &UseKind, format: Option<Format>) -> PipelineSta
         UseKind::Vertex => PipelineStages::VERTEX_ATTRIBUTE_INPUT,
         UseKind::Index => PipelineStages::INDEX_INPUT,
         UseKind::Indirect => PipelineStages::DRAW_INDIRECT,
+        UseKind::ConditionalPredicate => PipelineStages::CONDITIONAL_RENDERING,
         UseKind::TransferSrc | UseKind::TransferDst => PipelineStages::ALL_TRANSFER,
     }
 }
@@ -787,9 +794,11 @@ fn layout_for(u: &UseKind, format: Format) -> Layout {
         UseKind::ColorAttachment { .. } | UseKind::ResolveTarget { .. } => Layout::ColorAttachment,
         UseKind::DepthStencilAttachment { .. } => Layout::DepthStencilAttachment,
         UseKind::DepthStencilReadOnly => Layout::DepthStencilReadOnly,
-        UseKind::Uniform | UseKind::Vertex | UseKind::Index | UseKind::Indirect => {
-            Layout::Undefined
-        }
+        UseKind::Uniform
+        | UseKind::Vertex
+        | UseKind::Index
+        | UseKind::Indirect
+        | UseKind::ConditionalPredicate => Layout::Undefined,
     }
 }
 

@@ -443,7 +443,8 @@ impl OqState {
     }
 
     /// Conditional rendering: copies this frame's results into [`Self::conditions`] (waiting on
-    /// the GPU, not the CPU) and makes them visible to the conditional-rendering stage.
+    /// the GPU, not the CPU). The graph makes them visible to the conditional-rendering stage
+    /// (the colour passes declare the buffer as their predicate).
     pub fn record_copy(&self, pc: &PassContext<'_>) -> Result<(), VkError> {
         let (Some(conditions), Some(&pool)) = (&self.conditions, self.pools.get(pc.frame_slot))
         else {
@@ -476,20 +477,7 @@ impl OqState {
             }
             q = end;
         }
-        // The graph knows the colour passes' read as an indirect-buffer read; the predicate is
-        // read by the conditional-rendering stage, which needs its own barrier.
-        let barrier = [vk::BufferMemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::COPY)
-            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-            .dst_stage_mask(vk::PipelineStageFlags2::CONDITIONAL_RENDERING_EXT)
-            .dst_access_mask(vk::AccessFlags2::CONDITIONAL_RENDERING_READ_EXT)
-            .buffer(conditions.raw)
-            .offset(0)
-            .size(vk::WHOLE_SIZE)];
-        pc.ctx.cmd_pipeline_barrier2(
-            pc.cb,
-            &vk::DependencyInfo::default().buffer_memory_barriers(&barrier),
-        )
+        Ok(())
     }
 
     /// Conditional rendering: the instances the last frame drew (not queried, or query passed);

@@ -1698,9 +1698,9 @@ impl SceneRenderer {
                 );
                 uses_lists(&mut p);
                 if let Some(c) = f.conditions {
-                    // Read by vkCmdBeginConditionalRenderingEXT (the copy pass adds the
-                    // conditional-rendering barrier the graph has no access kind for).
-                    p.indirect(c);
+                    // Read by vkCmdBeginConditionalRenderingEXT: the graph puts the barrier
+                    // from the results copy to the conditional-rendering stage before this pass.
+                    p.predicate(c);
                 }
             }
             PassKind::VisbufWrite => {

@@ -1210,3 +1210,131 @@ fn mark_first_uses(plan: &Plan, pass: PassId, seen_first: &mut [bool]) {
 pub fn stores(a: &Attachment) -> bool {
     a.store_op == StoreOp::Store
 }
+
+#[cfg(test)]
+mod flag_tests {
+    //! The executor hands the graph's flag bits to Vulkan unchanged (`from_raw(bits())`): every
+    //! graph flag must have Vulkan's value.
+    use ash::vk;
+    use tilegraph_graph::{AccessFlags, BufferUsage, ImageUsage, PipelineStages};
+
+    #[test]
+    fn graph_flags_have_vulkan_values() {
+        type S = vk::PipelineStageFlags2;
+        let stages = [
+            (PipelineStages::TOP_OF_PIPE, S::TOP_OF_PIPE),
+            (PipelineStages::DRAW_INDIRECT, S::DRAW_INDIRECT),
+            (PipelineStages::VERTEX_INPUT, S::VERTEX_INPUT),
+            (PipelineStages::VERTEX_SHADER, S::VERTEX_SHADER),
+            (PipelineStages::FRAGMENT_SHADER, S::FRAGMENT_SHADER),
+            (
+                PipelineStages::EARLY_FRAGMENT_TESTS,
+                S::EARLY_FRAGMENT_TESTS,
+            ),
+            (PipelineStages::LATE_FRAGMENT_TESTS, S::LATE_FRAGMENT_TESTS),
+            (
+                PipelineStages::COLOR_ATTACHMENT_OUTPUT,
+                S::COLOR_ATTACHMENT_OUTPUT,
+            ),
+            (PipelineStages::COMPUTE_SHADER, S::COMPUTE_SHADER),
+            (PipelineStages::ALL_TRANSFER, S::ALL_TRANSFER),
+            (PipelineStages::BOTTOM_OF_PIPE, S::BOTTOM_OF_PIPE),
+            (PipelineStages::HOST, S::HOST),
+            (PipelineStages::ALL_GRAPHICS, S::ALL_GRAPHICS),
+            (PipelineStages::ALL_COMMANDS, S::ALL_COMMANDS),
+            (
+                PipelineStages::CONDITIONAL_RENDERING,
+                S::CONDITIONAL_RENDERING_EXT,
+            ),
+            (PipelineStages::COPY, S::COPY),
+            (PipelineStages::RESOLVE, S::RESOLVE),
+            (PipelineStages::BLIT, S::BLIT),
+            (PipelineStages::CLEAR, S::CLEAR),
+            (PipelineStages::INDEX_INPUT, S::INDEX_INPUT),
+            (
+                PipelineStages::VERTEX_ATTRIBUTE_INPUT,
+                S::VERTEX_ATTRIBUTE_INPUT,
+            ),
+            (
+                PipelineStages::PRE_RASTERIZATION_SHADERS,
+                S::PRE_RASTERIZATION_SHADERS,
+            ),
+        ];
+        for (graph, vulkan) in stages {
+            assert_eq!(graph.bits(), vulkan.as_raw(), "{vulkan:?}");
+        }
+        type A = vk::AccessFlags2;
+        let access = [
+            (AccessFlags::INDIRECT_COMMAND_READ, A::INDIRECT_COMMAND_READ),
+            (AccessFlags::INDEX_READ, A::INDEX_READ),
+            (AccessFlags::VERTEX_ATTRIBUTE_READ, A::VERTEX_ATTRIBUTE_READ),
+            (AccessFlags::UNIFORM_READ, A::UNIFORM_READ),
+            (AccessFlags::INPUT_ATTACHMENT_READ, A::INPUT_ATTACHMENT_READ),
+            (AccessFlags::SHADER_READ, A::SHADER_READ),
+            (AccessFlags::SHADER_WRITE, A::SHADER_WRITE),
+            (AccessFlags::COLOR_ATTACHMENT_READ, A::COLOR_ATTACHMENT_READ),
+            (
+                AccessFlags::COLOR_ATTACHMENT_WRITE,
+                A::COLOR_ATTACHMENT_WRITE,
+            ),
+            (
+                AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ,
+                A::DEPTH_STENCIL_ATTACHMENT_READ,
+            ),
+            (
+                AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                A::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            ),
+            (AccessFlags::TRANSFER_READ, A::TRANSFER_READ),
+            (AccessFlags::TRANSFER_WRITE, A::TRANSFER_WRITE),
+            (AccessFlags::HOST_READ, A::HOST_READ),
+            (AccessFlags::HOST_WRITE, A::HOST_WRITE),
+            (AccessFlags::MEMORY_READ, A::MEMORY_READ),
+            (AccessFlags::MEMORY_WRITE, A::MEMORY_WRITE),
+            (
+                AccessFlags::CONDITIONAL_RENDERING_READ,
+                A::CONDITIONAL_RENDERING_READ_EXT,
+            ),
+            (AccessFlags::SHADER_SAMPLED_READ, A::SHADER_SAMPLED_READ),
+            (AccessFlags::SHADER_STORAGE_READ, A::SHADER_STORAGE_READ),
+            (AccessFlags::SHADER_STORAGE_WRITE, A::SHADER_STORAGE_WRITE),
+        ];
+        for (graph, vulkan) in access {
+            assert_eq!(graph.bits(), vulkan.as_raw(), "{vulkan:?}");
+        }
+        type B = vk::BufferUsageFlags;
+        let buffers = [
+            (BufferUsage::TRANSFER_SRC, B::TRANSFER_SRC),
+            (BufferUsage::TRANSFER_DST, B::TRANSFER_DST),
+            (BufferUsage::UNIFORM_BUFFER, B::UNIFORM_BUFFER),
+            (BufferUsage::STORAGE_BUFFER, B::STORAGE_BUFFER),
+            (BufferUsage::INDEX_BUFFER, B::INDEX_BUFFER),
+            (BufferUsage::VERTEX_BUFFER, B::VERTEX_BUFFER),
+            (BufferUsage::INDIRECT_BUFFER, B::INDIRECT_BUFFER),
+            (
+                BufferUsage::CONDITIONAL_RENDERING,
+                B::CONDITIONAL_RENDERING_EXT,
+            ),
+        ];
+        for (graph, vulkan) in buffers {
+            assert_eq!(graph.bits(), vulkan.as_raw(), "{vulkan:?}");
+        }
+        type I = vk::ImageUsageFlags;
+        let images = [
+            (ImageUsage::TRANSFER_SRC, I::TRANSFER_SRC),
+            (ImageUsage::TRANSFER_DST, I::TRANSFER_DST),
+            (ImageUsage::SAMPLED, I::SAMPLED),
+            (ImageUsage::STORAGE, I::STORAGE),
+            (ImageUsage::COLOR_ATTACHMENT, I::COLOR_ATTACHMENT),
+            (
+                ImageUsage::DEPTH_STENCIL_ATTACHMENT,
+                I::DEPTH_STENCIL_ATTACHMENT,
+            ),
+            (ImageUsage::TRANSIENT_ATTACHMENT, I::TRANSIENT_ATTACHMENT),
+            (ImageUsage::INPUT_ATTACHMENT, I::INPUT_ATTACHMENT),
+        ];
+        for (graph, vulkan) in images {
+            assert_eq!(graph.bits(), vulkan.as_raw(), "{vulkan:?}");
+        }
+    }
+}

@@ -213,6 +213,16 @@ pub(crate) fn summarize_use(
                 false,
                 false,
             ),
+            UseKind::ConditionalPredicate => (
+                PipelineStages::CONDITIONAL_RENDERING,
+                AccessFlags::CONDITIONAL_RENDERING_READ,
+                Layout::Undefined,
+                true,
+                true,
+                false,
+                false,
+                false,
+            ),
             UseKind::TransferSrc => (
                 PipelineStages::ALL_TRANSFER,
                 AccessFlags::TRANSFER_READ,

@@ -647,6 +647,50 @@ mod tests {
         assert!(barriers_of(&plan, "instances").is_empty());
     }
 
+    /// The oq-conditional frame: query results copied into a buffer, then draws predicated on
+    /// it. The predicate is read by the conditional-rendering stage (not as indirect
+    /// arguments), both after the copy and, next time the buffer is overwritten, before it.
+    #[test]
+    fn a_conditional_rendering_predicate_waits_at_its_own_stage() {
+        let mut g = GraphBuilder::new();
+        let conditions = g.create_buffer("conditions", 256);
+        let out = swapchain(&mut g);
+        g.transfer_pass("copy_results", PassClass::Transfer, ())
+            .transfer_dst(conditions)
+            .coverage(Coverage::Full);
+        g.raster_pass("draw", PassClass::Opaque, ())
+            .predicate(conditions)
+            .color_clear(out, ClearColor::BLACK);
+        g.transfer_pass("reset", PassClass::Transfer, ())
+            .transfer_dst(conditions)
+            .coverage(Coverage::Full)
+            .retention(Retention::Always);
+        let plan = compile(g, &tiler());
+        let seen = barriers_of(&plan, "conditions");
+        assert_eq!(seen.len(), 2, "{plan}");
+        assert_eq!(seen[0].hazard, Hazard::ReadAfterWrite);
+        assert_eq!(
+            seen[0].dst,
+            (
+                PipelineStages::CONDITIONAL_RENDERING,
+                AccessFlags::CONDITIONAL_RENDERING_READ
+            )
+        );
+        // The second copy overwrites the first (WAW) and must wait for the predicate reads.
+        assert_eq!(seen[1].hazard, Hazard::WriteAfterWrite);
+        assert!(seen[1]
+            .src
+            .0
+            .contains(PipelineStages::CONDITIONAL_RENDERING));
+        let usage = plan.resource_by_name("conditions").map(|r| r.usage);
+        assert_eq!(
+            usage,
+            Some(Usage::Buffer(
+                BufferUsage::TRANSFER_DST | BufferUsage::CONDITIONAL_RENDERING
+            ))
+        );
+    }
+
     #[test]
     fn reads_after_reads_need_nothing_more() {
         let mut g = GraphBuilder::new();

@@ -192,6 +192,9 @@ fn infer_usage(desc: &ResourceDesc, roles: u16, residency: Residency) -> Usage {
             if has(UseKind::Indirect) {
                 u |= BufferUsage::INDIRECT_BUFFER;
             }
+            if has(UseKind::ConditionalPredicate) {
+                u |= BufferUsage::CONDITIONAL_RENDERING;
+            }
             if has(UseKind::TransferSrc) {
                 u |= BufferUsage::TRANSFER_SRC;
             }

@@ -103,7 +103,11 @@ fn check_use_target(pass: &PassDecl, kind: &UseKind, r: &ResourceDecl) -> Result
         }
         (
             ResourceDesc::Image(_),
-            UseKind::Uniform | UseKind::Vertex | UseKind::Index | UseKind::Indirect,
+            UseKind::Uniform
+            | UseKind::Vertex
+            | UseKind::Index
+            | UseKind::Indirect
+            | UseKind::ConditionalPredicate,
         ) => Err(mismatch("an image")),
         (
             ResourceDesc::Image(d),
