@@ -5,7 +5,7 @@
 //! pass is a render pass of its own after the opaque passes, with a flush before it (seed 001).
 
 use tilegraph_e2e::gpu_with;
-use tilegraph_graph::{PassClass, Step};
+use tilegraph_graph::{LoadOp, PassClass, Step, StoreOp};
 use tilegraph_passes::cull::Culling;
 use tilegraph_passes::cullcheck::{cull_check_with, CheckOptions, CullCheck};
 use tilegraph_passes::{RenderOptions, SceneRenderer};
@@ -217,6 +217,45 @@ fn adreno_puts_the_queries_in_a_render_pass_of_their_own_after_a_flush() {
             assert!(flush.is_none(), "{profile}:\n{plan}");
         }
     }
+}
+
+/// Same-frame queries on adreno-7xx: pre-pass render pass, flush, query render pass, copy, colour.
+/// The query render pass only tests depth and colour still needs it, so it keeps depth with
+/// STORE_OP_NONE (no write-back) — recorded on lavapipe under validation.
+#[test]
+fn the_query_render_pass_keeps_depth_without_writing_it_back() {
+    let scene = tilegraph_scene::load("city:300").unwrap();
+    let g = gpu_with(Some("adreno-7xx"), features()).unwrap();
+    let mut r = SceneRenderer::new(
+        &g,
+        &scene,
+        RenderOptions {
+            width: SIZE.0,
+            height: SIZE.1,
+            culling: Culling::OqConditional,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let camera = scene.camera_path().camera(0).unwrap();
+    let report = r.render(&g, &scene, &camera).unwrap();
+    r.finish(&g).unwrap();
+    r.destroy(&g);
+    let plan = &report.plan;
+    let queries = plan.pass_by_name("occlusion-queries").unwrap();
+    let Step::RenderPass(rp) = &plan.steps[queries.step.index()] else {
+        panic!("the queries are not in a render pass:\n{plan}");
+    };
+    let depth = rp
+        .attachments
+        .iter()
+        .find(|a| a.format.is_depth_stencil())
+        .unwrap_or_else(|| panic!("no depth in the query render pass:\n{plan}"));
+    assert_eq!(
+        (depth.load_op, depth.store_op),
+        (LoadOp::Load, StoreOp::None),
+        "{plan}"
+    );
 }
 
 /// The scene's short hard path: first frames, then every 23rd (fast motion), both sides of cuts.

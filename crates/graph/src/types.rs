@@ -317,6 +317,10 @@ impl LoadOp {
 pub enum StoreOp {
     Store,
     DontCare,
+    /// Keep the content without writing it: the render pass only read the attachment
+    /// (`VK_ATTACHMENT_STORE_OP_NONE`, on profiles with `store_op_none`). Neither a write nor
+    /// memory traffic.
+    None,
 }
 
 impl StoreOp {
@@ -324,6 +328,7 @@ impl StoreOp {
         match self {
             StoreOp::Store => 0,
             StoreOp::DontCare => 1,
+            StoreOp::None => 1_000_301_000,
         }
     }
 
@@ -331,6 +336,7 @@ impl StoreOp {
         match self {
             StoreOp::Store => "STORE",
             StoreOp::DontCare => "DONT_CARE",
+            StoreOp::None => "NONE",
         }
     }
 }

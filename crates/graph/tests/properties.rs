@@ -683,8 +683,12 @@ fn step_accesses(plan: &Plan) -> Vec<Vec<StepAccess>> {
     for (i, s) in plan.steps.iter().enumerate() {
         let passes: Vec<PassId> = match s {
             Step::RenderPass(rp) => {
-                // Every attachment is written by its store op.
-                for a in &rp.attachments {
+                // Every attachment is written by its store op, unless that is NONE (no access).
+                for a in rp
+                    .attachments
+                    .iter()
+                    .filter(|a| a.store_op != StoreOp::None)
+                {
                     add(a.resource, i, PipelineStages::NONE, true);
                 }
                 rp.subpasses.iter().map(|s| s.pass).collect()
@@ -981,7 +985,42 @@ fn check_subpass_dependencies(plan: &Plan) -> Result<(), String> {
     Ok(())
 }
 
+/// `StoreOp::None` keeps content without writing it: only for an attachment the render pass
+/// loads and never writes, whose content a later pass or an export needs.
+fn check_store_none(plan: &Plan) -> Result<(), String> {
+    for step in &plan.steps {
+        let Step::RenderPass(rp) = step else { continue };
+        for a in rp
+            .attachments
+            .iter()
+            .filter(|a| a.store_op == StoreOp::None)
+        {
+            let name = &plan.resources[a.resource.index()].name;
+            if a.load_op != LoadOp::Load {
+                return Err(format!(
+                    "{name}: store NONE after load {}",
+                    a.load_op.name()
+                ));
+            }
+            let written = rp.subpasses.iter().any(|s| {
+                plan.pass(s.pass).is_some_and(|p| {
+                    p.uses
+                        .iter()
+                        .any(|u| u.resource == a.resource && u.kind.writes())
+                })
+            });
+            if written {
+                return Err(format!(
+                    "{name}: store NONE on an attachment the render pass writes"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 fn check_plan(plan: &Plan, built: &Built) -> Result<(), String> {
+    check_store_none(plan)?;
     check_subpass_dependencies(plan)?;
     check_structure(plan)?;
     check_reads_after_writes(plan, &built.mirror)?;

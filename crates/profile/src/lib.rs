@@ -196,6 +196,11 @@ pub struct RenderPassPolicy {
     pub invalidate_depth_stencil_together: bool,
     /// Most colour attachments a raster pass may declare on this family.
     pub max_color_attachments: u32,
+    /// The family's drivers take `VK_ATTACHMENT_STORE_OP_NONE` (Vulkan 1.3, or
+    /// VK_KHR/EXT_load_store_op_none, VK_QCOM_render_pass_store_ops): an attachment a render pass
+    /// only reads keeps its content without being written back. Off when absent from the file.
+    #[serde(default)]
+    pub store_op_none: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

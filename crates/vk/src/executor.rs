@@ -553,9 +553,9 @@ fn create_render_pass(
                 .format(vk::Format::from_raw(a.format.vk_raw()))
                 .samples(vk::SampleCountFlags::from_raw(a.samples.vk_bits()))
                 .load_op(vk::AttachmentLoadOp::from_raw(a.load_op.vk_raw()))
-                .store_op(vk::AttachmentStoreOp::from_raw(a.store_op.vk_raw()))
+                .store_op(store_op(ctx, a.store_op))
                 .stencil_load_op(vk::AttachmentLoadOp::from_raw(a.stencil_load_op.vk_raw()))
-                .stencil_store_op(vk::AttachmentStoreOp::from_raw(a.stencil_store_op.vk_raw()))
+                .stencil_store_op(store_op(ctx, a.stencil_store_op))
                 .initial_layout(vk::ImageLayout::from_raw(a.initial_layout.vk_raw()))
                 .final_layout(vk::ImageLayout::from_raw(a.final_layout.vk_raw()))
         })
@@ -1208,7 +1208,18 @@ fn mark_first_uses(plan: &Plan, pass: PassId, seen_first: &mut [bool]) {
 
 /// Whether a store op keeps the attachment (for reports).
 pub fn stores(a: &Attachment) -> bool {
-    a.store_op == StoreOp::Store
+    matches!(a.store_op, StoreOp::Store | StoreOp::None)
+}
+
+/// The Vulkan store op: `NONE` is core from Vulkan 1.3; on an older device a plan's `None`
+/// (from a profile that expected it) is recorded as `STORE`, which keeps the content too.
+fn store_op(ctx: &Context, op: StoreOp) -> vk::AttachmentStoreOp {
+    match op {
+        StoreOp::None if ctx.physical.identity.api_version < vk::API_VERSION_1_3 => {
+            vk::AttachmentStoreOp::STORE
+        }
+        op => vk::AttachmentStoreOp::from_raw(op.vk_raw()),
+    }
 }
 
 #[cfg(test)]

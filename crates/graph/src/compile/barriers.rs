@@ -22,7 +22,7 @@ use crate::plan::{
     BarrierBatch, BufferBarrier, Hazard, ImageBarrier, InlineVec, RenderPass, Step, StepIndex,
     StepRange,
 };
-use crate::types::{AccessFlags, Layout, LoadOp, PipelineStages};
+use crate::types::{AccessFlags, Layout, LoadOp, PipelineStages, StoreOp};
 
 use super::access::{Access, DEPTH_TESTS};
 
@@ -405,9 +405,10 @@ impl Planner<'_> {
                 access: au.access | load_access,
                 layout: first.layout,
                 reads: loads,
-                // Even a read-only attachment is written by its store op: earlier reads of it
-                // (a sampler, say) must finish first.
-                writes: true,
+                // Even a read-only attachment is written by its store op (STORE and DONT_CARE
+                // both write): earlier reads of it (a sampler, say) must finish first. NONE is
+                // no access: a render pass that only reads is a reader like any other.
+                writes: att.store_op != StoreOp::None,
                 discard: !loads,
             };
             if self.states[r].is_fresh() && !loads && !self.alias_pending[r] {
@@ -433,6 +434,12 @@ impl Planner<'_> {
             let au = self.attachment_uses[i];
             let st = &mut self.states[r];
             st.layout = att.final_layout;
+            if att.store_op == StoreOp::None {
+                // Only read, by the subpasses and the LOAD op (the last subpass's layout is the
+                // final one: no transition).
+                st.read_stages |= au.stages | store_stages;
+                continue;
+            }
             st.write_stages = au.stages | store_stages;
             st.write_access = au.access.writes() | store_access;
             st.read_stages = PipelineStages::NONE;

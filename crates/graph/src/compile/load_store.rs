@@ -5,8 +5,10 @@
 //! Load: CLEAR when the first use in the render pass clears; DONT_CARE when that use does not
 //! need the old content (it covers everything) or there is none; LOAD only when old content
 //! exists and is needed. Store: STORE only when a later pass needs the content (it reads it
-//! before overwriting it) or the resource is exported; DONT_CARE otherwise. Depth and stencil of
-//! a combined format get the same ops (seed 001: invalidating only one of D24S8 has no effect).
+//! before overwriting it) or the resource is exported; DONT_CARE otherwise; NONE instead of
+//! STORE when the render pass only read it (loaded, never written) and the profile has
+//! `store_op_none`. Depth and stencil of a combined format get the same ops (seed 001:
+//! invalidating only one of D24S8 has no effect).
 
 use tilegraph_profile::Profile;
 
@@ -178,6 +180,8 @@ pub(crate) struct LoadStoreInput<'a> {
     pub exported: &'a [bool],
     pub residency: &'a [Residency],
     pub timeline: &'a Timeline,
+    /// The profile takes `StoreOp::None`.
+    pub store_op_none: bool,
 }
 
 /// The work steps in execution order: one render pass per render group (with its attachments,
@@ -340,8 +344,10 @@ fn build_render_pass(
         subpass.preserve.sort_unstable();
     }
 
-    // Store: does anything after this render pass need the content?
-    for att in &mut attachments {
+    // Store: does anything after this render pass need the content? If so, and the render pass
+    // only read it (loaded, never written), NONE keeps it without a write-back where the
+    // profile's drivers take it.
+    for (i, att) in attachments.iter_mut().enumerate() {
         let r = att.resource.index();
         let uses = input.timeline.of(r);
         let mut c = cursor[r] as usize;
@@ -353,10 +359,14 @@ fn build_render_pass(
             Some(next) => input.analysis.accesses[next.access as usize].reads_prior,
             None => input.exported[r],
         };
-        att.store_op = if needed {
-            StoreOp::Store
-        } else {
+        let written =
+            att.load_op != LoadOp::Load || scratch.tracks.get(i).is_none_or(|t| t.write.is_some());
+        att.store_op = if !needed {
             StoreOp::DontCare
+        } else if !written && input.store_op_none {
+            StoreOp::None
+        } else {
+            StoreOp::Store
         };
         if att.format.has_stencil() {
             // seed 001: depth and stencil of D24S8 are invalidated together or not at all.
@@ -485,6 +495,59 @@ fn track_subpass_use(
 mod tests {
     use crate::testing::*;
     use crate::*;
+
+    /// Depth written by the pre-pass, tested read-only by a query pass in a render pass of its
+    /// own (adreno-7xx, seed 001), then sampled by a post pass that also reads what the queries
+    /// wrote: the query render pass keeps the depth with NONE instead of writing it back.
+    #[test]
+    fn a_render_pass_that_only_reads_an_attachment_keeps_it_without_a_store() {
+        let frame = |profile: &tilegraph_profile::Profile| {
+            let mut g = GraphBuilder::new();
+            let depth = d24s8(&mut g, "depth");
+            let color = rgba8(&mut g, "color");
+            let out = swapchain(&mut g);
+            g.raster_pass("prepass", PassClass::DepthPrepass, ())
+                .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+            g.raster_pass("opaque", PassClass::Opaque, ())
+                .color_clear(color, ClearColor::BLACK)
+                .depth_stencil_read_only(depth);
+            let visible = g.create_buffer("visible", 1024);
+            g.raster_pass("queries", PassClass::OcclusionQuery, ())
+                .depth_stencil_read_only(depth)
+                .storage_write(visible);
+            g.raster_pass("fog", PassClass::Post, ())
+                .storage_read(visible)
+                .sampled(depth)
+                .sampled(color)
+                .color(out)
+                .coverage(Coverage::Full);
+            compile(g, profile)
+        };
+        let with_none = frame(&tiler());
+        let depth = attachments(&with_none, "depth");
+        assert_eq!(depth.len(), 2, "{with_none}");
+        // Written in the first render pass: stored. Only read in the query pass: NONE.
+        assert_eq!(depth[0].store_op, StoreOp::Store);
+        assert_eq!(
+            (
+                depth[1].load_op,
+                depth[1].store_op,
+                depth[1].stencil_store_op
+            ),
+            (LoadOp::Load, StoreOp::None, StoreOp::None)
+        );
+
+        let mut without = tiler();
+        without.render_pass.store_op_none = false;
+        let stored = frame(&without);
+        assert_eq!(attachments(&stored, "depth")[1].store_op, StoreOp::Store);
+        // The write-back of one D24S8 image is all that differs.
+        let depth_bytes = 4 * PIXELS;
+        assert_eq!(
+            stored.traffic.planned.total_bytes() - with_none.traffic.planned.total_bytes(),
+            depth_bytes
+        );
+    }
 
     #[test]
     fn load_is_clear_dont_care_or_load_from_the_first_use() {

@@ -273,6 +273,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         exported: &exported,
         residency: &residency,
         timeline: &timeline,
+        store_op_none: profile.render_pass.store_op_none,
     });
 
     // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
