@@ -382,10 +382,11 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
                 });
             }
         };
-        requirements.push(MemoryRequirements {
-            size_bytes: req.size,
-            alignment_bytes: req.alignment.max(1),
-        });
+        requirements.push(placement_requirements(
+            req,
+            r.residency,
+            ctx.physical.limits.buffer_image_granularity,
+        ));
         vk_reqs[r.id.index()] = Some(req);
     }
 
@@ -1206,6 +1207,27 @@ fn mark_first_uses(plan: &Plan, pass: PassId, seen_first: &mut [bool]) {
     }
 }
 
+/// What aliasing places a resource with: its `VkMemoryRequirements`, and for frame-local
+/// resources (the ones that share blocks) an alignment of at least `bufferImageGranularity`, so
+/// a buffer and an image in one block never share a granularity page (the contract
+/// `tilegraph_graph::alias` states for real requirements).
+fn placement_requirements(
+    req: vk::MemoryRequirements,
+    residency: Residency,
+    buffer_image_granularity: u64,
+) -> MemoryRequirements {
+    let alignment = req.alignment.max(1);
+    MemoryRequirements {
+        size_bytes: req.size,
+        alignment_bytes: if residency == Residency::FrameLocal {
+            // Both are powers of two: the larger is a multiple of the smaller.
+            alignment.max(buffer_image_granularity.max(1).next_power_of_two())
+        } else {
+            alignment
+        },
+    }
+}
+
 /// Whether a store op keeps the attachment (for reports).
 pub fn stores(a: &Attachment) -> bool {
     matches!(a.store_op, StoreOp::Store | StoreOp::None)
@@ -1219,6 +1241,50 @@ fn store_op(ctx: &Context, op: StoreOp) -> vk::AttachmentStoreOp {
             vk::AttachmentStoreOp::STORE
         }
         op => vk::AttachmentStoreOp::from_raw(op.vk_raw()),
+    }
+}
+
+#[cfg(test)]
+mod placement_tests {
+    use super::*;
+
+    #[test]
+    fn shared_resources_are_aligned_to_the_buffer_image_granularity() {
+        let req = vk::MemoryRequirements {
+            size: 3000,
+            alignment: 256,
+            memory_type_bits: 1,
+        };
+        let shared = placement_requirements(req, Residency::FrameLocal, 1024);
+        assert_eq!((shared.size_bytes, shared.alignment_bytes), (3000, 1024));
+        // A larger own alignment stays; resources with memory of their own keep theirs.
+        let image = vk::MemoryRequirements {
+            alignment: 65536,
+            ..req
+        };
+        assert_eq!(
+            placement_requirements(image, Residency::FrameLocal, 1024).alignment_bytes,
+            65536
+        );
+        assert_eq!(
+            placement_requirements(req, Residency::Exported, 1024).alignment_bytes,
+            256
+        );
+        // With the alignments folded in, no two shared placements share a 1 KiB page.
+        let lifetimes = [tilegraph_graph::AliasLifetime {
+            lifetime: Some(tilegraph_graph::StepRange {
+                first: tilegraph_graph::StepIndex(0),
+                last: tilegraph_graph::StepIndex(3),
+            }),
+            memory: tilegraph_graph::MemoryNeed::Shared(tilegraph_graph::MemoryClass::DeviceLocal),
+        }; 2];
+        let a = assign_aliases(&lifetimes, &[shared, shared]).expect("valid input");
+        let (Some(x), Some(y)) = (a.slots[0], a.slots[1]) else {
+            panic!("both placed: {a:?}");
+        };
+        let pages =
+            |s: tilegraph_graph::MemorySlot| (s.offset_bytes / 1024, (s.end_bytes() - 1) / 1024);
+        assert!(x.block != y.block || pages(x).1 < pages(y).0 || pages(y).1 < pages(x).0);
     }
 }
 

@@ -55,6 +55,9 @@ pub struct DeviceLimits {
     pub max_compute_work_group_invocations: u32,
     /// Granularity of flush/invalidate on non-coherent host memory.
     pub non_coherent_atom_size: u64,
+    /// `bufferImageGranularity`: buffers and optimal-tiling images placed in one allocation must
+    /// not share a page of this size.
+    pub buffer_image_granularity: u64,
 }
 
 impl PhysicalDevice {
@@ -316,6 +319,7 @@ impl Instance {
                 max_image_dimension_2d: props.limits.max_image_dimension2_d,
                 max_compute_work_group_invocations: props.limits.max_compute_work_group_invocations,
                 non_coherent_atom_size: props.limits.non_coherent_atom_size.max(1),
+                buffer_image_granularity: props.limits.buffer_image_granularity.max(1),
             },
             extensions,
         };
