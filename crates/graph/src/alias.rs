@@ -5,9 +5,9 @@
 //! over its mips, a buffer its size, and both are aligned to [`ESTIMATED_ALIGNMENT_BYTES`]
 //! (64 KiB). 64 KiB is at least every alignment and every `bufferImageGranularity` that shipping
 //! drivers report, and because every resource starts on a 64 KiB boundary, a buffer and an image
-//! in one block never share a granularity page. The executor re-runs the same function with the
-//! real requirements ([`crate::Plan::reassign_aliases`] also rebuilds the barriers that the new
-//! placement needs); when it does, it must fold `bufferImageGranularity` into the alignments.
+//! in one block never share a granularity page. The executor places memory again with the real
+//! requirements through [`crate::Plan::reassign_aliases`], which also rebuilds the barriers the
+//! new placement needs; it folds `bufferImageGranularity` into the alignments first.
 //!
 //! The algorithm is a sweep over first use (ties: larger first): retire the resources whose
 //! last use is earlier, then place the resource in the tightest gap of a partly used block,

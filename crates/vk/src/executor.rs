@@ -8,9 +8,9 @@ use std::collections::HashMap;
 
 use ash::vk;
 use tilegraph_graph::{
-    assign_aliases, AccessFlags, Attachment, BarrierBatch, ClearColor, ClearValue,
-    MemoryRequirements, PassId, PipelineStages, Plan, PlanResource, RenderPass, Residency,
-    ResourceDesc, ResourceId, Step, StoreOp, Usage,
+    AccessFlags, Attachment, BarrierBatch, ClearColor, ClearValue, MemoryRequirements, PassId,
+    PipelineStages, Plan, PlanResource, RenderPass, Residency, ResourceDesc, ResourceId, Step,
+    StoreOp, Usage,
 };
 use tilegraph_profile::MemoryUse;
 
@@ -182,6 +182,9 @@ pub struct Resources {
     buffers: HashMap<ResourceId, PhysBuffer>,
     blocks: Vec<gpu_allocator::vulkan::Allocation>,
     aliasing_used: bool,
+    /// The plan as recorded: the compiled one with memory slots and barriers redone for the
+    /// real memory requirements (`Plan::reassign_aliases`).
+    placed: Option<Plan>,
 }
 
 impl Resources {
@@ -279,8 +282,10 @@ fn create_views(
     Ok((view, full, per_mip))
 }
 
-/// Turns a plan into physical resources: real memory requirements, aliasing re-checked against
-/// them, dedicated memory where aliasing would not be safe.
+/// Turns a plan into physical resources: real memory requirements (with
+/// `bufferImageGranularity` folded in), aliasing redone with them by `Plan::reassign_aliases`
+/// (which also redoes the barriers: the placed plan is what gets recorded), dedicated memory if
+/// that fails.
 fn build_resources(ctx: &Context, plan: &Plan) -> Result<Resources, VkError> {
     let mut res = Resources::default();
     let result = build_into(ctx, plan, &mut res);
@@ -390,33 +395,19 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
         vk_reqs[r.id.index()] = Some(req);
     }
 
-    // Aliasing with real sizes. Use it only if it hands memory over between exactly the pairs
-    // the plan put barriers between; otherwise the plan's own layout if every real requirement
-    // fits its slot; otherwise dedicated memory (correct, just larger).
-    let lifetimes = plan.alias_lifetimes();
-    let real = assign_aliases(&lifetimes, &requirements).map_err(|e| VkError::Invalid {
-        what: "aliasing".into(),
-        reason: e.to_string(),
-    })?;
-    let plan_pairs = &plan.aliasing.handoffs;
-    let layout = if real.handoffs.iter().all(|h| plan_pairs.contains(h)) {
-        Some(real)
-    } else if plan
-        .resources
-        .iter()
-        .zip(&requirements)
-        .all(|(r, q)| match r.memory {
-            Some(slot) if r.residency == Residency::FrameLocal => {
-                q.size_bytes <= slot.size_bytes && slot.offset_bytes % q.alignment_bytes == 0
-            }
-            _ => true,
-        })
-    {
-        Some(plan.aliasing.clone())
-    } else {
-        log::warn!("real memory requirements do not fit the plan's aliasing: frame-local resources get dedicated memory");
-        None
+    // Aliasing with the real sizes and alignments; the plan's barriers are redone for the new
+    // placement (new hand-offs get their barriers). If that fails, frame-local resources get
+    // dedicated memory (correct, just larger) and the compiled plan is recorded as it is.
+    let mut placed = plan.clone();
+    let layout = match placed.reassign_aliases(&requirements) {
+        Ok(()) => Some(placed.aliasing.clone()),
+        Err(e) => {
+            log::warn!("aliasing with the real memory requirements failed ({e}): frame-local resources get dedicated memory");
+            placed = plan.clone();
+            None
+        }
     };
+    res.placed = Some(placed);
 
     // Shared blocks: one allocation per block, in the memory type every member accepts.
     let mut block_of: HashMap<ResourceId, (usize, u64)> = HashMap::new();
@@ -819,7 +810,11 @@ impl Executor {
         // render-pass cache and query ring; always put back.
         let resources = self.resources.take();
         let result = match &resources {
-            Some(r) => self.record_frame(ctx, plan, r, externals, record, &mut token, &mut stats),
+            // The placed plan: same passes and render passes, barriers for the real layout.
+            Some(r) => {
+                let placed = r.placed.as_ref().unwrap_or(plan);
+                self.record_frame(ctx, placed, r, externals, record, &mut token, &mut stats)
+            }
             None => Err(VkError::Invalid {
                 what: "executor".into(),
                 reason: "no resources".into(),
@@ -1247,6 +1242,7 @@ fn store_op(ctx: &Context, op: StoreOp) -> vk::AttachmentStoreOp {
 #[cfg(test)]
 mod placement_tests {
     use super::*;
+    use tilegraph_graph::assign_aliases;
 
     #[test]
     fn shared_resources_are_aligned_to_the_buffer_image_granularity() {
