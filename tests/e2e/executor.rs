@@ -211,3 +211,45 @@ fn aliased_images_in_sequence_render_correctly() {
         assert!(o.allocations_after_first.iter().all(|a| *a == 0));
     }
 }
+
+/// A plan that asks for something the device was not created with gets a typed error before
+/// anything is created: here a conditional-rendering predicate without
+/// VK_EXT_conditional_rendering enabled.
+#[test]
+fn a_predicate_without_conditional_rendering_is_a_typed_error() {
+    use tilegraph_graph::{ClearColor, Coverage, GraphBuilder, PassClass};
+    let g = gpu(Some("lavapipe")).unwrap();
+    assert!(g.conditional_rendering().is_none());
+    let (image, handle) = target(&g, W, H).unwrap();
+    let mut graph: GraphBuilder<()> = GraphBuilder::new();
+    let out = graph.import_image(
+        "target",
+        tilegraph_graph::ImageDesc::new(
+            tilegraph_graph::Extent2d::new(W, H),
+            tilegraph_graph::Format::R8G8B8A8_UNORM,
+        ),
+        tilegraph_graph::Import::SWAPCHAIN,
+    );
+    graph.export(out);
+    let conditions = graph.create_buffer("conditions", 256);
+    graph
+        .transfer_pass("fill", PassClass::Transfer, ())
+        .transfer_dst(conditions)
+        .coverage(Coverage::Full);
+    graph
+        .raster_pass("draw", PassClass::Opaque, ())
+        .predicate(conditions)
+        .color_clear(out, ClearColor::BLACK);
+    let plan = graph.compile(g.profile()).unwrap().plan;
+    let ext = externals(out, &handle);
+    let mut exec = Executor::new(&g).unwrap();
+    let err = exec
+        .execute(&g, &plan, &ext, &mut |_, _| Ok(()))
+        .expect_err("a predicate needs VK_EXT_conditional_rendering");
+    assert!(
+        err.to_string().contains("VK_EXT_conditional_rendering"),
+        "{err}"
+    );
+    exec.destroy(&g);
+    destroy_target(&g, image, handle);
+}

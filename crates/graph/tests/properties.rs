@@ -985,17 +985,33 @@ fn check_subpass_dependencies(plan: &Plan) -> Result<(), String> {
     Ok(())
 }
 
-/// `StoreOp::None` keeps content without writing it: only for an attachment the render pass
-/// loads and never writes, whose content a later pass or an export needs.
-fn check_store_none(plan: &Plan) -> Result<(), String> {
+/// `StoreOp::None` keeps content without writing it: only on profiles that take it, for an
+/// attachment the render pass loads and never writes (so its layout never changes inside the
+/// render pass), with the same op for the stencil of a combined format.
+fn check_store_none(plan: &Plan, store_op_none: bool) -> Result<(), String> {
     for step in &plan.steps {
         let Step::RenderPass(rp) = step else { continue };
-        for a in rp
-            .attachments
-            .iter()
-            .filter(|a| a.store_op == StoreOp::None)
-        {
+        for a in &rp.attachments {
             let name = &plan.resources[a.resource.index()].name;
+            if a.format.has_stencil() && a.stencil_store_op != a.store_op {
+                return Err(format!(
+                    "{name}: stencil store op differs from the depth store op"
+                ));
+            }
+            if a.store_op != StoreOp::None {
+                continue;
+            }
+            if !store_op_none {
+                return Err(format!(
+                    "{name}: store NONE on a profile without store_op_none"
+                ));
+            }
+            if a.initial_layout != a.final_layout {
+                return Err(format!(
+                    "{name}: store NONE with a layout change {:?} -> {:?}",
+                    a.initial_layout, a.final_layout
+                ));
+            }
             if a.load_op != LoadOp::Load {
                 return Err(format!(
                     "{name}: store NONE after load {}",
@@ -1019,8 +1035,8 @@ fn check_store_none(plan: &Plan) -> Result<(), String> {
     Ok(())
 }
 
-fn check_plan(plan: &Plan, built: &Built) -> Result<(), String> {
-    check_store_none(plan)?;
+fn check_plan(plan: &Plan, built: &Built, profile: &Profile) -> Result<(), String> {
+    check_store_none(plan, profile.render_pass.store_op_none)?;
     check_subpass_dependencies(plan)?;
     check_structure(plan)?;
     check_reads_after_writes(plan, &built.mirror)?;
@@ -1042,7 +1058,7 @@ proptest! {
         match (first, second) {
             (Ok(a), Ok(b)) => {
                 prop_assert_eq!(&a.plan, &b.plan, "compile is not deterministic");
-                if let Err(e) = check_plan(&a.plan, &built) {
+                if let Err(e) = check_plan(&a.plan, &built, &profile) {
                     return Err(TestCaseError::fail(format!("{e}\n{}", a.plan)));
                 }
             }

@@ -125,7 +125,19 @@ impl Context {
         let instance = Instance::new(&options.app_name, options.validation)?;
         let physical = instance.choose_device(options.device.as_deref())?;
         let profiles = ProfileSet::from_env()?;
-        let selection = profiles.select(&physical.identity, options.profile.as_deref())?;
+        let mut selection = profiles.select(&physical.identity, options.profile.as_deref())?;
+        if selection.profile.render_pass.store_op_none && !physical.api13() {
+            // VK_ATTACHMENT_STORE_OP_NONE is core from 1.3 (tilegraph enables none of the
+            // extensions that add it earlier): plans for this device store read-only
+            // attachments instead, and the graph synchronizes that store as the write it is.
+            log::info!(
+                "{:?} is a Vulkan {} device: profile {} plans STORE instead of STORE_OP_NONE",
+                physical.identity.device_name,
+                physical.identity.api_version_string(),
+                selection.profile.name
+            );
+            selection.profile.render_pass.store_op_none = false;
+        }
         log::info!(
             "device {:?} ({}; Vulkan {}), profile {} ({})",
             physical.identity.device_name,

@@ -299,6 +299,7 @@ fn build_resources(ctx: &Context, plan: &Plan) -> Result<Resources, VkError> {
 }
 
 fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkError> {
+    check_device_support(ctx, plan)?;
     let d = &ctx.device;
     let mut requirements: Vec<MemoryRequirements> = Vec::with_capacity(plan.resources.len());
     let mut vk_reqs: Vec<Option<vk::MemoryRequirements>> = vec![None; plan.resources.len()];
@@ -443,7 +444,11 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
                 continue;
             }
             let req = vk::MemoryRequirements {
-                size: block.size_bytes,
+                // Ends on a granularity page too: whatever the allocator puts after the block
+                // (it is told the block is non-linear) never shares its last page.
+                size: block
+                    .size_bytes
+                    .next_multiple_of(ctx.physical.limits.buffer_image_granularity.max(1)),
                 alignment: align.max(block.alignment_bytes),
                 memory_type_bits: bits,
             };
@@ -476,7 +481,9 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
                 (unsafe { a.memory() }, a.offset() + offset, Memory::Block)
             }
             None => {
-                let (a, _) = ctx.allocate(&r.name, req, use_, false)?;
+                // Buffers are linear: the allocator keeps them off optimal images' pages.
+                let linear = res.buffers.contains_key(&r.id);
+                let (a, _) = ctx.allocate(&r.name, req, use_, linear)?;
                 // SAFETY: as above.
                 (unsafe { a.memory() }, a.offset(), Memory::Dedicated(a))
             }
@@ -545,9 +552,9 @@ fn create_render_pass(
                 .format(vk::Format::from_raw(a.format.vk_raw()))
                 .samples(vk::SampleCountFlags::from_raw(a.samples.vk_bits()))
                 .load_op(vk::AttachmentLoadOp::from_raw(a.load_op.vk_raw()))
-                .store_op(store_op(ctx, a.store_op))
+                .store_op(vk::AttachmentStoreOp::from_raw(a.store_op.vk_raw()))
                 .stencil_load_op(vk::AttachmentLoadOp::from_raw(a.stencil_load_op.vk_raw()))
-                .stencil_store_op(store_op(ctx, a.stencil_store_op))
+                .stencil_store_op(vk::AttachmentStoreOp::from_raw(a.stencil_store_op.vk_raw()))
                 .initial_layout(vk::ImageLayout::from_raw(a.initial_layout.vk_raw()))
                 .final_layout(vk::ImageLayout::from_raw(a.final_layout.vk_raw()))
         })
@@ -1228,15 +1235,36 @@ pub fn stores(a: &Attachment) -> bool {
     matches!(a.store_op, StoreOp::Store | StoreOp::None)
 }
 
-/// The Vulkan store op: `NONE` is core from Vulkan 1.3; on an older device a plan's `None`
-/// (from a profile that expected it) is recorded as `STORE`, which keeps the content too.
-fn store_op(ctx: &Context, op: StoreOp) -> vk::AttachmentStoreOp {
-    match op {
-        StoreOp::None if ctx.physical.identity.api_version < vk::API_VERSION_1_3 => {
-            vk::AttachmentStoreOp::STORE
-        }
-        op => vk::AttachmentStoreOp::from_raw(op.vk_raw()),
+/// Checks what the plan asks of the device before anything is created: `STORE_OP_NONE` needs
+/// Vulkan 1.3 (`Context::new` turns the profile's `store_op_none` off on older devices, so this
+/// only fails for plans compiled with another profile), and a conditional-rendering predicate
+/// needs VK_EXT_conditional_rendering. Recording `STORE` instead of `NONE` would be a write the
+/// plan's barriers do not synchronize.
+fn check_device_support(ctx: &Context, plan: &Plan) -> Result<(), VkError> {
+    let store_none = plan.render_passes().any(|(_, rp)| {
+        rp.attachments
+            .iter()
+            .any(|a| a.store_op == StoreOp::None || a.stencil_store_op == StoreOp::None)
+    });
+    if store_none && !ctx.physical.api13() {
+        return Err(VkError::Invalid {
+            what: format!("plan for profile {}", plan.profile),
+            reason: format!(
+                "it stores attachments with STORE_OP_NONE, which needs Vulkan 1.3 (the device has {}); compile it with the context's profile",
+                ctx.physical.identity.api_version_string()
+            ),
+        });
     }
+    let predicate = plan.resources.iter().any(|r| {
+        matches!(r.usage, Usage::Buffer(u) if u.contains(tilegraph_graph::BufferUsage::CONDITIONAL_RENDERING))
+    });
+    if predicate && ctx.conditional_rendering().is_none() {
+        return Err(VkError::Invalid {
+            what: format!("plan for profile {}", plan.profile),
+            reason: "a pass declares a conditional-rendering predicate, which needs VK_EXT_conditional_rendering (Feature::ConditionalRendering)".into(),
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]
