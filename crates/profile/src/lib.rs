@@ -198,7 +198,8 @@ pub struct RenderPassPolicy {
     pub max_color_attachments: u32,
     /// The family's drivers take `VK_ATTACHMENT_STORE_OP_NONE` (Vulkan 1.3, or
     /// VK_KHR/EXT_load_store_op_none, VK_QCOM_render_pass_store_ops): an attachment a render pass
-    /// only reads keeps its content without being written back. Off when absent from the file.
+    /// only reads keeps its content without being written back. Off when absent from the file;
+    /// `tilegraph_vk::Context::new` turns it off on devices older than Vulkan 1.3.
     #[serde(default)]
     pub store_op_none: bool,
 }
