@@ -113,6 +113,8 @@ const BUFFER_READS: u16 = role(UseKind::Uniform)
     | role(UseKind::ConditionalPredicate);
 const TRANSFER_SRC: u16 = role(UseKind::TransferSrc);
 const TRANSFER_DST: u16 = role(UseKind::TransferDst);
+const MEMORY_ROLES: u16 =
+    SAMPLED | STORAGE_READS | STORAGE_WRITES | BUFFER_READS | TRANSFER_SRC | TRANSFER_DST;
 const RESOLVE: u16 = role(UseKind::ResolveTarget {
     source: ResourceId(0),
 });
@@ -149,6 +151,10 @@ impl Sizes {
 /// Traffic that does not go through attachments: descriptors, vertex input, transfers.
 fn memory_traffic(a: &Access, bytes: u64, out: &mut TrafficBreakdown) {
     let roles = a.roles;
+    if roles & MEMORY_ROLES == 0 {
+        // Attachment-only: counted by the load/store model.
+        return;
+    }
     if roles & SAMPLED != 0 {
         add(&mut out.sampled_read_bytes, bytes);
     }
@@ -182,9 +188,10 @@ pub(crate) fn estimate_traffic(
     let mut common = TrafficBreakdown::default();
     let mut naive_attachments = 0u64;
     for pass in passes {
+        let raster = pass.kind == PassKind::Raster;
         for a in accesses.of(pass.id) {
             memory_traffic(a, sizes.whole(a.resource), &mut common);
-            if pass.kind == PassKind::Raster && a.attachment {
+            if raster && a.attachment {
                 naive_attachments = naive_attachments.saturating_add(sizes.attachment(a.resource));
             }
         }

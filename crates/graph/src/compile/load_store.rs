@@ -1,6 +1,7 @@
-//! Phases 4 and 5: `resource_lifetimes` (each resource's uses in execution order, its first and
-//! last group, and where its memory comes from) and `infer_load_store` (render passes with
-//! their attachments, load/store ops, subpasses and subpass dependencies).
+//! Phases 4 and 5: `resource_uses` (each resource's first and last group, whether the content
+//! is needed after each access's group, and where its memory comes from) and
+//! `infer_load_store` (render passes with their attachments, load/store ops, subpasses and
+//! subpass dependencies).
 //!
 //! Load: CLEAR when the first use in the render pass clears; DONT_CARE when that use does not
 //! need the old content (it covers everything) or there is none; LOAD only when old content
@@ -27,111 +28,103 @@ use super::validate::{has_initial_content, Analysis};
 
 const NONE: u32 = u32::MAX;
 
-/// One use of a resource in execution order.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct TimelineEntry {
-    pub group: u32,
-    /// Index into `Analysis::accesses`.
-    pub access: u32,
-}
-
-/// Every resource's uses in execution order (CSR by resource).
+/// What later phases need from each resource's uses in execution order, found in one sweep
+/// backwards over the groups.
 #[derive(Debug)]
-pub(crate) struct Timeline {
-    start: Vec<u32>,
-    entries: Vec<TimelineEntry>,
+pub(crate) struct ResourceUses {
+    /// First and last group of each resource (`None`: unused).
+    pub lifetimes: Vec<Option<(u32, u32)>>,
+    /// Per resource: every use binds it to a render pass.
+    pub attachment_only: Vec<bool>,
+    /// Per access (index into `Analysis::accesses`): the resource's content is needed after
+    /// the access's group (the next use reads it first, or the resource is exported).
+    pub needed_after: Vec<bool>,
 }
 
-impl Timeline {
-    pub fn of(&self, resource: usize) -> &[TimelineEntry] {
-        &self.entries[self.start[resource] as usize..self.start[resource + 1] as usize]
-    }
-}
-
-pub(crate) fn build_timeline(
+pub(crate) fn resource_uses(
     groups: &[Group],
     order: &[PassId],
     analysis: &Analysis,
-    n_resources: usize,
-) -> Timeline {
-    let mut start = vec![0u32; n_resources + 1];
-    for &p in order {
-        for a in analysis.accesses_of(p.index()) {
-            start[a.resource.index() + 1] += 1;
-        }
-    }
-    for i in 0..n_resources {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut entries = vec![
-        TimelineEntry {
-            group: 0,
-            access: 0
-        };
-        start[n_resources] as usize
-    ];
-    for (g, group) in groups.iter().enumerate() {
-        for &p in &order[group.start..group.end] {
+    exported: &[bool],
+) -> ResourceUses {
+    let n_resources = exported.len();
+    let mut lifetimes: Vec<Option<(u32, u32)>> = vec![None; n_resources];
+    let mut attachment_only = vec![true; n_resources];
+    let mut needed_after = vec![false; analysis.accesses.len()];
+    // Per resource: whether the next use (in the groups after the current one) reads it.
+    let mut pending = exported.to_vec();
+    for (g, group) in groups.iter().enumerate().rev() {
+        let passes = &order[group.start..group.end];
+        for &p in passes {
             let (a0, a1) = analysis.pass_ranges[p.index()];
             for ai in a0..a1 {
-                let r = analysis.accesses[ai as usize].resource.index();
-                entries[fill[r] as usize] = TimelineEntry {
-                    group: g as u32,
-                    access: ai,
-                };
-                fill[r] += 1;
+                let a = &analysis.accesses[ai as usize];
+                let r = a.resource.index();
+                needed_after[ai as usize] = pending[r];
+                let g = g as u32;
+                lifetimes[r] = Some(match lifetimes[r] {
+                    Some((_, last)) => (g, last),
+                    None => (g, g),
+                });
+                attachment_only[r] &= !a.non_attachment;
+            }
+        }
+        // The group's first use of each resource decides what the groups before see.
+        for &p in passes.iter().rev() {
+            let (a0, a1) = analysis.pass_ranges[p.index()];
+            for a in &analysis.accesses[a0 as usize..a1 as usize] {
+                pending[a.resource.index()] = a.reads_prior;
             }
         }
     }
-    Timeline { start, entries }
+    ResourceUses {
+        lifetimes,
+        attachment_only,
+        needed_after,
+    }
 }
 
-/// First and last group of each resource, and its residency.
-pub(crate) fn resource_lifetimes(
-    timeline: &Timeline,
+/// Where each resource's memory comes from.
+pub(crate) fn residencies(
+    uses: &ResourceUses,
     groups: &[Group],
-    analysis: &Analysis,
     resources: &[ResourceDecl],
     exported: &[bool],
     profile: &Profile,
-) -> (Vec<Option<(u32, u32)>>, Vec<Residency>) {
-    let mut lifetimes = Vec::with_capacity(resources.len());
-    let mut residency = Vec::with_capacity(resources.len());
-    for (r, decl) in resources.iter().enumerate() {
-        let uses = timeline.of(r);
-        let life = match (uses.first(), uses.last()) {
-            (Some(first), Some(last)) => Some((first.group, last.group)),
-            _ => None,
-        };
-        lifetimes.push(life);
-        let res = if matches!(decl.origin, crate::declare::Origin::Imported(_)) {
-            Residency::Imported
-        } else if life.is_none() {
-            Residency::Unused
-        } else if exported[r] {
-            Residency::Exported
-        } else {
-            let one_render_pass = life.is_some_and(|(first, last)| {
-                first == last && groups[first as usize].kind == GroupKind::Render
-            });
-            let attachment_only = uses
-                .iter()
-                .all(|e| !analysis.accesses[e.access as usize].non_attachment);
-            if one_render_pass && attachment_only && profile.render_pass.transient_attachments {
-                Residency::Transient
+) -> Vec<Residency> {
+    resources
+        .iter()
+        .enumerate()
+        .map(|(r, decl)| {
+            let life = uses.lifetimes[r];
+            if matches!(decl.origin, crate::declare::Origin::Imported(_)) {
+                Residency::Imported
+            } else if life.is_none() {
+                Residency::Unused
+            } else if exported[r] {
+                Residency::Exported
             } else {
-                Residency::FrameLocal
+                let one_render_pass = life.is_some_and(|(first, last)| {
+                    first == last && groups[first as usize].kind == GroupKind::Render
+                });
+                if one_render_pass
+                    && uses.attachment_only[r]
+                    && profile.render_pass.transient_attachments
+                {
+                    Residency::Transient
+                } else {
+                    Residency::FrameLocal
+                }
             }
-        };
-        residency.push(res);
-    }
-    (lifetimes, residency)
+        })
+        .collect()
 }
 
 /// Per-attachment bookkeeping while the subpasses of one render pass are laid out.
 #[derive(Debug, Clone, Copy)]
 struct AttachmentTrack {
+    /// A later group needs the content (or it is exported).
+    needed_after: bool,
     last_subpass: u32,
     last_stages: PipelineStages,
     layout: Layout,
@@ -177,9 +170,8 @@ pub(crate) struct LoadStoreInput<'a> {
     pub analysis: &'a Analysis,
     pub passes: &'a [PassDecl],
     pub resources: &'a [ResourceDecl],
-    pub exported: &'a [bool],
     pub residency: &'a [Residency],
-    pub timeline: &'a Timeline,
+    pub needed_after: &'a [bool],
     /// The profile takes `StoreOp::None`.
     pub store_op_none: bool,
 }
@@ -190,8 +182,7 @@ pub(crate) struct LoadStoreInput<'a> {
 pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Step> {
     let n_resources = input.resources.len();
     let mut written_before: Vec<bool> = input.resources.iter().map(has_initial_content).collect();
-    // Per resource: cursor into its timeline, and its attachment in the current render pass.
-    let mut cursor = vec![0u32; n_resources];
+    // Per resource: its attachment in the current render pass.
     let mut attachment_of = vec![(NONE, NONE); n_resources];
     let flushes = input.groups.iter().filter(|g| g.flush_before).count();
     let mut out = Vec::with_capacity(input.groups.len() + flushes);
@@ -208,7 +199,6 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Step> {
                 g as u32,
                 group,
                 &written_before,
-                &mut cursor,
                 &mut attachment_of,
             )),
             GroupKind::Compute => Step::Compute { pass: first },
@@ -238,7 +228,6 @@ fn build_render_pass(
     g: u32,
     group: &Group,
     written_before: &[bool],
-    cursor: &mut [u32],
     attachment_of: &mut [(u32, u32)],
 ) -> RenderPass {
     let mut attachments: InlineVec<Attachment, 2> = InlineVec::new();
@@ -254,6 +243,8 @@ fn build_render_pass(
     for (s, &p) in input.order[group.start..group.end].iter().enumerate() {
         let s = s as u32;
         let decl = &input.passes[p.index()];
+        let (first_access, _) = input.analysis.pass_ranges[p.index()];
+        let first_access = first_access as usize;
         let accesses = input.analysis.accesses_of(p.index());
         let (mut colors, mut inputs) = (0, 0);
         for u in &decl.uses {
@@ -274,9 +265,10 @@ fn build_render_pass(
         let mut resolve_refs: Vec<(crate::declare::ResourceId, AttachmentRef)> = Vec::new();
         for u in decl.uses.iter().filter(|u| u.kind.is_attachment()) {
             let r = u.resource.index();
-            let Some(a) = accesses.iter().find(|a| a.resource == u.resource) else {
+            let Some(k) = accesses.iter().position(|a| a.resource == u.resource) else {
                 continue;
             };
+            let a = &accesses[k];
             let index = if attachment_of[r].0 == g {
                 attachment_of[r].1
             } else {
@@ -284,6 +276,7 @@ fn build_render_pass(
                 attachment_of[r] = (g, index);
                 attachments.push(new_attachment(input, decl, r, a, written_before[r]));
                 tracks.push(AttachmentTrack {
+                    needed_after: input.needed_after[first_access + k],
                     last_subpass: NONE,
                     last_stages: PipelineStages::NONE,
                     layout: a.layout,
@@ -348,19 +341,9 @@ fn build_render_pass(
     // only read it (loaded, never written), NONE keeps it without a write-back where the
     // profile's drivers take it.
     for (i, att) in attachments.iter_mut().enumerate() {
-        let r = att.resource.index();
-        let uses = input.timeline.of(r);
-        let mut c = cursor[r] as usize;
-        while c < uses.len() && uses[c].group <= g {
-            c += 1;
-        }
-        cursor[r] = c as u32;
-        let needed = match uses.get(c) {
-            Some(next) => input.analysis.accesses[next.access as usize].reads_prior,
-            None => input.exported[r],
-        };
-        let written =
-            att.load_op != LoadOp::Load || scratch.tracks.get(i).is_none_or(|t| t.write.is_some());
+        let track = scratch.tracks.get(i);
+        let needed = track.is_some_and(|t| t.needed_after);
+        let written = att.load_op != LoadOp::Load || track.is_none_or(|t| t.write.is_some());
         att.store_op = if !needed {
             StoreOp::DontCare
         } else if !written && input.store_op_none {

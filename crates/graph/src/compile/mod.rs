@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! validate_declarations -> cull_unused_passes -> order_passes -> merge_render_passes
-//!   -> resource_lifetimes -> infer_load_store -> assign_aliases -> plan_barriers
+//!   -> resource_uses -> infer_load_store -> assign_aliases -> plan_barriers
 //!   -> estimate_traffic
 //! ```
 //!
@@ -38,7 +38,7 @@ use crate::types::{BufferUsage, ImageUsage};
 
 use access::{push_pass_accesses, role, Access};
 use barriers::{plan_barriers, step_lifetimes, BarrierPlan, PassAccesses, ResourceSync};
-use load_store::{build_timeline, infer_load_store, resource_lifetimes, LoadStoreInput};
+use load_store::{infer_load_store, residencies, resource_uses, LoadStoreInput};
 
 /// A compiled frame: the plan, and the payloads of the surviving passes.
 #[derive(Debug, Clone)]
@@ -256,23 +256,21 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         profile,
     )?;
     let groups = merge::merge_render_passes(&order, &analysis, &passes, n_resources, profile);
-    let timeline = build_timeline(&groups, &order, &analysis, n_resources);
     let mut exported = vec![false; n_resources];
     for e in &exports {
         exported[e.index()] = true;
     }
-    let (group_lifetimes, residency) = resource_lifetimes(
-        &timeline, &groups, &analysis, &resources, &exported, profile,
-    );
+    let uses = resource_uses(&groups, &order, &analysis, &exported);
+    let residency = residencies(&uses, &groups, &resources, &exported, profile);
+    let group_lifetimes = &uses.lifetimes;
     let work = infer_load_store(&LoadStoreInput {
         groups: &groups,
         order: &order,
         analysis: &analysis,
         passes: &passes,
         resources: &resources,
-        exported: &exported,
         residency: &residency,
-        timeline: &timeline,
+        needed_after: &uses.needed_after,
         store_op_none: profile.render_pass.store_op_none,
     });
 
