@@ -281,9 +281,16 @@ struct AttachmentUse {
     access: AccessFlags,
 }
 
-struct Planner<'a> {
+/// Plans barriers step by step: [`BarrierPlanner::push`] takes the work steps in execution
+/// order and appends to the plan's steps the barrier batch each one needs (if any), then the
+/// step itself (render passes get their initial layouts). Each step is moved once.
+pub(crate) struct BarrierPlanner<'a> {
+    accesses: &'a PassAccesses<'a>,
     resources: &'a [ResourceSync],
     aliasing: &'a AliasAssignment,
+    steps: Vec<Step>,
+    work_steps: Vec<StepIndex>,
+    batch: BatchScratch,
     states: Vec<SyncState>,
     /// The next barrier of this resource is its aliasing handoff.
     alias_pending: Vec<bool>,
@@ -313,7 +320,7 @@ impl BatchScratch {
     }
 }
 
-impl Planner<'_> {
+impl<'a> BarrierPlanner<'a> {
     /// First touch: fold in the memory predecessors' last accesses.
     fn touch(&mut self, r: usize) {
         if self.states[r].touched {
@@ -338,22 +345,18 @@ impl Planner<'_> {
         }
     }
 
-    fn barrier(&mut self, r: usize, u: &SyncUse, batch: &mut BatchScratch) {
+    fn barrier(&mut self, r: usize, u: &SyncUse) {
         let is_image = self.resources[r].is_image;
         if let Some(mut parts) = sync(&mut self.states[r], u, is_image) {
             if std::mem::take(&mut self.alias_pending[r]) {
                 parts.hazard = Hazard::Aliasing;
             }
-            push_barrier(batch, r, is_image, parts);
+            push_barrier(&mut self.batch, r, is_image, parts);
         }
     }
 
-    fn render_pass(
-        &mut self,
-        rp: &mut RenderPass,
-        accesses: &PassAccesses<'_>,
-        batch: &mut BatchScratch,
-    ) {
+    fn render_pass(&mut self, rp: &mut RenderPass) {
+        let accesses = self.accesses;
         // Gather every subpass's accesses in one sweep: per attachment, and per other resource.
         self.attachment_uses.clear();
         self.others.clear();
@@ -415,14 +418,14 @@ impl Planner<'_> {
                 // Nothing to wait for: the render pass transitions from Undefined itself.
                 att.initial_layout = Layout::Undefined;
             } else {
-                self.barrier(r, &u, batch);
+                self.barrier(r, &u);
                 att.initial_layout = self.states[r].layout;
             }
         }
         for k in 0..self.others.len() {
             let (r, u) = self.others[k];
             self.touch(r);
-            self.barrier(r, &u, batch);
+            self.barrier(r, &u);
         }
 
         // After the render pass: every attachment was written by its store op.
@@ -454,12 +457,12 @@ impl Planner<'_> {
         }
     }
 
-    fn single_pass(&mut self, pass: PassId, accesses: &PassAccesses<'_>, batch: &mut BatchScratch) {
-        let list = accesses.of(pass);
+    fn single_pass(&mut self, pass: PassId) {
+        let list = self.accesses.of(pass);
         for a in list {
             let r = a.resource.index();
             self.touch(r);
-            self.barrier(r, &SyncUse::of(a), batch);
+            self.barrier(r, &SyncUse::of(a));
         }
         for a in list {
             let r = a.resource.index();
@@ -469,95 +472,94 @@ impl Planner<'_> {
     }
 }
 
-/// Inserts barrier batches between the work steps (and after the last one, releasing imported
-/// resources), and fills in each render pass's initial layouts.
-pub(crate) fn plan_barriers(
-    work: Vec<Step>,
-    accesses: &PassAccesses<'_>,
-    resources: &[ResourceSync],
-    aliasing: &AliasAssignment,
-) -> BarrierPlan {
-    let mut planner = Planner {
-        resources,
-        aliasing,
-        states: resources.iter().map(SyncState::initial).collect(),
-        alias_pending: vec![false; resources.len()],
-        slot: vec![NONE; resources.len()],
-        attachment_uses: Vec::with_capacity(16),
-        others: Vec::with_capacity(16),
-    };
-    // Plan in place (render passes get their initial layouts), then interleave: each step is
-    // moved once (render passes are a few hundred bytes).
-    let mut work = work;
-    let mut batches: Vec<(usize, BarrierBatch)> = Vec::with_capacity(work.len());
-    let mut batch = BatchScratch::default();
-    for (i, step) in work.iter_mut().enumerate() {
-        match step {
-            Step::RenderPass(rp) => planner.render_pass(rp, accesses, &mut batch),
-            Step::Compute { pass } | Step::Transfer { pass } => {
-                planner.single_pass(*pass, accesses, &mut batch)
-            }
-            Step::Flush(_) | Step::Barriers(_) => {}
+impl<'a> BarrierPlanner<'a> {
+    /// A planner for a frame of about `work_steps` work steps.
+    pub fn new(
+        accesses: &'a PassAccesses<'a>,
+        resources: &'a [ResourceSync],
+        aliasing: &'a AliasAssignment,
+        work_steps: usize,
+    ) -> Self {
+        BarrierPlanner {
+            accesses,
+            resources,
+            aliasing,
+            // Most work steps need a batch before them; one more releases the imports.
+            steps: Vec::with_capacity(2 * work_steps + 1),
+            work_steps: Vec::with_capacity(work_steps),
+            batch: BatchScratch::default(),
+            states: resources.iter().map(SyncState::initial).collect(),
+            alias_pending: vec![false; resources.len()],
+            slot: vec![NONE; resources.len()],
+            attachment_uses: Vec::with_capacity(16),
+            others: Vec::with_capacity(16),
         }
-        if let Some(b) = batch.take() {
-            batches.push((i, b));
-        }
-    }
-    let mut steps = Vec::with_capacity(work.len() + batches.len() + 1);
-    let mut work_steps = Vec::with_capacity(work.len());
-    let mut batches = batches.into_iter().peekable();
-    for (i, step) in work.into_iter().enumerate() {
-        if let Some((_, b)) = batches.next_if(|(at, _)| *at == i) {
-            steps.push(Step::Barriers(b));
-        }
-        if step.is_work() {
-            work_steps.push(StepIndex(steps.len() as u32));
-        }
-        steps.push(step);
     }
 
-    // Leave imported resources as their import asks; the rest as their last use left them.
-    let mut final_states = Vec::with_capacity(resources.len());
-    for (r, res) in resources.iter().enumerate() {
-        let st = &mut planner.states[r];
-        let Some(import) = res.import else {
-            final_states.push(ResourceState {
-                layout: st.layout,
-                stages: st.write_stages | st.read_stages,
-                access: st.write_access,
-            });
-            continue;
-        };
-        let mut fin = import.final_state;
-        if fin.layout == Layout::Undefined || !res.is_image {
-            // No layout asked for: keep the current one (a transition to Undefined is invalid).
-            fin.layout = if res.is_image {
-                st.layout
-            } else {
-                Layout::Undefined
+    /// Appends the next step in execution order, after the barriers it needs. Barrier steps in
+    /// the input are dropped (they are planned anew).
+    pub fn push(&mut self, mut step: Step) {
+        match &mut step {
+            Step::RenderPass(rp) => self.render_pass(rp),
+            Step::Compute { pass } | Step::Transfer { pass } => self.single_pass(*pass),
+            Step::Flush(_) => {}
+            Step::Barriers(_) => return,
+        }
+        if let Some(b) = self.batch.take() {
+            self.steps.push(Step::Barriers(b));
+        }
+        if step.is_work() {
+            self.work_steps.push(StepIndex(self.steps.len() as u32));
+        }
+        self.steps.push(step);
+    }
+
+    /// Ends the frame: a last batch releases imported resources into their final state (the
+    /// rest stay as their last use left them).
+    pub fn finish(mut self) -> BarrierPlan {
+        let mut final_states = Vec::with_capacity(self.resources.len());
+        for (r, res) in self.resources.iter().enumerate() {
+            let st = &mut self.states[r];
+            let Some(import) = res.import else {
+                final_states.push(ResourceState {
+                    layout: st.layout,
+                    stages: st.write_stages | st.read_stages,
+                    access: st.write_access,
+                });
+                continue;
             };
+            let mut fin = import.final_state;
+            if fin.layout == Layout::Undefined || !res.is_image {
+                // No layout asked for: keep the current one (a transition to Undefined is
+                // invalid).
+                fin.layout = if res.is_image {
+                    st.layout
+                } else {
+                    Layout::Undefined
+                };
+            }
+            let u = SyncUse {
+                stages: fin.stages,
+                access: fin.access,
+                layout: fin.layout,
+                reads: true,
+                writes: !fin.access.writes().is_empty(),
+                discard: false,
+            };
+            if let Some(mut parts) = sync(st, &u, res.is_image) {
+                parts.hazard = Hazard::Release;
+                push_barrier(&mut self.batch, r, res.is_image, parts);
+            }
+            final_states.push(fin);
         }
-        let u = SyncUse {
-            stages: fin.stages,
-            access: fin.access,
-            layout: fin.layout,
-            reads: true,
-            writes: !fin.access.writes().is_empty(),
-            discard: false,
-        };
-        if let Some(mut parts) = sync(st, &u, res.is_image) {
-            parts.hazard = Hazard::Release;
-            push_barrier(&mut batch, r, res.is_image, parts);
+        if let Some(b) = self.batch.take() {
+            self.steps.push(Step::Barriers(b));
         }
-        final_states.push(fin);
-    }
-    if let Some(b) = batch.take() {
-        steps.push(Step::Barriers(b));
-    }
-    BarrierPlan {
-        steps,
-        work_steps,
-        final_states,
+        BarrierPlan {
+            steps: self.steps,
+            work_steps: self.work_steps,
+            final_states,
+        }
     }
 }
 

@@ -178,21 +178,20 @@ pub(crate) struct LoadStoreInput<'a> {
 
 /// The work steps in execution order: one render pass per render group (with its attachments,
 /// load/store ops, subpasses and dependencies), one compute or transfer step per other group,
-/// and a flush before each group that asks for one. Barriers come later (`plan_barriers`).
-pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Step> {
+/// and a flush before each group that asks for one, each handed to `emit` as soon as it is
+/// built (the barrier planner takes them from there).
+pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, mut emit: impl FnMut(Step)) {
     let n_resources = input.resources.len();
     let mut written_before: Vec<bool> = input.resources.iter().map(has_initial_content).collect();
     // Per resource: its attachment in the current render pass.
     let mut attachment_of = vec![(NONE, NONE); n_resources];
-    let flushes = input.groups.iter().filter(|g| g.flush_before).count();
-    let mut out = Vec::with_capacity(input.groups.len() + flushes);
     let mut scratch = Scratch::default();
     for (g, group) in input.groups.iter().enumerate() {
         if group.flush_before {
-            out.push(Step::Flush(FlushReason::BeforeOcclusionQueries));
+            emit(Step::Flush(FlushReason::BeforeOcclusionQueries));
         }
         let first = input.order[group.start];
-        out.push(match group.kind {
+        emit(match group.kind {
             GroupKind::Render => Step::RenderPass(build_render_pass(
                 input,
                 &mut scratch,
@@ -212,7 +211,6 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Step> {
             }
         }
     }
-    out
 }
 
 /// Buffers reused from one render pass to the next.

@@ -3,13 +3,15 @@
 //!
 //! ```text
 //! validate_declarations -> cull_unused_passes -> order_passes -> merge_render_passes
-//!   -> resource_uses -> infer_load_store -> assign_aliases -> plan_barriers
+//!   -> resource_uses -> assign_aliases -> infer_load_store + plan_barriers
 //!   -> estimate_traffic
 //! ```
 //!
 //! Merging comes before load/store inference because "never leaves the render pass" (DONT_CARE
 //! store, transient) is a property of the merged render pass; aliasing comes before barriers
-//! because memory handed from one resource to another needs a barrier of its own.
+//! because memory handed from one resource to another needs a barrier of its own. Load/store
+//! inference and barrier planning run step by step together: each render pass is built, gets
+//! the barriers before it, and is moved into the plan once.
 
 pub(crate) mod access;
 pub(crate) mod barriers;
@@ -37,7 +39,7 @@ use crate::traffic::{estimate_traffic, TrafficModel};
 use crate::types::{BufferUsage, ImageUsage};
 
 use access::{push_pass_accesses, role, Access};
-use barriers::{plan_barriers, step_lifetimes, BarrierPlan, PassAccesses, ResourceSync};
+use barriers::{step_lifetimes, BarrierPlan, BarrierPlanner, PassAccesses, ResourceSync};
 use load_store::{infer_load_store, residencies, resource_uses, LoadStoreInput};
 
 /// A compiled frame: the plan, and the payloads of the surviving passes.
@@ -263,17 +265,6 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     let uses = resource_uses(&groups, &order, &analysis, &exported);
     let residency = residencies(&uses, &groups, &resources, &exported, profile);
     let group_lifetimes = &uses.lifetimes;
-    let work = infer_load_store(&LoadStoreInput {
-        groups: &groups,
-        order: &order,
-        analysis: &analysis,
-        passes: &passes,
-        resources: &resources,
-        residency: &residency,
-        needed_after: &uses.needed_after,
-        store_op_none: profile.render_pass.store_op_none,
-    });
-
     // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
     // on the order of lifetimes.
     let requirements: Vec<MemoryRequirements> = resources
@@ -301,11 +292,26 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         accesses: &analysis.accesses,
         ranges: &analysis.pass_ranges,
     };
+    // Load/store inference hands each work step to the barrier planner as it is built.
+    let mut planner = BarrierPlanner::new(&pass_accesses, &sync, &aliasing, groups.len());
+    infer_load_store(
+        &LoadStoreInput {
+            groups: &groups,
+            order: &order,
+            analysis: &analysis,
+            passes: &passes,
+            resources: &resources,
+            residency: &residency,
+            needed_after: &uses.needed_after,
+            store_op_none: profile.render_pass.store_op_none,
+        },
+        |step| planner.push(step),
+    );
     let BarrierPlan {
         steps,
         work_steps,
         final_states: finals,
-    } = plan_barriers(work, &pass_accesses, &sync, &aliasing);
+    } = planner.finish();
     // Groups and work steps correspond one to one, in order.
     let step_of = |group: u32| {
         work_steps
@@ -455,11 +461,11 @@ impl Plan {
             .iter()
             .map(|r| resource_sync(&r.desc, &r.origin))
             .collect();
-        let work: Vec<Step> = std::mem::take(&mut self.steps)
-            .into_iter()
-            .filter(|s| !matches!(s, Step::Barriers(_)))
-            .collect();
-        let BarrierPlan { steps, .. } = plan_barriers(work, &pass_accesses, &sync, &aliasing);
+        let mut planner = BarrierPlanner::new(&pass_accesses, &sync, &aliasing, self.passes.len());
+        for step in std::mem::take(&mut self.steps) {
+            planner.push(step);
+        }
+        let BarrierPlan { steps, .. } = planner.finish();
         let lifetimes = step_lifetimes(&steps, &pass_accesses, self.resources.len());
         for (i, r) in self.resources.iter_mut().enumerate() {
             r.lifetime = lifetimes[i];
