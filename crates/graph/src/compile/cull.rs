@@ -53,25 +53,35 @@ pub(crate) fn cull_unused_passes(
     if dead == 0 {
         return Culling { alive, culled };
     }
-    // Consumers of culled passes are culled too (a kept consumer would have kept them).
-    let mut consumers: Vec<Vec<PassId>> = vec![Vec::new(); n];
-    for (q, _) in passes.iter().enumerate().filter(|(q, _)| !alive[*q]) {
+    // Consumers of culled passes are culled too (a kept consumer would have kept them): list,
+    // per culled producer, the culled passes that read it, as (producer, consumer) pairs.
+    let mut consumed: Vec<(u32, u32)> = Vec::new();
+    for q in (0..n).filter(|&q| !alive[q]) {
         for w in analysis.producers_of(q) {
-            let list = &mut consumers[w.index()];
-            if list.last() != Some(&PassId(q as u32)) {
-                list.push(PassId(q as u32));
+            if !alive[w.index()] {
+                consumed.push((w.0, q as u32));
             }
         }
     }
+    consumed.sort_unstable();
+    consumed.dedup();
+    let mut next = 0;
     for p in (0..n).filter(|&p| !alive[p]) {
+        let from = next;
+        while consumed.get(next).is_some_and(|&(w, _)| w as usize == p) {
+            next += 1;
+        }
         let writes = analysis.accesses_of(p).iter().any(|a| a.writes);
         let reason = if !writes {
             CullReason::NoOutputs
-        } else if consumers[p].is_empty() {
+        } else if from == next {
             CullReason::OutputsUnused
         } else {
             CullReason::ConsumersCulled {
-                consumers: std::mem::take(&mut consumers[p]),
+                consumers: consumed[from..next]
+                    .iter()
+                    .map(|&(_, q)| PassId(q))
+                    .collect(),
             }
         };
         culled.push((PassId(p as u32), reason));

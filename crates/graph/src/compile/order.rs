@@ -54,22 +54,20 @@ fn dependency_edges(
 ) -> Edges {
     let n = alive.len();
     let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(analysis.accesses.len() * 2);
-    let mut last_writer = vec![NONE; n_resources];
-    // Readers since the last write, per resource, as linked lists in one vector.
-    let mut reader_head = vec![NONE; n_resources];
+    // Per resource: its last writer, and the readers since as a linked list in `readers`.
+    let mut last = vec![(NONE, NONE); n_resources];
     let mut readers: Vec<(u32, u32)> = Vec::with_capacity(analysis.accesses.len());
     for p in (0..n).filter(|&p| alive[p]) {
         let pu = p as u32;
         for a in analysis.accesses_of(p) {
-            let r = a.resource.index();
-            let w = last_writer[r];
+            let (w, head) = last[a.resource.index()];
             // Every access orders after the last write: a read needs its data, a write must
             // not be overtaken by the older one.
             if w != NONE && w != pu {
                 pairs.push((w, pu));
             }
             if a.writes {
-                let mut node = reader_head[r];
+                let mut node = head;
                 while node != NONE {
                     let (q, next) = readers[node as usize];
                     if q != pu {
@@ -80,13 +78,12 @@ fn dependency_edges(
             }
         }
         for a in analysis.accesses_of(p) {
-            let r = a.resource.index();
+            let entry = &mut last[a.resource.index()];
             if a.writes {
-                last_writer[r] = pu;
-                reader_head[r] = NONE;
+                *entry = (pu, NONE);
             } else {
-                readers.push((pu, reader_head[r]));
-                reader_head[r] = (readers.len() - 1) as u32;
+                readers.push((pu, entry.1));
+                entry.1 = (readers.len() - 1) as u32;
             }
         }
     }
@@ -103,12 +100,14 @@ fn dependency_edges(
     for i in 0..n {
         start[i + 1] += start[i];
     }
-    let mut fill = start.clone();
+    // Fill with `start[from]` as the cursor (it ends at the next list's start), then shift back.
     let mut targets = vec![0u32; pairs.len()];
     for &(from, to) in &pairs {
-        targets[fill[from as usize] as usize] = to;
-        fill[from as usize] += 1;
+        targets[start[from as usize] as usize] = to;
+        start[from as usize] += 1;
     }
+    start.copy_within(0..n, 1);
+    start[0] = 0;
     Edges { start, targets }
 }
 
@@ -196,10 +195,8 @@ pub(crate) fn order_passes(
         topo
     };
 
-    let class_ranks: Vec<(PassClass, usize)> = CLASSES
-        .iter()
-        .map(|&c| (c, profile.passes.class_rank(c)))
-        .collect();
+    let class_ranks: [(PassClass, usize); CLASSES.len()] =
+        CLASSES.map(|c| (c, profile.passes.class_rank(c)));
     let rank: Vec<usize> = passes
         .iter()
         .map(|p| {
