@@ -216,9 +216,19 @@ impl BlockState {
             resource,
             alive: true,
         });
-        self.occupants.drain(first..last);
-        self.occupants
-            .insert_many(first, pieces.into_iter().flatten());
+        // Replace occupants[first..last] with the pieces (at most three), in place.
+        let mut at = first;
+        for piece in pieces.into_iter().flatten() {
+            if at < last {
+                self.occupants[at] = piece;
+            } else {
+                self.occupants.insert(at, piece);
+            }
+            at += 1;
+        }
+        if at < last {
+            self.occupants.drain(at..last);
+        }
     }
 
     fn retire(&mut self, resource: u32) {
