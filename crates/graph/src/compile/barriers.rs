@@ -58,6 +58,11 @@ struct SyncState {
     visible_stages: PipelineStages,
     visible_access: AccessFlags,
     touched: bool,
+    /// The next barrier is the aliasing handoff.
+    alias_pending: bool,
+    /// Copied from the resource: the hot loops read one array.
+    is_image: bool,
+    is_depth: bool,
 }
 
 impl SyncState {
@@ -70,6 +75,9 @@ impl SyncState {
             visible_stages: PipelineStages::NONE,
             visible_access: AccessFlags::NONE,
             touched: false,
+            alias_pending: false,
+            is_image: r.is_image,
+            is_depth: r.is_depth,
         };
         if let Some(import) = r.import {
             if r.is_image && import.content == InitialContent::Preserve {
@@ -276,7 +284,8 @@ const NONE: u32 = u32::MAX;
 /// An attachment's accesses over all subpasses of its render pass.
 #[derive(Debug, Clone, Copy)]
 struct AttachmentUse {
-    first: Option<Access>,
+    /// Layout of the first subpass that uses it.
+    first_layout: Option<Layout>,
     stages: PipelineStages,
     access: AccessFlags,
 }
@@ -292,8 +301,6 @@ pub(crate) struct BarrierPlanner<'a> {
     work_steps: Vec<StepIndex>,
     batch: BatchScratch,
     states: Vec<SyncState>,
-    /// The next barrier of this resource is its aliasing handoff.
-    alias_pending: Vec<bool>,
     /// Scratch, per resource: its attachment in the current render pass, or its entry in
     /// `others`, or `NONE`.
     slot: Vec<u32>,
@@ -341,14 +348,14 @@ impl<'a> BarrierPlanner<'a> {
             let st = &mut self.states[r];
             st.write_stages |= stages;
             st.write_access |= access;
-            self.alias_pending[r] = true;
+            st.alias_pending = true;
         }
     }
 
     fn barrier(&mut self, r: usize, u: &SyncUse) {
-        let is_image = self.resources[r].is_image;
+        let is_image = self.states[r].is_image;
         if let Some(mut parts) = sync(&mut self.states[r], u, is_image) {
-            if std::mem::take(&mut self.alias_pending[r]) {
+            if std::mem::take(&mut self.states[r].alias_pending) {
                 parts.hazard = Hazard::Aliasing;
             }
             push_barrier(&mut self.batch, r, is_image, parts);
@@ -363,7 +370,7 @@ impl<'a> BarrierPlanner<'a> {
         for (i, att) in rp.attachments.iter().enumerate() {
             self.slot[att.resource.index()] = i as u32;
             self.attachment_uses.push(AttachmentUse {
-                first: None,
+                first_layout: None,
                 stages: PipelineStages::NONE,
                 access: AccessFlags::NONE,
             });
@@ -373,16 +380,16 @@ impl<'a> BarrierPlanner<'a> {
             for a in accesses.of(s.pass) {
                 let r = a.resource.index();
                 let slot = self.slot[r];
-                let u = SyncUse::of(a);
                 if slot == NONE {
                     self.slot[r] = n_attachments + self.others.len() as u32;
-                    self.others.push((r, u));
+                    self.others.push((r, SyncUse::of(a)));
                 } else if slot < n_attachments {
                     let au = &mut self.attachment_uses[slot as usize];
-                    au.first.get_or_insert(*a);
+                    au.first_layout.get_or_insert(a.layout);
                     au.stages |= a.stages;
                     au.access |= a.access;
                 } else {
+                    let u = SyncUse::of(a);
                     let (_, o) = &mut self.others[(slot - n_attachments) as usize];
                     o.stages |= u.stages;
                     o.access |= u.access;
@@ -396,8 +403,10 @@ impl<'a> BarrierPlanner<'a> {
             let r = att.resource.index();
             self.touch(r);
             let au = self.attachment_uses[i];
-            let Some(first) = au.first else { continue };
-            let is_depth = self.resources[r].is_depth;
+            let Some(first_layout) = au.first_layout else {
+                continue;
+            };
+            let is_depth = self.states[r].is_depth;
             let (load_stages, load_access, _) = load_store_access(is_depth, att.load_op);
             let loads = att.load_op == LoadOp::Load;
             // Later subpasses are ordered by subpass dependencies, but the barrier before the
@@ -406,7 +415,7 @@ impl<'a> BarrierPlanner<'a> {
             let u = SyncUse {
                 stages: au.stages | load_stages,
                 access: au.access | load_access,
-                layout: first.layout,
+                layout: first_layout,
                 reads: loads,
                 // Even a read-only attachment is written by its store op (STORE and DONT_CARE
                 // both write): earlier reads of it (a sampler, say) must finish first. NONE is
@@ -414,7 +423,7 @@ impl<'a> BarrierPlanner<'a> {
                 writes: att.store_op != StoreOp::None,
                 discard: !loads,
             };
-            if self.states[r].is_fresh() && !loads && !self.alias_pending[r] {
+            if self.states[r].is_fresh() && !loads && !self.states[r].alias_pending {
                 // Nothing to wait for: the render pass transitions from Undefined itself.
                 att.initial_layout = Layout::Undefined;
             } else {
@@ -432,7 +441,7 @@ impl<'a> BarrierPlanner<'a> {
         for (i, att) in rp.attachments.iter().enumerate() {
             let r = att.resource.index();
             self.slot[r] = NONE;
-            let is_depth = self.resources[r].is_depth;
+            let is_depth = self.states[r].is_depth;
             let (store_stages, _, store_access) = load_store_access(is_depth, att.load_op);
             let au = self.attachment_uses[i];
             let st = &mut self.states[r];
@@ -452,7 +461,7 @@ impl<'a> BarrierPlanner<'a> {
         for k in 0..self.others.len() {
             let (r, u) = self.others[k];
             self.slot[r] = NONE;
-            let is_image = self.resources[r].is_image;
+            let is_image = self.states[r].is_image;
             self.states[r].apply(&u, is_image);
         }
     }
@@ -466,7 +475,7 @@ impl<'a> BarrierPlanner<'a> {
         }
         for a in list {
             let r = a.resource.index();
-            let is_image = self.resources[r].is_image;
+            let is_image = self.states[r].is_image;
             self.states[r].apply(&SyncUse::of(a), is_image);
         }
     }
@@ -489,7 +498,6 @@ impl<'a> BarrierPlanner<'a> {
             work_steps: Vec::with_capacity(work_steps),
             batch: BatchScratch::default(),
             states: resources.iter().map(SyncState::initial).collect(),
-            alias_pending: vec![false; resources.len()],
             slot: vec![NONE; resources.len()],
             attachment_uses: Vec::with_capacity(16),
             others: Vec::with_capacity(16),
