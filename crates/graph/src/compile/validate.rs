@@ -4,10 +4,10 @@
 
 use tilegraph_profile::Profile;
 
-use super::access::{push_pass_accesses, Access};
+use super::access::{push_pass_accesses, role, Access};
 use crate::declare::{
-    InitialContent, Origin, PassDecl, PassId, PassKind, ResourceDecl, ResourceDesc, ResourceId,
-    UseKind,
+    InitialContent, Origin, PassDecl, PassId, PassKind, PassUse, ResourceDecl, ResourceDesc,
+    ResourceId, UseKind,
 };
 use crate::error::GraphError;
 use crate::types::Extent2d;
@@ -121,20 +121,26 @@ fn check_use_target(pass: &PassDecl, kind: &UseKind, r: &ResourceDecl) -> Result
     }
 }
 
-/// Checks the attachments of a raster pass and returns its render area.
+/// Checks the attachments of a raster pass (its accesses, one per resource) and returns its
+/// render area.
 fn check_raster(
     pass: &PassDecl,
+    accesses: &[Access],
     resources: &[ResourceDecl],
     profile: &Profile,
 ) -> Result<Extent2d, GraphError> {
+    const SAMPLED_ATTACHMENTS: u16 = role(UseKind::ColorAttachment { clear: None })
+        | role(UseKind::DepthStencilAttachment { clear: None })
+        | role(UseKind::DepthStencilReadOnly);
+    const COLOR: u16 = role(UseKind::ColorAttachment { clear: None });
+    const RESOLVE: u16 = role(UseKind::ResolveTarget {
+        source: ResourceId(0),
+    });
     let mut area = pass.render_area;
     let mut samples: Option<u32> = None;
     let mut colors = 0u32;
-    for u in &pass.uses {
-        if !u.kind.is_attachment() {
-            continue;
-        }
-        let r = &resources[u.resource.index()];
+    for a in accesses.iter().filter(|a| a.attachment) {
+        let r = &resources[a.resource.index()];
         let Some(desc) = r.desc.image() else {
             continue;
         };
@@ -151,13 +157,7 @@ fn check_raster(
             }
             Some(_) => {}
         }
-        let counts_samples = matches!(
-            u.kind,
-            UseKind::ColorAttachment { .. }
-                | UseKind::DepthStencilAttachment { .. }
-                | UseKind::DepthStencilReadOnly
-        );
-        if counts_samples {
+        if a.roles & SAMPLED_ATTACHMENTS != 0 {
             let found = desc.samples.count();
             match samples {
                 None => samples = Some(found),
@@ -172,11 +172,18 @@ fn check_raster(
                 Some(_) => {}
             }
         }
-        if matches!(u.kind, UseKind::ColorAttachment { .. }) {
+        if a.roles & COLOR != 0 {
             colors += 1;
         }
-        if let UseKind::ResolveTarget { source } = u.kind {
-            check_resolve(pass, resources, source, u.resource)?;
+        if a.roles & RESOLVE != 0 {
+            // A resolve writes: it is the resource's only use in the pass.
+            if let Some(&PassUse {
+                kind: UseKind::ResolveTarget { source },
+                resource,
+            }) = pass.uses.get(a.first_use as usize)
+            {
+                check_resolve(pass, resources, source, resource)?;
+            }
         }
     }
     let max = profile.render_pass.max_color_attachments;
@@ -275,7 +282,12 @@ pub(crate) fn validate_declarations(
         })?;
         pass_ranges.push((start as u32, accesses.len() as u32));
         render_areas.push(match pass.kind {
-            PassKind::Raster => Some(check_raster(pass, resources, profile)?),
+            PassKind::Raster => Some(check_raster(
+                pass,
+                &accesses[start..],
+                resources,
+                profile,
+            )?),
             PassKind::Compute | PassKind::Transfer => None,
         });
     }
