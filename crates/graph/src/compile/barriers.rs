@@ -329,10 +329,15 @@ impl BatchScratch {
 
 impl<'a> BarrierPlanner<'a> {
     /// First touch: fold in the memory predecessors' last accesses.
+    #[inline]
     fn touch(&mut self, r: usize) {
-        if self.states[r].touched {
-            return;
+        if !self.states[r].touched {
+            self.first_touch(r);
         }
+    }
+
+    #[cold]
+    fn first_touch(&mut self, r: usize) {
         self.states[r].touched = true;
         let mut any = false;
         let mut stages = PipelineStages::NONE;

@@ -180,6 +180,7 @@ pub(crate) struct LoadStoreInput<'a> {
 /// load/store ops, subpasses and dependencies), one compute or transfer step per other group,
 /// and a flush before each group that asks for one, each handed to `emit` as soon as it is
 /// built (the barrier planner takes them from there).
+#[inline(never)]
 pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, mut emit: impl FnMut(Step)) {
     let n_resources = input.resources.len();
     let mut written_before: Vec<bool> = input.resources.iter().map(has_initial_content).collect();
@@ -244,20 +245,13 @@ fn build_render_pass(
         let (first_access, _) = input.analysis.pass_ranges[p.index()];
         let first_access = first_access as usize;
         let accesses = input.analysis.accesses_of(p.index());
-        let (mut colors, mut inputs) = (0, 0);
-        for u in &decl.uses {
-            match u.kind {
-                UseKind::ColorAttachment { .. } => colors += 1,
-                UseKind::InputAttachment => inputs += 1,
-                _ => {}
-            }
-        }
+        // References are stored inline (up to 4 colours, 2 inputs) and spill only beyond that.
         let mut subpass = Subpass {
             pass: p,
-            colors: InlineVec::with_capacity(colors),
+            colors: InlineVec::new(),
             resolves: InlineVec::new(),
             depth_stencil: None,
-            inputs: InlineVec::with_capacity(inputs),
+            inputs: InlineVec::new(),
             preserve: InlineVec::new(),
         };
         let mut resolve_refs: Vec<(crate::declare::ResourceId, AttachmentRef)> = Vec::new();
