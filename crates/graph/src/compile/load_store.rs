@@ -180,7 +180,6 @@ pub(crate) struct LoadStoreInput<'a> {
 /// load/store ops, subpasses and dependencies), one compute or transfer step per other group,
 /// and a flush before each group that asks for one, each handed to `emit` as soon as it is
 /// built (the barrier planner takes them from there).
-#[inline(never)]
 pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, mut emit: impl FnMut(Step)) {
     let n_resources = input.resources.len();
     let mut written_before: Vec<bool> = input.resources.iter().map(has_initial_content).collect();
