@@ -209,12 +209,16 @@ pub(crate) fn estimate_traffic(
                 // Attachments only resolved into stay out of tile memory: their store is a
                 // resolve.
                 on_chip.clear();
-                on_chip.resize(rp.attachments.len(), false);
-                for s in &rp.subpasses {
-                    let refs = s.colors.iter().chain(&s.inputs).chain(&s.depth_stencil);
-                    for r in refs {
-                        if let Some(flag) = on_chip.get_mut(r.attachment.0 as usize) {
-                            *flag = true;
+                if rp.subpasses.iter().all(|s| s.resolves.is_empty()) {
+                    on_chip.resize(rp.attachments.len(), true);
+                } else {
+                    on_chip.resize(rp.attachments.len(), false);
+                    for s in &rp.subpasses {
+                        let refs = s.colors.iter().chain(&s.inputs).chain(&s.depth_stencil);
+                        for r in refs {
+                            if let Some(flag) = on_chip.get_mut(r.attachment.0 as usize) {
+                                *flag = true;
+                            }
                         }
                     }
                 }

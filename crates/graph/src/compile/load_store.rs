@@ -47,39 +47,57 @@ pub(crate) fn resource_uses(
     analysis: &Analysis,
     exported: &[bool],
 ) -> ResourceUses {
-    let n_resources = exported.len();
-    let mut lifetimes: Vec<Option<(u32, u32)>> = vec![None; n_resources];
-    let mut attachment_only = vec![true; n_resources];
+    /// One resource during the sweep.
+    #[derive(Clone, Copy)]
+    struct Sweep {
+        first: u32,
+        last: u32,
+        attachment_only: bool,
+        /// The next use (in the groups after the current one) reads the content.
+        pending: bool,
+    }
+    let mut state: Vec<Sweep> = exported
+        .iter()
+        .map(|&pending| Sweep {
+            first: NONE,
+            last: NONE,
+            attachment_only: true,
+            pending,
+        })
+        .collect();
     let mut needed_after = vec![false; analysis.accesses.len()];
-    // Per resource: whether the next use (in the groups after the current one) reads it.
-    let mut pending = exported.to_vec();
     for (g, group) in groups.iter().enumerate().rev() {
+        let g = g as u32;
         let passes = &order[group.start..group.end];
         for &p in passes {
             let (a0, a1) = analysis.pass_ranges[p.index()];
-            for ai in a0..a1 {
-                let a = &analysis.accesses[ai as usize];
-                let r = a.resource.index();
-                needed_after[ai as usize] = pending[r];
-                let g = g as u32;
-                lifetimes[r] = Some(match lifetimes[r] {
-                    Some((_, last)) => (g, last),
-                    None => (g, g),
-                });
-                attachment_only[r] &= !a.non_attachment;
+            let range = a0 as usize..a1 as usize;
+            for (a, needed) in analysis.accesses[range.clone()]
+                .iter()
+                .zip(&mut needed_after[range])
+            {
+                let s = &mut state[a.resource.index()];
+                *needed = s.pending;
+                if s.last == NONE {
+                    s.last = g;
+                }
+                s.first = g;
+                s.attachment_only &= !a.non_attachment;
             }
         }
         // The group's first use of each resource decides what the groups before see.
         for &p in passes.iter().rev() {
-            let (a0, a1) = analysis.pass_ranges[p.index()];
-            for a in &analysis.accesses[a0 as usize..a1 as usize] {
-                pending[a.resource.index()] = a.reads_prior;
+            for a in analysis.accesses_of(p.index()) {
+                state[a.resource.index()].pending = a.reads_prior;
             }
         }
     }
     ResourceUses {
-        lifetimes,
-        attachment_only,
+        lifetimes: state
+            .iter()
+            .map(|s| (s.last != NONE).then_some((s.first, s.last)))
+            .collect(),
+        attachment_only: state.iter().map(|s| s.attachment_only).collect(),
         needed_after,
     }
 }
