@@ -314,6 +314,19 @@ pub struct RenderPass {
     pub on_chip_bytes_per_px: u32,
 }
 
+impl RenderPass {
+    /// No attachments, no subpasses: filled in by compile.
+    pub(crate) fn empty() -> Self {
+        RenderPass {
+            render_area_px: Extent2d::new(0, 0),
+            attachments: InlineVec::new(),
+            subpasses: InlineVec::new(),
+            dependencies: Vec::new(),
+            on_chip_bytes_per_px: 0,
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct Attachment {
     pub resource: ResourceId,

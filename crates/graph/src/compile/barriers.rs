@@ -25,6 +25,7 @@ use crate::plan::{
 use crate::types::{AccessFlags, Layout, LoadOp, PipelineStages, StoreOp};
 
 use super::access::{Access, DEPTH_TESTS};
+use super::load_store::StepSink;
 
 /// Per-pass accesses, indexed by `PassId`.
 pub(crate) struct PassAccesses<'a> {
@@ -290,15 +291,20 @@ struct AttachmentUse {
     access: AccessFlags,
 }
 
-/// Plans barriers step by step: [`BarrierPlanner::push`] takes the work steps in execution
-/// order and appends to the plan's steps the barrier batch each one needs (if any), then the
-/// step itself (render passes get their initial layouts). Each step is moved once.
+/// Plans barriers step by step: it takes the work steps in execution order (as a
+/// [`StepSink`]) and appends to the plan's steps the barrier batch each one needs (if any),
+/// then the step itself (render passes get their initial layouts).
 pub(crate) struct BarrierPlanner<'a> {
+    planner: Planner<'a>,
+    steps: Vec<Step>,
+    work_steps: Vec<StepIndex>,
+}
+
+/// The synchronization state of every resource, and the batch being gathered.
+struct Planner<'a> {
     accesses: &'a PassAccesses<'a>,
     resources: &'a [ResourceSync],
     aliasing: &'a AliasAssignment,
-    steps: Vec<Step>,
-    work_steps: Vec<StepIndex>,
     batch: BatchScratch,
     states: Vec<SyncState>,
     /// Scratch, per resource: its attachment in the current render pass, or its entry in
@@ -327,7 +333,7 @@ impl BatchScratch {
     }
 }
 
-impl<'a> BarrierPlanner<'a> {
+impl Planner<'_> {
     /// First touch: fold in the memory predecessors' last accesses.
     #[inline]
     fn touch(&mut self, r: usize) {
@@ -495,44 +501,29 @@ impl<'a> BarrierPlanner<'a> {
         work_steps: usize,
     ) -> Self {
         BarrierPlanner {
-            accesses,
-            resources,
-            aliasing,
+            planner: Planner {
+                accesses,
+                resources,
+                aliasing,
+                batch: BatchScratch::default(),
+                states: resources.iter().map(SyncState::initial).collect(),
+                slot: vec![NONE; resources.len()],
+                attachment_uses: Vec::with_capacity(16),
+                others: Vec::with_capacity(16),
+            },
             // Most work steps need a batch before them; one more releases the imports.
             steps: Vec::with_capacity(2 * work_steps + 1),
             work_steps: Vec::with_capacity(work_steps),
-            batch: BatchScratch::default(),
-            states: resources.iter().map(SyncState::initial).collect(),
-            slot: vec![NONE; resources.len()],
-            attachment_uses: Vec::with_capacity(16),
-            others: Vec::with_capacity(16),
         }
-    }
-
-    /// Appends the next step in execution order, after the barriers it needs. Barrier steps in
-    /// the input are dropped (they are planned anew).
-    pub fn push(&mut self, mut step: Step) {
-        match &mut step {
-            Step::RenderPass(rp) => self.render_pass(rp),
-            Step::Compute { pass } | Step::Transfer { pass } => self.single_pass(*pass),
-            Step::Flush(_) => {}
-            Step::Barriers(_) => return,
-        }
-        if let Some(b) = self.batch.take() {
-            self.steps.push(Step::Barriers(b));
-        }
-        if step.is_work() {
-            self.work_steps.push(StepIndex(self.steps.len() as u32));
-        }
-        self.steps.push(step);
     }
 
     /// Ends the frame: a last batch releases imported resources into their final state (the
     /// rest stay as their last use left them).
     pub fn finish(mut self) -> BarrierPlan {
-        let mut final_states = Vec::with_capacity(self.resources.len());
-        for (r, res) in self.resources.iter().enumerate() {
-            let st = &mut self.states[r];
+        let planner = &mut self.planner;
+        let mut final_states = Vec::with_capacity(planner.resources.len());
+        for (r, res) in planner.resources.iter().enumerate() {
+            let st = &mut planner.states[r];
             let Some(import) = res.import else {
                 final_states.push(ResourceState {
                     layout: st.layout,
@@ -561,11 +552,11 @@ impl<'a> BarrierPlanner<'a> {
             };
             if let Some(mut parts) = sync(st, &u, res.is_image) {
                 parts.hazard = Hazard::Release;
-                push_barrier(&mut self.batch, r, res.is_image, parts);
+                push_barrier(&mut planner.batch, r, res.is_image, parts);
             }
             final_states.push(fin);
         }
-        if let Some(b) = self.batch.take() {
+        if let Some(b) = planner.batch.take() {
             self.steps.push(Step::Barriers(b));
         }
         BarrierPlan {
@@ -573,6 +564,44 @@ impl<'a> BarrierPlanner<'a> {
             work_steps: self.work_steps,
             final_states,
         }
+    }
+}
+
+impl StepSink for BarrierPlanner<'_> {
+    /// Barrier steps in the input are dropped (they are planned anew).
+    fn push(&mut self, mut step: Step) {
+        match &mut step {
+            Step::RenderPass(rp) => self.planner.render_pass(rp),
+            Step::Compute { pass } | Step::Transfer { pass } => self.planner.single_pass(*pass),
+            Step::Flush(_) => {}
+            Step::Barriers(_) => return,
+        }
+        if let Some(b) = self.planner.batch.take() {
+            self.steps.push(Step::Barriers(b));
+        }
+        if step.is_work() {
+            self.work_steps.push(StepIndex(self.steps.len() as u32));
+        }
+        self.steps.push(step);
+    }
+
+    fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass)) {
+        // Nearly every render pass needs a batch before it: reserve its slot, drop it if empty.
+        let batch_at = self.steps.len();
+        self.steps.push(Step::Barriers(BarrierBatch::default()));
+        self.steps.push(Step::RenderPass(RenderPass::empty()));
+        if let Some(Step::RenderPass(rp)) = self.steps.last_mut() {
+            build(rp);
+            self.planner.render_pass(rp);
+        }
+        match self.planner.batch.take() {
+            Some(b) => self.steps[batch_at] = Step::Barriers(b),
+            None => {
+                self.steps.remove(batch_at);
+            }
+        }
+        self.work_steps
+            .push(StepIndex(self.steps.len().saturating_sub(1) as u32));
     }
 }
 

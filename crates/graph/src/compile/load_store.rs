@@ -194,11 +194,19 @@ pub(crate) struct LoadStoreInput<'a> {
     pub store_op_none: bool,
 }
 
+/// Where `infer_load_store` puts the steps it builds (the barrier planner).
+pub(crate) trait StepSink {
+    /// Appends a step.
+    fn push(&mut self, step: Step);
+    /// Appends a render pass that `build` fills in place (a render pass is a few hundred bytes:
+    /// built where it stays, it is not moved).
+    fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass));
+}
+
 /// The work steps in execution order: one render pass per render group (with its attachments,
 /// load/store ops, subpasses and dependencies), one compute or transfer step per other group,
-/// and a flush before each group that asks for one, each handed to `emit` as soon as it is
-/// built (the barrier planner takes them from there).
-pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, mut emit: impl FnMut(Step)) {
+/// and a flush before each group that asks for one, each handed to `sink` as it is built.
+pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, sink: &mut impl StepSink) {
     let n_resources = input.resources.len();
     let mut written_before: Vec<bool> = input.resources.iter().map(has_initial_content).collect();
     // Per resource: its attachment in the current render pass.
@@ -206,21 +214,24 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, mut emit: impl FnMut(
     let mut scratch = Scratch::default();
     for (g, group) in input.groups.iter().enumerate() {
         if group.flush_before {
-            emit(Step::Flush(FlushReason::BeforeOcclusionQueries));
+            sink.push(Step::Flush(FlushReason::BeforeOcclusionQueries));
         }
         let first = input.order[group.start];
-        emit(match group.kind {
-            GroupKind::Render => Step::RenderPass(build_render_pass(
-                input,
-                &mut scratch,
-                g as u32,
-                group,
-                &written_before,
-                &mut attachment_of,
-            )),
-            GroupKind::Compute => Step::Compute { pass: first },
-            GroupKind::Transfer => Step::Transfer { pass: first },
-        });
+        match group.kind {
+            GroupKind::Render => sink.push_render_pass(|rp| {
+                build_render_pass(
+                    input,
+                    &mut scratch,
+                    g as u32,
+                    group,
+                    &written_before,
+                    &mut attachment_of,
+                    rp,
+                )
+            }),
+            GroupKind::Compute => sink.push(Step::Compute { pass: first }),
+            GroupKind::Transfer => sink.push(Step::Transfer { pass: first }),
+        }
         for &p in &input.order[group.start..group.end] {
             for a in input.analysis.accesses_of(p.index()) {
                 if a.writes {
@@ -245,11 +256,17 @@ fn build_render_pass(
     group: &Group,
     written_before: &[bool],
     attachment_of: &mut [(u32, u32)],
-) -> RenderPass {
-    let mut attachments: InlineVec<Attachment, 2> = InlineVec::new();
-    let mut subpasses: InlineVec<Subpass, 1> = InlineVec::with_capacity(group.end - group.start);
-    let mut deps: Vec<SubpassDependency> =
-        Vec::with_capacity(2 * (group.end - group.start).saturating_sub(1));
+    rp: &mut RenderPass,
+) {
+    rp.render_area_px = group.render_area.unwrap_or(Extent2d::new(0, 0));
+    let RenderPass {
+        attachments,
+        subpasses,
+        dependencies: deps,
+        ..
+    } = rp;
+    subpasses.reserve(group.end - group.start);
+    deps.reserve(2 * (group.end - group.start).saturating_sub(1));
     let tracks = &mut scratch.tracks;
     tracks.clear();
     // (attachment, subpass, stages) of reads since the attachment's last write.
@@ -322,7 +339,7 @@ fn build_render_pass(
                         .push(AttachmentIndex(index));
                 }
             }
-            track_subpass_use(&mut deps, readers, track, index, s, a);
+            track_subpass_use(deps, readers, track, index, s, a);
             if let Some(att) = attachments.get_mut(index as usize) {
                 att.final_layout = a.layout;
             }
@@ -342,7 +359,7 @@ fn build_render_pass(
         }
         subpasses.push(subpass);
     }
-    for subpass in &mut subpasses {
+    for subpass in subpasses.iter_mut() {
         subpass.preserve.sort_unstable();
     }
 
@@ -367,19 +384,13 @@ fn build_render_pass(
     }
 
     deps.sort_by_key(|d| (d.src_subpass, d.dst_subpass));
-    let on_chip_bytes_per_px = attachments
+    rp.on_chip_bytes_per_px = rp
+        .attachments
         .iter()
         .zip(scratch.tracks.iter())
         .filter(|(_, t)| t.on_chip)
         .map(|(a, _)| a.format.bytes_per_pixel() * a.samples.count())
         .sum();
-    RenderPass {
-        render_area_px: group.render_area.unwrap_or(Extent2d::new(0, 0)),
-        attachments,
-        subpasses,
-        dependencies: deps,
-        on_chip_bytes_per_px,
-    }
 }
 
 fn new_attachment(

@@ -40,7 +40,7 @@ use crate::types::{BufferUsage, ImageUsage};
 
 use access::{push_pass_accesses, role, Access};
 use barriers::{step_lifetimes, BarrierPlan, BarrierPlanner, PassAccesses, ResourceSync};
-use load_store::{infer_load_store, residencies, resource_uses, LoadStoreInput};
+use load_store::{infer_load_store, residencies, resource_uses, LoadStoreInput, StepSink};
 
 /// A compiled frame: the plan, and the payloads of the surviving passes.
 #[derive(Debug, Clone)]
@@ -305,7 +305,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             needed_after: &uses.needed_after,
             store_op_none: profile.render_pass.store_op_none,
         },
-        |step| planner.push(step),
+        &mut planner,
     );
     let BarrierPlan {
         steps,

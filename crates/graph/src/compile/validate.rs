@@ -282,12 +282,7 @@ pub(crate) fn validate_declarations(
         })?;
         pass_ranges.push((start as u32, accesses.len() as u32));
         render_areas.push(match pass.kind {
-            PassKind::Raster => Some(check_raster(
-                pass,
-                &accesses[start..],
-                resources,
-                profile,
-            )?),
+            PassKind::Raster => Some(check_raster(pass, &accesses[start..], resources, profile)?),
             PassKind::Compute | PassKind::Transfer => None,
         });
     }
