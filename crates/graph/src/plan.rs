@@ -237,8 +237,8 @@ pub enum FlushReason {
 
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct BarrierBatch {
-    pub images: InlineVec<ImageBarrier, 2>,
-    pub buffers: InlineVec<BufferBarrier, 1>,
+    pub images: InlineVec<ImageBarrier, 3>,
+    pub buffers: InlineVec<BufferBarrier, 2>,
 }
 
 impl BarrierBatch {

@@ -317,8 +317,8 @@ struct Planner<'a> {
 /// Barriers gathered for one batch (inline storage: most batches hold one to three).
 #[derive(Default)]
 struct BatchScratch {
-    images: InlineVec<ImageBarrier, 2>,
-    buffers: InlineVec<BufferBarrier, 1>,
+    images: InlineVec<ImageBarrier, 3>,
+    buffers: InlineVec<BufferBarrier, 2>,
 }
 
 impl BatchScratch {
