@@ -36,6 +36,8 @@ pub(crate) struct ResourceUses {
     pub lifetimes: Vec<Option<(u32, u32)>>,
     /// Per resource: every use binds it to a render pass.
     pub attachment_only: Vec<bool>,
+    /// Per resource: [`UseKind::bit`](crate::declare::UseKind) of every use by a kept pass.
+    pub roles: Vec<u16>,
     /// Per access (index into `Analysis::accesses`): the resource's content is needed after
     /// the access's group (the next use reads it first, or the resource is exported).
     pub needed_after: Vec<bool>,
@@ -53,6 +55,7 @@ pub(crate) fn resource_uses(
         first: u32,
         last: u32,
         attachment_only: bool,
+        roles: u16,
         /// The next use (in the groups after the current one) reads the content.
         pending: bool,
     }
@@ -62,6 +65,7 @@ pub(crate) fn resource_uses(
             first: NONE,
             last: NONE,
             attachment_only: true,
+            roles: 0,
             pending,
         })
         .collect();
@@ -83,6 +87,7 @@ pub(crate) fn resource_uses(
                 }
                 s.first = g;
                 s.attachment_only &= !a.non_attachment;
+                s.roles |= a.roles;
             }
         }
         // The group's first use of each resource decides what the groups before see.
@@ -98,6 +103,7 @@ pub(crate) fn resource_uses(
             .map(|s| (s.last != NONE).then_some((s.first, s.last)))
             .collect(),
         attachment_only: state.iter().map(|s| s.attachment_only).collect(),
+        roles: state.iter().map(|s| s.roles).collect(),
         needed_after,
     }
 }

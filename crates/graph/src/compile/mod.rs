@@ -329,13 +329,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         })
         .collect();
 
-    let mut roles = vec![0u16; n_resources];
-    for &p in &order {
-        for a in analysis.accesses_of(p.index()) {
-            roles[a.resource.index()] |= a.roles;
-        }
-    }
-
+    let roles = &uses.roles;
     let mut payload_slots: Vec<Option<P>> = payloads.into_iter().map(Some).collect();
     // Names and uses move from the declarations into the plan; nothing is copied.
     let mut passes = passes;
