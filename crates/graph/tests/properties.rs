@@ -936,6 +936,20 @@ fn check_structure(plan: &Plan) -> Result<(), String> {
                 seen[p.id.index()]
             ));
         }
+        // Its step and subpass are where it is recorded.
+        let recorded = match (plan.steps.get(p.step.index()), p.subpass) {
+            (Some(Step::RenderPass(rp)), Some(s)) => {
+                rp.subpasses.get(s.0 as usize).map(|sub| sub.pass) == Some(p.id)
+            }
+            (Some(Step::Compute { pass } | Step::Transfer { pass }), None) => *pass == p.id,
+            _ => false,
+        };
+        if !recorded {
+            return Err(format!(
+                "{} says step {:?} subpass {:?}, which does not record it",
+                p.name, p.step, p.subpass
+            ));
+        }
     }
     Ok(())
 }

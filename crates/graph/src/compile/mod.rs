@@ -41,6 +41,7 @@ use crate::types::{BufferUsage, ImageUsage};
 use access::{push_pass_accesses, role, Access};
 use barriers::{step_lifetimes, BarrierPlan, BarrierPlanner, PassAccesses, ResourceSync};
 use load_store::{infer_load_store, residencies, resource_uses, LoadStoreInput, StepSink};
+use merge::GroupKind;
 
 /// A compiled frame: the plan, and the payloads of the surviving passes.
 #[derive(Debug, Clone)]
@@ -333,24 +334,27 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     let mut payload_slots: Vec<Option<P>> = payloads.into_iter().map(Some).collect();
     // Names and uses move from the declarations into the plan; nothing is copied.
     let mut passes = passes;
+    // Each group is one work step; a render group's passes are its subpasses, in order.
     let mut planned: Vec<PlannedPass> = Vec::with_capacity(order.len());
-    for &id in &order {
-        let Some(d) = passes.get_mut(id.index()) else {
-            continue;
-        };
-        planned.push(PlannedPass {
-            id,
-            name: std::mem::take(&mut d.name),
-            kind: d.kind,
-            class: d.class,
-            coverage: d.coverage,
-            retention: d.retention,
-            uses: std::mem::take(&mut d.uses),
-            step: StepIndex(0),
-            subpass: None,
-        });
+    for (g, group) in groups.iter().enumerate() {
+        let step = step_of(g as u32);
+        for (k, &id) in order[group.start..group.end].iter().enumerate() {
+            let Some(d) = passes.get_mut(id.index()) else {
+                continue;
+            };
+            planned.push(PlannedPass {
+                id,
+                name: std::mem::take(&mut d.name),
+                kind: d.kind,
+                class: d.class,
+                coverage: d.coverage,
+                retention: d.retention,
+                uses: std::mem::take(&mut d.uses),
+                step,
+                subpass: (group.kind == GroupKind::Render).then_some(SubpassIndex(k as u32)),
+            });
+        }
     }
-    locate_passes(&steps, &mut planned);
     let mut culled = Vec::with_capacity(culling.culled.len());
     for (id, reason) in culling.culled {
         if let Some(slot) = payload_slots.get_mut(id.index()) {
