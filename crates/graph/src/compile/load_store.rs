@@ -28,16 +28,33 @@ use super::validate::{has_initial_content, Analysis};
 
 const NONE: u32 = u32::MAX;
 
+/// One resource's uses in execution order, summarized.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ResourceUse {
+    /// First and last group (`NONE`: unused).
+    first: u32,
+    last: u32,
+    /// Every use binds it to a render pass.
+    pub attachment_only: bool,
+    /// [`UseKind::bit`](crate::declare::UseKind) of every use by a kept pass.
+    pub roles: u16,
+    /// Sweep state: the next use (in the groups after the current one) reads the content.
+    pending: bool,
+}
+
+impl ResourceUse {
+    /// First and last group that use it (`None`: unused).
+    pub fn lifetime(&self) -> Option<(u32, u32)> {
+        (self.last != NONE).then_some((self.first, self.last))
+    }
+}
+
 /// What later phases need from each resource's uses in execution order, found in one sweep
 /// backwards over the groups.
 #[derive(Debug)]
 pub(crate) struct ResourceUses {
-    /// First and last group of each resource (`None`: unused).
-    pub lifetimes: Vec<Option<(u32, u32)>>,
-    /// Per resource: every use binds it to a render pass.
-    pub attachment_only: Vec<bool>,
-    /// Per resource: [`UseKind::bit`](crate::declare::UseKind) of every use by a kept pass.
-    pub roles: Vec<u16>,
+    /// Per resource.
+    pub resources: Vec<ResourceUse>,
     /// Per access (index into `Analysis::accesses`): the resource's content is needed after
     /// the access's group (the next use reads it first, or the resource is exported).
     pub needed_after: Vec<bool>,
@@ -49,19 +66,9 @@ pub(crate) fn resource_uses(
     analysis: &Analysis,
     exported: &[bool],
 ) -> ResourceUses {
-    /// One resource during the sweep.
-    #[derive(Clone, Copy)]
-    struct Sweep {
-        first: u32,
-        last: u32,
-        attachment_only: bool,
-        roles: u16,
-        /// The next use (in the groups after the current one) reads the content.
-        pending: bool,
-    }
-    let mut state: Vec<Sweep> = exported
+    let mut state: Vec<ResourceUse> = exported
         .iter()
-        .map(|&pending| Sweep {
+        .map(|&pending| ResourceUse {
             first: NONE,
             last: NONE,
             attachment_only: true,
@@ -98,12 +105,7 @@ pub(crate) fn resource_uses(
         }
     }
     ResourceUses {
-        lifetimes: state
-            .iter()
-            .map(|s| (s.last != NONE).then_some((s.first, s.last)))
-            .collect(),
-        attachment_only: state.iter().map(|s| s.attachment_only).collect(),
-        roles: state.iter().map(|s| s.roles).collect(),
+        resources: state,
         needed_after,
     }
 }
@@ -120,7 +122,7 @@ pub(crate) fn residencies(
         .iter()
         .enumerate()
         .map(|(r, decl)| {
-            let life = uses.lifetimes[r];
+            let life = uses.resources[r].lifetime();
             if matches!(decl.origin, crate::declare::Origin::Imported(_)) {
                 Residency::Imported
             } else if life.is_none() {
@@ -132,7 +134,7 @@ pub(crate) fn residencies(
                     first == last && groups[first as usize].kind == GroupKind::Render
                 });
                 if one_render_pass
-                    && uses.attachment_only[r]
+                    && uses.resources[r].attachment_only
                     && profile.render_pass.transient_attachments
                 {
                     Residency::Transient

@@ -265,18 +265,18 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     }
     let uses = resource_uses(&groups, &order, &analysis, &exported);
     let residency = residencies(&uses, &groups, &resources, &exported, profile);
-    let group_lifetimes = &uses.lifetimes;
     // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
     // on the order of lifetimes.
     let requirements: Vec<MemoryRequirements> = resources
         .iter()
         .map(|r| estimated_requirements(&r.desc))
         .collect();
-    let alias_input: Vec<AliasLifetime> = group_lifetimes
+    let alias_input: Vec<AliasLifetime> = uses
+        .resources
         .iter()
         .zip(&residency)
-        .map(|(life, &res)| AliasLifetime {
-            lifetime: life.map(|(first, last)| StepRange {
+        .map(|(u, &res)| AliasLifetime {
+            lifetime: u.lifetime().map(|(first, last)| StepRange {
                 first: StepIndex(first),
                 last: StepIndex(last),
             }),
@@ -320,17 +320,17 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             .copied()
             .unwrap_or(StepIndex(0))
     };
-    let lifetimes: Vec<Option<StepRange>> = group_lifetimes
+    let lifetimes: Vec<Option<StepRange>> = uses
+        .resources
         .iter()
-        .map(|life| {
-            life.map(|(first, last)| StepRange {
+        .map(|u| {
+            u.lifetime().map(|(first, last)| StepRange {
                 first: step_of(first),
                 last: step_of(last),
             })
         })
         .collect();
 
-    let roles = &uses.roles;
     let mut payload_slots: Vec<Option<P>> = payloads.into_iter().map(Some).collect();
     // Names and uses move from the declarations into the plan; nothing is copied.
     let mut passes = passes;
@@ -382,7 +382,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             desc,
             origin,
             residency: residency[i],
-            usage: infer_usage(&desc, roles[i], residency[i]),
+            usage: infer_usage(&desc, uses.resources[i].roles, residency[i]),
             lifetime: lifetimes[i],
             memory: aliasing.slots[i],
             estimated_size_bytes: requirements[i].size_bytes,
