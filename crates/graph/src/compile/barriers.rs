@@ -588,8 +588,11 @@ impl StepSink for BarrierPlanner<'_> {
     fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass)) {
         // Nearly every render pass needs a batch before it: reserve its slot, drop it if empty.
         let batch_at = self.steps.len();
-        self.steps.push(Step::Barriers(BarrierBatch::default()));
-        self.steps.push(Step::RenderPass(RenderPass::empty()));
+        // Written in place (a push would build each on the stack and copy it).
+        self.steps
+            .resize_with(batch_at + 1, || Step::Barriers(BarrierBatch::default()));
+        self.steps
+            .resize_with(batch_at + 2, || Step::RenderPass(RenderPass::empty()));
         if let Some(Step::RenderPass(rp)) = self.steps.last_mut() {
             build(rp);
             self.planner.render_pass(rp);
