@@ -19,8 +19,7 @@
 use crate::alias::AliasAssignment;
 use crate::declare::{Import, InitialContent, PassId, ResourceId, ResourceState};
 use crate::plan::{
-    BarrierBatch, BufferBarrier, Hazard, ImageBarrier, InlineVec, RenderPass, Step, StepIndex,
-    StepRange,
+    BarrierBatch, BufferBarrier, Hazard, ImageBarrier, RenderPass, Step, StepIndex, StepRange,
 };
 use crate::types::{AccessFlags, Layout, LoadOp, PipelineStages, StoreOp};
 
@@ -219,7 +218,7 @@ fn sync(st: &mut SyncState, u: &SyncUse, is_image: bool) -> Option<BarrierParts>
     Some(parts)
 }
 
-fn push_barrier(batch: &mut BatchScratch, resource: usize, is_image: bool, b: BarrierParts) {
+fn push_barrier(batch: &mut BarrierBatch, resource: usize, is_image: bool, b: BarrierParts) {
     let resource = ResourceId(resource as u32);
     if is_image {
         batch.images.push(ImageBarrier {
@@ -296,41 +295,24 @@ struct AttachmentUse {
 /// then the step itself (render passes get their initial layouts).
 pub(crate) struct BarrierPlanner<'a> {
     planner: Planner<'a>,
+    /// Barriers before a step that is not a render pass (a render pass gets its batch written
+    /// straight into the slot reserved before it).
+    batch: BarrierBatch,
     steps: Vec<Step>,
     work_steps: Vec<StepIndex>,
 }
 
-/// The synchronization state of every resource, and the batch being gathered.
+/// The synchronization state of every resource.
 struct Planner<'a> {
     accesses: &'a PassAccesses<'a>,
     resources: &'a [ResourceSync],
     aliasing: &'a AliasAssignment,
-    batch: BatchScratch,
     states: Vec<SyncState>,
     /// Scratch, per resource: its attachment in the current render pass, or its entry in
     /// `others`, or `NONE`.
     slot: Vec<u32>,
     attachment_uses: Vec<AttachmentUse>,
     others: Vec<(usize, SyncUse)>,
-}
-
-/// Barriers gathered for one batch (inline storage: most batches hold one to three).
-#[derive(Default)]
-struct BatchScratch {
-    images: InlineVec<ImageBarrier, 3>,
-    buffers: InlineVec<BufferBarrier, 2>,
-}
-
-impl BatchScratch {
-    fn take(&mut self) -> Option<BarrierBatch> {
-        if self.images.is_empty() && self.buffers.is_empty() {
-            return None;
-        }
-        Some(BarrierBatch {
-            images: std::mem::take(&mut self.images),
-            buffers: std::mem::take(&mut self.buffers),
-        })
-    }
 }
 
 impl Planner<'_> {
@@ -363,17 +345,17 @@ impl Planner<'_> {
         }
     }
 
-    fn barrier(&mut self, r: usize, u: &SyncUse) {
+    fn barrier(&mut self, r: usize, u: &SyncUse, batch: &mut BarrierBatch) {
         let is_image = self.states[r].is_image;
         if let Some(mut parts) = sync(&mut self.states[r], u, is_image) {
             if std::mem::take(&mut self.states[r].alias_pending) {
                 parts.hazard = Hazard::Aliasing;
             }
-            push_barrier(&mut self.batch, r, is_image, parts);
+            push_barrier(batch, r, is_image, parts);
         }
     }
 
-    fn render_pass(&mut self, rp: &mut RenderPass) {
+    fn render_pass(&mut self, rp: &mut RenderPass, batch: &mut BarrierBatch) {
         let accesses = self.accesses;
         // Gather every subpass's accesses in one sweep: per attachment, and per other resource.
         self.attachment_uses.clear();
@@ -438,14 +420,14 @@ impl Planner<'_> {
                 // Nothing to wait for: the render pass transitions from Undefined itself.
                 att.initial_layout = Layout::Undefined;
             } else {
-                self.barrier(r, &u);
+                self.barrier(r, &u, batch);
                 att.initial_layout = self.states[r].layout;
             }
         }
         for k in 0..self.others.len() {
             let (r, u) = self.others[k];
             self.touch(r);
-            self.barrier(r, &u);
+            self.barrier(r, &u, batch);
         }
 
         // After the render pass: every attachment was written by its store op.
@@ -477,12 +459,12 @@ impl Planner<'_> {
         }
     }
 
-    fn single_pass(&mut self, pass: PassId) {
+    fn single_pass(&mut self, pass: PassId, batch: &mut BarrierBatch) {
         let list = self.accesses.of(pass);
         for a in list {
             let r = a.resource.index();
             self.touch(r);
-            self.barrier(r, &SyncUse::of(a));
+            self.barrier(r, &SyncUse::of(a), batch);
         }
         for a in list {
             let r = a.resource.index();
@@ -505,12 +487,12 @@ impl<'a> BarrierPlanner<'a> {
                 accesses,
                 resources,
                 aliasing,
-                batch: BatchScratch::default(),
                 states: resources.iter().map(SyncState::initial).collect(),
                 slot: vec![NONE; resources.len()],
                 attachment_uses: Vec::with_capacity(16),
                 others: Vec::with_capacity(16),
             },
+            batch: BarrierBatch::default(),
             // Most work steps need a batch before them; one more releases the imports.
             steps: Vec::with_capacity(2 * work_steps + 1),
             work_steps: Vec::with_capacity(work_steps),
@@ -552,11 +534,12 @@ impl<'a> BarrierPlanner<'a> {
             };
             if let Some(mut parts) = sync(st, &u, res.is_image) {
                 parts.hazard = Hazard::Release;
-                push_barrier(&mut planner.batch, r, res.is_image, parts);
+                push_barrier(&mut self.batch, r, res.is_image, parts);
             }
             final_states.push(fin);
         }
-        if let Some(b) = planner.batch.take() {
+        if !self.batch.is_empty() {
+            let b = std::mem::take(&mut self.batch);
             self.steps.push(Step::Barriers(b));
         }
         BarrierPlan {
@@ -571,13 +554,16 @@ impl StepSink for BarrierPlanner<'_> {
     /// Barrier steps in the input are dropped (they are planned anew).
     fn push(&mut self, mut step: Step) {
         match &mut step {
-            Step::RenderPass(rp) => self.planner.render_pass(rp),
-            Step::Compute { pass } | Step::Transfer { pass } => self.planner.single_pass(*pass),
+            Step::RenderPass(rp) => self.planner.render_pass(rp, &mut self.batch),
+            Step::Compute { pass } | Step::Transfer { pass } => {
+                self.planner.single_pass(*pass, &mut self.batch)
+            }
             Step::Flush(_) => {}
             Step::Barriers(_) => return,
         }
-        if let Some(b) = self.planner.batch.take() {
-            self.steps.push(Step::Barriers(b));
+        if !self.batch.is_empty() {
+            self.steps
+                .push(Step::Barriers(std::mem::take(&mut self.batch)));
         }
         if step.is_work() {
             self.work_steps.push(StepIndex(self.steps.len() as u32));
@@ -587,21 +573,21 @@ impl StepSink for BarrierPlanner<'_> {
 
     fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass)) {
         // Nearly every render pass needs a batch before it: reserve its slot, drop it if empty.
+        // Both are written in place (a push would build each on the stack and copy it), and the
+        // barriers go straight into the slot.
         let batch_at = self.steps.len();
-        // Written in place (a push would build each on the stack and copy it).
         self.steps
             .resize_with(batch_at + 1, || Step::Barriers(BarrierBatch::default()));
         self.steps
             .resize_with(batch_at + 2, || Step::RenderPass(RenderPass::empty()));
-        if let Some(Step::RenderPass(rp)) = self.steps.last_mut() {
+        let mut empty = true;
+        if let [.., Step::Barriers(batch), Step::RenderPass(rp)] = self.steps.as_mut_slice() {
             build(rp);
-            self.planner.render_pass(rp);
+            self.planner.render_pass(rp, batch);
+            empty = batch.is_empty();
         }
-        match self.planner.batch.take() {
-            Some(b) => self.steps[batch_at] = Step::Barriers(b),
-            None => {
-                self.steps.remove(batch_at);
-            }
+        if empty {
+            self.steps.remove(batch_at);
         }
         self.work_steps
             .push(StepIndex(self.steps.len().saturating_sub(1) as u32));
