@@ -10,8 +10,8 @@
 //! Merging comes before load/store inference because "never leaves the render pass" (DONT_CARE
 //! store, transient) is a property of the merged render pass; aliasing comes before barriers
 //! because memory handed from one resource to another needs a barrier of its own. Load/store
-//! inference and barrier planning run step by step together: each render pass is built, gets
-//! the barriers before it, and is moved into the plan once.
+//! inference and barrier planning run step by step together: each render pass is built in place
+//! in the plan's steps, and the barriers it needs are written into a slot reserved before it.
 
 pub(crate) mod access;
 pub(crate) mod barriers;
