@@ -58,6 +58,16 @@ pub enum GraphError {
         profile: String,
     },
 
+    #[error(
+        "pass '{pass}' attaches two depth-stencil images, '{first}' and '{second}'; a subpass has \
+             one"
+    )]
+    SecondDepthStencil {
+        pass: String,
+        first: String,
+        second: String,
+    },
+
     #[error("pass '{pass}': '{resource}' ({format}) cannot be used as {usage}")]
     FormatMismatch {
         pass: String,

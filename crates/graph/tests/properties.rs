@@ -245,6 +245,7 @@ fn build(spec: &Spec) -> Built {
         let mut used = vec![false; n];
         let mut samples: Option<SampleCount> = None;
         let mut colors = 0;
+        let mut has_depth = false;
         for &(k, pick, clear) in &pass.uses {
             if spec.chaos {
                 let resource = ResourceId(u32::from(pick) % (n as u32 + 2));
@@ -318,6 +319,16 @@ fn build(spec: &Spec) -> Built {
                     continue;
                 }
                 colors += 1;
+            }
+            // One depth-stencil attachment per pass.
+            if matches!(
+                use_kind,
+                UseKind::DepthStencilAttachment { .. } | UseKind::DepthStencilReadOnly
+            ) {
+                if has_depth {
+                    continue;
+                }
+                has_depth = true;
             }
             used[i] = true;
             uses.push((ResourceId(i as u32), use_kind));

@@ -1,5 +1,6 @@
-//! Phase 7, `plan_barriers`: synchronization2 barriers and layout transitions between steps,
-//! only where a hazard exists.
+//! Phase 7, the [`BarrierPlanner`]: synchronization2 barriers and layout transitions between
+//! steps, only where a hazard exists. It takes the steps one at a time from load/store inference
+//! (or from an existing plan, to re-plan after aliasing with real memory requirements).
 //!
 //! Each resource carries a small state: its layout, the stages and accesses of its last write,
 //! the stages that read it since, and which stages/accesses already see that write. A new
@@ -475,7 +476,7 @@ impl Planner<'_> {
 }
 
 impl<'a> BarrierPlanner<'a> {
-    /// A planner for a frame of about `work_steps` work steps.
+    /// A planner for a frame of about `work_steps` steps (work steps and flushes).
     pub fn new(
         accesses: &'a PassAccesses<'a>,
         resources: &'a [ResourceSync],
@@ -572,9 +573,9 @@ impl StepSink for BarrierPlanner<'_> {
     }
 
     fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass)) {
-        // Nearly every render pass needs a batch before it: reserve its slot, drop it if empty.
-        // Both are written in place (a push would build each on the stack and copy it), and the
-        // barriers go straight into the slot.
+        // Nearly every render pass needs a batch before it: reserve its slot, drop it if empty
+        // (then the render pass moves down one place). Both are written in place (a push would
+        // build each on the stack and copy it), and the barriers go straight into the slot.
         let batch_at = self.steps.len();
         self.steps
             .resize_with(batch_at + 1, || Step::Barriers(BarrierBatch::default()));

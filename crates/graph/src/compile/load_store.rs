@@ -1,7 +1,7 @@
-//! Phases 4 and 5: `resource_uses` (each resource's first and last group, whether the content
-//! is needed after each access's group, and where its memory comes from) and
-//! `infer_load_store` (render passes with their attachments, load/store ops, subpasses and
-//! subpass dependencies).
+//! Phases 4 and 5: `resource_uses` (each resource's first and last group, its use roles,
+//! whether the content is needed after each access's group), `residencies` (where each
+//! resource's memory comes from) and `infer_load_store` (render passes with their attachments,
+//! load/store ops, subpasses and subpass dependencies, handed to the barrier planner).
 //!
 //! Load: CLEAR when the first use in the render pass clears; DONT_CARE when that use does not
 //! need the old content (it covers everything) or there is none; LOAD only when old content

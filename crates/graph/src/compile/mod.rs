@@ -1,9 +1,10 @@
 //! `compile`: declarations in, [`Plan`] out, as a sequence of named phases, each a function
-//! from one plain data stage to the next:
+//! from one plain data stage to the next, except that load/store inference feeds the barrier
+//! planner one step at a time (`=>`):
 //!
 //! ```text
 //! validate_declarations -> cull_unused_passes -> order_passes -> merge_render_passes
-//!   -> resource_uses -> assign_aliases -> infer_load_store + plan_barriers
+//!   -> resource_uses + residencies -> assign_aliases -> infer_load_store => BarrierPlanner
 //!   -> estimate_traffic
 //! ```
 //!
@@ -294,7 +295,8 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         ranges: &analysis.pass_ranges,
     };
     // Load/store inference hands each work step to the barrier planner as it is built.
-    let mut planner = BarrierPlanner::new(&pass_accesses, &sync, &aliasing, groups.len());
+    let flushes = groups.iter().filter(|g| g.flush_before).count();
+    let mut planner = BarrierPlanner::new(&pass_accesses, &sync, &aliasing, groups.len() + flushes);
     infer_load_store(
         &LoadStoreInput {
             groups: &groups,

@@ -4,10 +4,10 @@
 
 use tilegraph_profile::Profile;
 
-use super::access::{push_pass_accesses, role, Access};
+use super::access::{push_pass_accesses, Access};
 use crate::declare::{
-    InitialContent, Origin, PassDecl, PassId, PassKind, PassUse, ResourceDecl, ResourceDesc,
-    ResourceId, UseKind,
+    InitialContent, Origin, PassDecl, PassId, PassKind, ResourceDecl, ResourceDesc, ResourceId,
+    UseKind,
 };
 use crate::error::GraphError;
 use crate::types::Extent2d;
@@ -121,26 +121,36 @@ fn check_use_target(pass: &PassDecl, kind: &UseKind, r: &ResourceDecl) -> Result
     }
 }
 
-/// Checks the attachments of a raster pass (its accesses, one per resource) and returns its
-/// render area.
+/// Checks the attachments of a raster pass and returns its render area.
 fn check_raster(
     pass: &PassDecl,
-    accesses: &[Access],
     resources: &[ResourceDecl],
     profile: &Profile,
 ) -> Result<Extent2d, GraphError> {
-    const SAMPLED_ATTACHMENTS: u16 = role(UseKind::ColorAttachment { clear: None })
-        | role(UseKind::DepthStencilAttachment { clear: None })
-        | role(UseKind::DepthStencilReadOnly);
-    const COLOR: u16 = role(UseKind::ColorAttachment { clear: None });
-    const RESOLVE: u16 = role(UseKind::ResolveTarget {
-        source: ResourceId(0),
-    });
     let mut area = pass.render_area;
     let mut samples: Option<u32> = None;
     let mut colors = 0u32;
-    for a in accesses.iter().filter(|a| a.attachment) {
-        let r = &resources[a.resource.index()];
+    let mut depth: Option<ResourceId> = None;
+    for u in &pass.uses {
+        if !u.kind.is_attachment() {
+            continue;
+        }
+        let r = &resources[u.resource.index()];
+        if matches!(
+            u.kind,
+            UseKind::DepthStencilAttachment { .. } | UseKind::DepthStencilReadOnly
+        ) {
+            match depth {
+                Some(first) if first != u.resource => {
+                    return Err(GraphError::SecondDepthStencil {
+                        pass: pass.name.clone(),
+                        first: resources[first.index()].name.clone(),
+                        second: r.name.clone(),
+                    })
+                }
+                _ => depth = Some(u.resource),
+            }
+        }
         let Some(desc) = r.desc.image() else {
             continue;
         };
@@ -157,7 +167,13 @@ fn check_raster(
             }
             Some(_) => {}
         }
-        if a.roles & SAMPLED_ATTACHMENTS != 0 {
+        let counts_samples = matches!(
+            u.kind,
+            UseKind::ColorAttachment { .. }
+                | UseKind::DepthStencilAttachment { .. }
+                | UseKind::DepthStencilReadOnly
+        );
+        if counts_samples {
             let found = desc.samples.count();
             match samples {
                 None => samples = Some(found),
@@ -172,18 +188,11 @@ fn check_raster(
                 Some(_) => {}
             }
         }
-        if a.roles & COLOR != 0 {
+        if matches!(u.kind, UseKind::ColorAttachment { .. }) {
             colors += 1;
         }
-        if a.roles & RESOLVE != 0 {
-            // A resolve writes: it is the resource's only use in the pass.
-            if let Some(&PassUse {
-                kind: UseKind::ResolveTarget { source },
-                resource,
-            }) = pass.uses.get(a.first_use as usize)
-            {
-                check_resolve(pass, resources, source, resource)?;
-            }
+        if let UseKind::ResolveTarget { source } = u.kind {
+            check_resolve(pass, resources, source, u.resource)?;
         }
     }
     let max = profile.render_pass.max_color_attachments;
@@ -282,7 +291,7 @@ pub(crate) fn validate_declarations(
         })?;
         pass_ranges.push((start as u32, accesses.len() as u32));
         render_areas.push(match pass.kind {
-            PassKind::Raster => Some(check_raster(pass, &accesses[start..], resources, profile)?),
+            PassKind::Raster => Some(check_raster(pass, resources, profile)?),
             PassKind::Compute | PassKind::Transfer => None,
         });
     }
@@ -568,6 +577,27 @@ mod tests {
             }
         );
         assert_eq!(compile(g, &tiler()).passes.len(), 1);
+    }
+
+    #[test]
+    fn a_pass_has_one_depth_stencil_attachment() {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let shadow = d24s8(&mut g, "shadow");
+        g.export(depth);
+        g.raster_pass("prepass", PassClass::DepthPrepass, ())
+            .depth_stencil_clear(shadow, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("draw", PassClass::Opaque, ())
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z)
+            .depth_stencil_read_only(shadow);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::SecondDepthStencil {
+                pass: "draw".into(),
+                first: "depth".into(),
+                second: "shadow".into(),
+            }
+        );
     }
 
     #[test]
