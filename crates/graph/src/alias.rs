@@ -157,11 +157,11 @@ struct BlockState {
     live_bytes: u64,
 }
 
-const fn align_up(value: u64, alignment: u64) -> u64 {
-    // alignment is a power of two; saturate instead of wrapping on absurd sizes.
+/// `value` rounded up to a multiple of `alignment` (a power of two); `None` past `u64::MAX`.
+const fn align_up(value: u64, alignment: u64) -> Option<u64> {
     match value.checked_add(alignment - 1) {
-        Some(v) => v & !(alignment - 1),
-        None => !(alignment - 1),
+        Some(v) => Some(v & !(alignment - 1)),
+        None => None,
     }
 }
 
@@ -173,16 +173,19 @@ impl BlockState {
     /// Lowest aligned offset where `size` bytes fit between the live allocations and inside
     /// the block.
     fn gap_within(&self, size: u64, alignment: u64) -> Option<u64> {
+        let fits_below =
+            |start: u64, limit: u64| start.checked_add(size).is_some_and(|end| end <= limit);
         let mut cursor = 0u64;
         for placed in self.occupants.iter().filter(|p| p.alive) {
-            let candidate = align_up(cursor, alignment);
-            if candidate.saturating_add(size) <= placed.offset {
+            // Past u64::MAX nothing fits, here or further on.
+            let candidate = align_up(cursor, alignment)?;
+            if fits_below(candidate, placed.offset) {
                 return Some(candidate);
             }
             cursor = cursor.max(placed.end);
         }
-        let candidate = align_up(cursor, alignment);
-        (candidate.saturating_add(size) <= self.size).then_some(candidate)
+        let candidate = align_up(cursor, alignment)?;
+        fits_below(candidate, self.size).then_some(candidate)
     }
 
     fn place(&mut self, offset: u64, size: u64, resource: u32, handoffs: &mut Vec<u32>) {
@@ -498,6 +501,30 @@ mod tests {
             size_bytes,
             alignment_bytes: 256,
         }
+    }
+
+    /// Requirements near `u64::MAX` (only the executor's path can pass them): a gap whose
+    /// aligned start would pass `u64::MAX` holds nothing, so live resources never share bytes.
+    #[test]
+    fn alignment_overflow_never_places_over_a_live_resource() {
+        let lifetimes = [shared(0, 0), shared(1, 1), shared(1, 1)];
+        let reqs = [
+            MemoryRequirements {
+                size_bytes: u64::MAX,
+                alignment_bytes: 1,
+            },
+            MemoryRequirements {
+                size_bytes: (1 << 63) + 1,
+                alignment_bytes: 1,
+            },
+            MemoryRequirements {
+                size_bytes: 1 << 62,
+                alignment_bytes: 1 << 63,
+            },
+        ];
+        let a = assign_aliases(&lifetimes, &reqs).unwrap();
+        let (b, c) = (a.slots[1].unwrap(), a.slots[2].unwrap());
+        assert!(!b.overlaps(&c), "{b:?} and {c:?} are alive at once");
     }
 
     #[test]

@@ -211,6 +211,9 @@ impl ResourceState {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum InitialContent {
     /// Keep it: the first pass that needs old content gets LOAD (history, accumulation).
+    /// Preserving the content *through* the frame is what [`GraphBuilder::export`] says: an
+    /// import that is not exported is only needed until its last use, and a render pass that
+    /// only reads it may end with a DONT_CARE store (export a static image the frame only reads).
     Preserve,
     /// Drop it (a freshly acquired swapchain image): never loaded, layout starts `Undefined`.
     Discard,

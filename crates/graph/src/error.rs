@@ -87,6 +87,9 @@ pub enum GraphError {
     #[error("raster pass '{pass}' has no attachment and no render area")]
     MissingRenderArea { pass: String },
 
+    #[error("raster pass '{pass}': render area {extent_px} px is not 1 to 32768 px on each side")]
+    InvalidRenderArea { pass: String, extent_px: Extent2d },
+
     #[error("pass '{pass}' uses resource #{index}, which this graph never declared")]
     UnknownResource { pass: String, index: u32 },
 

@@ -4,8 +4,11 @@
 //! areas are equal, it shares at least one attachment with the render pass (merging unrelated
 //! passes saves no traffic and only grows the tile footprint), and every resource the two share
 //! is touched only as an attachment by both (so any read of the earlier pass's output is an
-//! input-attachment or attachment read at the same pixel), or only read by both in one layout. A clear in a later subpass cannot be a load
-//! op, so it starts a new render pass. On tilers this keeps intermediate attachments in tile
+//! input-attachment or attachment read at the same pixel), or only read through descriptors by
+//! both, in one layout (a texture both sample). A descriptor read of what another subpass uses
+//! as an attachment splits the render pass: it would be outside the attachment's subpass
+//! dependencies and its store op. A clear in a later subpass cannot be a load op, so it starts
+//! a new render pass. On tilers this keeps intermediate attachments in tile
 //! memory; on immediate GPUs (`MergePolicy::Allowed`) the same merge is harmless and keeps plans
 //! alike across profiles.
 //!
@@ -45,6 +48,7 @@ pub(crate) struct Group {
 #[derive(Debug, Clone, Copy)]
 struct Touch {
     group: u32,
+    attachment: bool,
     non_attachment: bool,
     written: bool,
     layout: Layout,
@@ -66,6 +70,7 @@ pub(crate) fn merge_render_passes(
     let mut touch = vec![
         Touch {
             group: NONE,
+            attachment: false,
             non_attachment: false,
             written: false,
             layout: Layout::Undefined,
@@ -97,7 +102,15 @@ pub(crate) fn merge_render_passes(
                     }
                     let same_pixel = !a.non_attachment && !t.non_attachment;
                     connected |= same_pixel;
-                    same_pixel || (!a.writes && !t.written && a.layout == t.layout)
+                    // Otherwise both only read it through descriptors, in one layout. A
+                    // descriptor read in one subpass of what is an attachment in another would
+                    // be outside the attachment's subpass dependencies and its store op.
+                    let shared_reads = !a.writes
+                        && !t.written
+                        && a.layout == t.layout
+                        && !a.attachment
+                        && !t.attachment;
+                    same_pixel || shared_reads
                 });
                 // A pass that shares no attachment with the render pass gains nothing from
                 // joining it and would only add to its tile-memory footprint.
@@ -130,11 +143,13 @@ pub(crate) fn merge_render_passes(
             if t.group != g_index {
                 *t = Touch {
                     group: g_index,
+                    attachment: a.attachment,
                     non_attachment: a.non_attachment,
                     written: a.writes,
                     layout: a.layout,
                 };
             } else {
+                t.attachment |= a.attachment;
                 t.non_attachment |= a.non_attachment;
                 t.written |= a.writes;
                 t.layout = a.layout;
@@ -214,6 +229,52 @@ mod tests {
         assert_eq!(
             render_passes(&compile(g, &tiler())),
             [vec!["opaque"], vec!["blur"]]
+        );
+    }
+
+    /// A subpass may sample what another subpass reads as a depth attachment only in a render
+    /// pass of its own: the sampler read would be outside the attachment's subpass
+    /// dependencies, and its store op could discard the depth before the read. Plain texture
+    /// reads shared by both subpasses still merge.
+    #[test]
+    fn sampling_another_subpasses_attachment_splits_the_render_pass() {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let env = history(&mut g, "environment");
+        let out = swapchain(&mut g);
+        let ao = rgba8(&mut g, "ao");
+        g.export(ao);
+        g.raster_pass("prepass", PassClass::DepthPrepass, ())
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.compute_pass("ao", PassClass::Compute, ())
+            .sampled(depth)
+            .storage_write(ao);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(out, ClearColor::BLACK)
+            .sampled(env)
+            .depth_stencil_read_only(depth);
+        g.raster_pass("fog", PassClass::Transparent, ())
+            .color(out)
+            .sampled(env)
+            .sampled(depth);
+        let plan = compile(g, &tiler());
+        assert_eq!(
+            render_passes(&plan),
+            [vec!["prepass"], vec!["opaque"], vec!["fog"]]
+        );
+
+        let mut g = GraphBuilder::new();
+        let env = history(&mut g, "environment");
+        let out = swapchain(&mut g);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(out, ClearColor::BLACK)
+            .sampled(env);
+        g.raster_pass("fog", PassClass::Transparent, ())
+            .color(out)
+            .sampled(env);
+        assert_eq!(
+            render_passes(&compile(g, &tiler())),
+            [vec!["opaque", "fog"]]
         );
     }
 

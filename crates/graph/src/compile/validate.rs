@@ -131,7 +131,7 @@ fn check_raster(
     let mut samples: Option<u32> = None;
     let mut colors = 0u32;
     let mut depth: Option<ResourceId> = None;
-    for u in &pass.uses {
+    for (i, u) in pass.uses.iter().enumerate() {
         if !u.kind.is_attachment() {
             continue;
         }
@@ -192,7 +192,7 @@ fn check_raster(
             colors += 1;
         }
         if let UseKind::ResolveTarget { source } = u.kind {
-            check_resolve(pass, resources, source, u.resource)?;
+            check_resolve(pass, i, resources, source, u.resource)?;
         }
     }
     let max = profile.render_pass.max_color_attachments;
@@ -204,13 +204,24 @@ fn check_raster(
             profile: profile.name.clone(),
         });
     }
-    area.ok_or_else(|| GraphError::MissingRenderArea {
+    let area = area.ok_or_else(|| GraphError::MissingRenderArea {
         pass: pass.name.clone(),
-    })
+    })?;
+    // Attachments are checked as resources; a declared area without any must be checked here.
+    let sides = [area.width_px, area.height_px];
+    if sides.iter().any(|&side| side == 0 || side > MAX_EXTENT_PX) {
+        return Err(GraphError::InvalidRenderArea {
+            pass: pass.name.clone(),
+            extent_px: area,
+        });
+    }
+    Ok(area)
 }
 
+/// Checks the resolve declared by `pass.uses[use_index]`.
 fn check_resolve(
     pass: &PassDecl,
+    use_index: usize,
     resources: &[ResourceDecl],
     source: ResourceId,
     target: ResourceId,
@@ -234,6 +245,14 @@ fn check_resolve(
         .any(|u| u.resource == source && matches!(u.kind, UseKind::ColorAttachment { .. }));
     if !is_color_of_pass {
         return Err(fail("the source is not a colour attachment of the pass"));
+    }
+    // A colour attachment has one resolve attachment: a second would be left out of the
+    // subpass and its target never written.
+    let resolved_before = pass.uses[..use_index]
+        .iter()
+        .any(|u| matches!(u.kind, UseKind::ResolveTarget { source: s } if s == source));
+    if resolved_before {
+        return Err(fail("the source is already resolved into another image"));
     }
     let (Some(s), Some(t)) = (source_decl.desc.image(), target_decl.desc.image()) else {
         return Err(fail("both must be images"));
@@ -675,6 +694,27 @@ mod tests {
                 }
             );
         }
+        // One resolve per colour attachment: a second target would be left out of the subpass
+        // and never written.
+        let mut g = GraphBuilder::new();
+        let msaa = g.create_image("msaa", msaa_desc);
+        let first = rgba8(&mut g, "first");
+        let second = rgba8(&mut g, "second");
+        g.export(first);
+        g.export(second);
+        g.raster_pass("draw", PassClass::Opaque, ())
+            .color_clear(msaa, ClearColor::BLACK)
+            .resolve(msaa, first)
+            .resolve(msaa, second);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::InvalidResolve {
+                pass: "draw".into(),
+                source_image: "msaa".into(),
+                target: "second".into(),
+                reason: "the source is already resolved into another image",
+            }
+        );
     }
 
     #[test]
@@ -697,6 +737,22 @@ mod tests {
             .storage_write(queries)
             .render_area(EXTENT);
         assert_eq!(compile(g, &tiler()).passes.len(), 1);
+        // A declared area (nothing else checks it without attachments) must be a real extent.
+        for extent_px in [Extent2d::new(0, 16), Extent2d::new(64, 40_000)] {
+            let mut g = GraphBuilder::new();
+            let queries = g.create_buffer("visible", 64);
+            g.export(queries);
+            g.raster_pass("raster_cull", PassClass::OcclusionQuery, ())
+                .storage_write(queries)
+                .render_area(extent_px);
+            assert_eq!(
+                compile_err(g, &tiler()),
+                GraphError::InvalidRenderArea {
+                    pass: "raster_cull".into(),
+                    extent_px
+                }
+            );
+        }
     }
 
     #[test]
