@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 
-use crate::declare::{PassId, PassUse, ResourceDesc};
+use crate::declare::{Coverage, PassId, PassUse, ResourceDesc, UseKind};
 use crate::plan::{Plan, Residency, Step};
 
 fn quote(text: &str) -> String {
@@ -26,23 +26,37 @@ fn pass_node(id: PassId) -> String {
     format!("p{}", id.0)
 }
 
-fn edges(out: &mut String, pass: PassId, uses: &[PassUse], culled: bool) {
+/// Whether a writing use also reads what was there (what load/store inference calls
+/// `reads_prior`).
+fn reads_old_content(u: &PassUse, coverage: Coverage) -> bool {
+    match u.kind {
+        UseKind::ColorAttachment { clear } => clear.is_none() && coverage == Coverage::Partial,
+        UseKind::DepthStencilAttachment { clear } => {
+            clear.is_none() && coverage == Coverage::Partial
+        }
+        UseKind::StorageWrite | UseKind::StorageReadWrite | UseKind::TransferDst => {
+            coverage == Coverage::Partial
+        }
+        _ => false,
+    }
+}
+
+fn edges(out: &mut String, pass: PassId, uses: &[PassUse], coverage: Coverage, culled: bool) {
     let style = if culled {
         ", color=grey60, fontcolor=grey60, style=dashed"
     } else {
         ""
     };
     for u in uses {
-        let (from, to) = if u.kind.writes() {
-            (pass_node(pass), format!("r{}", u.resource.0))
-        } else {
-            (format!("r{}", u.resource.0), pass_node(pass))
-        };
-        let _ = writeln!(
-            out,
-            "  {from} -> {to} [label={}{style}];",
-            quote(u.kind.name())
-        );
+        let (pass, resource) = (pass_node(pass), format!("r{}", u.resource.0));
+        let label = quote(u.kind.name());
+        // A write that keeps old content (blending, depth testing, a partial copy) reads it too.
+        if !u.kind.writes() || reads_old_content(u, coverage) {
+            let _ = writeln!(out, "  {resource} -> {pass} [label={label}{style}];");
+        }
+        if u.kind.writes() {
+            let _ = writeln!(out, "  {pass} -> {resource} [label={label}{style}];");
+        }
     }
 }
 
@@ -124,10 +138,10 @@ impl Plan {
             );
         }
         for p in &self.passes {
-            edges(&mut out, p.id, &p.uses, false);
+            edges(&mut out, p.id, &p.uses, p.coverage, false);
         }
         for p in &self.culled {
-            edges(&mut out, p.id, &p.uses, true);
+            edges(&mut out, p.id, &p.uses, p.coverage, true);
         }
         out.push_str("}\n");
         out

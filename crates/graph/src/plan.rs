@@ -96,6 +96,7 @@ pub struct CulledPass {
     pub name: String,
     pub kind: PassKind,
     pub class: PassClass,
+    pub coverage: Coverage,
     pub uses: Vec<PassUse>,
     pub reason: CullReason,
 }

@@ -370,6 +370,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             name: std::mem::take(&mut d.name),
             kind: d.kind,
             class: d.class,
+            coverage: d.coverage,
             uses: std::mem::take(&mut d.uses),
             reason,
         });
@@ -490,13 +491,12 @@ impl Plan {
         {
             return invalid("resource ids are not their indices");
         }
-        let max_id = self
-            .passes
-            .iter()
-            .map(|p| p.id.index() + 1)
-            .max()
-            .unwrap_or(0);
-        let mut known = vec![false; max_id];
+        // Every declared pass is planned or culled, so ids stay below their total.
+        let declared = self.passes.len() + self.culled.len();
+        if self.passes.iter().any(|p| p.id.index() >= declared) {
+            return invalid("a pass id is larger than the number of passes");
+        }
+        let mut known = vec![false; declared];
         for p in &self.passes {
             known[p.id.index()] = true;
             let unknown = p.uses.iter().any(|u| {

@@ -10,7 +10,7 @@ use crate::declare::{
     UseKind,
 };
 use crate::error::GraphError;
-use crate::types::Extent2d;
+use crate::types::{Extent2d, Layout};
 
 /// Larger than any `maxImageDimension2D` a driver reports.
 pub(crate) const MAX_EXTENT_PX: u32 = 32_768;
@@ -52,6 +52,13 @@ pub(crate) fn has_initial_content(resource: &ResourceDecl) -> bool {
     )
 }
 
+fn imported_layout(r: &ResourceDecl) -> Option<Layout> {
+    match r.origin {
+        Origin::Imported(import) => Some(import.initial.layout),
+        Origin::Created => None,
+    }
+}
+
 fn validate_resource(r: &ResourceDecl) -> Result<(), GraphError> {
     let reason = match &r.desc {
         ResourceDesc::Image(d) => {
@@ -66,6 +73,8 @@ fn validate_resource(r: &ResourceDecl) -> Result<(), GraphError> {
                 Some("more mip levels than the extent has")
             } else if d.mip_levels > 1 && d.samples.count() > 1 {
                 Some("a multisampled image has one mip level")
+            } else if has_initial_content(r) && imported_layout(r) == Some(Layout::Undefined) {
+                Some("content to preserve, but imported in the Undefined layout (the first transition would discard it)")
             } else {
                 None
             }
@@ -797,6 +806,27 @@ mod tests {
                 ..
             }
         ));
+        // Content to keep cannot come in Undefined: the first transition would discard it
+        // (buffers have no layout: fine).
+        let lost = Import {
+            initial: ResourceState::UNDEFINED,
+            content: InitialContent::Preserve,
+            final_state: ResourceState::SHADER_READ,
+        };
+        let mut g: GraphBuilder<()> = GraphBuilder::new();
+        g.import_image(
+            "history",
+            ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM),
+            lost,
+        );
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::InvalidResource { reason, .. } if reason.contains("Undefined layout")
+        ));
+        let mut g: GraphBuilder<()> = GraphBuilder::new();
+        let buffer = g.import_buffer("static", 256, lost);
+        g.export(buffer);
+        assert_eq!(compile(g, &tiler()).resources.len(), 1);
     }
 
     #[test]
