@@ -637,6 +637,15 @@ mod tests {
                 reason: "a subpass records an unknown pass"
             })
         );
+        // A huge id is rejected before anything is sized by it.
+        let mut plan = compile(two_chains(), &desktop());
+        plan.passes[0].id = PassId(u32::MAX);
+        assert_eq!(
+            plan.reassign_aliases(&requirements),
+            Err(GraphError::InvalidPlan {
+                reason: "a pass id is larger than the number of passes"
+            })
+        );
     }
 
     #[test]
