@@ -749,6 +749,12 @@ impl Executor {
         self.frames.frames_in_flight()
     }
 
+    /// Command buffers allocated over all frame slots: one per slot, plus one per flush step of
+    /// the plan (reused every frame).
+    pub fn command_buffer_count(&self) -> usize {
+        self.frames.command_buffer_count()
+    }
+
     /// The slot the next [`Executor::execute`] will record into (per-frame buffers of passes
     /// are indexed by it; the executor guarantees the slot's previous frame has completed by
     /// the time recording starts).
@@ -828,12 +834,11 @@ impl Executor {
             }),
         };
         self.resources = resources;
-        // Submit even after a recording error would leave the ring inconsistent; end instead.
+        // After a recording error nothing more is submitted. The command buffer may be inside a
+        // render pass, so it is not ended: the pool reset at the slot's next use takes it back
+        // from the recording state. Work already flushed this frame is tracked by the fence.
         if let Err(e) = result {
-            // SAFETY: the command buffer is recording; ending it lets the pool reset next time.
-            unsafe {
-                let _ = ctx.device.end_command_buffer(token.cb);
-            }
+            self.frames.abandon(ctx, &token)?;
             return Err(e);
         }
         self.frames.submit(ctx, token)?;
@@ -893,6 +898,16 @@ impl Executor {
                     self.frames.flush(ctx, token)?;
                 }
                 Step::Compute { pass } | Step::Transfer { pass } => {
+                    if reused {
+                        wait_for_earlier_frames(
+                            ctx,
+                            token.cb,
+                            plan,
+                            std::slice::from_ref(pass),
+                            &lookup,
+                            &seen_first,
+                        )?;
+                    }
                     mark_first_uses(plan, *pass, &mut seen_first);
                     let name = plan.pass(*pass).map_or("?", |p| p.name.as_str());
                     self.run_pass(
@@ -910,6 +925,17 @@ impl Executor {
                 Step::RenderPass(rp) => {
                     stats.render_passes += 1;
                     stats.subpasses += rp.subpasses.len() as u32;
+                    if reused {
+                        let passes: Vec<PassId> = rp.subpasses.iter().map(|s| s.pass).collect();
+                        wait_for_earlier_frames(
+                            ctx,
+                            token.cb,
+                            plan,
+                            &passes,
+                            &lookup,
+                            &seen_first,
+                        )?;
+                    }
                     for s in &rp.subpasses {
                         mark_first_uses(plan, s.pass, &mut seen_first);
                     }
@@ -1185,18 +1211,67 @@ fn clear_value(a: &Attachment) -> vk::ClearValue {
 
 /// Whether this barrier is the first touch this frame of a resource the executor owns.
 fn first_use_of_owned(plan: &Plan, id: ResourceId, seen_first: &mut [bool]) -> bool {
-    let owned = plan.resource(id).is_some_and(|r| {
-        matches!(
-            r.residency,
-            Residency::FrameLocal | Residency::Exported | Residency::Transient
-        )
-    });
+    let owned = is_owned(plan, id);
     let Some(seen) = seen_first.get_mut(id.index()) else {
         return false;
     };
     let first = owned && !*seen;
     *seen = true;
     first
+}
+
+/// A buffer the graph owns may be written first, with no barrier in the plan (nothing earlier
+/// in the frame touched it). An earlier frame still running may be reading or writing it, and
+/// queue submissions are not ordered by themselves: before the step, its not-yet-seen owned
+/// buffers wait for all earlier work (images always get a first barrier: their layout).
+fn wait_for_earlier_frames(
+    ctx: &Context,
+    cb: vk::CommandBuffer,
+    plan: &Plan,
+    passes: &[PassId],
+    lookup: &dyn Fn(ResourceId) -> Option<External>,
+    seen_first: &[bool],
+) -> Result<(), VkError> {
+    let mut buffers: Vec<vk::BufferMemoryBarrier2<'_>> = Vec::new();
+    let mut added: Vec<ResourceId> = Vec::new();
+    for u in passes
+        .iter()
+        .filter_map(|&p| plan.pass(p))
+        .flat_map(|p| &p.uses)
+    {
+        let id = u.resource;
+        let fresh = !seen_first.get(id.index()).copied().unwrap_or(true);
+        if !fresh || added.contains(&id) || !is_owned(plan, id) {
+            continue;
+        }
+        let Some(External::Buffer(h)) = lookup(id) else {
+            continue;
+        };
+        added.push(id);
+        buffers.push(
+            vk::BufferMemoryBarrier2::default()
+                .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+                .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
+                .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+                .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)
+                .buffer(h.raw)
+                .size(vk::WHOLE_SIZE),
+        );
+    }
+    if buffers.is_empty() {
+        return Ok(());
+    }
+    let info = vk::DependencyInfo::default().buffer_memory_barriers(&buffers);
+    ctx.cmd_pipeline_barrier2(cb, &info)
+}
+
+fn is_owned(plan: &Plan, id: ResourceId) -> bool {
+    plan.resource(id).is_some_and(|r| {
+        matches!(
+            r.residency,
+            Residency::FrameLocal | Residency::Exported | Residency::Transient
+        )
+    })
 }
 
 fn mark_first_uses(plan: &Plan, pass: PassId, seen_first: &mut [bool]) {

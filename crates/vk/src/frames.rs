@@ -12,8 +12,17 @@ pub const DEFAULT_FRAMES_IN_FLIGHT: usize = 2;
 
 struct FrameSlot {
     pool: vk::CommandPool,
+    /// Every command buffer allocated from `pool`; a frame records into them in turn (one more
+    /// per flush) and the pool reset recycles them all.
+    cbs: Vec<vk::CommandBuffer>,
+    /// How many of `cbs` this frame has begun.
+    begun: usize,
     cb: vk::CommandBuffer,
     fence: vk::Fence,
+    /// This frame submitted part of its work (a flush).
+    flushed: bool,
+    /// The frame was abandoned after an error: when its fence signals, nothing is reported.
+    abandoned: bool,
     /// Whether work was submitted with this fence since it was last waited for.
     in_flight: bool,
     /// A frame found complete by [`FrameRing::wait_next`] and not yet reported by `begin`.
@@ -90,8 +99,12 @@ impl FrameRing {
         ctx.set_name(cb, &format!("frame slot {i}"));
         Ok(FrameSlot {
             pool,
+            cbs: vec![cb],
+            begun: 1,
             cb,
             fence,
+            flushed: false,
+            abandoned: false,
             in_flight: false,
             completed: None,
             frame: 0,
@@ -100,6 +113,11 @@ impl FrameRing {
 
     pub fn frames_in_flight(&self) -> usize {
         self.slots.len()
+    }
+
+    /// Command buffers allocated over all slots.
+    pub fn command_buffer_count(&self) -> usize {
+        self.slots.iter().map(|s| s.cbs.len()).sum()
     }
 
     /// The frame number the next [`FrameRing::begin`] hands out.
@@ -125,7 +143,7 @@ impl FrameRing {
             // SAFETY: signalled fence, no pending submission uses it.
             unsafe { ctx.device.reset_fences(&[s.fence]) }.vk("vkResetFences")?;
             s.in_flight = false;
-            s.completed = Some(s.frame);
+            s.completed = (!s.abandoned).then_some(s.frame);
         }
         Ok(slot)
     }
@@ -143,6 +161,10 @@ impl FrameRing {
                 .reset_command_pool(s.pool, vk::CommandPoolResetFlags::empty())
         }
         .vk("vkResetCommandPool")?;
+        s.cb = s.cbs.first().copied().unwrap_or(s.cb);
+        s.begun = 1;
+        s.flushed = false;
+        s.abandoned = false;
         let begin = vk::CommandBufferBeginInfo::default()
             .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
         // SAFETY: reset command buffer.
@@ -197,17 +219,27 @@ impl FrameRing {
                 .queue_submit(ctx.queue, &[submit], vk::Fence::null())
         }
         .vk("vkQueueSubmit")?;
-        let alloc = vk::CommandBufferAllocateInfo::default()
-            .command_pool(s.pool)
-            .level(vk::CommandBufferLevel::PRIMARY)
-            .command_buffer_count(1);
-        // SAFETY: live pool; buffers are freed with the pool reset at the slot's next use.
-        let cb = unsafe { ctx.device.allocate_command_buffers(&alloc) }
-            .vk("vkAllocateCommandBuffers")?;
-        let cb = cb.first().copied().ok_or_else(|| VkError::Invalid {
-            what: "frame ring".into(),
-            reason: "no command buffer allocated".into(),
-        })?;
+        s.flushed = true;
+        // The next command buffer of the slot: allocated once, recycled by every pool reset.
+        let cb = match s.cbs.get(s.begun) {
+            Some(&cb) => cb,
+            None => {
+                let alloc = vk::CommandBufferAllocateInfo::default()
+                    .command_pool(s.pool)
+                    .level(vk::CommandBufferLevel::PRIMARY)
+                    .command_buffer_count(1);
+                // SAFETY: live pool; its buffers are freed with it.
+                let cb = unsafe { ctx.device.allocate_command_buffers(&alloc) }
+                    .vk("vkAllocateCommandBuffers")?;
+                let cb = cb.first().copied().ok_or_else(|| VkError::Invalid {
+                    what: "frame ring".into(),
+                    reason: "no command buffer allocated".into(),
+                })?;
+                s.cbs.push(cb);
+                cb
+            }
+        };
+        s.begun += 1;
         let begin = vk::CommandBufferBeginInfo::default()
             .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
         // SAFETY: fresh command buffer.
@@ -215,6 +247,23 @@ impl FrameRing {
         // The slot's final submit must use the new buffer.
         s.cb = cb;
         token.cb = cb;
+        Ok(())
+    }
+
+    /// Gives up the frame being recorded (after an error): nothing more of it is submitted. If
+    /// part of it was flushed to the GPU, an empty submission with the slot's fence tracks that
+    /// work (its fence signals after everything submitted before it), so the slot waits for it
+    /// before its pool is reset or resources are destroyed; the frame is never reported complete.
+    pub fn abandon(&mut self, ctx: &Context, token: &FrameToken) -> Result<(), VkError> {
+        let Some(s) = self.slots.get_mut(token.slot) else {
+            return Ok(());
+        };
+        s.abandoned = true;
+        if s.flushed {
+            // SAFETY: unsignalled fence of this slot (waited and reset before `begin`).
+            unsafe { ctx.device.queue_submit(ctx.queue, &[], s.fence) }.vk("vkQueueSubmit")?;
+            s.in_flight = true;
+        }
         Ok(())
     }
 
@@ -233,7 +282,9 @@ impl FrameRing {
                 unsafe { ctx.device.reset_fences(&[s.fence]) }.vk("vkResetFences")?;
                 s.in_flight = false;
                 s.completed = None;
-                done.push(s.frame);
+                if !s.abandoned {
+                    done.push(s.frame);
+                }
             }
         }
         Ok(done)
