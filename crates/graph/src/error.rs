@@ -68,6 +68,16 @@ pub enum GraphError {
         second: String,
     },
 
+    #[error(
+        "pass '{pass}' attaches '{resource}', which has {mip_levels} mip levels; an attachment \
+             has one (render into a single-level image and copy, or build mips in a compute pass)"
+    )]
+    MipmappedAttachment {
+        pass: String,
+        resource: String,
+        mip_levels: u32,
+    },
+
     #[error("pass '{pass}': '{resource}' ({format}) cannot be used as {usage}")]
     FormatMismatch {
         pass: String,

@@ -163,6 +163,13 @@ fn check_raster(
         let Some(desc) = r.desc.image() else {
             continue;
         };
+        if desc.mip_levels > 1 {
+            return Err(GraphError::MipmappedAttachment {
+                pass: pass.name.clone(),
+                resource: r.name.clone(),
+                mip_levels: desc.mip_levels,
+            });
+        }
         let extent = desc.extent_px;
         match area {
             None => area = Some(extent),
@@ -722,6 +729,28 @@ mod tests {
                 source_image: "msaa".into(),
                 target: "second".into(),
                 reason: "the source is already resolved into another image",
+            }
+        );
+    }
+
+    /// A render pass writes the one mip level its framebuffer view shows, but layouts are
+    /// tracked per image: the other levels would be left in a layout the plan does not know.
+    #[test]
+    fn attachments_have_one_mip_level() {
+        let mut g = GraphBuilder::new();
+        let pyramid = g.create_image(
+            "pyramid",
+            ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM).with_mip_levels(3),
+        );
+        g.export(pyramid);
+        g.raster_pass("draw", PassClass::Opaque, ())
+            .color_clear(pyramid, ClearColor::BLACK);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::MipmappedAttachment {
+                pass: "draw".into(),
+                resource: "pyramid".into(),
+                mip_levels: 3
             }
         );
     }
