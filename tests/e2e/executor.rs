@@ -380,3 +380,76 @@ fn an_owned_buffer_written_first_waits_for_earlier_frames() {
     );
     exec.destroy(&g);
 }
+
+/// The caller's image must be what the plan declared: a different format (or a smaller image)
+/// is a typed error before any framebuffer is made from it.
+#[test]
+fn an_external_image_unlike_its_declaration_is_a_typed_error() {
+    use tilegraph_graph::{
+        ClearColor, Extent2d, Format, GraphBuilder, ImageDesc, Import, PassClass,
+    };
+    let g = gpu(Some("lavapipe")).unwrap();
+    let (image, handle) = target(&g, W, H).unwrap();
+    let mut graph: GraphBuilder<()> = GraphBuilder::new();
+    // The test target is RGBA8 UNORM; declared as BGRA8 sRGB here.
+    let out = graph.import_image(
+        "target",
+        ImageDesc::new(Extent2d::new(W, H), Format::B8G8R8A8_SRGB),
+        Import::SWAPCHAIN,
+    );
+    graph.export(out);
+    graph
+        .raster_pass("clear", PassClass::Opaque, ())
+        .color_clear(out, ClearColor::BLACK);
+    let plan = graph.compile(g.profile()).unwrap().plan;
+    let mut exec = Executor::new(&g).unwrap();
+    let err = exec
+        .execute(&g, &plan, &externals(out, &handle), &mut |_, _| Ok(()))
+        .expect_err("a format mismatch");
+    assert!(err.to_string().contains("target"), "{err}");
+    assert!(err.to_string().contains("B8G8R8A8_SRGB"), "{err}");
+    exec.destroy(&g);
+    destroy_target(&g, image, handle);
+}
+
+/// After the caller destroys and recreates its images (a new swapchain), the executor forgets
+/// the framebuffers made with the old views and builds new ones on the next frame.
+#[test]
+fn framebuffers_of_external_views_are_forgotten_on_request() {
+    let g = gpu(Some("lavapipe")).unwrap();
+    let kit = Kit::new(&g).unwrap();
+    let frame = classic_mobile_frame(&kit, W, H);
+    let target_id = frame.target;
+    let mut compiled = frame.graph.compile(g.profile()).unwrap();
+    let plan = compiled.plan.clone();
+    let mut exec = Executor::new(&g).unwrap();
+    let mut run_frame = |exec: &mut Executor, handle: &tilegraph_vk::executor::ImageHandle| {
+        exec.execute(
+            &g,
+            &plan,
+            &externals(target_id, handle),
+            &mut |id, pc| match compiled.payload_mut(id) {
+                Some(p) => p(pc),
+                None => Ok(()),
+            },
+        )
+        .unwrap();
+    };
+    let (image, handle) = target(&g, W, H).unwrap();
+    run_frame(&mut exec, &handle);
+    let cached = exec.framebuffer_count();
+    assert!(cached > 0);
+    exec.forget_external_views(&g).unwrap();
+    assert!(
+        exec.framebuffer_count() < cached,
+        "the target's framebuffer is gone"
+    );
+    destroy_target(&g, image, handle);
+    let (image, handle) = target(&g, W, H).unwrap();
+    run_frame(&mut exec, &handle);
+    assert_eq!(exec.framebuffer_count(), cached);
+    exec.finish(&g).unwrap();
+    exec.destroy(&g);
+    kit.borrow_mut().destroy(&g);
+    destroy_target(&g, image, handle);
+}

@@ -114,6 +114,29 @@ impl PassContext<'_> {
     }
 }
 
+/// An image handed in by the caller must be what the render pass was built for: same format,
+/// at least the render area (a framebuffer larger than its images is invalid usage).
+fn check_attachment_image(
+    plan: &Plan,
+    pass: &str,
+    a: &Attachment,
+    h: &ImageHandle,
+    area: vk::Extent2D,
+) -> Result<(), VkError> {
+    let format = vk::Format::from_raw(a.format.vk_raw());
+    if h.format == format && h.extent.width >= area.width && h.extent.height >= area.height {
+        return Ok(());
+    }
+    let name = plan.resource(a.resource).map_or("?", |r| r.name.as_str());
+    Err(VkError::Invalid {
+        what: format!("render pass {pass:?}, attachment {name:?}"),
+        reason: format!(
+            "the image is {:?} {}x{}; the plan needs {:?} of at least {}x{}",
+            h.format, h.extent.width, h.extent.height, format, area.width, area.height
+        ),
+    })
+}
+
 fn missing(pass: &str, id: ResourceId) -> VkError {
     VkError::Invalid {
         what: format!("pass {pass:?}"),
@@ -1077,18 +1100,21 @@ impl Executor {
                 r
             }
         };
-        let views: Vec<vk::ImageView> = rp
-            .attachments
-            .iter()
-            .map(|a| match lookup(a.resource) {
-                Some(External::Image(h)) => Ok(h.view),
-                _ => Err(missing(first_name, a.resource)),
-            })
-            .collect::<Result<_, _>>()?;
         let extent = vk::Extent2D {
             width: rp.render_area_px.width_px,
             height: rp.render_area_px.height_px,
         };
+        let views: Vec<vk::ImageView> = rp
+            .attachments
+            .iter()
+            .map(|a| match lookup(a.resource) {
+                Some(External::Image(h)) => {
+                    check_attachment_image(plan, first_name, a, &h, extent)?;
+                    Ok(h.view)
+                }
+                _ => Err(missing(first_name, a.resource)),
+            })
+            .collect::<Result<_, _>>()?;
         let key = (step_index, views.clone());
         let fb = match self.render_passes.framebuffers.get(&key) {
             Some(f) => *f,
@@ -1172,6 +1198,33 @@ impl Executor {
     /// that the last frame wrote, or before reporting medians).
     pub fn finish(&mut self, ctx: &Context) -> Result<(), VkError> {
         self.collect_all(ctx)
+    }
+
+    /// Forgets every framebuffer made with an image view the caller handed in. Call it after
+    /// destroying external images or views (a recreated swapchain): the driver may give a new
+    /// view the handle of a destroyed one, and a framebuffer cached under that handle would
+    /// still reference the destroyed view. Waits for the frames in flight first.
+    pub fn forget_external_views(&mut self, ctx: &Context) -> Result<(), VkError> {
+        self.collect_all(ctx)?;
+        let owned: Vec<vk::ImageView> = self
+            .resources
+            .as_ref()
+            .map(|r| r.images.values().map(|i| i.handle.view).collect())
+            .unwrap_or_default();
+        self.render_passes.framebuffers.retain(|(_, views), fb| {
+            let keep = views.iter().all(|v| owned.contains(v));
+            if !keep {
+                // SAFETY: no frame in flight (collected above).
+                unsafe { ctx.device.destroy_framebuffer(*fb, None) };
+            }
+            keep
+        });
+        Ok(())
+    }
+
+    /// Framebuffers cached for the current plan.
+    pub fn framebuffer_count(&self) -> usize {
+        self.render_passes.framebuffers.len()
     }
 
     /// Waits for the GPU and frees everything.
