@@ -453,3 +453,19 @@ fn framebuffers_of_external_views_are_forgotten_on_request() {
     kit.borrow_mut().destroy(&g);
     destroy_target(&g, image, handle);
 }
+
+/// Every barrier, timestamp and subpass dependency the executor records is a synchronization2
+/// structure: on a context created without the feature it refuses to start (typed error).
+#[test]
+fn the_executor_needs_synchronization2() {
+    let mut options = tilegraph_e2e::options(Some("lavapipe"), Default::default());
+    options.features = tilegraph_vk::FeatureRequest::default();
+    let g = tilegraph_e2e::Gpu {
+        ctx: tilegraph_vk::Context::new(options).unwrap(),
+    };
+    assert!(!g.has_feature(tilegraph_vk::Feature::Synchronization2));
+    let err = Executor::new(&g)
+        .err()
+        .expect("no executor without synchronization2");
+    assert!(err.to_string().contains("Synchronization2"), "{err}");
+}

@@ -17,7 +17,7 @@ use tilegraph_profile::MemoryUse;
 use crate::error::{VkError, VkResultExt};
 use crate::frames::{FrameRing, FrameToken, DEFAULT_FRAMES_IN_FLIGHT};
 use crate::queries::{FrameTimings, PassMedian, QueryRing, TimingHistory};
-use crate::Context;
+use crate::{Context, Feature};
 
 /// A physical image as passes see it.
 #[derive(Debug, Clone)]
@@ -747,6 +747,15 @@ impl Executor {
         frames_in_flight: usize,
         max_passes: u32,
     ) -> Result<Self, VkError> {
+        // Barriers, timestamps and the subpass dependencies of every render pass are
+        // synchronization2 structures: without the feature they would be invalid usage.
+        if !ctx.has_feature(Feature::Synchronization2) {
+            return Err(VkError::MissingRequired {
+                device: ctx.physical.identity.device_name.clone(),
+                what: "feature (not enabled; see FeatureRequest::executor)",
+                missing: Feature::Synchronization2.to_string(),
+            });
+        }
         let mut frames = FrameRing::new(ctx, frames_in_flight)?;
         let queries = match QueryRing::new(ctx, frames.frames_in_flight(), max_passes) {
             Ok(q) => q,
