@@ -469,3 +469,28 @@ fn the_executor_needs_synchronization2() {
         .expect("no executor without synchronization2");
     assert!(err.to_string().contains("Synchronization2"), "{err}");
 }
+
+/// An image the device cannot create (here storage on an sRGB format) is a typed error naming
+/// it before anything is created: creating it anyway would be invalid usage.
+#[test]
+fn an_image_the_device_cannot_create_is_a_typed_error() {
+    use tilegraph_graph::{Coverage, Extent2d, Format, GraphBuilder, ImageDesc, PassClass};
+    let g = gpu(Some("lavapipe")).unwrap();
+    let mut graph: GraphBuilder<()> = GraphBuilder::new();
+    let lut = graph.create_image(
+        "lut",
+        ImageDesc::new(Extent2d::new(16, 16), Format::R8G8B8A8_SRGB),
+    );
+    graph.export(lut);
+    graph
+        .compute_pass("bake", PassClass::Compute, ())
+        .storage_write(lut)
+        .coverage(Coverage::Full);
+    let plan = graph.compile(g.profile()).unwrap().plan;
+    let mut exec = Executor::new(&g).unwrap();
+    let err = exec
+        .execute(&g, &plan, &Default::default(), &mut |_, _| Ok(()))
+        .expect_err("no sRGB storage images");
+    assert!(err.to_string().contains("\"lut\""), "{err}");
+    exec.destroy(&g);
+}

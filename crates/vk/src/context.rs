@@ -325,6 +325,55 @@ impl Context {
         &self.instance
     }
 
+    /// Why the device cannot create a 2D optimal-tiling image of this format, usage, sample
+    /// count, mip count and extent (`vkGetPhysicalDeviceImageFormatProperties`), or `None` when
+    /// it can. Creating an unsupported combination would be invalid usage, not an error code.
+    pub fn image_support_problem(
+        &self,
+        format: vk::Format,
+        usage: vk::ImageUsageFlags,
+        samples: vk::SampleCountFlags,
+        mip_levels: u32,
+        extent: vk::Extent2D,
+    ) -> Option<String> {
+        // SAFETY: valid physical device of this instance.
+        let props = unsafe {
+            self.instance
+                .raw
+                .get_physical_device_image_format_properties(
+                    self.physical.raw,
+                    format,
+                    vk::ImageType::TYPE_2D,
+                    vk::ImageTiling::OPTIMAL,
+                    usage,
+                    vk::ImageCreateFlags::empty(),
+                )
+        };
+        let props = match props {
+            Ok(p) => p,
+            Err(vk::Result::ERROR_FORMAT_NOT_SUPPORTED) => {
+                return Some(format!("{format:?} with usage {usage:?} is not supported"))
+            }
+            Err(r) => return Some(format!("vkGetPhysicalDeviceImageFormatProperties: {r:?}")),
+        };
+        if !props.sample_counts.contains(samples) {
+            return Some(format!(
+                "{format:?} with usage {usage:?} supports samples {:?}, not {samples:?}",
+                props.sample_counts
+            ));
+        }
+        if mip_levels > props.max_mip_levels
+            || extent.width > props.max_extent.width
+            || extent.height > props.max_extent.height
+        {
+            return Some(format!(
+                "{format:?} with usage {usage:?} allows {} mips and {}x{} px",
+                props.max_mip_levels, props.max_extent.width, props.max_extent.height
+            ));
+        }
+        None
+    }
+
     pub fn has_feature(&self, f: Feature) -> bool {
         self.enabled.contains(&f)
     }

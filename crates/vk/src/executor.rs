@@ -1392,6 +1392,35 @@ fn check_device_support(ctx: &Context, plan: &Plan) -> Result<(), VkError> {
             ),
         });
     }
+    for r in &plan.resources {
+        let owned = matches!(
+            r.residency,
+            Residency::Exported | Residency::FrameLocal | Residency::Transient
+        );
+        let (true, ResourceDesc::Image(desc), Usage::Image(usage)) = (owned, &r.desc, r.usage)
+        else {
+            continue;
+        };
+        let problem = ctx.image_support_problem(
+            vk::Format::from_raw(desc.format.vk_raw()),
+            vk::ImageUsageFlags::from_raw(usage.bits()),
+            vk::SampleCountFlags::from_raw(desc.samples.vk_bits()),
+            desc.mip_levels.max(1),
+            vk::Extent2D {
+                width: desc.extent_px.width_px,
+                height: desc.extent_px.height_px,
+            },
+        );
+        if let Some(reason) = problem {
+            return Err(VkError::Invalid {
+                what: format!(
+                    "image {:?} on {}",
+                    r.name, ctx.physical.identity.device_name
+                ),
+                reason,
+            });
+        }
+    }
     let predicate = plan.resources.iter().any(|r| {
         matches!(r.usage, Usage::Buffer(u) if u.contains(tilegraph_graph::BufferUsage::CONDITIONAL_RENDERING))
     });
