@@ -494,3 +494,44 @@ fn an_image_the_device_cannot_create_is_a_typed_error() {
     assert!(err.to_string().contains("\"lut\""), "{err}");
     exec.destroy(&g);
 }
+
+/// A depth-stencil image that a shader samples gets a depth-only view for it (a sampled view
+/// must show one aspect); attachments keep the view with both.
+#[test]
+fn a_sampled_depth_stencil_image_has_a_depth_only_view() {
+    use tilegraph_graph::{
+        ClearDepthStencil, Coverage, Extent2d, Format, GraphBuilder, ImageDesc, PassClass,
+    };
+    let g = gpu(Some("lavapipe")).unwrap();
+    let mut graph: GraphBuilder<()> = GraphBuilder::new();
+    let depth = graph.create_image(
+        "depth",
+        ImageDesc::new(Extent2d::new(W, H), Format::D24_UNORM_S8_UINT),
+    );
+    let ao = graph.create_buffer("ao", 1024);
+    graph.export(ao);
+    graph
+        .raster_pass("prepass", PassClass::DepthPrepass, ())
+        .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+    graph
+        .compute_pass("ao", PassClass::Compute, ())
+        .sampled(depth)
+        .storage_write(ao)
+        .coverage(Coverage::Full);
+    let plan = graph.compile(g.profile()).unwrap().plan;
+    let mut exec = Executor::new(&g).unwrap();
+    exec.execute(&g, &plan, &Default::default(), &mut |_, _| Ok(()))
+        .unwrap();
+    exec.finish(&g).unwrap();
+    let h = exec
+        .resources()
+        .and_then(|r| r.image(depth.into()))
+        .unwrap()
+        .clone();
+    assert_ne!(h.full_view, h.view);
+    assert_eq!(
+        h.aspect,
+        vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
+    );
+    exec.destroy(&g);
+}

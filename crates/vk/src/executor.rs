@@ -23,9 +23,11 @@ use crate::{Context, Feature};
 #[derive(Debug, Clone)]
 pub struct ImageHandle {
     pub raw: vk::Image,
-    /// View of mip 0 (attachments, and sampling of single-mip images).
+    /// View of mip 0 with every aspect (attachments; sampling of single-mip images of one
+    /// aspect).
     pub view: vk::ImageView,
-    /// View of every mip (sampling a pyramid); equals `view` for single-mip images.
+    /// What a shader samples: every mip, and only the depth aspect of a depth-stencil format.
+    /// Equals `view` for single-mip images of one aspect.
     pub full_view: vk::ImageView,
     /// One view per mip level (storage writes into a pyramid); empty for single-mip images.
     pub mip_views: Vec<vk::ImageView>,
@@ -275,7 +277,7 @@ fn create_views(
     storage: bool,
     name: &str,
 ) -> Result<(vk::ImageView, vk::ImageView, Vec<vk::ImageView>), VkError> {
-    let view_of = |base: u32, count: u32| {
+    let view_of = |base: u32, count: u32, aspect: vk::ImageAspectFlags| {
         let info = vk::ImageViewCreateInfo::default()
             .image(raw)
             .view_type(vk::ImageViewType::TYPE_2D)
@@ -290,16 +292,24 @@ fn create_views(
         // SAFETY: live image, range within its mips.
         unsafe { ctx.device.create_image_view(&info, None) }.vk("vkCreateImageView")
     };
-    let view = view_of(0, 1)?;
+    // A sampled view shows one aspect (VUID-VkDescriptorImageInfo-imageView-01976): depth for
+    // depth-stencil formats.
+    let depth_stencil = vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL;
+    let sampled_aspect = if aspect == depth_stencil {
+        vk::ImageAspectFlags::DEPTH
+    } else {
+        aspect
+    };
+    let view = view_of(0, 1, aspect)?;
     ctx.set_name(view, name);
-    if mips <= 1 {
+    if mips <= 1 && sampled_aspect == aspect {
         return Ok((view, view, Vec::new()));
     }
-    let full = view_of(0, mips)?;
+    let full = view_of(0, mips, sampled_aspect)?;
     let mut per_mip = Vec::new();
-    if storage {
+    if storage && mips > 1 {
         for m in 0..mips {
-            per_mip.push(view_of(m, 1)?);
+            per_mip.push(view_of(m, 1, aspect)?);
         }
     }
     Ok((view, full, per_mip))
