@@ -72,9 +72,17 @@ fn depth_of_nearest(projection: &Projection, nearest_distance_m: f64) -> f32 {
 }
 
 fn outward_rect(min: (f64, f64), max: (f64, f64)) -> NdcRect {
+    // Far off screen (finite but past f32's range at huge coordinates) the exact value does not
+    // matter, only the side: saturate instead of rounding to an infinity that reads as bad
+    // input. NaN stays NaN and is rejected downstream.
+    let limit = f64::from(f32::MAX);
+    let c = |v: f64| v.clamp(-limit, limit);
     NdcRect {
-        min: Vec2::new(f64_to_f32_round_down(min.0), f64_to_f32_round_down(min.1)),
-        max: Vec2::new(f64_to_f32_round_up(max.0), f64_to_f32_round_up(max.1)),
+        min: Vec2::new(
+            f64_to_f32_round_down(c(min.0)),
+            f64_to_f32_round_down(c(min.1)),
+        ),
+        max: Vec2::new(f64_to_f32_round_up(c(max.0)), f64_to_f32_round_up(c(max.1))),
     }
 }
 
@@ -236,6 +244,18 @@ mod tests {
 
     fn reverse_inf() -> Projection {
         Projection::tilegraph_default(1.0, 16.0 / 9.0, 0.1).unwrap()
+    }
+
+    /// A box 10^38 m wide in front of the camera: its NDC extent passes f32's range. The rect
+    /// saturates (finite, covering the screen) instead of turning into infinities.
+    #[test]
+    fn huge_finite_bounds_saturate_to_a_finite_rect() {
+        let b = Aabb::new(Vec3::new(-1e38, -1.0, -1.0), Vec3::new(1e38, 1.0, -0.5)).unwrap();
+        let square = Projection::tilegraph_default(1.0, 1.0, 0.1).unwrap();
+        let p = projected(project_aabb(&b, &Mat4::IDENTITY, &square).unwrap());
+        assert_eq!(p.rect_ndc.min.x, -f32::MAX);
+        assert_eq!(p.rect_ndc.max.x, f32::MAX);
+        assert!(p.rect_ndc.min.y.is_finite() && p.rect_ndc.max.y.is_finite());
     }
 
     fn projected(p: ScreenProjection) -> ProjectedBounds {

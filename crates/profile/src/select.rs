@@ -121,6 +121,9 @@ impl ProfileSet {
             .filter(|p| p.extension().is_some_and(|x| x == "toml"))
             .collect();
         files.sort();
+        // A file here replaces an embedded profile of its name, but two files naming one
+        // profile are a mistake (which one wins would depend on file names).
+        let mut loaded: Vec<(String, String)> = Vec::new();
         for path in files {
             let text = std::fs::read_to_string(&path).map_err(|source| ProfileError::Io {
                 path: path.clone(),
@@ -129,6 +132,14 @@ impl ProfileSet {
             let shown = path.display().to_string();
             let profile = parse_profile(&text, &shown)?;
             log::info!("profile {} loaded from {shown}", profile.name);
+            if let Some((_, first)) = loaded.iter().find(|(name, _)| *name == profile.name) {
+                return Err(ProfileError::DuplicateName {
+                    name: profile.name,
+                    first: first.clone(),
+                    second: shown,
+                });
+            }
+            loaded.push((profile.name.clone(), shown.clone()));
             self.insert(shown, profile, true)?;
         }
         Ok(self)
@@ -356,11 +367,13 @@ fn validate(p: &Profile, file: &str) -> Result<(), ProfileError> {
             "must be non-empty, ASCII letters, digits and '-'",
         ));
     }
-    if p.gpu.tile_width_px == 0 || p.gpu.tile_height_px == 0 {
-        return Err(invalid(
-            "gpu.tile_width_px",
-            "tile size must be at least 1x1",
-        ));
+    for (key, px) in [
+        ("gpu.tile_width_px", p.gpu.tile_width_px),
+        ("gpu.tile_height_px", p.gpu.tile_height_px),
+    ] {
+        if px == 0 {
+            return Err(invalid(key, "tile size must be at least 1x1"));
+        }
     }
     if p.render_pass.max_color_attachments == 0 {
         return Err(invalid(
@@ -377,6 +390,12 @@ fn validate(p: &Profile, file: &str) -> Result<(), ProfileError> {
         }
     }
     let m = &p.matching;
+    if m.vendor_default && m.vendor_ids.is_empty() {
+        return Err(invalid(
+            "match.vendor_default",
+            "is the default for the vendors in match.vendor_ids, which is empty",
+        ));
+    }
     if m.device_names.is_empty() && !m.vendor_default && m.device_types.is_empty() {
         return Err(invalid(
             "match",

@@ -324,6 +324,40 @@ fn malformed_profiles_name_file_line_and_key() {
     assert!(
         matches!(parse_err(&bad), ProfileError::Invalid { key, .. } if key == "gpu.tile_width_px")
     );
+    let bad = base.replace("tile_height_px = 16", "tile_height_px = 0");
+    assert!(
+        matches!(parse_err(&bad), ProfileError::Invalid { key, .. } if key == "gpu.tile_height_px")
+    );
+    // A vendor default with no vendor could never be picked.
+    let bad = base.replace("vendor_ids = [0x10005]", "vendor_ids = []");
+    assert!(
+        matches!(parse_err(&bad), ProfileError::Invalid { key, .. } if key == "match.vendor_default")
+    );
+}
+
+#[test]
+fn two_files_of_one_profile_in_the_override_directory_are_an_error() {
+    let dir = std::env::temp_dir().join(format!("tilegraph-profile-twice-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let base = include_str!("../../../config/profiles/lavapipe.toml");
+    std::fs::write(dir.join("a.toml"), base).unwrap();
+    std::fs::write(dir.join("b.toml"), base).unwrap();
+    let err = ProfileSet::embedded().unwrap().with_dir(&dir).unwrap_err();
+    std::fs::remove_dir_all(&dir).ok();
+    match err {
+        ProfileError::DuplicateName {
+            name,
+            first,
+            second,
+        } => {
+            assert_eq!(name, "lavapipe");
+            assert!(
+                first.ends_with("a.toml") && second.ends_with("b.toml"),
+                "{first} {second}"
+            );
+        }
+        other => panic!("expected DuplicateName, got {other:?}"),
+    }
 }
 
 #[test]

@@ -502,3 +502,72 @@ fn limits_stop_hostile_counts_before_allocating() {
         Some("/nodes/3"),
     );
 }
+
+/// Strips and fans triple their index count, and flat normals need a vertex per corner: the
+/// limits apply to what a primitive expands to, checked before expanding. A 2^28-index strip of
+/// zero positions in a tiny file would otherwise build 3 GiB of indices and 24 GiB of vertices.
+#[test]
+fn limits_apply_to_expanded_strips_and_flat_normal_vertices() {
+    let mut d = quad_doc();
+    d["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"componentType": 5125, "count": 268_435_456u64, "type": "SCALAR"}));
+    d["meshes"][0]["primitives"] =
+        json!([{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 3, "mode": 5}]);
+    expect_err(
+        load_doc(&d, &quad_bin()),
+        "limit-exceeded",
+        Some("/meshes/0/primitives/0"),
+    );
+    // The quad as a triangle list without normals: 6 corners, so 6 flat-shaded vertices.
+    let mut d = quad_doc();
+    d["meshes"][0]["primitives"] = json!([{"attributes": {"POSITION": 0}, "indices": 2}]);
+    let load = |max_vertices| {
+        let mut res = MemoryResources::default();
+        res.files.insert("quad.bin".into(), quad_bin());
+        let limits = Limits {
+            max_vertices,
+            ..Limits::default()
+        };
+        load_gltf_bytes(d.to_string().as_bytes(), "quad.gltf", &res, &limits)
+    };
+    assert_eq!(load(6).unwrap().vertices().len(), 6);
+    expect_err(load(5), "limit-exceeded", Some("/meshes/0/primitives/0"));
+}
+
+/// A buffer URI is a relative path inside the file's directory: an absolute path or `..` is an
+/// error naming the buffer (no reading /dev/zero or a key file), and a real file is read only up
+/// to its byteLength.
+#[test]
+fn buffer_uris_stay_inside_the_directory_and_read_only_what_they_declare() {
+    let dir = std::env::temp_dir().join(format!("tilegraph-uri-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    let mut bin = quad_bin();
+    bin.extend(vec![0u8; 4096]);
+    std::fs::write(dir.join("sub").join("quad.bin"), &bin).unwrap();
+    let resolver = tilegraph_scene::FileResolver {
+        base: dir.join("sub"),
+    };
+    let load = |uri: &str| {
+        let mut d = quad_doc();
+        d["buffers"][0]["uri"] = json!(uri);
+        load_gltf_bytes(
+            d.to_string().as_bytes(),
+            "quad.gltf",
+            &resolver,
+            &Limits::default(),
+        )
+    };
+    assert_eq!(load("quad.bin").unwrap().triangles_drawn(), 2);
+    for uri in [
+        "/dev/zero",
+        "%2Fdev%2Fzero",
+        "../sub/quad.bin",
+        "sub/../../x.bin",
+    ] {
+        let e = expect_err(load(uri), "buffer", Some("/buffers/0/uri"));
+        assert!(e.to_string().contains("relative path"), "{uri}: {e}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -127,7 +127,18 @@ pub(crate) fn resolve_buffers<'a>(
                 }
                 let path =
                     percent_decode(uri).map_err(|r| ctx.buffer(format!("{pointer}/uri"), r))?;
-                resolver.read(&path).map_err(|e| {
+                // A relative reference stays in the glTF's directory tree: no absolute path,
+                // no `..` (a file must not make the loader read /dev/zero or ~/.ssh).
+                let escapes = path.starts_with(['/', '\\'])
+                    || std::path::Path::new(&path).is_absolute()
+                    || path.split(['/', '\\']).any(|part| part == "..");
+                if escapes {
+                    return Err(ctx.buffer(
+                        format!("{pointer}/uri"),
+                        format!("`{path}` is not a relative path inside the file's directory"),
+                    ));
+                }
+                resolver.read_prefix(&path, declared).map_err(|e| {
                     ctx.buffer(
                         format!("{pointer}/uri"),
                         format!("cannot read `{path}`: {e}"),

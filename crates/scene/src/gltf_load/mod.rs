@@ -39,6 +39,13 @@ use doc::Doc;
 pub trait ResourceResolver {
     /// The bytes of `path`, a relative URI already percent-decoded.
     fn read(&self, path: &str) -> std::io::Result<Cow<'_, [u8]>>;
+
+    /// At most the first `max_bytes` bytes of `path` (a buffer needs only its `byteLength`):
+    /// a resolver over real files must not read an endless or huge file whole.
+    fn read_prefix(&self, path: &str, max_bytes: u64) -> std::io::Result<Cow<'_, [u8]>> {
+        let _ = max_bytes;
+        self.read(path)
+    }
 }
 
 /// Reads external files relative to a directory (the .gltf's own).
@@ -49,7 +56,24 @@ pub struct FileResolver {
 
 impl ResourceResolver for FileResolver {
     fn read(&self, path: &str) -> std::io::Result<Cow<'_, [u8]>> {
-        std::fs::read(self.base.join(path)).map(Cow::Owned)
+        self.read_prefix(path, u64::MAX)
+    }
+
+    /// Reads only regular files (not a device or a pipe that never ends), and at most
+    /// `max_bytes` of them.
+    fn read_prefix(&self, path: &str, max_bytes: u64) -> std::io::Result<Cow<'_, [u8]>> {
+        use std::io::Read as _;
+        let file = std::fs::File::open(self.base.join(path))?;
+        let meta = file.metadata()?;
+        if !meta.is_file() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "not a regular file",
+            ));
+        }
+        let mut bytes = Vec::with_capacity(meta.len().min(max_bytes).min(1 << 30) as usize);
+        file.take(max_bytes).read_to_end(&mut bytes)?;
+        Ok(Cow::Owned(bytes))
     }
 }
 
@@ -794,11 +818,13 @@ impl Flatten<'_, '_, '_> {
         let raw = match prim.indices {
             Some(ii) => {
                 let count = self.reader.accessor(ii).map_or(0, |a| a.count);
+                // Strips and fans triple their indices: the limit applies to what they expand
+                // to, checked before anything is read.
                 self.check_limit(
                     &pp,
                     "indices",
                     self.builder.index_count(),
-                    count,
+                    count.max(triangle_index_count(count, prim.mode)),
                     self.index_limit(),
                 )?;
                 let raw = self.reader.read_indices(ii)?;
@@ -820,7 +846,7 @@ impl Flatten<'_, '_, '_> {
                     &pp,
                     "indices",
                     self.builder.index_count(),
-                    n,
+                    n.max(triangle_index_count(n, prim.mode)),
                     self.index_limit(),
                 )?;
                 (0..n as u32).collect()
@@ -857,7 +883,16 @@ impl Flatten<'_, '_, '_> {
                 ))
             }
             None => {
-                // glTF: without normals, flat normals. Flat shading needs a vertex per corner.
+                // glTF: without normals, flat normals. Flat shading needs a vertex per corner:
+                // check that many against the vertex limit before building them.
+                let limit = self.limits.max_vertices.min(i32::MAX as usize);
+                self.check_limit(
+                    &pp,
+                    "vertices",
+                    self.builder.vertex_count(),
+                    tris.len(),
+                    limit,
+                )?;
                 let shared = self.read_vertices(pos, None, prim.uv, &pp)?;
                 let mut vertices = Vec::with_capacity(tris.len());
                 for t in tris.chunks_exact(3) {
@@ -956,6 +991,14 @@ impl Flatten<'_, '_, '_> {
 }
 
 /// Triangle list from indices in `mode` (triangles, strip or fan). Caller skips other modes.
+/// How many indices [`triangles`] makes of `len` indices.
+fn triangle_index_count(len: usize, mode: Mode) -> usize {
+    match mode {
+        Mode::TriangleStrip | Mode::TriangleFan => len.saturating_sub(2).saturating_mul(3),
+        _ => len / 3 * 3,
+    }
+}
+
 fn triangles(raw: &[u32], mode: Mode) -> Vec<u32> {
     match mode {
         Mode::TriangleStrip => {
