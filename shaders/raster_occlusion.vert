@@ -40,7 +40,9 @@ void main() {
     bool reverse = near_depth == 1.0;
     bool crosses = false;
     for (uint i = 0u; i < 8u; ++i) {
-        vec4 clip = frame.view_proj * vec4(inst.center + corner_sign(i) * half_size, 1.0);
+        // The corners drawn below (grown toward the eye), not the box's own.
+        vec3 corner = proxy_corner(inst.center, half_size, corner_sign(i));
+        vec4 clip = frame.view_proj * vec4(corner, 1.0);
         crosses = crosses || clip.w <= 0.0 || (reverse ? clip.z > clip.w : clip.z < 0.0);
     }
     if (crosses) {

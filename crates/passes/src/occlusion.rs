@@ -105,14 +105,25 @@ fn morton3(x: u32, y: u32, z: u32) -> u64 {
     spread(x) | (spread(y) << 1) | (spread(z) << 2)
 }
 
-/// Whether a camera-relative box reaches in front of the near plane (or behind the eye): its
-/// rasterization is clipped there, so a query could miss a visible object. Such boxes are not
-/// queried; their instances are drawn.
+/// A corner of the box the proxy shaders rasterize for a camera-relative box: grown by a little
+/// more than a pixel and pulled toward the eye (`proxy_corner` in `shaders/common/scene.glsl`,
+/// which this mirrors).
+pub fn proxy_corner(center: Vec3, half: Vec3, corner_sign: Vec3, viewport_height_px: f32) -> Vec3 {
+    let pixel = center.length() * 0.5 / viewport_height_px.max(1.0);
+    let grown = half * (1.0 + 1.0 / 1024.0) + Vec3::splat(1e-4 + pixel);
+    (center + grown * corner_sign) * (1.0 - 1.0 / 4096.0)
+}
+
+/// Whether the proxy box of a camera-relative box reaches in front of the near plane (or
+/// behind the eye): its rasterization is clipped there, so a query could miss a visible object.
+/// Such boxes are not queried; their instances are drawn. The test is on the corners the proxy
+/// shader draws (grown, see [`proxy_corner`]), not on the box itself.
 pub fn crosses_near_plane(
     view_proj: Mat4,
     depth: DepthConvention,
     center: Vec3,
     half: Vec3,
+    viewport_height_px: f32,
 ) -> bool {
     (0..8).any(|c| {
         let s = Vec3::new(
@@ -120,7 +131,8 @@ pub fn crosses_near_plane(
             if c & 2 == 0 { -1.0 } else { 1.0 },
             if c & 4 == 0 { -1.0 } else { 1.0 },
         );
-        let p = view_proj * (center + half * s).extend(1.0);
+        let corner = proxy_corner(center, half, s, viewport_height_px);
+        let p = view_proj * corner.extend(1.0);
         p.w <= 0.0
             || match depth {
                 DepthConvention::Reverse => p.z > p.w,
@@ -248,8 +260,9 @@ impl OqState {
     }
 
     /// Reads every complete frame's results without waiting, oldest first (call after the
-    /// executor acquired `slot`: that slot's frame has completed). A read pool is reset on the
-    /// host, ready for reuse.
+    /// executor acquired `slot`: that slot's frame has completed). Only that slot's pool is
+    /// reset on the host: another slot's queries may all be available while its frame is still
+    /// running (a copy of its results, say), and resetting under it is invalid.
     pub fn collect(&mut self, ctx: &Context, slot: usize) -> Result<(), VkError> {
         let count = self.query_count();
         let mut order: Vec<(u64, usize)> = self
@@ -293,8 +306,12 @@ impl OqState {
             {
                 *passed = !issued || *avail == 0 || *value != 0;
             }
-            // SAFETY: the frame that used the pool has completed (its results are available,
-            // or its slot's fence signalled); hostQueryReset is enabled.
+            if s != slot {
+                // Newer results, read early; the pool is recycled when its slot comes round.
+                continue;
+            }
+            // SAFETY: the slot's fence signalled: nothing on the GPU uses the pool; hostQueryReset
+            // is enabled.
             unsafe { ctx.device.reset_query_pool(pool, 0, count) };
             if let Some(p) = self.pending.get_mut(s) {
                 *p = None;
@@ -315,7 +332,13 @@ impl OqState {
     /// This frame's boxes in slot `slot`, camera-relative to `m.eye`; `drawable` (per
     /// instance, the CPU frustum test) leaves out groups with no member in the frustum: not
     /// queried, and not drawn (they are not in the CPU lists either).
-    pub fn prepare(&mut self, slot: usize, m: &FrameMatrices, drawable: Option<&[bool]>) {
+    pub fn prepare(
+        &mut self,
+        slot: usize,
+        m: &FrameMatrices,
+        viewport_height_px: f32,
+        drawable: Option<&[bool]>,
+    ) {
         self.frame_boxes.clear();
         let mut issued = vec![false; self.groups.len()];
         let in_view = |i: u32| drawable.is_none_or(|d| d.get(i as usize).copied().unwrap_or(true));
@@ -332,7 +355,7 @@ impl OqState {
             let center = ((g.min + g.max) * 0.5 - m.eye).as_vec3();
             // Rounding to f32 may shrink the box by an ulp: pad it slightly.
             let half = ((g.max - g.min) * 0.5).as_vec3() * (1.0 + 1e-5) + Vec3::splat(1e-5);
-            if crosses_near_plane(m.view_projection, m.depth, center, half) {
+            if crosses_near_plane(m.view_projection, m.depth, center, half, viewport_height_px) {
                 continue;
             }
             if let Some(i) = issued.get_mut(q) {
@@ -1010,29 +1033,43 @@ mod tests {
     fn boxes_reaching_in_front_of_the_near_plane_are_not_queried() {
         let proj = Mat4::perspective_infinite_reverse_rh(1.0, 16.0 / 9.0, 0.1);
         let reverse = DepthConvention::Reverse;
+        let h = 90.0;
         // In front of the camera (-z), well past the near plane.
         assert!(!crosses_near_plane(
             proj,
             reverse,
             Vec3::new(0.0, 0.0, -10.0),
-            Vec3::ONE
+            Vec3::ONE,
+            h
         ));
         // The camera inside the box.
-        assert!(crosses_near_plane(proj, reverse, Vec3::ZERO, Vec3::ONE));
+        assert!(crosses_near_plane(proj, reverse, Vec3::ZERO, Vec3::ONE, h));
         // Straddling the near plane.
         assert!(crosses_near_plane(
             proj,
             reverse,
             Vec3::new(0.0, 0.0, -0.5),
-            Vec3::splat(0.45)
+            Vec3::splat(0.45),
+            h
         ));
         // Entirely behind the camera.
         assert!(crosses_near_plane(
             proj,
             reverse,
             Vec3::new(0.0, 0.0, 10.0),
-            Vec3::ONE
+            Vec3::ONE,
+            h
         ));
+        // A 20 m wall whose nearest face is 2 cm past the near plane, 6 m off-axis: the box
+        // itself is clear of the plane, the proxy the shader draws (grown by about a pixel,
+        // 3 cm here) is not. Querying it would clip its front face and hide a visible wall.
+        let (center, half) = (Vec3::new(6.0, 0.0, -0.17), Vec3::new(10.0, 10.0, 0.05));
+        let p = proj * (center + Vec3::new(0.0, 0.0, half.z)).extend(1.0);
+        assert!(
+            p.z < p.w,
+            "the box's own nearest face is past the near plane"
+        );
+        assert!(crosses_near_plane(proj, reverse, center, half, h));
     }
 
     #[test]

@@ -678,6 +678,8 @@ pub struct SceneRenderer {
     blended: Vec<bool>,
     /// Occlusion queries: the opaque and alpha-tested instances the last frame drew.
     last_drawn: Option<Vec<u32>>,
+    /// The camera of the last frame rendered.
+    last_camera: Option<tilegraph_scene::Camera>,
 }
 
 impl SceneRenderer {
@@ -899,6 +901,7 @@ impl SceneRenderer {
             ids_target,
             blended,
             last_drawn: None,
+            last_camera: None,
         })
     }
 
@@ -916,7 +919,8 @@ impl SceneRenderer {
         decide(self.content, profile, self.options.technique).with_culling(self.options.culling)
     }
 
-    /// Renders one frame from a lone `camera` (no previous frame: a cut).
+    /// Renders one frame from a lone `camera`: a still camera when it is the last frame's
+    /// camera, else a cut (no previous frame to reproject).
     pub fn render(
         &mut self,
         ctx: &Context,
@@ -927,7 +931,7 @@ impl SceneRenderer {
         let frame = CameraFrame {
             index: 0,
             camera: *camera,
-            cut: true,
+            cut: self.last_camera != Some(*camera),
             current: m,
             previous: m,
             reproject: m.view_projection,
@@ -943,6 +947,7 @@ impl SceneRenderer {
         frame: &CameraFrame,
     ) -> Result<FrameReport, RenderError> {
         let (w, h) = (self.options.width, self.options.height);
+        self.last_camera = Some(frame.camera);
         let m = frame.current;
         let profile = ctx.profile().clone();
         let setup = self.setup(&profile);
@@ -968,7 +973,12 @@ impl SceneRenderer {
             Some(oq) if culling.conditional() => {
                 // Same-frame results on the GPU; reading the slot only recycles its pool.
                 oq.collect(ctx, slot)?;
-                oq.prepare(slot, &m, blended_mask.as_deref());
+                oq.prepare(
+                    slot,
+                    &m,
+                    self.options.height as f32,
+                    blended_mask.as_deref(),
+                );
                 blended_mask
             }
             Some(oq) => {
@@ -976,7 +986,12 @@ impl SceneRenderer {
                 let mask = oq.mask();
                 // Every instance in the frustum is queried, drawn or not: a hidden one must be
                 // able to come back.
-                oq.prepare(slot, &m, blended_mask.as_deref());
+                oq.prepare(
+                    slot,
+                    &m,
+                    self.options.height as f32,
+                    blended_mask.as_deref(),
+                );
                 let combined: Vec<bool> = blended_mask
                     .unwrap_or_else(|| vec![true; mask.len()])
                     .into_iter()
@@ -1032,10 +1047,16 @@ impl SceneRenderer {
                 screen: [pw, ph, n.max(1), 0],
             };
             let first = match culling {
+                // After a camera cut the previous pyramid shows another view: testing against
+                // it would cull at random. That frame is frustum-culled only.
                 Culling::Hiz => mk(
                     Phase::HizPrevious,
                     frame.reproject,
-                    if cull.pyramid_valid { levels } else { 0 },
+                    if cull.pyramid_valid && !frame.cut {
+                        levels
+                    } else {
+                        0
+                    },
                 ),
                 // Raster occlusion: the early phase reads this frame's flags.
                 Culling::HizTwoPhase | Culling::RasterOcclusion => {
