@@ -242,6 +242,12 @@ impl Camera {
             return Err(("up", format!("non-finite value {:?}", self.up.to_array())));
         }
         let dir = self.target - self.eye;
+        if !dir.length().is_finite() {
+            return Err((
+                "target",
+                "too far from the eye: the view direction overflows".into(),
+            ));
+        }
         // f64 direction: eye and target may be 10^6 apart from the origin yet centimetres apart.
         if dir.length() < 1e-9 {
             return Err(("target", "equals eye: zero-length view direction".into()));
@@ -252,7 +258,7 @@ impl Camera {
         }
         // Below ~0.06 degrees the f32 cross product in look_at loses the right vector.
         let sin = dir.normalize().cross(up.normalize()).length();
-        if sin < 1e-3 {
+        if sin.is_nan() || sin < 1e-3 {
             return Err(("up", "parallel to the view direction".into()));
         }
         self.projection.check()
@@ -839,6 +845,14 @@ mod tests {
         expected.w_axis.y *= -1.0;
         assert!(p.matrix(2.0).abs_diff_eq(expected, 1e-6));
         assert_eq!(p.depth_convention(), DepthConvention::Reverse);
+    }
+
+    /// Finite eye and target whose difference overflows: the direction is NaN, which no
+    /// comparison may let through.
+    #[test]
+    fn an_overflowing_view_direction_is_rejected() {
+        let cam = Camera::looking_at(DVec3::new(1e308, 0.0, 0.0), DVec3::new(-1e308, 0.0, 0.0));
+        assert_eq!(cam.check().map_err(|(field, _)| field), Err("target"));
     }
 
     #[test]
