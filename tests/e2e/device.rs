@@ -153,3 +153,35 @@ fn a_deliberate_sync_hazard_is_caught() {
         "synchronization validation did not report the WAW hazard: {messages:?}"
     );
 }
+
+/// Host writes go through `write_mapped`, which copies and flushes (non-coherent memory); it
+/// refuses a write past the end and a buffer the host cannot see, and the bytes read back.
+#[test]
+fn mapped_writes_are_bounded_and_reach_the_buffer() {
+    let g = gpu(Some("lavapipe")).unwrap();
+    let mut staging = g
+        .create_buffer(
+            "staging",
+            64,
+            vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryUse::Staging,
+        )
+        .unwrap();
+    g.write_mapped(&mut staging, 16, &[7u8; 16]).unwrap();
+    assert_eq!(&staging.mapped().unwrap()[16..32], &[7u8; 16]);
+    assert!(g.write_mapped(&mut staging, 60, &[0u8; 8]).is_err());
+    assert!(g.write_mapped(&mut staging, usize::MAX, &[0u8; 1]).is_err());
+    let mut device_only = g
+        .create_buffer(
+            "device only",
+            64,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryUse::GpuOnly,
+        )
+        .unwrap();
+    if device_only.mapped().is_none() {
+        assert!(g.write_mapped(&mut device_only, 0, &[1u8; 4]).is_err());
+    }
+    g.destroy_buffer(staging);
+    g.destroy_buffer(device_only);
+}

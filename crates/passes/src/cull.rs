@@ -379,6 +379,7 @@ impl CullState {
     /// Writes the parameters of the dispatch `which` (0 early/only, 1 late) of frame slot `slot`.
     pub fn write_params(
         &mut self,
+        ctx: &Context,
         slot: usize,
         which: usize,
         params: &CullParams,
@@ -388,33 +389,22 @@ impl CullState {
             what: "cull params".into(),
             reason: format!("slot {slot}"),
         })?;
-        let m = b.mapped_mut().ok_or_else(|| VkError::Invalid {
-            what: "cull params".into(),
-            reason: "not host-visible".into(),
-        })?;
-        m[..std::mem::size_of::<CullParams>()].copy_from_slice(bytemuck::bytes_of(params));
-        Ok(())
+        ctx.write_mapped(b, 0, bytemuck::bytes_of(params))
     }
 
     /// Writes frame slot `slot`'s draw order: for each instance, its list entry
     /// (`list * stride + position`, see [`gpu_order`]).
-    pub fn write_order(&mut self, slot: usize, order: &[u32]) -> Result<(), VkError> {
+    pub fn write_order(
+        &mut self,
+        ctx: &Context,
+        slot: usize,
+        order: &[u32],
+    ) -> Result<(), VkError> {
         let b = self.order.get_mut(slot).ok_or_else(|| VkError::Invalid {
             what: "cull order".into(),
             reason: format!("slot {slot}"),
         })?;
-        let m = b.mapped_mut().ok_or_else(|| VkError::Invalid {
-            what: "cull order".into(),
-            reason: "not host-visible".into(),
-        })?;
-        let bytes: &[u8] = bytemuck::cast_slice(order);
-        m.get_mut(..bytes.len())
-            .ok_or_else(|| VkError::Invalid {
-                what: "cull order".into(),
-                reason: "too many instances".into(),
-            })?
-            .copy_from_slice(bytes);
-        Ok(())
+        ctx.write_mapped(b, 0, bytemuck::cast_slice(order))
     }
 
     /// Records the culling dispatch (the graph put the barriers around it).

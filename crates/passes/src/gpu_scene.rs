@@ -134,9 +134,14 @@ pub(crate) fn upload(
         usage | vk::BufferUsageFlags::TRANSFER_DST,
         MemoryUse::StaticGeometry,
     )?;
-    if let Some(mapped) = buffer.mapped_mut() {
-        mapped[..bytes.len()].copy_from_slice(bytes);
-        return Ok(buffer);
+    if buffer.mapped().is_some() {
+        return match ctx.write_mapped(&mut buffer, 0, bytes) {
+            Ok(()) => Ok(buffer),
+            Err(e) => {
+                ctx.destroy_buffer(buffer);
+                Err(e)
+            }
+        };
     }
     let mut staging = match ctx.create_buffer(
         &format!("{name} staging"),
@@ -150,9 +155,8 @@ pub(crate) fn upload(
             return Err(e);
         }
     };
-    let copied = match staging.mapped_mut() {
-        Some(m) => {
-            m[..bytes.len()].copy_from_slice(bytes);
+    let copied = match ctx.write_mapped(&mut staging, 0, bytes) {
+        Ok(()) => {
             ctx.submit_and_wait(|cb| {
                 let region = vk::BufferCopy {
                     src_offset: 0,
@@ -167,10 +171,7 @@ pub(crate) fn upload(
                 Ok(())
             })
         }
-        None => Err(VkError::Invalid {
-            what: format!("{name} staging"),
-            reason: "staging memory is not host-visible".into(),
-        }),
+        Err(e) => Err(e),
     };
     ctx.destroy_buffer(staging);
     match copied {
@@ -366,14 +367,10 @@ impl GpuScene {
             reason: "per-frame buffer is not host-visible or too small".into(),
         };
         let f = self.frames.get_mut(slot).ok_or_else(|| bad("frame slot"))?;
-        write_bytes(&mut f.uniforms, bytemuck::bytes_of(uniforms))
-            .ok_or_else(|| bad("frame uniforms"))?;
-        write_bytes(&mut f.instances, bytemuck::cast_slice(&self.scratch))
-            .ok_or_else(|| bad("instances"))?;
-        write_bytes(&mut f.draw_list, bytemuck::cast_slice(&draws.instances))
-            .ok_or_else(|| bad("draw list"))?;
-        write_bytes(&mut f.counters, &[0u8; 16]).ok_or_else(|| bad("fragment counters"))?;
-        let _ = ctx;
+        ctx.write_mapped(&mut f.uniforms, 0, bytemuck::bytes_of(uniforms))?;
+        ctx.write_mapped(&mut f.instances, 0, bytemuck::cast_slice(&self.scratch))?;
+        ctx.write_mapped(&mut f.draw_list, 0, bytemuck::cast_slice(&draws.instances))?;
+        ctx.write_mapped(&mut f.counters, 0, &[0u8; 16])?;
         Ok(())
     }
 
@@ -418,10 +415,4 @@ impl GpuScene {
         ctx.destroy_buffer(self.meshes);
         ctx.destroy_buffer(self.materials);
     }
-}
-
-fn write_bytes(buffer: &mut Buffer, bytes: &[u8]) -> Option<()> {
-    let m = buffer.mapped_mut()?;
-    m.get_mut(..bytes.len())?.copy_from_slice(bytes);
-    Some(())
 }

@@ -1025,6 +1025,7 @@ impl SceneRenderer {
         self.last_slot = slot;
         if let Some(cull) = self.shared.borrow_mut().cull.as_mut() {
             cull.write_order(
+                ctx,
                 slot,
                 &crate::cull::gpu_order(&draws, scene.instances().len()),
             )?;
@@ -1064,8 +1065,8 @@ impl SceneRenderer {
                 }
                 _ => mk(Phase::Frustum, m.view_projection, 0),
             };
-            cull.write_params(slot, 0, &first)?;
-            cull.write_params(slot, 1, &mk(Phase::Late, m.view_projection, levels))?;
+            cull.write_params(ctx, slot, 0, &first)?;
+            cull.write_params(ctx, slot, 1, &mk(Phase::Late, m.view_projection, levels))?;
         }
         let cpu_draws = draws.opaque.len() + draws.alpha_tested.len() + draws.blended.len();
         let triangles = draws.triangles();

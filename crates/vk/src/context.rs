@@ -116,6 +116,9 @@ pub struct Context {
     upload_pool: vk::CommandPool,
     // Declared last: dropped after the device is destroyed in Drop.
     instance: ManuallyDrop<Instance>,
+    /// Not `Sync`: the upload pool and the queue are used by `&self` methods and must be
+    /// externally synchronized (one thread at a time). Still `Send`.
+    _one_thread: std::marker::PhantomData<std::cell::Cell<()>>,
 }
 
 impl Context {
@@ -194,6 +197,16 @@ impl Context {
                     ext_names.push(e);
                 }
             }
+        }
+        // A portability implementation (MoltenVK) must have its subset extension enabled
+        // (VUID-VkDeviceCreateInfo-pProperties-04451).
+        let portability = c"VK_KHR_portability_subset";
+        if physical
+            .extensions
+            .iter()
+            .any(|e| e.as_c_str() == portability)
+        {
+            ext_names.push(portability);
         }
         let ext_ptrs: Vec<_> = ext_names.iter().map(|e| e.as_ptr()).collect();
         let priorities = [1.0f32];
@@ -314,6 +327,7 @@ impl Context {
             conditional,
             upload_pool,
             instance: ManuallyDrop::new(instance),
+            _one_thread: std::marker::PhantomData,
         })
     }
 
@@ -516,27 +530,78 @@ impl Context {
         })
     }
 
-    /// Makes GPU writes visible to the host for a mapped buffer in non-coherent memory (no-op on
-    /// coherent memory). Call after the fence that covers the writes.
-    pub fn invalidate_mapped(&self, buffer: &Buffer) -> Result<(), VkError> {
-        if buffer
+    /// The range of a buffer's memory to flush or invalidate: atom-aligned, and never past the
+    /// end of its memory object (a dedicated allocation's object is exactly its size, which
+    /// need not be a multiple of the atom: that range runs to `VK_WHOLE_SIZE`).
+    fn mapped_range(&self, buffer: &Buffer) -> vk::MappedMemoryRange<'static> {
+        let atom = self.physical.limits.non_coherent_atom_size.max(1);
+        let a = &buffer.allocation;
+        let start = a.offset() / atom * atom;
+        // SAFETY: the allocation's memory object is live while the buffer is.
+        let range = vk::MappedMemoryRange::default().memory(unsafe { a.memory() });
+        if a.is_dedicated() {
+            return range.offset(start).size(vk::WHOLE_SIZE);
+        }
+        // Sub-allocated: gpu-allocator's blocks are far larger than an atom and sized in
+        // multiples of it, so rounding up stays inside the block.
+        let end = (a.offset() + a.size()).div_ceil(atom) * atom;
+        range.offset(start).size(end - start)
+    }
+
+    fn is_coherent(buffer: &Buffer) -> bool {
+        buffer
             .memory
             .flags
             .contains(tilegraph_profile::MemoryFlags::HOST_COHERENT)
-        {
+    }
+
+    /// Makes GPU writes visible to the host for a mapped buffer in non-coherent memory (no-op on
+    /// coherent memory). Call after the fence that covers the writes.
+    pub fn invalidate_mapped(&self, buffer: &Buffer) -> Result<(), VkError> {
+        if Self::is_coherent(buffer) {
             return Ok(());
         }
-        let atom = self.physical.limits.non_coherent_atom_size;
-        let start = buffer.allocation.offset() / atom * atom;
-        let end = (buffer.allocation.offset() + buffer.allocation.size()).div_ceil(atom) * atom;
-        // SAFETY: the allocation's memory is mapped by gpu-allocator; the range is atom-aligned.
-        let range = vk::MappedMemoryRange::default()
-            .memory(unsafe { buffer.allocation.memory() })
-            .offset(start)
-            .size(end - start);
-        // SAFETY: as above.
+        let range = self.mapped_range(buffer);
+        // SAFETY: the memory is mapped by gpu-allocator; the range is atom-aligned and inside it.
         unsafe { self.device.invalidate_mapped_memory_ranges(&[range]) }
             .vk("vkInvalidateMappedMemoryRanges")
+    }
+
+    /// Makes host writes to a mapped buffer in non-coherent memory visible to the device (no-op
+    /// on coherent memory). Call before submitting work that reads them.
+    pub fn flush_mapped(&self, buffer: &Buffer) -> Result<(), VkError> {
+        if Self::is_coherent(buffer) {
+            return Ok(());
+        }
+        let range = self.mapped_range(buffer);
+        // SAFETY: as for `invalidate_mapped`.
+        unsafe { self.device.flush_mapped_memory_ranges(&[range]) }.vk("vkFlushMappedMemoryRanges")
+    }
+
+    /// Copies `bytes` into a mapped buffer at `offset` and flushes it (non-coherent memory):
+    /// the one way the host writes GPU-visible memory. Errors when the buffer is not mapped or
+    /// too small.
+    pub fn write_mapped(
+        &self,
+        buffer: &mut Buffer,
+        offset: usize,
+        bytes: &[u8],
+    ) -> Result<(), VkError> {
+        let size = buffer.size;
+        let target = buffer
+            .mapped_mut()
+            .and_then(|m| m.get_mut(offset..offset.checked_add(bytes.len())?));
+        let Some(target) = target else {
+            return Err(VkError::Invalid {
+                what: format!("buffer of {size} bytes"),
+                reason: format!(
+                    "cannot write {} bytes at offset {offset}: not host-visible or too small",
+                    bytes.len()
+                ),
+            });
+        };
+        target.copy_from_slice(bytes);
+        self.flush_mapped(buffer)
     }
 
     pub fn destroy_buffer(&self, buffer: Buffer) {
@@ -715,8 +780,8 @@ impl Context {
             .command_pool(self.upload_pool)
             .level(vk::CommandBufferLevel::PRIMARY)
             .command_buffer_count(1);
-        // SAFETY: the pool belongs to this device; used from one thread (&self methods that
-        // record are not shared across threads: Context is not Sync by design of the pool).
+        // SAFETY: the pool belongs to this device; Context is not Sync, so one thread at a time
+        // records into it.
         let cbs = unsafe { self.device.allocate_command_buffers(&alloc) }
             .vk("vkAllocateCommandBuffers")?;
         let cb = cbs[0];

@@ -102,7 +102,32 @@ impl Instance {
             exts.iter()
                 .any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == name))
         };
-        let debug_utils_available = has_ext(ash::ext::debug_utils::NAME);
+        // The validation layer also provides VK_EXT_debug_utils itself.
+        let layer_exts = if validation_enabled {
+            // SAFETY: global query for the layer's own extensions.
+            unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
+                .vk("vkEnumerateInstanceExtensionProperties(layer)")?
+        } else {
+            Vec::new()
+        };
+        let layer_has = |name: &CStr| {
+            layer_exts
+                .iter()
+                .any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == name))
+        };
+        let debug_utils_available =
+            has_ext(ash::ext::debug_utils::NAME) || layer_has(ash::ext::debug_utils::NAME);
+        // Without a messenger nothing would be reported: validation that cannot report is off.
+        if validation_enabled && !debug_utils_available {
+            if validation == Validation::Required {
+                return Err(VkError::MissingRequired {
+                    device: "the Vulkan instance".into(),
+                    what: "extension (validation messages need it)",
+                    missing: "VK_EXT_debug_utils".into(),
+                });
+            }
+            log::warn!("VK_EXT_debug_utils is missing: validation messages cannot be reported");
+        }
 
         let app_name_c = CString::new(app_name.replace('\0', "")).unwrap_or_default();
         let app = vk::ApplicationInfo::default()
@@ -121,14 +146,7 @@ impl Instance {
         let mut validation_ext = false;
         if validation_enabled {
             layer_ptrs.push(VALIDATION_LAYER.as_ptr());
-            // SAFETY: global query for the layer's own extensions.
-            let layer_exts =
-                unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
-                    .vk("vkEnumerateInstanceExtensionProperties(layer)")?;
-            validation_ext = layer_exts.iter().any(|e| {
-                e.extension_name_as_c_str()
-                    .is_ok_and(|n| n == ash::ext::validation_features::NAME)
-            });
+            validation_ext = layer_has(ash::ext::validation_features::NAME);
             if validation_ext {
                 ext_ptrs.push(ash::ext::validation_features::NAME.as_ptr());
             } else {

@@ -283,7 +283,8 @@ impl QueryRing {
                     name: s.names[i].clone(),
                     begin_ticks: begin,
                     end_ticks: end,
-                    gpu_ms: end.wrapping_sub(begin) as f64 * period_ns / 1e6,
+                    // The counter wraps at 2^timestampValidBits, not 2^64.
+                    gpu_ms: (end.wrapping_sub(begin) & mask) as f64 * period_ns / 1e6,
                     vertex_invocations: st.then_some(stats[i][0]),
                     fragment_invocations: st.then_some(stats[i][1]),
                 }

@@ -48,10 +48,11 @@ pub fn read_image(
     } else {
         vk::ImageAspectFlags::COLOR
     };
+    // Only the level copied changes layout: the others may be in other layouts.
     let range = vk::ImageSubresourceRange {
         aspect_mask: image.aspect,
-        base_mip_level: 0,
-        level_count: image.mip_levels,
+        base_mip_level: level,
+        level_count: 1,
         base_array_layer: 0,
         layer_count: 1,
     };

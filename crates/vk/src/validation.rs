@@ -81,6 +81,8 @@ pub(crate) unsafe extern "system" fn debug_callback(
     };
     let id = text(data.p_message_id_name);
     let message = format!("[{id}] {}", text(data.p_message));
+    // GENERAL messages come from the loader about the machine (manifests of other drivers and
+    // layers it could not load), not about this program's use of the API: logged, not failures.
     let failure = severity.intersects(
         vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
             | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
