@@ -14,7 +14,10 @@ pub fn write_png(path: &Path, img: &RgbaImage) -> Result<(), String> {
     enc.set_color(png::ColorType::Rgba);
     enc.set_depth(png::BitDepth::Eight);
     let mut w = enc.write_header().map_err(|e| e.to_string())?;
-    w.write_image_data(&img.pixels).map_err(|e| e.to_string())
+    w.write_image_data(&img.pixels)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    // The end chunk and the buffered bytes go out here: an error must not be lost in Drop.
+    w.finish().map_err(|e| format!("{}: {e}", path.display()))
 }
 
 pub fn read_png(path: &Path) -> Result<RgbaImage, String> {
