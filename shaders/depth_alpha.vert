@@ -1,6 +1,9 @@
 #version 450
 // Depth pre-pass, alpha-tested: position and UV, for the discard in depth_alpha.frag.
 #include "scene.glsl"
+// The depth pre-pass and the colour passes compute the same position in different programs,
+// and the colour pass tests EQUAL: without `invariant` a compiler may round them differently.
+invariant gl_Position;
 
 layout(location = 0) in vec3 in_position;
 layout(location = 2) in vec2 in_uv;

@@ -1,6 +1,9 @@
 #version 450
 // Forward colour pass (opaque, alpha-tested, blended), instanced through the draw list.
 #include "scene.glsl"
+// The depth pre-pass and the colour passes compute the same position in different programs,
+// and the colour pass tests EQUAL: without `invariant` a compiler may round them differently.
+invariant gl_Position;
 
 layout(location = 0) in vec3 in_position;
 layout(location = 1) in vec3 in_normal;

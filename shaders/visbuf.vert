@@ -1,6 +1,9 @@
 #version 450
 // Visibility-buffer write: position (and UV for alpha-tested discard), instance id passed flat.
 #include "scene.glsl"
+// The depth pre-pass and the colour passes compute the same position in different programs,
+// and the colour pass tests EQUAL: without `invariant` a compiler may round them differently.
+invariant gl_Position;
 
 layout(location = 0) in vec3 in_position;
 layout(location = 2) in vec2 in_uv;

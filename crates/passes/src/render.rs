@@ -182,7 +182,9 @@ struct Shared {
     sampled_layout: vk::PipelineLayout,
     pool: vk::DescriptorPool,
     sampler: vk::Sampler,
-    pipelines: HashMap<(vk::RenderPass, u32, Variant, bool), vk::Pipeline>,
+    /// By (render pass, subpass, variant, double-sided, reverse-Z): the depth compare is baked
+    /// in, and a camera may change the convention.
+    pipelines: HashMap<(vk::RenderPass, u32, Variant, bool, bool), vk::Pipeline>,
     resolve_sets: HashMap<(usize, bool), vk::DescriptorSet>,
     scene_sets: Vec<vk::DescriptorSet>,
     vertex_buffer: vk::Buffer,
@@ -215,7 +217,11 @@ struct Declared {
     color_clear: ClearColor,
     color_cleared: bool,
     depth_cleared: bool,
-    prepass: bool,
+    /// Whether a depth pre-pass wrote the opaque and the alpha-tested instances' depth: their
+    /// colour pass then tests EQUAL without writing (each class on its own: a profile may
+    /// pre-pass opaque geometry but not alpha-tested).
+    prepass_opaque: bool,
+    prepass_alpha: bool,
     gpu: Option<CullBuffers>,
     /// Conditional occlusion queries: the results buffer the colour passes are predicated on,
     /// once the query pass is declared.
@@ -243,7 +249,13 @@ impl Shared {
             what: pc.pass_name.into(),
             reason: "scene passes record inside a render pass".into(),
         })?;
-        let key = (rp, subpass, variant, double_sided);
+        let key = (
+            rp,
+            subpass,
+            variant,
+            double_sided,
+            self.depth == DepthConvention::Reverse,
+        );
         if let Some(p) = self.pipelines.get(&key) {
             return Ok(*p);
         }
@@ -450,14 +462,26 @@ impl Shared {
             }
         }
         let d = &pc.ctx.device;
-        for sided in [false, true] {
-            let mut bound = false;
-            for draw in draws.iter().filter(|d| d.double_sided == sided) {
-                if !bound {
-                    let p = self.pipeline(pc, variant, sided, color_count)?;
+        // Blended draws keep their back-to-front order, switching pipelines where the
+        // sidedness changes. Opaque and alpha-tested ones are grouped by pipeline (their order
+        // only helps early-Z).
+        let in_order = matches!(variant, Variant::Forward { class: 2, .. });
+        let groups: &[Option<bool>] = if in_order {
+            &[None]
+        } else {
+            &[Some(false), Some(true)]
+        };
+        for &group in groups {
+            let mut bound: Option<bool> = None;
+            for draw in draws
+                .iter()
+                .filter(|d| group.is_none_or(|sided| d.double_sided == sided))
+            {
+                if bound != Some(draw.double_sided) {
+                    let p = self.pipeline(pc, variant, draw.double_sided, color_count)?;
                     // SAFETY: as above.
                     unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
-                    bound = true;
+                    bound = Some(draw.double_sided);
                 }
                 // SAFETY: the draw's ranges lie inside the scene's buffers (built from the scene).
                 unsafe {
@@ -1241,7 +1265,8 @@ impl SceneRenderer {
             color_clear: ClearColor::Float(self.options.clear_color),
             color_cleared: false,
             depth_cleared: false,
-            prepass: setup.has_prepass(),
+            prepass_opaque: setup.prepassed(0),
+            prepass_alpha: setup.prepassed(1),
             gpu: None,
             conditions: None,
             flags_declared: false,
@@ -1701,9 +1726,14 @@ impl SceneRenderer {
                 } else {
                     (1, PassClass::AlphaTested)
                 };
+                let prepassed = if class == 0 {
+                    f.prepass_opaque
+                } else {
+                    f.prepass_alpha
+                };
                 let variant = Variant::Forward {
                     class,
-                    equal: f.prepass,
+                    equal: prepassed,
                 };
                 let mut p = g.raster_pass(
                     name,
@@ -1716,7 +1746,7 @@ impl SceneRenderer {
                     f.depth,
                     &mut f.depth_cleared,
                     f.depth_clear,
-                    f.prepass,
+                    prepassed,
                 );
                 uses_lists(&mut p);
                 if let Some(c) = f.conditions {

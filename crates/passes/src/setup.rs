@@ -143,6 +143,17 @@ impl FrameSetup {
     }
 
     /// Whether the colour pass tests depth EQUAL against a pre-pass (no depth writes).
+    /// Whether a depth pre-pass writes the depth of instances of material `class` (0 opaque,
+    /// 1 alpha-tested): their colour pass then tests EQUAL without writing depth. Per class: a
+    /// profile may pre-pass opaque geometry and leave alpha-tested geometry to its colour pass.
+    pub fn prepassed(&self, class: u32) -> bool {
+        match class {
+            0 => self.includes(PassKind::DepthPrepassOpaque),
+            1 => self.includes(PassKind::DepthPrepassAlpha),
+            _ => false,
+        }
+    }
+
     pub fn has_prepass(&self) -> bool {
         self.includes(PassKind::DepthPrepassOpaque) || self.includes(PassKind::DepthPrepassAlpha)
     }
@@ -330,6 +341,22 @@ mod tests {
         alpha_tested: 0,
         blended: 0,
     };
+
+    /// A profile that pre-passes opaque geometry but not alpha-tested: the alpha-tested colour
+    /// pass writes its own depth (an EQUAL test against depth nobody wrote would drop it).
+    #[test]
+    fn only_the_classes_a_prepass_wrote_test_equal() {
+        let mut p = profile("lavapipe");
+        p.passes.alpha_tested_prepass = false;
+        let s = decide(MIXED, &p, Technique::Forward);
+        assert!(s.includes(PassKind::DepthPrepassOpaque));
+        assert!(!s.includes(PassKind::DepthPrepassAlpha));
+        assert!(s.prepassed(0));
+        assert!(!s.prepassed(1));
+        assert!(!s.prepassed(2));
+        let s = decide(MIXED, &profile("lavapipe"), Technique::Forward);
+        assert!(s.prepassed(0) && s.prepassed(1));
+    }
 
     #[test]
     fn powervr_skips_the_prepass_unless_forced() {
