@@ -1072,7 +1072,11 @@ fn check_plan(plan: &Plan, built: &Built, profile: &Profile) -> Result<(), Strin
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+    // 256 cases by default; PROPTEST_CASES asks for more (an explicit `cases` would ignore it).
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(256),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn compiled_plans_keep_every_rule(spec in spec(200)) {
