@@ -61,7 +61,11 @@ fn samples(obb: &Obb, rng: &mut Pcg64) -> Vec<DVec3> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 1024, ..ProptestConfig::default() })]
+    // PROPTEST_CASES asks for more (an explicit `cases` would ignore it).
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(1024),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn plane_rejection_implies_sat_rejection_and_sat_rejection_is_sound(

@@ -56,7 +56,11 @@ fn depth_buffer(w: u32, h: u32, seed: u64, conv: DepthConvention, format: DepthF
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+    // PROPTEST_CASES asks for more (an explicit `cases` would ignore it).
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(512),
+        ..ProptestConfig::default()
+    })]
 
     /// Never cull what a brute-force check over level-0 pixels keeps.
     #[test]

@@ -44,7 +44,11 @@ fn sphere_points(c: DVec3, r: f64, n: usize) -> impl Iterator<Item = DVec3> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 1024, ..ProptestConfig::default() })]
+    // PROPTEST_CASES asks for more (an explicit `cases` would ignore it).
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(1024),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn sphere_projection_is_conservative_and_tight(
