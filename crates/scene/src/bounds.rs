@@ -127,7 +127,13 @@ pub(crate) fn transformed_bounds(
         linear.y_axis.abs(),
         linear.z_axis.abs(),
     );
-    let half = abs * e;
+    // Everything above is f32 arithmetic on local coordinates, and the GPU's own transform
+    // (L * p) rounds too: each step is off by at most an ulp of |L| * |p|. Grow the bounds by a
+    // few of those so they always enclose the drawn vertices, even for a mesh whose coordinates
+    // sit far from its origin (10^4 m out, a box 0.25 m wide lost half a millimetre).
+    let reach = local.min.abs().max(local.max.abs());
+    let pad = (abs * reach) * (8.0 * f32::EPSILON / 2.0);
+    let half = abs * e + pad;
     let corners = [
         Vec3::new(e.x, e.y, e.z),
         Vec3::new(-e.x, e.y, e.z),
@@ -138,7 +144,8 @@ pub(crate) fn transformed_bounds(
         .iter()
         .map(|&k| (linear * k).length_squared())
         .fold(0.0f32, f32::max)
-        .sqrt();
+        .sqrt()
+        + pad.length();
     (center, half, radius)
 }
 

@@ -212,6 +212,10 @@ impl Instance {
         let t = (self.transform.translation - eye).as_vec3();
         let c = (self.bounds.center - eye).as_vec3();
         let l = self.transform.linear;
+        // The translation and the centre are rounded to f32 separately (and the GPU adds the
+        // translation in f32): grow the box by a few ulps of both so it still encloses what is
+        // drawn.
+        let pad = (t.abs() + c.abs()) * (4.0 * f32::EPSILON / 2.0);
         GpuInstance {
             model_rows: [
                 [l.x_axis.x, l.y_axis.x, l.z_axis.x, t.x],
@@ -220,8 +224,8 @@ impl Instance {
             ],
             center: c.to_array(),
             mesh: self.mesh.0,
-            half_extents: self.bounds.half_extents.to_array(),
-            radius: self.bounds.radius,
+            half_extents: (self.bounds.half_extents + pad).to_array(),
+            radius: self.bounds.radius + pad.length(),
         }
     }
 }
@@ -793,6 +797,31 @@ impl SceneBuilder {
         MeshId((self.meshes.len() - 1) as u32)
     }
 
+    pub(crate) fn mesh_index_count(&self, mesh: MeshId) -> Option<u32> {
+        self.meshes.get(mesh.index()).map(|m| m.index_count)
+    }
+
+    /// A copy of `mesh` with every triangle's winding reversed (same vertices, material and
+    /// bounds), for instances whose transform mirrors (negative determinant): glTF makes their
+    /// front faces clockwise, and the pipelines take counter-clockwise ones.
+    pub(crate) fn mirrored_mesh(&mut self, mesh: MeshId) -> Option<MeshId> {
+        let m = *self.meshes.get(mesh.index())?;
+        let first = m.first_index as usize;
+        let range = self.indices.get(first..first + m.index_count as usize)?;
+        let flipped: Vec<u32> = range
+            .chunks_exact(3)
+            .flat_map(|t| [t[0], t[2], t[1]])
+            .collect();
+        let first_index = self.indices.len() as u32;
+        self.indices.extend_from_slice(&flipped);
+        self.meshes.push(Mesh {
+            first_index,
+            index_count: flipped.len() as u32,
+            ..m
+        });
+        Some(MeshId((self.meshes.len() - 1) as u32))
+    }
+
     /// Adds an instance; checks the mesh id and that the transform and bounds are finite.
     pub fn add_instance(
         &mut self,
@@ -900,6 +929,42 @@ impl SceneBuilder {
 mod tests {
     use super::*;
     use std::mem::{align_of, offset_of, size_of};
+
+    /// A mesh whose coordinates sit 10^4 m from its origin, seen from 5 cm: the record's box
+    /// encloses every vertex where the GPU puts it (f32 transform of f32 inputs), though the
+    /// f32 bounds arithmetic and the separately rounded centre and translation each lose a
+    /// little (half a millimetre here without the padding).
+    #[test]
+    fn gpu_records_enclose_far_off_origin_vertices() {
+        let local = Aabb::new(
+            Vec3::new(10_000.0, 0.0, 0.0),
+            Vec3::new(10_000.251, 0.1, 0.1),
+        );
+        let (center, half_extents, radius) =
+            transformed_bounds(Mat3::IDENTITY, DVec3::ZERO, &local);
+        let instance = Instance {
+            transform: Transform::IDENTITY,
+            mesh: MeshId(0),
+            bounds: InstanceBounds {
+                center,
+                half_extents,
+                radius,
+            },
+        };
+        for eye_x in [10_000.3, 10_000.0, 9_999.9, 0.0] {
+            let eye = DVec3::new(eye_x, 0.05, 0.05);
+            let r = instance.gpu_record(eye);
+            let t = Vec3::new(r.model_rows[0][3], r.model_rows[1][3], r.model_rows[2][3]);
+            let (c, h) = (Vec3::from_array(r.center), Vec3::from_array(r.half_extents));
+            for p in [local.min, local.max] {
+                let on_gpu = p + t;
+                assert!(
+                    (on_gpu - c).abs().cmple(h).all(),
+                    "eye x {eye_x}: vertex at {on_gpu:?} outside {c:?} +- {h:?}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn gpu_layouts_match_their_glsl_declarations() {

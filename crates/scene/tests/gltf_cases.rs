@@ -135,9 +135,13 @@ fn the_quad_loads_from_every_buffer_source() {
         assert_eq!(m.class, MaterialClass::AlphaTested { cutoff: 0.25 });
         assert!(m.double_sided);
         assert_eq!(m.base_color, [1.0, 0.5, 0.25, 1.0]);
+        // The quad's box, grown by a few f32 ulps (bounds enclose what the GPU draws).
         let b = s.bounds();
-        assert_eq!(b.min, DVec3::new(10.0, 0.0, 0.0));
-        assert_eq!(b.max, DVec3::new(11.0, 0.0, 1.0));
+        let near = |a: DVec3, b: DVec3| (a - b).abs().max_element() < 1e-5;
+        assert!(near(b.min, DVec3::new(10.0, 0.0, 0.0)), "{b:?}");
+        assert!(near(b.max, DVec3::new(11.0, 0.0, 1.0)), "{b:?}");
+        assert!(b.min.cmple(DVec3::new(10.0, 0.0, 0.0)).all());
+        assert!(b.max.cmpge(DVec3::new(11.0, 0.0, 1.0)).all());
         // Missing TEXCOORD_0: zeros.
         assert!(s.vertices().iter().all(|v| v.uv == [0.0, 0.0]));
         assert_eq!(s.meshes()[0].local_aabb.max, Vec3::new(1.0, 0.0, 1.0));
@@ -228,7 +232,8 @@ fn sparse_accessors_and_small_index_types_load() {
     doc["accessors"][2] =
         json!({"bufferView": 3, "componentType": 5121, "count": 6, "type": "SCALAR"});
     let s = load_doc(&doc, &bin).unwrap();
-    assert_eq!(s.bounds().max.y, 5.0);
+    let max_y = s.bounds().max.y;
+    assert!((5.0..5.0 + 1e-5).contains(&max_y), "{max_y}");
     assert_eq!(s.triangles_drawn(), 2);
 }
 
@@ -570,4 +575,39 @@ fn buffer_uris_stay_inside_the_directory_and_read_only_what_they_declare() {
         assert!(e.to_string().contains("relative path"), "{uri}: {e}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// glTF: a node whose transform mirrors (negative determinant) has clockwise front faces. Its
+/// instance draws a copy of the mesh with the winding reversed, so after the transform every
+/// triangle still faces where the unmirrored one does (counter-clockwise front faces).
+#[test]
+fn mirrored_nodes_draw_a_mesh_with_reversed_winding() {
+    let mut d = quad_doc();
+    d["nodes"] = json!([{"mesh": 0}, {"mesh": 0, "scale": [-1.0, 1.0, 1.0]}, {"mesh": 0, "scale": [-2.0, 1.0, 1.0]}]);
+    d["scenes"] = json!([{"nodes": [0, 1, 2]}]);
+    let s = load_doc(&d, &quad_bin()).unwrap();
+    let inst = s.instances();
+    assert_eq!(inst.len(), 3);
+    assert_ne!(
+        inst[0].mesh, inst[1].mesh,
+        "the mirrored node draws another mesh"
+    );
+    assert_eq!(inst[1].mesh, inst[2].mesh, "one mirrored copy per mesh");
+    // World-space geometric normal of each instance's first triangle.
+    let normal = |i: usize| {
+        let m = s.mesh(inst[i].mesh).unwrap();
+        let first = m.first_index as usize;
+        let p = |k: usize| {
+            let v = s.indices()[first + k] as i64 + i64::from(m.vertex_offset);
+            let local = Vec3::from_array(s.vertices()[v as usize].position);
+            inst[i].transform.transform_point(local)
+        };
+        (p(1) - p(0)).cross(p(2) - p(0)).normalize()
+    };
+    let n0 = normal(0);
+    assert!(n0.y > 0.99, "{n0:?}");
+    for i in [1, 2] {
+        let n = normal(i);
+        assert!(n.y > 0.99, "instance {i}: {n:?} (inside-out)");
+    }
 }

@@ -262,6 +262,7 @@ pub fn load_gltf_bytes(
         ctx: &ctx,
         builder,
         mesh_cache: vec![None; doc.meshes.len()],
+        mirrored: HashMap::new(),
         vertex_cache: HashMap::new(),
         default_material: None,
         material_count: doc.materials.len(),
@@ -676,6 +677,8 @@ struct Flatten<'x, 'd, 'a> {
     ctx: &'x Ctx,
     builder: SceneBuilder,
     mesh_cache: Vec<Option<Vec<MeshId>>>,
+    /// Mesh -> its copy with reversed winding, for mirroring nodes (made on first use).
+    mirrored: HashMap<MeshId, MeshId>,
     /// (POSITION, NORMAL, TEXCOORD_0) accessors -> (vertex offset, count): primitives that share
     /// vertex accessors share vertices.
     vertex_cache: HashMap<(usize, usize, Option<usize>), (u32, u32)>,
@@ -708,7 +711,12 @@ impl Flatten<'_, '_, '_> {
                     .non_finite(format!("/nodes/{i}"), "world transform overflows".into()));
             }
             if let Some(m) = node.mesh {
-                let ids = self.mesh(m.value())?;
+                let mut ids = self.mesh(m.value())?;
+                // glTF: a mirroring transform (negative determinant) makes front faces
+                // clockwise; its instances draw a copy with the winding reversed.
+                if world.matrix3.determinant() < 0.0 {
+                    ids = self.mirrored_meshes(&ids, &format!("/nodes/{i}"))?;
+                }
                 let transform = Transform::from_daffine(&world);
                 for id in ids {
                     if self.builder.instance_count() >= self.limits.max_instances {
@@ -741,6 +749,37 @@ impl Flatten<'_, '_, '_> {
             }
         }
         Ok(visited)
+    }
+
+    /// The mirrored copies of `ids` (made once per mesh; they count against the index limit).
+    fn mirrored_meshes(
+        &mut self,
+        ids: &[MeshId],
+        pointer: &str,
+    ) -> Result<Vec<MeshId>, SceneError> {
+        let mut out = Vec::with_capacity(ids.len());
+        for &id in ids {
+            if let Some(&m) = self.mirrored.get(&id) {
+                out.push(m);
+                continue;
+            }
+            let count = self.builder.mesh_index_count(id).unwrap_or(0) as usize;
+            self.check_limit(
+                pointer,
+                "indices",
+                self.builder.index_count(),
+                count,
+                self.index_limit(),
+            )?;
+            let Some(m) = self.builder.mirrored_mesh(id) else {
+                return Err(self
+                    .ctx
+                    .invalid(pointer.to_string(), format!("mesh {} is missing", id.0)));
+            };
+            self.mirrored.insert(id, m);
+            out.push(m);
+        }
+        Ok(out)
     }
 
     /// The tilegraph meshes of glTF mesh `m`, converting it on first use.
