@@ -217,11 +217,9 @@ struct Declared {
     color_clear: ClearColor,
     color_cleared: bool,
     depth_cleared: bool,
-    /// Whether a depth pre-pass wrote the opaque and the alpha-tested instances' depth: their
-    /// colour pass then tests EQUAL without writing (each class on its own: a profile may
-    /// pre-pass opaque geometry but not alpha-tested).
-    prepass_opaque: bool,
-    prepass_alpha: bool,
+    /// By material class (opaque, alpha-tested): whether a depth pre-pass wrote its depth, so
+    /// its colour pass tests EQUAL without writing ([`FrameSetup::prepassed`]).
+    prepassed: [bool; 2],
     gpu: Option<CullBuffers>,
     /// Conditional occlusion queries: the results buffer the colour passes are predicated on,
     /// once the query pass is declared.
@@ -1265,8 +1263,7 @@ impl SceneRenderer {
             color_clear: ClearColor::Float(self.options.clear_color),
             color_cleared: false,
             depth_cleared: false,
-            prepass_opaque: setup.prepassed(0),
-            prepass_alpha: setup.prepassed(1),
+            prepassed: [setup.prepassed(0), setup.prepassed(1)],
             gpu: None,
             conditions: None,
             flags_declared: false,
@@ -1726,11 +1723,7 @@ impl SceneRenderer {
                 } else {
                     (1, PassClass::AlphaTested)
                 };
-                let prepassed = if class == 0 {
-                    f.prepass_opaque
-                } else {
-                    f.prepass_alpha
-                };
+                let prepassed = f.prepassed[class as usize];
                 let variant = Variant::Forward {
                     class,
                     equal: prepassed,

@@ -15,9 +15,8 @@ struct FrameSlot {
     /// Every command buffer allocated from `pool`; a frame records into them in turn (one more
     /// per flush) and the pool reset recycles them all.
     cbs: Vec<vk::CommandBuffer>,
-    /// How many of `cbs` this frame has begun.
+    /// How many of `cbs` this frame has begun (the token holds the one recording).
     begun: usize,
-    cb: vk::CommandBuffer,
     fence: vk::Fence,
     /// This frame submitted part of its work (a flush).
     flushed: bool,
@@ -101,7 +100,6 @@ impl FrameRing {
             pool,
             cbs: vec![cb],
             begun: 1,
-            cb,
             fence,
             flushed: false,
             abandoned: false,
@@ -161,20 +159,23 @@ impl FrameRing {
                 .reset_command_pool(s.pool, vk::CommandPoolResetFlags::empty())
         }
         .vk("vkResetCommandPool")?;
-        s.cb = s.cbs.first().copied().unwrap_or(s.cb);
+        let cb = s.cbs.first().copied().ok_or_else(|| VkError::Invalid {
+            what: "frame ring".into(),
+            reason: "the slot has no command buffer".into(),
+        })?;
         s.begun = 1;
         s.flushed = false;
         s.abandoned = false;
         let begin = vk::CommandBufferBeginInfo::default()
             .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
         // SAFETY: reset command buffer.
-        unsafe { ctx.device.begin_command_buffer(s.cb, &begin) }.vk("vkBeginCommandBuffer")?;
+        unsafe { ctx.device.begin_command_buffer(cb, &begin) }.vk("vkBeginCommandBuffer")?;
         s.frame = frame;
         self.next_frame += 1;
         Ok(FrameToken {
             slot,
             frame,
-            cb: s.cb,
+            cb,
             completed_frame,
         })
     }
@@ -188,9 +189,9 @@ impl FrameRing {
                 what: "frame ring".into(),
                 reason: format!("slot {} does not exist", token.slot),
             })?;
-        // SAFETY: the command buffer is recording (begin was called for this token).
-        unsafe { ctx.device.end_command_buffer(s.cb) }.vk("vkEndCommandBuffer")?;
-        let cbs = [s.cb];
+        // SAFETY: the command buffer is recording (begin or flush gave it to this token).
+        unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
+        let cbs = [token.cb];
         let submit = vk::SubmitInfo::default().command_buffers(&cbs);
         // SAFETY: executable command buffer, unsignalled fence.
         unsafe { ctx.device.queue_submit(ctx.queue, &[submit], s.fence) }.vk("vkQueueSubmit")?;
@@ -244,8 +245,7 @@ impl FrameRing {
             .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
         // SAFETY: fresh command buffer.
         unsafe { ctx.device.begin_command_buffer(cb, &begin) }.vk("vkBeginCommandBuffer")?;
-        // The slot's final submit must use the new buffer.
-        s.cb = cb;
+        // The slot's final submit uses the new buffer.
         token.cb = cb;
         Ok(())
     }
