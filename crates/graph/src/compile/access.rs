@@ -280,7 +280,6 @@ pub(crate) const fn role(kind: UseKind) -> u16 {
 /// Two uses of one resource in one pass that cannot be combined.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct UseConflict {
-    pub resource: ResourceId,
     pub first: &'static str,
     pub second: &'static str,
 }
@@ -299,21 +298,36 @@ pub(crate) fn push_pass_accesses<'d>(
         let Some(desc) = desc_of(u.resource) else {
             continue;
         };
-        let a = summarize_use(kind, coverage, u, i as u32, desc);
-        match out[start..].iter_mut().find(|x| x.resource == u.resource) {
-            None => out.push(a),
-            Some(existing) => {
-                if existing.writes || a.writes || existing.layout != a.layout {
-                    return Err(UseConflict {
-                        resource: u.resource,
-                        first: uses
-                            .get(existing.first_use as usize)
-                            .map_or("?", |f| f.kind.name()),
-                        second: u.kind.name(),
-                    });
-                }
-                merge_reads(existing, &a);
+        add_access(
+            out,
+            start,
+            summarize_use(kind, coverage, u, i as u32, desc),
+            uses,
+        )?;
+    }
+    Ok(())
+}
+
+/// Adds one use's access to the accesses of its pass (`out[start..]`): a new resource is
+/// appended, a read that agrees on the layout with the resource's access combines with it.
+#[inline]
+pub(crate) fn add_access(
+    out: &mut Vec<Access>,
+    start: usize,
+    a: Access,
+    uses: &[PassUse],
+) -> Result<(), UseConflict> {
+    match out[start..].iter_mut().find(|x| x.resource == a.resource) {
+        None => out.push(a),
+        Some(existing) => {
+            if existing.writes || a.writes || existing.layout != a.layout {
+                let name = |i: u32| uses.get(i as usize).map_or("?", |u| u.kind.name());
+                return Err(UseConflict {
+                    first: name(existing.first_use),
+                    second: name(a.first_use),
+                });
             }
+            merge_reads(existing, &a);
         }
     }
     Ok(())

@@ -4,10 +4,10 @@
 
 use tilegraph_profile::Profile;
 
-use super::access::{push_pass_accesses, Access};
+use super::access::{add_access, summarize_use, Access};
 use crate::declare::{
-    InitialContent, Origin, PassDecl, PassId, PassKind, ResourceDecl, ResourceDesc, ResourceId,
-    UseKind,
+    InitialContent, Origin, PassDecl, PassId, PassKind, PassUse, ResourceDecl, ResourceDesc,
+    ResourceId, UseKind,
 };
 use crate::error::GraphError;
 use crate::types::{Extent2d, Layout};
@@ -130,26 +130,38 @@ fn check_use_target(pass: &PassDecl, kind: &UseKind, r: &ResourceDecl) -> Result
     }
 }
 
-/// Checks the attachments of a raster pass and returns its render area.
-fn check_raster(
-    pass: &PassDecl,
-    resources: &[ResourceDecl],
-    profile: &Profile,
-) -> Result<Extent2d, GraphError> {
-    let mut area = pass.render_area;
-    let mut samples: Option<u32> = None;
-    let mut colors = 0u32;
-    let mut depth: Option<ResourceId> = None;
-    for (i, u) in pass.uses.iter().enumerate() {
-        if !u.kind.is_attachment() {
-            continue;
+/// What the attachment checks of one raster pass have seen so far.
+struct RasterCheck {
+    area: Option<Extent2d>,
+    samples: Option<u32>,
+    colors: u32,
+    depth: Option<ResourceId>,
+}
+
+impl RasterCheck {
+    fn new(pass: &PassDecl) -> Self {
+        RasterCheck {
+            area: pass.render_area,
+            samples: None,
+            colors: 0,
+            depth: None,
         }
-        let r = &resources[u.resource.index()];
+    }
+
+    /// Checks the attachment use `pass.uses[i]` of `r` against the pass's other attachments.
+    fn attachment(
+        &mut self,
+        pass: &PassDecl,
+        i: usize,
+        u: &PassUse,
+        r: &ResourceDecl,
+        resources: &[ResourceDecl],
+    ) -> Result<(), GraphError> {
         if matches!(
             u.kind,
             UseKind::DepthStencilAttachment { .. } | UseKind::DepthStencilReadOnly
         ) {
-            match depth {
+            match self.depth {
                 Some(first) if first != u.resource => {
                     return Err(GraphError::SecondDepthStencil {
                         pass: pass.name.clone(),
@@ -157,11 +169,11 @@ fn check_raster(
                         second: r.name.clone(),
                     })
                 }
-                _ => depth = Some(u.resource),
+                _ => self.depth = Some(u.resource),
             }
         }
         let Some(desc) = r.desc.image() else {
-            continue;
+            return Ok(());
         };
         if desc.mip_levels > 1 {
             return Err(GraphError::MipmappedAttachment {
@@ -171,8 +183,8 @@ fn check_raster(
             });
         }
         let extent = desc.extent_px;
-        match area {
-            None => area = Some(extent),
+        match self.area {
+            None => self.area = Some(extent),
             Some(expected) if expected != extent => {
                 return Err(GraphError::ExtentMismatch {
                     pass: pass.name.clone(),
@@ -191,8 +203,8 @@ fn check_raster(
         );
         if counts_samples {
             let found = desc.samples.count();
-            match samples {
-                None => samples = Some(found),
+            match self.samples {
+                None => self.samples = Some(found),
                 Some(expected) if expected != found => {
                     return Err(GraphError::SampleCountMismatch {
                         pass: pass.name.clone(),
@@ -205,33 +217,39 @@ fn check_raster(
             }
         }
         if matches!(u.kind, UseKind::ColorAttachment { .. }) {
-            colors += 1;
+            self.colors += 1;
         }
         if let UseKind::ResolveTarget { source } = u.kind {
             check_resolve(pass, i, resources, source, u.resource)?;
         }
+        Ok(())
     }
-    let max = profile.render_pass.max_color_attachments;
-    if colors > max {
-        return Err(GraphError::TooManyColorAttachments {
+
+    /// Checks the pass as a whole and returns its render area.
+    fn finish(self, pass: &PassDecl, profile: &Profile) -> Result<Extent2d, GraphError> {
+        let max = profile.render_pass.max_color_attachments;
+        if self.colors > max {
+            return Err(GraphError::TooManyColorAttachments {
+                pass: pass.name.clone(),
+                count: self.colors,
+                max,
+                profile: profile.name.clone(),
+            });
+        }
+        let area = self.area.ok_or_else(|| GraphError::MissingRenderArea {
             pass: pass.name.clone(),
-            count: colors,
-            max,
-            profile: profile.name.clone(),
-        });
+        })?;
+        // Attachments are checked as resources; a declared area without any must be checked
+        // here.
+        let sides = [area.width_px, area.height_px];
+        if sides.iter().any(|&side| side == 0 || side > MAX_EXTENT_PX) {
+            return Err(GraphError::InvalidRenderArea {
+                pass: pass.name.clone(),
+                extent_px: area,
+            });
+        }
+        Ok(area)
     }
-    let area = area.ok_or_else(|| GraphError::MissingRenderArea {
-        pass: pass.name.clone(),
-    })?;
-    // Attachments are checked as resources; a declared area without any must be checked here.
-    let sides = [area.width_px, area.height_px];
-    if sides.iter().any(|&side| side == 0 || side > MAX_EXTENT_PX) {
-        return Err(GraphError::InvalidRenderArea {
-            pass: pass.name.clone(),
-            extent_px: area,
-        });
-    }
-    Ok(area)
 }
 
 /// Checks the resolve declared by `pass.uses[use_index]`.
@@ -302,7 +320,9 @@ pub(crate) fn validate_declarations(
     let mut render_areas = Vec::with_capacity(passes.len());
     for pass in passes {
         let start = accesses.len();
-        for u in &pass.uses {
+        let raster = pass.kind == PassKind::Raster;
+        let mut attachments = RasterCheck::new(pass);
+        for (i, u) in pass.uses.iter().enumerate() {
             let Some(r) = resources.get(u.resource.index()) else {
                 return Err(GraphError::UnknownResource {
                     pass: pass.name.clone(),
@@ -310,24 +330,24 @@ pub(crate) fn validate_declarations(
                 });
             };
             check_use_target(pass, &u.kind, r)?;
+            if raster && u.kind.is_attachment() {
+                attachments.attachment(pass, i, u, r, resources)?;
+            }
+            let a = summarize_use(pass.kind, pass.coverage, u, i as u32, &r.desc);
+            add_access(&mut accesses, start, a, &pass.uses).map_err(|c| {
+                GraphError::ConflictingUses {
+                    pass: pass.name.clone(),
+                    resource: r.name.clone(),
+                    first: c.first,
+                    second: c.second,
+                }
+            })?;
         }
-        push_pass_accesses(
-            pass.kind,
-            pass.coverage,
-            &pass.uses,
-            |id| resources.get(id.index()).map(|r| &r.desc),
-            &mut accesses,
-        )
-        .map_err(|c| GraphError::ConflictingUses {
-            pass: pass.name.clone(),
-            resource: resources[c.resource.index()].name.clone(),
-            first: c.first,
-            second: c.second,
-        })?;
         pass_ranges.push((start as u32, accesses.len() as u32));
-        render_areas.push(match pass.kind {
-            PassKind::Raster => Some(check_raster(pass, resources, profile)?),
-            PassKind::Compute | PassKind::Transfer => None,
+        render_areas.push(if raster {
+            Some(attachments.finish(pass, profile)?)
+        } else {
+            None
         });
     }
 
