@@ -68,10 +68,10 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
     )?;
     ctx.check_validation()?;
     if a.json {
-        println!("{}", serde_json::to_string(&report)?);
+        outln!("{}", serde_json::to_string(&report)?)?;
         return Ok(());
     }
-    println!(
+    outln!(
         "{} on {:?} ({} instances culled on the GPU), profile {}, {}x{}, {} frames",
         report.technique,
         report.scene,
@@ -80,13 +80,19 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
         a.size.0,
         a.size.1,
         report.totals.frames
-    );
-    println!(
+    )?;
+    outln!(
         "{:>6} {:>4} {:>8} {:>8} {:>6} {:>8} {:>12}",
-        "frame", "cut", "visible", "drawn", "FN", "FP", "image equal"
-    );
+        "frame",
+        "cut",
+        "visible",
+        "drawn",
+        "FN",
+        "FP",
+        "image equal"
+    )?;
     for f in &report.frames {
-        println!(
+        outln!(
             "{:>6} {:>4} {:>8} {:>8} {:>6} {:>8} {:>12}",
             f.frame,
             if f.cut { "cut" } else { "" },
@@ -95,12 +101,12 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
             f.false_negatives,
             f.false_positives,
             f.image_equal
-        );
+        )?;
     }
     let t = &report.totals;
-    println!(
+    outln!(
         "totals: visible {} drawn {} FN {} (in {} frames) FP {} (rate {:.3}); images equal {}/{}; triangles drawn {}; culling GPU {:.3} ms of {:.3} ms per frame (medians)",
         t.visible, t.drawn, t.false_negatives, t.frames_with_false_negatives, t.false_positives, t.false_positive_rate, t.frames_image_equal, t.frames, t.triangles_drawn, t.cull_gpu_ms, t.frame_gpu_ms
-    );
+    )?;
     Ok(())
 }

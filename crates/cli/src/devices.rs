@@ -82,12 +82,12 @@ pub fn run(json: bool) -> Result<(), CliError> {
         });
     }
     if json {
-        println!("{}", serde_json::to_string_pretty(&reports)?);
+        outln!("{}", serde_json::to_string_pretty(&reports)?)?;
         return Ok(());
     }
     for r in &reports {
-        println!("device {}: {}", r.index, r.name);
-        println!(
+        outln!("device {}: {}", r.index, r.name)?;
+        outln!(
             "  vendor {:#06x}  device {:#x}  driver id {} ({} {})  type {}  Vulkan {}",
             r.vendor_id,
             r.device_id,
@@ -96,21 +96,21 @@ pub fn run(json: bool) -> Result<(), CliError> {
             r.driver_info,
             r.device_type,
             r.api_version
-        );
-        println!("  profile {}  ({})", r.profile, r.matched_by);
-        println!("  memory type per use:");
+        )?;
+        outln!("  profile {}  ({})", r.profile, r.matched_by)?;
+        outln!("  memory type per use:")?;
         for (use_, m) in &r.memory {
-            println!(
+            outln!(
                 "    {use_:<22} type {:>2} (heap {})  {:#06x} {}",
                 m.type_index,
                 m.heap_index,
                 m.flags,
                 m.flag_names.join(" | ")
-            );
+            )?;
         }
     }
     if reports.is_empty() {
-        println!("no Vulkan devices");
+        outln!("no Vulkan devices")?;
     }
     Ok(())
 }

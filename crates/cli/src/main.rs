@@ -1,10 +1,22 @@
 //! `tilegraph`: the command-line face of the library. Thin: parsing, printing, files.
 
+/// `println!` that reports failure instead of panicking: `outln!(...)?`. A closed pipe
+/// (`tilegraph devices | head -1`) ends the command quietly, as other Unix tools do.
+macro_rules! outln {
+    () => {
+        $crate::write_line(format_args!(""))
+    };
+    ($($arg:tt)*) => {
+        $crate::write_line(format_args!($($arg)*))
+    };
+}
+
 mod cullcheck;
 mod devices;
 mod image_io;
 mod render;
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -147,6 +159,23 @@ pub enum CliError {
     Render(#[from] tilegraph_passes::RenderError),
     #[error("{0}")]
     Usage(String),
+    /// Whoever read standard output stopped reading (`| head`): not a failure.
+    #[error("standard output closed")]
+    OutputClosed,
+}
+
+/// One line to standard output.
+pub fn write_line(line: std::fmt::Arguments<'_>) -> Result<(), CliError> {
+    let mut out = std::io::stdout().lock();
+    out.write_fmt(line)
+        .and_then(|()| out.write_all(b"\n"))
+        .map_err(|e| match e.kind() {
+            std::io::ErrorKind::BrokenPipe => CliError::OutputClosed,
+            _ => CliError::Write {
+                path: PathBuf::from("<stdout>"),
+                reason: e.to_string(),
+            },
+        })
 }
 
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -216,7 +245,7 @@ fn main() -> ExitCode {
         }),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) | Err(CliError::OutputClosed) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("tilegraph: {e}");
             ExitCode::FAILURE
@@ -226,7 +255,7 @@ fn main() -> ExitCode {
 
 fn demo(out: &std::path::Path, size: (u32, u32), frames: u32) -> Result<(), CliError> {
     devices::run(false)?;
-    println!();
+    outln!()?;
     let scene = tilegraph_scene::default_scene()?;
     render::run(&render::RenderArgs {
         scene: &scene,
@@ -244,9 +273,9 @@ fn scene_info(spec: &str, json: bool) -> Result<(), CliError> {
     let scene = tilegraph_scene::load(spec)?;
     let info = scene.info();
     if json {
-        println!("{}", serde_json::to_string(&info)?);
+        outln!("{}", serde_json::to_string(&info)?)?;
     } else {
-        println!("{info}");
+        outln!("{info}")?;
     }
     Ok(())
 }

@@ -64,75 +64,83 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
         }
     };
     image_io::write_png(args.out, &image)?;
-    println!(
-        "scene {:?}: {} instances; device {:?}; profile {} ({}); technique {}; {}x{}",
-        scene.name(),
-        scene.instances().len(),
-        ctx.physical.identity.device_name,
-        ctx.profile().name,
-        ctx.selection.matched_by,
-        args.technique.name(),
-        args.size.0,
-        args.size.1
-    );
-    if let Some(r) = &report {
-        println!("\npasses chosen by the frame setup:");
-        for d in &r.setup.decisions {
-            println!(
-                "  {:<20} {:<8} {}",
-                d.pass.name(),
-                if d.included { "included" } else { "left out" },
-                d.reason
-            );
+    // Printed before the renderer is destroyed (the timings live in it); destroyed whatever
+    // printing did (a closed pipe, say).
+    let printed = (|| -> Result<(), CliError> {
+        outln!(
+            "scene {:?}: {} instances; device {:?}; profile {} ({}); technique {}; {}x{}",
+            scene.name(),
+            scene.instances().len(),
+            ctx.physical.identity.device_name,
+            ctx.profile().name,
+            ctx.selection.matched_by,
+            args.technique.name(),
+            args.size.0,
+            args.size.1
+        )?;
+        if let Some(r) = &report {
+            outln!("\npasses chosen by the frame setup:")?;
+            for d in &r.setup.decisions {
+                outln!(
+                    "  {:<20} {:<8} {}",
+                    d.pass.name(),
+                    if d.included { "included" } else { "left out" },
+                    d.reason
+                )?;
+            }
+            outln!(
+                "\nplan: {} render pass(es), {} barriers; traffic {} (naive {}); {} draws, {} triangles",
+                r.plan.render_passes().count(),
+                r.plan.barrier_count(),
+                bytes(r.plan.traffic.planned.total_bytes()),
+                bytes(r.plan.traffic.naive.total_bytes()),
+                r.draws,
+                r.triangles
+            )?;
         }
-        println!(
-            "\nplan: {} render pass(es), {} barriers; traffic {} (naive {}); {} draws, {} triangles",
-            r.plan.render_passes().count(),
-            r.plan.barrier_count(),
-            bytes(r.plan.traffic.planned.total_bytes()),
-            bytes(r.plan.traffic.naive.total_bytes()),
-            r.draws,
-            r.triangles
-        );
-    }
-    print_timings(&renderer, args.frames);
-    println!("wrote {}", args.out.display());
+        print_timings(&renderer, args.frames)?;
+        outln!("wrote {}", args.out.display())?;
+        Ok(())
+    })();
     renderer.destroy(&ctx);
     ctx.check_validation()?;
-    Ok(())
+    printed
 }
 
 /// The per-pass GPU time table: medians over the frames rendered, with the last frame's
 /// shader invocation counts where the device has pipeline statistics.
-pub fn print_timings(renderer: &SceneRenderer, frames: u32) {
+pub fn print_timings(renderer: &SceneRenderer, frames: u32) -> Result<(), CliError> {
     let medians = renderer.medians();
     let latest = renderer.executor().latest_timings();
-    println!(
+    outln!(
         "\nGPU time per pass (median of {} frames, timestamps):",
         renderer
             .executor()
             .history()
             .frames()
             .min(u64::from(frames))
-    );
-    println!(
+    )?;
+    outln!(
         "  {:<22} {:>10} {:>14} {:>14}",
-        "pass", "gpu ms", "vertex inv.", "fragment inv."
-    );
+        "pass",
+        "gpu ms",
+        "vertex inv.",
+        "fragment inv."
+    )?;
     let mut total = 0.0;
     for m in &medians {
         let stats = latest.and_then(|t| t.passes.iter().find(|p| p.name == m.name));
         let fmt = |v: Option<u64>| v.map_or("-".to_string(), |x| x.to_string());
-        println!(
+        outln!(
             "  {:<22} {:>10.3} {:>14} {:>14}",
             m.name,
             m.median_gpu_ms,
             fmt(stats.and_then(|s| s.vertex_invocations)),
             fmt(stats.and_then(|s| s.fragment_invocations))
-        );
+        )?;
         total += m.median_gpu_ms;
     }
-    println!("  {:<22} {:>10.3}", "total", total);
+    outln!("  {:<22} {:>10.3}", "total", total)
 }
 
 fn bytes(b: u64) -> String {

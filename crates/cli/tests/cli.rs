@@ -124,6 +124,22 @@ fn scene_info_json_has_the_documented_fields() {
 }
 
 #[test]
+fn a_closed_output_pipe_ends_the_command_quietly() {
+    // `tilegraph scene-info city | head -0`: the reader is gone before the first line.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tilegraph"))
+        .args(["scene-info", "city:50"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run tilegraph");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("wait for tilegraph");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "exit {:?}: {err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
 fn render_writes_the_image_and_the_timing_table() {
     let out = std::env::temp_dir().join(format!("tilegraph-render-{}.png", std::process::id()));
     let (ok, stdout, err) = tilegraph(
