@@ -191,7 +191,7 @@ pub(crate) fn estimate_traffic(
         let raster = pass.kind == PassKind::Raster;
         for a in accesses.of(pass.id) {
             memory_traffic(a, sizes.whole(a.resource), &mut common);
-            if raster && a.attachment {
+            if raster && a.attachment() {
                 naive_attachments = naive_attachments.saturating_add(sizes.attachment(a.resource));
             }
         }
@@ -246,11 +246,11 @@ pub(crate) fn estimate_traffic(
                 .collect();
             for pass in passes {
                 if pass.kind == PassKind::Raster {
-                    for a in accesses.of(pass.id).iter().filter(|a| a.attachment) {
+                    for a in accesses.of(pass.id).iter().filter(|a| a.attachment()) {
                         immediate_attachment(pass, a, &has_content, &sizes, &mut planned);
                     }
                 }
-                for a in accesses.of(pass.id).iter().filter(|a| a.writes) {
+                for a in accesses.of(pass.id).iter().filter(|a| a.writes()) {
                     if let Some(c) = has_content.get_mut(a.resource.index()) {
                         *c = true;
                     }
@@ -278,7 +278,7 @@ fn immediate_attachment(
         .get(a.resource.index())
         .copied()
         .unwrap_or(false);
-    if a.explicit_read || (a.reads_prior && old) {
+    if a.explicit_read() || (a.reads_prior() && old) {
         add(&mut planned.attachment_read_bytes, bytes);
     }
     if a.roles & RESOLVE != 0 {
@@ -290,7 +290,7 @@ fn immediate_attachment(
         if let Some(source) = source {
             add(&mut planned.attachment_read_bytes, sizes.attachment(source));
         }
-    } else if a.writes {
+    } else if a.writes() {
         add(&mut planned.attachment_write_bytes, bytes);
     }
 }

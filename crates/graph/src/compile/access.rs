@@ -18,18 +18,54 @@ pub(crate) struct Access {
     pub roles: u16,
     /// Layout the pass needs (images); `Undefined` for buffers.
     pub layout: Layout,
+    /// `READS_PRIOR | EXPLICIT_READ | ...`: one byte, so a summary is built and merged with
+    /// one store and one OR.
+    flags: u8,
+}
+
+/// The pass needs the content left by earlier writes: an explicit read, or a write that
+/// neither clears nor covers everything.
+const READS_PRIOR: u8 = 1;
+/// A declared read (sampled, input, storage read, depth test without write...).
+const EXPLICIT_READ: u8 = 2;
+const WRITES: u8 = 4;
+/// Some use binds it to the render pass.
+const ATTACHMENT: u8 = 8;
+/// Some use reaches it through memory (descriptor, vertex input, transfer).
+const NON_ATTACHMENT: u8 = 16;
+/// The first use clears it.
+const CLEARS: u8 = 32;
+
+impl Access {
     /// The pass needs the content left by earlier writes: an explicit read, or a write that
     /// neither clears nor covers everything.
-    pub reads_prior: bool,
+    pub const fn reads_prior(&self) -> bool {
+        self.flags & READS_PRIOR != 0
+    }
+
     /// A declared read (sampled, input, storage read, depth test without write...).
-    pub explicit_read: bool,
-    pub writes: bool,
+    pub const fn explicit_read(&self) -> bool {
+        self.flags & EXPLICIT_READ != 0
+    }
+
+    pub const fn writes(&self) -> bool {
+        self.flags & WRITES != 0
+    }
+
     /// Some use binds it to the render pass.
-    pub attachment: bool,
+    pub const fn attachment(&self) -> bool {
+        self.flags & ATTACHMENT != 0
+    }
+
     /// Some use reaches it through memory (descriptor, vertex input, transfer).
-    pub non_attachment: bool,
+    pub const fn non_attachment(&self) -> bool {
+        self.flags & NON_ATTACHMENT != 0
+    }
+
     /// The first use clears it.
-    pub clears: bool,
+    pub const fn clears(&self) -> bool {
+        self.flags & CLEARS != 0
+    }
 }
 
 /// Shader stages that a descriptor use in a pass of this kind may touch.
@@ -54,6 +90,15 @@ fn shader_read_layout(format: Option<Format>) -> Layout {
     }
 }
 
+/// `flag` if `on`.
+const fn bit(on: bool, flag: u8) -> u8 {
+    if on {
+        flag
+    } else {
+        0
+    }
+}
+
 /// Summarizes one declared use (one `match` gives every property).
 pub(crate) fn summarize_use(
     pass_kind: PassKind,
@@ -66,184 +111,120 @@ pub(crate) fn summarize_use(
     let is_image = format.is_some();
     let keeps_old = coverage == Coverage::Partial;
     let shader = shader_stages(pass_kind);
-    // (stages, access, layout, reads_prior, explicit_read, writes, attachment, clears)
-    let (stages, access, layout, reads_prior, explicit_read, writes, attachment, clears) =
-        match u.kind {
-            UseKind::ColorAttachment { clear } => {
-                let reads = clear.is_none() && keeps_old;
-                let access = if reads {
-                    AccessFlags::COLOR_ATTACHMENT_WRITE | AccessFlags::COLOR_ATTACHMENT_READ
-                } else {
-                    AccessFlags::COLOR_ATTACHMENT_WRITE
-                };
-                let stages = PipelineStages::COLOR_ATTACHMENT_OUTPUT;
-                let layout = Layout::ColorAttachment;
-                (
-                    stages,
-                    access,
-                    layout,
-                    reads,
-                    false,
-                    true,
-                    true,
-                    clear.is_some(),
-                )
-            }
-            UseKind::DepthStencilAttachment { clear } => (
-                DEPTH_TESTS,
-                AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
-                    | AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
-                Layout::DepthStencilAttachment,
-                clear.is_none() && keeps_old,
-                false,
-                true,
-                true,
-                clear.is_some(),
-            ),
-            UseKind::DepthStencilReadOnly => (
-                DEPTH_TESTS,
-                AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ,
-                Layout::DepthStencilReadOnly,
-                true,
-                true,
-                false,
-                true,
-                false,
-            ),
-            UseKind::InputAttachment => (
-                PipelineStages::FRAGMENT_SHADER,
-                AccessFlags::INPUT_ATTACHMENT_READ,
-                shader_read_layout(format),
-                true,
-                true,
-                false,
-                true,
-                false,
-            ),
-            // A resolve overwrites every pixel of its target.
-            UseKind::ResolveTarget { .. } => (
+    // Reads: the old content, declared as such.
+    const READ: u8 = READS_PRIOR | EXPLICIT_READ;
+    let (stages, access, layout, flags) = match u.kind {
+        UseKind::ColorAttachment { clear } => {
+            let reads = clear.is_none() && keeps_old;
+            let access = if reads {
+                AccessFlags::COLOR_ATTACHMENT_WRITE | AccessFlags::COLOR_ATTACHMENT_READ
+            } else {
+                AccessFlags::COLOR_ATTACHMENT_WRITE
+            };
+            (
                 PipelineStages::COLOR_ATTACHMENT_OUTPUT,
-                AccessFlags::COLOR_ATTACHMENT_WRITE,
+                access,
                 Layout::ColorAttachment,
-                false,
-                false,
-                true,
-                true,
-                false,
-            ),
-            UseKind::Sampled => (
-                shader,
-                AccessFlags::SHADER_SAMPLED_READ,
-                shader_read_layout(format),
-                true,
-                true,
-                false,
-                false,
-                false,
-            ),
-            UseKind::StorageRead => (
-                shader,
-                AccessFlags::SHADER_STORAGE_READ,
-                Layout::General,
-                true,
-                true,
-                false,
-                false,
-                false,
-            ),
-            UseKind::StorageWrite => (
-                shader,
-                AccessFlags::SHADER_STORAGE_WRITE,
-                Layout::General,
-                keeps_old,
-                false,
-                true,
-                false,
-                false,
-            ),
-            // Reads what the pass itself writes (HiZ mips), and the old content unless the
-            // pass covers everything: not a read of earlier content by itself.
-            UseKind::StorageReadWrite => (
-                shader,
-                AccessFlags::SHADER_STORAGE_READ | AccessFlags::SHADER_STORAGE_WRITE,
-                Layout::General,
-                keeps_old,
-                false,
-                true,
-                false,
-                false,
-            ),
-            UseKind::Uniform => (
-                shader,
-                AccessFlags::UNIFORM_READ,
-                Layout::Undefined,
-                true,
-                true,
-                false,
-                false,
-                false,
-            ),
-            UseKind::Vertex => (
-                PipelineStages::VERTEX_ATTRIBUTE_INPUT,
-                AccessFlags::VERTEX_ATTRIBUTE_READ,
-                Layout::Undefined,
-                true,
-                true,
-                false,
-                false,
-                false,
-            ),
-            UseKind::Index => (
-                PipelineStages::INDEX_INPUT,
-                AccessFlags::INDEX_READ,
-                Layout::Undefined,
-                true,
-                true,
-                false,
-                false,
-                false,
-            ),
-            UseKind::Indirect => (
-                PipelineStages::DRAW_INDIRECT,
-                AccessFlags::INDIRECT_COMMAND_READ,
-                Layout::Undefined,
-                true,
-                true,
-                false,
-                false,
-                false,
-            ),
-            UseKind::ConditionalPredicate => (
-                PipelineStages::CONDITIONAL_RENDERING,
-                AccessFlags::CONDITIONAL_RENDERING_READ,
-                Layout::Undefined,
-                true,
-                true,
-                false,
-                false,
-                false,
-            ),
-            UseKind::TransferSrc => (
-                PipelineStages::ALL_TRANSFER,
-                AccessFlags::TRANSFER_READ,
-                Layout::TransferSrc,
-                true,
-                true,
-                false,
-                false,
-                false,
-            ),
-            UseKind::TransferDst => (
-                PipelineStages::ALL_TRANSFER,
-                AccessFlags::TRANSFER_WRITE,
-                Layout::TransferDst,
-                keeps_old,
-                false,
-                true,
-                false,
-                false,
-            ),
-        };
+                WRITES | ATTACHMENT | bit(reads, READS_PRIOR) | bit(clear.is_some(), CLEARS),
+            )
+        }
+        UseKind::DepthStencilAttachment { clear } => (
+            DEPTH_TESTS,
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ | AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            Layout::DepthStencilAttachment,
+            WRITES
+                | ATTACHMENT
+                | bit(clear.is_none() && keeps_old, READS_PRIOR)
+                | bit(clear.is_some(), CLEARS),
+        ),
+        UseKind::DepthStencilReadOnly => (
+            DEPTH_TESTS,
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ,
+            Layout::DepthStencilReadOnly,
+            READ | ATTACHMENT,
+        ),
+        UseKind::InputAttachment => (
+            PipelineStages::FRAGMENT_SHADER,
+            AccessFlags::INPUT_ATTACHMENT_READ,
+            shader_read_layout(format),
+            READ | ATTACHMENT,
+        ),
+        // A resolve overwrites every pixel of its target.
+        UseKind::ResolveTarget { .. } => (
+            PipelineStages::COLOR_ATTACHMENT_OUTPUT,
+            AccessFlags::COLOR_ATTACHMENT_WRITE,
+            Layout::ColorAttachment,
+            WRITES | ATTACHMENT,
+        ),
+        UseKind::Sampled => (
+            shader,
+            AccessFlags::SHADER_SAMPLED_READ,
+            shader_read_layout(format),
+            READ | NON_ATTACHMENT,
+        ),
+        UseKind::StorageRead => (
+            shader,
+            AccessFlags::SHADER_STORAGE_READ,
+            Layout::General,
+            READ | NON_ATTACHMENT,
+        ),
+        UseKind::StorageWrite => (
+            shader,
+            AccessFlags::SHADER_STORAGE_WRITE,
+            Layout::General,
+            WRITES | NON_ATTACHMENT | bit(keeps_old, READS_PRIOR),
+        ),
+        // Reads what the pass itself writes (HiZ mips), and the old content unless the pass
+        // covers everything: not a read of earlier content by itself.
+        UseKind::StorageReadWrite => (
+            shader,
+            AccessFlags::SHADER_STORAGE_READ | AccessFlags::SHADER_STORAGE_WRITE,
+            Layout::General,
+            WRITES | NON_ATTACHMENT | bit(keeps_old, READS_PRIOR),
+        ),
+        UseKind::Uniform => (
+            shader,
+            AccessFlags::UNIFORM_READ,
+            Layout::Undefined,
+            READ | NON_ATTACHMENT,
+        ),
+        UseKind::Vertex => (
+            PipelineStages::VERTEX_ATTRIBUTE_INPUT,
+            AccessFlags::VERTEX_ATTRIBUTE_READ,
+            Layout::Undefined,
+            READ | NON_ATTACHMENT,
+        ),
+        UseKind::Index => (
+            PipelineStages::INDEX_INPUT,
+            AccessFlags::INDEX_READ,
+            Layout::Undefined,
+            READ | NON_ATTACHMENT,
+        ),
+        UseKind::Indirect => (
+            PipelineStages::DRAW_INDIRECT,
+            AccessFlags::INDIRECT_COMMAND_READ,
+            Layout::Undefined,
+            READ | NON_ATTACHMENT,
+        ),
+        UseKind::ConditionalPredicate => (
+            PipelineStages::CONDITIONAL_RENDERING,
+            AccessFlags::CONDITIONAL_RENDERING_READ,
+            Layout::Undefined,
+            READ | NON_ATTACHMENT,
+        ),
+        UseKind::TransferSrc => (
+            PipelineStages::ALL_TRANSFER,
+            AccessFlags::TRANSFER_READ,
+            Layout::TransferSrc,
+            READ | NON_ATTACHMENT,
+        ),
+        UseKind::TransferDst => (
+            PipelineStages::ALL_TRANSFER,
+            AccessFlags::TRANSFER_WRITE,
+            Layout::TransferDst,
+            WRITES | NON_ATTACHMENT | bit(keeps_old, READS_PRIOR),
+        ),
+    };
     Access {
         resource: u.resource,
         first_use: use_index,
@@ -251,12 +232,7 @@ pub(crate) fn summarize_use(
         access,
         roles: u.kind.bit(),
         layout: if is_image { layout } else { Layout::Undefined },
-        reads_prior,
-        explicit_read,
-        writes,
-        attachment,
-        non_attachment: !attachment,
-        clears,
+        flags,
     }
 }
 
@@ -266,10 +242,8 @@ pub(crate) fn merge_reads(into: &mut Access, other: &Access) {
     into.roles |= other.roles;
     into.stages |= other.stages;
     into.access |= other.access;
-    into.reads_prior |= other.reads_prior;
-    into.explicit_read |= other.explicit_read;
-    into.attachment |= other.attachment;
-    into.non_attachment |= other.non_attachment;
+    // Reads neither write nor clear: their flags add reads and binding kinds only.
+    into.flags |= other.flags;
 }
 
 /// Bit of a use kind, for tests on `roles`.
@@ -320,7 +294,7 @@ pub(crate) fn add_access(
     match out[start..].iter_mut().find(|x| x.resource == a.resource) {
         None => out.push(a),
         Some(existing) => {
-            if existing.writes || a.writes || existing.layout != a.layout {
+            if existing.writes() || a.writes() || existing.layout != a.layout {
                 let name = |i: u32| uses.get(i as usize).map_or("?", |u| u.kind.name());
                 return Err(UseConflict {
                     first: name(existing.first_use),

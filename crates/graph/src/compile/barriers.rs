@@ -133,9 +133,9 @@ impl SyncUse {
             stages: a.stages,
             access: a.access,
             layout: a.layout,
-            reads: a.reads_prior || a.explicit_read,
-            writes: a.writes,
-            discard: a.writes && !a.reads_prior,
+            reads: a.reads_prior() || a.explicit_read(),
+            writes: a.writes(),
+            discard: a.writes() && !a.reads_prior(),
         }
     }
 }

@@ -71,7 +71,7 @@ pub(crate) fn cull_unused_passes(
         while consumed.get(next).is_some_and(|&(w, _)| w as usize == p) {
             next += 1;
         }
-        let writes = analysis.accesses_of(p).iter().any(|a| a.writes);
+        let writes = analysis.accesses_of(p).iter().any(|a| a.writes());
         let reason = if !writes {
             CullReason::NoOutputs
         } else if from == next {

@@ -93,14 +93,14 @@ pub(crate) fn resource_uses(
                     s.last = g;
                 }
                 s.first = g;
-                s.attachment_only &= !a.non_attachment;
+                s.attachment_only &= !a.non_attachment();
                 s.roles |= a.roles;
             }
         }
         // The group's first use of each resource decides what the groups before see.
         for &p in passes.iter().rev() {
             for a in analysis.accesses_of(p.index()) {
-                state[a.resource.index()].pending = a.reads_prior;
+                state[a.resource.index()].pending = a.reads_prior();
             }
         }
     }
@@ -242,7 +242,7 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, sink: &mut impl StepS
         }
         for &p in &input.order[group.start..group.end] {
             for a in input.analysis.accesses_of(p.index()) {
-                if a.writes {
+                if a.writes() {
                     written_before[a.resource.index()] = true;
                 }
             }
@@ -423,7 +423,7 @@ fn new_attachment(
         .and_then(|u| u.kind.clear_value());
     let load_op = if clear.is_some() {
         LoadOp::Clear
-    } else if a.reads_prior && has_content {
+    } else if a.reads_prior() && has_content {
         LoadOp::Load
     } else {
         LoadOp::DontCare
@@ -463,7 +463,7 @@ fn track_subpass_use(
     s: u32,
     a: &Access,
 ) {
-    let reads = a.reads_prior || a.explicit_read;
+    let reads = a.reads_prior() || a.explicit_read();
     let mut synced_last_user = false;
     if let Some((ws, stages, access)) = track.write {
         if ws != s {
@@ -471,7 +471,7 @@ fn track_subpass_use(
             synced_last_user |= ws == track.last_subpass;
         }
     }
-    if a.writes {
+    if a.writes() {
         for &(att, rs, stages) in readers.iter() {
             if att == index && rs != s {
                 add_dependency(deps, rs, s, stages, AccessFlags::NONE, a.stages, a.access);
@@ -492,7 +492,7 @@ fn track_subpass_use(
             a.access,
         );
     }
-    if a.writes {
+    if a.writes() {
         track.write = Some((s, a.stages, a.access));
     } else if reads {
         readers.push((index, s, a.stages));

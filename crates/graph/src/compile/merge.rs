@@ -97,18 +97,18 @@ pub(crate) fn merge_render_passes(
                     if t.group != g_index {
                         return true;
                     }
-                    if a.clears {
+                    if a.clears() {
                         return false;
                     }
-                    let same_pixel = !a.non_attachment && !t.non_attachment;
+                    let same_pixel = !a.non_attachment() && !t.non_attachment;
                     connected |= same_pixel;
                     // Otherwise both only read it through descriptors, in one layout. A
                     // descriptor read in one subpass of what is an attachment in another would
                     // be outside the attachment's subpass dependencies and its store op.
-                    let shared_reads = !a.writes
+                    let shared_reads = !a.writes()
                         && !t.written
                         && a.layout == t.layout
-                        && !a.attachment
+                        && !a.attachment()
                         && !t.attachment;
                     same_pixel || shared_reads
                 });
@@ -143,15 +143,15 @@ pub(crate) fn merge_render_passes(
             if t.group != g_index {
                 *t = Touch {
                     group: g_index,
-                    attachment: a.attachment,
-                    non_attachment: a.non_attachment,
-                    written: a.writes,
+                    attachment: a.attachment(),
+                    non_attachment: a.non_attachment(),
+                    written: a.writes(),
                     layout: a.layout,
                 };
             } else {
-                t.attachment |= a.attachment;
-                t.non_attachment |= a.non_attachment;
-                t.written |= a.writes;
+                t.attachment |= a.attachment();
+                t.non_attachment |= a.non_attachment();
+                t.written |= a.writes();
                 t.layout = a.layout;
             }
         }

@@ -66,7 +66,7 @@ fn dependency_edges(
             if w != NONE && w != pu {
                 pairs.push((w, pu));
             }
-            if a.writes {
+            if a.writes() {
                 let mut node = head;
                 while node != NONE {
                     let (q, next) = readers[node as usize];
@@ -79,7 +79,7 @@ fn dependency_edges(
         }
         for a in analysis.accesses_of(p) {
             let entry = &mut last[a.resource.index()];
-            if a.writes {
+            if a.writes() {
                 *entry = (pu, NONE);
             } else {
                 readers.push((pu, entry.1));

@@ -372,14 +372,14 @@ pub(crate) fn validate_declarations(
         let start = producers.len();
         let (a0, a1) = pass_ranges[p];
         for a in &accesses[a0 as usize..a1 as usize] {
-            if !a.reads_prior {
+            if !a.reads_prior() {
                 continue;
             }
             match last_writer[a.resource.index()] {
                 Some(w) => producers.push(w),
                 None => {
                     let r = &resources[a.resource.index()];
-                    if a.explicit_read && !has_initial_content(r) {
+                    if a.explicit_read() && !has_initial_content(r) {
                         return Err(GraphError::ReadBeforeWrite {
                             pass: pass.name.clone(),
                             resource: r.name.clone(),
@@ -394,7 +394,7 @@ pub(crate) fn validate_declarations(
         }
         producer_ranges.push((start as u32, producers.len() as u32));
         for a in &accesses[a0 as usize..a1 as usize] {
-            if a.writes {
+            if a.writes() {
                 last_writer[a.resource.index()] = Some(PassId(p as u32));
             }
         }
