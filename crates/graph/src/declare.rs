@@ -210,10 +210,11 @@ impl ResourceState {
 /// Whether an imported resource's content at the start of the frame matters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum InitialContent {
-    /// Keep it: the first pass that needs old content gets LOAD (history, accumulation).
-    /// Preserving the content *through* the frame is what [`GraphBuilder::export`] says: an
-    /// import that is not exported is only needed until its last use, and a render pass that
-    /// only reads it may end with a DONT_CARE store (export a static image the frame only reads).
+    /// Keep it: the first pass that needs old content gets LOAD (history, accumulation). A
+    /// frame that only reads it leaves it as it came (a render pass that reads it stores it, or
+    /// keeps it with NONE): reading never costs the caller its content. Keeping what the frame
+    /// *writes* into it is what [`GraphBuilder::export`] says: written and not exported, the
+    /// new content is only needed until its last use (and may end with a DONT_CARE store).
     Preserve,
     /// Drop it (a freshly acquired swapchain image): never loaded, layout starts `Undefined`.
     Discard,

@@ -130,7 +130,8 @@ pub(crate) fn summarize_use(
         }
         UseKind::DepthStencilAttachment { clear } => (
             DEPTH_TESTS,
-            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ | AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
+                | AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
             Layout::DepthStencilAttachment,
             WRITES
                 | ATTACHMENT

@@ -56,7 +56,8 @@ pub(crate) struct ResourceUses {
     /// Per resource.
     pub resources: Vec<ResourceUse>,
     /// Per access (index into `Analysis::accesses`): the resource's content is needed after
-    /// the access's group (the next use reads it first, or the resource is exported).
+    /// the access's group (the next use reads it first, or its content outlives the frame:
+    /// exported, or imported and only read).
     pub needed_after: Vec<bool>,
 }
 
@@ -64,9 +65,9 @@ pub(crate) fn resource_uses(
     groups: &[Group],
     order: &[PassId],
     analysis: &Analysis,
-    exported: &[bool],
+    kept_at_end: &[bool],
 ) -> ResourceUses {
-    let mut state: Vec<ResourceUse> = exported
+    let mut state: Vec<ResourceUse> = kept_at_end
         .iter()
         .map(|&pending| ResourceUse {
             first: NONE,
@@ -558,6 +559,107 @@ mod tests {
             stored.traffic.planned.total_bytes() - with_none.traffic.planned.total_bytes(),
             depth_bytes
         );
+    }
+
+    /// A static depth buffer (baked once, imported every frame with its content) that the frame
+    /// only tests against: nothing in the frame changed it, so nothing may discard it, exported
+    /// or not. Written by the frame and not exported, it is the caller's to lose.
+    #[test]
+    fn an_import_the_frame_only_reads_keeps_its_content() {
+        let frame = |write_it: bool, profile: &tilegraph_profile::Profile| {
+            let mut g = GraphBuilder::new();
+            let baked = g.import_image(
+                "baked_depth",
+                ImageDesc::new(EXTENT, Format::D24_UNORM_S8_UINT),
+                Import {
+                    initial: ResourceState::image(
+                        Layout::DepthStencilReadOnly,
+                        PipelineStages::NONE,
+                        AccessFlags::NONE,
+                    ),
+                    content: InitialContent::Preserve,
+                    final_state: ResourceState::image(
+                        Layout::DepthStencilReadOnly,
+                        PipelineStages::NONE,
+                        AccessFlags::NONE,
+                    ),
+                },
+            );
+            let out = swapchain(&mut g);
+            if write_it {
+                g.raster_pass("stamp", PassClass::Opaque, ())
+                    .depth_stencil(baked);
+            }
+            g.raster_pass("decals", PassClass::Transparent, ())
+                .depth_stencil_read_only(baked)
+                .color(out)
+                .coverage(Coverage::Full);
+            compile(g, profile)
+        };
+        let mut no_none = tiler();
+        no_none.render_pass.store_op_none = false;
+        for (profile, kept) in [(tiler(), StoreOp::None), (no_none, StoreOp::Store)] {
+            let plan = frame(false, &profile);
+            let baked = attachment(&plan, "baked_depth");
+            assert_eq!(baked.load_op, LoadOp::Load, "{plan}");
+            assert_eq!(
+                (baked.store_op, baked.stencil_store_op),
+                (kept, kept),
+                "{plan}"
+            );
+        }
+        let written = frame(true, &tiler());
+        assert_eq!(
+            attachment(&written, "baked_depth").store_op,
+            StoreOp::DontCare,
+            "{written}"
+        );
+
+        // A later writer that is culled changes nothing: what survives decides.
+        for survivor_writes in [false, true] {
+            let mut g = GraphBuilder::new();
+            let baked = g.import_image(
+                "baked_depth",
+                ImageDesc::new(EXTENT, Format::D24_UNORM_S8_UINT),
+                Import {
+                    initial: ResourceState::image(
+                        Layout::DepthStencilAttachment,
+                        PipelineStages::NONE,
+                        AccessFlags::NONE,
+                    ),
+                    content: InitialContent::Preserve,
+                    final_state: ResourceState::image(
+                        Layout::DepthStencilAttachment,
+                        PipelineStages::NONE,
+                        AccessFlags::NONE,
+                    ),
+                },
+            );
+            let out = swapchain(&mut g);
+            let unread = rgba8(&mut g, "unread");
+            let mut decals = g.raster_pass("decals", PassClass::Opaque, ());
+            decals.color(out).coverage(Coverage::Full);
+            if survivor_writes {
+                decals.depth_stencil(baked);
+            } else {
+                decals.depth_stencil_read_only(baked);
+            }
+            g.raster_pass("nobody_reads", PassClass::Other, ())
+                .depth_stencil(baked)
+                .color(unread);
+            let plan = compile(g, &tiler());
+            assert_eq!(plan.culled.len(), 1, "{plan}");
+            let expected = if survivor_writes {
+                StoreOp::DontCare
+            } else {
+                StoreOp::None
+            };
+            assert_eq!(
+                attachment(&plan, "baked_depth").store_op,
+                expected,
+                "{plan}"
+            );
+        }
     }
 
     #[test]

@@ -135,6 +135,44 @@ fn resource_sync(desc: &ResourceDesc, origin: &Origin) -> ResourceSync {
     }
 }
 
+/// Per resource: its content must outlive the frame. Exports, and imported content that no
+/// surviving pass writes: the frame only read it, and a read must not cost the caller what it
+/// imported (a static depth buffer tested by decals would otherwise end with a DONT_CARE store).
+fn content_kept_at_end(
+    resources: &[ResourceDecl],
+    exported: &[bool],
+    analysis: &validate::Analysis,
+    alive: &[bool],
+) -> Vec<bool> {
+    let mut kept = exported.to_vec();
+    let mut ambiguous = false;
+    for (r, decl) in resources.iter().enumerate() {
+        // Store ops exist for attachments only, hence images only.
+        if kept[r] || decl.desc.image().is_none() || !validate::has_initial_content(decl) {
+            continue;
+        }
+        // The last declared writer tells, unless it was culled (an earlier one may survive).
+        match analysis.last_writer[r] {
+            None => kept[r] = true,
+            Some(w) if alive.get(w.index()).copied().unwrap_or(false) => {}
+            Some(_) => {
+                kept[r] = true;
+                ambiguous = true;
+            }
+        }
+    }
+    if ambiguous {
+        for (p, _) in alive.iter().enumerate().filter(|(_, &a)| a) {
+            for a in analysis.accesses_of(p) {
+                if a.writes() && !exported[a.resource.index()] {
+                    kept[a.resource.index()] = false;
+                }
+            }
+        }
+    }
+    kept
+}
+
 /// Usage flags from the roles of every surviving access.
 fn infer_usage(desc: &ResourceDesc, roles: u16, residency: Residency) -> Usage {
     let has = |kind: UseKind| roles & role(kind) != 0;
@@ -264,7 +302,12 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     for e in &exports {
         exported[e.index()] = true;
     }
-    let uses = resource_uses(&groups, &order, &analysis, &exported);
+    let uses = resource_uses(
+        &groups,
+        &order,
+        &analysis,
+        &content_kept_at_end(&resources, &exported, &analysis, &culling.alive),
+    );
     let residency = residencies(&uses, &groups, &resources, &exported, profile);
     // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
     // on the order of lifetimes.
