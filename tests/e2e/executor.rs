@@ -535,3 +535,61 @@ fn a_sampled_depth_stencil_image_has_a_depth_only_view() {
     );
     exec.destroy(&g);
 }
+
+/// The executor rebuilds its render passes when the plan changes, and a driver may give a new,
+/// incompatible render pass the handle value of one it destroyed: a pipeline cache keyed on the
+/// handle would hand out a pipeline made for another render pass. Two plans in turn on one
+/// executor and one pipeline cache (keyed on serials): every frame valid under validation, and
+/// every rebuild's render passes carry serials never seen before, above the executor's floor.
+#[test]
+fn render_passes_rebuilt_for_another_plan_get_new_serials() {
+    let g = gpu(Some("lavapipe")).unwrap();
+    let kit = Kit::new(&g).unwrap();
+    let (image, handle) = target(&g, W, H).unwrap();
+    let mut exec = Executor::new(&g).unwrap();
+    let mut seen: Vec<(u64, vk::RenderPass)> = Vec::new();
+    for i in 0..4 {
+        let frame = if i % 2 == 0 {
+            classic_mobile_frame(&kit, W, H)
+        } else {
+            visbuf_frame(&kit, W, H)
+        };
+        let target_id = frame.target;
+        let mut compiled = frame.graph.compile(g.profile()).unwrap();
+        let plan = compiled.plan.clone();
+        let mut used = Vec::new();
+        let stats = exec
+            .execute(&g, &plan, &externals(target_id, &handle), &mut |id, pc| {
+                if let Some(rp) = pc.render_pass {
+                    used.push((rp.serial, rp.handle));
+                }
+                match compiled.payload_mut(id) {
+                    Some(p) => p(pc),
+                    None => Ok(()),
+                }
+            })
+            .unwrap();
+        assert!(stats.rebuilt, "frame {i}: another plan");
+        assert!(!used.is_empty());
+        for &(serial, _) in &used {
+            assert!(serial >= exec.render_pass_serial_floor(), "frame {i}");
+            assert!(
+                seen.iter().all(|&(s, _)| s != serial),
+                "frame {i}: serial {serial} seen before"
+            );
+        }
+        let reused = used
+            .iter()
+            .filter(|(_, h)| seen.iter().any(|(_, old)| old == h))
+            .count();
+        println!(
+            "frame {i}: {reused} of {} render pass uses got a reused handle",
+            used.len()
+        );
+        seen.extend(used);
+    }
+    exec.finish(&g).unwrap();
+    exec.destroy(&g);
+    kit.borrow_mut().destroy(&g);
+    destroy_target(&g, image, handle);
+}

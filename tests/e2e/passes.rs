@@ -271,3 +271,42 @@ fn forward_frames_match_their_golden_images() {
         failures.join("\n")
     );
 }
+
+/// A frame whose plan differs from the last one's makes the executor rebuild its render passes;
+/// the renderer then drops the pipelines made for the destroyed ones (new render passes carry new
+/// serials, so they would never be used again): the cache does not grow with rebuilds.
+#[test]
+fn pipelines_of_rebuilt_render_passes_are_dropped() {
+    let scene = tilegraph_scene::load("city:200").unwrap();
+    let g = gpu_with(Some("adreno-7xx"), required_features(Technique::Prepass)).unwrap();
+    let options = RenderOptions {
+        technique: Technique::Prepass,
+        width: W,
+        height: H,
+        ..Default::default()
+    };
+    let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+    let cameras: Vec<_> = (0..4)
+        .map(|i| scene.camera_path().camera(i * 40).unwrap())
+        .collect();
+    let mut counts = Vec::new();
+    let mut rebuilds = 0;
+    for cam in &cameras {
+        let report = r.render(&g, &scene, cam).unwrap();
+        rebuilds += usize::from(report.stats.rebuilt);
+        counts.push(r.cached_pipelines());
+    }
+    println!("pipelines cached after each frame: {counts:?}; {rebuilds} rebuilds");
+    assert!(
+        rebuilds >= 2,
+        "the first frame's plan differs from the next ones'"
+    );
+    assert!(counts.iter().all(|&c| c > 0));
+    // A rebuild replaces the pipelines; it does not add to them.
+    assert!(
+        counts.iter().all(|&c| c <= counts[0]),
+        "pipelines pile up across rebuilds: {counts:?}"
+    );
+    r.finish(&g).unwrap();
+    r.destroy(&g);
+}

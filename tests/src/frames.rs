@@ -74,7 +74,8 @@ pub struct Kit {
     pub input_layout: vk::PipelineLayout,
     pub set_layout: vk::DescriptorSetLayout,
     pool: vk::DescriptorPool,
-    pipelines: HashMap<(vk::RenderPass, u32, Kind), vk::Pipeline>,
+    /// By (render pass serial, subpass, kind): handles of destroyed render passes are reused.
+    pipelines: HashMap<(u64, u32, Kind), vk::Pipeline>,
     sets: HashMap<(usize, ResourceId), vk::DescriptorSet>,
 }
 
@@ -121,11 +122,11 @@ impl Kit {
         kind: Kind,
         color_count: u32,
     ) -> Result<vk::Pipeline, VkError> {
-        let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
+        let rp = pc.render_pass.ok_or_else(|| VkError::Invalid {
             what: pc.pass_name.into(),
             reason: "not in a render pass".into(),
         })?;
-        if let Some(p) = self.pipelines.get(&(rp, subpass, kind)) {
+        if let Some(p) = self.pipelines.get(&(rp.serial, rp.subpass, kind)) {
             return Ok(*p);
         }
         let gt = vk::CompareOp::GREATER;
@@ -202,8 +203,8 @@ impl Kit {
                 vertex_layout: None,
                 layout,
                 target: RenderTarget::Subpass {
-                    render_pass: rp,
-                    subpass,
+                    render_pass: rp.handle,
+                    subpass: rp.subpass,
                     color_count,
                 },
                 depth,
@@ -212,7 +213,7 @@ impl Kit {
                 samples: vk::SampleCountFlags::TYPE_1,
             },
         )?;
-        self.pipelines.insert((rp, subpass, kind), p);
+        self.pipelines.insert((rp.serial, rp.subpass, kind), p);
         Ok(p)
     }
 

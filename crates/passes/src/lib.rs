@@ -12,6 +12,7 @@ pub mod draws;
 pub mod gpu_scene;
 pub mod hiz;
 pub mod occlusion;
+mod pipelines;
 pub mod render;
 pub mod setup;
 

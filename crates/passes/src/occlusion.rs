@@ -13,13 +13,13 @@
 //! instance is drawn. Objects that become visible are drawn one frame late (false negatives,
 //! measured by `cull-check`).
 
-use std::collections::HashMap;
-
 use ash::vk;
 use glam::{DVec3, Mat4, Vec3, Vec4};
 use tilegraph_scene::{DepthConvention, FrameMatrices, Scene};
 use tilegraph_vk::ash;
 use tilegraph_vk::executor::PassContext;
+
+use crate::pipelines::{render_pass_of, PipelineCache};
 use tilegraph_vk::pipeline::{
     create_graphics_pipeline, create_pipeline_layout, Blend, DepthState, GraphicsDesc,
     RenderTarget, Stage,
@@ -162,7 +162,7 @@ pub struct OqState {
     frame_slot: usize,
     frames: u64,
     pub pipeline_layout: vk::PipelineLayout,
-    pipelines: HashMap<(vk::RenderPass, u32, bool), vk::Pipeline>,
+    pipelines: PipelineCache<bool>,
     /// Conditional rendering: this frame's results on the GPU, one u32 per query.
     pub conditions: Option<Buffer>,
     /// Per query: whether this frame issued it (the others draw unconditionally).
@@ -213,7 +213,7 @@ impl OqState {
             frame_slot: 0,
             frames: 0,
             pipeline_layout,
-            pipelines: HashMap::new(),
+            pipelines: PipelineCache::default(),
             conditions: None,
             current_issued: Vec::new(),
             current_drawable: Vec::new(),
@@ -540,6 +540,15 @@ impl OqState {
             .collect())
     }
 
+    /// Drops pipelines of render passes that no longer exist (see [`PipelineCache::prune`]).
+    pub(crate) fn prune_pipelines(&mut self, ctx: &Context, floor: u64) {
+        self.pipelines.prune(ctx, floor);
+    }
+
+    pub(crate) fn pipeline_count(&self) -> usize {
+        self.pipelines.len()
+    }
+
     pub fn destroy(self, ctx: &Context) {
         if let Some(b) = self.conditions {
             ctx.destroy_buffer(b);
@@ -548,9 +557,6 @@ impl OqState {
         unsafe {
             for p in self.pools {
                 ctx.device.destroy_query_pool(p, None);
-            }
-            for (_, p) in self.pipelines {
-                ctx.device.destroy_pipeline(p, None);
             }
             ctx.device
                 .destroy_pipeline_layout(self.pipeline_layout, None);
@@ -566,7 +572,7 @@ pub struct RasterOcclusion {
     pool: vk::DescriptorPool,
     set: vk::DescriptorSet,
     pub pipeline_layout: vk::PipelineLayout,
-    pipelines: HashMap<(vk::RenderPass, u32, bool), vk::Pipeline>,
+    pipelines: PipelineCache<bool>,
     instance_count: u32,
     /// 1: full resolution; k > 1: against a conservative ~1/k-resolution depth.
     pub scale: u32,
@@ -580,7 +586,7 @@ struct Downsample {
     sets: Vec<vk::DescriptorSet>,
     layout: vk::PipelineLayout,
     sampler: vk::Sampler,
-    pipelines: HashMap<(vk::RenderPass, u32), vk::Pipeline>,
+    pipelines: PipelineCache<()>,
 }
 
 /// Push constants of `raster_occlusion_downsample.frag`.
@@ -611,7 +617,7 @@ impl Downsample {
             sets: Vec::new(),
             layout: vk::PipelineLayout::null(),
             sampler: vk::Sampler::null(),
-            pipelines: HashMap::new(),
+            pipelines: PipelineCache::default(),
         };
         if let Err(e) = d.init(ctx, frames_in_flight.max(1)) {
             d.destroy(ctx);
@@ -660,9 +666,6 @@ impl Downsample {
     fn destroy(self, ctx: &Context) {
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
-            for (_, p) in self.pipelines {
-                ctx.device.destroy_pipeline(p, None);
-            }
             ctx.device.destroy_sampler(self.sampler, None);
             ctx.device.destroy_pipeline_layout(self.layout, None);
             ctx.device.destroy_descriptor_pool(self.pool, None);
@@ -713,7 +716,7 @@ impl RasterOcclusion {
             pool,
             set: vk::DescriptorSet::null(),
             pipeline_layout: vk::PipelineLayout::null(),
-            pipelines: HashMap::new(),
+            pipelines: PipelineCache::default(),
             instance_count,
             scale: scale.max(1),
             downsample: None,
@@ -830,12 +833,9 @@ impl RasterOcclusion {
         let Some(ds) = self.downsample.as_mut() else {
             return Ok(());
         };
-        let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
-            what: pc.pass_name.into(),
-            reason: "the depth downsample records inside a render pass".into(),
-        })?;
-        let pipeline = match ds.pipelines.get(&(rp, subpass)) {
-            Some(p) => *p,
+        let rp = render_pass_of(pc, "the depth downsample must")?;
+        let pipeline = match ds.pipelines.get(rp, ()) {
+            Some(p) => p,
             None => {
                 let p = create_graphics_pipeline(
                     pc.ctx,
@@ -854,8 +854,8 @@ impl RasterOcclusion {
                         vertex_layout: None,
                         layout: ds.layout,
                         target: RenderTarget::Subpass {
-                            render_pass: rp,
-                            subpass,
+                            render_pass: rp.handle,
+                            subpass: rp.subpass,
                             color_count: 0,
                         },
                         depth: DepthState {
@@ -868,7 +868,7 @@ impl RasterOcclusion {
                         samples: vk::SampleCountFlags::TYPE_1,
                     },
                 )?;
-                ds.pipelines.insert((rp, subpass), p);
+                ds.pipelines.insert(rp, (), p);
                 p
             }
         };
@@ -928,15 +928,24 @@ impl RasterOcclusion {
         Ok(())
     }
 
+    /// Drops pipelines of render passes that no longer exist (see [`PipelineCache::prune`]).
+    pub(crate) fn prune_pipelines(&mut self, ctx: &Context, floor: u64) {
+        self.pipelines.prune(ctx, floor);
+        if let Some(d) = self.downsample.as_mut() {
+            d.pipelines.prune(ctx, floor);
+        }
+    }
+
+    pub(crate) fn pipeline_count(&self) -> usize {
+        self.pipelines.len() + self.downsample.as_ref().map_or(0, |d| d.pipelines.len())
+    }
+
     pub fn destroy(self, ctx: &Context) {
         if let Some(d) = self.downsample {
             d.destroy(ctx);
         }
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
-            for (_, p) in self.pipelines {
-                ctx.device.destroy_pipeline(p, None);
-            }
             ctx.device
                 .destroy_pipeline_layout(self.pipeline_layout, None);
             ctx.device.destroy_descriptor_pool(self.pool, None);
@@ -953,19 +962,16 @@ impl RasterOcclusion {
 /// with it: hence OR_EQUAL.
 fn proxy_pipeline(
     pc: &PassContext<'_>,
-    cache: &mut HashMap<(vk::RenderPass, u32, bool), vk::Pipeline>,
+    cache: &mut PipelineCache<bool>,
     depth: DepthConvention,
     vertex: Stage<'_>,
     fragment: Option<Stage<'_>>,
     layout: vk::PipelineLayout,
 ) -> Result<vk::Pipeline, VkError> {
-    let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
-        what: pc.pass_name.into(),
-        reason: "occlusion proxies record inside a render pass".into(),
-    })?;
+    let rp = render_pass_of(pc, "occlusion proxies")?;
     let reverse = depth == DepthConvention::Reverse;
-    if let Some(p) = cache.get(&(rp, subpass, reverse)) {
-        return Ok(*p);
+    if let Some(p) = cache.get(rp, reverse) {
+        return Ok(p);
     }
     let compare = if reverse {
         vk::CompareOp::GREATER_OR_EQUAL
@@ -981,8 +987,8 @@ fn proxy_pipeline(
             vertex_layout: None,
             layout,
             target: RenderTarget::Subpass {
-                render_pass: rp,
-                subpass,
+                render_pass: rp.handle,
+                subpass: rp.subpass,
                 color_count: 0,
             },
             depth: DepthState {
@@ -995,7 +1001,7 @@ fn proxy_pipeline(
             samples: vk::SampleCountFlags::TYPE_1,
         },
     )?;
-    cache.insert((rp, subpass, reverse), p);
+    cache.insert(rp, reverse, p);
     Ok(p)
 }
 

@@ -38,6 +38,7 @@ use tilegraph_vk::{Context, Image, VkError};
 use crate::cull::{gpu_planes, list_index, CullParams, CullState, Culling, Phase};
 use crate::draws::{self, Draw, DrawList};
 use crate::gpu_scene::{visbuf_instance_bits, FrameUniforms, GpuScene, Lighting};
+use crate::pipelines::{render_pass_of, PipelineCache};
 use crate::setup::{decide, FrameSetup, PassKind, SceneContent, Technique};
 
 /// Errors of rendering a scene: each names what failed.
@@ -184,7 +185,7 @@ struct Shared {
     sampler: vk::Sampler,
     /// By (render pass, subpass, variant, double-sided, reverse-Z): the depth compare is baked
     /// in, and a camera may change the convention.
-    pipelines: HashMap<(vk::RenderPass, u32, Variant, bool, bool), vk::Pipeline>,
+    pipelines: PipelineCache<(Variant, bool, bool)>,
     resolve_sets: HashMap<(usize, bool), vk::DescriptorSet>,
     scene_sets: Vec<vk::DescriptorSet>,
     vertex_buffer: vk::Buffer,
@@ -229,6 +230,23 @@ struct Declared {
 }
 
 impl Shared {
+    /// Destroys the pipelines made for render passes older than `floor`.
+    fn prune_pipelines(&mut self, ctx: &Context, floor: u64) {
+        self.pipelines.prune(ctx, floor);
+        if let Some(o) = self.oq.as_mut() {
+            o.prune_pipelines(ctx, floor);
+        }
+        if let Some(r) = self.raster.as_mut() {
+            r.prune_pipelines(ctx, floor);
+        }
+    }
+
+    fn pipeline_count(&self) -> usize {
+        self.pipelines.len()
+            + self.oq.as_ref().map_or(0, |o| o.pipeline_count())
+            + self.raster.as_ref().map_or(0, |r| r.pipeline_count())
+    }
+
     fn compare(&self) -> vk::CompareOp {
         match self.depth {
             DepthConvention::Reverse => vk::CompareOp::GREATER,
@@ -243,19 +261,14 @@ impl Shared {
         double_sided: bool,
         color_count: u32,
     ) -> Result<vk::Pipeline, VkError> {
-        let (rp, subpass) = pc.render_pass.ok_or_else(|| VkError::Invalid {
-            what: pc.pass_name.into(),
-            reason: "scene passes record inside a render pass".into(),
-        })?;
+        let rp = render_pass_of(pc, "scene passes")?;
         let key = (
-            rp,
-            subpass,
             variant,
             double_sided,
             self.depth == DepthConvention::Reverse,
         );
-        if let Some(p) = self.pipelines.get(&key) {
-            return Ok(*p);
+        if let Some(p) = self.pipelines.get(rp, key) {
+            return Ok(p);
         }
         let write = DepthState {
             test: true,
@@ -377,8 +390,8 @@ impl Shared {
                 vertex_layout,
                 layout,
                 target: RenderTarget::Subpass {
-                    render_pass: rp,
-                    subpass,
+                    render_pass: rp.handle,
+                    subpass: rp.subpass,
                     color_count,
                 },
                 depth,
@@ -391,7 +404,7 @@ impl Shared {
                 samples: vk::SampleCountFlags::TYPE_1,
             },
         )?;
-        self.pipelines.insert(key, p);
+        self.pipelines.insert(rp, key, p);
         Ok(p)
     }
 
@@ -841,7 +854,7 @@ impl SceneRenderer {
             sampled_layout,
             pool,
             sampler,
-            pipelines: HashMap::new(),
+            pipelines: PipelineCache::default(),
             resolve_sets: HashMap::new(),
             scene_sets,
             vertex_buffer: gpu.vertices.raw,
@@ -1111,6 +1124,12 @@ impl SceneRenderer {
                     None => Ok(()),
                 },
             )?;
+        if stats.rebuilt {
+            // The executor made new render passes: the pipelines of the old ones go.
+            self.shared
+                .borrow_mut()
+                .prune_pipelines(ctx, self.executor.render_pass_serial_floor());
+        }
         self.frames += 1;
         Ok(FrameReport {
             setup,
@@ -1794,6 +1813,12 @@ impl SceneRenderer {
         Ok(self.gpu.fragment_counts(ctx, self.last_slot)?)
     }
 
+    /// Graphics pipelines cached now (those of render passes the executor destroyed are
+    /// dropped after the frame that rebuilt them).
+    pub fn cached_pipelines(&self) -> usize {
+        self.shared.borrow().pipeline_count()
+    }
+
     pub fn executor(&self) -> &Executor {
         &self.executor
     }
@@ -1836,10 +1861,8 @@ impl SceneRenderer {
                 r.destroy(ctx);
             }
             // SAFETY: the executor waited for every frame; nothing uses these any more.
+            s.pipelines.destroy(ctx);
             unsafe {
-                for (_, p) in s.pipelines {
-                    ctx.device.destroy_pipeline(p, None);
-                }
                 ctx.device.destroy_sampler(s.sampler, None);
                 ctx.device.destroy_descriptor_pool(s.pool, None);
                 ctx.device.destroy_pipeline_layout(s.scene_layout, None);

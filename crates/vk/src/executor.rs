@@ -5,6 +5,7 @@
 //! cached while the plan stays the same.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use ash::vk;
 use tilegraph_graph::{
@@ -52,6 +53,22 @@ pub enum External {
     Buffer(BufferHandle),
 }
 
+/// The render pass and subpass a raster pass records into.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct RenderPassRef {
+    pub handle: vk::RenderPass,
+    pub subpass: u32,
+    /// Unique to this `VkRenderPass` among all that this process creates. The executor destroys
+    /// its render passes when the plan changes, and a driver may hand the same handle value to
+    /// the next one, which need not be compatible: key pipeline caches on the serial, never on
+    /// the handle. Render passes of the current plan have serials of at least
+    /// [`Executor::render_pass_serial_floor`].
+    pub serial: u64,
+}
+
+/// The next render pass's serial (never 0, never reused).
+static NEXT_RENDER_PASS_SERIAL: AtomicU64 = AtomicU64::new(1);
+
 /// What a pass's payload gets to record with.
 pub struct PassContext<'a> {
     pub ctx: &'a Context,
@@ -62,7 +79,7 @@ pub struct PassContext<'a> {
     pub frame_slot: usize,
     pub frame: u64,
     /// The render pass and subpass this pass records into (raster passes), for pipeline creation.
-    pub render_pass: Option<(vk::RenderPass, u32)>,
+    pub render_pass: Option<RenderPassRef>,
     pub render_area: vk::Extent2D,
     resources: &'a Resources,
     externals: &'a HashMap<ResourceId, External>,
@@ -552,8 +569,8 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
 /// Render pass objects and framebuffers of one plan.
 #[derive(Default)]
 struct RenderPasses {
-    /// By step index.
-    passes: HashMap<usize, vk::RenderPass>,
+    /// By step index: the render pass and its serial.
+    passes: HashMap<usize, (vk::RenderPass, u64)>,
     /// By (step index, attachment views).
     framebuffers: HashMap<(usize, Vec<vk::ImageView>), vk::Framebuffer>,
 }
@@ -565,7 +582,7 @@ impl RenderPasses {
             for (_, fb) in self.framebuffers {
                 ctx.device.destroy_framebuffer(fb, None);
             }
-            for (_, rp) in self.passes {
+            for (_, (rp, _)) in self.passes {
                 ctx.device.destroy_render_pass(rp, None);
             }
         }
@@ -740,6 +757,8 @@ pub struct Executor {
     plan: Option<Plan>,
     resources: Option<Resources>,
     render_passes: RenderPasses,
+    /// Every render pass created since the last rebuild has a serial at least this.
+    render_pass_serial_floor: u64,
     /// Frame number of the first frame recorded with the current resources.
     resources_since: u64,
     /// Render passes recorded by the last frame (for tests and reports).
@@ -782,6 +801,7 @@ impl Executor {
             plan: None,
             resources: None,
             render_passes: RenderPasses::default(),
+            render_pass_serial_floor: NEXT_RENDER_PASS_SERIAL.load(Ordering::Relaxed),
             resources_since: 0,
             last_stats: FrameStats::default(),
         })
@@ -847,6 +867,7 @@ impl Executor {
                 old.destroy(ctx);
             }
             std::mem::take(&mut self.render_passes).destroy(ctx);
+            self.render_pass_serial_floor = NEXT_RENDER_PASS_SERIAL.load(Ordering::Relaxed);
             self.resources = Some(build_resources(ctx, plan)?);
             self.plan = Some(plan.clone());
             self.resources_since = self.frames_next_frame();
@@ -997,7 +1018,7 @@ impl Executor {
         token: &FrameToken,
         pass: PassId,
         name: &str,
-        render_pass: Option<(vk::RenderPass, u32)>,
+        render_pass: Option<RenderPassRef>,
         render_area: vk::Extent2D,
         resources: &Resources,
         externals: &HashMap<ResourceId, External>,
@@ -1111,12 +1132,13 @@ impl Executor {
             .first()
             .and_then(|s| plan.pass(s.pass))
             .map_or("render pass", |p| p.name.as_str());
-        let raw_rp = match self.render_passes.passes.get(&step_index) {
+        let (raw_rp, serial) = match self.render_passes.passes.get(&step_index) {
             Some(r) => *r,
             None => {
                 let r = create_render_pass(ctx, rp, first_name)?;
-                self.render_passes.passes.insert(step_index, r);
-                r
+                let serial = NEXT_RENDER_PASS_SERIAL.fetch_add(1, Ordering::Relaxed);
+                self.render_passes.passes.insert(step_index, (r, serial));
+                (r, serial)
             }
         };
         let extent = vk::Extent2D {
@@ -1183,7 +1205,11 @@ impl Executor {
                 token,
                 s.pass,
                 name,
-                Some((raw_rp, i as u32)),
+                Some(RenderPassRef {
+                    handle: raw_rp,
+                    subpass: i as u32,
+                    serial,
+                }),
                 extent,
                 resources,
                 externals,
@@ -1239,6 +1265,14 @@ impl Executor {
             keep
         });
         Ok(())
+    }
+
+    /// Render passes of the current plan have serials of at least this
+    /// ([`RenderPassRef::serial`]); pipelines cached for lower serials belong to render passes
+    /// already destroyed, and no frame in flight uses them (the executor waited for every frame
+    /// before it rebuilt): they may be destroyed.
+    pub fn render_pass_serial_floor(&self) -> u64 {
+        self.render_pass_serial_floor
     }
 
     /// Framebuffers cached for the current plan.
