@@ -287,13 +287,22 @@ fn dir_has(dirs: &[&str], pred: impl Fn(&str) -> bool) -> bool {
 }
 
 fn has_vulkan_loader() -> bool {
-    any_exists(&[
-        "/usr/lib/x86_64-linux-gnu/libvulkan.so.1",
-        "/usr/lib/aarch64-linux-gnu/libvulkan.so.1",
-        "/usr/lib64/libvulkan.so.1",
-        "/usr/lib/libvulkan.so.1",
-        "/usr/local/lib/libvulkan.so.1",
-    ])
+    const LOADER: &str = "libvulkan.so.1";
+    // Debian/Ubuntu multiarch directories (x86_64-linux-gnu, aarch64-linux-gnu, riscv64-...).
+    let multiarch = std::fs::read_dir("/usr/lib")
+        .map(|rd| {
+            rd.filter_map(Result::ok).any(|e| {
+                e.file_name().to_string_lossy().contains("-linux-")
+                    && e.path().join(LOADER).exists()
+            })
+        })
+        .unwrap_or(false);
+    multiarch
+        || any_exists(&[
+            "/usr/lib64/libvulkan.so.1",
+            "/usr/lib/libvulkan.so.1",
+            "/usr/local/lib/libvulkan.so.1",
+        ])
 }
 
 fn has_lavapipe() -> bool {
