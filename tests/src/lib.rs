@@ -4,28 +4,37 @@
 use tilegraph_vk::{Context, ContextOptions, FeatureRequest, Validation, VkError};
 
 /// A validated context for one test. Dropping it checks validation: any warning or error the
-/// layer reported during the test panics (fails) the test, naming the messages.
+/// layer reported during the test, or when the device was destroyed (objects the test leaked),
+/// panics (fails) the test, naming the messages.
 pub struct Gpu {
-    pub ctx: Context,
+    ctx: Option<Context>,
+}
+
+impl Gpu {
+    /// A context checked at its end (see [`Gpu`]).
+    pub fn new(ctx: Context) -> Self {
+        Gpu { ctx: Some(ctx) }
+    }
 }
 
 impl std::ops::Deref for Gpu {
     type Target = Context;
     fn deref(&self) -> &Context {
-        &self.ctx
+        self.ctx
+            .as_ref()
+            .expect("the context lives until the Gpu is dropped")
     }
 }
 
 impl Drop for Gpu {
     fn drop(&mut self) {
+        let Some(ctx) = self.ctx.take() else {
+            return;
+        };
         if std::thread::panicking() {
             return;
         }
-        if let Err(e) = self
-            .ctx
-            .wait_idle()
-            .and_then(|_| self.ctx.check_validation())
-        {
+        if let Err(e) = ctx.wait_idle().and_then(|_| ctx.destroy_checked()) {
             panic!("Vulkan validation failed the test: {e}");
         }
     }
@@ -51,17 +60,16 @@ pub fn options(profile: Option<&str>, features: FeatureRequest) -> ContextOption
 /// A validated context on the default device (lavapipe in CI), optionally forcing a profile.
 pub fn gpu(profile: Option<&str>) -> Result<Gpu, VkError> {
     init_logging();
-    Ok(Gpu {
-        ctx: Context::new(options(profile, FeatureRequest::default()))?,
-    })
+    Ok(Gpu::new(Context::new(options(
+        profile,
+        FeatureRequest::default(),
+    ))?))
 }
 
 /// Same as [`gpu`] with extra features.
 pub fn gpu_with(profile: Option<&str>, features: FeatureRequest) -> Result<Gpu, VkError> {
     init_logging();
-    Ok(Gpu {
-        ctx: Context::new(options(profile, features))?,
-    })
+    Ok(Gpu::new(Context::new(options(profile, features))?))
 }
 
 pub mod frames;

@@ -66,7 +66,8 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
             raster_occlusion_scale: a.raster_occlusion_scale,
         },
     )?;
-    ctx.check_validation()?;
+    // Validation through the teardown: objects left alive are reported there.
+    ctx.destroy_checked()?;
     if a.json {
         outln!("{}", serde_json::to_string(&report)?)?;
         return Ok(());

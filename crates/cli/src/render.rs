@@ -63,10 +63,10 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
             return Err(e);
         }
     };
-    image_io::write_png(args.out, &image)?;
-    // Printed before the renderer is destroyed (the timings live in it); destroyed whatever
-    // printing did (a closed pipe, say).
+    // Written and printed before the renderer is destroyed (the timings live in it); destroyed
+    // whatever writing or printing did (a full disk, a closed pipe).
     let printed = (|| -> Result<(), CliError> {
+        image_io::write_png(args.out, &image)?;
         outln!(
             "scene {:?}: {} instances; device {:?}; profile {} ({}); technique {}; {}x{}",
             scene.name(),
@@ -103,7 +103,8 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
         Ok(())
     })();
     renderer.destroy(&ctx);
-    ctx.check_validation()?;
+    // Validation through the teardown: objects left alive are reported there.
+    ctx.destroy_checked()?;
     printed
 }
 

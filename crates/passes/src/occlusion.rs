@@ -553,6 +553,7 @@ impl OqState {
         if let Some(b) = self.conditions {
             ctx.destroy_buffer(b);
         }
+        self.pipelines.destroy(ctx);
         // SAFETY: the GPU is idle (caller's guarantee).
         unsafe {
             for p in self.pools {
@@ -664,6 +665,7 @@ impl Downsample {
     }
 
     fn destroy(self, ctx: &Context) {
+        self.pipelines.destroy(ctx);
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
             ctx.device.destroy_sampler(self.sampler, None);
@@ -944,6 +946,7 @@ impl RasterOcclusion {
         if let Some(d) = self.downsample {
             d.destroy(ctx);
         }
+        self.pipelines.destroy(ctx);
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
             ctx.device

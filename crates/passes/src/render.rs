@@ -186,6 +186,8 @@ struct Shared {
     /// By (render pass, subpass, variant, double-sided, reverse-Z): the depth compare is baked
     /// in, and a camera may change the convention.
     pipelines: PipelineCache<(Variant, bool, bool)>,
+    /// Pipelines of render passes with serials below this are destroyed.
+    pruned_below: u64,
     resolve_sets: HashMap<(usize, bool), vk::DescriptorSet>,
     scene_sets: Vec<vk::DescriptorSet>,
     vertex_buffer: vk::Buffer,
@@ -230,8 +232,12 @@ struct Declared {
 }
 
 impl Shared {
-    /// Destroys the pipelines made for render passes older than `floor`.
+    /// Destroys the pipelines made for render passes older than `floor` (once per floor).
     fn prune_pipelines(&mut self, ctx: &Context, floor: u64) {
+        if floor <= self.pruned_below {
+            return;
+        }
+        self.pruned_below = floor;
         self.pipelines.prune(ctx, floor);
         if let Some(o) = self.oq.as_mut() {
             o.prune_pipelines(ctx, floor);
@@ -855,6 +861,7 @@ impl SceneRenderer {
             pool,
             sampler,
             pipelines: PipelineCache::default(),
+            pruned_below: 0,
             resolve_sets: HashMap::new(),
             scene_sets,
             vertex_buffer: gpu.vertices.raw,
@@ -1124,12 +1131,11 @@ impl SceneRenderer {
                     None => Ok(()),
                 },
             )?;
-        if stats.rebuilt {
-            // The executor made new render passes: the pipelines of the old ones go.
-            self.shared
-                .borrow_mut()
-                .prune_pipelines(ctx, self.executor.render_pass_serial_floor());
-        }
+        // After a rebuild, the pipelines of the destroyed render passes go (at the first frame
+        // that succeeds after it: the floor only rises).
+        self.shared
+            .borrow_mut()
+            .prune_pipelines(ctx, self.executor.render_pass_serial_floor());
         self.frames += 1;
         Ok(FrameReport {
             setup,

@@ -114,6 +114,8 @@ pub struct Context {
     debug_utils: Option<ash::ext::debug_utils::Device>,
     conditional: Option<ash::ext::conditional_rendering::Device>,
     upload_pool: vk::CommandPool,
+    /// The device and what it owns are destroyed (by `destroy_checked` or Drop).
+    device_destroyed: bool,
     // Declared last: dropped after the device is destroyed in Drop.
     instance: ManuallyDrop<Instance>,
     /// Not `Sync`: the upload pool and the queue are used by `&self` methods and must be
@@ -326,6 +328,7 @@ impl Context {
             debug_utils,
             conditional,
             upload_pool,
+            device_destroyed: false,
             instance: ManuallyDrop::new(instance),
             _one_thread: std::marker::PhantomData,
         })
@@ -832,10 +835,16 @@ fn missing_feature(f: Feature) -> VkError {
     }
 }
 
-impl Drop for Context {
-    fn drop(&mut self) {
+impl Context {
+    /// Destroys the device (waiting for it first) and everything it owns, keeping the instance.
+    /// Runs once.
+    fn destroy_device(&mut self) {
+        if self.device_destroyed {
+            return;
+        }
+        self.device_destroyed = true;
         // SAFETY: teardown order: wait, then every child object, the allocator (which frees its
-        // memory blocks), the device, and finally the instance.
+        // memory blocks), then the device. Runs once (flag above).
         unsafe {
             if let Err(e) = self.device.device_wait_idle() {
                 log::error!("vkDeviceWaitIdle at teardown: {e}");
@@ -843,7 +852,24 @@ impl Drop for Context {
             self.device.destroy_command_pool(self.upload_pool, None);
             ManuallyDrop::drop(&mut self.allocator);
             self.device.destroy_device(None);
-            ManuallyDrop::drop(&mut self.instance);
         }
+    }
+
+    /// Tears the context down and checks validation once more: the layer reports the objects
+    /// still alive when the device is destroyed (a leaked pipeline, buffer or view), which no
+    /// check before the teardown can see. Tests end with this.
+    pub fn destroy_checked(mut self) -> Result<(), VkError> {
+        let before = self.check_validation();
+        self.destroy_device();
+        let at_teardown = self.check_validation();
+        before.and(at_teardown)
+    }
+}
+
+impl Drop for Context {
+    fn drop(&mut self) {
+        self.destroy_device();
+        // SAFETY: the device is gone; the instance (and its debug messenger) goes last.
+        unsafe { ManuallyDrop::drop(&mut self.instance) };
     }
 }
