@@ -195,16 +195,16 @@ pub(crate) fn order_passes(
         topo
     };
 
-    let class_ranks: [(PassClass, usize); CLASSES.len()] =
-        CLASSES.map(|c| (c, profile.passes.class_rank(c)));
-    let rank: Vec<usize> = passes
+    // Indexed by the class's discriminant; ranks are clamped to 16 bits for the key below.
+    let mut class_rank = [u16::MAX; CLASSES.len()];
+    for c in CLASSES {
+        if let Some(slot) = class_rank.get_mut(c as usize) {
+            *slot = profile.passes.class_rank(c).min(0xffff) as u16;
+        }
+    }
+    let rank: Vec<u16> = passes
         .iter()
-        .map(|p| {
-            class_ranks
-                .iter()
-                .find(|(c, _)| *c == p.class)
-                .map_or(usize::MAX, |&(_, r)| r)
-        })
+        .map(|p| class_rank.get(p.class as usize).copied().unwrap_or(u16::MAX))
         .collect();
     let mut effective = rank.clone();
     for &p in topo.iter().rev() {
@@ -216,8 +216,7 @@ pub(crate) fn order_passes(
 
     // (effective rank, own rank, declaration index) packed into one integer key.
     let key = |p: usize| -> u64 {
-        let clamp = |r: usize| r.min(0xffff) as u64;
-        (clamp(effective[p]) << 48) | (clamp(rank[p]) << 32) | p as u64
+        (u64::from(effective[p]) << 48) | (u64::from(rank[p]) << 32) | p as u64
     };
     let mut ready: BinaryHeap<Reverse<u64>> = BinaryHeap::with_capacity(alive_count);
     ready.extend(
