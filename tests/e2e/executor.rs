@@ -486,10 +486,28 @@ fn an_image_the_device_cannot_create_is_a_typed_error() {
         .coverage(Coverage::Full);
     let plan = graph.compile(g.profile()).unwrap().plan;
     let mut exec = Executor::new(&g).unwrap();
-    let err = exec
-        .execute(&g, &plan, &Default::default(), &mut |_, _| Ok(()))
-        .expect_err("no sRGB storage images");
+
+    // A plan that works, then the one that cannot be built, then the working one again: the
+    // failed rebuild must not leave the executor without resources for it.
+    let mut ok_graph: GraphBuilder<()> = GraphBuilder::new();
+    let buffer = ok_graph.create_buffer("counts", 256);
+    ok_graph.export(buffer);
+    ok_graph
+        .compute_pass("count", PassClass::Compute, ())
+        .storage_write(buffer)
+        .coverage(Coverage::Full);
+    let ok_plan = ok_graph.compile(g.profile()).unwrap().plan;
+    let mut run =
+        |exec: &mut Executor, plan| exec.execute(&g, plan, &Default::default(), &mut |_, _| Ok(()));
+    run(&mut exec, &ok_plan).unwrap();
+    let err = run(&mut exec, &plan).expect_err("no sRGB storage images");
     assert!(err.to_string().contains("\"lut\""), "{err}");
+    let again = run(&mut exec, &ok_plan);
+    assert!(
+        again.is_ok(),
+        "the working plan after a failed one: {again:?}"
+    );
+    exec.finish(&g).unwrap();
     exec.destroy(&g);
 }
 

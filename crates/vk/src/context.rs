@@ -805,13 +805,23 @@ impl Context {
             let cbs = [cb];
             let submit = vk::SubmitInfo::default().command_buffers(&cbs);
             // SAFETY: the command buffer is executable; the fence is unsignalled.
-            let waited = unsafe { self.device.queue_submit(self.queue, &[submit], fence) }
-                .vk("vkQueueSubmit")
-                .and_then(|_| {
-                    unsafe { self.device.wait_for_fences(&[fence], true, u64::MAX) }
-                        .vk("vkWaitForFences")
-                });
-            // SAFETY: the fence is signalled or the submit failed; either way unused now.
+            let submitted = unsafe { self.device.queue_submit(self.queue, &[submit], fence) }
+                .vk("vkQueueSubmit");
+            let waited = submitted.and_then(|_| {
+                let waited = unsafe { self.device.wait_for_fences(&[fence], true, u64::MAX) }
+                    .vk("vkWaitForFences");
+                if waited.is_err() {
+                    // Submitted but not known to be done (device lost, say): wait for the whole
+                    // device before the fence and the command buffer go.
+                    // SAFETY: plain wait.
+                    if let Err(e) = unsafe { self.device.device_wait_idle() } {
+                        log::error!("vkDeviceWaitIdle after a failed fence wait: {e}");
+                    }
+                }
+                waited
+            });
+            // SAFETY: the submit failed, or the fence signalled, or the device was waited for
+            // (or lost): either way unused now.
             unsafe { self.device.destroy_fence(fence, None) };
             waited.map(|_| r)
         })();

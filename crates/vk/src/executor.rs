@@ -322,14 +322,31 @@ fn create_views(
     if mips <= 1 && sampled_aspect == aspect {
         return Ok((view, view, Vec::new()));
     }
-    let full = view_of(0, mips, sampled_aspect)?;
-    let mut per_mip = Vec::new();
-    if storage && mips > 1 {
-        for m in 0..mips {
-            per_mip.push(view_of(m, 1, aspect)?);
+    // Every view made so far, destroyed if a later one fails (nothing else holds them yet).
+    let mut made = vec![view];
+    let mut more = || -> Result<(vk::ImageView, Vec<vk::ImageView>), VkError> {
+        let full = view_of(0, mips, sampled_aspect)?;
+        made.push(full);
+        let mut per_mip = Vec::new();
+        if storage && mips > 1 {
+            for m in 0..mips {
+                let v = view_of(m, 1, aspect)?;
+                made.push(v);
+                per_mip.push(v);
+            }
+        }
+        Ok((full, per_mip))
+    };
+    match more() {
+        Ok((full, per_mip)) => Ok((view, full, per_mip)),
+        Err(e) => {
+            for v in made {
+                // SAFETY: created above, never handed out or used.
+                unsafe { ctx.device.destroy_image_view(v, None) };
+            }
+            Err(e)
         }
     }
-    Ok((view, full, per_mip))
 }
 
 /// Turns a plan into physical resources: real memory requirements (with
@@ -539,11 +556,13 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
             }
         };
         let (mem, offset, owner) = memory;
+        // The owner is stored before binding, so a failed bind still frees the memory (with
+        // the rest of `res`).
         if let Some(img) = res.images.get_mut(&r.id) {
+            img.memory = Some(owner);
             // SAFETY: memory satisfies the image's requirements (type, size, alignment checked
             // by the alias layout or by the dedicated allocation).
             unsafe { d.bind_image_memory(img.handle.raw, mem, offset) }.vk("vkBindImageMemory")?;
-            img.memory = Some(owner);
             let storage = matches!(r.usage, Usage::Image(u) if u.contains(tilegraph_graph::ImageUsage::STORAGE));
             let h = &mut img.handle;
             let (view, full_view, mip_views) = create_views(
@@ -557,10 +576,12 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
             )?;
             (h.view, h.full_view, h.mip_views) = (view, full_view, mip_views);
         } else if let Some(buf) = res.buffers.get_mut(&r.id) {
+            buf.memory = Some(owner);
             // SAFETY: as above.
             unsafe { d.bind_buffer_memory(buf.handle.raw, mem, offset) }
                 .vk("vkBindBufferMemory")?;
-            buf.memory = Some(owner);
+        } else if let Memory::Dedicated(a) = owner {
+            ctx.free(a);
         }
     }
     Ok(())
@@ -868,6 +889,9 @@ impl Executor {
             }
             std::mem::take(&mut self.render_passes).destroy(ctx);
             self.render_pass_serial_floor = NEXT_RENDER_PASS_SERIAL.load(Ordering::Relaxed);
+            // No plan until the new one is built: if building fails, the next call rebuilds
+            // (whichever plan it brings) instead of finding no resources for the old one.
+            self.plan = None;
             self.resources = Some(build_resources(ctx, plan)?);
             self.plan = Some(plan.clone());
             self.resources_since = self.frames_next_frame();
@@ -901,7 +925,9 @@ impl Executor {
         // render pass, so it is not ended: the pool reset at the slot's next use takes it back
         // from the recording state. Work already flushed this frame is tracked by the fence.
         if let Err(e) = result {
-            self.frames.abandon(ctx, &token)?;
+            if let Err(gave_up) = self.frames.abandon(ctx, &token) {
+                log::error!("giving up the frame after \"{e}\": {gave_up}");
+            }
             return Err(e);
         }
         self.frames.submit(ctx, token)?;
@@ -1245,10 +1271,11 @@ impl Executor {
         self.collect_all(ctx)
     }
 
-    /// Forgets every framebuffer made with an image view the caller handed in. Call it after
-    /// destroying external images or views (a recreated swapchain): the driver may give a new
-    /// view the handle of a destroyed one, and a framebuffer cached under that handle would
-    /// still reference the destroyed view. Waits for the frames in flight first.
+    /// Forgets every framebuffer made with an image view the caller handed in. For a recreated
+    /// swapchain: call [`Executor::finish`] first (frames in flight may still use the old
+    /// views), destroy the old images and views, then call this before the next `execute`: the
+    /// driver may give a new view the handle of a destroyed one, and a framebuffer cached under
+    /// that handle would still reference the destroyed view.
     pub fn forget_external_views(&mut self, ctx: &Context) -> Result<(), VkError> {
         self.collect_all(ctx)?;
         let owned: Vec<vk::ImageView> = self

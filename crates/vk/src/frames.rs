@@ -189,14 +189,29 @@ impl FrameRing {
                 what: "frame ring".into(),
                 reason: format!("slot {} does not exist", token.slot),
             })?;
-        // SAFETY: the command buffer is recording (begin or flush gave it to this token).
-        unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
-        let cbs = [token.cb];
-        let submit = vk::SubmitInfo::default().command_buffers(&cbs);
-        // SAFETY: executable command buffer, unsignalled fence.
-        unsafe { ctx.device.queue_submit(ctx.queue, &[submit], s.fence) }.vk("vkQueueSubmit")?;
-        s.in_flight = true;
-        Ok(())
+        let fence = s.fence;
+        let submitted = (|| {
+            // SAFETY: the command buffer is recording (begin or flush gave it to this token).
+            unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
+            let cbs = [token.cb];
+            let submit = vk::SubmitInfo::default().command_buffers(&cbs);
+            // SAFETY: executable command buffer, unsignalled fence.
+            unsafe { ctx.device.queue_submit(ctx.queue, &[submit], fence) }.vk("vkQueueSubmit")
+        })();
+        match submitted {
+            Ok(()) => {
+                s.in_flight = true;
+                Ok(())
+            }
+            Err(e) => {
+                // Whatever was flushed earlier in the frame still runs: track it as for any
+                // frame given up, and report the submit's error.
+                if let Err(gave_up) = self.abandon(ctx, &token) {
+                    log::error!("giving up the frame after \"{e}\": {gave_up}");
+                }
+                Err(e)
+            }
+        }
     }
 
     /// Submits the commands recorded so far and continues recording in a fresh command buffer of
@@ -261,8 +276,20 @@ impl FrameRing {
         s.abandoned = true;
         if s.flushed {
             // SAFETY: unsignalled fence of this slot (waited and reset before `begin`).
-            unsafe { ctx.device.queue_submit(ctx.queue, &[], s.fence) }.vk("vkQueueSubmit")?;
-            s.in_flight = true;
+            let tracked =
+                unsafe { ctx.device.queue_submit(ctx.queue, &[], s.fence) }.vk("vkQueueSubmit");
+            match tracked {
+                Ok(()) => s.in_flight = true,
+                Err(e) => {
+                    // The fence cannot track the flushed work: wait for the whole device, so
+                    // none of it still runs when the slot's pool is reset or resources go.
+                    // SAFETY: plain wait.
+                    if let Err(idle) = unsafe { ctx.device.device_wait_idle() } {
+                        log::error!("vkDeviceWaitIdle after a failed submit: {idle}");
+                    }
+                    return Err(e);
+                }
+            }
         }
         Ok(())
     }

@@ -74,7 +74,8 @@ impl QueryRing {
         let bits = ctx.physical.limits.timestamp_valid_bits;
         let mut ring = QueryRing {
             slots: Vec::with_capacity(slots),
-            capacity_passes: capacity_passes.max(1),
+            // Two timestamps per pass in one pool: at most u32::MAX / 2 passes.
+            capacity_passes: capacity_passes.clamp(1, u32::MAX / 2),
             period_ns: f64::from(ctx.physical.limits.timestamp_period_ns),
             valid_mask: if bits >= 64 {
                 u64::MAX

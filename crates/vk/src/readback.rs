@@ -34,6 +34,15 @@ pub fn read_image(
         what: "readback".into(),
         reason: format!("format {:?} is not readable", image.format),
     })?;
+    if level >= image.mip_levels {
+        return Err(VkError::Invalid {
+            what: "readback".into(),
+            reason: format!(
+                "mip level {level} of an image with {} levels",
+                image.mip_levels
+            ),
+        });
+    }
     let w = (image.extent.width >> level).max(1);
     let h = (image.extent.height >> level).max(1);
     let bytes = u64::from(w) * u64::from(h) * u64::from(bpp);

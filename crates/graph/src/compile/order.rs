@@ -204,7 +204,12 @@ pub(crate) fn order_passes(
     }
     let rank: Vec<u16> = passes
         .iter()
-        .map(|p| class_rank.get(p.class as usize).copied().unwrap_or(u16::MAX))
+        .map(|p| {
+            class_rank
+                .get(p.class as usize)
+                .copied()
+                .unwrap_or(u16::MAX)
+        })
         .collect();
     let mut effective = rank.clone();
     for &p in topo.iter().rev() {
