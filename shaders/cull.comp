@@ -75,8 +75,11 @@ bool hiz_visible(Instance inst) {
         nearest = reverse ? max(nearest, ndc.z) : min(nearest, ndc.z);
     }
     vec2 size = vec2(cull.screen.xy);
-    ivec2 pmin = ivec2(floor((lo * 0.5 + 0.5) * size));
-    ivec2 pmax = ivec2(floor((hi * 0.5 + 0.5) * size));
+    // Clamped to [-1, size] before the conversion: a corner just past the near plane can land
+    // billions of pixels away, beyond what an int holds (the conversion is then undefined).
+    // -1 and size keep "off screen" off screen.
+    ivec2 pmin = ivec2(clamp(floor((lo * 0.5 + 0.5) * size), vec2(-1.0), size));
+    ivec2 pmax = ivec2(clamp(floor((hi * 0.5 + 0.5) * size), vec2(-1.0), size));
     ivec2 smax = ivec2(cull.screen.xy) - 1;
     if (any(lessThan(pmax, ivec2(0))) || any(greaterThan(pmin, smax))) {
         return true; // off screen: the frustum test's business

@@ -203,3 +203,67 @@ fn extremes_keep_two_phase_culling_conservative() {
     }
     println!("{}", lines.join("\n"));
 }
+
+/// A path whose frames change the depth convention (allowed per frame in camera-path JSON):
+/// the pyramid must be reduced in the convention of the depth it is built from, and
+/// single-phase HiZ must not test one frame's boxes against a pyramid of the other convention.
+#[test]
+fn frames_that_switch_depth_convention_stay_conservative() {
+    use tilegraph_scene::{DepthConvention, Projection};
+    let features = FeatureRequest::default().require([
+        Feature::GeometryShader,
+        Feature::DrawIndirectCount,
+        Feature::MultiDrawIndirect,
+    ]);
+    let scene = tilegraph_scene::load("city:800").unwrap();
+    let base = test_path(&scene, 12);
+    let keys: Vec<PathKey> = base
+        .keys()
+        .iter()
+        .enumerate()
+        .map(|(i, k)| {
+            let mut camera = k.camera;
+            if i % 2 == 1 {
+                if let Projection::Perspective {
+                    fov_y_rad, near, ..
+                } = camera.projection
+                {
+                    camera.projection = Projection::Perspective {
+                        fov_y_rad,
+                        near,
+                        far: Some(5000.0),
+                        depth: DepthConvention::Standard,
+                    };
+                }
+            }
+            PathKey { camera, cut: k.cut }
+        })
+        .collect();
+    let path = CameraPath::new("switching depth", keys).unwrap();
+    let mut lines = Vec::new();
+    for culling in [Culling::HizTwoPhase, Culling::Hiz] {
+        let g = gpu_with(None, features.clone()).unwrap();
+        let r = cull_check(
+            &g,
+            &scene,
+            culling,
+            &path,
+            SIZE,
+            None,
+            tilegraph_cull::NpotMode::EdgeAware,
+        )
+        .unwrap();
+        lines.push(summary(&r));
+        for f in &r.frames {
+            // Single-phase HiZ may miss what motion uncovers; never what a convention change
+            // would: the frames here alternate conventions, so every frame after the first is
+            // tested against nothing (two-phase: against its own depth).
+            assert_eq!(
+                f.false_negatives, 0,
+                "{culling:?}: frame {} culled {:?}",
+                f.frame, f.false_negative_ids
+            );
+        }
+    }
+    println!("{}", lines.join("\n"));
+}

@@ -497,7 +497,7 @@ fn an_image_the_device_cannot_create_is_a_typed_error() {
         .storage_write(buffer)
         .coverage(Coverage::Full);
     let ok_plan = ok_graph.compile(g.profile()).unwrap().plan;
-    let mut run =
+    let run =
         |exec: &mut Executor, plan| exec.execute(&g, plan, &Default::default(), &mut |_, _| Ok(()));
     run(&mut exec, &ok_plan).unwrap();
     let err = run(&mut exec, &plan).expect_err("no sRGB storage images");

@@ -141,7 +141,7 @@ pub enum Phase {
     Late = 3,
 }
 
-fn cull_convention(c: DepthConvention) -> CullDepth {
+pub(crate) fn cull_convention(c: DepthConvention) -> CullDepth {
     match c {
         DepthConvention::Reverse => CullDepth::Reverse,
         DepthConvention::Standard => CullDepth::Standard,
@@ -181,8 +181,11 @@ pub struct CullState {
     pipeline: vk::Pipeline,
     pool: vk::DescriptorPool,
     sets: Vec<vk::DescriptorSet>,
-    /// Whether the pyramid holds a previous frame's depth (single-phase HiZ needs one).
-    pub pyramid_valid: bool,
+    /// The depth convention of the depth the pyramid was last built from (`None`: never built).
+    /// Single-phase HiZ tests a frame against the previous frame's pyramid only when the
+    /// conventions agree: a pyramid of the other convention holds the wrong extreme of each
+    /// footprint, and its reprojection maps depth the other way.
+    pub pyramid_convention: Option<DepthConvention>,
 }
 
 const CULL_SPV: &[u8] = include_bytes!("../../../shaders/spv/cull.comp.spv");
@@ -316,7 +319,7 @@ impl CullState {
             pipeline,
             pool,
             sets: Vec::new(),
-            pyramid_valid: false,
+            pyramid_convention: None,
         };
         // Two parameter blocks per slot: the early (or only) and the late dispatch.
         for i in 0..2 * slots {

@@ -1095,7 +1095,7 @@ impl SceneRenderer {
                 Culling::Hiz => mk(
                     Phase::HizPrevious,
                     frame.reproject,
-                    if cull.pyramid_valid && !frame.cut {
+                    if cull.pyramid_convention == Some(m.depth) && !frame.cut {
                         levels
                     } else {
                         0
@@ -1616,14 +1616,18 @@ impl SceneRenderer {
             let view = pc.image(depth)?.view;
             let buffer = pc.buffer(pyramid)?;
             let mut s = shared.borrow_mut();
+            // The frame's convention decides the reduction (the farther depth of each
+            // footprint): a camera path may change it from one frame to the next.
+            let depth_convention = s.depth;
             let cull = s.cull.as_mut().ok_or_else(|| VkError::Invalid {
                 what: "hiz-build".into(),
                 reason: "no culling state".into(),
             })?;
-            let layout = cull.hiz_layout.clone().ok_or_else(|| VkError::Invalid {
+            let mut layout = cull.hiz_layout.clone().ok_or_else(|| VkError::Invalid {
                 what: "hiz-build".into(),
                 reason: "no pyramid layout".into(),
             })?;
+            layout.convention = crate::cull::cull_convention(depth_convention);
             let builder = cull.hiz.as_mut().ok_or_else(|| VkError::Invalid {
                 what: "hiz-build".into(),
                 reason: "no pyramid builder".into(),
@@ -1638,7 +1642,7 @@ impl SceneRenderer {
                 buffer,
                 &layout,
             )?;
-            cull.pyramid_valid = true;
+            cull.pyramid_convention = Some(depth_convention);
             Ok(())
         });
         g.compute_pass("hiz-build", PassClass::Compute, build)
