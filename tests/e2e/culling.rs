@@ -267,3 +267,79 @@ fn frames_that_switch_depth_convention_stay_conservative() {
     }
     println!("{}", lines.join("\n"));
 }
+
+/// A scene with nothing but blended geometry (a glTF of glass panes): nothing writes depth
+/// before the pyramid, so two-phase culling has no occluders. The frame must still render
+/// (it failed with a read of the never-written depth), every culling technique alike.
+#[test]
+fn culling_a_scene_of_only_blended_geometry_renders() {
+    use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
+    use tilegraph_scene::{Material, MaterialClass, SceneBuilder, Transform, Vertex};
+    let mut b = SceneBuilder::new("glass");
+    let glass = b.add_material(Material {
+        base_color: [0.2, 0.5, 1.0, 0.5],
+        class: MaterialClass::Blended,
+        double_sided: true,
+    });
+    let v = |x: f32, y: f32| Vertex {
+        position: [x, y, 0.0],
+        normal: [0.0, 0.0, 1.0],
+        uv: [0.0; 2],
+    };
+    let pane = b
+        .add_mesh(
+            &[v(-1.0, -1.0), v(1.0, -1.0), v(1.0, 1.0), v(-1.0, 1.0)],
+            &[0, 1, 2, 0, 2, 3],
+            glass,
+        )
+        .unwrap();
+    for z in [-3.0, -5.0] {
+        b.add_instance(
+            Transform::from_translation(glam::DVec3::new(0.0, 0.0, z)),
+            pane,
+        )
+        .unwrap();
+    }
+    let scene = b.build(None).unwrap();
+    let features = FeatureRequest::default().require([
+        Feature::GeometryShader,
+        Feature::DrawIndirectCount,
+        Feature::MultiDrawIndirect,
+        Feature::FragmentStoresAndAtomics,
+    ]);
+    for culling in [
+        Culling::Frustum,
+        Culling::Hiz,
+        Culling::HizTwoPhase,
+        Culling::RasterOcclusion,
+    ] {
+        for technique in [Technique::Forward, Technique::Prepass] {
+            let g = gpu_with(
+                None,
+                tilegraph_passes::required_features(technique)
+                    .require(features.required.iter().copied()),
+            )
+            .unwrap();
+            let mut r = SceneRenderer::new(
+                &g,
+                &scene,
+                RenderOptions {
+                    technique,
+                    width: SIZE.0,
+                    height: SIZE.1,
+                    culling,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let cam = scene.camera_path().camera(0).unwrap();
+            for _ in 0..2 {
+                if let Err(e) = r.render(&g, &scene, &cam) {
+                    panic!("{culling:?} {technique:?}: {e}");
+                }
+            }
+            r.finish(&g).unwrap();
+            r.destroy(&g);
+        }
+    }
+}

@@ -310,3 +310,26 @@ fn pipelines_of_rebuilt_render_passes_are_dropped() {
     r.finish(&g).unwrap();
     r.destroy(&g);
 }
+
+/// Alpha-tested geometry drawn without a pre-pass cannot force early fragment tests (its
+/// discard decides the depth written); its colour pass must still count what it shades.
+#[test]
+fn alpha_tested_fragments_are_counted_with_and_without_a_prepass() {
+    let scene = tilegraph_scene::load("forest:400").unwrap();
+    // powervr-b leaves the pre-pass out; lavapipe's pre-pass covers alpha-tested geometry.
+    let without = render_with("powervr-b", &scene, Technique::Forward, 0, true);
+    let with = render_with("lavapipe", &scene, Technique::Prepass, 0, true);
+    assert!(!without.report.setup.includes(PassKind::DepthPrepassAlpha));
+    let (a, b) = (without.fragments.unwrap(), with.fragments.unwrap());
+    println!(
+        "fragments shaded (opaque, alpha-tested, blended): without pre-pass {a:?}, with {b:?}"
+    );
+    assert!(
+        a[1] > 0,
+        "alpha-tested fragments uncounted without a pre-pass: {a:?}"
+    );
+    assert!(
+        b[1] > 0,
+        "alpha-tested fragments uncounted with a pre-pass: {b:?}"
+    );
+}

@@ -142,6 +142,8 @@ mod spv {
         include_bytes!("../../../shaders/spv/forward_early.frag.spv");
     pub const FORWARD_COUNT_FS: &[u8] =
         include_bytes!("../../../shaders/spv/forward_count.frag.spv");
+    pub const FORWARD_COUNT_LATE_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_count_late.frag.spv");
     pub const VISBUF_VS: &[u8] = include_bytes!("../../../shaders/spv/visbuf.vert.spv");
     pub const VISBUF_FS: &[u8] = include_bytes!("../../../shaders/spv/visbuf.frag.spv");
     pub const FULLSCREEN_VS: &[u8] = include_bytes!("../../../shaders/spv/fullscreen.vert.spv");
@@ -330,7 +332,8 @@ impl Shared {
                 // Early fragment tests unless a discard decides what depth is written (alpha
                 // tested without a pre-pass): seed 003, discard disables early-Z.
                 let (fs_name, fs) = match (class == 1 && !equal, self.count_fragments) {
-                    (true, _) => ("forward.frag", spv::FORWARD_FS),
+                    (true, true) => ("forward_count_late.frag", spv::FORWARD_COUNT_LATE_FS),
+                    (true, false) => ("forward.frag", spv::FORWARD_FS),
                     (false, true) => ("forward_count.frag", spv::FORWARD_COUNT_FS),
                     (false, false) => ("forward_early.frag", spv::FORWARD_EARLY_FS),
                 };
@@ -1309,7 +1312,9 @@ impl SceneRenderer {
         let phases: &[u32] = if two_phase { &[0, 1] } else { &[0] };
         for &phase in phases {
             if phase == 1 {
-                if let Some(b) = f.gpu {
+                // No depth written by the early phase (nothing opaque or alpha-tested): no
+                // occluders, no pyramid, and no late lists to fill.
+                if let (Some(b), true) = (f.gpu, f.depth_cleared) {
                     self.declare_hiz_build(&mut g, f.depth, b);
                     let mut c = g.compute_pass("cull-late", PassClass::Compute, self.dispatch(1));
                     c.storage_read_write(b.counts)
