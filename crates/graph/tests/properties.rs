@@ -1010,6 +1010,41 @@ fn check_subpass_dependencies(plan: &Plan) -> Result<(), String> {
     Ok(())
 }
 
+/// An attachment whose content survives the render pass (stored, or kept with NONE) is used or
+/// preserved by every subpass from its first use on: a subpass that does neither, after one that
+/// used it, may leave it undefined (VkSubpassDescription), and the store would write that back.
+fn check_preserved(plan: &Plan) -> Result<(), String> {
+    for (step, rp) in plan.render_passes() {
+        for (index, a) in rp.attachments.iter().enumerate() {
+            if a.store_op == StoreOp::DontCare && a.stencil_store_op == StoreOp::DontCare {
+                continue;
+            }
+            let att = AttachmentIndex(index as u32);
+            let used_by = |sub: &tilegraph_graph::Subpass| {
+                sub.colors.iter().any(|r| r.attachment == att)
+                    || sub.inputs.iter().any(|r| r.attachment == att)
+                    || sub.depth_stencil.is_some_and(|r| r.attachment == att)
+                    || sub.resolves.iter().flatten().any(|r| r.attachment == att)
+            };
+            let Some(first) = rp.subpasses.iter().position(used_by) else {
+                continue;
+            };
+            for (s, sub) in rp.subpasses.iter().enumerate().skip(first) {
+                if !used_by(sub) && !sub.preserve.contains(&att) {
+                    return Err(format!(
+                        "step {}: attachment #{index} {} ({:?}) is neither used nor preserved by \
+                         subpass {s}",
+                        step.0,
+                        plan.resources[a.resource.index()].name,
+                        a.store_op
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// `StoreOp::None` keeps content without writing it: only on profiles that take it, for an
 /// attachment the render pass loads and never writes (so its layout never changes inside the
 /// render pass), with the same op for the stencil of a combined format.
@@ -1063,6 +1098,7 @@ fn check_store_none(plan: &Plan, store_op_none: bool) -> Result<(), String> {
 fn check_plan(plan: &Plan, built: &Built, profile: &Profile) -> Result<(), String> {
     check_store_none(plan, profile.render_pass.store_op_none)?;
     check_subpass_dependencies(plan)?;
+    check_preserved(plan)?;
     check_structure(plan)?;
     check_reads_after_writes(plan, &built.mirror)?;
     check_culled_contribute_nothing(plan, &built.mirror, &built.exports)?;

@@ -368,10 +368,6 @@ fn build_render_pass(
         }
         subpasses.push(subpass);
     }
-    for subpass in subpasses.iter_mut() {
-        subpass.preserve.sort_unstable();
-    }
-
     // Store: does anything after this render pass need the content? If so, and the render pass
     // only read it (loaded, never written), NONE keeps it without a write-back where the
     // profile's drivers take it.
@@ -390,6 +386,21 @@ fn build_render_pass(
             // seed 001: depth and stencil of D24S8 are invalidated together or not at all.
             att.stencil_store_op = att.store_op;
         }
+        // Kept after the render pass: every subpass after its last use preserves it. A
+        // subpass that neither uses nor preserves an attachment, and depends on one that used
+        // it, leaves its content undefined (VkSubpassDescription): the store would write back
+        // garbage.
+        if needed {
+            let after = track.map_or(NONE, |t| t.last_subpass);
+            if after != NONE {
+                for later in subpasses.iter_mut().skip(after as usize + 1) {
+                    later.preserve.push(AttachmentIndex(i as u32));
+                }
+            }
+        }
+    }
+    for subpass in subpasses.iter_mut() {
+        subpass.preserve.sort_unstable();
     }
 
     deps.sort_by_key(|d| (d.src_subpass, d.dst_subpass));
@@ -893,5 +904,54 @@ mod tests {
         assert_eq!(input_dep.dst_stages, PipelineStages::FRAGMENT_SHADER);
         assert_eq!(input_dep.dst_access, AccessFlags::INPUT_ATTACHMENT_READ);
         assert_eq!(input_dep.flags, DependencyFlags::BY_REGION);
+    }
+
+    /// An attachment stored after the render pass must survive the subpasses after its last
+    /// use: a later subpass that depends on one that used it, and neither uses nor preserves it,
+    /// leaves its content undefined. Depth, exported here, ends its use in subpass 1.
+    #[test]
+    fn a_stored_attachment_is_preserved_after_its_last_use() {
+        let frame = |export_depth: bool| {
+            let mut g = GraphBuilder::new();
+            let depth = d24s8(&mut g, "depth");
+            let color = rgba8(&mut g, "color");
+            let out = swapchain(&mut g);
+            if export_depth {
+                g.export(depth);
+            }
+            g.raster_pass("prepass", PassClass::DepthPrepass, ())
+                .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+            g.raster_pass("opaque", PassClass::Opaque, ())
+                .color_clear(color, ClearColor::BLACK)
+                .depth_stencil_read_only(depth);
+            g.raster_pass("post", PassClass::Post, ())
+                .input(color)
+                .color(out)
+                .coverage(Coverage::Full);
+            compile(g, &tiler())
+        };
+        let plan = frame(true);
+        let Some((_, rp)) = plan.render_passes().next() else {
+            panic!("no render pass")
+        };
+        assert_eq!(rp.subpasses.len(), 3, "{plan}");
+        let depth = rp
+            .attachments
+            .iter()
+            .position(|a| plan.resource(a.resource).is_some_and(|r| r.name == "depth"))
+            .map(|i| AttachmentIndex(i as u32));
+        assert_eq!(attachment(&plan, "depth").store_op, StoreOp::Store);
+        assert_eq!(
+            rp.subpasses[2].preserve.as_slice(),
+            depth.as_slice(),
+            "{plan}"
+        );
+        // Not kept: nothing to preserve.
+        let plan = frame(false);
+        let Some((_, rp)) = plan.render_passes().next() else {
+            panic!("no render pass")
+        };
+        assert_eq!(attachment(&plan, "depth").store_op, StoreOp::DontCare);
+        assert!(rp.subpasses.iter().all(|s| s.preserve.is_empty()), "{plan}");
     }
 }
