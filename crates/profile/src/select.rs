@@ -245,7 +245,10 @@ impl ProfileSet {
 
 fn match_score(rule: &MatchRule, d: &DeviceIdentity) -> Option<(u32, MatchedBy)> {
     let vendor_ok = rule.vendor_ids.is_empty() || rule.vendor_ids.contains(&d.vendor_id);
-    if vendor_ok {
+    // A listed driver vouches for the name too: Mesa's drivers for other vendors' GPUs
+    // (Honeykrisp on Apple silicon) report Mesa's vendor id.
+    let driver_ok = rule.driver_ids.contains(&d.driver_id);
+    if vendor_ok || driver_ok {
         if let Some(p) = rule
             .device_names
             .iter()

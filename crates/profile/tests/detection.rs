@@ -118,6 +118,18 @@ fn real_identities_pick_their_family() {
             ),
             "apple",
         ),
+        // Mesa's Honeykrisp reports Mesa's vendor id, not Apple's: its driver id and name say
+        // what it is (it must not fall to lavapipe, the Mesa vendor's default).
+        (
+            identity(
+                vendor::MESA,
+                0,
+                driver::MESA_HONEYKRISP,
+                "Apple M1 (G13G B1)",
+                DeviceType::IntegratedGpu,
+            ),
+            "apple",
+        ),
         (nvidia_rtx(), "desktop-nvidia"),
         (
             identity(
