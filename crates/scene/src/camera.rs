@@ -199,6 +199,15 @@ impl Projection {
                 }
             }
         }
+        // Each value in range can still overflow the matrix (a field of view of 1e-37 degrees,
+        // planes near f32's limit): the GPU would get infinities and NaN clip coordinates.
+        if !self.matrix(1.0).is_finite() {
+            let field = match self {
+                Projection::Perspective { .. } => "fov_y_deg",
+                Projection::Orthographic { .. } => "half_height",
+            };
+            return Err((field, "the projection matrix overflows f32".into()));
+        }
         Ok(())
     }
 }
@@ -273,7 +282,9 @@ impl Camera {
 
     /// The view matrix with the eye at the origin: what camera-relative model matrices pair with.
     pub fn view_relative(&self) -> Mat4 {
-        Mat4::look_to_rh(Vec3::ZERO, self.forward(), self.up)
+        // Normalized in f64 first: an up vector of 1e20 squares past f32 (the view collapses).
+        let up = self.up.as_dvec3().normalize_or(DVec3::Y).as_vec3();
+        Mat4::look_to_rh(Vec3::ZERO, self.forward(), up)
     }
 
     /// The absolute view matrix in f64 (`look_at_rh`), for CPU references on small worlds.
@@ -941,6 +952,17 @@ mod tests {
     }
 
     #[test]
+    fn a_huge_up_vector_still_gives_a_finite_view() {
+        let text = r#"{"frames": [{"eye": [0,0,0], "target": [0,0,-1], "up": [0,1e20,0]}]}"#;
+        let p = CameraPath::from_json_str(text, "t.json").unwrap();
+        let cam = p.camera(0).unwrap();
+        let m = cam.matrices(16.0 / 9.0);
+        assert!(m.view.is_finite() && m.view_projection.is_finite(), "{m:?}");
+        let small = Camera { up: Vec3::Y, ..cam };
+        assert!(m.view.abs_diff_eq(small.view_relative(), 1e-6));
+    }
+
+    #[test]
     fn malformed_json_paths_name_the_frame_and_field() {
         let frame = |body: &str| {
             format!(r#"{{"frames": [{{"eye": [0,0,0], "target": [0,0,-1]}}, {{{body}}}]}}"#)
@@ -970,6 +992,11 @@ mod tests {
             ),
             (
                 frame(r#""eye": [0,0,0], "target": [0,0,-1], "fov_y_deg": 0"#),
+                "fov_y_deg",
+            ),
+            // Accepted by the range checks, but the projection overflows f32.
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "fov_y_deg": 1e-37"#),
                 "fov_y_deg",
             ),
             (
