@@ -611,3 +611,25 @@ fn mirrored_nodes_draw_a_mesh_with_reversed_winding() {
         assert!(n.y > 0.99, "instance {i}: {n:?} (inside-out)");
     }
 }
+
+/// Glass (`KHR_materials_transmission` with a factor above 0) lets the scene behind it show:
+/// it is drawn as blended, whatever its alpha mode, so culling never treats it as an occluder.
+#[test]
+fn transmissive_materials_are_blended() {
+    for (factor, blended) in [(Some(1.0), true), (Some(0.0), false), (None, false)] {
+        let mut doc = quad_doc();
+        doc["materials"][0] = json!({"alphaMode": "OPAQUE"});
+        if let Some(f) = factor {
+            doc["extensionsUsed"] = json!(["KHR_materials_transmission"]);
+            doc["materials"][0]["extensions"] =
+                json!({"KHR_materials_transmission": {"transmissionFactor": f}});
+        }
+        let s = load_doc(&doc, &quad_bin()).unwrap();
+        let class = s.materials()[0].class;
+        assert_eq!(
+            class == tilegraph_scene::MaterialClass::Blended,
+            blended,
+            "transmission {factor:?}: {class:?}"
+        );
+    }
+}

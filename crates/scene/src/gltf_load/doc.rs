@@ -46,6 +46,9 @@ pub(crate) struct Doc {
     pub scenes: Vec<SceneDef>,
     pub scene: Option<u64>,
     pub quantized: bool,
+    /// Per material: `KHR_materials_transmission` with a factor above 0 (glass). Read before
+    /// the extensions are dropped: light passes through it, so it must not hide what is behind.
+    pub transmissive: Vec<bool>,
 }
 
 /// A scene. Not `gltf::json::Scene`, which requires `nodes` where glTF 2.0 makes it optional.
@@ -262,6 +265,11 @@ pub(crate) fn parse(json_bytes: &[u8], ctx: &Ctx) -> Result<Doc, SceneError> {
                 })?,
         ),
     };
+    let transmissive = root
+        .get("materials")
+        .and_then(Value::as_array)
+        .map(|materials| materials.iter().map(transmission_above_zero).collect())
+        .unwrap_or_default();
     // Order matters only for which error is reported first: the data layer before its users.
     Ok(Doc {
         buffers: collection(&mut root, "buffers", ctx)?,
@@ -273,7 +281,16 @@ pub(crate) fn parse(json_bytes: &[u8], ctx: &Ctx) -> Result<Doc, SceneError> {
         scenes: collection(&mut root, "scenes", ctx)?,
         scene,
         quantized,
+        transmissive,
     })
+}
+
+/// `extensions.KHR_materials_transmission.transmissionFactor > 0` (the factor defaults to 0).
+fn transmission_above_zero(material: &Value) -> bool {
+    material
+        .pointer("/extensions/KHR_materials_transmission/transmissionFactor")
+        .and_then(Value::as_f64)
+        .is_some_and(|f| f > 0.0)
 }
 
 #[cfg(test)]

@@ -320,6 +320,13 @@ fn add_materials(doc: &Doc, builder: &mut SceneBuilder, ctx: &Ctx) -> Result<(),
                 ))
             }
         };
+        // Transmissive (glass): whatever its alpha mode, it lets the scene behind show through,
+        // so it is drawn as blended and never counts as an occluder.
+        let class = if doc.transmissive.get(i).copied().unwrap_or(false) {
+            MaterialClass::Blended
+        } else {
+            class
+        };
         builder.add_material(Material {
             base_color: color,
             class,
