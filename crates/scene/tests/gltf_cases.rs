@@ -633,3 +633,47 @@ fn transmissive_materials_are_blended() {
         );
     }
 }
+
+/// Primitives without normals are de-indexed from their whole POSITION accessor: the vertices
+/// read count against the vertex limit too, or a few-KB file of huge data-less accessors (read
+/// as zeros) could make the loader allocate far more than the vertices it keeps.
+#[test]
+fn vertices_read_count_against_the_vertex_limit() {
+    let doc = |accessors: usize| {
+        let mut prims = Vec::new();
+        let mut accs = Vec::new();
+        for a in 0..accessors {
+            accs.push(json!({"componentType": 5126, "count": 600, "type": "VEC3"}));
+            prims.push(json!({"attributes": {"POSITION": a}, "indices": accessors}));
+        }
+        accs.push(json!({"bufferView": 0, "componentType": 5123, "count": 3, "type": "SCALAR"}));
+        json!({
+            "asset": {"version": "2.0"},
+            "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": prims}],
+            "accessors": accs,
+            "bufferViews": [{"buffer": 0, "byteLength": 6}],
+            "buffers": [{"uri": "quad.bin", "byteLength": 6}]
+        })
+    };
+    let limits = Limits {
+        max_vertices: 1000,
+        ..Limits::default()
+    };
+    let load = |d: &Value| {
+        let mut res = MemoryResources::default();
+        res.files.insert("quad.bin".into(), u16s(&[0, 1, 2]));
+        load_gltf_bytes(d.to_string().as_bytes(), "many.gltf", &res, &limits)
+    };
+    // One 600-vertex accessor, shared by two primitives: read once, 6 vertices kept.
+    let mut shared = doc(1);
+    shared["meshes"][0]["primitives"] = json!([
+        {"attributes": {"POSITION": 0}, "indices": 1},
+        {"attributes": {"POSITION": 0}, "indices": 1}
+    ]);
+    assert!(load(&shared).is_ok());
+    // Two distinct ones: 1,200 vertices read for 6 kept, over the limit of 1,000.
+    let err = load(&doc(2)).expect_err("1,200 vertices read");
+    assert!(err.to_string().contains("vertices"), "{err}");
+}

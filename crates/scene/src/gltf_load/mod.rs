@@ -264,6 +264,8 @@ pub fn load_gltf_bytes(
         mesh_cache: vec![None; doc.meshes.len()],
         mirrored: HashMap::new(),
         vertex_cache: HashMap::new(),
+        flat_source_cache: HashMap::new(),
+        vertices_read: 0,
         default_material: None,
         material_count: doc.materials.len(),
     };
@@ -689,6 +691,12 @@ struct Flatten<'x, 'd, 'a> {
     /// (POSITION, NORMAL, TEXCOORD_0) accessors -> (vertex offset, count): primitives that share
     /// vertex accessors share vertices.
     vertex_cache: HashMap<(usize, usize, Option<usize>), (u32, u32)>,
+    /// (POSITION, TEXCOORD_0) accessors -> their vertices, for primitives without normals (each
+    /// is de-indexed into flat-shaded corners; the source is read once however many share it).
+    flat_source_cache: HashMap<(usize, Option<usize>), std::rc::Rc<Vec<Vertex>>>,
+    /// Vertices read from accessors so far: bounded like the vertices kept, so a small file
+    /// cannot make the loader read (or zero-fill) far more than it keeps.
+    vertices_read: usize,
     default_material: Option<MaterialId>,
     material_count: usize,
 }
@@ -939,7 +947,14 @@ impl Flatten<'_, '_, '_> {
                     tris.len(),
                     limit,
                 )?;
-                let shared = self.read_vertices(pos, None, prim.uv, &pp)?;
+                let shared = match self.flat_source_cache.get(&(pos, prim.uv)) {
+                    Some(v) => v.clone(),
+                    None => {
+                        let v = std::rc::Rc::new(self.read_vertices(pos, None, prim.uv, &pp)?);
+                        self.flat_source_cache.insert((pos, prim.uv), v.clone());
+                        v
+                    }
+                };
                 let mut vertices = Vec::with_capacity(tris.len());
                 for t in tris.chunks_exact(3) {
                     let p = |k: usize| Vec3::from_array(shared[t[k] as usize].position);
@@ -997,7 +1012,7 @@ impl Flatten<'_, '_, '_> {
     }
 
     fn read_vertices(
-        &self,
+        &mut self,
         pos: usize,
         normal: Option<usize>,
         uv: Option<usize>,
@@ -1006,6 +1021,8 @@ impl Flatten<'_, '_, '_> {
         let n = self.reader.accessor(pos).map_or(0, |a| a.count);
         let limit = self.limits.max_vertices.min(i32::MAX as usize);
         self.check_limit(pp, "vertices", self.builder.vertex_count(), n, limit)?;
+        self.check_limit(pp, "vertices read", self.vertices_read, n, limit)?;
+        self.vertices_read += n;
         let positions = self.reader.read_f32(pos, 3)?;
         self.check_finite(&positions, 3, pos, "POSITION", pp)?;
         let normals = match normal {
