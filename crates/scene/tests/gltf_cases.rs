@@ -610,6 +610,29 @@ fn mirrored_nodes_draw_a_mesh_with_reversed_winding() {
         let n = normal(i);
         assert!(n.y > 0.99, "instance {i}: {n:?} (inside-out)");
     }
+
+    // Exported and loaded again: still facing up (the export must not hand a reader the
+    // already-reversed copy, which it would reverse once more).
+    let again = load_gltf_bytes(
+        &tilegraph_scene::export::to_glb(&s),
+        "again.glb",
+        &NoResources,
+        &Limits::default(),
+    )
+    .unwrap();
+    let inst = again.instances();
+    assert_eq!(inst.len(), 3);
+    for (i, it) in inst.iter().enumerate() {
+        let m = again.mesh(it.mesh).unwrap();
+        let first = m.first_index as usize;
+        let p = |k: usize| {
+            let v = again.indices()[first + k] as i64 + i64::from(m.vertex_offset);
+            let local = Vec3::from_array(again.vertices()[v as usize].position);
+            it.transform.transform_point(local)
+        };
+        let n = (p(1) - p(0)).cross(p(2) - p(0)).normalize();
+        assert!(n.y > 0.99, "re-loaded instance {i}: {n:?} (inside-out)");
+    }
 }
 
 /// Glass (`KHR_materials_transmission` with a factor above 0) lets the scene behind it show:
