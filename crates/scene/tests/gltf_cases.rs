@@ -574,6 +574,15 @@ fn buffer_uris_stay_inside_the_directory_and_read_only_what_they_declare() {
         let e = expect_err(load(uri), "buffer", Some("/buffers/0/uri"));
         assert!(e.to_string().contains("relative path"), "{uri}: {e}");
     }
+    // A symbolic link inside the directory that points out of it is refused too.
+    #[cfg(unix)]
+    {
+        std::fs::write(dir.join("outside.bin"), &bin).unwrap();
+        std::os::unix::fs::symlink(dir.join("outside.bin"), dir.join("sub").join("link.bin"))
+            .unwrap();
+        let e = load("link.bin").expect_err("a link out of the directory");
+        assert!(e.to_string().contains("outside"), "{e}");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -59,11 +59,20 @@ impl ResourceResolver for FileResolver {
         self.read_prefix(path, u64::MAX)
     }
 
-    /// Reads only regular files (not a device or a pipe that never ends), and at most
-    /// `max_bytes` of them.
+    /// Reads only regular files (not a device or a pipe that never ends) inside `base` once
+    /// symbolic links are resolved (a link shipped with an asset must not reach another file),
+    /// and at most `max_bytes` of them.
     fn read_prefix(&self, path: &str, max_bytes: u64) -> std::io::Result<Cow<'_, [u8]>> {
         use std::io::Read as _;
-        let file = std::fs::File::open(self.base.join(path))?;
+        let base = std::fs::canonicalize(&self.base)?;
+        let real = std::fs::canonicalize(self.base.join(path))?;
+        if !real.starts_with(&base) {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::PermissionDenied,
+                format!("`{path}` resolves outside {}", base.display()),
+            ));
+        }
+        let file = std::fs::File::open(&real)?;
         let meta = file.metadata()?;
         if !meta.is_file() {
             return Err(std::io::Error::new(
