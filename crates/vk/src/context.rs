@@ -808,6 +808,7 @@ impl Context {
             let submitted = unsafe { self.device.queue_submit(self.queue, &[submit], fence) }
                 .vk("vkQueueSubmit");
             let waited = submitted.and_then(|_| {
+                // SAFETY: the fence was just submitted with the command buffer.
                 let waited = unsafe { self.device.wait_for_fences(&[fence], true, u64::MAX) }
                     .vk("vkWaitForFences");
                 if waited.is_err() {
