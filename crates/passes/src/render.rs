@@ -1633,6 +1633,10 @@ impl SceneRenderer {
                 reason: "no pyramid layout".into(),
             })?;
             layout.convention = crate::cull::cull_convention(depth_convention);
+            // The stored layout follows too, for whoever reads the pyramid back.
+            if let Some(stored) = cull.hiz_layout.as_mut() {
+                stored.convention = layout.convention;
+            }
             let builder = cull.hiz.as_mut().ok_or_else(|| VkError::Invalid {
                 what: "hiz-build".into(),
                 reason: "no pyramid builder".into(),

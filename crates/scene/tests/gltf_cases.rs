@@ -650,7 +650,9 @@ fn mirrored_nodes_draw_a_mesh_with_reversed_winding() {
 fn transmissive_materials_are_blended() {
     for (factor, blended) in [(Some(1.0), true), (Some(0.0), false), (None, false)] {
         let mut doc = quad_doc();
-        doc["materials"][0] = json!({"alphaMode": "OPAQUE"});
+        // OPAQUE: its alpha is ignored (glTF), and stays so when drawn blended.
+        doc["materials"][0] = json!({"alphaMode": "OPAQUE",
+            "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 0.25]}});
         if let Some(f) = factor {
             doc["extensionsUsed"] = json!(["KHR_materials_transmission"]);
             doc["materials"][0]["extensions"] =
@@ -663,7 +665,41 @@ fn transmissive_materials_are_blended() {
             blended,
             "transmission {factor:?}: {class:?}"
         );
+        if blended {
+            assert_eq!(s.materials()[0].base_color[3], 1.0);
+        }
     }
+    // MASK keeps its cut-out.
+    let mut doc = quad_doc();
+    doc["extensionsUsed"] = json!(["KHR_materials_transmission"]);
+    doc["materials"][0]["extensions"] =
+        json!({"KHR_materials_transmission": {"transmissionFactor": 1.0}});
+    let s = load_doc(&doc, &quad_bin()).unwrap();
+    assert!(matches!(
+        s.materials()[0].class,
+        MaterialClass::AlphaTested { .. }
+    ));
+}
+
+/// A .gltf opened by a bare file name (in the working directory) has an empty base directory:
+/// its buffers are read from the working directory.
+#[test]
+fn buffers_next_to_a_gltf_in_the_working_directory_load() {
+    let name = format!("tilegraph-cwd-{}.bin", std::process::id());
+    std::fs::write(&name, quad_bin()).unwrap();
+    let resolver = tilegraph_scene::FileResolver {
+        base: std::path::PathBuf::new(),
+    };
+    let mut d = quad_doc();
+    d["buffers"][0]["uri"] = json!(name.clone());
+    let loaded = load_gltf_bytes(
+        d.to_string().as_bytes(),
+        "quad.gltf",
+        &resolver,
+        &Limits::default(),
+    );
+    std::fs::remove_file(&name).unwrap();
+    assert_eq!(loaded.unwrap().triangles_drawn(), 2);
 }
 
 /// Primitives without normals are de-indexed from their whole POSITION accessor: the vertices

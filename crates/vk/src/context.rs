@@ -870,10 +870,17 @@ impl Context {
     /// still alive when the device is destroyed (a leaked pipeline, buffer or view), which no
     /// check before the teardown can see. Tests end with this.
     pub fn destroy_checked(mut self) -> Result<(), VkError> {
-        let before = self.check_validation();
+        let mut messages = self.take_validation_messages();
         self.destroy_device();
-        let at_teardown = self.check_validation();
-        before.and(at_teardown)
+        messages.extend(self.take_validation_messages());
+        if messages.is_empty() {
+            Ok(())
+        } else {
+            Err(VkError::Validation {
+                count: messages.len(),
+                messages: messages.join("\n"),
+            })
+        }
     }
 }
 

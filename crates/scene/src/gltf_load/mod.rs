@@ -64,8 +64,13 @@ impl ResourceResolver for FileResolver {
     /// and at most `max_bytes` of them.
     fn read_prefix(&self, path: &str, max_bytes: u64) -> std::io::Result<Cow<'_, [u8]>> {
         use std::io::Read as _;
-        let base = std::fs::canonicalize(&self.base)?;
-        let real = std::fs::canonicalize(self.base.join(path))?;
+        // A .gltf opened by a bare file name has an empty base: the working directory.
+        let base = if self.base.as_os_str().is_empty() {
+            std::fs::canonicalize(".")?
+        } else {
+            std::fs::canonicalize(&self.base)?
+        };
+        let real = std::fs::canonicalize(base.join(path))?;
         if !real.starts_with(&base) {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::PermissionDenied,
@@ -331,12 +336,16 @@ fn add_materials(doc: &Doc, builder: &mut SceneBuilder, ctx: &Ctx) -> Result<(),
                 ))
             }
         };
-        // Transmissive (glass): whatever its alpha mode, it lets the scene behind show through,
-        // so it is drawn as blended and never counts as an occluder.
-        let class = if doc.transmissive.get(i).copied().unwrap_or(false) {
-            MaterialClass::Blended
-        } else {
-            class
+        // Transmissive (glass) lets the scene behind show through, so it must not occlude:
+        // an OPAQUE one is drawn as blended with its alpha at 1 (glTF ignores alpha there, so it
+        // looks the same), a BLEND one already is. A MASK one keeps its cut-out (alpha-tested
+        // geometry still occludes where it is not cut out: a known limit).
+        let transmissive = doc.transmissive.get(i).copied().unwrap_or(false);
+        let (class, color) = match class {
+            MaterialClass::Opaque if transmissive => {
+                (MaterialClass::Blended, [color[0], color[1], color[2], 1.0])
+            }
+            other => (other, color),
         };
         builder.add_material(Material {
             base_color: color,
