@@ -144,3 +144,22 @@ pub(crate) fn barriers_of(plan: &Plan, name: &str) -> Vec<SeenBarrier> {
     }
     out
 }
+
+/// prepass -> opaque -> post reading the colour at the same pixel (one render pass of three
+/// subpasses on a tiler), and its depth image.
+pub(crate) fn same_pixel_chain() -> (GraphBuilder<()>, ImageId) {
+    let mut g = GraphBuilder::new();
+    let depth = d24s8(&mut g, "depth");
+    let color = rgba8(&mut g, "color");
+    let out = swapchain(&mut g);
+    g.raster_pass("prepass", PassClass::DepthPrepass, ())
+        .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+    g.raster_pass("opaque", PassClass::Opaque, ())
+        .color_clear(color, ClearColor::BLACK)
+        .depth_stencil_read_only(depth);
+    g.raster_pass("post", PassClass::Post, ())
+        .input(color)
+        .color(out)
+        .coverage(Coverage::Full);
+    (g, depth)
+}

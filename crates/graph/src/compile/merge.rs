@@ -185,32 +185,20 @@ mod tests {
             .collect()
     }
 
-    /// prepass -> opaque -> post reading the colour at the same pixel.
-    fn chain() -> GraphBuilder<()> {
-        let mut g = GraphBuilder::new();
-        let depth = d24s8(&mut g, "depth");
-        let color = rgba8(&mut g, "color");
-        let out = swapchain(&mut g);
-        g.raster_pass("prepass", PassClass::DepthPrepass, ())
-            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
-        g.raster_pass("opaque", PassClass::Opaque, ())
-            .color_clear(color, ClearColor::BLACK)
-            .depth_stencil_read_only(depth);
-        g.raster_pass("post", PassClass::Post, ())
-            .input(color)
-            .color(out)
-            .coverage(Coverage::Full);
-        g
-    }
-
     #[test]
     fn same_pixel_chains_merge_unless_the_profile_says_never() {
         let merged = [vec!["prepass", "opaque", "post"]];
-        assert_eq!(render_passes(&compile(chain(), &tiler())), merged);
-        // Immediate GPUs: allowed, and done the same way.
-        assert_eq!(render_passes(&compile(chain(), &desktop())), merged);
         assert_eq!(
-            render_passes(&compile(chain(), &never_merge())),
+            render_passes(&compile(same_pixel_chain().0, &tiler())),
+            merged
+        );
+        // Immediate GPUs: allowed, and done the same way.
+        assert_eq!(
+            render_passes(&compile(same_pixel_chain().0, &desktop())),
+            merged
+        );
+        assert_eq!(
+            render_passes(&compile(same_pixel_chain().0, &never_merge())),
             [vec!["prepass"], vec!["opaque"], vec!["post"]]
         );
     }
