@@ -248,71 +248,149 @@ impl BlockState {
 }
 
 /// Blocks of one sweep, indexed for best fit: empty blocks by size, partly used ones by free
-/// bytes (sorted vectors: there are few blocks, and they beat tree nodes).
+/// bytes (sorted vectors of packed keys: there are few blocks, and one integer comparison per
+/// search step beats tree nodes).
 #[derive(Default)]
 struct Blocks {
     blocks: Vec<BlockState>,
-    empty: Vec<(MemoryClass, u64, u32)>,
-    partial: Vec<(MemoryClass, u64, u32)>,
+    empty: Vec<u128>,
+    partial: Vec<u128>,
 }
 
-fn remove_sorted(set: &mut Vec<(MemoryClass, u64, u32)>, key: (MemoryClass, u64, u32)) {
-    if let Ok(i) = set.binary_search(&key) {
-        set.remove(i);
-    }
+/// `(class, bytes, block)` packed so that integer order is tuple order.
+const fn block_key(class: MemoryClass, bytes: u64, b: u32) -> u128 {
+    ((class as u128) << 96) | ((bytes as u128) << 32) | b as u128
 }
 
-fn insert_sorted(set: &mut Vec<(MemoryClass, u64, u32)>, key: (MemoryClass, u64, u32)) {
-    if let Err(i) = set.binary_search(&key) {
-        set.insert(i, key);
+const fn key_block(key: u128) -> u32 {
+    key as u32
+}
+
+const fn key_class(key: u128) -> u128 {
+    key >> 96
+}
+
+/// Which set holds a block, under which key (`None`: full, in neither).
+fn block_entry(block: &BlockState, b: u32) -> Option<(bool, u128)> {
+    if block.live == 0 {
+        Some((false, block_key(block.class, block.size, b)))
+    } else if block.free_bytes() > 0 {
+        Some((true, block_key(block.class, block.free_bytes(), b)))
+    } else {
+        None
     }
 }
 
 impl Blocks {
-    fn unindex(&mut self, b: u32) {
-        let block = &self.blocks[b as usize];
-        if block.live == 0 {
-            remove_sorted(&mut self.empty, (block.class, block.size, b));
+    fn set(&mut self, partial: bool) -> &mut Vec<u128> {
+        if partial {
+            &mut self.partial
         } else {
-            remove_sorted(&mut self.partial, (block.class, block.free_bytes(), b));
+            &mut self.empty
         }
     }
 
-    fn index(&mut self, b: u32) {
-        let block = &self.blocks[b as usize];
-        if block.live == 0 {
-            insert_sorted(&mut self.empty, (block.class, block.size, b));
-        } else if block.free_bytes() > 0 {
-            insert_sorted(&mut self.partial, (block.class, block.free_bytes(), b));
+    /// Re-files block `b` after a change that turned its entry `before` into its current one:
+    /// within one set, the entries in between shift by one place (a single move).
+    fn refile(&mut self, b: u32, before: Option<(bool, u128)>) {
+        let after = block_entry(&self.blocks[b as usize], b);
+        match (before, after) {
+            (Some((set_a, old)), Some((set_b, new))) if set_a == set_b => {
+                if old == new {
+                    return;
+                }
+                let set = self.set(set_a);
+                let Ok(from) = set.binary_search(&old) else {
+                    return;
+                };
+                // Shift the entries between the old and the new place by one (few: a
+                // block's free bytes change by one resource's size).
+                let mut at = from;
+                if new > old {
+                    while at + 1 < set.len() && set[at + 1] < new {
+                        set[at] = set[at + 1];
+                        at += 1;
+                    }
+                } else {
+                    while at > 0 && set[at - 1] > new {
+                        set[at] = set[at - 1];
+                        at -= 1;
+                    }
+                }
+                set[at] = new;
+            }
+            _ => {
+                if let Some((in_partial, old)) = before {
+                    let set = self.set(in_partial);
+                    if let Ok(i) = set.binary_search(&old) {
+                        set.remove(i);
+                    }
+                }
+                if let Some((in_partial, new)) = after {
+                    let set = self.set(in_partial);
+                    if let Err(i) = set.binary_search(&new) {
+                        set.insert(i, new);
+                    }
+                }
+            }
         }
     }
 
     /// Where a resource goes: a gap in a partly used block (tightest first), else the smallest
     /// empty block that holds it, else the largest empty block grown to fit, else a new block.
     fn choose(&self, class: MemoryClass, size: u64, alignment: u64) -> (u32, u64) {
-        let from = self.partial.partition_point(|k| *k < (class, size, 0));
-        for &(c, _, b) in &self.partial[from..] {
-            if c != class {
+        let class_bits = class as u128;
+        let from = self.partial.partition_point(|&k| k < block_key(class, size, 0));
+        for &k in &self.partial[from..] {
+            if key_class(k) != class_bits {
                 break;
             }
+            let b = key_block(k);
             if let Some(offset) = self.blocks[b as usize].gap_within(size, alignment) {
                 return (b, offset);
             }
         }
-        let fit = self.empty.partition_point(|k| *k < (class, size, 0));
-        if let Some(&(c, _, b)) = self.empty.get(fit) {
-            if c == class {
-                return (b, 0);
+        let fit = self.empty.partition_point(|&k| k < block_key(class, size, 0));
+        if let Some(&k) = self.empty.get(fit) {
+            if key_class(k) == class_bits {
+                return (key_block(k), 0);
             }
         }
         if fit > 0 {
-            let (c, _, b) = self.empty[fit - 1];
-            if c == class {
-                return (b, 0);
+            let k = self.empty[fit - 1];
+            if key_class(k) == class_bits {
+                return (key_block(k), 0);
             }
         }
         (self.blocks.len() as u32, 0)
     }
+}
+
+/// Sorts `items` by a small integer key (a step number or a resource index), keeping the
+/// order of equal keys: a counting sort when the keys are dense, as those of one frame are.
+fn sort_by_small_key<T: Copy>(items: &mut Vec<T>, key: impl Fn(&T) -> u32) {
+    let Some(first) = items.first().copied() else {
+        return;
+    };
+    let max = items.iter().map(|x| key(x) as usize).max().unwrap_or(0);
+    if max > 4 * items.len() + 64 {
+        items.sort_by_key(|x| key(x));
+        return;
+    }
+    let mut start = vec![0u32; max + 2];
+    for x in items.iter() {
+        start[key(x) as usize + 1] += 1;
+    }
+    for i in 1..start.len() {
+        start[i] += start[i - 1];
+    }
+    let mut sorted = vec![first; items.len()];
+    for &x in items.iter() {
+        let at = &mut start[key(&x) as usize];
+        sorted[*at as usize] = x;
+        *at += 1;
+    }
+    *items = sorted;
 }
 
 /// Places every resource that needs memory into blocks; resources of one class whose
@@ -346,34 +424,30 @@ pub fn assign_aliases(
         ..AliasAssignment::default()
     };
 
-    // Shared resources, swept by first use; bigger first on ties so they open the blocks. Keys
-    // pack (first use, !size, index) into one integer: one comparison per sort step.
-    let mut shared: Vec<u128> = Vec::with_capacity(lifetimes.len());
-    shared.extend(
+    // Shared resources, swept by first use; bigger first on ties so they open the blocks; then
+    // declaration order. Steps are dense (group or step numbers of one frame): a counting sort.
+    let shared_ids = || {
         lifetimes
             .iter()
             .enumerate()
             .filter_map(|(i, l)| match (l.memory, l.lifetime) {
-                (MemoryNeed::Shared(_), Some(range)) => Some(
-                    (u128::from(range.first.0) << 96)
-                        | (u128::from(!requirements[i].size_bytes) << 32)
-                        | i as u128,
-                ),
+                (MemoryNeed::Shared(_), Some(range)) => Some((range, i as u32)),
                 _ => None,
-            }),
-    );
-    shared.sort_unstable();
-
-    // The same resources by last use: retiring is a cursor over this order.
-    let mut expiry: Vec<u64> = shared
-        .iter()
-        .map(|&key| {
-            let i = key as u32;
-            let last = lifetimes[i as usize].lifetime.map_or(0, |l| l.last.0);
-            (u64::from(last) << 32) | u64::from(i)
-        })
-        .collect();
-    expiry.sort_unstable();
+            })
+    };
+    let mut shared: Vec<(u32, u32)> = Vec::with_capacity(lifetimes.len());
+    shared.extend(shared_ids().map(|(r, i)| (r.first.0, i)));
+    sort_by_small_key(&mut shared, |&(first, _)| first);
+    for run in shared.chunk_by_mut(|a, b| a.0 == b.0) {
+        if run.len() > 1 {
+            run.sort_by_key(|&(_, i)| std::cmp::Reverse(requirements[i as usize].size_bytes));
+        }
+    }
+    // The same resources by last use (then declaration order): retiring is a cursor over this
+    // order.
+    let mut expiry: Vec<(u32, u32)> = Vec::with_capacity(shared.len());
+    expiry.extend(shared_ids().map(|(r, i)| (r.last.0, i)));
+    sort_by_small_key(&mut expiry, |&(last, _)| last);
     let mut expired = 0usize;
     let mut block_of: Vec<u32> = vec![u32::MAX; lifetimes.len()];
 
@@ -384,13 +458,11 @@ pub fn assign_aliases(
     };
     out.handoffs.reserve(shared.len());
     let mut handoff_from: Vec<u32> = Vec::new();
-    for &key in &shared {
-        let (first, i) = ((key >> 96) as u32, key as u32);
+    for &(first, i) in &shared {
         let MemoryNeed::Shared(class) = lifetimes[i as usize].memory else {
             continue;
         };
-        while let Some(&entry) = expiry.get(expired) {
-            let (last, resource) = ((entry >> 32) as u32, entry as u32);
+        while let Some(&(last, resource)) = expiry.get(expired) {
             if last >= first {
                 break;
             }
@@ -399,14 +471,14 @@ pub fn assign_aliases(
             if b == u32::MAX {
                 continue;
             }
-            blocks.unindex(b);
+            let before = block_entry(&blocks.blocks[b as usize], b);
             blocks.blocks[b as usize].retire(resource);
-            blocks.index(b);
+            blocks.refile(b, before);
         }
         let size = requirements[i as usize].size_bytes;
         let alignment = alignments[i as usize];
         let (b, offset) = blocks.choose(class, size, alignment);
-        if b as usize == blocks.blocks.len() {
+        let before = if b as usize == blocks.blocks.len() {
             blocks.blocks.push(BlockState {
                 class,
                 size: 0,
@@ -415,17 +487,20 @@ pub fn assign_aliases(
                 live: 0,
                 live_bytes: 0,
             });
+            None
         } else {
-            blocks.unindex(b);
-        }
+            block_entry(&blocks.blocks[b as usize], b)
+        };
         let block = &mut blocks.blocks[b as usize];
         handoff_from.clear();
         block.place(offset, size, i, &mut handoff_from);
         block.size = block.size.max(offset.saturating_add(size));
         block.alignment = block.alignment.max(alignment);
-        blocks.index(b);
-        handoff_from.sort_unstable();
-        handoff_from.dedup();
+        blocks.refile(b, before);
+        if handoff_from.len() > 1 {
+            handoff_from.sort_unstable();
+            handoff_from.dedup();
+        }
         for &from in &handoff_from {
             out.handoffs.push(AliasHandoff {
                 to: ResourceId(i),
@@ -477,7 +552,8 @@ pub fn assign_aliases(
         .blocks
         .iter()
         .fold(0u64, |acc, b| acc.saturating_add(b.size_bytes));
-    out.handoffs.sort_unstable();
+    // Each resource's hand-offs were pushed together, sorted by `from`.
+    sort_by_small_key(&mut out.handoffs, |h| h.to.0);
     Ok(out)
 }
 

@@ -399,11 +399,13 @@ fn build_render_pass(
             }
         }
     }
-    for subpass in subpasses.iter_mut() {
+    // (Most lists have one entry or none: the sort call is skipped for them.)
+    for subpass in subpasses.iter_mut().filter(|s| s.preserve.len() > 1) {
         subpass.preserve.sort_unstable();
     }
-
-    deps.sort_by_key(|d| (d.src_subpass, d.dst_subpass));
+    if deps.len() > 1 {
+        deps.sort_by_key(|d| (d.src_subpass, d.dst_subpass));
+    }
     rp.on_chip_bytes_per_px = rp
         .attachments
         .iter()
