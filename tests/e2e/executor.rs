@@ -609,3 +609,81 @@ fn render_passes_rebuilt_for_another_plan_get_new_serials() {
     kit.borrow_mut().destroy(&g);
     destroy_target(&g, image, handle);
 }
+
+/// A render pass that loads an attachment another step wrote and only reads it still writes it
+/// with its store op (DONT_CARE and STORE both write): write after write, so the barrier before
+/// the render pass names the store's write in its destination access, not only the load and
+/// the input-attachment read (the property tests' access-mask model asks for it; the layers
+/// accept either here, because the layout transition in that barrier makes the write
+/// available). Run with synchronization validation on two profiles.
+#[test]
+fn a_loaded_attachment_the_render_pass_only_reads_is_synchronized_with_its_store() {
+    use tilegraph_e2e::frames::target_import;
+    use tilegraph_graph::{
+        ClearColor, Coverage, Extent2d, Format, GraphBuilder, ImageDesc, PassClass,
+    };
+    // lavapipe keeps nothing of `x` (DONT_CARE store); powervr-b, without store_op_none, keeps
+    // it (STORE) because it is exported.
+    for (profile, export) in [("lavapipe", false), ("powervr-b", true)] {
+        let g = gpu(Some(profile)).unwrap();
+        let (image, handle) = target(&g, W, H).unwrap();
+        let mut graph: GraphBuilder<()> = GraphBuilder::new();
+        let desc = ImageDesc::new(Extent2d::new(W, H), Format::R8G8B8A8_UNORM);
+        let out = graph.import_image("target", desc, target_import());
+        graph.export(out);
+        let x = graph.create_image("x", desc);
+        if export {
+            graph.export(x);
+        }
+        let fill = graph
+            .transfer_pass("fill", PassClass::Transfer, ())
+            .transfer_dst(x)
+            .coverage(Coverage::Full)
+            .id();
+        graph
+            .raster_pass("read", PassClass::Post, ())
+            .input(x)
+            .color_clear(out, ClearColor::BLACK);
+        let plan = graph.compile(g.profile()).unwrap().plan;
+        let before_render_pass = plan.steps.iter().find_map(|s| match s {
+            tilegraph_graph::Step::Barriers(b) => b.images.iter().find(|i| {
+                i.resource == x.into() && i.new_layout == tilegraph_graph::Layout::ShaderReadOnly
+            }),
+            _ => None,
+        });
+        assert!(
+            before_render_pass.is_some_and(|b| b
+                .dst_access
+                .contains(tilegraph_graph::AccessFlags::COLOR_ATTACHMENT_WRITE)),
+            "{profile}: the barrier before the render pass does not name the store\n{plan}"
+        );
+        let mut exec = Executor::new(&g).unwrap();
+        exec.execute(&g, &plan, &externals(out, &handle), &mut |id, pc| {
+            if id == fill {
+                let range = vk::ImageSubresourceRange::default()
+                    .aspect_mask(vk::ImageAspectFlags::COLOR)
+                    .level_count(1)
+                    .layer_count(1);
+                let color = vk::ClearColorValue {
+                    float32: [1.0, 0.0, 0.0, 1.0],
+                };
+                // SAFETY: recording command buffer; `x` is in TRANSFER_DST_OPTIMAL for this pass.
+                unsafe {
+                    pc.ctx.device.cmd_clear_color_image(
+                        pc.cb,
+                        pc.image(x)?.raw,
+                        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                        &color,
+                        &[range],
+                    );
+                }
+            }
+            Ok(())
+        })
+        .unwrap();
+        exec.finish(&g).unwrap();
+        exec.destroy(&g);
+        destroy_target(&g, image, handle);
+        // Dropping `g` fails the test on any validation message.
+    }
+}

@@ -340,7 +340,9 @@ impl Blocks {
     /// empty block that holds it, else the largest empty block grown to fit, else a new block.
     fn choose(&self, class: MemoryClass, size: u64, alignment: u64) -> (u32, u64) {
         let class_bits = class as u128;
-        let from = self.partial.partition_point(|&k| k < block_key(class, size, 0));
+        let from = self
+            .partial
+            .partition_point(|&k| k < block_key(class, size, 0));
         for &k in &self.partial[from..] {
             if key_class(k) != class_bits {
                 break;
@@ -350,7 +352,9 @@ impl Blocks {
                 return (b, offset);
             }
         }
-        let fit = self.empty.partition_point(|&k| k < block_key(class, size, 0));
+        let fit = self
+            .empty
+            .partition_point(|&k| k < block_key(class, size, 0));
         if let Some(&k) = self.empty.get(fit) {
             if key_class(k) == class_bits {
                 return (key_block(k), 0);

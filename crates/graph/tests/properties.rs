@@ -7,7 +7,10 @@
 //!
 //! - every read is ordered after the write it reads;
 //! - no two resources whose memory overlaps are alive at the same time;
-//! - every hazard between two steps has a barrier, and layouts chain from barrier to use;
+//! - every hazard between two steps has a barrier (after a write, a memory dependency: the
+//!   write in its source access scope, the next step's accesses in its destination scope), and
+//!   layouts chain from barrier to use;
+//! - every barrier and subpass dependency names only accesses its stages perform;
 //! - no culled pass contributes to an export;
 //! - compiling twice gives the same plan.
 
@@ -665,29 +668,177 @@ fn stages_of(kind: PassKind, u: &UseKind, format: Option<Format>) -> PipelineSta
     }
 }
 
+/// The accesses a use must be made visible to (its reads and writes), and the writes it makes,
+/// as the test models them: the least a barrier must name.
+fn accesses_of(u: &UseKind) -> (AccessFlags, AccessFlags) {
+    match u {
+        UseKind::ColorAttachment { .. } | UseKind::ResolveTarget { .. } => (
+            AccessFlags::COLOR_ATTACHMENT_WRITE,
+            AccessFlags::COLOR_ATTACHMENT_WRITE,
+        ),
+        UseKind::DepthStencilAttachment { .. } => (
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+        ),
+        UseKind::DepthStencilReadOnly => (
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ,
+            AccessFlags::NONE,
+        ),
+        UseKind::InputAttachment => (AccessFlags::INPUT_ATTACHMENT_READ, AccessFlags::NONE),
+        UseKind::Sampled => (AccessFlags::SHADER_SAMPLED_READ, AccessFlags::NONE),
+        UseKind::StorageRead => (AccessFlags::SHADER_STORAGE_READ, AccessFlags::NONE),
+        UseKind::StorageWrite => (
+            AccessFlags::SHADER_STORAGE_WRITE,
+            AccessFlags::SHADER_STORAGE_WRITE,
+        ),
+        UseKind::StorageReadWrite => (
+            AccessFlags::SHADER_STORAGE_READ | AccessFlags::SHADER_STORAGE_WRITE,
+            AccessFlags::SHADER_STORAGE_WRITE,
+        ),
+        UseKind::Uniform => (AccessFlags::UNIFORM_READ, AccessFlags::NONE),
+        UseKind::Vertex => (AccessFlags::VERTEX_ATTRIBUTE_READ, AccessFlags::NONE),
+        UseKind::Index => (AccessFlags::INDEX_READ, AccessFlags::NONE),
+        UseKind::Indirect => (AccessFlags::INDIRECT_COMMAND_READ, AccessFlags::NONE),
+        UseKind::ConditionalPredicate => {
+            (AccessFlags::CONDITIONAL_RENDERING_READ, AccessFlags::NONE)
+        }
+        UseKind::TransferSrc => (AccessFlags::TRANSFER_READ, AccessFlags::NONE),
+        UseKind::TransferDst => (AccessFlags::TRANSFER_WRITE, AccessFlags::TRANSFER_WRITE),
+    }
+}
+
+/// The write an attachment's store op makes.
+fn store_access(format: Option<Format>) -> AccessFlags {
+    if format.is_some_and(|f| f.is_depth_stencil()) {
+        AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE
+    } else {
+        AccessFlags::COLOR_ATTACHMENT_WRITE
+    }
+}
+
+/// Accesses that some stage of `stages` performs (the synchronization2 table of supported
+/// access types, for the stages and accesses tilegraph uses).
+fn supported_accesses(stages: PipelineStages) -> AccessFlags {
+    let shader = PipelineStages::VERTEX_SHADER
+        | PipelineStages::FRAGMENT_SHADER
+        | PipelineStages::COMPUTE_SHADER
+        | PipelineStages::PRE_RASTERIZATION_SHADERS;
+    let tests = PipelineStages::EARLY_FRAGMENT_TESTS | PipelineStages::LATE_FRAGMENT_TESTS;
+    let transfer = PipelineStages::ALL_TRANSFER
+        | PipelineStages::COPY
+        | PipelineStages::RESOLVE
+        | PipelineStages::BLIT
+        | PipelineStages::CLEAR;
+    let table = [
+        (
+            PipelineStages::DRAW_INDIRECT,
+            AccessFlags::INDIRECT_COMMAND_READ,
+        ),
+        (
+            PipelineStages::VERTEX_INPUT | PipelineStages::INDEX_INPUT,
+            AccessFlags::INDEX_READ,
+        ),
+        (
+            PipelineStages::VERTEX_INPUT | PipelineStages::VERTEX_ATTRIBUTE_INPUT,
+            AccessFlags::VERTEX_ATTRIBUTE_READ,
+        ),
+        (
+            shader,
+            AccessFlags::UNIFORM_READ
+                | AccessFlags::SHADER_READ
+                | AccessFlags::SHADER_WRITE
+                | AccessFlags::SHADER_SAMPLED_READ
+                | AccessFlags::SHADER_STORAGE_READ
+                | AccessFlags::SHADER_STORAGE_WRITE,
+        ),
+        (
+            PipelineStages::FRAGMENT_SHADER,
+            AccessFlags::INPUT_ATTACHMENT_READ,
+        ),
+        (
+            PipelineStages::COLOR_ATTACHMENT_OUTPUT,
+            AccessFlags::COLOR_ATTACHMENT_READ | AccessFlags::COLOR_ATTACHMENT_WRITE,
+        ),
+        (
+            tests,
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
+                | AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+        ),
+        (
+            transfer,
+            AccessFlags::TRANSFER_READ | AccessFlags::TRANSFER_WRITE,
+        ),
+        (
+            PipelineStages::HOST,
+            AccessFlags::HOST_READ | AccessFlags::HOST_WRITE,
+        ),
+        (
+            PipelineStages::CONDITIONAL_RENDERING,
+            AccessFlags::CONDITIONAL_RENDERING_READ,
+        ),
+    ];
+    if stages.intersects(PipelineStages::ALL_COMMANDS) {
+        return AccessFlags::from_bits(u64::MAX);
+    }
+    let stages = if stages.intersects(PipelineStages::ALL_GRAPHICS) {
+        stages
+            | PipelineStages::DRAW_INDIRECT
+            | PipelineStages::VERTEX_INPUT
+            | PipelineStages::INDEX_INPUT
+            | PipelineStages::VERTEX_ATTRIBUTE_INPUT
+            | PipelineStages::VERTEX_SHADER
+            | PipelineStages::PRE_RASTERIZATION_SHADERS
+            | PipelineStages::FRAGMENT_SHADER
+            | tests
+            | PipelineStages::COLOR_ATTACHMENT_OUTPUT
+            | PipelineStages::CONDITIONAL_RENDERING
+    } else {
+        stages
+    };
+    let mut out = AccessFlags::MEMORY_READ | AccessFlags::MEMORY_WRITE;
+    for (from, access) in table {
+        if stages.intersects(from) {
+            out |= access;
+        }
+    }
+    out
+}
+
 /// One work step's access to one resource.
 #[derive(Debug, Clone, Copy)]
 struct StepAccess {
     step: usize,
     stages: PipelineStages,
     writes: bool,
+    /// What the step's accesses must be made visible to.
+    access: AccessFlags,
+    /// The writes it makes.
+    write_access: AccessFlags,
 }
 
 /// Per resource, its accesses by work step, in step order.
 fn step_accesses(plan: &Plan) -> Vec<Vec<StepAccess>> {
     let kind_of = |id: PassId| plan.pass(id).map(|p| p.kind);
     let mut out: Vec<Vec<StepAccess>> = vec![Vec::new(); plan.resources.len()];
-    let mut add = |r: ResourceId, step: usize, stages: PipelineStages, writes: bool| {
+    let mut add = |r: ResourceId,
+                   step: usize,
+                   stages: PipelineStages,
+                   (access, write_access): (AccessFlags, AccessFlags)| {
         let list = &mut out[r.index()];
+        let writes = !write_access.is_empty();
         match list.last_mut() {
             Some(last) if last.step == step => {
                 last.stages |= stages;
                 last.writes |= writes;
+                last.access |= access;
+                last.write_access |= write_access;
             }
             _ => list.push(StepAccess {
                 step,
                 stages,
                 writes,
+                access,
+                write_access,
             }),
         }
     };
@@ -700,7 +851,9 @@ fn step_accesses(plan: &Plan) -> Vec<Vec<StepAccess>> {
                     .iter()
                     .filter(|a| a.store_op != StoreOp::None)
                 {
-                    add(a.resource, i, PipelineStages::NONE, true);
+                    let format = plan.resources[a.resource.index()].format();
+                    let store = store_access(format);
+                    add(a.resource, i, PipelineStages::NONE, (store, store));
                 }
                 rp.subpasses.iter().map(|s| s.pass).collect()
             }
@@ -717,7 +870,7 @@ fn step_accesses(plan: &Plan) -> Vec<Vec<StepAccess>> {
                     u.resource,
                     i,
                     stages_of(kind, &u.kind, format),
-                    u.kind.writes(),
+                    accesses_of(&u.kind),
                 );
             }
         }
@@ -725,12 +878,16 @@ fn step_accesses(plan: &Plan) -> Vec<Vec<StepAccess>> {
     out
 }
 
-fn barriers_between(
-    plan: &Plan,
-    r: ResourceId,
-    from: usize,
-    to: usize,
-) -> Vec<(PipelineStages, PipelineStages)> {
+/// A barrier's two scopes.
+#[derive(Debug, Clone, Copy)]
+struct Scopes {
+    src: PipelineStages,
+    src_access: AccessFlags,
+    dst: PipelineStages,
+    dst_access: AccessFlags,
+}
+
+fn barriers_between(plan: &Plan, r: ResourceId, from: usize, to: usize) -> Vec<Scopes> {
     plan.steps[from + 1..to]
         .iter()
         .filter_map(|s| match s {
@@ -738,12 +895,22 @@ fn barriers_between(
                 b.images
                     .iter()
                     .filter(|x| x.resource == r)
-                    .map(|x| (x.src_stages, x.dst_stages))
+                    .map(|x| Scopes {
+                        src: x.src_stages,
+                        src_access: x.src_access,
+                        dst: x.dst_stages,
+                        dst_access: x.dst_access,
+                    })
                     .chain(
                         b.buffers
                             .iter()
                             .filter(|x| x.resource == r)
-                            .map(|x| (x.src_stages, x.dst_stages)),
+                            .map(|x| Scopes {
+                                src: x.src_stages,
+                                src_access: x.src_access,
+                                dst: x.dst_stages,
+                                dst_access: x.dst_access,
+                            }),
                     )
                     .collect::<Vec<_>>(),
             ),
@@ -756,7 +923,10 @@ fn barriers_between(
 fn check_hazards(plan: &Plan) -> Result<(), String> {
     let accesses = step_accesses(plan);
     // Consecutive accesses of one resource where either writes need a barrier on it between
-    // them that waits for the first and blocks the second.
+    // them that waits for the first and blocks the second. After a write (read-after-write,
+    // write-after-write) it is also a memory dependency: the write is in its source access
+    // scope and every access of the second step in its destination access scope. A write after
+    // reads needs only the execution dependency.
     for (r, list) in accesses.iter().enumerate() {
         let id = ResourceId(r as u32);
         for pair in list.windows(2) {
@@ -765,13 +935,24 @@ fn check_hazards(plan: &Plan) -> Result<(), String> {
                 continue;
             }
             let found = barriers_between(plan, id, a.step, b.step);
-            if !found
-                .iter()
-                .any(|(src, dst)| src.contains(a.stages) && dst.contains(b.stages))
-            {
+            let covers = |x: &Scopes| {
+                x.src.contains(a.stages)
+                    && x.dst.contains(b.stages)
+                    && (!a.writes
+                        || (x.src_access.contains(a.write_access)
+                            && x.dst_access.contains(b.access)))
+            };
+            if !found.iter().any(covers) {
                 return Err(format!(
-                    "{}: step {} then step {}: no barrier covers {} -> {} (found {found:?})",
-                    plan.resources[r].name, a.step, b.step, a.stages, b.stages
+                    "{}: step {} then step {}: no barrier covers {} / {} -> {} / {} (found \
+                     {found:?})",
+                    plan.resources[r].name,
+                    a.step,
+                    b.step,
+                    a.stages,
+                    a.write_access,
+                    b.stages,
+                    b.access
                 ));
             }
         }
@@ -786,7 +967,7 @@ fn check_hazards(plan: &Plan) -> Result<(), String> {
             continue;
         };
         let found = barriers_between(plan, h.to, from_last.step, to_first.step);
-        if !found.iter().any(|(src, _)| src.contains(from_last.stages)) {
+        if !found.iter().any(|x| x.src.contains(from_last.stages)) {
             return Err(format!(
                 "{} takes memory of {} without waiting for it",
                 plan.resources[h.to.index()].name,
@@ -1095,7 +1276,67 @@ fn check_store_none(plan: &Plan, store_op_none: bool) -> Result<(), String> {
     Ok(())
 }
 
+/// Every barrier and subpass dependency names only accesses its stages perform (what the
+/// validation layers check for VkMemoryBarrier2 and VkSubpassDependency2).
+fn check_access_support(plan: &Plan) -> Result<(), String> {
+    let check = |what: &str, stages: PipelineStages, access: AccessFlags| {
+        let unsupported = access.difference(supported_accesses(stages));
+        if unsupported.is_empty() {
+            Ok(())
+        } else {
+            Err(format!(
+                "{what}: {access} is not performed by {stages} ({unsupported})"
+            ))
+        }
+    };
+    for (i, step) in plan.steps.iter().enumerate() {
+        match step {
+            Step::Barriers(b) => {
+                let scopes = b
+                    .images
+                    .iter()
+                    .map(|x| {
+                        (
+                            x.resource,
+                            x.src_stages,
+                            x.src_access,
+                            x.dst_stages,
+                            x.dst_access,
+                        )
+                    })
+                    .chain(b.buffers.iter().map(|x| {
+                        (
+                            x.resource,
+                            x.src_stages,
+                            x.src_access,
+                            x.dst_stages,
+                            x.dst_access,
+                        )
+                    }));
+                for (r, src, src_access, dst, dst_access) in scopes {
+                    let what = format!("step {i}: barrier on {}", plan.resources[r.index()].name);
+                    check(&what, src, src_access)?;
+                    check(&what, dst, dst_access)?;
+                }
+            }
+            Step::RenderPass(rp) => {
+                for d in &rp.dependencies {
+                    let what = format!(
+                        "step {i}: subpass dependency {} -> {}",
+                        d.src_subpass.0, d.dst_subpass.0
+                    );
+                    check(&what, d.src_stages, d.src_access)?;
+                    check(&what, d.dst_stages, d.dst_access)?;
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 fn check_plan(plan: &Plan, built: &Built, profile: &Profile) -> Result<(), String> {
+    check_access_support(plan)?;
     check_store_none(plan, profile.render_pass.store_op_none)?;
     check_subpass_dependencies(plan)?;
     check_preserved(plan)?;
@@ -1167,4 +1408,22 @@ fn the_generator_mostly_makes_graphs_that_compile() {
         merged > total / 8,
         "merging exercised in {merged} of {total}"
     );
+}
+
+#[test]
+fn the_access_support_model_matches_the_synchronization2_table() {
+    let compute = supported_accesses(PipelineStages::COMPUTE_SHADER);
+    assert!(compute.contains(AccessFlags::SHADER_SAMPLED_READ | AccessFlags::SHADER_STORAGE_WRITE));
+    assert!(!compute
+        .intersects(AccessFlags::COLOR_ATTACHMENT_WRITE | AccessFlags::INPUT_ATTACHMENT_READ));
+    let tests = PipelineStages::EARLY_FRAGMENT_TESTS | PipelineStages::LATE_FRAGMENT_TESTS;
+    assert!(supported_accesses(tests).contains(AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE));
+    assert!(!supported_accesses(tests).intersects(AccessFlags::COLOR_ATTACHMENT_READ));
+    // ALL_GRAPHICS performs every graphics access, but no transfer.
+    let graphics = supported_accesses(PipelineStages::ALL_GRAPHICS);
+    assert!(
+        graphics.contains(AccessFlags::INDIRECT_COMMAND_READ | AccessFlags::INPUT_ATTACHMENT_READ)
+    );
+    assert!(!graphics.intersects(AccessFlags::TRANSFER_WRITE));
+    assert!(supported_accesses(PipelineStages::ALL_COMMANDS).contains(AccessFlags::TRANSFER_WRITE));
 }

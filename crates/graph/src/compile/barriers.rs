@@ -401,20 +401,28 @@ impl Planner<'_> {
                 continue;
             };
             let is_depth = self.states[r].is_depth;
-            let (load_stages, load_access, _) = load_store_access(is_depth, att.load_op);
+            let (load_stages, load_access, store_access) = load_store_access(is_depth, att.load_op);
             let loads = att.load_op == LoadOp::Load;
+            // Even a read-only attachment is written by its store op (STORE and DONT_CARE both
+            // write): earlier reads of it (a sampler, say) must finish first, and an earlier
+            // write is made visible to the store too (write after write). NONE is no access: a
+            // render pass that only reads is a reader like any other.
+            let stores = att.store_op != StoreOp::None;
             // Later subpasses are ordered by subpass dependencies, but the barrier before the
             // render pass covers every stage that touches the attachment in it (a sampled
             // read of a read-only depth attachment, say).
             let u = SyncUse {
                 stages: au.stages | load_stages,
-                access: au.access | load_access,
+                access: au.access
+                    | load_access
+                    | if stores {
+                        store_access
+                    } else {
+                        AccessFlags::NONE
+                    },
                 layout: first_layout,
                 reads: loads,
-                // Even a read-only attachment is written by its store op (STORE and DONT_CARE
-                // both write): earlier reads of it (a sampler, say) must finish first. NONE is
-                // no access: a render pass that only reads is a reader like any other.
-                writes: att.store_op != StoreOp::None,
+                writes: stores,
                 discard: !loads,
             };
             if self.states[r].is_fresh() && !loads && !self.states[r].alias_pending {
