@@ -12,7 +12,8 @@
 //!   layouts chain from barrier to use;
 //! - every barrier and subpass dependency names only accesses its stages perform;
 //! - no culled pass contributes to an export;
-//! - compiling twice gives the same plan.
+//! - compiling twice gives the same plan;
+//! - re-placing memory with other requirements (as the executor does) keeps all of the above.
 
 mod common;
 
@@ -1373,6 +1374,46 @@ proptest! {
                 prop_assert!(spec.chaos, "a valid graph failed to compile: {}", a);
             }
             (a, b) => prop_assert!(false, "runs disagree: {:?} vs {:?}", a.is_ok(), b.is_ok()),
+        }
+    }
+
+    /// The executor re-places memory with the driver's requirements, which change sizes
+    /// relative to each other (and so the placement) and add alignments: the rebuilt barriers
+    /// keep every rule, and every slot has the size and alignment asked for.
+    #[test]
+    fn plans_re_placed_with_other_requirements_keep_every_rule(
+        spec in spec(120),
+        scales in prop::collection::vec((1u64..=8, 0u32..=16), 40),
+    ) {
+        let built = build(&spec);
+        let profile = pick_profile(spec.profile);
+        let Ok(compiled) = built.graph.clone().compile(&profile) else {
+            return Ok(());
+        };
+        let mut plan = compiled.plan;
+        let requirements: Vec<MemoryRequirements> = plan
+            .estimated_requirements()
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let (scale, align_log2) = scales[i % scales.len()];
+                MemoryRequirements {
+                    size_bytes: (r.size_bytes * scale / 4).max(1),
+                    alignment_bytes: 1 << align_log2,
+                }
+            })
+            .collect();
+        if let Err(e) = plan.reassign_aliases(&requirements) {
+            return Err(TestCaseError::fail(format!("re-placing failed: {e}\n{plan}")));
+        }
+        for (r, req) in plan.resources.iter().zip(&requirements) {
+            if let Some(slot) = r.memory {
+                prop_assert_eq!(slot.size_bytes, req.size_bytes, "{}", r.name);
+                prop_assert_eq!(slot.offset_bytes % req.alignment_bytes, 0, "{}", r.name);
+            }
+        }
+        if let Err(e) = check_plan(&plan, &built, &profile) {
+            return Err(TestCaseError::fail(format!("{e}\n{plan}")));
         }
     }
 }
