@@ -433,10 +433,15 @@ impl Planner<'_> {
                 att.initial_layout = self.states[r].layout;
             }
         }
+        // Resources the subpasses reach through memory: one entry each, so each one's state
+        // moves on right after its barrier.
         for k in 0..self.others.len() {
             let (r, u) = self.others[k];
+            self.slot[r] = NONE;
             self.touch(r);
             self.barrier(r, &u, batch);
+            let is_image = self.states[r].is_image;
+            self.states[r].apply(&u, is_image);
         }
 
         // After the render pass: every attachment was written by its store op.
@@ -460,25 +465,18 @@ impl Planner<'_> {
             st.visible_stages = PipelineStages::NONE;
             st.visible_access = AccessFlags::NONE;
         }
-        for k in 0..self.others.len() {
-            let (r, u) = self.others[k];
-            self.slot[r] = NONE;
-            let is_image = self.states[r].is_image;
-            self.states[r].apply(&u, is_image);
-        }
     }
 
     fn single_pass(&mut self, pass: PassId, batch: &mut BarrierBatch) {
-        let list = self.accesses.of(pass);
-        for a in list {
+        // One access per resource in a pass: each resource's state moves on right after its
+        // barrier.
+        for a in self.accesses.of(pass) {
             let r = a.resource.index();
+            let u = SyncUse::of(a);
             self.touch(r);
-            self.barrier(r, &SyncUse::of(a), batch);
-        }
-        for a in list {
-            let r = a.resource.index();
+            self.barrier(r, &u, batch);
             let is_image = self.states[r].is_image;
-            self.states[r].apply(&SyncUse::of(a), is_image);
+            self.states[r].apply(&u, is_image);
         }
     }
 }

@@ -59,30 +59,26 @@ fn dependency_edges(
     let mut readers: Vec<(u32, u32)> = Vec::with_capacity(analysis.accesses.len());
     for p in (0..n).filter(|&p| alive[p]) {
         let pu = p as u32;
+        // A pass has one access per resource, so each resource's state can be updated as soon
+        // as its edges are out.
         for a in analysis.accesses_of(p) {
-            let (w, head) = last[a.resource.index()];
+            let entry = &mut last[a.resource.index()];
+            let (w, head) = *entry;
             // Every access orders after the last write: a read needs its data, a write must
             // not be overtaken by the older one.
-            if w != NONE && w != pu {
+            if w != NONE {
                 pairs.push((w, pu));
             }
             if a.writes() {
                 let mut node = head;
                 while node != NONE {
                     let (q, next) = readers[node as usize];
-                    if q != pu {
-                        pairs.push((q, pu));
-                    }
+                    pairs.push((q, pu));
                     node = next;
                 }
-            }
-        }
-        for a in analysis.accesses_of(p) {
-            let entry = &mut last[a.resource.index()];
-            if a.writes() {
                 *entry = (pu, NONE);
             } else {
-                readers.push((pu, entry.1));
+                readers.push((pu, head));
                 entry.1 = (readers.len() - 1) as u32;
             }
         }

@@ -371,33 +371,33 @@ pub(crate) fn validate_declarations(
     for (p, pass) in passes.iter().enumerate() {
         let start = producers.len();
         let (a0, a1) = pass_ranges[p];
+        // One access per resource in a pass: each resource's writer is updated right after
+        // its read is resolved.
         for a in &accesses[a0 as usize..a1 as usize] {
-            if !a.reads_prior() {
-                continue;
-            }
-            match last_writer[a.resource.index()] {
-                Some(w) => producers.push(w),
-                None => {
-                    let r = &resources[a.resource.index()];
-                    if a.explicit_read() && !has_initial_content(r) {
-                        return Err(GraphError::ReadBeforeWrite {
-                            pass: pass.name.clone(),
-                            resource: r.name.clone(),
-                            usage: pass
-                                .uses
-                                .get(a.first_use as usize)
-                                .map_or("?", |u| u.kind.name()),
-                        });
+            let writer = &mut last_writer[a.resource.index()];
+            if a.reads_prior() {
+                match *writer {
+                    Some(w) => producers.push(w),
+                    None => {
+                        let r = &resources[a.resource.index()];
+                        if a.explicit_read() && !has_initial_content(r) {
+                            return Err(GraphError::ReadBeforeWrite {
+                                pass: pass.name.clone(),
+                                resource: r.name.clone(),
+                                usage: pass
+                                    .uses
+                                    .get(a.first_use as usize)
+                                    .map_or("?", |u| u.kind.name()),
+                            });
+                        }
                     }
                 }
             }
-        }
-        producer_ranges.push((start as u32, producers.len() as u32));
-        for a in &accesses[a0 as usize..a1 as usize] {
             if a.writes() {
-                last_writer[a.resource.index()] = Some(PassId(p as u32));
+                *writer = Some(PassId(p as u32));
             }
         }
+        producer_ranges.push((start as u32, producers.len() as u32));
     }
 
     for &e in exports {
