@@ -393,45 +393,61 @@ impl Planner<'_> {
             }
         }
 
+        // Attachment by attachment (each is one resource): the barrier that prepares it, then
+        // the state the render pass leaves it in.
         for (i, att) in rp.attachments.iter_mut().enumerate() {
             let r = att.resource.index();
+            self.slot[r] = NONE;
             self.touch(r);
             let au = self.attachment_uses[i];
-            let Some(first_layout) = au.first_layout else {
-                continue;
-            };
             let is_depth = self.states[r].is_depth;
-            let (load_stages, load_access, store_access) = load_store_access(is_depth, att.load_op);
-            let loads = att.load_op == LoadOp::Load;
+            let (stages, load_access, store_access) = load_store_access(is_depth, att.load_op);
             // Even a read-only attachment is written by its store op (STORE and DONT_CARE both
             // write): earlier reads of it (a sampler, say) must finish first, and an earlier
             // write is made visible to the store too (write after write). NONE is no access: a
             // render pass that only reads is a reader like any other.
             let stores = att.store_op != StoreOp::None;
-            // Later subpasses are ordered by subpass dependencies, but the barrier before the
-            // render pass covers every stage that touches the attachment in it (a sampled
-            // read of a read-only depth attachment, say).
-            let u = SyncUse {
-                stages: au.stages | load_stages,
-                access: au.access
-                    | load_access
-                    | if stores {
-                        store_access
-                    } else {
-                        AccessFlags::NONE
-                    },
-                layout: first_layout,
-                reads: loads,
-                writes: stores,
-                discard: !loads,
-            };
-            if self.states[r].is_fresh() && !loads && !self.states[r].alias_pending {
-                // Nothing to wait for: the render pass transitions from Undefined itself.
-                att.initial_layout = Layout::Undefined;
-            } else {
-                self.barrier(r, &u, batch);
-                att.initial_layout = self.states[r].layout;
+            if let Some(first_layout) = au.first_layout {
+                let loads = att.load_op == LoadOp::Load;
+                // Later subpasses are ordered by subpass dependencies, but the barrier before
+                // the render pass covers every stage that touches the attachment in it (a
+                // sampled read of a read-only depth attachment, say).
+                let u = SyncUse {
+                    stages: au.stages | stages,
+                    access: au.access
+                        | load_access
+                        | if stores {
+                            store_access
+                        } else {
+                            AccessFlags::NONE
+                        },
+                    layout: first_layout,
+                    reads: loads,
+                    writes: stores,
+                    discard: !loads,
+                };
+                if self.states[r].is_fresh() && !loads && !self.states[r].alias_pending {
+                    // Nothing to wait for: the render pass transitions from Undefined itself.
+                    att.initial_layout = Layout::Undefined;
+                } else {
+                    self.barrier(r, &u, batch);
+                    att.initial_layout = self.states[r].layout;
+                }
             }
+            // After the render pass: written by its store op.
+            let st = &mut self.states[r];
+            st.layout = att.final_layout;
+            if !stores {
+                // Only read, by the subpasses and the LOAD op (the last subpass's layout is the
+                // final one: no transition).
+                st.read_stages |= au.stages | stages;
+                continue;
+            }
+            st.write_stages = au.stages | stages;
+            st.write_access = au.access.writes() | store_access;
+            st.read_stages = PipelineStages::NONE;
+            st.visible_stages = PipelineStages::NONE;
+            st.visible_access = AccessFlags::NONE;
         }
         // Resources the subpasses reach through memory: one entry each, so each one's state
         // moves on right after its barrier.
@@ -442,28 +458,6 @@ impl Planner<'_> {
             self.barrier(r, &u, batch);
             let is_image = self.states[r].is_image;
             self.states[r].apply(&u, is_image);
-        }
-
-        // After the render pass: every attachment was written by its store op.
-        for (i, att) in rp.attachments.iter().enumerate() {
-            let r = att.resource.index();
-            self.slot[r] = NONE;
-            let is_depth = self.states[r].is_depth;
-            let (store_stages, _, store_access) = load_store_access(is_depth, att.load_op);
-            let au = self.attachment_uses[i];
-            let st = &mut self.states[r];
-            st.layout = att.final_layout;
-            if att.store_op == StoreOp::None {
-                // Only read, by the subpasses and the LOAD op (the last subpass's layout is the
-                // final one: no transition).
-                st.read_stages |= au.stages | store_stages;
-                continue;
-            }
-            st.write_stages = au.stages | store_stages;
-            st.write_access = au.access.writes() | store_access;
-            st.read_stages = PipelineStages::NONE;
-            st.visible_stages = PipelineStages::NONE;
-            st.visible_access = AccessFlags::NONE;
         }
     }
 

@@ -40,6 +40,9 @@ pub(crate) struct ResourceUse {
     pub roles: u16,
     /// Sweep state: the next use (in the groups after the current one) reads the content.
     pending: bool,
+    /// Sweep state: `pending` as the groups after the current one left it (the current
+    /// group's uses need it; `pending` already holds what the groups before will see).
+    pending_after: bool,
 }
 
 impl ResourceUse {
@@ -75,13 +78,13 @@ pub(crate) fn resource_uses(
             attachment_only: true,
             roles: 0,
             pending,
+            pending_after: pending,
         })
         .collect();
     let mut needed_after = vec![false; analysis.accesses.len()];
     for (g, group) in groups.iter().enumerate().rev() {
         let g = g as u32;
-        let passes = &order[group.start..group.end];
-        for &p in passes {
+        for &p in &order[group.start..group.end] {
             let (a0, a1) = analysis.pass_ranges[p.index()];
             let range = a0 as usize..a1 as usize;
             for (a, needed) in analysis.accesses[range.clone()]
@@ -89,19 +92,19 @@ pub(crate) fn resource_uses(
                 .zip(&mut needed_after[range])
             {
                 let s = &mut state[a.resource.index()];
-                *needed = s.pending;
+                if s.first != g {
+                    // The group's first use of the resource decides what the groups before
+                    // see; its uses see what the groups after left.
+                    s.pending_after = s.pending;
+                    s.pending = a.reads_prior();
+                }
+                *needed = s.pending_after;
                 if s.last == NONE {
                     s.last = g;
                 }
                 s.first = g;
                 s.attachment_only &= !a.non_attachment();
                 s.roles |= a.roles;
-            }
-        }
-        // The group's first use of each resource decides what the groups before see.
-        for &p in passes.iter().rev() {
-            for a in analysis.accesses_of(p.index()) {
-                state[a.resource.index()].pending = a.reads_prior();
             }
         }
     }
