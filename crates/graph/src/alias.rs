@@ -195,42 +195,45 @@ impl BlockState {
         // Everyone who last held some of [offset, end) hands it over; pieces outside stay.
         let first = self.occupants.partition_point(|p| p.end <= offset);
         let last = first + self.occupants[first..].partition_point(|p| p.offset < end);
-        let mut pieces: [Option<Placed>; 3] = [None, None, None];
-        if first < last {
-            let head = &self.occupants[first];
-            if head.offset < offset {
-                pieces[0] = Some(Placed {
-                    end: offset,
-                    ..*head
-                });
-            }
-            let tail = &self.occupants[last - 1];
-            if tail.end > end {
-                pieces[2] = Some(Placed {
-                    offset: end,
-                    ..*tail
-                });
-            }
-            handoffs.extend(self.occupants[first..last].iter().map(|p| p.resource));
-        }
-        pieces[1] = Some(Placed {
+        let placed = Placed {
             offset,
             end,
             resource,
             alive: true,
-        });
-        // Replace occupants[first..last] with the pieces (at most three), in place.
+        };
+        if first == last {
+            self.occupants.insert(first, placed);
+            return;
+        }
+        handoffs.extend(self.occupants[first..last].iter().map(|p| p.resource));
+        let (head, tail) = (self.occupants[first], self.occupants[last - 1]);
+        // occupants[first..last] becomes [head's part below `offset`] placed [tail's part
+        // above `end`]: at most three entries where there was at least one.
+        let keep_head = head.offset < offset;
+        let keep_tail = tail.end > end;
+        let needed = 1 + usize::from(keep_head) + usize::from(keep_tail);
+        let mut have = last - first;
+        while have < needed {
+            self.occupants.insert(last, placed);
+            have += 1;
+        }
+        if have > needed {
+            self.occupants.drain(first + needed..first + have);
+        }
         let mut at = first;
-        for piece in pieces.into_iter().flatten() {
-            if at < last {
-                self.occupants[at] = piece;
-            } else {
-                self.occupants.insert(at, piece);
-            }
+        if keep_head {
+            self.occupants[at] = Placed {
+                end: offset,
+                ..head
+            };
             at += 1;
         }
-        if at < last {
-            self.occupants.drain(at..last);
+        self.occupants[at] = placed;
+        if keep_tail {
+            self.occupants[at + 1] = Placed {
+                offset: end,
+                ..tail
+            };
         }
     }
 
