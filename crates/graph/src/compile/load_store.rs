@@ -38,6 +38,8 @@ pub(crate) struct ResourceUse {
     pub attachment_only: bool,
     /// [`UseKind::bit`](crate::declare::UseKind) of every use by a kept pass.
     pub roles: u16,
+    /// First group that writes it (`NONE`: none does).
+    first_write: u32,
     /// Sweep state: the next use (in the groups after the current one) reads the content.
     pending: bool,
     /// Sweep state: `pending` as the groups after the current one left it (the current
@@ -77,6 +79,7 @@ pub(crate) fn resource_uses(
             last: NONE,
             attachment_only: true,
             roles: 0,
+            first_write: NONE,
             pending,
             pending_after: pending,
         })
@@ -105,6 +108,9 @@ pub(crate) fn resource_uses(
                 s.first = g;
                 s.attachment_only &= !a.non_attachment();
                 s.roles |= a.roles;
+                if a.writes() {
+                    s.first_write = g;
+                }
             }
         }
     }
@@ -201,7 +207,7 @@ pub(crate) struct LoadStoreInput<'a> {
     pub passes: &'a [PassDecl],
     pub resources: &'a [ResourceDecl],
     pub residency: &'a [Residency],
-    pub needed_after: &'a [bool],
+    pub uses: &'a ResourceUses,
     /// The profile takes `StoreOp::None`.
     pub store_op_none: bool,
 }
@@ -219,10 +225,22 @@ pub(crate) trait StepSink {
 /// load/store ops, subpasses and dependencies), one compute or transfer step per other group,
 /// and a flush before each group that asks for one, each handed to `sink` as it is built.
 pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, sink: &mut impl StepSink) {
-    let n_resources = input.resources.len();
-    let mut written_before: Vec<bool> = input.resources.iter().map(has_initial_content).collect();
+    // Per resource: the first group that sees content in it (0: imported with content; the
+    // group after its first writer; NONE: never).
+    let content_from: Vec<u32> = input
+        .resources
+        .iter()
+        .zip(&input.uses.resources)
+        .map(|(r, u)| {
+            if has_initial_content(r) {
+                0
+            } else {
+                u.first_write.saturating_add(1)
+            }
+        })
+        .collect();
     // Per resource: its attachment in the current render pass.
-    let mut attachment_of = vec![(NONE, NONE); n_resources];
+    let mut attachment_of = vec![(NONE, NONE); input.resources.len()];
     let mut scratch = Scratch::default();
     for (g, group) in input.groups.iter().enumerate() {
         if group.flush_before {
@@ -236,20 +254,13 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, sink: &mut impl StepS
                     &mut scratch,
                     g as u32,
                     group,
-                    &written_before,
+                    &content_from,
                     &mut attachment_of,
                     rp,
                 )
             }),
             GroupKind::Compute => sink.push(Step::Compute { pass: first }),
             GroupKind::Transfer => sink.push(Step::Transfer { pass: first }),
-        }
-        for &p in &input.order[group.start..group.end] {
-            for a in input.analysis.accesses_of(p.index()) {
-                if a.writes() {
-                    written_before[a.resource.index()] = true;
-                }
-            }
         }
     }
 }
@@ -266,7 +277,7 @@ fn build_render_pass(
     scratch: &mut Scratch,
     g: u32,
     group: &Group,
-    written_before: &[bool],
+    content_from: &[u32],
     attachment_of: &mut [(u32, u32)],
     rp: &mut RenderPass,
 ) {
@@ -312,9 +323,9 @@ fn build_render_pass(
             } else {
                 let index = attachments.len() as u32;
                 attachment_of[r] = (g, index);
-                attachments.push(new_attachment(input, decl, r, a, written_before[r]));
+                attachments.push(new_attachment(input, decl, r, a, content_from[r] <= g));
                 tracks.push(AttachmentTrack {
-                    needed_after: input.needed_after[first_access + k],
+                    needed_after: input.uses.needed_after[first_access + k],
                     last_subpass: NONE,
                     last_stages: PipelineStages::NONE,
                     layout: a.layout,

@@ -348,7 +348,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             passes: &passes,
             resources: &resources,
             residency: &residency,
-            needed_after: &uses.needed_after,
+            uses: &uses,
             store_op_none: profile.render_pass.store_op_none,
         },
         &mut planner,
