@@ -273,29 +273,40 @@ const fn key_class(key: u128) -> u128 {
     key >> 96
 }
 
-/// Which set holds a block, under which key (`None`: full, in neither).
-fn block_entry(block: &BlockState, b: u32) -> Option<(bool, u128)> {
+/// The two indexes of [`Blocks`].
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum BlockSet {
+    /// Nothing alive in the block, keyed by its size.
+    Empty,
+    /// Some of it alive, keyed by its free bytes.
+    Partial,
+}
+
+/// Which index holds a block, under which key (`None`: full, in neither).
+fn block_entry(block: &BlockState, b: u32) -> Option<(BlockSet, u128)> {
     if block.live == 0 {
-        Some((false, block_key(block.class, block.size, b)))
+        Some((BlockSet::Empty, block_key(block.class, block.size, b)))
     } else if block.free_bytes() > 0 {
-        Some((true, block_key(block.class, block.free_bytes(), b)))
+        Some((
+            BlockSet::Partial,
+            block_key(block.class, block.free_bytes(), b),
+        ))
     } else {
         None
     }
 }
 
 impl Blocks {
-    fn set(&mut self, partial: bool) -> &mut Vec<u128> {
-        if partial {
-            &mut self.partial
-        } else {
-            &mut self.empty
+    fn set(&mut self, set: BlockSet) -> &mut Vec<u128> {
+        match set {
+            BlockSet::Empty => &mut self.empty,
+            BlockSet::Partial => &mut self.partial,
         }
     }
 
     /// Re-files block `b` after a change that turned its entry `before` into its current one:
     /// within one set, the entries in between shift by one place (a single move).
-    fn refile(&mut self, b: u32, before: Option<(bool, u128)>) {
+    fn refile(&mut self, b: u32, before: Option<(BlockSet, u128)>) {
         let after = block_entry(&self.blocks[b as usize], b);
         match (before, after) {
             (Some((set_a, old)), Some((set_b, new))) if set_a == set_b => {
@@ -323,14 +334,14 @@ impl Blocks {
                 set[at] = new;
             }
             _ => {
-                if let Some((in_partial, old)) = before {
-                    let set = self.set(in_partial);
+                if let Some((set, old)) = before {
+                    let set = self.set(set);
                     if let Ok(i) = set.binary_search(&old) {
                         set.remove(i);
                     }
                 }
-                if let Some((in_partial, new)) = after {
-                    let set = self.set(in_partial);
+                if let Some((set, new)) = after {
+                    let set = self.set(set);
                     if let Err(i) = set.binary_search(&new) {
                         set.insert(i, new);
                     }

@@ -6,10 +6,12 @@
 //! panic. Every plan that compiles is checked by an independent model of the rules:
 //!
 //! - every read is ordered after the write it reads;
-//! - no two resources whose memory overlaps are alive at the same time;
+//! - no two resources whose memory overlaps are alive at the same time, and every earlier
+//!   holder of a resource's bytes is reached through the aliasing hand-offs;
 //! - every hazard between two steps has a barrier (after a write, a memory dependency: the
-//!   write in its source access scope, the next step's accesses in its destination scope), and
-//!   layouts chain from barrier to use;
+//!   write in its source access scope, the next step's accesses — load and store ops, depth
+//!   tests and blending included — in its destination scope), and layouts chain from barrier to
+//!   use;
 //! - every barrier and subpass dependency names only accesses its stages perform;
 //! - no culled pass contributes to an export;
 //! - compiling twice gives the same plan;
@@ -613,6 +615,40 @@ fn check_culled_contribute_nothing(
     Ok(())
 }
 
+/// Every resource that held bytes a later resource takes over is reached through the hand-offs
+/// (directly, or through the owners in between): each byte's owners form a chain, and each
+/// hand-off makes the new owner wait for the previous one.
+fn check_handoffs_complete(plan: &Plan) -> Result<(), String> {
+    let handed = |to: ResourceId| plan.aliasing.handoffs.iter().filter(move |h| h.to == to);
+    for b in &plan.resources {
+        let (Some(sb), Some(lb)) = (b.memory, b.lifetime) else {
+            continue;
+        };
+        // Everything reachable from `b` through hand-offs.
+        let mut reached = vec![false; plan.resources.len()];
+        let mut stack = vec![b.id];
+        while let Some(r) = stack.pop() {
+            for h in handed(r) {
+                if !std::mem::replace(&mut reached[h.from.index()], true) {
+                    stack.push(h.from);
+                }
+            }
+        }
+        for a in &plan.resources {
+            let (Some(sa), Some(la)) = (a.memory, a.lifetime) else {
+                continue;
+            };
+            if a.id != b.id && sa.overlaps(&sb) && la.last < lb.first && !reached[a.id.index()] {
+                return Err(format!(
+                    "{} takes over memory of {} with no hand-off chain to it",
+                    b.name, a.name
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 fn check_aliasing(plan: &Plan) -> Result<(), String> {
     for a in &plan.resources {
         for b in &plan.resources {
@@ -677,8 +713,10 @@ fn accesses_of(u: &UseKind) -> (AccessFlags, AccessFlags) {
             AccessFlags::COLOR_ATTACHMENT_WRITE,
             AccessFlags::COLOR_ATTACHMENT_WRITE,
         ),
+        // The depth test reads what it then writes.
         UseKind::DepthStencilAttachment { .. } => (
-            AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
+                | AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
             AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
         ),
         UseKind::DepthStencilReadOnly => (
@@ -705,6 +743,15 @@ fn accesses_of(u: &UseKind) -> (AccessFlags, AccessFlags) {
         }
         UseKind::TransferSrc => (AccessFlags::TRANSFER_READ, AccessFlags::NONE),
         UseKind::TransferDst => (AccessFlags::TRANSFER_WRITE, AccessFlags::TRANSFER_WRITE),
+    }
+}
+
+/// The read of an attachment's LOAD op.
+fn attachment_read(format: Option<Format>) -> AccessFlags {
+    if format.is_some_and(|f| f.is_depth_stencil()) {
+        AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ
+    } else {
+        AccessFlags::COLOR_ATTACHMENT_READ
     }
 }
 
@@ -846,15 +893,20 @@ fn step_accesses(plan: &Plan) -> Vec<Vec<StepAccess>> {
     for (i, s) in plan.steps.iter().enumerate() {
         let passes: Vec<PassId> = match s {
             Step::RenderPass(rp) => {
-                // Every attachment is written by its store op, unless that is NONE (no access).
-                for a in rp
-                    .attachments
-                    .iter()
-                    .filter(|a| a.store_op != StoreOp::None)
-                {
+                for a in &rp.attachments {
                     let format = plan.resources[a.resource.index()].format();
-                    let store = store_access(format);
-                    add(a.resource, i, PipelineStages::NONE, (store, store));
+                    let write = store_access(format);
+                    // The load op reads (LOAD) or writes (CLEAR, DONT_CARE) the attachment.
+                    let load = if a.load_op == LoadOp::Load {
+                        (attachment_read(format), AccessFlags::NONE)
+                    } else {
+                        (write, write)
+                    };
+                    add(a.resource, i, PipelineStages::NONE, load);
+                    // The store op writes it, unless it is NONE (no access).
+                    if a.store_op != StoreOp::None {
+                        add(a.resource, i, PipelineStages::NONE, (write, write));
+                    }
                 }
                 rp.subpasses.iter().map(|s| s.pass).collect()
             }
@@ -867,11 +919,18 @@ fn step_accesses(plan: &Plan) -> Vec<Vec<StepAccess>> {
             };
             for u in &p.uses {
                 let format = plan.resources[u.resource.index()].format();
+                let (mut needs, writes) = accesses_of(&u.kind);
+                // Drawing over old content without covering it all blends with it.
+                if matches!(u.kind, UseKind::ColorAttachment { clear: None })
+                    && p.coverage == Coverage::Partial
+                {
+                    needs |= AccessFlags::COLOR_ATTACHMENT_READ;
+                }
                 add(
                     u.resource,
                     i,
                     stages_of(kind, &u.kind, format),
-                    accesses_of(&u.kind),
+                    (needs, writes),
                 );
             }
         }
@@ -968,7 +1027,10 @@ fn check_hazards(plan: &Plan) -> Result<(), String> {
             continue;
         };
         let found = barriers_between(plan, h.to, from_last.step, to_first.step);
-        if !found.iter().any(|x| x.src.contains(from_last.stages)) {
+        let covers = |x: &Scopes| {
+            x.src.contains(from_last.stages) && x.src_access.contains(from_last.write_access)
+        };
+        if !found.iter().any(covers) {
             return Err(format!(
                 "{} takes memory of {} without waiting for it",
                 plan.resources[h.to.index()].name,
@@ -1345,6 +1407,7 @@ fn check_plan(plan: &Plan, built: &Built, profile: &Profile) -> Result<(), Strin
     check_reads_after_writes(plan, &built.mirror)?;
     check_culled_contribute_nothing(plan, &built.mirror, &built.exports)?;
     check_aliasing(plan)?;
+    check_handoffs_complete(plan)?;
     check_layouts(plan)?;
     check_hazards(plan)
 }

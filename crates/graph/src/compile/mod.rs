@@ -551,11 +551,20 @@ impl Plan {
             }
         }
         let is_known = |id: PassId| known.get(id.index()).copied().unwrap_or(false);
-        for step in &self.steps {
+        // Per resource: the last step that attaches it.
+        let mut attached_in = vec![usize::MAX; n];
+        for (i, step) in self.steps.iter().enumerate() {
             match step {
                 Step::RenderPass(rp) => {
-                    if rp.attachments.iter().any(|a| a.resource.index() >= n) {
-                        return invalid("a render pass attaches an unknown resource");
+                    for a in &rp.attachments {
+                        let Some(seen) = attached_in.get_mut(a.resource.index()) else {
+                            return invalid("a render pass attaches an unknown resource");
+                        };
+                        // The barrier planner keeps one state per resource and attachment.
+                        if *seen == i {
+                            return invalid("a render pass attaches a resource twice");
+                        }
+                        *seen = i;
                     }
                     if rp.subpasses.iter().any(|s| !is_known(s.pass)) {
                         return invalid("a subpass records an unknown pass");
@@ -678,6 +687,18 @@ mod tests {
             plan.reassign_aliases(&requirements),
             Err(GraphError::InvalidPlan {
                 reason: "a subpass records an unknown pass"
+            })
+        );
+        let mut plan = compile(two_chains(), &desktop());
+        let twice = plan.render_passes().next().map(|(step, _)| step.index());
+        if let Some(Step::RenderPass(rp)) = twice.and_then(|i| plan.steps.get_mut(i)) {
+            let first = rp.attachments[0].clone();
+            rp.attachments.push(first);
+        }
+        assert_eq!(
+            plan.reassign_aliases(&requirements),
+            Err(GraphError::InvalidPlan {
+                reason: "a render pass attaches a resource twice"
             })
         );
         // A huge id is rejected before anything is sized by it.

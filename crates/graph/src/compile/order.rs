@@ -66,6 +66,7 @@ fn dependency_edges(
             let (w, head) = *entry;
             // Every access orders after the last write: a read needs its data, a write must
             // not be overtaken by the older one.
+            debug_assert!(w != pu, "two accesses to one resource in one pass");
             if w != NONE {
                 pairs.push((w, pu));
             }
@@ -73,6 +74,7 @@ fn dependency_edges(
                 let mut node = head;
                 while node != NONE {
                     let (q, next) = readers[node as usize];
+                    debug_assert!(q != pu, "two accesses to one resource in one pass");
                     pairs.push((q, pu));
                     node = next;
                 }
