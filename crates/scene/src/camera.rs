@@ -103,6 +103,10 @@ impl Default for Projection {
     }
 }
 
+/// Width / height of the most extreme viewports a projection must survive: 1 x 32768 to
+/// 32768 x 1 px (32768 is above every driver's `maxImageDimension2D`).
+const EXTREME_ASPECTS: [f32; 3] = [1.0 / 32768.0, 1.0, 32768.0];
+
 /// Multiplies the y row by -1: Vulkan's framebuffer y points down, glTF's world y points up.
 const FLIP_Y: Mat4 = Mat4::from_cols(Vec4::X, Vec4::new(0.0, -1.0, 0.0, 0.0), Vec4::Z, Vec4::W);
 
@@ -200,8 +204,9 @@ impl Projection {
             }
         }
         // Each value in range can still overflow the matrix (a field of view of 1e-37 degrees,
-        // planes near f32's limit): the GPU would get infinities and NaN clip coordinates.
-        if !self.matrix(1.0).is_finite() {
+        // planes near f32's limit), at some viewport shape if not at a square one: the GPU
+        // would get infinities and NaN clip coordinates.
+        if EXTREME_ASPECTS.iter().any(|&a| !self.matrix(a).is_finite()) {
             let field = match self {
                 Projection::Perspective { .. } => "fov_y_deg",
                 Projection::Orthographic { .. } => "half_height",
@@ -759,6 +764,29 @@ struct JsonFrame {
 mod tests {
     use super::*;
 
+    #[test]
+    fn a_projection_that_overflows_at_an_extreme_viewport_is_rejected() {
+        // Fine for a square viewport, infinite for a 32768 x 1 one.
+        let ortho = Projection::Orthographic {
+            half_height: 1e35,
+            near: 0.1,
+            far: 10.0,
+            depth: DepthConvention::Reverse,
+        };
+        assert!(ortho.matrix(1.0).is_finite());
+        assert_eq!(
+            ortho.check().map_err(|(field, _)| field),
+            Err("half_height")
+        );
+        let usual = Projection::Orthographic {
+            half_height: 5.0,
+            near: 0.1,
+            far: 10.0,
+            depth: DepthConvention::Reverse,
+        };
+        assert_eq!(usual.check(), Ok(()));
+    }
+
     fn clip(m: Mat4, p: Vec3) -> Vec3 {
         let c = m * p.extend(1.0);
         c.truncate() / c.w
@@ -997,6 +1025,11 @@ mod tests {
             // Accepted by the range checks, but the projection overflows f32.
             (
                 frame(r#""eye": [0,0,0], "target": [0,0,-1], "fov_y_deg": 1e-37"#),
+                "fov_y_deg",
+            ),
+            // Finite at a square viewport, infinite at 32768 x 1.
+            (
+                frame(r#""eye": [0,0,0], "target": [0,0,-1], "fov_y_deg": 1e-33"#),
                 "fov_y_deg",
             ),
             (
