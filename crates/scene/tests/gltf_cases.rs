@@ -745,3 +745,47 @@ fn vertices_read_count_against_the_vertex_limit() {
     let err = load(&doc(2)).expect_err("1,200 vertices read");
     assert!(err.to_string().contains("vertices"), "{err}");
 }
+
+/// KHR_mesh_quantization: normals may be normalized signed shorts (read as unit vectors); plain
+/// integers are invalid there and would be huge vectors, so they are an error naming the
+/// attribute.
+#[test]
+fn quantized_normals_must_be_normalized_signed_integers() {
+    let mut bin = f32s(&[0., 0., 0., 1., 0., 0., 1., 0., 1., 0., 0., 1.]);
+    for _ in 0..4 {
+        // (0, 1, 0) as normalized shorts, padded to the 8-byte stride.
+        for v in [0i16, 32767, 0, 0] {
+            bin.extend(v.to_le_bytes());
+        }
+    }
+    bin.extend(u16s(&[0, 2, 1, 0, 3, 2]));
+    let mut doc = quad_doc();
+    doc["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+    doc["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    doc["bufferViews"] = json!([
+        {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+        {"buffer": 0, "byteOffset": 48, "byteLength": 32, "byteStride": 8},
+        {"buffer": 0, "byteOffset": 80, "byteLength": 12}
+    ]);
+    doc["accessors"] = json!([
+        {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3"},
+        {"bufferView": 1, "componentType": 5122, "normalized": true, "count": 4, "type": "VEC3"},
+        {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}
+    ]);
+    let s = load_doc(&doc, &bin).unwrap();
+    assert_eq!(s.triangles_drawn(), 2);
+    assert!(
+        s.vertices()
+            .iter()
+            .all(|v| (Vec3::from(v.normal) - Vec3::Y).length() < 1e-4),
+        "{:?}",
+        s.vertices()
+    );
+    doc["accessors"][1]["normalized"] = json!(false);
+    expect_err(
+        load_doc(&doc, &bin),
+        "invalid",
+        Some("/meshes/0/primitives/0/attributes/NORMAL"),
+    );
+}

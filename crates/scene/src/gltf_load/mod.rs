@@ -428,10 +428,18 @@ fn check_meshes(doc: &Doc, accessors: &[Slot], ctx: &Ctx) -> Result<Vec<Vec<Prim
                         p.position = Some(ai);
                     }
                     Checked::Valid(Semantic::Normals) => {
-                        if a.ty != Type::Vec3 || !float_or(a, true, &[], false) {
-                            return Err(
-                                ctx.invalid(ap, "NORMAL must be a float VEC3 accessor".into())
-                            );
+                        // KHR_mesh_quantization allows normalized signed bytes and shorts for
+                        // normals, nothing else: plain integers would be read as huge vectors.
+                        let quantized = doc.quantized
+                            && a.normalized
+                            && matches!(a.component, ComponentType::I8 | ComponentType::I16);
+                        if a.ty != Type::Vec3 || !(a.component == ComponentType::F32 || quantized) {
+                            return Err(ctx.invalid(
+                                ap,
+                                "NORMAL must be a float VEC3 accessor (or normalized signed \
+                                 bytes/shorts with KHR_mesh_quantization)"
+                                    .into(),
+                            ));
                         }
                         p.normal = Some(ai);
                     }
