@@ -272,6 +272,21 @@ fn load_store_access(is_depth: bool, load: LoadOp) -> (PipelineStages, AccessFla
     }
 }
 
+/// Where each resource's hand-offs start in `aliasing.handoffs` (sorted by `to`), one entry
+/// per resource and one past the end: a range lookup instead of a search per resource.
+fn handoff_ranges(aliasing: &AliasAssignment, n_resources: usize) -> Vec<u32> {
+    let mut start = vec![0u32; n_resources + 1];
+    for h in &aliasing.handoffs {
+        if let Some(count) = start.get_mut(h.to.index() + 1) {
+            *count += 1;
+        }
+    }
+    for i in 1..start.len() {
+        start[i] += start[i - 1];
+    }
+    start
+}
+
 pub(crate) struct BarrierPlan {
     pub steps: Vec<Step>,
     /// Index in `steps` of each work step of the input, in order.
@@ -308,6 +323,8 @@ struct Planner<'a> {
     accesses: &'a PassAccesses<'a>,
     resources: &'a [ResourceSync],
     aliasing: &'a AliasAssignment,
+    /// `aliasing.handoffs[handoffs_of[r]..handoffs_of[r + 1]]` hand memory to resource `r`.
+    handoffs_of: Vec<u32>,
     states: Vec<SyncState>,
     /// Scratch, per resource: its attachment in the current render pass, or its entry in
     /// `others`, or `NONE`.
@@ -331,8 +348,12 @@ impl Planner<'_> {
         let mut any = false;
         let mut stages = PipelineStages::NONE;
         let mut access = AccessFlags::NONE;
-        for pred in self.aliasing.predecessors(ResourceId(r as u32)) {
-            if let Some(p) = self.states.get(pred.index()) {
+        let (start, end) = match self.handoffs_of.get(r..r + 2) {
+            Some(&[start, end]) => (start as usize, end as usize),
+            _ => (0, 0),
+        };
+        for h in self.aliasing.handoffs.get(start..end).unwrap_or(&[]) {
+            if let Some(p) = self.states.get(h.from.index()) {
                 stages |= p.write_stages | p.read_stages;
                 access |= p.write_access.writes();
                 any = true;
@@ -488,6 +509,7 @@ impl<'a> BarrierPlanner<'a> {
                 accesses,
                 resources,
                 aliasing,
+                handoffs_of: handoff_ranges(aliasing, resources.len()),
                 states: resources.iter().map(SyncState::initial).collect(),
                 slot: vec![NONE; resources.len()],
                 attachment_uses: Vec::with_capacity(16),
