@@ -1,4 +1,6 @@
-//! Phase 8, `estimate_traffic`: bytes moved between the GPU and system memory per frame.
+//! Phase 8, `estimate_traffic`: bytes moved between the GPU and system memory per frame. The
+//! part that depends on each access alone ([`AccessTraffic`]) is added up by `resource_uses`,
+//! which visits every surviving access once; this phase adds the load/store model.
 //!
 //! **Tiler model** (profiles with `architecture = "tiler"`): attachments live in tile memory
 //! during a render pass, so a render pass costs one read of every attachment it LOADs and one
@@ -121,21 +123,21 @@ const RESOLVE: u16 = role(UseKind::ResolveTarget {
 
 /// Per resource: bytes of one attachment load or store (mip 0, all samples), and of the whole
 /// resource (every mip; a buffer's size).
-struct Sizes {
+pub(crate) struct Sizes {
     attachment: Vec<u64>,
     whole: Vec<u64>,
 }
 
 impl Sizes {
-    fn of(resources: &[PlanResource]) -> Self {
-        let attachment = resources
-            .iter()
-            .map(|r| match &r.desc {
+    pub fn of<'r>(descs: impl ExactSizeIterator<Item = &'r ResourceDesc> + Clone) -> Self {
+        let attachment = descs
+            .clone()
+            .map(|d| match d {
                 ResourceDesc::Image(d) => d.attachment_bytes(),
                 ResourceDesc::Buffer(d) => d.size_bytes,
             })
             .collect();
-        let whole = resources.iter().map(|r| r.estimated_size_bytes).collect();
+        let whole = descs.map(ResourceDesc::size_bytes).collect();
         Sizes { attachment, whole }
     }
 
@@ -145,6 +147,36 @@ impl Sizes {
 
     fn whole(&self, r: ResourceId) -> u64 {
         self.whole.get(r.index()).copied().unwrap_or(0)
+    }
+}
+
+/// The traffic both plans share (descriptors, vertex input, transfers) and the naive plan's
+/// attachment traffic, added up access by access by whichever phase visits every access of
+/// the surviving passes once (`resource_uses`): it needs no order.
+pub(crate) struct AccessTraffic<'s> {
+    sizes: &'s Sizes,
+    common: TrafficBreakdown,
+    naive_attachments: u64,
+}
+
+impl<'s> AccessTraffic<'s> {
+    pub fn new(sizes: &'s Sizes) -> Self {
+        AccessTraffic {
+            sizes,
+            common: TrafficBreakdown::default(),
+            naive_attachments: 0,
+        }
+    }
+
+    /// One pass's access; `raster`: the pass is a raster pass.
+    #[inline]
+    pub fn add(&mut self, a: &Access, raster: bool) {
+        memory_traffic(a, self.sizes.whole(a.resource), &mut self.common);
+        if raster && a.attachment() {
+            self.naive_attachments = self
+                .naive_attachments
+                .saturating_add(self.sizes.attachment(a.resource));
+        }
     }
 }
 
@@ -181,21 +213,13 @@ pub(crate) fn estimate_traffic(
     passes: &[PlannedPass],
     resources: &[PlanResource],
     accesses: &PassAccesses<'_>,
+    tally: AccessTraffic<'_>,
 ) -> TrafficEstimate {
-    let sizes = Sizes::of(resources);
-
-    // Traffic common to both plans, and the naive attachment traffic.
-    let mut common = TrafficBreakdown::default();
-    let mut naive_attachments = 0u64;
-    for pass in passes {
-        let raster = pass.kind == PassKind::Raster;
-        for a in accesses.of(pass.id) {
-            memory_traffic(a, sizes.whole(a.resource), &mut common);
-            if raster && a.attachment() {
-                naive_attachments = naive_attachments.saturating_add(sizes.attachment(a.resource));
-            }
-        }
-    }
+    let AccessTraffic {
+        sizes,
+        common,
+        naive_attachments,
+    } = tally;
     let mut naive = common;
     add(&mut naive.attachment_read_bytes, naive_attachments);
     add(&mut naive.attachment_write_bytes, naive_attachments);
@@ -247,7 +271,7 @@ pub(crate) fn estimate_traffic(
             for pass in passes {
                 if pass.kind == PassKind::Raster {
                     for a in accesses.of(pass.id).iter().filter(|a| a.attachment()) {
-                        immediate_attachment(pass, a, &has_content, &sizes, &mut planned);
+                        immediate_attachment(pass, a, &has_content, sizes, &mut planned);
                     }
                 }
                 for a in accesses.of(pass.id).iter().filter(|a| a.writes()) {

@@ -25,6 +25,7 @@ use crate::types::{
 use super::access::Access;
 use super::merge::{Group, GroupKind};
 use super::validate::{has_initial_content, Analysis};
+use crate::traffic::AccessTraffic;
 
 const NONE: u32 = u32::MAX;
 
@@ -71,6 +72,7 @@ pub(crate) fn resource_uses(
     order: &[PassId],
     analysis: &Analysis,
     kept_at_end: &[bool],
+    traffic: &mut AccessTraffic<'_>,
 ) -> ResourceUses {
     let mut state: Vec<ResourceUse> = kept_at_end
         .iter()
@@ -87,6 +89,7 @@ pub(crate) fn resource_uses(
     let mut needed_after = vec![false; analysis.accesses.len()];
     for (g, group) in groups.iter().enumerate().rev() {
         let g = g as u32;
+        let raster = group.kind == GroupKind::Render;
         for &p in &order[group.start..group.end] {
             let (a0, a1) = analysis.pass_ranges[p.index()];
             let range = a0 as usize..a1 as usize;
@@ -111,6 +114,8 @@ pub(crate) fn resource_uses(
                 if a.writes() {
                     s.first_write = g;
                 }
+                // Every surviving access, once: the traffic estimate's per-access part.
+                traffic.add(a, raster);
             }
         }
     }

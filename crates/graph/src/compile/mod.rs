@@ -36,7 +36,7 @@ use crate::plan::{
     CulledPass, Plan, PlanResource, PlannedPass, Residency, Step, StepIndex, StepRange,
     SubpassIndex, Usage,
 };
-use crate::traffic::{estimate_traffic, TrafficModel};
+use crate::traffic::{estimate_traffic, AccessTraffic, Sizes, TrafficModel};
 use crate::types::{BufferUsage, ImageUsage};
 
 use access::{push_pass_accesses, role, Access};
@@ -302,11 +302,14 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     for e in &exports {
         exported[e.index()] = true;
     }
+    let sizes = Sizes::of(resources.iter().map(|r| &r.desc));
+    let mut access_traffic = AccessTraffic::new(&sizes);
     let uses = resource_uses(
         &groups,
         &order,
         &analysis,
         &content_kept_at_end(&resources, &exported, &analysis, &culling.alive),
+        &mut access_traffic,
     );
     let residency = residencies(&uses, &groups, &resources, &exported, profile);
     // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
@@ -441,7 +444,14 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         Architecture::Tiler => TrafficModel::Tiler,
         Architecture::Immediate => TrafficModel::Immediate,
     };
-    let traffic = estimate_traffic(model, &steps, &planned, &plan_resources, &pass_accesses);
+    let traffic = estimate_traffic(
+        model,
+        &steps,
+        &planned,
+        &plan_resources,
+        &pass_accesses,
+        access_traffic,
+    );
 
     Ok(CompiledGraph {
         plan: Plan {
