@@ -577,10 +577,11 @@ impl StepSink for BarrierPlanner<'_> {
     /// Barrier steps in the input are dropped (they are planned anew).
     fn push(&mut self, mut step: Step) {
         match &mut step {
-            Step::RenderPass(rp) => self.planner.render_pass(rp, &mut self.batch),
             Step::Compute { pass } | Step::Transfer { pass } => {
-                self.planner.single_pass(*pass, &mut self.batch)
+                let pass = *pass;
+                return self.push_pass_step(pass, step);
             }
+            Step::RenderPass(rp) => self.planner.render_pass(rp, &mut self.batch),
             Step::Flush(_) => {}
             Step::Barriers(_) => return,
         }
@@ -611,6 +612,29 @@ impl StepSink for BarrierPlanner<'_> {
         }
         if empty {
             self.steps.remove(batch_at);
+        }
+        self.work_steps
+            .push(StepIndex(self.steps.len().saturating_sub(1) as u32));
+    }
+}
+
+impl BarrierPlanner<'_> {
+    /// A compute or transfer step (of `pass`), after the barriers it needs. As for render
+    /// passes, the batch is planned straight into its slot in the plan, and the slot takes the
+    /// step itself when nothing needs synchronizing.
+    fn push_pass_step(&mut self, pass: PassId, step: Step) {
+        let at = self.steps.len();
+        self.steps
+            .resize_with(at + 1, || Step::Barriers(BarrierBatch::default()));
+        let mut empty = true;
+        if let Some(Step::Barriers(batch)) = self.steps.last_mut() {
+            self.planner.single_pass(pass, batch);
+            empty = batch.is_empty();
+        }
+        if empty {
+            self.steps[at] = step;
+        } else {
+            self.steps.push(step);
         }
         self.work_steps
             .push(StepIndex(self.steps.len().saturating_sub(1) as u32));
