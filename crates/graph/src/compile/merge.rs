@@ -137,6 +137,11 @@ pub(crate) fn merge_render_passes(
                 queries_only: is_query(pass),
             });
         }
+        // Only a render pass can be joined: a compute or transfer group's touches are never
+        // looked at.
+        if pass.kind != PassKind::Raster {
+            continue;
+        }
         let g_index = (groups.len() - 1) as u32;
         for a in analysis.accesses_of(p) {
             let t = &mut touch[a.resource.index()];
