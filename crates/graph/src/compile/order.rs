@@ -228,14 +228,26 @@ pub(crate) fn order_passes(
             .map(|&p| Reverse(key(p as usize))),
     );
     let mut order = Vec::with_capacity(alive_count);
-    while let Some(Reverse(k)) = ready.pop() {
+    // The smallest ready key, when known, is kept out of the heap: in a chain the pass freed by
+    // the one just emitted is usually the next one, and then it never enters the heap.
+    let mut next: Option<u64> = None;
+    while let Some(k) = next.take().or_else(|| ready.pop().map(|Reverse(k)| k)) {
         let p = (k & 0xffff_ffff) as u32;
         order.push(PassId(p));
         for &s in edges.of(p as usize) {
             let s = s as usize;
             indegree[s] -= 1;
             if indegree[s] == 0 {
-                ready.push(Reverse(key(s)));
+                let k = key(s);
+                match next {
+                    Some(n) if k < n => {
+                        ready.push(Reverse(n));
+                        next = Some(k);
+                    }
+                    Some(_) => ready.push(Reverse(k)),
+                    None if ready.peek().is_none_or(|&Reverse(top)| k < top) => next = Some(k),
+                    None => ready.push(Reverse(k)),
+                }
             }
         }
     }
