@@ -141,11 +141,16 @@ impl Sizes {
         Sizes { attachment, whole }
     }
 
+    /// Per resource, its whole size (what `compile::estimated_requirements` estimates).
+    pub fn whole(&self) -> &[u64] {
+        &self.whole
+    }
+
     fn attachment(&self, r: ResourceId) -> u64 {
         self.attachment.get(r.index()).copied().unwrap_or(0)
     }
 
-    fn whole(&self, r: ResourceId) -> u64 {
+    fn whole_of(&self, r: ResourceId) -> u64 {
         self.whole.get(r.index()).copied().unwrap_or(0)
     }
 }
@@ -171,7 +176,7 @@ impl<'s> AccessTraffic<'s> {
     /// One pass's access; `raster`: the pass is a raster pass.
     #[inline]
     pub fn add(&mut self, a: &Access, raster: bool) {
-        memory_traffic(a, self.sizes.whole(a.resource), &mut self.common);
+        memory_traffic(a, self.sizes.whole_of(a.resource), &mut self.common);
         if raster && a.attachment() {
             self.naive_attachments = self
                 .naive_attachments

@@ -314,9 +314,14 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     let residency = residencies(&uses, &groups, &resources, &exported, profile);
     // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
     // on the order of lifetimes.
-    let requirements: Vec<MemoryRequirements> = resources
+    // The same estimate as `estimated_requirements`, from the sizes the traffic tally holds.
+    let requirements: Vec<MemoryRequirements> = sizes
+        .whole()
         .iter()
-        .map(|r| estimated_requirements(&r.desc))
+        .map(|&size_bytes| MemoryRequirements {
+            size_bytes,
+            alignment_bytes: ESTIMATED_ALIGNMENT_BYTES,
+        })
         .collect();
     let alias_input: Vec<AliasLifetime> = uses
         .resources
