@@ -99,8 +99,13 @@ impl<P> GraphBuilder<P> {
 
 /// The graph's memory estimate for a resource (see [`crate::alias`]).
 pub fn estimated_requirements(desc: &ResourceDesc) -> MemoryRequirements {
+    estimate_of_size(desc.size_bytes())
+}
+
+/// The estimate for a resource of `size_bytes` ([`ResourceDesc::size_bytes`]).
+fn estimate_of_size(size_bytes: u64) -> MemoryRequirements {
     MemoryRequirements {
-        size_bytes: desc.size_bytes(),
+        size_bytes,
         alignment_bytes: ESTIMATED_ALIGNMENT_BYTES,
     }
 }
@@ -314,15 +319,9 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     let residency = residencies(&uses, &groups, &resources, &exported, profile);
     // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
     // on the order of lifetimes.
-    // The same estimate as `estimated_requirements`, from the sizes the traffic tally holds.
-    let requirements: Vec<MemoryRequirements> = sizes
-        .whole()
-        .iter()
-        .map(|&size_bytes| MemoryRequirements {
-            size_bytes,
-            alignment_bytes: ESTIMATED_ALIGNMENT_BYTES,
-        })
-        .collect();
+    // `estimated_requirements`, from the sizes the traffic tally already holds.
+    let requirements: Vec<MemoryRequirements> =
+        sizes.whole().iter().map(|&s| estimate_of_size(s)).collect();
     let alias_input: Vec<AliasLifetime> = uses
         .resources
         .iter()
