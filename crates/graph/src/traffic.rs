@@ -1,6 +1,7 @@
 //! Phase 8, `estimate_traffic`: bytes moved between the GPU and system memory per frame. The
 //! part that depends on each access alone ([`AccessTraffic`]) is added up by `resource_uses`,
-//! which visits every surviving access once; this phase adds the load/store model.
+//! which visits every surviving access once, and each render pass's loads and stores by
+//! `infer_load_store` as it decides them; this phase picks the model's parts.
 //!
 //! **Tiler model** (profiles with `architecture = "tiler"`): attachments live in tile memory
 //! during a render pass, so a render pass costs one read of every attachment it LOADs and one
@@ -23,7 +24,7 @@
 use crate::compile::access::{role, Access};
 use crate::compile::barriers::PassAccesses;
 use crate::declare::{InitialContent, Origin, PassKind, ResourceDesc, ResourceId, UseKind};
-use crate::plan::{PlanResource, PlannedPass, Step};
+use crate::plan::{PlanResource, PlannedPass};
 use crate::types::{LoadOp, StoreOp};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -157,11 +158,14 @@ impl Sizes {
 
 /// The traffic both plans share (descriptors, vertex input, transfers) and the naive plan's
 /// attachment traffic, added up access by access by whichever phase visits every access of
-/// the surviving passes once (`resource_uses`): it needs no order.
+/// the surviving passes once (`resource_uses`): it needs no order. The render passes' loads and
+/// stores (the tiler model's attachment traffic) are added as they are decided.
 pub(crate) struct AccessTraffic<'s> {
     sizes: &'s Sizes,
     common: TrafficBreakdown,
     naive_attachments: u64,
+    /// Attachment reads, writes and resolves of the planned render passes.
+    render_passes: TrafficBreakdown,
 }
 
 impl<'s> AccessTraffic<'s> {
@@ -170,6 +174,32 @@ impl<'s> AccessTraffic<'s> {
             sizes,
             common: TrafficBreakdown::default(),
             naive_attachments: 0,
+            render_passes: TrafficBreakdown::default(),
+        }
+    }
+
+    /// One attachment of a planned render pass: a LOAD reads it into tile memory, a STORE
+    /// writes it back; `on_chip`: some subpass binds it (else it is only resolved into, and
+    /// its store is the resolve).
+    #[inline]
+    pub fn add_attachment_ops(
+        &mut self,
+        resource: ResourceId,
+        load_op: LoadOp,
+        store_op: StoreOp,
+        on_chip: bool,
+    ) {
+        let bytes = self.sizes.attachment(resource);
+        let out = &mut self.render_passes;
+        if load_op == LoadOp::Load {
+            add(&mut out.attachment_read_bytes, bytes);
+        }
+        if store_op == StoreOp::Store {
+            if on_chip {
+                add(&mut out.attachment_write_bytes, bytes);
+            } else {
+                add(&mut out.resolve_write_bytes, bytes);
+            }
         }
     }
 
@@ -214,7 +244,6 @@ fn memory_traffic(a: &Access, bytes: u64, out: &mut TrafficBreakdown) {
 
 pub(crate) fn estimate_traffic(
     model: TrafficModel,
-    steps: &[Step],
     passes: &[PlannedPass],
     resources: &[PlanResource],
     accesses: &PassAccesses<'_>,
@@ -224,6 +253,7 @@ pub(crate) fn estimate_traffic(
         sizes,
         common,
         naive_attachments,
+        render_passes,
     } = tally;
     let mut naive = common;
     add(&mut naive.attachment_read_bytes, naive_attachments);
@@ -232,39 +262,18 @@ pub(crate) fn estimate_traffic(
 
     match model {
         TrafficModel::Tiler => {
-            let mut on_chip: Vec<bool> = Vec::new();
-            for step in steps {
-                let Step::RenderPass(rp) = step else { continue };
-                // Attachments only resolved into stay out of tile memory: their store is a
-                // resolve.
-                on_chip.clear();
-                if rp.subpasses.iter().all(|s| s.resolves.is_empty()) {
-                    on_chip.resize(rp.attachments.len(), true);
-                } else {
-                    on_chip.resize(rp.attachments.len(), false);
-                    for s in &rp.subpasses {
-                        let refs = s.colors.iter().chain(&s.inputs).chain(&s.depth_stencil);
-                        for r in refs {
-                            if let Some(flag) = on_chip.get_mut(r.attachment.0 as usize) {
-                                *flag = true;
-                            }
-                        }
-                    }
-                }
-                for (att, &on_chip) in rp.attachments.iter().zip(&on_chip) {
-                    let bytes = sizes.attachment(att.resource);
-                    if att.load_op == LoadOp::Load {
-                        add(&mut planned.attachment_read_bytes, bytes);
-                    }
-                    if att.store_op == StoreOp::Store {
-                        if on_chip {
-                            add(&mut planned.attachment_write_bytes, bytes);
-                        } else {
-                            add(&mut planned.resolve_write_bytes, bytes);
-                        }
-                    }
-                }
-            }
+            add(
+                &mut planned.attachment_read_bytes,
+                render_passes.attachment_read_bytes,
+            );
+            add(
+                &mut planned.attachment_write_bytes,
+                render_passes.attachment_write_bytes,
+            );
+            add(
+                &mut planned.resolve_write_bytes,
+                render_passes.resolve_write_bytes,
+            );
         }
         TrafficModel::Immediate => {
             let mut has_content: Vec<bool> = resources

@@ -228,8 +228,13 @@ pub(crate) trait StepSink {
 
 /// The work steps in execution order: one render pass per render group (with its attachments,
 /// load/store ops, subpasses and dependencies), one compute or transfer step per other group,
-/// and a flush before each group that asks for one, each handed to `sink` as it is built.
-pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, sink: &mut impl StepSink) {
+/// and a flush before each group that asks for one, each handed to `sink` as it is built. Each
+/// render pass's loads and stores are added to `traffic`.
+pub(crate) fn infer_load_store(
+    input: &LoadStoreInput<'_>,
+    sink: &mut impl StepSink,
+    traffic: &mut AccessTraffic<'_>,
+) {
     // Per resource: the first group that sees content in it (0: imported with content; the
     // group after its first writer; NONE: never).
     let content_from: Vec<u32> = input
@@ -262,6 +267,7 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>, sink: &mut impl StepS
                     &content_from,
                     &mut attachment_of,
                     rp,
+                    traffic,
                 )
             }),
             GroupKind::Compute => sink.push(Step::Compute { pass: first }),
@@ -285,6 +291,7 @@ fn build_render_pass(
     content_from: &[u32],
     attachment_of: &mut [(u32, u32)],
     rp: &mut RenderPass,
+    traffic: &mut AccessTraffic<'_>,
 ) {
     rp.render_area_px = group.render_area.unwrap_or(Extent2d::new(0, 0));
     let RenderPass {
@@ -405,6 +412,12 @@ fn build_render_pass(
             // seed 001: depth and stencil of D24S8 are invalidated together or not at all.
             att.stencil_store_op = att.store_op;
         }
+        traffic.add_attachment_ops(
+            att.resource,
+            att.load_op,
+            att.store_op,
+            track.is_none_or(|t| t.on_chip),
+        );
         // Kept after the render pass: every subpass after its last use preserves it. A
         // subpass that neither uses nor preserves an attachment, and depends on one that used
         // it, leaves its content undefined (VkSubpassDescription): the store would write back

@@ -359,6 +359,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             store_op_none: profile.render_pass.store_op_none,
         },
         &mut planner,
+        &mut access_traffic,
     );
     let BarrierPlan {
         steps,
@@ -450,7 +451,6 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     };
     let traffic = estimate_traffic(
         model,
-        &steps,
         &planned,
         &plan_resources,
         &pass_accesses,
