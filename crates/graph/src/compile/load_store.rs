@@ -249,9 +249,11 @@ pub(crate) fn infer_load_store(
             }
         })
         .collect();
-    // Per resource: its attachment in the current render pass.
-    let mut attachment_of = vec![(NONE, NONE); input.resources.len()];
-    let mut scratch = Scratch::default();
+    let mut scratch = Scratch {
+        attachment_of: vec![(NONE, NONE); input.resources.len()],
+        tracks: Vec::new(),
+        readers: Vec::new(),
+    };
     for (g, group) in input.groups.iter().enumerate() {
         if group.flush_before {
             sink.push(Step::Flush(FlushReason::BeforeOcclusionQueries));
@@ -265,7 +267,6 @@ pub(crate) fn infer_load_store(
                     g as u32,
                     group,
                     &content_from,
-                    &mut attachment_of,
                     rp,
                     traffic,
                 )
@@ -277,8 +278,9 @@ pub(crate) fn infer_load_store(
 }
 
 /// Buffers reused from one render pass to the next.
-#[derive(Default)]
 struct Scratch {
+    /// Per resource: (group, attachment index) of its attachment in the group's render pass.
+    attachment_of: Vec<(u32, u32)>,
     tracks: Vec<AttachmentTrack>,
     readers: Vec<(u32, u32, PipelineStages)>,
 }
@@ -289,7 +291,6 @@ fn build_render_pass(
     g: u32,
     group: &Group,
     content_from: &[u32],
-    attachment_of: &mut [(u32, u32)],
     rp: &mut RenderPass,
     traffic: &mut AccessTraffic<'_>,
 ) {
@@ -302,6 +303,7 @@ fn build_render_pass(
     } = rp;
     subpasses.reserve(group.end - group.start);
     deps.reserve(2 * (group.end - group.start).saturating_sub(1));
+    let attachment_of = &mut scratch.attachment_of;
     let tracks = &mut scratch.tracks;
     tracks.clear();
     // (attachment, subpass, stages) of reads since the attachment's last write.
