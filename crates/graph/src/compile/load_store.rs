@@ -13,7 +13,7 @@
 
 use tilegraph_profile::Profile;
 
-use crate::declare::{PassDecl, PassId, ResourceDecl, UseKind};
+use crate::declare::{PassDecl, PassId, ResourceDecl, ResourceId, UseKind};
 use crate::plan::{
     Attachment, AttachmentIndex, AttachmentRef, FlushReason, InlineVec, RenderPass, Residency,
     Step, Subpass, SubpassDependency, SubpassIndex,
@@ -22,12 +22,22 @@ use crate::types::{
     AccessFlags, DependencyFlags, Extent2d, Layout, LoadOp, PipelineStages, StoreOp,
 };
 
-use super::access::Access;
+use super::access::{role, Access};
 use super::merge::{Group, GroupKind};
 use super::validate::{has_initial_content, Analysis};
 use crate::traffic::AccessTraffic;
 
 const NONE: u32 = u32::MAX;
+
+const COLOR: u16 = role(UseKind::ColorAttachment { clear: None });
+const DEPTH_STENCIL: u16 =
+    role(UseKind::DepthStencilAttachment { clear: None }) | role(UseKind::DepthStencilReadOnly);
+const INPUT: u16 = role(UseKind::InputAttachment);
+const RESOLVE: u16 = role(UseKind::ResolveTarget {
+    source: ResourceId(0),
+});
+/// Attachments a subpass binds (a resolve target only receives the resolve).
+const ON_CHIP: u16 = COLOR | DEPTH_STENCIL | INPUT;
 
 /// One resource's uses in execution order, summarized.
 #[derive(Debug, Clone, Copy)]
@@ -325,13 +335,11 @@ fn build_render_pass(
             inputs: InlineVec::new(),
             preserve: InlineVec::new(),
         };
-        let mut resolve_refs: Vec<(crate::declare::ResourceId, AttachmentRef)> = Vec::new();
-        for u in decl.uses.iter().filter(|u| u.kind.is_attachment()) {
-            let r = u.resource.index();
-            let Some(k) = accesses.iter().position(|a| a.resource == u.resource) else {
-                continue;
-            };
-            let a = &accesses[k];
+        let mut resolve_refs: Vec<(ResourceId, AttachmentRef)> = Vec::new();
+        // The pass's attachments in the order of their first use in it (one access each).
+        let mut inputs_reordered = false;
+        for (k, a) in accesses.iter().enumerate().filter(|(_, a)| a.attachment()) {
+            let r = a.resource.index();
             let index = if attachment_of[r].0 == g {
                 attachment_of[r].1
             } else {
@@ -352,22 +360,32 @@ fn build_render_pass(
                 attachment: AttachmentIndex(index),
                 layout: a.layout,
             };
-            match u.kind {
-                UseKind::ColorAttachment { .. } => subpass.colors.push(reference),
-                UseKind::DepthStencilAttachment { .. } | UseKind::DepthStencilReadOnly => {
-                    subpass.depth_stencil = Some(reference)
+            // Colours and resolve targets write: each is the resource's only use in the pass,
+            // so colours come in declaration order. A read can share its access with other
+            // reads (an input attachment that is also depth-tested).
+            if a.roles & COLOR != 0 {
+                subpass.colors.push(reference);
+            }
+            if a.roles & DEPTH_STENCIL != 0 {
+                subpass.depth_stencil = Some(reference);
+            }
+            if a.roles & INPUT != 0 {
+                subpass.inputs.push(reference);
+                inputs_reordered |= a.roles != INPUT;
+            }
+            if a.roles & RESOLVE != 0 {
+                if let Some(UseKind::ResolveTarget { source }) =
+                    decl.uses.get(a.first_use as usize).map(|u| u.kind)
+                {
+                    resolve_refs.push((source, reference));
                 }
-                UseKind::InputAttachment if !subpass.inputs.contains(&reference) => {
-                    subpass.inputs.push(reference)
-                }
-                UseKind::ResolveTarget { source } => resolve_refs.push((source, reference)),
-                _ => {}
             }
             let track = &mut tracks[index as usize];
-            track.on_chip |= !matches!(u.kind, UseKind::ResolveTarget { .. });
-            if track.last_subpass == s {
-                continue;
-            }
+            track.on_chip |= a.roles & ON_CHIP != 0;
+            debug_assert!(
+                track.last_subpass != s,
+                "two accesses to one resource in one pass"
+            );
             // Used before and now, not in between: the subpasses between keep it.
             if track.last_subpass != NONE {
                 for gap in (track.last_subpass + 1)..s {
@@ -380,6 +398,17 @@ fn build_render_pass(
             if let Some(att) = attachments.get_mut(index as usize) {
                 att.final_layout = a.layout;
             }
+        }
+        if inputs_reordered && subpass.inputs.len() > 1 {
+            // An input whose access began with another read: input indices follow the
+            // declared input uses.
+            let position = |reference: &AttachmentRef| {
+                let resource = attachments[reference.attachment.0 as usize].resource;
+                decl.uses.iter().position(|u| {
+                    u.resource == resource && matches!(u.kind, UseKind::InputAttachment)
+                })
+            };
+            subpass.inputs.sort_by_key(position);
         }
         if !resolve_refs.is_empty() {
             subpass.resolves = subpass
@@ -465,10 +494,13 @@ fn new_attachment(
             crate::types::SampleCount::S1,
         ),
     };
-    let clear = decl
-        .uses
-        .get(a.first_use as usize)
-        .and_then(|u| u.kind.clear_value());
+    let clear = if a.clears() {
+        decl.uses
+            .get(a.first_use as usize)
+            .and_then(|u| u.kind.clear_value())
+    } else {
+        None
+    };
     let load_op = if clear.is_some() {
         LoadOp::Clear
     } else if a.reads_prior() && has_content {
@@ -940,6 +972,41 @@ mod tests {
         assert_eq!(input_dep.dst_stages, PipelineStages::FRAGMENT_SHADER);
         assert_eq!(input_dep.dst_access, AccessFlags::INPUT_ATTACHMENT_READ);
         assert_eq!(input_dep.flags, DependencyFlags::BY_REGION);
+    }
+
+    /// Input attachment indices follow the declared input uses, also when an input's access
+    /// began with another read of the same image (a depth buffer tested, then read as input).
+    #[test]
+    fn input_attachments_keep_their_declared_order() {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let color = rgba8(&mut g, "color");
+        let out = swapchain(&mut g);
+        g.raster_pass("gbuffer", PassClass::Opaque, ())
+            .color_clear(color, ClearColor::BLACK)
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("lighting", PassClass::Post, ())
+            .depth_stencil_read_only(depth)
+            .input(color)
+            .input(depth)
+            .color(out)
+            .coverage(Coverage::Full);
+        let plan = compile(g, &tiler());
+        let Some((_, rp)) = plan.render_passes().next() else {
+            panic!("no render pass")
+        };
+        assert_eq!(rp.subpasses.len(), 2, "{plan}");
+        let names = |refs: &[AttachmentRef]| -> Vec<String> {
+            refs.iter()
+                .filter_map(|r| plan.resource(rp.attachments[r.attachment.0 as usize].resource))
+                .map(|r| r.name.clone())
+                .collect()
+        };
+        assert_eq!(names(&rp.subpasses[1].inputs), ["color", "depth"]);
+        assert_eq!(
+            rp.subpasses[1].depth_stencil.map(|r| r.layout),
+            Some(Layout::DepthStencilReadOnly)
+        );
     }
 
     /// An attachment stored after the render pass must survive the subpasses after its last
