@@ -1,7 +1,7 @@
 //! Phase 8, `estimate_traffic`: bytes moved between the GPU and system memory per frame. The
-//! part that depends on each access alone ([`AccessTraffic`]) is added up by `resource_uses`,
-//! which visits every surviving access once, and each render pass's loads and stores by
-//! `infer_load_store` as it decides them; this phase picks the model's parts.
+//! part that depends on each access alone ([`AccessTraffic`]) is added up by the use summary
+//! (`UseSweep`), which visits every surviving access once, and each render pass's loads and
+//! stores by `infer_load_store` as it decides them; this phase picks the model's parts.
 //!
 //! **Tiler model** (profiles with `architecture = "tiler"`): attachments live in tile memory
 //! during a render pass, so a render pass costs one read of every attachment it LOADs and one
@@ -158,7 +158,7 @@ impl Sizes {
 
 /// The traffic both plans share (descriptors, vertex input, transfers) and the naive plan's
 /// attachment traffic, added up access by access by whichever phase visits every access of
-/// the surviving passes once (`resource_uses`): it needs no order. The render passes' loads and
+/// the surviving passes once (`UseSweep`): it needs no order. The render passes' loads and
 /// stores (the tiler model's attachment traffic) are added as they are decided.
 pub(crate) struct AccessTraffic<'s> {
     sizes: &'s Sizes,

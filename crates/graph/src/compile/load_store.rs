@@ -1,5 +1,5 @@
-//! Phases 4 and 5: `resource_uses` (each resource's first and last group, its use roles,
-//! whether the content is needed after each access's group), `residencies` (where each
+//! Phases 4 and 5: `UseSweep` (each resource's first and last group, its use roles,
+//! whether the content is needed after each group that uses it), `residencies` (where each
 //! resource's memory comes from) and `infer_load_store` (render passes with their attachments,
 //! load/store ops, subpasses and subpass dependencies, handed to the barrier planner).
 //!
@@ -51,11 +51,9 @@ pub(crate) struct ResourceUse {
     pub roles: u16,
     /// First group that writes it (`NONE`: none does).
     first_write: u32,
-    /// Sweep state: the next use (in the groups after the current one) reads the content.
-    pending: bool,
-    /// Sweep state: `pending` as the groups after the current one left it (the current
-    /// group's uses need it; `pending` already holds what the groups before will see).
-    pending_after: bool,
+    /// Sweep state: the access (index into `Analysis::accesses`) that began its use in group
+    /// `last`.
+    last_group_start: u32,
 }
 
 impl ResourceUse {
@@ -65,73 +63,78 @@ impl ResourceUse {
     }
 }
 
-/// What later phases need from each resource's uses in execution order, found in one sweep
-/// backwards over the groups.
+/// What later phases need from each resource's uses in execution order.
 #[derive(Debug)]
 pub(crate) struct ResourceUses {
     /// Per resource.
     pub resources: Vec<ResourceUse>,
-    /// Per access (index into `Analysis::accesses`): the resource's content is needed after
-    /// the access's group (the next use reads it first, or its content outlives the frame:
-    /// exported, or imported and only read).
+    /// Per access (index into `Analysis::accesses`) that begins a group's use of a resource:
+    /// the content is needed after the group (the next group that uses it reads it first, or
+    /// its content outlives the frame: exported, or imported and only read). A group's later
+    /// accesses to the resource are not set.
     pub needed_after: Vec<bool>,
 }
 
-pub(crate) fn resource_uses(
-    groups: &[Group],
-    order: &[PassId],
-    analysis: &Analysis,
-    kept_at_end: &[bool],
-    traffic: &mut AccessTraffic<'_>,
-) -> ResourceUses {
-    let mut state: Vec<ResourceUse> = kept_at_end
-        .iter()
-        .map(|&pending| ResourceUse {
-            first: NONE,
-            last: NONE,
-            attachment_only: true,
-            roles: 0,
-            first_write: NONE,
-            pending,
-            pending_after: pending,
-        })
-        .collect();
-    let mut needed_after = vec![false; analysis.accesses.len()];
-    for (g, group) in groups.iter().enumerate().rev() {
-        let g = g as u32;
-        let raster = group.kind == GroupKind::Render;
-        for &p in &order[group.start..group.end] {
-            let (a0, a1) = analysis.pass_ranges[p.index()];
-            let range = a0 as usize..a1 as usize;
-            for (a, needed) in analysis.accesses[range.clone()]
-                .iter()
-                .zip(&mut needed_after[range])
-            {
-                let s = &mut state[a.resource.index()];
-                if s.first != g {
-                    // The group's first use of the resource decides what the groups before
-                    // see; its uses see what the groups after left.
-                    s.pending_after = s.pending;
-                    s.pending = a.reads_prior();
-                }
-                *needed = s.pending_after;
-                if s.last == NONE {
-                    s.last = g;
-                }
-                s.first = g;
-                s.attachment_only &= !a.non_attachment();
-                s.roles |= a.roles;
-                if a.writes() {
-                    s.first_write = g;
-                }
-                // Every surviving access, once: the traffic estimate's per-access part.
-                traffic.add(a, raster);
-            }
+/// Builds [`ResourceUses`] from every surviving access, visited in execution order with its
+/// group (`merge_render_passes` drives it while it forms the groups), and adds each access's
+/// share of the traffic estimate.
+pub(crate) struct UseSweep<'t, 's> {
+    uses: ResourceUses,
+    traffic: &'t mut AccessTraffic<'s>,
+}
+
+impl<'t, 's> UseSweep<'t, 's> {
+    pub fn new(n_resources: usize, n_accesses: usize, traffic: &'t mut AccessTraffic<'s>) -> Self {
+        UseSweep {
+            uses: ResourceUses {
+                resources: vec![
+                    ResourceUse {
+                        first: NONE,
+                        last: NONE,
+                        attachment_only: true,
+                        roles: 0,
+                        first_write: NONE,
+                        last_group_start: NONE,
+                    };
+                    n_resources
+                ],
+                needed_after: vec![false; n_accesses],
+            },
+            traffic,
         }
     }
-    ResourceUses {
-        resources: state,
-        needed_after,
+
+    /// Access `a` (`analysis.accesses[index]`) of a pass in group `g`; groups come in order.
+    #[inline]
+    pub fn visit(&mut self, g: u32, index: usize, a: &Access, raster: bool) {
+        let s = &mut self.uses.resources[a.resource.index()];
+        if s.last != g {
+            // The group's first use of the resource decides whether the group before needed
+            // what it left.
+            match self.uses.needed_after.get_mut(s.last_group_start as usize) {
+                Some(needed) => *needed = a.reads_prior(),
+                None => s.first = g,
+            }
+            s.last = g;
+            s.last_group_start = index as u32;
+        }
+        s.attachment_only &= !a.non_attachment();
+        s.roles |= a.roles;
+        if a.writes() && s.first_write == NONE {
+            s.first_write = g;
+        }
+        self.traffic.add(a, raster);
+    }
+
+    /// Ends the sweep: after its last group, a resource's content is needed when it must
+    /// outlive the frame (`kept_at_end`).
+    pub fn finish(mut self, kept_at_end: &[bool]) -> ResourceUses {
+        for (s, &kept) in self.uses.resources.iter().zip(kept_at_end) {
+            if let Some(needed) = self.uses.needed_after.get_mut(s.last_group_start as usize) {
+                *needed = kept;
+            }
+        }
+        self.uses
     }
 }
 

@@ -14,12 +14,16 @@
 //!
 //! Occlusion-query passes, when the profile wants them in a render pass of their own, never
 //! share one with other passes, and with `flush_before` a flush precedes them (seed 001).
+//!
+//! Each pass's accesses are handed to a [`UseSweep`] with the pass's group as soon as it is
+//! known, so the uses are summarized in the same walk.
 
 use tilegraph_profile::{MergePolicy, PassClass, Profile};
 
 use crate::declare::{PassDecl, PassId, PassKind};
 use crate::types::{Extent2d, Layout};
 
+use super::load_store::UseSweep;
 use super::validate::Analysis;
 
 const NONE: u32 = u32::MAX;
@@ -64,6 +68,7 @@ pub(crate) fn merge_render_passes(
     passes: &[PassDecl],
     n_resources: usize,
     profile: &Profile,
+    uses: &mut UseSweep<'_, '_>,
 ) -> Vec<Group> {
     let policy = &profile.render_pass;
     let queries_alone = profile.passes.occlusion_queries.own_render_pass;
@@ -137,13 +142,16 @@ pub(crate) fn merge_render_passes(
                 queries_only: is_query(pass),
             });
         }
-        // Only a render pass can be joined: a compute or transfer group's touches are never
-        // looked at.
-        if pass.kind != PassKind::Raster {
-            continue;
-        }
         let g_index = (groups.len() - 1) as u32;
-        for a in analysis.accesses_of(p) {
+        let raster = pass.kind == PassKind::Raster;
+        let (first_access, _) = analysis.pass_ranges[p];
+        for (k, a) in analysis.accesses_of(p).iter().enumerate() {
+            uses.visit(g_index, first_access as usize + k, a, raster);
+            // Only a render pass can be joined: a compute or transfer group's touches are
+            // never looked at.
+            if !raster {
+                continue;
+            }
             let t = &mut touch[a.resource.index()];
             if t.group != g_index {
                 *t = Touch {

@@ -1,11 +1,11 @@
 //! `compile`: declarations in, [`Plan`] out, as a sequence of named phases, each a function
 //! from one plain data stage to the next, except that load/store inference feeds the barrier
-//! planner one step at a time (`=>`):
+//! planner one step at a time (`=>`), and merging hands each access to the use summary as it
+//! forms the groups (`+`):
 //!
 //! ```text
-//! validate_declarations -> cull_unused_passes -> order_passes -> merge_render_passes
-//!   -> resource_uses + residencies -> assign_aliases -> infer_load_store => BarrierPlanner
-//!   -> estimate_traffic
+//! validate_declarations -> cull_unused_passes -> order_passes -> merge_render_passes + UseSweep
+//!   -> residencies -> assign_aliases -> infer_load_store => BarrierPlanner -> estimate_traffic
 //! ```
 //!
 //! Merging comes before load/store inference because "never leaves the render pass" (DONT_CARE
@@ -41,7 +41,7 @@ use crate::types::{BufferUsage, ImageUsage};
 
 use access::{push_pass_accesses, role, Access};
 use barriers::{step_lifetimes, BarrierPlan, BarrierPlanner, PassAccesses, ResourceSync};
-use load_store::{infer_load_store, residencies, resource_uses, LoadStoreInput, StepSink};
+use load_store::{infer_load_store, residencies, LoadStoreInput, StepSink, UseSweep};
 use merge::GroupKind;
 
 /// A compiled frame: the plan, and the payloads of the surviving passes.
@@ -302,20 +302,21 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         &dependencies,
         profile,
     )?;
-    let groups = merge::merge_render_passes(&order, &analysis, &passes, n_resources, profile);
+    let sizes = Sizes::of(resources.iter().map(|r| &r.desc));
+    let mut access_traffic = AccessTraffic::new(&sizes);
+    let mut sweep = UseSweep::new(n_resources, analysis.accesses.len(), &mut access_traffic);
+    let groups =
+        merge::merge_render_passes(&order, &analysis, &passes, n_resources, profile, &mut sweep);
     let mut exported = vec![false; n_resources];
     for e in &exports {
         exported[e.index()] = true;
     }
-    let sizes = Sizes::of(resources.iter().map(|r| &r.desc));
-    let mut access_traffic = AccessTraffic::new(&sizes);
-    let uses = resource_uses(
-        &groups,
-        &order,
+    let uses = sweep.finish(&content_kept_at_end(
+        &resources,
+        &exported,
         &analysis,
-        &content_kept_at_end(&resources, &exported, &analysis, &culling.alive),
-        &mut access_traffic,
-    );
+        &culling.alive,
+    ));
     let residency = residencies(&uses, &groups, &resources, &exported, profile);
     // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
     // on the order of lifetimes.
