@@ -116,7 +116,7 @@ impl SyncState {
 }
 
 /// One access as the synchronization model sees it.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct SyncUse {
     stages: PipelineStages,
     access: AccessFlags,
@@ -298,12 +298,101 @@ pub(crate) struct BarrierPlan {
 const NONE: u32 = u32::MAX;
 
 /// An attachment's accesses over all subpasses of its render pass.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct AttachmentUse {
     /// Layout of the first subpass that uses it.
     first_layout: Option<Layout>,
     stages: PipelineStages,
     access: AccessFlags,
+}
+
+/// What the subpasses of one render pass do to each resource, merged: per attachment, and per
+/// resource reached through memory. Load/store inference fills it as it lays out the subpasses
+/// (one walk over their accesses serves both); a render pass of a finished plan is gathered
+/// from its subpasses' accesses.
+#[derive(Debug, Default, PartialEq)]
+pub(crate) struct RenderPassUses {
+    /// Index = attachment index.
+    attachments: Vec<AttachmentUse>,
+    /// Resources the subpasses reach through memory, each once, in order of first use.
+    others: Vec<(usize, SyncUse)>,
+}
+
+impl RenderPassUses {
+    fn clear(&mut self) {
+        self.attachments.clear();
+        self.others.clear();
+    }
+
+    /// Attachment `index` (the next one, or one already added) is used by access `a`.
+    #[inline]
+    pub fn attachment_access(&mut self, index: usize, a: &Access) {
+        if index == self.attachments.len() {
+            self.attachments.push(AttachmentUse {
+                first_layout: Some(a.layout),
+                stages: a.stages,
+                access: a.access,
+            });
+        } else if let Some(au) = self.attachments.get_mut(index) {
+            au.first_layout.get_or_insert(a.layout);
+            au.stages |= a.stages;
+            au.access |= a.access;
+        }
+    }
+
+    /// A resource reached through memory is used by access `a`: `seen` is the index this
+    /// returned for its first use in this render pass (`None`: this is the first).
+    #[inline]
+    pub fn other_access(&mut self, seen: Option<usize>, a: &Access) -> usize {
+        let u = SyncUse::of(a);
+        if let Some(i) = seen {
+            if let Some((_, o)) = self.others.get_mut(i) {
+                o.stages |= u.stages;
+                o.access |= u.access;
+                o.reads |= u.reads;
+                o.writes |= u.writes;
+                return i;
+            }
+        }
+        self.others.push((a.resource.index(), u));
+        self.others.len() - 1
+    }
+
+    /// Gathers the uses of a planned render pass from its subpasses' accesses (`slot`: per
+    /// resource scratch, all `NONE`, left so).
+    fn gather(&mut self, rp: &RenderPass, accesses: &PassAccesses<'_>, slot: &mut [u32]) {
+        self.clear();
+        for (i, att) in rp.attachments.iter().enumerate() {
+            slot[att.resource.index()] = i as u32;
+            self.attachments.push(AttachmentUse {
+                first_layout: None,
+                stages: PipelineStages::NONE,
+                access: AccessFlags::NONE,
+            });
+        }
+        let n_attachments = rp.attachments.len() as u32;
+        for s in &rp.subpasses {
+            for a in accesses.of(s.pass) {
+                let r = a.resource.index();
+                match slot[r] {
+                    NONE => {
+                        let i = self.other_access(None, a);
+                        slot[r] = n_attachments + i as u32;
+                    }
+                    i if i < n_attachments => self.attachment_access(i as usize, a),
+                    i => {
+                        self.other_access(Some((i - n_attachments) as usize), a);
+                    }
+                }
+            }
+        }
+        for att in &rp.attachments {
+            slot[att.resource.index()] = NONE;
+        }
+        for &(r, _) in &self.others {
+            slot[r] = NONE;
+        }
+    }
 }
 
 /// Plans barriers step by step: it takes the work steps in execution order (as a
@@ -314,6 +403,8 @@ pub(crate) struct BarrierPlanner<'a> {
     /// Barriers before a step that is not a render pass (a render pass gets its batch written
     /// straight into the slot reserved before it).
     batch: BarrierBatch,
+    /// Scratch: the current render pass's uses.
+    uses: RenderPassUses,
     steps: Vec<Step>,
     work_steps: Vec<StepIndex>,
 }
@@ -326,11 +417,8 @@ struct Planner<'a> {
     /// `aliasing.handoffs[handoffs_of[r]..handoffs_of[r + 1]]` hand memory to resource `r`.
     handoffs_of: Vec<u32>,
     states: Vec<SyncState>,
-    /// Scratch, per resource: its attachment in the current render pass, or its entry in
-    /// `others`, or `NONE`.
+    /// Scratch, per resource, for [`RenderPassUses::gather`]: `NONE` between render passes.
     slot: Vec<u32>,
-    attachment_uses: Vec<AttachmentUse>,
-    others: Vec<(usize, SyncUse)>,
 }
 
 impl Planner<'_> {
@@ -377,50 +465,17 @@ impl Planner<'_> {
         }
     }
 
-    fn render_pass(&mut self, rp: &mut RenderPass, batch: &mut BarrierBatch) {
-        let accesses = self.accesses;
-        // Gather every subpass's accesses in one sweep: per attachment, and per other resource.
-        self.attachment_uses.clear();
-        self.others.clear();
-        for (i, att) in rp.attachments.iter().enumerate() {
-            self.slot[att.resource.index()] = i as u32;
-            self.attachment_uses.push(AttachmentUse {
-                first_layout: None,
-                stages: PipelineStages::NONE,
-                access: AccessFlags::NONE,
-            });
-        }
-        let n_attachments = rp.attachments.len() as u32;
-        for s in &rp.subpasses {
-            for a in accesses.of(s.pass) {
-                let r = a.resource.index();
-                let slot = self.slot[r];
-                if slot == NONE {
-                    self.slot[r] = n_attachments + self.others.len() as u32;
-                    self.others.push((r, SyncUse::of(a)));
-                } else if slot < n_attachments {
-                    let au = &mut self.attachment_uses[slot as usize];
-                    au.first_layout.get_or_insert(a.layout);
-                    au.stages |= a.stages;
-                    au.access |= a.access;
-                } else {
-                    let u = SyncUse::of(a);
-                    let (_, o) = &mut self.others[(slot - n_attachments) as usize];
-                    o.stages |= u.stages;
-                    o.access |= u.access;
-                    o.reads |= u.reads;
-                    o.writes |= u.writes;
-                }
-            }
-        }
-
+    fn render_pass(
+        &mut self,
+        rp: &mut RenderPass,
+        uses: &RenderPassUses,
+        batch: &mut BarrierBatch,
+    ) {
         // Attachment by attachment (each is one resource): the barrier that prepares it, then
         // the state the render pass leaves it in.
-        for (i, att) in rp.attachments.iter_mut().enumerate() {
+        for (att, au) in rp.attachments.iter_mut().zip(&uses.attachments) {
             let r = att.resource.index();
-            self.slot[r] = NONE;
             self.touch(r);
-            let au = self.attachment_uses[i];
             let is_depth = self.states[r].is_depth;
             let (stages, load_access, store_access) = load_store_access(is_depth, att.load_op);
             // Even a read-only attachment is written by its store op (STORE and DONT_CARE both
@@ -472,9 +527,7 @@ impl Planner<'_> {
         }
         // Resources the subpasses reach through memory: one entry each, so each one's state
         // moves on right after its barrier.
-        for k in 0..self.others.len() {
-            let (r, u) = self.others[k];
-            self.slot[r] = NONE;
+        for &(r, u) in &uses.others {
             self.touch(r);
             self.barrier(r, &u, batch);
             let is_image = self.states[r].is_image;
@@ -512,10 +565,12 @@ impl<'a> BarrierPlanner<'a> {
                 handoffs_of: handoff_ranges(aliasing, resources.len()),
                 states: resources.iter().map(SyncState::initial).collect(),
                 slot: vec![NONE; resources.len()],
-                attachment_uses: Vec::with_capacity(16),
-                others: Vec::with_capacity(16),
             },
             batch: BarrierBatch::default(),
+            uses: RenderPassUses {
+                attachments: Vec::with_capacity(16),
+                others: Vec::with_capacity(16),
+            },
             // Most work steps need a batch before them; one more releases the imports.
             steps: Vec::with_capacity(2 * work_steps + 1),
             work_steps: Vec::with_capacity(work_steps),
@@ -581,7 +636,11 @@ impl StepSink for BarrierPlanner<'_> {
                 let pass = *pass;
                 return self.push_pass_step(pass, step);
             }
-            Step::RenderPass(rp) => self.planner.render_pass(rp, &mut self.batch),
+            Step::RenderPass(rp) => {
+                let planner = &mut self.planner;
+                self.uses.gather(rp, planner.accesses, &mut planner.slot);
+                planner.render_pass(rp, &self.uses, &mut self.batch)
+            }
             Step::Flush(_) => {}
             Step::Barriers(_) => return,
         }
@@ -595,7 +654,7 @@ impl StepSink for BarrierPlanner<'_> {
         self.steps.push(step);
     }
 
-    fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass)) {
+    fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass, &mut RenderPassUses)) {
         // Nearly every render pass needs a batch before it: reserve its slot, drop it if empty
         // (then the render pass moves down one place). Both are written in place (a push would
         // build each on the stack and copy it), and the barriers go straight into the slot.
@@ -606,8 +665,18 @@ impl StepSink for BarrierPlanner<'_> {
             .resize_with(batch_at + 2, || Step::RenderPass(RenderPass::empty()));
         let mut empty = true;
         if let [.., Step::Barriers(batch), Step::RenderPass(rp)] = self.steps.as_mut_slice() {
-            build(rp);
-            self.planner.render_pass(rp, batch);
+            self.uses.clear();
+            build(rp, &mut self.uses);
+            #[cfg(debug_assertions)]
+            {
+                let mut gathered = RenderPassUses::default();
+                gathered.gather(rp, self.planner.accesses, &mut self.planner.slot);
+                debug_assert_eq!(
+                    gathered, self.uses,
+                    "render pass uses as built and as planned"
+                );
+            }
+            self.planner.render_pass(rp, &self.uses, batch);
             empty = batch.is_empty();
         }
         if empty {

@@ -23,6 +23,7 @@ use crate::types::{
 };
 
 use super::access::{role, Access};
+use super::barriers::RenderPassUses;
 use super::merge::{Group, GroupKind};
 use super::validate::{has_initial_content, Analysis};
 use crate::traffic::AccessTraffic;
@@ -236,7 +237,8 @@ pub(crate) trait StepSink {
     fn push(&mut self, step: Step);
     /// Appends a render pass that `build` fills in place (a render pass is a few hundred bytes:
     /// built where it stays, it is not moved).
-    fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass));
+    /// `build` also records what the subpasses do to each resource (`RenderPassUses`).
+    fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass, &mut RenderPassUses));
 }
 
 /// The work steps in execution order: one render pass per render group (with its attachments,
@@ -248,8 +250,6 @@ pub(crate) fn infer_load_store(
     sink: &mut impl StepSink,
     traffic: &mut AccessTraffic<'_>,
 ) {
-    // Per resource: the first group that sees content in it (0: imported with content; the
-    // group after its first writer; NONE: never).
     let content_from: Vec<u32> = input
         .resources
         .iter()
@@ -263,6 +263,7 @@ pub(crate) fn infer_load_store(
         })
         .collect();
     let mut scratch = Scratch {
+        content_from,
         attachment_of: vec![(NONE, NONE); input.resources.len()],
         tracks: Vec::new(),
         readers: Vec::new(),
@@ -273,16 +274,8 @@ pub(crate) fn infer_load_store(
         }
         let first = input.order[group.start];
         match group.kind {
-            GroupKind::Render => sink.push_render_pass(|rp| {
-                build_render_pass(
-                    input,
-                    &mut scratch,
-                    g as u32,
-                    group,
-                    &content_from,
-                    rp,
-                    traffic,
-                )
+            GroupKind::Render => sink.push_render_pass(|rp, uses| {
+                build_render_pass(input, &mut scratch, g as u32, group, rp, uses, traffic)
             }),
             GroupKind::Compute => sink.push(Step::Compute { pass: first }),
             GroupKind::Transfer => sink.push(Step::Transfer { pass: first }),
@@ -290,9 +283,17 @@ pub(crate) fn infer_load_store(
     }
 }
 
-/// Buffers reused from one render pass to the next.
+/// Marks an `attachment_of` slot as an entry of `RenderPassUses`'s resources reached through
+/// memory.
+const THROUGH_MEMORY: u32 = 1 << 31;
+
+/// Per-frame tables, and buffers reused from one render pass to the next.
 struct Scratch {
-    /// Per resource: (group, attachment index) of its attachment in the group's render pass.
+    /// Per resource: the first group that sees content in it (0: imported with content; the
+    /// group after its first writer; NONE: never).
+    content_from: Vec<u32>,
+    /// Per resource: (group, attachment index) of its attachment in the group's render pass,
+    /// or (group, `THROUGH_MEMORY | i`) when the render pass reaches it through memory.
     attachment_of: Vec<(u32, u32)>,
     tracks: Vec<AttachmentTrack>,
     readers: Vec<(u32, u32, PipelineStages)>,
@@ -303,8 +304,8 @@ fn build_render_pass(
     scratch: &mut Scratch,
     g: u32,
     group: &Group,
-    content_from: &[u32],
     rp: &mut RenderPass,
+    uses: &mut RenderPassUses,
     traffic: &mut AccessTraffic<'_>,
 ) {
     rp.render_area_px = group.render_area.unwrap_or(Extent2d::new(0, 0));
@@ -316,6 +317,7 @@ fn build_render_pass(
     } = rp;
     subpasses.reserve(group.end - group.start);
     deps.reserve(2 * (group.end - group.start).saturating_sub(1));
+    let content_from = &scratch.content_from;
     let attachment_of = &mut scratch.attachment_of;
     let tracks = &mut scratch.tracks;
     tracks.clear();
@@ -341,10 +343,19 @@ fn build_render_pass(
         let mut resolve_refs: Vec<(ResourceId, AttachmentRef)> = Vec::new();
         // The pass's attachments in the order of their first use in it (one access each).
         let mut inputs_reordered = false;
-        for (k, a) in accesses.iter().enumerate().filter(|(_, a)| a.attachment()) {
+        for (k, a) in accesses.iter().enumerate() {
             let r = a.resource.index();
-            let index = if attachment_of[r].0 == g {
-                attachment_of[r].1
+            let (seen_in, slot) = attachment_of[r];
+            if !a.attachment() {
+                // Reached through memory: only the barrier planner needs it.
+                let seen = (seen_in == g && slot & THROUGH_MEMORY != 0)
+                    .then_some((slot & !THROUGH_MEMORY) as usize);
+                let i = uses.other_access(seen, a);
+                attachment_of[r] = (g, THROUGH_MEMORY | i as u32);
+                continue;
+            }
+            let index = if seen_in == g && slot & THROUGH_MEMORY == 0 {
+                slot
             } else {
                 let index = attachments.len() as u32;
                 attachment_of[r] = (g, index);
@@ -398,6 +409,7 @@ fn build_render_pass(
                 }
             }
             track_subpass_use(deps, readers, track, index, s, a);
+            uses.attachment_access(index as usize, a);
             if let Some(att) = attachments.get_mut(index as usize) {
                 att.final_layout = a.layout;
             }
