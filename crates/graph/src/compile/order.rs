@@ -79,7 +79,8 @@ fn dependency_edges(
                     node = next;
                 }
                 *entry = (pu, NONE);
-            } else {
+            } else if analysis.last_writer[a.resource.index()].is_some_and(|w| w.0 > pu) {
+                // Only a later write needs to wait for this read.
                 readers.push((pu, head));
                 entry.1 = (readers.len() - 1) as u32;
             }
