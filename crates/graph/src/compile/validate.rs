@@ -4,7 +4,7 @@
 
 use tilegraph_profile::Profile;
 
-use super::access::{add_access, summarize_use, Access};
+use super::access::{add_access, role, summarize_use, Access};
 use crate::declare::{
     InitialContent, Origin, PassDecl, PassId, PassKind, PassUse, ResourceDecl, ResourceDesc,
     ResourceId, UseKind,
@@ -98,35 +98,62 @@ fn validate_resource(r: &ResourceDecl) -> Result<(), GraphError> {
     }
 }
 
+/// Uses that need an image.
+const IMAGE_ROLES: u16 = role(UseKind::ColorAttachment { clear: None })
+    | role(UseKind::DepthStencilAttachment { clear: None })
+    | role(UseKind::DepthStencilReadOnly)
+    | role(UseKind::InputAttachment)
+    | role(UseKind::ResolveTarget {
+        source: ResourceId(0),
+    })
+    | role(UseKind::Sampled);
+/// Uses that need a buffer.
+const BUFFER_ROLES: u16 = role(UseKind::Uniform)
+    | role(UseKind::Vertex)
+    | role(UseKind::Index)
+    | role(UseKind::Indirect)
+    | role(UseKind::ConditionalPredicate);
+/// Uses that need a colour format.
+const COLOR_FORMAT_ROLES: u16 = role(UseKind::ColorAttachment { clear: None })
+    | role(UseKind::ResolveTarget {
+        source: ResourceId(0),
+    });
+/// Uses that need a depth-stencil format.
+const DEPTH_FORMAT_ROLES: u16 =
+    role(UseKind::DepthStencilAttachment { clear: None }) | role(UseKind::DepthStencilReadOnly);
+
+/// The uses a resource can take: one mask test per use.
+fn allowed_roles(desc: &ResourceDesc) -> u16 {
+    match desc {
+        ResourceDesc::Buffer(_) => !IMAGE_ROLES,
+        ResourceDesc::Image(d) if d.format.is_depth_stencil() => {
+            !(BUFFER_ROLES | COLOR_FORMAT_ROLES)
+        }
+        ResourceDesc::Image(_) => !(BUFFER_ROLES | DEPTH_FORMAT_ROLES),
+    }
+}
+
 /// Checks that a use fits the resource (image vs buffer, colour vs depth format).
+#[inline]
 fn check_use_target(pass: &PassDecl, kind: &UseKind, r: &ResourceDecl) -> Result<(), GraphError> {
-    let mismatch = |format: &'static str| GraphError::FormatMismatch {
+    if allowed_roles(&r.desc) & kind.bit() != 0 {
+        return Ok(());
+    }
+    Err(use_target_mismatch(pass, kind, r))
+}
+
+#[cold]
+fn use_target_mismatch(pass: &PassDecl, kind: &UseKind, r: &ResourceDecl) -> GraphError {
+    let format = match &r.desc {
+        ResourceDesc::Buffer(_) => "a buffer",
+        ResourceDesc::Image(_) if kind.bit() & BUFFER_ROLES != 0 => "an image",
+        ResourceDesc::Image(d) => d.format.name(),
+    };
+    GraphError::FormatMismatch {
         pass: pass.name.clone(),
         resource: r.name.clone(),
         format,
         usage: kind.name(),
-    };
-    match (&r.desc, kind) {
-        (ResourceDesc::Buffer(_), k) if k.is_attachment() || matches!(k, UseKind::Sampled) => {
-            Err(mismatch("a buffer"))
-        }
-        (
-            ResourceDesc::Image(_),
-            UseKind::Uniform
-            | UseKind::Vertex
-            | UseKind::Index
-            | UseKind::Indirect
-            | UseKind::ConditionalPredicate,
-        ) => Err(mismatch("an image")),
-        (
-            ResourceDesc::Image(d),
-            UseKind::ColorAttachment { .. } | UseKind::ResolveTarget { .. },
-        ) if d.format.is_depth_stencil() => Err(mismatch(d.format.name())),
-        (
-            ResourceDesc::Image(d),
-            UseKind::DepthStencilAttachment { .. } | UseKind::DepthStencilReadOnly,
-        ) if !d.format.is_depth_stencil() => Err(mismatch(d.format.name())),
-        _ => Ok(()),
     }
 }
 
@@ -680,6 +707,42 @@ mod tests {
         assert!(matches!(
             compile_err(g, &tiler()),
             GraphError::FormatMismatch { usage: "depth", .. }
+        ));
+    }
+
+    /// Handles are typed, but their indices are public: a buffer's index in an image handle
+    /// (or the reverse) is caught.
+    #[test]
+    fn images_and_buffers_keep_to_their_uses() {
+        let mut g = GraphBuilder::new();
+        let params = g.create_buffer("params", 256);
+        let out = swapchain(&mut g);
+        g.raster_pass("post", PassClass::Post, ())
+            .sampled(ImageId(params.0))
+            .color(out)
+            .coverage(Coverage::Full);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::FormatMismatch {
+                pass: "post".into(),
+                resource: "params".into(),
+                format: "a buffer",
+                usage: "sampled",
+            }
+        );
+
+        let mut g = GraphBuilder::new();
+        let out = swapchain(&mut g);
+        g.raster_pass("draw", PassClass::Opaque, ())
+            .vertex(BufferId(out.0))
+            .color_clear(out, ClearColor::BLACK);
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::FormatMismatch {
+                format: "an image",
+                usage: "vertex",
+                ..
+            }
         ));
     }
 
