@@ -273,9 +273,13 @@ pub(crate) fn push_pass_accesses<'d>(
         let Some(desc) = desc_of(u.resource) else {
             continue;
         };
+        let existing = out[start..]
+            .iter()
+            .position(|x| x.resource == u.resource)
+            .map(|k| start + k);
         add_access(
             out,
-            start,
+            existing,
             summarize_use(kind, coverage, u, i as u32, desc),
             uses,
         )?;
@@ -283,16 +287,17 @@ pub(crate) fn push_pass_accesses<'d>(
     Ok(())
 }
 
-/// Adds one use's access to the accesses of its pass (`out[start..]`): a new resource is
-/// appended, a read that agrees on the layout with the resource's access combines with it.
+/// Adds one use's access to the accesses of its pass: a new resource is appended, a read that
+/// agrees on the layout with the resource's access (`out[existing]`, the pass's access to it so
+/// far, if any) combines with it.
 #[inline]
 pub(crate) fn add_access(
     out: &mut Vec<Access>,
-    start: usize,
+    existing: Option<usize>,
     a: Access,
     uses: &[PassUse],
 ) -> Result<(), UseConflict> {
-    match out[start..].iter_mut().find(|x| x.resource == a.resource) {
+    match existing.and_then(|i| out.get_mut(i)) {
         None => out.push(a),
         Some(existing) => {
             if existing.writes() || a.writes() || existing.layout != a.layout {

@@ -17,6 +17,8 @@ pub(crate) const MAX_EXTENT_PX: u32 = 32_768;
 /// 256 TiB: far beyond any GPU, small enough that sums of sizes cannot overflow in practice.
 pub(crate) const MAX_BUFFER_BYTES: u64 = 1 << 48;
 
+const NONE: u32 = u32::MAX;
+
 /// The validated graph: per-pass accesses and producers.
 #[derive(Debug)]
 pub(crate) struct Analysis {
@@ -345,7 +347,9 @@ pub(crate) fn validate_declarations(
     let mut accesses: Vec<Access> = Vec::with_capacity(total_uses);
     let mut pass_ranges = Vec::with_capacity(passes.len());
     let mut render_areas = Vec::with_capacity(passes.len());
-    for pass in passes {
+    // Per resource: (pass, index in `accesses`) of the last pass's access to it.
+    let mut access_of = vec![(NONE, NONE); resources.len()];
+    for (p, pass) in passes.iter().enumerate() {
         let start = accesses.len();
         let raster = pass.kind == PassKind::Raster;
         let mut attachments = RasterCheck::new(pass);
@@ -361,7 +365,15 @@ pub(crate) fn validate_declarations(
                 attachments.attachment(pass, i, u, r, resources)?;
             }
             let a = summarize_use(pass.kind, pass.coverage, u, i as u32, &r.desc);
-            add_access(&mut accesses, start, a, &pass.uses).map_err(|c| {
+            // The pass's access to the resource so far, if any.
+            let seen = &mut access_of[u.resource.index()];
+            let existing = if seen.0 == p as u32 {
+                Some(seen.1 as usize)
+            } else {
+                *seen = (p as u32, accesses.len() as u32);
+                None
+            };
+            add_access(&mut accesses, existing, a, &pass.uses).map_err(|c| {
                 GraphError::ConflictingUses {
                     pass: pass.name.clone(),
                     resource: r.name.clone(),
