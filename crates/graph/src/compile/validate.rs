@@ -135,15 +135,6 @@ fn allowed_roles(desc: &ResourceDesc) -> u16 {
     }
 }
 
-/// Checks that a use fits the resource (image vs buffer, colour vs depth format).
-#[inline]
-fn check_use_target(pass: &PassDecl, kind: &UseKind, r: &ResourceDecl) -> Result<(), GraphError> {
-    if allowed_roles(&r.desc) & kind.bit() != 0 {
-        return Ok(());
-    }
-    Err(use_target_mismatch(pass, kind, r))
-}
-
 #[cold]
 fn use_target_mismatch(pass: &PassDecl, kind: &UseKind, r: &ResourceDecl) -> GraphError {
     let format = match &r.desc {
@@ -360,11 +351,14 @@ pub(crate) fn validate_declarations(
                     index: u.resource.0,
                 });
             };
-            check_use_target(pass, &u.kind, r)?;
-            if raster && u.kind.is_attachment() {
+            let a = summarize_use(pass.kind, pass.coverage, u, i as u32, &r.desc);
+            // The use fits the resource (image vs buffer, colour vs depth format).
+            if allowed_roles(&r.desc) & a.roles == 0 {
+                return Err(use_target_mismatch(pass, &u.kind, r));
+            }
+            if raster && a.attachment() {
                 attachments.attachment(pass, i, u, r, resources)?;
             }
-            let a = summarize_use(pass.kind, pass.coverage, u, i as u32, &r.desc);
             // The pass's access to the resource so far, if any.
             let seen = &mut access_of[u.resource.index()];
             let existing = if seen.0 == p as u32 {
