@@ -267,6 +267,7 @@ pub(crate) fn infer_load_store(
         attachment_of: vec![(NONE, NONE); input.resources.len()],
         tracks: Vec::new(),
         readers: Vec::new(),
+        order: Vec::new(),
     };
     for (g, group) in input.groups.iter().enumerate() {
         if group.flush_before {
@@ -297,6 +298,8 @@ struct Scratch {
     attachment_of: Vec<(u32, u32)>,
     tracks: Vec<AttachmentTrack>,
     readers: Vec<(u32, u32, PipelineStages)>,
+    /// (first attachment use, access index) of the current pass's attachment accesses.
+    order: Vec<(u32, u32)>,
 }
 
 fn build_render_pass(
@@ -341,19 +344,43 @@ fn build_render_pass(
             preserve: InlineVec::new(),
         };
         let mut resolve_refs: Vec<(ResourceId, AttachmentRef)> = Vec::new();
-        // The pass's attachments in the order of their first use in it (one access each).
-        let mut inputs_reordered = false;
+        // Resources reached through memory first (only the barrier planner needs them), and
+        // the pass's attachment accesses, by their first attachment use.
+        let order = &mut scratch.order;
+        order.clear();
+        let mut mixed = false;
         for (k, a) in accesses.iter().enumerate() {
             let r = a.resource.index();
-            let (seen_in, slot) = attachment_of[r];
-            if !a.attachment() {
-                // Reached through memory: only the barrier planner needs it.
-                let seen = (seen_in == g && slot & THROUGH_MEMORY != 0)
-                    .then_some((slot & !THROUGH_MEMORY) as usize);
-                let i = uses.other_access(seen, a);
-                attachment_of[r] = (g, THROUGH_MEMORY | i as u32);
+            if a.attachment() {
+                // An access that began with a descriptor read (a sampled depth also tested) is
+                // attached where its first attachment use is declared.
+                let first = if a.non_attachment() {
+                    mixed = true;
+                    decl.uses
+                        .iter()
+                        .position(|u| u.resource == a.resource && u.kind.is_attachment())
+                        .map_or(a.first_use, |i| i as u32)
+                } else {
+                    a.first_use
+                };
+                order.push((first, k as u32));
                 continue;
             }
+            let (seen_in, slot) = attachment_of[r];
+            let seen = (seen_in == g && slot & THROUGH_MEMORY != 0)
+                .then_some((slot & !THROUGH_MEMORY) as usize);
+            let i = uses.other_access(seen, a);
+            attachment_of[r] = (g, THROUGH_MEMORY | i as u32);
+        }
+        if mixed {
+            order.sort_unstable();
+        }
+        let mut inputs_reordered = false;
+        for &(_, k) in order.iter() {
+            let k = k as usize;
+            let a = &accesses[k];
+            let r = a.resource.index();
+            let (seen_in, slot) = attachment_of[r];
             let index = if seen_in == g && slot & THROUGH_MEMORY == 0 {
                 slot
             } else {
@@ -987,6 +1014,36 @@ mod tests {
         assert_eq!(input_dep.dst_stages, PipelineStages::FRAGMENT_SHADER);
         assert_eq!(input_dep.dst_access, AccessFlags::INPUT_ATTACHMENT_READ);
         assert_eq!(input_dep.flags, DependencyFlags::BY_REGION);
+    }
+
+    /// Attachment indices follow each image's first attachment use, also when its access
+    /// began with a descriptor read (soft particles sample the depth they test).
+    #[test]
+    fn attachments_are_numbered_by_their_first_attachment_use() {
+        let mut g = GraphBuilder::new();
+        let depth = d24s8(&mut g, "depth");
+        let out = swapchain(&mut g);
+        g.raster_pass("prepass", PassClass::DepthPrepass, ())
+            .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+        g.raster_pass("particles", PassClass::Transparent, ())
+            .sampled(depth)
+            .color_clear(out, ClearColor::BLACK)
+            .depth_stencil_read_only(depth);
+        let plan = compile(g, &tiler());
+        let Some((_, rp)) = plan.render_passes().nth(1) else {
+            panic!("no second render pass: {plan}")
+        };
+        let names: Vec<&str> = rp
+            .attachments
+            .iter()
+            .filter_map(|a| plan.resource(a.resource))
+            .map(|r| r.name.as_str())
+            .collect();
+        assert_eq!(names, ["swapchain", "depth"], "{plan}");
+        assert_eq!(
+            rp.subpasses[0].depth_stencil.map(|r| r.attachment),
+            Some(AttachmentIndex(1))
+        );
     }
 
     /// Input attachment indices follow the declared input uses, also when an input's access
