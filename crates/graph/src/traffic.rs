@@ -21,7 +21,7 @@
 //! **Naive plan**, for comparison: every raster pass is its own render pass and loads and stores
 //! every attachment it declares; the other traffic is the same. Both numbers are in the plan.
 
-use crate::compile::access::{role, Access};
+use crate::compile::access::{role, Access, BUFFER_READ_ROLES, RESOLVE_ROLE};
 use crate::compile::barriers::PassAccesses;
 use crate::declare::{InitialContent, Origin, PassKind, ResourceDesc, ResourceId, UseKind};
 use crate::plan::{PlanResource, PlannedPass};
@@ -109,18 +109,12 @@ fn add(slot: &mut u64, bytes: u64) {
 const SAMPLED: u16 = role(UseKind::Sampled);
 const STORAGE_READS: u16 = role(UseKind::StorageRead) | role(UseKind::StorageReadWrite);
 const STORAGE_WRITES: u16 = role(UseKind::StorageWrite) | role(UseKind::StorageReadWrite);
-const BUFFER_READS: u16 = role(UseKind::Uniform)
-    | role(UseKind::Vertex)
-    | role(UseKind::Index)
-    | role(UseKind::Indirect)
-    | role(UseKind::ConditionalPredicate);
+const BUFFER_READS: u16 = BUFFER_READ_ROLES;
 const TRANSFER_SRC: u16 = role(UseKind::TransferSrc);
 const TRANSFER_DST: u16 = role(UseKind::TransferDst);
 const MEMORY_ROLES: u16 =
     SAMPLED | STORAGE_READS | STORAGE_WRITES | BUFFER_READS | TRANSFER_SRC | TRANSFER_DST;
-const RESOLVE: u16 = role(UseKind::ResolveTarget {
-    source: ResourceId(0),
-});
+const RESOLVE: u16 = RESOLVE_ROLE;
 
 /// Per resource: bytes of one attachment load or store (mip 0, all samples), and of the whole
 /// resource (every mip; a buffer's size).

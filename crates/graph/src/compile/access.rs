@@ -252,6 +252,21 @@ pub(crate) const fn role(kind: UseKind) -> u16 {
     kind.bit()
 }
 
+/// Role masks shared by the phases.
+pub(crate) const COLOR_ROLE: u16 = role(UseKind::ColorAttachment { clear: None });
+pub(crate) const DEPTH_STENCIL_ROLES: u16 =
+    role(UseKind::DepthStencilAttachment { clear: None }) | role(UseKind::DepthStencilReadOnly);
+pub(crate) const INPUT_ROLE: u16 = role(UseKind::InputAttachment);
+pub(crate) const RESOLVE_ROLE: u16 = role(UseKind::ResolveTarget {
+    source: ResourceId(0),
+});
+/// Buffers read whole by fixed-function stages or as uniforms.
+pub(crate) const BUFFER_READ_ROLES: u16 = role(UseKind::Uniform)
+    | role(UseKind::Vertex)
+    | role(UseKind::Index)
+    | role(UseKind::Indirect)
+    | role(UseKind::ConditionalPredicate);
+
 /// Two uses of one resource in one pass that cannot be combined.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct UseConflict {

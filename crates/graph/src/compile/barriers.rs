@@ -327,6 +327,10 @@ impl RenderPassUses {
     /// Attachment `index` (the next one, or one already added) is used by access `a`.
     #[inline]
     pub fn attachment_access(&mut self, index: usize, a: &Access) {
+        debug_assert!(
+            index <= self.attachments.len(),
+            "attachments are added in order"
+        );
         if index == self.attachments.len() {
             self.attachments.push(AttachmentUse {
                 first_layout: Some(a.layout),

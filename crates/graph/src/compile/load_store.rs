@@ -22,7 +22,7 @@ use crate::types::{
     AccessFlags, DependencyFlags, Extent2d, Layout, LoadOp, PipelineStages, StoreOp,
 };
 
-use super::access::{role, Access};
+use super::access::{Access, COLOR_ROLE, DEPTH_STENCIL_ROLES, INPUT_ROLE, RESOLVE_ROLE};
 use super::barriers::RenderPassUses;
 use super::merge::{Group, GroupKind};
 use super::validate::{has_initial_content, Analysis};
@@ -30,15 +30,8 @@ use crate::traffic::AccessTraffic;
 
 const NONE: u32 = u32::MAX;
 
-const COLOR: u16 = role(UseKind::ColorAttachment { clear: None });
-const DEPTH_STENCIL: u16 =
-    role(UseKind::DepthStencilAttachment { clear: None }) | role(UseKind::DepthStencilReadOnly);
-const INPUT: u16 = role(UseKind::InputAttachment);
-const RESOLVE: u16 = role(UseKind::ResolveTarget {
-    source: ResourceId(0),
-});
 /// Attachments a subpass binds (a resolve target only receives the resolve).
-const ON_CHIP: u16 = COLOR | DEPTH_STENCIL | INPUT;
+const ON_CHIP: u16 = COLOR_ROLE | DEPTH_STENCIL_ROLES | INPUT_ROLE;
 
 /// One resource's uses in execution order, summarized.
 #[derive(Debug, Clone, Copy)]
@@ -404,17 +397,17 @@ fn build_render_pass(
             // Colours and resolve targets write: each is the resource's only use in the pass,
             // so colours come in declaration order. A read can share its access with other
             // reads (an input attachment that is also depth-tested).
-            if a.roles & COLOR != 0 {
+            if a.roles & COLOR_ROLE != 0 {
                 subpass.colors.push(reference);
             }
-            if a.roles & DEPTH_STENCIL != 0 {
+            if a.roles & DEPTH_STENCIL_ROLES != 0 {
                 subpass.depth_stencil = Some(reference);
             }
-            if a.roles & INPUT != 0 {
+            if a.roles & INPUT_ROLE != 0 {
                 subpass.inputs.push(reference);
-                inputs_reordered |= a.roles != INPUT;
+                inputs_reordered |= a.roles != INPUT_ROLE;
             }
-            if a.roles & RESOLVE != 0 {
+            if a.roles & RESOLVE_ROLE != 0 {
                 if let Some(UseKind::ResolveTarget { source }) =
                     decl.uses.get(a.first_use as usize).map(|u| u.kind)
                 {

@@ -4,7 +4,10 @@
 
 use tilegraph_profile::Profile;
 
-use super::access::{add_access, role, summarize_use, Access};
+use super::access::{
+    add_access, role, summarize_use, Access, BUFFER_READ_ROLES, COLOR_ROLE, DEPTH_STENCIL_ROLES,
+    INPUT_ROLE, RESOLVE_ROLE,
+};
 use crate::declare::{
     InitialContent, Origin, PassDecl, PassId, PassKind, PassUse, ResourceDecl, ResourceDesc,
     ResourceId, UseKind,
@@ -101,28 +104,14 @@ fn validate_resource(r: &ResourceDecl) -> Result<(), GraphError> {
 }
 
 /// Uses that need an image.
-const IMAGE_ROLES: u16 = role(UseKind::ColorAttachment { clear: None })
-    | role(UseKind::DepthStencilAttachment { clear: None })
-    | role(UseKind::DepthStencilReadOnly)
-    | role(UseKind::InputAttachment)
-    | role(UseKind::ResolveTarget {
-        source: ResourceId(0),
-    })
-    | role(UseKind::Sampled);
+const IMAGE_ROLES: u16 =
+    COLOR_ROLE | DEPTH_STENCIL_ROLES | INPUT_ROLE | RESOLVE_ROLE | role(UseKind::Sampled);
 /// Uses that need a buffer.
-const BUFFER_ROLES: u16 = role(UseKind::Uniform)
-    | role(UseKind::Vertex)
-    | role(UseKind::Index)
-    | role(UseKind::Indirect)
-    | role(UseKind::ConditionalPredicate);
+const BUFFER_ROLES: u16 = BUFFER_READ_ROLES;
 /// Uses that need a colour format.
-const COLOR_FORMAT_ROLES: u16 = role(UseKind::ColorAttachment { clear: None })
-    | role(UseKind::ResolveTarget {
-        source: ResourceId(0),
-    });
+const COLOR_FORMAT_ROLES: u16 = COLOR_ROLE | RESOLVE_ROLE;
 /// Uses that need a depth-stencil format.
-const DEPTH_FORMAT_ROLES: u16 =
-    role(UseKind::DepthStencilAttachment { clear: None }) | role(UseKind::DepthStencilReadOnly);
+const DEPTH_FORMAT_ROLES: u16 = DEPTH_STENCIL_ROLES;
 
 /// The uses a resource can take: one mask test per use.
 fn allowed_roles(desc: &ResourceDesc) -> u16 {
