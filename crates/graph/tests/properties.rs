@@ -1531,3 +1531,87 @@ fn the_access_support_model_matches_the_synchronization2_table() {
     assert!(!graphics.intersects(AccessFlags::TRANSFER_WRITE));
     assert!(supported_accesses(PipelineStages::ALL_COMMANDS).contains(AccessFlags::TRANSFER_WRITE));
 }
+
+/// FNV-1a, 64 bits: a digest that does not depend on the Rust release (std's hasher may).
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+/// The differential test of compile's output: 600 random graphs (valid and chaos) compiled, and
+/// the valid ones re-placed with other memory requirements, each printed whole (`Display` and
+/// `Debug` of the plan or the error) and digested. The digests are committed in
+/// `tests/plan_digests.txt`: a refactor of compile keeps every one of them; a change that is
+/// meant to change plans regenerates the file (`TILEGRAPH_BLESS=1`) and shows why in review.
+/// `TILEGRAPH_DUMP_PLANS=FILE` writes the printed plans themselves, for a diff between builds.
+#[test]
+fn plans_match_their_recorded_digests() {
+    use proptest::strategy::ValueTree;
+    use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+    use std::fmt::Write as _;
+    let rng = TestRng::from_seed(RngAlgorithm::ChaCha, &[7; 32]);
+    let mut runner = TestRunner::new_with_rng(Config::default(), rng);
+    let strategy = (spec(200), prop::collection::vec((1u64..=8, 0u32..=16), 40));
+    let mut digests = String::new();
+    let mut dump = String::new();
+    for case in 0..600 {
+        let Ok(tree) = strategy.new_tree(&mut runner) else {
+            continue;
+        };
+        let (spec, scales) = tree.current();
+        let built = build(&spec);
+        let profile = pick_profile(spec.profile);
+        let mut text = match built.graph.compile(&profile) {
+            Ok(c) => {
+                let mut plan = c.plan;
+                let mut text = format!("{plan}\n{plan:?}\n");
+                let requirements: Vec<MemoryRequirements> = plan
+                    .estimated_requirements()
+                    .iter()
+                    .enumerate()
+                    .map(|(i, r)| {
+                        let (scale, align_log2) = scales[i % scales.len()];
+                        MemoryRequirements {
+                            size_bytes: (r.size_bytes * scale / 4).max(1),
+                            alignment_bytes: 1 << align_log2,
+                        }
+                    })
+                    .collect();
+                match plan.reassign_aliases(&requirements) {
+                    Ok(()) => text.push_str(&format!("re-placed\n{plan}\n{plan:?}\n")),
+                    Err(e) => text.push_str(&format!("re-placing failed: {e} {e:?}\n")),
+                }
+                text
+            }
+            Err(e) => format!("error: {e}\n{e:?}\n"),
+        };
+        text.insert_str(0, &format!("== case {case}\n"));
+        let _ = writeln!(digests, "{case} {:016x}", fnv1a(text.as_bytes()));
+        dump.push_str(&text);
+    }
+    if let Some(path) = std::env::var_os("TILEGRAPH_DUMP_PLANS") {
+        std::fs::write(&path, &dump).expect("the dump file can be written");
+    }
+    let recorded = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/plan_digests.txt");
+    if std::env::var_os("TILEGRAPH_BLESS").is_some() {
+        std::fs::write(&recorded, &digests).expect("the digest file can be written");
+        return;
+    }
+    let want = std::fs::read_to_string(&recorded).expect("tests/plan_digests.txt is committed");
+    let changed: Vec<&str> = digests
+        .lines()
+        .zip(want.lines())
+        .filter(|(a, b)| a != b)
+        .map(|(a, _)| a)
+        .collect();
+    assert!(
+        changed.is_empty() && digests.lines().count() == want.lines().count(),
+        "{} of {} plans differ from tests/plan_digests.txt (first: {:?}); diff the plans with \
+         TILEGRAPH_DUMP_PLANS=FILE against the previous build, and bless with TILEGRAPH_BLESS=1 \
+         only when the change is meant",
+        changed.len(),
+        want.lines().count(),
+        changed.first()
+    );
+}

@@ -1,0 +1,46 @@
+//! Compiles the benchmark's realistic frame (`benches/common`) `COUNT` times, for counting
+//! instructions with callgrind (docs/BENCHMARKS.md, "graph_compile"):
+//!
+//! ```sh
+//! cargo build --release -p tilegraph-graph --example compile_count
+//! valgrind --tool=callgrind --toggle-collect='compile_count::compile_once' \
+//!     target/release/examples/compile_count 100 20
+//! ```
+//!
+//! prints nothing but the plan's size; callgrind's total divided by `COUNT` is the cost of one
+//! compile of a frame of `PASSES` passes.
+
+#[path = "../benches/common/mod.rs"]
+mod common;
+
+use tilegraph_graph::{CompiledGraph, GraphBuilder, GraphError};
+use tilegraph_profile::{Profile, ProfileSet};
+
+/// One compile, kept out of line so that callgrind counts exactly it (building the graph,
+/// cloning it and dropping the plan are outside).
+#[inline(never)]
+fn compile_once(
+    graph: GraphBuilder<u32>,
+    profile: &Profile,
+) -> Result<CompiledGraph<u32>, GraphError> {
+    graph.compile(profile)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut args = std::env::args().skip(1);
+    let passes: usize = args.next().map_or(Ok(100), |a| a.parse())?;
+    let count: usize = args.next().map_or(Ok(20), |a| a.parse())?;
+    let profiles = ProfileSet::embedded()?;
+    let profile = profiles.get("adreno-7xx")?;
+    let graph = common::realistic_frame(passes.div_ceil(10));
+    let mut steps = 0;
+    for _ in 0..count {
+        let compiled = compile_once(std::hint::black_box(graph.clone()), profile)?;
+        steps = compiled.plan.steps.len();
+    }
+    println!(
+        "{count} compiles of {} passes: {steps} steps",
+        graph.pass_count()
+    );
+    Ok(())
+}
