@@ -3,8 +3,9 @@
 use std::fmt::{self, Write as _};
 
 use crate::declare::{Origin, PassUse, ResourceDesc};
-use crate::plan::{AttachmentRef, CullReason, Plan, RenderPass, Step, StepRange, Subpass, Usage};
-use crate::traffic::TrafficBreakdown;
+use crate::plan::{
+    AttachmentRef, CullReason, Plan, RenderPass, Step, StepRange, Subpass, TrafficBreakdown, Usage,
+};
 
 /// `1536 B`, `12.0 KiB`, `7.91 MiB`.
 pub(crate) fn fmt_bytes(bytes: u64) -> String {

@@ -16,7 +16,6 @@
 
 #![forbid(unsafe_code)]
 
-pub mod alias;
 mod compile;
 mod declare;
 mod display;
@@ -25,14 +24,9 @@ mod error;
 mod plan;
 #[cfg(test)]
 mod testing;
-mod traffic;
 mod types;
 
-pub use alias::{
-    assign_aliases, AliasAssignment, AliasHandoff, AliasLifetime, BlockIndex, MemoryBlock,
-    MemoryClass, MemoryNeed, MemoryRequirements, MemorySlot, ESTIMATED_ALIGNMENT_BYTES,
-};
-pub use compile::{estimated_requirements, CompiledGraph};
+pub use compile::{assign_aliases, estimated_requirements, CompiledGraph};
 pub use declare::{
     BufferDesc, BufferId, ComputePassBuilder, Coverage, GraphBuilder, ImageDesc, ImageId, Import,
     InitialContent, Origin, PassId, PassKind, PassUse, RasterPassBuilder, ResourceDesc, ResourceId,
@@ -40,13 +34,14 @@ pub use declare::{
 };
 pub use error::GraphError;
 pub use plan::{
-    Attachment, AttachmentIndex, AttachmentRef, BarrierBatch, BufferBarrier, CullReason,
-    CulledPass, FlushReason, Hazard, ImageBarrier, InlineVec, Plan, PlanResource, PlannedPass,
-    RenderPass, Residency, Step, StepIndex, StepRange, Subpass, SubpassDependency, SubpassIndex,
-    Usage,
+    AliasAssignment, AliasHandoff, AliasLifetime, Attachment, AttachmentIndex, AttachmentRef,
+    BarrierBatch, BlockIndex, BufferBarrier, CullReason, CulledPass, FlushReason, Hazard,
+    ImageBarrier, InlineVec, MemoryBlock, MemoryClass, MemoryNeed, MemoryRequirements, MemorySlot,
+    Plan, PlanResource, PlannedPass, RenderPass, Residency, Step, StepIndex, StepRange, Subpass,
+    SubpassDependency, SubpassIndex, TrafficBreakdown, TrafficEstimate, TrafficModel, Usage,
+    ESTIMATED_ALIGNMENT_BYTES,
 };
 pub use tilegraph_profile::PassClass;
-pub use traffic::{TrafficBreakdown, TrafficEstimate, TrafficModel};
 pub use types::{
     AccessFlags, BufferUsage, ClearColor, ClearDepthStencil, ClearValue, DependencyFlags, Extent2d,
     Format, ImageUsage, Layout, LoadOp, PipelineStages, SampleCount, StoreOp,

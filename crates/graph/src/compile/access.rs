@@ -2,7 +2,7 @@
 //! layout, and whether it reads the old content and writes new content. Every later phase
 //! works on these summaries.
 
-use crate::declare::{Coverage, PassKind, PassUse, ResourceDesc, ResourceId, UseKind};
+use crate::declare::{Coverage, PassId, PassKind, PassUse, ResourceDesc, ResourceId, UseKind};
 use crate::types::{AccessFlags, Format, Layout, PipelineStages};
 
 /// One pass's combined access to one resource.
@@ -326,4 +326,30 @@ pub(crate) fn add_access(
         }
     }
     Ok(())
+}
+
+/// Every pass's accesses, pass after pass, and where each pass's run starts and ends (indexed
+/// by `PassId`). Validation builds them from the declarations; re-placing a finished plan
+/// rebuilds them from its passes' uses.
+#[derive(Debug, Default)]
+pub(crate) struct PassAccesses {
+    pub accesses: Vec<Access>,
+    /// `accesses[start..end]` of each pass.
+    pub ranges: Vec<(u32, u32)>,
+}
+
+impl PassAccesses {
+    pub fn of(&self, pass: PassId) -> &[Access] {
+        match self.ranges.get(pass.index()) {
+            Some(&(start, end)) => &self.accesses[start as usize..end as usize],
+            None => &[],
+        }
+    }
+
+    /// Index in `accesses` of the first access of `pass`.
+    pub fn start_of(&self, pass: PassId) -> usize {
+        self.ranges
+            .get(pass.index())
+            .map_or(0, |&(s, _)| s as usize)
+    }
 }

@@ -1,6 +1,6 @@
-//! Phase 7, the [`BarrierPlanner`]: synchronization2 barriers and layout transitions between
-//! steps, only where a hazard exists. It takes the steps one at a time from load/store inference
-//! (or from an existing plan, to re-plan after aliasing with real memory requirements).
+//! `plan_barriers`: synchronization2 barriers and layout transitions between steps, only where
+//! a hazard exists. It walks the work steps load/store inference built (or the steps of an
+//! existing plan, to re-plan after aliasing with real memory requirements).
 //!
 //! Each resource carries a small state: its layout, the stages and accesses of its last write,
 //! the stages that read it since, and which stages/accesses already see that write. A new
@@ -17,30 +17,16 @@
 //! the resources that held it ([`AliasAssignment::handoffs`]). Imported resources start from
 //! their declared state and end with a barrier into their final state.
 
-use crate::alias::AliasAssignment;
-use crate::declare::{Import, InitialContent, PassId, ResourceId, ResourceState};
+use crate::declare::{
+    Import, InitialContent, Origin, PassId, ResourceDesc, ResourceId, ResourceState,
+};
 use crate::plan::{
-    BarrierBatch, BufferBarrier, Hazard, ImageBarrier, RenderPass, Step, StepIndex, StepRange,
+    AliasAssignment, BarrierBatch, BufferBarrier, Hazard, ImageBarrier, RenderPass, Step,
+    StepIndex, StepRange,
 };
 use crate::types::{AccessFlags, Layout, LoadOp, PipelineStages, StoreOp};
 
-use super::access::{Access, DEPTH_TESTS};
-use super::load_store::StepSink;
-
-/// Per-pass accesses, indexed by `PassId`.
-pub(crate) struct PassAccesses<'a> {
-    pub accesses: &'a [Access],
-    pub ranges: &'a [(u32, u32)],
-}
-
-impl PassAccesses<'_> {
-    pub fn of(&self, pass: PassId) -> &[Access] {
-        match self.ranges.get(pass.index()) {
-            Some(&(start, end)) => &self.accesses[start as usize..end as usize],
-            None => &[],
-        }
-    }
-}
+use super::access::{Access, PassAccesses, DEPTH_TESTS};
 
 /// What the barrier planner needs to know about a resource.
 #[derive(Debug, Clone, Copy)]
@@ -48,6 +34,19 @@ pub(crate) struct ResourceSync {
     pub is_image: bool,
     pub is_depth: bool,
     pub import: Option<Import>,
+}
+
+impl ResourceSync {
+    pub fn of(desc: &ResourceDesc, origin: &Origin) -> Self {
+        ResourceSync {
+            is_image: desc.image().is_some(),
+            is_depth: desc.image().is_some_and(|d| d.format.is_depth_stencil()),
+            import: match origin {
+                Origin::Imported(import) => Some(*import),
+                Origin::Created => None,
+            },
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -289,8 +288,6 @@ fn handoff_ranges(aliasing: &AliasAssignment, n_resources: usize) -> Vec<u32> {
 
 pub(crate) struct BarrierPlan {
     pub steps: Vec<Step>,
-    /// Index in `steps` of each work step of the input, in order.
-    pub work_steps: Vec<StepIndex>,
     /// The state each resource is left in (imported: their final state).
     pub final_states: Vec<ResourceState>,
 }
@@ -307,11 +304,9 @@ struct AttachmentUse {
 }
 
 /// What the subpasses of one render pass do to each resource, merged: per attachment, and per
-/// resource reached through memory. Load/store inference fills it as it lays out the subpasses
-/// (one walk over their accesses serves both); a render pass of a finished plan is gathered
-/// from its subpasses' accesses.
+/// resource reached through memory, gathered from its subpasses' accesses.
 #[derive(Debug, Default, PartialEq)]
-pub(crate) struct RenderPassUses {
+struct RenderPassUses {
     /// Index = attachment index.
     attachments: Vec<AttachmentUse>,
     /// Resources the subpasses reach through memory, each once, in order of first use.
@@ -326,7 +321,7 @@ impl RenderPassUses {
 
     /// Attachment `index` (the next one, or one already added) is used by access `a`.
     #[inline]
-    pub fn attachment_access(&mut self, index: usize, a: &Access) {
+    fn attachment_access(&mut self, index: usize, a: &Access) {
         debug_assert!(
             index <= self.attachments.len(),
             "attachments are added in order"
@@ -347,7 +342,7 @@ impl RenderPassUses {
     /// A resource reached through memory is used by access `a`: `seen` is the index this
     /// returned for its first use in this render pass (`None`: this is the first).
     #[inline]
-    pub fn other_access(&mut self, seen: Option<usize>, a: &Access) -> usize {
+    fn other_access(&mut self, seen: Option<usize>, a: &Access) -> usize {
         let u = SyncUse::of(a);
         if let Some(i) = seen {
             if let Some((_, o)) = self.others.get_mut(i) {
@@ -364,7 +359,7 @@ impl RenderPassUses {
 
     /// Gathers the uses of a planned render pass from its subpasses' accesses (`slot`: per
     /// resource scratch, all `NONE`, left so).
-    fn gather(&mut self, rp: &RenderPass, accesses: &PassAccesses<'_>, slot: &mut [u32]) {
+    fn gather(&mut self, rp: &RenderPass, accesses: &PassAccesses, slot: &mut [u32]) {
         self.clear();
         for (i, att) in rp.attachments.iter().enumerate() {
             slot[att.resource.index()] = i as u32;
@@ -399,23 +394,35 @@ impl RenderPassUses {
     }
 }
 
-/// Plans barriers step by step: it takes the work steps in execution order (as a
-/// [`StepSink`]) and appends to the plan's steps the barrier batch each one needs (if any),
-/// then the step itself (render passes get their initial layouts).
-pub(crate) struct BarrierPlanner<'a> {
+/// The barriers of a frame: the work steps in execution order (barrier batches among them
+/// are dropped and planned anew), each after the batch of barriers it needs, if any (render
+/// passes get their initial layouts), and a last batch that releases imported resources.
+pub(crate) fn plan_barriers(
+    work: Vec<Step>,
+    accesses: &PassAccesses,
+    resources: &[ResourceSync],
+    aliasing: &AliasAssignment,
+) -> BarrierPlan {
+    let mut planner = BarrierPlanner::new(accesses, resources, aliasing, work.len());
+    for step in work {
+        planner.push(step);
+    }
+    planner.finish()
+}
+
+/// Plans barriers step by step.
+struct BarrierPlanner<'a> {
     planner: Planner<'a>,
-    /// Barriers before a step that is not a render pass (a render pass gets its batch written
-    /// straight into the slot reserved before it).
+    /// Barriers before the next step.
     batch: BarrierBatch,
     /// Scratch: the current render pass's uses.
     uses: RenderPassUses,
     steps: Vec<Step>,
-    work_steps: Vec<StepIndex>,
 }
 
 /// The synchronization state of every resource.
 struct Planner<'a> {
-    accesses: &'a PassAccesses<'a>,
+    accesses: &'a PassAccesses,
     resources: &'a [ResourceSync],
     aliasing: &'a AliasAssignment,
     /// `aliasing.handoffs[handoffs_of[r]..handoffs_of[r + 1]]` hand memory to resource `r`.
@@ -555,8 +562,8 @@ impl Planner<'_> {
 
 impl<'a> BarrierPlanner<'a> {
     /// A planner for a frame of about `work_steps` steps (work steps and flushes).
-    pub fn new(
-        accesses: &'a PassAccesses<'a>,
+    fn new(
+        accesses: &'a PassAccesses,
         resources: &'a [ResourceSync],
         aliasing: &'a AliasAssignment,
         work_steps: usize,
@@ -577,13 +584,12 @@ impl<'a> BarrierPlanner<'a> {
             },
             // Most work steps need a batch before them; one more releases the imports.
             steps: Vec::with_capacity(2 * work_steps + 1),
-            work_steps: Vec::with_capacity(work_steps),
         }
     }
 
     /// Ends the frame: a last batch releases imported resources into their final state (the
     /// rest stay as their last use left them).
-    pub fn finish(mut self) -> BarrierPlan {
+    fn finish(mut self) -> BarrierPlan {
         let planner = &mut self.planner;
         let mut final_states = Vec::with_capacity(planner.resources.len());
         for (r, res) in planner.resources.iter().enumerate() {
@@ -626,19 +632,18 @@ impl<'a> BarrierPlanner<'a> {
         }
         BarrierPlan {
             steps: self.steps,
-            work_steps: self.work_steps,
             final_states,
         }
     }
 }
 
-impl StepSink for BarrierPlanner<'_> {
-    /// Barrier steps in the input are dropped (they are planned anew).
+impl BarrierPlanner<'_> {
+    /// Plans the barriers `step` needs and appends them, then the step. Barrier steps in the
+    /// input are dropped (they are planned anew).
     fn push(&mut self, mut step: Step) {
         match &mut step {
             Step::Compute { pass } | Step::Transfer { pass } => {
-                let pass = *pass;
-                return self.push_pass_step(pass, step);
+                self.planner.single_pass(*pass, &mut self.batch);
             }
             Step::RenderPass(rp) => {
                 let planner = &mut self.planner;
@@ -652,72 +657,14 @@ impl StepSink for BarrierPlanner<'_> {
             self.steps
                 .push(Step::Barriers(std::mem::take(&mut self.batch)));
         }
-        if step.is_work() {
-            self.work_steps.push(StepIndex(self.steps.len() as u32));
-        }
         self.steps.push(step);
-    }
-
-    fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass, &mut RenderPassUses)) {
-        // Nearly every render pass needs a batch before it: reserve its slot, drop it if empty
-        // (then the render pass moves down one place). Both are written in place (a push would
-        // build each on the stack and copy it), and the barriers go straight into the slot.
-        let batch_at = self.steps.len();
-        self.steps
-            .resize_with(batch_at + 1, || Step::Barriers(BarrierBatch::default()));
-        self.steps
-            .resize_with(batch_at + 2, || Step::RenderPass(RenderPass::empty()));
-        let mut empty = true;
-        if let [.., Step::Barriers(batch), Step::RenderPass(rp)] = self.steps.as_mut_slice() {
-            self.uses.clear();
-            build(rp, &mut self.uses);
-            #[cfg(debug_assertions)]
-            {
-                let mut gathered = RenderPassUses::default();
-                gathered.gather(rp, self.planner.accesses, &mut self.planner.slot);
-                debug_assert_eq!(
-                    gathered, self.uses,
-                    "render pass uses as built and as planned"
-                );
-            }
-            self.planner.render_pass(rp, &self.uses, batch);
-            empty = batch.is_empty();
-        }
-        if empty {
-            self.steps.remove(batch_at);
-        }
-        self.work_steps
-            .push(StepIndex(self.steps.len().saturating_sub(1) as u32));
-    }
-}
-
-impl BarrierPlanner<'_> {
-    /// A compute or transfer step (of `pass`), after the barriers it needs. As for render
-    /// passes, the batch is planned straight into its slot in the plan, and the slot takes the
-    /// step itself when nothing needs synchronizing.
-    fn push_pass_step(&mut self, pass: PassId, step: Step) {
-        let at = self.steps.len();
-        self.steps
-            .resize_with(at + 1, || Step::Barriers(BarrierBatch::default()));
-        let mut empty = true;
-        if let Some(Step::Barriers(batch)) = self.steps.last_mut() {
-            self.planner.single_pass(pass, batch);
-            empty = batch.is_empty();
-        }
-        if empty {
-            self.steps[at] = step;
-        } else {
-            self.steps.push(step);
-        }
-        self.work_steps
-            .push(StepIndex(self.steps.len().saturating_sub(1) as u32));
     }
 }
 
 /// First and last work step using each resource.
 pub(crate) fn step_lifetimes(
     steps: &[Step],
-    accesses: &PassAccesses<'_>,
+    accesses: &PassAccesses,
     n_resources: usize,
 ) -> Vec<Option<StepRange>> {
     let mut out: Vec<Option<StepRange>> = vec![None; n_resources];

@@ -1,7 +1,7 @@
-//! Phases 4 and 5: `UseSweep` (each resource's first and last group, its use roles,
-//! whether the content is needed after each group that uses it), `residencies` (where each
-//! resource's memory comes from) and `infer_load_store` (render passes with their attachments,
-//! load/store ops, subpasses and subpass dependencies, handed to the barrier planner).
+//! `infer_load_store`: the work steps in execution order — a render pass per render group,
+//! with its attachments, load/store ops, subpasses, preserve lists and subpass dependencies; a
+//! compute or transfer step per other group; a flush where merging asked for one. Barriers come
+//! next (`compile/barriers.rs`).
 //!
 //! Load: CLEAR when the first use in the render pass clears; DONT_CARE when that use does not
 //! need the old content (it covers everything) or there is none; LOAD only when old content
@@ -10,8 +10,6 @@
 //! STORE when the render pass only read it (loaded, never written) and the profile has
 //! `store_op_none`. Depth and stencil of a combined format get the same ops (seed 001:
 //! invalidating only one of D24S8 has no effect).
-
-use tilegraph_profile::Profile;
 
 use crate::declare::{PassDecl, PassId, ResourceDecl, ResourceId, UseKind};
 use crate::plan::{
@@ -22,151 +20,16 @@ use crate::types::{
     AccessFlags, DependencyFlags, Extent2d, Layout, LoadOp, PipelineStages, StoreOp,
 };
 
-use super::access::{Access, COLOR_ROLE, DEPTH_STENCIL_ROLES, INPUT_ROLE, RESOLVE_ROLE};
-use super::barriers::RenderPassUses;
+use super::access::{
+    Access, PassAccesses, COLOR_ROLE, DEPTH_STENCIL_ROLES, INPUT_ROLE, RESOLVE_ROLE,
+};
+use super::lifetimes::ResourceUses;
 use super::merge::{Group, GroupKind};
-use super::validate::{has_initial_content, Analysis};
-use crate::traffic::AccessTraffic;
 
 const NONE: u32 = u32::MAX;
 
 /// Attachments a subpass binds (a resolve target only receives the resolve).
 const ON_CHIP: u16 = COLOR_ROLE | DEPTH_STENCIL_ROLES | INPUT_ROLE;
-
-/// One resource's uses in execution order, summarized.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct ResourceUse {
-    /// First and last group (`NONE`: unused).
-    first: u32,
-    last: u32,
-    /// Every use binds it to a render pass.
-    pub attachment_only: bool,
-    /// [`UseKind::bit`](crate::declare::UseKind) of every use by a kept pass.
-    pub roles: u16,
-    /// First group that writes it (`NONE`: none does).
-    first_write: u32,
-    /// Sweep state: the access (index into `Analysis::accesses`) that began its use in group
-    /// `last`.
-    last_group_start: u32,
-}
-
-impl ResourceUse {
-    /// First and last group that use it (`None`: unused).
-    pub fn lifetime(&self) -> Option<(u32, u32)> {
-        (self.last != NONE).then_some((self.first, self.last))
-    }
-}
-
-/// What later phases need from each resource's uses in execution order.
-#[derive(Debug)]
-pub(crate) struct ResourceUses {
-    /// Per resource.
-    pub resources: Vec<ResourceUse>,
-    /// Per access (index into `Analysis::accesses`) that begins a group's use of a resource:
-    /// the content is needed after the group (the next group that uses it reads it first, or
-    /// its content outlives the frame: exported, or imported and only read). A group's later
-    /// accesses to the resource are not set.
-    pub needed_after: Vec<bool>,
-}
-
-/// Builds [`ResourceUses`] from every surviving access, visited in execution order with its
-/// group (`merge_render_passes` drives it while it forms the groups), and adds each access's
-/// share of the traffic estimate.
-pub(crate) struct UseSweep<'t, 's> {
-    uses: ResourceUses,
-    traffic: &'t mut AccessTraffic<'s>,
-}
-
-impl<'t, 's> UseSweep<'t, 's> {
-    pub fn new(n_resources: usize, n_accesses: usize, traffic: &'t mut AccessTraffic<'s>) -> Self {
-        UseSweep {
-            uses: ResourceUses {
-                resources: vec![
-                    ResourceUse {
-                        first: NONE,
-                        last: NONE,
-                        attachment_only: true,
-                        roles: 0,
-                        first_write: NONE,
-                        last_group_start: NONE,
-                    };
-                    n_resources
-                ],
-                needed_after: vec![false; n_accesses],
-            },
-            traffic,
-        }
-    }
-
-    /// Access `a` (`analysis.accesses[index]`) of a pass in group `g`; groups come in order.
-    #[inline]
-    pub fn visit(&mut self, g: u32, index: usize, a: &Access, raster: bool) {
-        let s = &mut self.uses.resources[a.resource.index()];
-        if s.last != g {
-            // The group's first use of the resource decides whether the group before needed
-            // what it left.
-            match self.uses.needed_after.get_mut(s.last_group_start as usize) {
-                Some(needed) => *needed = a.reads_prior(),
-                None => s.first = g,
-            }
-            s.last = g;
-            s.last_group_start = index as u32;
-        }
-        s.attachment_only &= !a.non_attachment();
-        s.roles |= a.roles;
-        if a.writes() && s.first_write == NONE {
-            s.first_write = g;
-        }
-        self.traffic.add(a, raster);
-    }
-
-    /// Ends the sweep: after its last group, a resource's content is needed when it must
-    /// outlive the frame (`kept_at_end`).
-    pub fn finish(mut self, kept_at_end: &[bool]) -> ResourceUses {
-        for (s, &kept) in self.uses.resources.iter().zip(kept_at_end) {
-            if let Some(needed) = self.uses.needed_after.get_mut(s.last_group_start as usize) {
-                *needed = kept;
-            }
-        }
-        self.uses
-    }
-}
-
-/// Where each resource's memory comes from.
-pub(crate) fn residencies(
-    uses: &ResourceUses,
-    groups: &[Group],
-    resources: &[ResourceDecl],
-    exported: &[bool],
-    profile: &Profile,
-) -> Vec<Residency> {
-    resources
-        .iter()
-        .enumerate()
-        .map(|(r, decl)| {
-            let life = uses.resources[r].lifetime();
-            if matches!(decl.origin, crate::declare::Origin::Imported(_)) {
-                Residency::Imported
-            } else if life.is_none() {
-                Residency::Unused
-            } else if exported[r] {
-                Residency::Exported
-            } else {
-                let one_render_pass = life.is_some_and(|(first, last)| {
-                    first == last && groups[first as usize].kind == GroupKind::Render
-                });
-                if one_render_pass
-                    && uses.resources[r].attachment_only
-                    && profile.render_pass.transient_attachments
-                {
-                    Residency::Transient
-                } else {
-                    Residency::FrameLocal
-                }
-            }
-        })
-        .collect()
-}
 
 /// Per-attachment bookkeeping while the subpasses of one render pass are laid out.
 #[derive(Debug, Clone, Copy)]
@@ -215,7 +78,7 @@ fn add_dependency(
 pub(crate) struct LoadStoreInput<'a> {
     pub groups: &'a [Group],
     pub order: &'a [PassId],
-    pub analysis: &'a Analysis,
+    pub accesses: &'a PassAccesses,
     pub passes: &'a [PassDecl],
     pub resources: &'a [ResourceDecl],
     pub residency: &'a [Residency],
@@ -224,31 +87,16 @@ pub(crate) struct LoadStoreInput<'a> {
     pub store_op_none: bool,
 }
 
-/// Where `infer_load_store` puts the steps it builds (the barrier planner).
-pub(crate) trait StepSink {
-    /// Appends a step.
-    fn push(&mut self, step: Step);
-    /// Appends a render pass that `build` fills in place (a render pass is a few hundred bytes:
-    /// built where it stays, it is not moved).
-    /// `build` also records what the subpasses do to each resource (`RenderPassUses`).
-    fn push_render_pass(&mut self, build: impl FnOnce(&mut RenderPass, &mut RenderPassUses));
-}
-
 /// The work steps in execution order: one render pass per render group (with its attachments,
 /// load/store ops, subpasses and dependencies), one compute or transfer step per other group,
-/// and a flush before each group that asks for one, each handed to `sink` as it is built. Each
-/// render pass's loads and stores are added to `traffic`.
-pub(crate) fn infer_load_store(
-    input: &LoadStoreInput<'_>,
-    sink: &mut impl StepSink,
-    traffic: &mut AccessTraffic<'_>,
-) {
+/// and a flush before each group that asks for one.
+pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Step> {
     let content_from: Vec<u32> = input
         .resources
         .iter()
         .zip(&input.uses.resources)
         .map(|(r, u)| {
-            if has_initial_content(r) {
+            if r.has_initial_content() {
                 0
             } else {
                 u.first_write.saturating_add(1)
@@ -262,32 +110,32 @@ pub(crate) fn infer_load_store(
         readers: Vec::new(),
         order: Vec::new(),
     };
+    let flushes = input.groups.iter().filter(|g| g.flush_before).count();
+    let mut steps = Vec::with_capacity(input.groups.len() + flushes);
     for (g, group) in input.groups.iter().enumerate() {
         if group.flush_before {
-            sink.push(Step::Flush(FlushReason::BeforeOcclusionQueries));
+            steps.push(Step::Flush(FlushReason::BeforeOcclusionQueries));
         }
         let first = input.order[group.start];
-        match group.kind {
-            GroupKind::Render => sink.push_render_pass(|rp, uses| {
-                build_render_pass(input, &mut scratch, g as u32, group, rp, uses, traffic)
-            }),
-            GroupKind::Compute => sink.push(Step::Compute { pass: first }),
-            GroupKind::Transfer => sink.push(Step::Transfer { pass: first }),
-        }
+        steps.push(match group.kind {
+            GroupKind::Render => {
+                let mut rp = RenderPass::empty();
+                build_render_pass(input, &mut scratch, g as u32, group, &mut rp);
+                Step::RenderPass(rp)
+            }
+            GroupKind::Compute => Step::Compute { pass: first },
+            GroupKind::Transfer => Step::Transfer { pass: first },
+        });
     }
+    steps
 }
-
-/// Marks an `attachment_of` slot as an entry of `RenderPassUses`'s resources reached through
-/// memory.
-const THROUGH_MEMORY: u32 = 1 << 31;
 
 /// Per-frame tables, and buffers reused from one render pass to the next.
 struct Scratch {
     /// Per resource: the first group that sees content in it (0: imported with content; the
     /// group after its first writer; NONE: never).
     content_from: Vec<u32>,
-    /// Per resource: (group, attachment index) of its attachment in the group's render pass,
-    /// or (group, `THROUGH_MEMORY | i`) when the render pass reaches it through memory.
+    /// Per resource: (group, attachment index) of its attachment in the group's render pass.
     attachment_of: Vec<(u32, u32)>,
     tracks: Vec<AttachmentTrack>,
     readers: Vec<(u32, u32, PipelineStages)>,
@@ -301,8 +149,6 @@ fn build_render_pass(
     g: u32,
     group: &Group,
     rp: &mut RenderPass,
-    uses: &mut RenderPassUses,
-    traffic: &mut AccessTraffic<'_>,
 ) {
     rp.render_area_px = group.render_area.unwrap_or(Extent2d::new(0, 0));
     let RenderPass {
@@ -324,9 +170,8 @@ fn build_render_pass(
     for (s, &p) in input.order[group.start..group.end].iter().enumerate() {
         let s = s as u32;
         let decl = &input.passes[p.index()];
-        let (first_access, _) = input.analysis.pass_ranges[p.index()];
-        let first_access = first_access as usize;
-        let accesses = input.analysis.accesses_of(p.index());
+        let first_access = input.accesses.start_of(p);
+        let accesses = input.accesses.of(p);
         // References are stored inline (up to 4 colours, 2 inputs) and spill only beyond that.
         let mut subpass = Subpass {
             pass: p,
@@ -337,13 +182,11 @@ fn build_render_pass(
             preserve: InlineVec::new(),
         };
         let mut resolve_refs: Vec<(ResourceId, AttachmentRef)> = Vec::new();
-        // Resources reached through memory first (only the barrier planner needs them), and
-        // the pass's attachment accesses, by their first attachment use.
+        // The pass's attachment accesses, by their first attachment use.
         let order = &mut scratch.order;
         order.clear();
         let mut mixed = false;
         for (k, a) in accesses.iter().enumerate() {
-            let r = a.resource.index();
             if a.attachment() {
                 // An access that began with a descriptor read (a sampled depth also tested) is
                 // attached where its first attachment use is declared.
@@ -357,13 +200,7 @@ fn build_render_pass(
                     a.first_use
                 };
                 order.push((first, k as u32));
-                continue;
             }
-            let (seen_in, slot) = attachment_of[r];
-            let seen = (seen_in == g && slot & THROUGH_MEMORY != 0)
-                .then_some((slot & !THROUGH_MEMORY) as usize);
-            let i = uses.other_access(seen, a);
-            attachment_of[r] = (g, THROUGH_MEMORY | i as u32);
         }
         if mixed {
             order.sort_unstable();
@@ -374,7 +211,7 @@ fn build_render_pass(
             let a = &accesses[k];
             let r = a.resource.index();
             let (seen_in, slot) = attachment_of[r];
-            let index = if seen_in == g && slot & THROUGH_MEMORY == 0 {
+            let index = if seen_in == g {
                 slot
             } else {
                 let index = attachments.len() as u32;
@@ -429,7 +266,6 @@ fn build_render_pass(
                 }
             }
             track_subpass_use(deps, readers, track, index, s, a);
-            uses.attachment_access(index as usize, a);
             if let Some(att) = attachments.get_mut(index as usize) {
                 att.final_layout = a.layout;
             }
@@ -478,12 +314,6 @@ fn build_render_pass(
             // seed 001: depth and stencil of D24S8 are invalidated together or not at all.
             att.stencil_store_op = att.store_op;
         }
-        traffic.add_attachment_ops(
-            att.resource,
-            att.load_op,
-            att.store_op,
-            track.is_none_or(|t| t.on_chip),
-        );
         // Kept after the render pass: every subpass after its last use preserves it. A
         // subpass that neither uses nor preserves an attachment, and depends on one that used
         // it, leaves its content undefined (VkSubpassDescription): the store would write back

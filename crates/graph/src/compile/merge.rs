@@ -1,4 +1,4 @@
-//! Phase 3, `merge_render_passes`: group consecutive raster passes into render passes.
+//! `merge_render_passes`: group consecutive raster passes into render passes.
 //!
 //! A raster pass joins the render pass before it when the profile allows merging, the render
 //! areas are equal, it shares at least one attachment with the render pass (merging unrelated
@@ -14,17 +14,13 @@
 //!
 //! Occlusion-query passes, when the profile wants them in a render pass of their own, never
 //! share one with other passes, and with `flush_before` a flush precedes them (seed 001).
-//!
-//! Each pass's accesses are handed to a [`UseSweep`] with the pass's group as soon as it is
-//! known, so the uses are summarized in the same walk.
 
 use tilegraph_profile::{MergePolicy, PassClass, Profile};
 
 use crate::declare::{PassDecl, PassId, PassKind};
 use crate::types::{Extent2d, Layout};
 
-use super::load_store::UseSweep;
-use super::validate::Analysis;
+use super::validate::Validated;
 
 const NONE: u32 = u32::MAX;
 
@@ -64,11 +60,10 @@ fn is_query(pass: &PassDecl) -> bool {
 
 pub(crate) fn merge_render_passes(
     order: &[PassId],
-    analysis: &Analysis,
+    validated: &Validated,
     passes: &[PassDecl],
     n_resources: usize,
     profile: &Profile,
-    uses: &mut UseSweep<'_, '_>,
 ) -> Vec<Group> {
     let policy = &profile.render_pass;
     let queries_alone = profile.passes.occlusion_queries.own_render_pass;
@@ -86,7 +81,7 @@ pub(crate) fn merge_render_passes(
     for (i, &id) in order.iter().enumerate() {
         let p = id.index();
         let pass = &passes[p];
-        let area = analysis.render_areas[p];
+        let area = validated.render_areas[p];
         let joins = match groups.last() {
             Some(g)
                 if g.kind == GroupKind::Render
@@ -97,7 +92,7 @@ pub(crate) fn merge_render_passes(
             {
                 let g_index = (groups.len() - 1) as u32;
                 let mut connected = false;
-                let compatible = analysis.accesses_of(p).iter().all(|a| {
+                let compatible = validated.accesses.of(id).iter().all(|a| {
                     let t = &touch[a.resource.index()];
                     if t.group != g_index {
                         return true;
@@ -142,16 +137,13 @@ pub(crate) fn merge_render_passes(
                 queries_only: is_query(pass),
             });
         }
+        // Only a render pass can be joined: a compute or transfer group's touches are never
+        // looked at.
+        if pass.kind != PassKind::Raster {
+            continue;
+        }
         let g_index = (groups.len() - 1) as u32;
-        let raster = pass.kind == PassKind::Raster;
-        let (first_access, _) = analysis.pass_ranges[p];
-        for (k, a) in analysis.accesses_of(p).iter().enumerate() {
-            uses.visit(g_index, first_access as usize + k, a, raster);
-            // Only a render pass can be joined: a compute or transfer group's touches are
-            // never looked at.
-            if !raster {
-                continue;
-            }
+        for a in validated.accesses.of(id) {
             let t = &mut touch[a.resource.index()];
             if t.group != g_index {
                 *t = Touch {

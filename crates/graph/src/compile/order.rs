@@ -1,4 +1,4 @@
-//! Phase 2, `order_passes`: dependencies first, then the profile's class order, then
+//! `order_passes`: dependencies first, then the profile's class order, then
 //! declaration order.
 //!
 //! Edges come from resources (read-after-write, write-after-read, write-after-write, in
@@ -17,7 +17,8 @@ use tilegraph_profile::{PassClass, Profile};
 use crate::declare::{PassDecl, PassId};
 use crate::error::GraphError;
 
-use super::validate::Analysis;
+use super::access::PassAccesses;
+use super::dataflow::Dataflow;
 
 const NONE: u32 = u32::MAX;
 
@@ -47,21 +48,22 @@ impl Edges {
 }
 
 fn dependency_edges(
-    analysis: &Analysis,
+    accesses: &PassAccesses,
+    dataflow: &Dataflow,
     n_resources: usize,
     alive: &[bool],
     dependencies: &[(PassId, PassId)],
 ) -> Edges {
     let n = alive.len();
-    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(analysis.accesses.len() * 2);
+    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(accesses.accesses.len() * 2);
     // Per resource: its last writer, and the readers since as a linked list in `readers`.
     let mut last = vec![(NONE, NONE); n_resources];
-    let mut readers: Vec<(u32, u32)> = Vec::with_capacity(analysis.accesses.len());
+    let mut readers: Vec<(u32, u32)> = Vec::with_capacity(accesses.accesses.len());
     for p in (0..n).filter(|&p| alive[p]) {
         let pu = p as u32;
         // A pass has one access per resource, so each resource's state can be updated as soon
         // as its edges are out.
-        for a in analysis.accesses_of(p) {
+        for a in accesses.of(PassId(p as u32)) {
             let entry = &mut last[a.resource.index()];
             let (w, head) = *entry;
             // Every access orders after the last write: a read needs its data, a write must
@@ -79,7 +81,7 @@ fn dependency_edges(
                     node = next;
                 }
                 *entry = (pu, NONE);
-            } else if analysis.last_writer[a.resource.index()].is_some_and(|w| w.0 > pu) {
+            } else if dataflow.last_writer[a.resource.index()].is_some_and(|w| w.0 > pu) {
                 // Only a later write needs to wait for this read.
                 readers.push((pu, head));
                 entry.1 = (readers.len() - 1) as u32;
@@ -150,7 +152,8 @@ fn find_cycle(edges: &Edges, remaining: &[bool], passes: &[PassDecl]) -> GraphEr
 }
 
 pub(crate) fn order_passes(
-    analysis: &Analysis,
+    accesses: &PassAccesses,
+    dataflow: &Dataflow,
     passes: &[PassDecl],
     n_resources: usize,
     alive: &[bool],
@@ -158,7 +161,7 @@ pub(crate) fn order_passes(
     profile: &Profile,
 ) -> Result<Vec<PassId>, GraphError> {
     let n = passes.len();
-    let edges = dependency_edges(analysis, n_resources, alive, dependencies);
+    let edges = dependency_edges(accesses, dataflow, n_resources, alive, dependencies);
     let mut indegree = vec![0u32; n];
     for &t in &edges.targets {
         indegree[t as usize] += 1;

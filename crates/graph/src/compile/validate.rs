@@ -1,16 +1,16 @@
-//! Phase 0, `validate_declarations`: checks every declaration, merges each pass's uses into one
-//! access per resource, and records what each read sees (its producer: the last pass declared
-//! before it that writes the resource). Errors name the pass and resource.
+//! `validate_declarations`: checks every declaration — resources, each use against its
+//! resource, the attachments of each raster pass, dependencies and exports — and merges each
+//! pass's uses into one access per resource (`compile/access.rs`), which every later phase
+//! reads. Errors name the pass and resource.
 
 use tilegraph_profile::Profile;
 
 use super::access::{
-    add_access, role, summarize_use, Access, BUFFER_READ_ROLES, COLOR_ROLE, DEPTH_STENCIL_ROLES,
-    INPUT_ROLE, RESOLVE_ROLE,
+    add_access, role, summarize_use, Access, PassAccesses, BUFFER_READ_ROLES, COLOR_ROLE,
+    DEPTH_STENCIL_ROLES, INPUT_ROLE, RESOLVE_ROLE,
 };
 use crate::declare::{
-    InitialContent, Origin, PassDecl, PassId, PassKind, PassUse, ResourceDecl, ResourceDesc,
-    ResourceId, UseKind,
+    Origin, PassDecl, PassId, PassKind, PassUse, ResourceDecl, ResourceDesc, ResourceId, UseKind,
 };
 use crate::error::GraphError;
 use crate::types::{Extent2d, Layout};
@@ -22,39 +22,13 @@ pub(crate) const MAX_BUFFER_BYTES: u64 = 1 << 48;
 
 const NONE: u32 = u32::MAX;
 
-/// The validated graph: per-pass accesses and producers.
+/// The validated declarations: one access per pass and resource, and each raster pass's
+/// render area.
 #[derive(Debug)]
-pub(crate) struct Analysis {
-    /// Every pass's accesses, pass after pass.
-    pub accesses: Vec<Access>,
-    /// `accesses[start..end]` of each pass.
-    pub pass_ranges: Vec<(u32, u32)>,
-    /// Render area of each raster pass.
+pub(crate) struct Validated {
+    pub accesses: PassAccesses,
+    /// Render area of each raster pass (index = `PassId`).
     pub render_areas: Vec<Option<Extent2d>>,
-    /// Per pass, the passes whose writes it reads (`producers[start..end]`).
-    pub producer_ranges: Vec<(u32, u32)>,
-    pub producers: Vec<PassId>,
-    /// Per resource, the last declared pass that writes it.
-    pub last_writer: Vec<Option<PassId>>,
-}
-
-impl Analysis {
-    pub fn accesses_of(&self, pass: usize) -> &[Access] {
-        let (start, end) = self.pass_ranges[pass];
-        &self.accesses[start as usize..end as usize]
-    }
-
-    pub fn producers_of(&self, pass: usize) -> &[PassId] {
-        let (start, end) = self.producer_ranges[pass];
-        &self.producers[start as usize..end as usize]
-    }
-}
-
-pub(crate) fn has_initial_content(resource: &ResourceDecl) -> bool {
-    matches!(
-        resource.origin,
-        Origin::Imported(import) if import.content == InitialContent::Preserve
-    )
 }
 
 fn imported_layout(r: &ResourceDecl) -> Option<Layout> {
@@ -78,7 +52,7 @@ fn validate_resource(r: &ResourceDecl) -> Result<(), GraphError> {
                 Some("more mip levels than the extent has")
             } else if d.mip_levels > 1 && d.samples.count() > 1 {
                 Some("a multisampled image has one mip level")
-            } else if has_initial_content(r) && imported_layout(r) == Some(Layout::Undefined) {
+            } else if r.has_initial_content() && imported_layout(r) == Some(Layout::Undefined) {
                 Some("content to preserve, but imported in the Undefined layout (the first transition would discard it)")
             } else {
                 None
@@ -318,7 +292,7 @@ pub(crate) fn validate_declarations(
     exports: &[ResourceId],
     dependencies: &[(PassId, PassId)],
     profile: &Profile,
-) -> Result<Analysis, GraphError> {
+) -> Result<Validated, GraphError> {
     for r in resources {
         validate_resource(r)?;
     }
@@ -386,58 +360,12 @@ pub(crate) fn validate_declarations(
         }
     }
 
-    // What each read sees: the last writer declared before the reading pass.
-    let mut last_writer: Vec<Option<PassId>> = vec![None; resources.len()];
-    let mut producer_ranges = Vec::with_capacity(passes.len());
-    let mut producers = Vec::with_capacity(accesses.len());
-    for (p, pass) in passes.iter().enumerate() {
-        let start = producers.len();
-        let (a0, a1) = pass_ranges[p];
-        // One access per resource in a pass: each resource's writer is updated right after
-        // its read is resolved.
-        for a in &accesses[a0 as usize..a1 as usize] {
-            let writer = &mut last_writer[a.resource.index()];
-            if a.reads_prior() {
-                match *writer {
-                    Some(w) => producers.push(w),
-                    None => {
-                        let r = &resources[a.resource.index()];
-                        if a.explicit_read() && !has_initial_content(r) {
-                            return Err(GraphError::ReadBeforeWrite {
-                                pass: pass.name.clone(),
-                                resource: r.name.clone(),
-                                usage: pass
-                                    .uses
-                                    .get(a.first_use as usize)
-                                    .map_or("?", |u| u.kind.name()),
-                            });
-                        }
-                    }
-                }
-            }
-            if a.writes() {
-                *writer = Some(PassId(p as u32));
-            }
-        }
-        producer_ranges.push((start as u32, producers.len() as u32));
-    }
-
-    for &e in exports {
-        let r = &resources[e.index()];
-        if last_writer[e.index()].is_none() && !has_initial_content(r) {
-            return Err(GraphError::ExportOfCulledResource {
-                resource: r.name.clone(),
-            });
-        }
-    }
-
-    Ok(Analysis {
-        accesses,
-        pass_ranges,
+    Ok(Validated {
+        accesses: PassAccesses {
+            accesses,
+            ranges: pass_ranges,
+        },
         render_areas,
-        producer_ranges,
-        producers,
-        last_writer,
     })
 }
 

@@ -1,7 +1,5 @@
-//! Phase 8, `estimate_traffic`: bytes moved between the GPU and system memory per frame. The
-//! part that depends on each access alone ([`AccessTraffic`]) is added up by the use summary
-//! (`UseSweep`), which visits every surviving access once, and each render pass's loads and
-//! stores by `infer_load_store` as it decides them; this phase picks the model's parts.
+//! `estimate_traffic`: bytes moved between the GPU and system memory per frame, from the
+//! finished plan (its passes' accesses and its render passes' load and store ops).
 //!
 //! **Tiler model** (profiles with `architecture = "tiler"`): attachments live in tile memory
 //! during a render pass, so a render pass costs one read of every attachment it LOADs and one
@@ -21,86 +19,13 @@
 //! **Naive plan**, for comparison: every raster pass is its own render pass and loads and stores
 //! every attachment it declares; the other traffic is the same. Both numbers are in the plan.
 
-use crate::compile::access::{role, Access, BUFFER_READ_ROLES, RESOLVE_ROLE};
-use crate::compile::barriers::PassAccesses;
 use crate::declare::{InitialContent, Origin, PassKind, ResourceDesc, ResourceId, UseKind};
-use crate::plan::{PlanResource, PlannedPass};
+use crate::plan::{
+    PlanResource, PlannedPass, RenderPass, Step, TrafficBreakdown, TrafficEstimate, TrafficModel,
+};
 use crate::types::{LoadOp, StoreOp};
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum TrafficModel {
-    Tiler,
-    Immediate,
-}
-
-impl TrafficModel {
-    pub const fn name(self) -> &'static str {
-        match self {
-            TrafficModel::Tiler => "tiler",
-            TrafficModel::Immediate => "immediate",
-        }
-    }
-}
-
-/// Bytes per frame, by kind of traffic.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
-pub struct TrafficBreakdown {
-    /// Tiler: LOADs into tile memory. Immediate: attachment reads.
-    pub attachment_read_bytes: u64,
-    /// Tiler: STOREs out of tile memory. Immediate: attachment writes.
-    pub attachment_write_bytes: u64,
-    /// Multisample resolves written to memory.
-    pub resolve_write_bytes: u64,
-    pub sampled_read_bytes: u64,
-    pub storage_read_bytes: u64,
-    pub storage_write_bytes: u64,
-    /// Uniform, vertex, index and indirect buffers.
-    pub buffer_read_bytes: u64,
-    pub transfer_read_bytes: u64,
-    pub transfer_write_bytes: u64,
-}
-
-impl TrafficBreakdown {
-    pub fn total_bytes(&self) -> u64 {
-        [
-            self.attachment_read_bytes,
-            self.attachment_write_bytes,
-            self.resolve_write_bytes,
-            self.sampled_read_bytes,
-            self.storage_read_bytes,
-            self.storage_write_bytes,
-            self.buffer_read_bytes,
-            self.transfer_read_bytes,
-            self.transfer_write_bytes,
-        ]
-        .iter()
-        .fold(0u64, |acc, &b| acc.saturating_add(b))
-    }
-
-    /// Named parts, for printing.
-    pub fn parts(&self) -> [(&'static str, u64); 9] {
-        [
-            ("attachment reads/loads", self.attachment_read_bytes),
-            ("attachment writes/stores", self.attachment_write_bytes),
-            ("resolves", self.resolve_write_bytes),
-            ("sampled reads", self.sampled_read_bytes),
-            ("storage reads", self.storage_read_bytes),
-            ("storage writes", self.storage_write_bytes),
-            ("uniform/vertex/index/indirect", self.buffer_read_bytes),
-            ("transfer reads", self.transfer_read_bytes),
-            ("transfer writes", self.transfer_write_bytes),
-        ]
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct TrafficEstimate {
-    pub model: TrafficModel,
-    /// The compiled plan.
-    pub planned: TrafficBreakdown,
-    /// Every raster pass alone, loading and storing every attachment.
-    pub naive: TrafficBreakdown,
-}
+use super::access::{role, Access, PassAccesses, BUFFER_READ_ROLES, RESOLVE_ROLE};
 
 fn add(slot: &mut u64, bytes: u64) {
     *slot = slot.saturating_add(bytes);
@@ -118,94 +43,30 @@ const RESOLVE: u16 = RESOLVE_ROLE;
 
 /// Per resource: bytes of one attachment load or store (mip 0, all samples), and of the whole
 /// resource (every mip; a buffer's size).
-pub(crate) struct Sizes {
+struct Sizes {
     attachment: Vec<u64>,
     whole: Vec<u64>,
 }
 
 impl Sizes {
-    pub fn of<'r>(descs: impl ExactSizeIterator<Item = &'r ResourceDesc> + Clone) -> Self {
-        let attachment = descs
-            .clone()
-            .map(|d| match d {
+    fn of(resources: &[PlanResource]) -> Self {
+        let attachment = resources
+            .iter()
+            .map(|r| match &r.desc {
                 ResourceDesc::Image(d) => d.attachment_bytes(),
                 ResourceDesc::Buffer(d) => d.size_bytes,
             })
             .collect();
-        let whole = descs.map(ResourceDesc::size_bytes).collect();
+        let whole = resources.iter().map(|r| r.desc.size_bytes()).collect();
         Sizes { attachment, whole }
-    }
-
-    /// Per resource, its whole size (what `compile::estimated_requirements` estimates).
-    pub fn whole(&self) -> &[u64] {
-        &self.whole
     }
 
     fn attachment(&self, r: ResourceId) -> u64 {
         self.attachment.get(r.index()).copied().unwrap_or(0)
     }
 
-    fn whole_of(&self, r: ResourceId) -> u64 {
+    fn whole(&self, r: ResourceId) -> u64 {
         self.whole.get(r.index()).copied().unwrap_or(0)
-    }
-}
-
-/// The traffic both plans share (descriptors, vertex input, transfers) and the naive plan's
-/// attachment traffic, added up access by access by whichever phase visits every access of
-/// the surviving passes once (`UseSweep`): it needs no order. The render passes' loads and
-/// stores (the tiler model's attachment traffic) are added as they are decided.
-pub(crate) struct AccessTraffic<'s> {
-    sizes: &'s Sizes,
-    common: TrafficBreakdown,
-    naive_attachments: u64,
-    /// Attachment reads, writes and resolves of the planned render passes.
-    render_passes: TrafficBreakdown,
-}
-
-impl<'s> AccessTraffic<'s> {
-    pub fn new(sizes: &'s Sizes) -> Self {
-        AccessTraffic {
-            sizes,
-            common: TrafficBreakdown::default(),
-            naive_attachments: 0,
-            render_passes: TrafficBreakdown::default(),
-        }
-    }
-
-    /// One attachment of a planned render pass: a LOAD reads it into tile memory, a STORE
-    /// writes it back; `on_chip`: some subpass binds it (else it is only resolved into, and
-    /// its store is the resolve).
-    #[inline]
-    pub fn add_attachment_ops(
-        &mut self,
-        resource: ResourceId,
-        load_op: LoadOp,
-        store_op: StoreOp,
-        on_chip: bool,
-    ) {
-        let bytes = self.sizes.attachment(resource);
-        let out = &mut self.render_passes;
-        if load_op == LoadOp::Load {
-            add(&mut out.attachment_read_bytes, bytes);
-        }
-        if store_op == StoreOp::Store {
-            if on_chip {
-                add(&mut out.attachment_write_bytes, bytes);
-            } else {
-                add(&mut out.resolve_write_bytes, bytes);
-            }
-        }
-    }
-
-    /// One pass's access; `raster`: the pass is a raster pass.
-    #[inline]
-    pub fn add(&mut self, a: &Access, raster: bool) {
-        memory_traffic(a, self.sizes.whole_of(a.resource), &mut self.common);
-        if raster && a.attachment() {
-            self.naive_attachments = self
-                .naive_attachments
-                .saturating_add(self.sizes.attachment(a.resource));
-        }
     }
 }
 
@@ -238,17 +99,24 @@ fn memory_traffic(a: &Access, bytes: u64, out: &mut TrafficBreakdown) {
 
 pub(crate) fn estimate_traffic(
     model: TrafficModel,
+    steps: &[Step],
     passes: &[PlannedPass],
     resources: &[PlanResource],
-    accesses: &PassAccesses<'_>,
-    tally: AccessTraffic<'_>,
+    accesses: &PassAccesses,
 ) -> TrafficEstimate {
-    let AccessTraffic {
-        sizes,
-        common,
-        naive_attachments,
-        render_passes,
-    } = tally;
+    let sizes = Sizes::of(resources);
+    // What both plans share (descriptors, vertex input, transfers), and the naive plan's
+    // attachments: every raster pass loads and stores every attachment it declares.
+    let mut common = TrafficBreakdown::default();
+    let mut naive_attachments = 0u64;
+    for pass in passes {
+        for a in accesses.of(pass.id) {
+            memory_traffic(a, sizes.whole(a.resource), &mut common);
+            if pass.kind == PassKind::Raster && a.attachment() {
+                add(&mut naive_attachments, sizes.attachment(a.resource));
+            }
+        }
+    }
     let mut naive = common;
     add(&mut naive.attachment_read_bytes, naive_attachments);
     add(&mut naive.attachment_write_bytes, naive_attachments);
@@ -256,18 +124,12 @@ pub(crate) fn estimate_traffic(
 
     match model {
         TrafficModel::Tiler => {
-            add(
-                &mut planned.attachment_read_bytes,
-                render_passes.attachment_read_bytes,
-            );
-            add(
-                &mut planned.attachment_write_bytes,
-                render_passes.attachment_write_bytes,
-            );
-            add(
-                &mut planned.resolve_write_bytes,
-                render_passes.resolve_write_bytes,
-            );
+            for rp in steps.iter().filter_map(|s| match s {
+                Step::RenderPass(rp) => Some(rp),
+                _ => None,
+            }) {
+                tiler_render_pass(rp, &sizes, &mut planned);
+            }
         }
         TrafficModel::Immediate => {
             let mut has_content: Vec<bool> = resources
@@ -279,7 +141,7 @@ pub(crate) fn estimate_traffic(
             for pass in passes {
                 if pass.kind == PassKind::Raster {
                     for a in accesses.of(pass.id).iter().filter(|a| a.attachment()) {
-                        immediate_attachment(pass, a, &has_content, sizes, &mut planned);
+                        immediate_attachment(pass, a, &has_content, &sizes, &mut planned);
                     }
                 }
                 for a in accesses.of(pass.id).iter().filter(|a| a.writes()) {
@@ -294,6 +156,32 @@ pub(crate) fn estimate_traffic(
         model,
         planned,
         naive,
+    }
+}
+
+/// One render pass on a tiler: a LOAD reads an attachment into tile memory, a STORE writes it
+/// back — as a resolve when no subpass binds it (a resolve target only receives the resolve).
+fn tiler_render_pass(rp: &RenderPass, sizes: &Sizes, planned: &mut TrafficBreakdown) {
+    for (i, att) in rp.attachments.iter().enumerate() {
+        let bytes = sizes.attachment(att.resource);
+        if att.load_op == LoadOp::Load {
+            add(&mut planned.attachment_read_bytes, bytes);
+        }
+        if att.store_op != StoreOp::Store {
+            continue;
+        }
+        let on_chip = rp.subpasses.iter().any(|s| {
+            s.colors
+                .iter()
+                .chain(s.inputs.iter())
+                .chain(s.depth_stencil.iter())
+                .any(|r| r.attachment.0 as usize == i)
+        });
+        if on_chip {
+            add(&mut planned.attachment_write_bytes, bytes);
+        } else {
+            add(&mut planned.resolve_write_bytes, bytes);
+        }
     }
 }
 

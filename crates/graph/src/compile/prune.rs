@@ -1,28 +1,30 @@
-//! Phase 1, `cull_unused_passes`: keep what an export needs, drop the rest.
+//! `prune_unused_passes`: keep what an export needs, drop the rest.
 //!
 //! The roots are the last writer of every exported resource and every pass declared with
 //! `Retention::Always`; a pass is kept when a kept pass reads what it wrote (its producer).
-//! Everything else is culled, with the reason. This is how tilegraph models only what a scene
+//! Everything else is pruned, with the reason. This is how tilegraph models only what a scene
 //! requires: a pass whose output nobody reads costs nothing.
 
 use crate::declare::{PassDecl, PassId, ResourceId, Retention};
 use crate::plan::CullReason;
 
-use super::validate::Analysis;
+use super::access::PassAccesses;
+use super::dataflow::Dataflow;
 
 #[derive(Debug)]
-pub(crate) struct Culling {
+pub(crate) struct Pruning {
     /// Per declared pass.
     pub alive: Vec<bool>,
     /// Culled passes in declaration order.
     pub culled: Vec<(PassId, CullReason)>,
 }
 
-pub(crate) fn cull_unused_passes(
-    analysis: &Analysis,
+pub(crate) fn prune_unused_passes(
+    dataflow: &Dataflow,
+    accesses: &PassAccesses,
     passes: &[PassDecl],
     exports: &[ResourceId],
-) -> Culling {
+) -> Pruning {
     let n = passes.len();
     let mut alive = vec![false; n];
     let mut stack: Vec<usize> = Vec::with_capacity(n);
@@ -38,12 +40,12 @@ pub(crate) fn cull_unused_passes(
         }
     }
     for &e in exports {
-        if let Some(Some(w)) = analysis.last_writer.get(e.index()) {
+        if let Some(Some(w)) = dataflow.last_writer.get(e.index()) {
             keep(w.index(), &mut alive, &mut stack);
         }
     }
     while let Some(p) = stack.pop() {
-        for w in analysis.producers_of(p) {
+        for w in dataflow.producers_of(p) {
             keep(w.index(), &mut alive, &mut stack);
         }
     }
@@ -51,13 +53,13 @@ pub(crate) fn cull_unused_passes(
     let dead = alive.iter().filter(|&&a| !a).count();
     let mut culled = Vec::with_capacity(dead);
     if dead == 0 {
-        return Culling { alive, culled };
+        return Pruning { alive, culled };
     }
     // Consumers of culled passes are culled too (a kept consumer would have kept them): list,
     // per culled producer, the culled passes that read it, as (producer, consumer) pairs.
     let mut consumed: Vec<(u32, u32)> = Vec::new();
     for q in (0..n).filter(|&q| !alive[q]) {
-        for w in analysis.producers_of(q) {
+        for w in dataflow.producers_of(q) {
             if !alive[w.index()] {
                 consumed.push((w.0, q as u32));
             }
@@ -71,7 +73,7 @@ pub(crate) fn cull_unused_passes(
         while consumed.get(next).is_some_and(|&(w, _)| w as usize == p) {
             next += 1;
         }
-        let writes = analysis.accesses_of(p).iter().any(|a| a.writes());
+        let writes = accesses.of(PassId(p as u32)).iter().any(|a| a.writes());
         let reason = if !writes {
             CullReason::NoOutputs
         } else if from == next {
@@ -86,7 +88,7 @@ pub(crate) fn cull_unused_passes(
         };
         culled.push((PassId(p as u32), reason));
     }
-    Culling { alive, culled }
+    Pruning { alive, culled }
 }
 
 #[cfg(test)]

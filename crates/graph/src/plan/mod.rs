@@ -1,15 +1,22 @@
 //! The compiled plan: plain data (indices, enums, names) that the Vulkan executor walks, that
 //! `Display` prints as a table and [`Plan::to_dot`] draws.
 
+mod memory;
+mod traffic;
+
+pub use memory::{
+    AliasAssignment, AliasHandoff, AliasLifetime, BlockIndex, MemoryBlock, MemoryClass, MemoryNeed,
+    MemoryRequirements, MemorySlot, ESTIMATED_ALIGNMENT_BYTES,
+};
+pub use traffic::{TrafficBreakdown, TrafficEstimate, TrafficModel};
+
 use tilegraph_profile::PassClass;
 
 use smallvec::SmallVec;
 
-use crate::alias::{AliasAssignment, AliasLifetime, MemoryClass, MemoryNeed, MemorySlot};
 use crate::declare::{
     Coverage, Origin, PassId, PassKind, PassUse, ResourceDesc, ResourceId, ResourceState, Retention,
 };
-use crate::traffic::TrafficEstimate;
 use crate::types::{
     AccessFlags, BufferUsage, ClearValue, DependencyFlags, Extent2d, Format, ImageUsage, Layout,
     LoadOp, PipelineStages, SampleCount, StoreOp,
@@ -160,7 +167,7 @@ pub struct PlanResource {
     pub memory: Option<MemorySlot>,
     /// The graph's size estimate (every mip and sample; a buffer's size).
     pub estimated_size_bytes: u64,
-    /// The conservative alignment the estimate assumes (see [`crate::alias`]).
+    /// The conservative alignment the estimate assumes ([`crate::ESTIMATED_ALIGNMENT_BYTES`]).
     pub estimated_alignment_bytes: u64,
     /// The state the frame leaves it in: the imported `final_state`, or for created resources
     /// the state after their last use (what next frame's import of a history image declares).
