@@ -3,7 +3,7 @@
 //! The frame is built from 10-pass "views" (think main view, shadow cascades, reflection
 //! probes): GPU culling (against the previous view's HiZ), depth pre-pass, HiZ build, opaque,
 //! alpha-tested, transparent, occlusion queries, bloom at half resolution, tonemap, and a debug
-//! overlay nobody reads (culled). Each view samples the previous view's output, and the last
+//! overlay nobody reads (pruned). Each view samples the previous view's output, and the last
 //! one writes the swapchain. Only `compile` is timed (the builder is cloned outside the measurement).
 
 use criterion::{criterion_group, criterion_main, BatchSize, BenchmarkId, Criterion};

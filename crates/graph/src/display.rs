@@ -4,7 +4,7 @@ use std::fmt::{self, Write as _};
 
 use crate::declare::{Origin, PassUse, ResourceDesc};
 use crate::plan::{
-    AttachmentRef, CullReason, Plan, RenderPass, Step, StepRange, Subpass, TrafficBreakdown, Usage,
+    AttachmentRef, Plan, PruneReason, RenderPass, Step, StepRange, Subpass, TrafficBreakdown, Usage,
 };
 
 /// `1536 B`, `12.0 KiB`, `7.91 MiB`.
@@ -59,7 +59,7 @@ impl Plan {
             .find(|p| p.id == id)
             .map(|p| p.name.as_str())
             .or_else(|| {
-                self.culled
+                self.pruned
                     .iter()
                     .find(|p| p.id == id)
                     .map(|p| p.name.as_str())
@@ -345,10 +345,10 @@ impl fmt::Display for Plan {
         let render_passes = self.render_passes().count();
         writeln!(
             f,
-            "plan for {}: {} passes, {} culled, {} render pass{}, {} barriers",
+            "plan for {}: {} passes, {} pruned, {} render pass{}, {} barriers",
             self.profile,
             self.passes.len(),
-            self.culled.len(),
+            self.pruned.len(),
             render_passes,
             if render_passes == 1 { "" } else { "es" },
             self.barrier_count()
@@ -377,17 +377,17 @@ impl fmt::Display for Plan {
             ]));
         }
         table(f, "  ", &rows)?;
-        if !self.culled.is_empty() {
-            writeln!(f, "culled")?;
+        if !self.pruned.is_empty() {
+            writeln!(f, "pruned")?;
             let mut rows = Vec::new();
-            for c in &self.culled {
+            for c in &self.pruned {
                 let reason = match &c.reason {
-                    CullReason::NoOutputs => "writes nothing".to_string(),
-                    CullReason::OutputsUnused => "nothing reads what it writes".to_string(),
-                    CullReason::ConsumersCulled { consumers } => {
+                    PruneReason::NoOutputs => "writes nothing".to_string(),
+                    PruneReason::OutputsUnused => "nothing reads what it writes".to_string(),
+                    PruneReason::ConsumersPruned { consumers } => {
                         let names: Vec<&str> =
                             consumers.iter().map(|&p| self.pass_name(p)).collect();
-                        format!("read only by culled {}", names.join(", "))
+                        format!("read only by pruned {}", names.join(", "))
                     }
                 };
                 rows.push(row([
@@ -439,10 +439,10 @@ mod plan_tests {
     }
 
     #[test]
-    fn the_table_shows_order_culling_ops_barriers_memory_and_traffic() {
+    fn the_table_shows_order_pruning_ops_barriers_memory_and_traffic() {
         let text = compile(frame(), &tiler()).to_string();
         for needle in [
-            "plan for adreno-7xx: 1 passes, 1 culled, 1 render pass, 2 barriers",
+            "plan for adreno-7xx: 1 passes, 1 pruned, 1 render pass, 2 barriers",
             "nothing reads what it writes",
             "CLEAR/DONT_CARE",
             "swapchain  release  ColorAttachment -> Present",
@@ -480,7 +480,7 @@ mod plan_tests {
     }
 
     #[test]
-    fn dot_draws_render_passes_as_clusters_and_culled_passes_grey() {
+    fn dot_draws_render_passes_as_clusters_and_pruned_passes_grey() {
         let dot = compile(frame(), &tiler()).to_dot();
         assert!(dot.starts_with("digraph plan {"));
         assert!(dot.trim_end().ends_with('}'));
@@ -488,7 +488,7 @@ mod plan_tests {
         assert!(dot.contains("p1 [shape=box, style=\"dashed,filled\", fillcolor=grey90"));
         // Names are escaped.
         assert!(
-            dot.contains("label=\"debug \\\"view\\\"\\nculled\""),
+            dot.contains("label=\"debug \\\"view\\\"\\npruned\""),
             "{dot}"
         );
         assert!(dot.contains("p0 -> r0 [label=\"depth\"];"));

@@ -1,6 +1,6 @@
 //! Graphviz DOT: passes are boxes, resources ellipses, edges say how a pass uses a resource
 //! (resource -> pass for reads, pass -> resource for writes), each render pass is a cluster, and
-//! culled passes are grey and dashed.
+//! pruned passes are grey and dashed.
 
 use std::fmt::Write as _;
 
@@ -41,8 +41,8 @@ fn reads_old_content(u: &PassUse, coverage: Coverage) -> bool {
     }
 }
 
-fn edges(out: &mut String, pass: PassId, uses: &[PassUse], coverage: Coverage, culled: bool) {
-    let style = if culled {
+fn edges(out: &mut String, pass: PassId, uses: &[PassUse], coverage: Coverage, pruned: bool) {
+    let style = if pruned {
         ", color=grey60, fontcolor=grey60, style=dashed"
     } else {
         ""
@@ -100,8 +100,8 @@ impl Plan {
                 quote(&label)
             );
         }
-        for p in &self.culled {
-            let label = format!("{}\nculled", p.name);
+        for p in &self.pruned {
+            let label = format!("{}\npruned", p.name);
             let _ = writeln!(
                 out,
                 "  {} [shape=box, style=\"dashed,filled\", fillcolor=grey90, color=grey60, \
@@ -113,7 +113,7 @@ impl Plan {
         for r in &self.resources {
             if r.residency == Residency::Unused
                 && !self
-                    .culled
+                    .pruned
                     .iter()
                     .any(|c| c.uses.iter().any(|u| u.resource == r.id))
             {
@@ -140,7 +140,7 @@ impl Plan {
         for p in &self.passes {
             edges(&mut out, p.id, &p.uses, p.coverage, false);
         }
-        for p in &self.culled {
+        for p in &self.pruned {
             edges(&mut out, p.id, &p.uses, p.coverage, true);
         }
         out.push_str("}\n");

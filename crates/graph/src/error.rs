@@ -115,11 +115,8 @@ pub enum GraphError {
     #[error("export of resource #{index}, which this graph never declared")]
     ExportOfUnknownResource { index: u32 },
 
-    #[error(
-        "export of '{resource}', which no pass writes and which has no imported content: \
-             it would be culled"
-    )]
-    ExportOfCulledResource { resource: String },
+    #[error("export of '{resource}', which no pass writes and which has no imported content")]
+    ExportOfUnwrittenResource { resource: String },
 
     #[error("alias assignment given {lifetimes} lifetimes but {requirements} memory requirements")]
     AliasInputMismatch {

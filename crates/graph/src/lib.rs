@@ -5,7 +5,7 @@
 //! GraphBuilder<P> --compile(&Profile)--> CompiledGraph<P> { plan: Plan, payloads }
 //! ```
 //!
-//! The [`Plan`] is plain data: passes in execution order, culled passes with reasons, the
+//! The [`Plan`] is plain data: passes in execution order, pruned passes with reasons, the
 //! resource table (usage, lifetime, memory slot), the [`Step`]s the executor records (barrier
 //! batches, render passes with subpasses, compute and transfer passes, flushes), the alias
 //! assignment and the traffic estimate. It prints as a table (`Display`) and as Graphviz DOT
@@ -35,11 +35,11 @@ pub use declare::{
 pub use error::GraphError;
 pub use plan::{
     AliasAssignment, AliasHandoff, AliasLifetime, Attachment, AttachmentIndex, AttachmentRef,
-    BarrierBatch, BlockIndex, BufferBarrier, CullReason, CulledPass, FlushReason, Hazard,
-    ImageBarrier, InlineVec, MemoryBlock, MemoryClass, MemoryNeed, MemoryRequirements, MemorySlot,
-    Plan, PlanResource, PlannedPass, RenderPass, Residency, Step, StepIndex, StepRange, Subpass,
-    SubpassDependency, SubpassIndex, TrafficBreakdown, TrafficEstimate, TrafficModel, Usage,
-    ESTIMATED_ALIGNMENT_BYTES,
+    BarrierBatch, BlockIndex, BufferBarrier, FlushReason, Hazard, ImageBarrier, InlineVec,
+    MemoryBlock, MemoryClass, MemoryNeed, MemoryRequirements, MemorySlot, Plan, PlanResource,
+    PlannedPass, PruneReason, PrunedPass, RenderPass, Residency, Step, StepIndex, StepRange,
+    Subpass, SubpassDependency, SubpassIndex, TrafficBreakdown, TrafficEstimate, TrafficModel,
+    Usage, ESTIMATED_ALIGNMENT_BYTES,
 };
 pub use tilegraph_profile::PassClass;
 pub use types::{

@@ -13,7 +13,7 @@
 //!   tests and blending included — in its destination scope), and layouts chain from barrier to
 //!   use;
 //! - every barrier and subpass dependency names only accesses its stages perform;
-//! - no culled pass contributes to an export;
+//! - no pruned pass contributes to an export;
 //! - compiling twice gives the same plan;
 //! - re-placing memory with other requirements (as the executor does) keeps all of the above.
 
@@ -574,7 +574,7 @@ fn check_reads_after_writes(plan: &Plan, mirror: &[Vec<MirrorUse>]) -> Result<()
                     (Some(wp), Some(rp)) if wp < rp => {}
                     _ => {
                         return Err(format!(
-                            "{} reads r{} written by p{w}, which is culled or later",
+                            "{} reads r{} written by p{w}, which is pruned or later",
                             p.name, u.resource
                         ))
                     }
@@ -585,28 +585,28 @@ fn check_reads_after_writes(plan: &Plan, mirror: &[Vec<MirrorUse>]) -> Result<()
     Ok(())
 }
 
-fn check_culled_contribute_nothing(
+fn check_pruned_contribute_nothing(
     plan: &Plan,
     mirror: &[Vec<MirrorUse>],
     exports: &[u32],
 ) -> Result<(), String> {
     let pos = positions(plan, mirror.len());
-    for c in &plan.culled {
+    for c in &plan.pruned {
         let c_index = c.id.index();
         if pos[c_index].is_some() {
-            return Err(format!("{} is both culled and planned", c.name));
+            return Err(format!("{} is both pruned and planned", c.name));
         }
         for p in &plan.passes {
             for u in mirror[p.id.index()].iter().filter(|u| u.reads_prior) {
                 if producer(mirror, p.id.index(), u.resource) == Some(c_index) {
-                    return Err(format!("{} reads what culled {} wrote", p.name, c.name));
+                    return Err(format!("{} reads what pruned {} wrote", p.name, c.name));
                 }
             }
         }
         for &e in exports {
             if producer(mirror, mirror.len(), e) == Some(c_index) {
                 return Err(format!(
-                    "culled {} is the last writer of export r{e}",
+                    "pruned {} is the last writer of export r{e}",
                     c.name
                 ));
             }
@@ -1405,7 +1405,7 @@ fn check_plan(plan: &Plan, built: &Built, profile: &Profile) -> Result<(), Strin
     check_preserved(plan)?;
     check_structure(plan)?;
     check_reads_after_writes(plan, &built.mirror)?;
-    check_culled_contribute_nothing(plan, &built.mirror, &built.exports)?;
+    check_pruned_contribute_nothing(plan, &built.mirror, &built.exports)?;
     check_aliasing(plan)?;
     check_handoffs_complete(plan)?;
     check_layouts(plan)?;
@@ -1488,7 +1488,7 @@ fn the_generator_mostly_makes_graphs_that_compile() {
     use proptest::test_runner::TestRunner;
     let mut runner = TestRunner::deterministic();
     let strategy = spec(200);
-    let (mut ok, mut total, mut culled, mut merged) = (0, 0, 0, 0);
+    let (mut ok, mut total, mut pruned, mut merged) = (0, 0, 0, 0);
     for _ in 0..64 {
         let Ok(tree) = strategy.new_tree(&mut runner) else {
             continue;
@@ -1499,14 +1499,14 @@ fn the_generator_mostly_makes_graphs_that_compile() {
         total += 1;
         if let Ok(c) = built.graph.compile(&pick_profile(s.profile)) {
             ok += 1;
-            culled += usize::from(!c.plan.culled.is_empty());
+            pruned += usize::from(!c.plan.pruned.is_empty());
             merged += usize::from(c.plan.render_passes().any(|(_, rp)| rp.subpasses.len() > 1));
         }
     }
     assert_eq!(ok, total, "every non-chaos graph compiles");
     assert!(
-        culled > total / 4,
-        "culling exercised in {culled} of {total}"
+        pruned > total / 4,
+        "pruning exercised in {pruned} of {total}"
     );
     assert!(
         merged > total / 8,

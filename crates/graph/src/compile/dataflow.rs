@@ -69,7 +69,7 @@ pub(crate) fn trace_dataflow(
     for &e in exports {
         let r = &resources[e.index()];
         if last_writer[e.index()].is_none() && !r.has_initial_content() {
-            return Err(GraphError::ExportOfCulledResource {
+            return Err(GraphError::ExportOfUnwrittenResource {
                 resource: r.name.clone(),
             });
         }

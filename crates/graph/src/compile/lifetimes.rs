@@ -162,7 +162,7 @@ pub(crate) fn content_kept_at_end(
         if kept[r] || decl.desc.image().is_none() || !decl.has_initial_content() {
             continue;
         }
-        // The last declared writer tells, unless it was culled (an earlier one may survive).
+        // The last declared writer tells, unless it was pruned (an earlier one may survive).
         match dataflow.last_writer[r] {
             None => kept[r] = true,
             Some(w) if alive.get(w.index()).copied().unwrap_or(false) => {}

@@ -559,7 +559,7 @@ mod tests {
             "{written}"
         );
 
-        // A later writer that is culled changes nothing: what survives decides.
+        // A later writer that is pruned changes nothing: what survives decides.
         for survivor_writes in [false, true] {
             let mut g = GraphBuilder::new();
             let baked = g.import_image(
@@ -592,7 +592,7 @@ mod tests {
                 .depth_stencil(baked)
                 .color(unread);
             let plan = compile(g, &tiler());
-            assert_eq!(plan.culled.len(), 1, "{plan}");
+            assert_eq!(plan.pruned.len(), 1, "{plan}");
             let expected = if survivor_writes {
                 StoreOp::DontCare
             } else {

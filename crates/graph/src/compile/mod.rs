@@ -33,8 +33,8 @@ use tilegraph_profile::{Architecture, Profile};
 use crate::declare::{GraphBuilder, PassId, ResourceDecl, ResourceDesc, ResourceId};
 use crate::error::GraphError;
 use crate::plan::{
-    AliasLifetime, CulledPass, MemoryClass, MemoryNeed, MemoryRequirements, Plan, PlanResource,
-    PlannedPass, Residency, Step, StepIndex, StepRange, SubpassIndex, TrafficModel,
+    AliasLifetime, MemoryClass, MemoryNeed, MemoryRequirements, Plan, PlanResource, PlannedPass,
+    PrunedPass, Residency, Step, StepIndex, StepRange, SubpassIndex, TrafficModel,
     ESTIMATED_ALIGNMENT_BYTES,
 };
 
@@ -47,7 +47,7 @@ use prune::Pruning;
 #[derive(Debug, Clone)]
 pub struct CompiledGraph<P> {
     pub plan: Plan,
-    /// Indexed by `PassId`; `None` for culled passes (their payloads are dropped) and for
+    /// Indexed by `PassId`; `None` for pruned passes (their payloads are dropped) and for
     /// payloads already taken.
     payloads: Vec<Option<P>>,
 }
@@ -167,7 +167,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     } = plan_barriers(work, accesses, &sync, &aliasing);
 
     let lifetimes = step_lifetimes(&steps, accesses, n_resources);
-    let (planned, culled, payloads) = planned_passes(&steps, &order, passes, payloads, pruning);
+    let (planned, pruned, payloads) = planned_passes(&steps, &order, passes, payloads, pruning);
     let plan_resources: Vec<PlanResource> = resources
         .into_iter()
         .enumerate()
@@ -196,7 +196,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             profile: profile.name.clone(),
             tile_budget_bytes_per_px: tile_budget_bytes_per_px(profile),
             passes: planned,
-            culled,
+            pruned,
             resources: plan_resources,
             steps,
             aliasing,
@@ -235,7 +235,7 @@ fn planned_passes<P>(
     mut passes: Vec<crate::declare::PassDecl>,
     payloads: Vec<P>,
     pruning: Pruning,
-) -> (Vec<PlannedPass>, Vec<CulledPass>, Vec<Option<P>>) {
+) -> (Vec<PlannedPass>, Vec<PrunedPass>, Vec<Option<P>>) {
     let mut planned: Vec<PlannedPass> = Vec::with_capacity(order.len());
     for &id in order {
         let Some(d) = passes.get_mut(id.index()) else {
@@ -255,15 +255,15 @@ fn planned_passes<P>(
     }
     locate_passes(steps, &mut planned);
     let mut payloads: Vec<Option<P>> = payloads.into_iter().map(Some).collect();
-    let mut culled = Vec::with_capacity(pruning.culled.len());
-    for (id, reason) in pruning.culled {
+    let mut pruned = Vec::with_capacity(pruning.pruned.len());
+    for (id, reason) in pruning.pruned {
         if let Some(slot) = payloads.get_mut(id.index()) {
             *slot = None;
         }
         let Some(d) = passes.get_mut(id.index()) else {
             continue;
         };
-        culled.push(CulledPass {
+        pruned.push(PrunedPass {
             id,
             name: std::mem::take(&mut d.name),
             kind: d.kind,
@@ -273,7 +273,7 @@ fn planned_passes<P>(
             reason,
         });
     }
-    (planned, culled, payloads)
+    (planned, pruned, payloads)
 }
 
 /// Sets each planned pass's step and subpass from the steps.

@@ -6,7 +6,7 @@
 //! requires: a pass whose output nobody reads costs nothing.
 
 use crate::declare::{PassDecl, PassId, ResourceId, Retention};
-use crate::plan::CullReason;
+use crate::plan::PruneReason;
 
 use super::access::PassAccesses;
 use super::dataflow::Dataflow;
@@ -15,8 +15,8 @@ use super::dataflow::Dataflow;
 pub(crate) struct Pruning {
     /// Per declared pass.
     pub alive: Vec<bool>,
-    /// Culled passes in declaration order.
-    pub culled: Vec<(PassId, CullReason)>,
+    /// Pruned passes in declaration order.
+    pub pruned: Vec<(PassId, PruneReason)>,
 }
 
 pub(crate) fn prune_unused_passes(
@@ -51,12 +51,12 @@ pub(crate) fn prune_unused_passes(
     }
 
     let dead = alive.iter().filter(|&&a| !a).count();
-    let mut culled = Vec::with_capacity(dead);
+    let mut pruned = Vec::with_capacity(dead);
     if dead == 0 {
-        return Pruning { alive, culled };
+        return Pruning { alive, pruned };
     }
-    // Consumers of culled passes are culled too (a kept consumer would have kept them): list,
-    // per culled producer, the culled passes that read it, as (producer, consumer) pairs.
+    // Consumers of pruned passes are pruned too (a kept consumer would have kept them): list,
+    // per pruned producer, the pruned passes that read it, as (producer, consumer) pairs.
     let mut consumed: Vec<(u32, u32)> = Vec::new();
     for q in (0..n).filter(|&q| !alive[q]) {
         for w in dataflow.producers_of(q) {
@@ -75,20 +75,20 @@ pub(crate) fn prune_unused_passes(
         }
         let writes = accesses.of(PassId(p as u32)).iter().any(|a| a.writes());
         let reason = if !writes {
-            CullReason::NoOutputs
+            PruneReason::NoOutputs
         } else if from == next {
-            CullReason::OutputsUnused
+            PruneReason::OutputsUnused
         } else {
-            CullReason::ConsumersCulled {
+            PruneReason::ConsumersPruned {
                 consumers: consumed[from..next]
                     .iter()
                     .map(|&(_, q)| PassId(q))
                     .collect(),
             }
         };
-        culled.push((PassId(p as u32), reason));
+        pruned.push((PassId(p as u32), reason));
     }
-    Pruning { alive, culled }
+    Pruning { alive, pruned }
 }
 
 #[cfg(test)]
@@ -96,15 +96,15 @@ mod tests {
     use crate::testing::*;
     use crate::*;
 
-    fn culled(plan: &Plan) -> Vec<(&str, &CullReason)> {
-        plan.culled
+    fn pruned(plan: &Plan) -> Vec<(&str, &PruneReason)> {
+        plan.pruned
             .iter()
             .map(|c| (c.name.as_str(), &c.reason))
             .collect()
     }
 
     #[test]
-    fn passes_whose_writes_reach_no_export_are_culled_with_the_reason() {
+    fn passes_whose_writes_reach_no_export_are_pruned_with_the_reason() {
         let mut g = GraphBuilder::new();
         let ssao = rgba8(&mut g, "ssao");
         let blurred = rgba8(&mut g, "ssao_blurred");
@@ -130,21 +130,21 @@ mod tests {
         let plan = compile(g, &tiler());
         assert_eq!(order(&plan), ["post"]);
         assert_eq!(
-            culled(&plan),
+            pruned(&plan),
             [
                 (
                     "ssao",
-                    &CullReason::ConsumersCulled {
+                    &PruneReason::ConsumersPruned {
                         consumers: vec![blur, PassId(2)]
                     }
                 ),
-                ("ssao_blur", &CullReason::OutputsUnused),
-                ("stats", &CullReason::NoOutputs),
-                ("debug", &CullReason::OutputsUnused),
+                ("ssao_blur", &PruneReason::OutputsUnused),
+                ("stats", &PruneReason::NoOutputs),
+                ("debug", &PruneReason::OutputsUnused),
             ]
         );
-        assert_eq!(plan.culled[0].id, ssao_pass);
-        // What culled passes alone used is not allocated.
+        assert_eq!(plan.pruned[0].id, ssao_pass);
+        // What pruned passes alone used is not allocated.
         for name in ["ssao", "ssao_blurred", "debug"] {
             let r = plan.resource_by_name(name).map(|r| (r.residency, r.memory));
             assert_eq!(r, Some((Residency::Unused, None)), "{name}");
@@ -152,7 +152,7 @@ mod tests {
     }
 
     #[test]
-    fn a_write_overwritten_before_anyone_reads_it_is_culled() {
+    fn a_write_overwritten_before_anyone_reads_it_is_pruned() {
         let mut g = GraphBuilder::new();
         let out = swapchain(&mut g);
         g.raster_pass("splash", PassClass::Other, ())
@@ -162,7 +162,7 @@ mod tests {
             .coverage(Coverage::Full);
         let plan = compile(g, &tiler());
         assert_eq!(order(&plan), ["post"]);
-        assert_eq!(culled(&plan), [("splash", &CullReason::OutputsUnused)]);
+        assert_eq!(pruned(&plan), [("splash", &PruneReason::OutputsUnused)]);
     }
 
     #[test]
@@ -174,7 +174,7 @@ mod tests {
         g.raster_pass("ui", PassClass::Post, ()).color(out);
         let plan = compile(g, &tiler());
         assert_eq!(order(&plan), ["scene", "ui"]);
-        assert!(plan.culled.is_empty());
+        assert!(plan.pruned.is_empty());
     }
 
     #[test]
@@ -196,7 +196,7 @@ mod tests {
     }
 
     #[test]
-    fn culled_payloads_are_dropped_and_the_rest_come_back_in_plan_order() {
+    fn pruned_payloads_are_dropped_and_the_rest_come_back_in_plan_order() {
         let mut g: GraphBuilder<&str> = GraphBuilder::new();
         let tmp = g.create_image("tmp", ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM));
         let out = g.import_image(

@@ -81,8 +81,8 @@ impl Plan {
         {
             return invalid("resource ids are not their indices");
         }
-        // Every declared pass is planned or culled, so ids stay below their total.
-        let declared = self.passes.len() + self.culled.len();
+        // Every declared pass is planned or pruned, so ids stay below their total.
+        let declared = self.passes.len() + self.pruned.len();
         if self.passes.iter().any(|p| p.id.index() >= declared) {
             return invalid("a pass id is larger than the number of passes");
         }

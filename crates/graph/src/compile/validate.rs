@@ -878,7 +878,7 @@ mod tests {
         g.export(never);
         assert_eq!(
             compile_err(g, &tiler()),
-            GraphError::ExportOfCulledResource {
+            GraphError::ExportOfUnwrittenResource {
                 resource: "never_written".into()
             }
         );

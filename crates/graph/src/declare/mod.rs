@@ -61,10 +61,10 @@ pub enum Coverage {
     Full,
 }
 
-/// Whether culling may remove the pass when nothing in the graph reads what it writes.
+/// Whether pruning may remove the pass when nothing in the graph reads what it writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Retention {
-    CullIfUnused,
+    PruneIfUnused,
     /// The pass has effects outside the graph (occlusion queries into a query pool, timestamps)
     /// and always runs.
     Always,
@@ -316,7 +316,7 @@ impl<P> GraphBuilder<P> {
     }
 
     /// Marks a resource's final content as needed after the frame (presented image, history,
-    /// readback). Exports are what culling keeps alive.
+    /// readback). Exports are what pruning keeps alive.
     pub fn export(&mut self, resource: impl Into<ResourceId>) {
         let resource = resource.into();
         if !self.exports.contains(&resource) {
@@ -326,7 +326,7 @@ impl<P> GraphBuilder<P> {
 
     /// Orders `after` after `before` without a resource between them (effects outside the graph,
     /// such as a query pool written by one pass and copied by another). Ordering only: it does
-    /// not keep `before` from being culled.
+    /// not keep `before` from being pruned.
     pub fn add_dependency(&mut self, before: PassId, after: PassId) {
         self.dependencies.push((before, after));
     }
@@ -338,7 +338,7 @@ impl<P> GraphBuilder<P> {
             kind,
             class,
             coverage: Coverage::Partial,
-            retention: Retention::CullIfUnused,
+            retention: Retention::PruneIfUnused,
             render_area: None,
             uses: Vec::new(),
         });
@@ -403,7 +403,7 @@ macro_rules! common_pass_methods {
             self
         }
 
-        /// See [`Retention`]; the default is `CullIfUnused`.
+        /// See [`Retention`]; the default is `PruneIfUnused`.
         pub fn retention(&mut self, retention: Retention) -> &mut Self {
             if let Some(decl) = self.graph.pass_mut(self.pass) {
                 decl.retention = retention;

@@ -70,8 +70,8 @@ pub struct Plan {
     pub tile_budget_bytes_per_px: Option<u32>,
     /// Surviving passes in execution order.
     pub passes: Vec<PlannedPass>,
-    /// Culled passes in declaration order, with the reason.
-    pub culled: Vec<CulledPass>,
+    /// Pruned passes (nothing exported needs them) in declaration order, with the reason.
+    pub pruned: Vec<PrunedPass>,
     /// Every declared resource, indexed by [`ResourceId`].
     pub resources: Vec<PlanResource>,
     /// What the executor records, in order.
@@ -80,7 +80,7 @@ pub struct Plan {
     pub traffic: TrafficEstimate,
 }
 
-/// A pass that survived culling.
+/// A pass that survived pruning.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlannedPass {
     pub id: PassId,
@@ -98,24 +98,24 @@ pub struct PlannedPass {
 
 /// A pass removed because nothing needed what it writes.
 #[derive(Debug, Clone, PartialEq)]
-pub struct CulledPass {
+pub struct PrunedPass {
     pub id: PassId,
     pub name: String,
     pub kind: PassKind,
     pub class: PassClass,
     pub coverage: Coverage,
     pub uses: Vec<PassUse>,
-    pub reason: CullReason,
+    pub reason: PruneReason,
 }
 
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum CullReason {
+pub enum PruneReason {
     /// It writes no resource, so nothing can depend on it (and it is not `Retention::Always`).
     NoOutputs,
     /// Nothing reads what it writes before it is overwritten, and none of it is exported.
     OutputsUnused,
-    /// Only passes that were themselves culled read what it writes.
-    ConsumersCulled { consumers: Vec<PassId> },
+    /// Only passes that were themselves pruned read what it writes.
+    ConsumersPruned { consumers: Vec<PassId> },
 }
 
 /// How a resource's memory is provided.
