@@ -1,5 +1,6 @@
 //! Executing compiled plans on lavapipe, validation (with synchronization validation) on.
 
+use std::sync::Arc;
 use tilegraph_e2e::frames::{
     aliasing_frame, classic_mobile_frame, destroy_target, externals, target, visbuf_frame, Frame,
     Kit,
@@ -7,7 +8,8 @@ use tilegraph_e2e::frames::{
 use tilegraph_e2e::gpu;
 use tilegraph_graph::Residency;
 use tilegraph_vk::ash::vk;
-use tilegraph_vk::executor::Executor;
+
+use tilegraph_vk::executor::{Executor, Externals};
 use tilegraph_vk::readback::read_image;
 
 const W: u32 = 160;
@@ -41,7 +43,7 @@ fn run(
     let frame = make(&kit, W, H);
     let target_id = frame.target;
     let mut compiled = frame.graph.compile(g.profile()).unwrap();
-    let plan = compiled.plan.clone();
+    let plan = Arc::new(compiled.plan.clone());
     let (image, handle) = target(&g, W, H).unwrap();
     let ext = externals(target_id, &handle);
     let mut exec = Executor::new(&g).unwrap();
@@ -91,7 +93,7 @@ fn run(
             timings_ok,
             aliasing_used: stats.aliasing_used,
         },
-        plan,
+        Arc::unwrap_or_clone(plan),
     )
 }
 
@@ -240,7 +242,7 @@ fn a_predicate_without_conditional_rendering_is_a_typed_error() {
         .raster_pass("draw", PassClass::Opaque, ())
         .predicate(conditions)
         .color_clear(out, ClearColor::BLACK);
-    let plan = graph.compile(g.profile()).unwrap().plan;
+    let plan = Arc::new(graph.compile(g.profile()).unwrap().plan);
     let ext = externals(out, &handle);
     let mut exec = Executor::new(&g).unwrap();
     let err = exec
@@ -285,7 +287,7 @@ fn a_frame_that_fails_after_a_flush_is_given_up_cleanly() {
         .depth_stencil_read_only(depth)
         .retention(Retention::Always);
     let compiled = graph.compile(g.profile()).unwrap();
-    let plan = compiled.plan.clone();
+    let plan = Arc::new(compiled.plan.clone());
     assert!(
         plan.steps.iter().any(|s| matches!(s, Step::Flush(_))),
         "adreno-7xx flushes before the query render pass:\n{plan}"
@@ -338,7 +340,7 @@ fn an_owned_buffer_written_first_waits_for_earlier_frames() {
         .transfer_src(result)
         .transfer_dst(copy)
         .coverage(Coverage::Full);
-    let plan = graph.compile(g.profile()).unwrap().plan;
+    let plan = Arc::new(graph.compile(g.profile()).unwrap().plan);
     assert!(
         matches!(
             plan.steps.first(),
@@ -348,7 +350,7 @@ fn an_owned_buffer_written_first_waits_for_earlier_frames() {
     );
     let mut exec = Executor::new(&g).unwrap();
     for frame in 0..4u32 {
-        exec.execute(&g, &plan, &Default::default(), &mut |id, pc| {
+        exec.execute(&g, &plan, &Externals::new(), &mut |id, pc| {
             let (src, dst) = (pc.buffer(result)?, pc.buffer(copy)?);
             // SAFETY: recording command buffer, live buffers of the plan.
             unsafe {
@@ -401,7 +403,7 @@ fn an_external_image_unlike_its_declaration_is_a_typed_error() {
     graph
         .raster_pass("clear", PassClass::Opaque, ())
         .color_clear(out, ClearColor::BLACK);
-    let plan = graph.compile(g.profile()).unwrap().plan;
+    let plan = Arc::new(graph.compile(g.profile()).unwrap().plan);
     let mut exec = Executor::new(&g).unwrap();
     let err = exec
         .execute(&g, &plan, &externals(out, &handle), &mut |_, _| Ok(()))
@@ -421,7 +423,7 @@ fn framebuffers_of_external_views_are_forgotten_on_request() {
     let frame = classic_mobile_frame(&kit, W, H);
     let target_id = frame.target;
     let mut compiled = frame.graph.compile(g.profile()).unwrap();
-    let plan = compiled.plan.clone();
+    let plan = Arc::new(compiled.plan.clone());
     let mut exec = Executor::new(&g).unwrap();
     let mut run_frame = |exec: &mut Executor, handle: &tilegraph_vk::executor::ImageHandle| {
         exec.execute(
@@ -484,7 +486,7 @@ fn an_image_the_device_cannot_create_is_a_typed_error() {
         .compute_pass("bake", PassClass::Compute, ())
         .storage_write(lut)
         .coverage(Coverage::Full);
-    let plan = graph.compile(g.profile()).unwrap().plan;
+    let plan = Arc::new(graph.compile(g.profile()).unwrap().plan);
     let mut exec = Executor::new(&g).unwrap();
 
     // A plan that works, then the one that cannot be built, then the working one again: the
@@ -496,9 +498,9 @@ fn an_image_the_device_cannot_create_is_a_typed_error() {
         .compute_pass("count", PassClass::Compute, ())
         .storage_write(buffer)
         .coverage(Coverage::Full);
-    let ok_plan = ok_graph.compile(g.profile()).unwrap().plan;
+    let ok_plan = Arc::new(ok_graph.compile(g.profile()).unwrap().plan);
     let run =
-        |exec: &mut Executor, plan| exec.execute(&g, plan, &Default::default(), &mut |_, _| Ok(()));
+        |exec: &mut Executor, plan| exec.execute(&g, plan, &Externals::new(), &mut |_, _| Ok(()));
     run(&mut exec, &ok_plan).unwrap();
     let err = run(&mut exec, &plan).expect_err("no sRGB storage images");
     assert!(err.to_string().contains("\"lut\""), "{err}");
@@ -534,9 +536,9 @@ fn a_sampled_depth_stencil_image_has_a_depth_only_view() {
         .sampled(depth)
         .storage_write(ao)
         .coverage(Coverage::Full);
-    let plan = graph.compile(g.profile()).unwrap().plan;
+    let plan = Arc::new(graph.compile(g.profile()).unwrap().plan);
     let mut exec = Executor::new(&g).unwrap();
-    exec.execute(&g, &plan, &Default::default(), &mut |_, _| Ok(()))
+    exec.execute(&g, &plan, &Externals::new(), &mut |_, _| Ok(()))
         .unwrap();
     exec.finish(&g).unwrap();
     let h = exec
@@ -572,7 +574,7 @@ fn render_passes_rebuilt_for_another_plan_get_new_serials() {
         };
         let target_id = frame.target;
         let mut compiled = frame.graph.compile(g.profile()).unwrap();
-        let plan = compiled.plan.clone();
+        let plan = Arc::new(compiled.plan.clone());
         let mut used = Vec::new();
         let stats = exec
             .execute(&g, &plan, &externals(target_id, &handle), &mut |id, pc| {
@@ -644,7 +646,7 @@ fn a_loaded_attachment_the_render_pass_only_reads_is_synchronized_with_its_store
             .raster_pass("read", PassClass::Post, ())
             .input(x)
             .color_clear(out, ClearColor::BLACK);
-        let plan = graph.compile(g.profile()).unwrap().plan;
+        let plan = Arc::new(graph.compile(g.profile()).unwrap().plan);
         let before_render_pass = plan.steps.iter().find_map(|s| match s {
             tilegraph_graph::Step::Barriers(b) => b.images.iter().find(|i| {
                 i.resource == x.into() && i.new_layout == tilegraph_graph::Layout::ShaderReadOnly

@@ -13,7 +13,7 @@ use tilegraph_graph::{
     ResourceState,
 };
 use tilegraph_vk::ash::vk;
-use tilegraph_vk::executor::{External, ImageHandle, PassContext};
+use tilegraph_vk::executor::{External, Externals, ImageHandle, PassContext};
 use tilegraph_vk::pipeline::{
     allocate_set, create_graphics_pipeline, create_pipeline_layout, create_set_layout, Blend,
     DepthState, GraphicsDesc, RenderTarget, Stage,
@@ -626,7 +626,7 @@ pub fn aliasing_frame(kit: &Rc<RefCell<Kit>>, w: u32, h: u32) -> Frame {
     Frame { graph: g, target }
 }
 
-/// Externals map for a frame with one imported target.
-pub fn externals(target: ImageId, handle: &ImageHandle) -> HashMap<ResourceId, External> {
-    HashMap::from([(target.0, External::Image(handle.clone()))])
+/// Externals for a frame with one imported target.
+pub fn externals(target: ImageId, handle: &ImageHandle) -> Externals {
+    Externals::from_iter([(target, External::Image(handle.clone()))])
 }

@@ -14,6 +14,7 @@
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::rc::Rc;
+use std::sync::Arc;
 
 use ash::vk;
 use tilegraph_cull::NpotMode;
@@ -26,7 +27,7 @@ use tilegraph_graph::{
 use tilegraph_profile::{MemoryUse, Profile};
 use tilegraph_scene::{Camera, CameraFrame, DepthConvention, Scene};
 use tilegraph_vk::ash;
-use tilegraph_vk::executor::{Executor, External, FrameStats, ImageHandle, PassContext};
+use tilegraph_vk::executor::{Executor, External, Externals, FrameStats, ImageHandle, PassContext};
 use tilegraph_vk::first_frame::RgbaImage;
 use tilegraph_vk::pipeline::{
     allocate_set, create_graphics_pipeline, create_pipeline_layout, create_set_layout, Blend,
@@ -126,7 +127,7 @@ impl Default for RenderOptions {
 #[derive(Debug, Clone)]
 pub struct FrameReport {
     pub setup: FrameSetup,
-    pub plan: Plan,
+    pub plan: Arc<Plan>,
     pub stats: FrameStats,
     pub draws: usize,
     pub triangles: u64,
@@ -1122,6 +1123,7 @@ impl SceneRenderer {
         }
         let (graph, target_id) = self.declare(&setup, &profile, m.depth, self.frames == 0);
         let (plan, payloads) = graph.compile(&profile)?.into_parts();
+        let plan = Arc::new(plan);
         let mut payloads: HashMap<_, _> = payloads.into_iter().collect();
         let externals = self.externals(target_id, &plan);
         let stats =
@@ -1150,12 +1152,8 @@ impl SceneRenderer {
     }
 
     /// Physical resources of the imported ones: the target and the culling buffers.
-    fn externals(
-        &self,
-        target: ImageId,
-        plan: &Plan,
-    ) -> HashMap<tilegraph_graph::ResourceId, External> {
-        let mut ext = HashMap::from([(target.0, External::Image(self.target_handle.clone()))]);
+    fn externals(&self, target: ImageId, plan: &Plan) -> Externals {
+        let mut ext = Externals::from_iter([(target, External::Image(self.target_handle.clone()))]);
         if let (Some((_, h)), Some(r)) = (&self.ids_target, plan.resource_by_name("visbuf-id")) {
             ext.insert(r.id, External::Image(h.clone()));
         }

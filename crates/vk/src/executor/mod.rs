@@ -1,0 +1,444 @@
+//! Executing a compiled [`Plan`], frame after frame:
+//!
+//! - `resources.rs`: the plan's physical resources (aliased where the plan allows, lazily
+//!   allocated where it makes attachments transient) and the caller's [`Externals`];
+//! - `render_pass.rs`: `VkRenderPass2` objects and framebuffers, cached per step;
+//! - `recorder.rs`: one frame's recording, step by step, each pass handed to its payload;
+//! - `sync.rs`: what frames in flight wait for, since they share the physical resources.
+//!
+//! A steady-state frame allocates nothing: resources, render passes and framebuffers are cached
+//! while the plan stays the same, and the recorder's lists are reused.
+
+mod recorder;
+mod render_pass;
+mod resources;
+mod sync;
+
+use std::sync::Arc;
+
+use ash::vk;
+use tilegraph_graph::Plan;
+
+pub use recorder::{PassContext, RecordFn, RecordPass};
+pub use render_pass::RenderPassRef;
+pub use resources::{aspect_of, BufferHandle, External, Externals, ImageHandle, Resources};
+
+use recorder::{FrameRecorder, RecordScratch};
+use render_pass::RenderPasses;
+use resources::build_resources;
+
+use crate::error::VkError;
+use crate::frames::{FrameRing, DEFAULT_FRAMES_IN_FLIGHT};
+use crate::queries::{FrameTimings, PassMedian, QueryRing, TimingHistory};
+use crate::{Context, Feature};
+
+/// Statistics of one executed frame.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct FrameStats {
+    pub frame: u64,
+    /// Device-memory allocations made while executing this frame (0 in steady state).
+    pub allocations: u64,
+    pub render_passes: u32,
+    pub subpasses: u32,
+    pub barriers: u32,
+    pub flushes: u32,
+    /// Whether the resource cache was (re)built this frame.
+    pub rebuilt: bool,
+    /// Whether aliased resources share memory (false when real requirements forced dedicated
+    /// allocations, see [`Resources`]).
+    pub aliasing_used: bool,
+}
+
+/// Executes plans frame after frame.
+pub struct Executor {
+    frames: FrameRing,
+    queries: QueryRing,
+    history: TimingHistory,
+    latest: Option<FrameTimings>,
+    /// The plan as last given (its physical resources are `resources`).
+    plan: Option<Arc<Plan>>,
+    resources: Option<Resources>,
+    render_passes: RenderPasses,
+    scratch: RecordScratch,
+    /// Every render pass created since the last rebuild has a serial at least this.
+    render_pass_serial_floor: u64,
+    /// Frame number of the first frame recorded with the current resources.
+    resources_since: u64,
+    /// Render passes recorded by the last frame (for tests and reports).
+    pub last_stats: FrameStats,
+}
+
+impl Executor {
+    pub fn new(ctx: &Context) -> Result<Self, VkError> {
+        Self::with_frames(ctx, DEFAULT_FRAMES_IN_FLIGHT, 256)
+    }
+
+    /// `frames_in_flight` frames, each timing up to `max_passes` passes.
+    pub fn with_frames(
+        ctx: &Context,
+        frames_in_flight: usize,
+        max_passes: u32,
+    ) -> Result<Self, VkError> {
+        // Barriers, timestamps and the subpass dependencies of every render pass are
+        // synchronization2 structures: without the feature they would be invalid usage.
+        if !ctx.has_feature(Feature::Synchronization2) {
+            return Err(VkError::MissingRequired {
+                device: ctx.physical.identity.device_name.clone(),
+                what: "feature (not enabled; see FeatureRequest::executor)",
+                missing: Feature::Synchronization2.to_string(),
+            });
+        }
+        let mut frames = FrameRing::new(ctx, frames_in_flight)?;
+        let queries = match QueryRing::new(ctx, frames.frames_in_flight(), max_passes) {
+            Ok(q) => q,
+            Err(e) => {
+                frames.destroy(ctx);
+                return Err(e);
+            }
+        };
+        Ok(Executor {
+            frames,
+            queries,
+            history: TimingHistory::default(),
+            latest: None,
+            plan: None,
+            resources: None,
+            render_passes: RenderPasses::default(),
+            scratch: RecordScratch::default(),
+            render_pass_serial_floor: render_pass::next_serial(),
+            resources_since: 0,
+            last_stats: FrameStats::default(),
+        })
+    }
+
+    pub fn frames_in_flight(&self) -> usize {
+        self.frames.frames_in_flight()
+    }
+
+    /// Command buffers allocated over all frame slots: one per slot, plus one per flush step of
+    /// the plan (reused every frame).
+    pub fn command_buffer_count(&self) -> usize {
+        self.frames.command_buffer_count()
+    }
+
+    /// The slot the next [`Executor::execute`] will record into (per-frame buffers of passes
+    /// are indexed by it; the executor guarantees the slot's previous frame has completed by
+    /// the time recording starts).
+    pub fn next_slot(&self) -> usize {
+        self.frames.next_slot()
+    }
+
+    /// Waits until the next frame's slot is free and returns it: per-frame buffers of that slot
+    /// may be written now, before [`Executor::execute`] records the frame.
+    pub fn acquire_slot(&mut self, ctx: &Context) -> Result<usize, VkError> {
+        self.frames.wait_next(ctx)
+    }
+
+    /// Per-pass median GPU times over every frame collected so far.
+    pub fn medians(&self) -> Vec<PassMedian> {
+        self.history.medians()
+    }
+
+    /// The most recent frame whose timings were collected.
+    pub fn latest_timings(&self) -> Option<&FrameTimings> {
+        self.latest.as_ref()
+    }
+
+    pub fn history(&self) -> &TimingHistory {
+        &self.history
+    }
+
+    /// Physical resources of the current plan (e.g. to read back an exported image).
+    pub fn resources(&self) -> Option<&Resources> {
+        self.resources.as_ref()
+    }
+
+    /// Records and submits one frame of `plan`. `record(pass_id, ctx)` records each pass;
+    /// `externals` gives the physical resources of the plan's imported resources.
+    ///
+    /// The physical resources, render passes and framebuffers are built for a plan once and
+    /// reused while the plan stays the same: the same `Arc` (a caller that reuses its compiled
+    /// plan pays one pointer comparison per frame), or an equal plan compiled anew. A different
+    /// plan waits for the frames in flight and rebuilds.
+    pub fn execute(
+        &mut self,
+        ctx: &Context,
+        plan: &Arc<Plan>,
+        externals: &Externals,
+        record: &mut RecordFn<'_>,
+    ) -> Result<FrameStats, VkError> {
+        let allocations_before = ctx.allocation_count();
+        let mut stats = FrameStats::default();
+        match &self.plan {
+            Some(current) if Arc::ptr_eq(current, plan) => {}
+            Some(current) if **current == **plan => self.plan = Some(Arc::clone(plan)),
+            _ => {
+                self.rebuild(ctx, plan)?;
+                stats.rebuilt = true;
+            }
+        }
+        let mut token = self.frames.begin(ctx)?;
+        if token.completed_frame.is_some() {
+            if let Some(t) = self.queries.collect(ctx, token.slot)? {
+                self.history.record(&t);
+                self.latest = Some(t);
+            }
+        }
+        self.queries
+            .begin_frame(ctx, token.cb, token.slot, token.frame)?;
+        let result = match self.resources.as_ref() {
+            Some(resources) => {
+                // The placed plan: same passes and render passes, barriers for the real layout.
+                let placed = resources.placed().unwrap_or(plan);
+                // Resources created by the graph were last touched by an earlier frame (same
+                // memory); the first frame after a rebuild has no earlier user.
+                self.scratch
+                    .first_uses
+                    .begin(placed.resources.len(), token.frame > self.resources_since);
+                FrameRecorder {
+                    ctx,
+                    plan: placed,
+                    resources,
+                    externals,
+                    frames: &mut self.frames,
+                    queries: &mut self.queries,
+                    render_passes: &mut self.render_passes,
+                    scratch: &mut self.scratch,
+                    token: &mut token,
+                    stats: &mut stats,
+                    record,
+                }
+                .record_steps()
+            }
+            None => Err(VkError::Invalid {
+                what: "executor".into(),
+                reason: "no resources".into(),
+            }),
+        };
+        // After a recording error nothing more is submitted. The command buffer may be inside a
+        // render pass, so it is not ended: the pool reset at the slot's next use takes it back
+        // from the recording state. Work already flushed this frame is tracked by the fence.
+        if let Err(e) = result {
+            if let Err(gave_up) = self.frames.abandon(ctx, &token) {
+                log::error!("giving up the frame after \"{e}\": {gave_up}");
+            }
+            return Err(e);
+        }
+        self.frames.submit(ctx, token)?;
+        stats.frame = token.frame;
+        stats.allocations = ctx.allocation_count() - allocations_before;
+        stats.aliasing_used = self.resources.as_ref().is_some_and(|r| r.aliasing_used());
+        self.last_stats = stats.clone();
+        Ok(stats)
+    }
+
+    /// A different plan: waits for every frame in flight, then builds its resources.
+    fn rebuild(&mut self, ctx: &Context, plan: &Arc<Plan>) -> Result<(), VkError> {
+        self.collect_all(ctx)?;
+        if let Some(old) = self.resources.take() {
+            old.destroy(ctx);
+        }
+        std::mem::take(&mut self.render_passes).destroy(ctx);
+        self.render_pass_serial_floor = render_pass::next_serial();
+        // No plan until the new one is built: if building fails, the next call rebuilds
+        // (whichever plan it brings) instead of finding no resources for the old one.
+        self.plan = None;
+        self.resources = Some(build_resources(ctx, plan)?);
+        self.plan = Some(Arc::clone(plan));
+        self.resources_since = self.frames.next_frame();
+        Ok(())
+    }
+
+    fn collect_all(&mut self, ctx: &Context) -> Result<(), VkError> {
+        let done = self.frames.wait_all(ctx)?;
+        let mut frames: Vec<u64> = done;
+        frames.sort_unstable();
+        for f in frames {
+            if let Some(slot) = self.frames.slot_of(f) {
+                if let Some(t) = self.queries.collect(ctx, slot)? {
+                    self.history.record(&t);
+                    self.latest = Some(t);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Waits for every frame in flight and collects its timings (call before reading results
+    /// that the last frame wrote, or before reporting medians).
+    pub fn finish(&mut self, ctx: &Context) -> Result<(), VkError> {
+        self.collect_all(ctx)
+    }
+
+    /// Forgets every framebuffer made with an image view the caller handed in. For a recreated
+    /// swapchain: call [`Executor::finish`] first (frames in flight may still use the old
+    /// views), destroy the old images and views, then call this before the next `execute`: the
+    /// driver may give a new view the handle of a destroyed one, and a framebuffer cached under
+    /// that handle would still reference the destroyed view.
+    pub fn forget_external_views(&mut self, ctx: &Context) -> Result<(), VkError> {
+        self.collect_all(ctx)?;
+        let owned: Vec<vk::ImageView> = self
+            .resources
+            .as_ref()
+            .map(|r| r.owned_views().collect())
+            .unwrap_or_default();
+        // No frame is in flight (collected above).
+        self.render_passes
+            .retain_framebuffers(ctx, |v| owned.contains(&v));
+        Ok(())
+    }
+
+    /// Render passes of the current plan have serials of at least this
+    /// ([`RenderPassRef::serial`]); pipelines cached for lower serials belong to render passes
+    /// already destroyed, and no frame in flight uses them (the executor waited for every frame
+    /// before it rebuilt): they may be destroyed.
+    pub fn render_pass_serial_floor(&self) -> u64 {
+        self.render_pass_serial_floor
+    }
+
+    /// Framebuffers cached for the current plan.
+    pub fn framebuffer_count(&self) -> usize {
+        self.render_passes.framebuffer_count()
+    }
+
+    /// Waits for the GPU and frees everything.
+    pub fn destroy(mut self, ctx: &Context) {
+        if let Err(e) = self.frames.wait_all(ctx) {
+            log::error!("waiting for frames at teardown: {e}");
+        }
+        if let Some(r) = self.resources.take() {
+            r.destroy(ctx);
+        }
+        std::mem::take(&mut self.render_passes).destroy(ctx);
+        self.queries.destroy(ctx);
+        self.frames.destroy(ctx);
+    }
+}
+
+#[cfg(test)]
+mod flag_tests {
+    //! The executor hands the graph's flag bits to Vulkan unchanged (`from_raw(bits())`): every
+    //! graph flag must have Vulkan's value.
+    use ash::vk;
+    use tilegraph_graph::{AccessFlags, BufferUsage, ImageUsage, PipelineStages};
+
+    #[test]
+    fn graph_flags_have_vulkan_values() {
+        type S = vk::PipelineStageFlags2;
+        let stages = [
+            (PipelineStages::TOP_OF_PIPE, S::TOP_OF_PIPE),
+            (PipelineStages::DRAW_INDIRECT, S::DRAW_INDIRECT),
+            (PipelineStages::VERTEX_INPUT, S::VERTEX_INPUT),
+            (PipelineStages::VERTEX_SHADER, S::VERTEX_SHADER),
+            (PipelineStages::FRAGMENT_SHADER, S::FRAGMENT_SHADER),
+            (
+                PipelineStages::EARLY_FRAGMENT_TESTS,
+                S::EARLY_FRAGMENT_TESTS,
+            ),
+            (PipelineStages::LATE_FRAGMENT_TESTS, S::LATE_FRAGMENT_TESTS),
+            (
+                PipelineStages::COLOR_ATTACHMENT_OUTPUT,
+                S::COLOR_ATTACHMENT_OUTPUT,
+            ),
+            (PipelineStages::COMPUTE_SHADER, S::COMPUTE_SHADER),
+            (PipelineStages::ALL_TRANSFER, S::ALL_TRANSFER),
+            (PipelineStages::BOTTOM_OF_PIPE, S::BOTTOM_OF_PIPE),
+            (PipelineStages::HOST, S::HOST),
+            (PipelineStages::ALL_GRAPHICS, S::ALL_GRAPHICS),
+            (PipelineStages::ALL_COMMANDS, S::ALL_COMMANDS),
+            (
+                PipelineStages::CONDITIONAL_RENDERING,
+                S::CONDITIONAL_RENDERING_EXT,
+            ),
+            (PipelineStages::COPY, S::COPY),
+            (PipelineStages::RESOLVE, S::RESOLVE),
+            (PipelineStages::BLIT, S::BLIT),
+            (PipelineStages::CLEAR, S::CLEAR),
+            (PipelineStages::INDEX_INPUT, S::INDEX_INPUT),
+            (
+                PipelineStages::VERTEX_ATTRIBUTE_INPUT,
+                S::VERTEX_ATTRIBUTE_INPUT,
+            ),
+            (
+                PipelineStages::PRE_RASTERIZATION_SHADERS,
+                S::PRE_RASTERIZATION_SHADERS,
+            ),
+        ];
+        for (graph, vulkan) in stages {
+            assert_eq!(graph.bits(), vulkan.as_raw(), "{vulkan:?}");
+        }
+        type A = vk::AccessFlags2;
+        let access = [
+            (AccessFlags::INDIRECT_COMMAND_READ, A::INDIRECT_COMMAND_READ),
+            (AccessFlags::INDEX_READ, A::INDEX_READ),
+            (AccessFlags::VERTEX_ATTRIBUTE_READ, A::VERTEX_ATTRIBUTE_READ),
+            (AccessFlags::UNIFORM_READ, A::UNIFORM_READ),
+            (AccessFlags::INPUT_ATTACHMENT_READ, A::INPUT_ATTACHMENT_READ),
+            (AccessFlags::SHADER_READ, A::SHADER_READ),
+            (AccessFlags::SHADER_WRITE, A::SHADER_WRITE),
+            (AccessFlags::COLOR_ATTACHMENT_READ, A::COLOR_ATTACHMENT_READ),
+            (
+                AccessFlags::COLOR_ATTACHMENT_WRITE,
+                A::COLOR_ATTACHMENT_WRITE,
+            ),
+            (
+                AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ,
+                A::DEPTH_STENCIL_ATTACHMENT_READ,
+            ),
+            (
+                AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                A::DEPTH_STENCIL_ATTACHMENT_WRITE,
+            ),
+            (AccessFlags::TRANSFER_READ, A::TRANSFER_READ),
+            (AccessFlags::TRANSFER_WRITE, A::TRANSFER_WRITE),
+            (AccessFlags::HOST_READ, A::HOST_READ),
+            (AccessFlags::HOST_WRITE, A::HOST_WRITE),
+            (AccessFlags::MEMORY_READ, A::MEMORY_READ),
+            (AccessFlags::MEMORY_WRITE, A::MEMORY_WRITE),
+            (
+                AccessFlags::CONDITIONAL_RENDERING_READ,
+                A::CONDITIONAL_RENDERING_READ_EXT,
+            ),
+            (AccessFlags::SHADER_SAMPLED_READ, A::SHADER_SAMPLED_READ),
+            (AccessFlags::SHADER_STORAGE_READ, A::SHADER_STORAGE_READ),
+            (AccessFlags::SHADER_STORAGE_WRITE, A::SHADER_STORAGE_WRITE),
+        ];
+        for (graph, vulkan) in access {
+            assert_eq!(graph.bits(), vulkan.as_raw(), "{vulkan:?}");
+        }
+        type B = vk::BufferUsageFlags;
+        let buffers = [
+            (BufferUsage::TRANSFER_SRC, B::TRANSFER_SRC),
+            (BufferUsage::TRANSFER_DST, B::TRANSFER_DST),
+            (BufferUsage::UNIFORM_BUFFER, B::UNIFORM_BUFFER),
+            (BufferUsage::STORAGE_BUFFER, B::STORAGE_BUFFER),
+            (BufferUsage::INDEX_BUFFER, B::INDEX_BUFFER),
+            (BufferUsage::VERTEX_BUFFER, B::VERTEX_BUFFER),
+            (BufferUsage::INDIRECT_BUFFER, B::INDIRECT_BUFFER),
+            (
+                BufferUsage::CONDITIONAL_RENDERING,
+                B::CONDITIONAL_RENDERING_EXT,
+            ),
+        ];
+        for (graph, vulkan) in buffers {
+            assert_eq!(graph.bits(), vulkan.as_raw(), "{vulkan:?}");
+        }
+        type I = vk::ImageUsageFlags;
+        let images = [
+            (ImageUsage::TRANSFER_SRC, I::TRANSFER_SRC),
+            (ImageUsage::TRANSFER_DST, I::TRANSFER_DST),
+            (ImageUsage::SAMPLED, I::SAMPLED),
+            (ImageUsage::STORAGE, I::STORAGE),
+            (ImageUsage::COLOR_ATTACHMENT, I::COLOR_ATTACHMENT),
+            (
+                ImageUsage::DEPTH_STENCIL_ATTACHMENT,
+                I::DEPTH_STENCIL_ATTACHMENT,
+            ),
+            (ImageUsage::TRANSIENT_ATTACHMENT, I::TRANSIENT_ATTACHMENT),
+            (ImageUsage::INPUT_ATTACHMENT, I::INPUT_ATTACHMENT),
+        ];
+        for (graph, vulkan) in images {
+            assert_eq!(graph.bits(), vulkan.as_raw(), "{vulkan:?}");
+        }
+    }
+}

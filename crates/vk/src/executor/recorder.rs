@@ -1,0 +1,409 @@
+//! Recording one frame of a plan: a [`FrameRecorder`] carries the context, the placed plan,
+//! its physical resources, the caller's externals and the frame's command buffer through the
+//! plan's steps — barrier batches as one `vkCmdPipelineBarrier2` each, render passes with their
+//! subpasses, compute and transfer passes, flushes — and hands each pass to its payload with a
+//! [`PassContext`], wrapped in a debug label and a pair of timestamps. Scratch lists live in
+//! [`RecordScratch`], kept by the executor from frame to frame: a steady frame allocates
+//! nothing here.
+
+use ash::vk;
+use tilegraph_graph::{Attachment, BarrierBatch, PassId, Plan, RenderPass, ResourceId, Step};
+
+use super::render_pass::{clear_value, RenderPassRef, RenderPasses};
+use super::resources::{BufferHandle, External, Externals, ImageHandle, Resources};
+use super::sync::{buffer_wait, FirstUses};
+use super::FrameStats;
+use crate::error::VkError;
+use crate::frames::{FrameRing, FrameToken};
+use crate::queries::QueryRing;
+use crate::Context;
+
+/// What a pass's payload gets to record with.
+pub struct PassContext<'a> {
+    pub ctx: &'a Context,
+    pub cb: vk::CommandBuffer,
+    pub pass: PassId,
+    pub pass_name: &'a str,
+    /// Frame-in-flight slot: index per-frame buffers with it.
+    pub frame_slot: usize,
+    pub frame: u64,
+    /// The render pass and subpass this pass records into (raster passes), for pipeline creation.
+    pub render_pass: Option<RenderPassRef>,
+    pub render_area: vk::Extent2D,
+    resources: &'a Resources,
+    externals: &'a Externals,
+}
+
+impl PassContext<'_> {
+    pub fn image(&self, id: impl Into<ResourceId>) -> Result<&ImageHandle, VkError> {
+        let id = id.into();
+        match self.externals.get(id) {
+            Some(External::Image(i)) => Ok(i),
+            Some(External::Buffer(_)) => Err(wrong_kind(self.pass_name, id, "an image")),
+            None => self
+                .resources
+                .image(id)
+                .ok_or_else(|| missing(self.pass_name, id)),
+        }
+    }
+
+    pub fn buffer(&self, id: impl Into<ResourceId>) -> Result<BufferHandle, VkError> {
+        let id = id.into();
+        match self.externals.get(id) {
+            Some(External::Buffer(b)) => Ok(*b),
+            Some(External::Image(_)) => Err(wrong_kind(self.pass_name, id, "a buffer")),
+            None => self
+                .resources
+                .buffer(id)
+                .ok_or_else(|| missing(self.pass_name, id)),
+        }
+    }
+
+    /// Sets a viewport and scissor covering the render area (depth 0..1).
+    pub fn set_full_viewport(&self) {
+        let e = self.render_area;
+        let viewport = vk::Viewport {
+            x: 0.0,
+            y: 0.0,
+            width: e.width as f32,
+            height: e.height as f32,
+            min_depth: 0.0,
+            max_depth: 1.0,
+        };
+        let scissor = vk::Rect2D {
+            offset: vk::Offset2D::default(),
+            extent: e,
+        };
+        // SAFETY: recording command buffer; dynamic viewport/scissor pipelines.
+        unsafe {
+            self.ctx.device.cmd_set_viewport(self.cb, 0, &[viewport]);
+            self.ctx.device.cmd_set_scissor(self.cb, 0, &[scissor]);
+        }
+    }
+}
+
+/// An image handed in by the caller must be what the render pass was built for: same format,
+/// at least the render area (a framebuffer larger than its images is invalid usage).
+pub(super) fn check_attachment_image(
+    plan: &Plan,
+    pass: &str,
+    a: &Attachment,
+    h: &ImageHandle,
+    area: vk::Extent2D,
+) -> Result<(), VkError> {
+    let format = vk::Format::from_raw(a.format.vk_raw());
+    if h.format == format && h.extent.width >= area.width && h.extent.height >= area.height {
+        return Ok(());
+    }
+    let name = plan.resource(a.resource).map_or("?", |r| r.name.as_str());
+    Err(VkError::Invalid {
+        what: format!("render pass {pass:?}, attachment {name:?}"),
+        reason: format!(
+            "the image is {:?} {}x{}; the plan needs {:?} of at least {}x{}",
+            h.format, h.extent.width, h.extent.height, format, area.width, area.height
+        ),
+    })
+}
+
+fn missing(pass: &str, id: ResourceId) -> VkError {
+    VkError::Invalid {
+        what: format!("pass {pass:?}"),
+        reason: format!(
+            "resource #{} has no physical resource (not imported?)",
+            id.0
+        ),
+    }
+}
+
+fn wrong_kind(pass: &str, id: ResourceId, want: &str) -> VkError {
+    VkError::Invalid {
+        what: format!("pass {pass:?}"),
+        reason: format!("resource #{} is not {want}", id.0),
+    }
+}
+
+/// Records one pass. Implemented for closures; a frame's payloads are looked up by [`PassId`].
+pub trait RecordPass {
+    fn record(&mut self, pass: &mut PassContext<'_>) -> Result<(), VkError>;
+}
+
+impl<F: FnMut(&mut PassContext<'_>) -> Result<(), VkError>> RecordPass for F {
+    fn record(&mut self, pass: &mut PassContext<'_>) -> Result<(), VkError> {
+        self(pass)
+    }
+}
+
+/// The callback that records each pass of a frame (the payloads, looked up by [`PassId`]).
+pub type RecordFn<'a> = dyn FnMut(PassId, &mut PassContext<'_>) -> Result<(), VkError> + 'a;
+
+/// Lists reused by every frame's recording.
+#[derive(Default)]
+pub(super) struct RecordScratch {
+    images: Vec<vk::ImageMemoryBarrier2<'static>>,
+    buffers: Vec<vk::BufferMemoryBarrier2<'static>>,
+    waited: Vec<ResourceId>,
+    views: Vec<vk::ImageView>,
+    clears: Vec<vk::ClearValue>,
+    pub first_uses: FirstUses,
+}
+
+/// One frame's recording.
+pub(super) struct FrameRecorder<'a, 'r> {
+    pub ctx: &'a Context,
+    /// The placed plan (see `resources.rs`).
+    pub plan: &'a Plan,
+    pub resources: &'a Resources,
+    pub externals: &'a Externals,
+    pub frames: &'a mut FrameRing,
+    pub queries: &'a mut QueryRing,
+    pub render_passes: &'a mut RenderPasses,
+    pub scratch: &'a mut RecordScratch,
+    pub token: &'a mut FrameToken,
+    pub stats: &'a mut FrameStats,
+    pub record: &'a mut RecordFn<'r>,
+}
+
+impl FrameRecorder<'_, '_> {
+    /// Records every step of the plan.
+    pub fn record_steps(&mut self) -> Result<(), VkError> {
+        let plan = self.plan;
+        for (step_index, step) in plan.steps.iter().enumerate() {
+            match step {
+                Step::Barriers(batch) => {
+                    self.stats.barriers += batch.len() as u32;
+                    self.barriers(batch)?;
+                }
+                Step::Flush(_) => {
+                    self.stats.flushes += 1;
+                    self.frames.flush(self.ctx, self.token)?;
+                }
+                Step::Compute { pass } | Step::Transfer { pass } => {
+                    self.wait_for_earlier_frames(std::slice::from_ref(pass).iter().copied())?;
+                    self.scratch.first_uses.mark(plan, *pass);
+                    let name = plan.pass(*pass).map_or("?", |p| p.name.as_str());
+                    self.run_pass(*pass, name, None, vk::Extent2D::default())?;
+                }
+                Step::RenderPass(rp) => {
+                    self.stats.render_passes += 1;
+                    self.stats.subpasses += rp.subpasses.len() as u32;
+                    self.wait_for_earlier_frames(rp.subpasses.iter().map(|s| s.pass))?;
+                    for s in &rp.subpasses {
+                        self.scratch.first_uses.mark(plan, s.pass);
+                    }
+                    self.render_pass(step_index, rp)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn barriers(&mut self, batch: &BarrierBatch) -> Result<(), VkError> {
+        let (plan, externals, resources) = (self.plan, self.externals, self.resources);
+        let scratch = &mut *self.scratch;
+        scratch.images.clear();
+        scratch.buffers.clear();
+        for b in &batch.images {
+            let h = image_of(externals, resources, b.resource)
+                .ok_or_else(|| missing("barrier", b.resource))?;
+            let (src_s, src_a) =
+                scratch
+                    .first_uses
+                    .barrier_source(plan, b.resource, b.src_stages, b.src_access);
+            scratch.images.push(
+                vk::ImageMemoryBarrier2::default()
+                    .src_stage_mask(vk::PipelineStageFlags2::from_raw(src_s.bits()))
+                    .src_access_mask(vk::AccessFlags2::from_raw(src_a.bits()))
+                    .dst_stage_mask(vk::PipelineStageFlags2::from_raw(b.dst_stages.bits()))
+                    .dst_access_mask(vk::AccessFlags2::from_raw(b.dst_access.bits()))
+                    .old_layout(vk::ImageLayout::from_raw(b.old_layout.vk_raw()))
+                    .new_layout(vk::ImageLayout::from_raw(b.new_layout.vk_raw()))
+                    .image(h.raw)
+                    .subresource_range(vk::ImageSubresourceRange {
+                        aspect_mask: h.aspect,
+                        base_mip_level: 0,
+                        level_count: h.mip_levels,
+                        base_array_layer: 0,
+                        layer_count: 1,
+                    }),
+            );
+        }
+        for b in &batch.buffers {
+            let h = buffer_of(externals, resources, b.resource)
+                .ok_or_else(|| missing("barrier", b.resource))?;
+            let (src_s, src_a) =
+                scratch
+                    .first_uses
+                    .barrier_source(plan, b.resource, b.src_stages, b.src_access);
+            scratch.buffers.push(
+                vk::BufferMemoryBarrier2::default()
+                    .src_stage_mask(vk::PipelineStageFlags2::from_raw(src_s.bits()))
+                    .src_access_mask(vk::AccessFlags2::from_raw(src_a.bits()))
+                    .dst_stage_mask(vk::PipelineStageFlags2::from_raw(b.dst_stages.bits()))
+                    .dst_access_mask(vk::AccessFlags2::from_raw(b.dst_access.bits()))
+                    .buffer(h.raw)
+                    .size(vk::WHOLE_SIZE),
+            );
+        }
+        if scratch.images.is_empty() && scratch.buffers.is_empty() {
+            return Ok(());
+        }
+        let info = vk::DependencyInfo::default()
+            .image_memory_barriers(&scratch.images)
+            .buffer_memory_barriers(&scratch.buffers);
+        self.ctx.cmd_pipeline_barrier2(self.token.cb, &info)
+    }
+
+    /// Before a step: the graph-owned buffers its passes use that this frame has not touched
+    /// yet wait for all earlier work, when earlier frames used them (see `sync.rs`).
+    fn wait_for_earlier_frames(
+        &mut self,
+        passes: impl Iterator<Item = PassId>,
+    ) -> Result<(), VkError> {
+        let (plan, externals, resources) = (self.plan, self.externals, self.resources);
+        let scratch = &mut *self.scratch;
+        if !scratch.first_uses.reused() {
+            return Ok(());
+        }
+        scratch.buffers.clear();
+        scratch.waited.clear();
+        for u in passes.filter_map(|p| plan.pass(p)).flat_map(|p| &p.uses) {
+            let id = u.resource;
+            if scratch.waited.contains(&id) || !scratch.first_uses.is_fresh_owned(plan, id) {
+                continue;
+            }
+            let Some(h) = buffer_of(externals, resources, id) else {
+                continue;
+            };
+            scratch.waited.push(id);
+            scratch.buffers.push(buffer_wait(h.raw));
+        }
+        if scratch.buffers.is_empty() {
+            return Ok(());
+        }
+        let info = vk::DependencyInfo::default().buffer_memory_barriers(&scratch.buffers);
+        self.ctx.cmd_pipeline_barrier2(self.token.cb, &info)
+    }
+
+    fn render_pass(&mut self, step_index: usize, rp: &RenderPass) -> Result<(), VkError> {
+        let plan = self.plan;
+        let first_name = rp
+            .subpasses
+            .first()
+            .and_then(|s| plan.pass(s.pass))
+            .map_or("render pass", |p| p.name.as_str());
+        let (raw_rp, serial) = self
+            .render_passes
+            .render_pass(self.ctx, step_index, rp, first_name)?;
+        let extent = vk::Extent2D {
+            width: rp.render_area_px.width_px,
+            height: rp.render_area_px.height_px,
+        };
+        let (externals, resources) = (self.externals, self.resources);
+        let scratch = &mut *self.scratch;
+        scratch.views.clear();
+        for a in &rp.attachments {
+            let h = image_of(externals, resources, a.resource)
+                .ok_or_else(|| missing(first_name, a.resource))?;
+            check_attachment_image(plan, first_name, a, h, extent)?;
+            scratch.views.push(h.view);
+        }
+        let fb =
+            self.render_passes
+                .framebuffer(self.ctx, step_index, raw_rp, &scratch.views, extent)?;
+        scratch.clears.clear();
+        scratch
+            .clears
+            .extend(rp.attachments.iter().map(clear_value));
+        let begin = vk::RenderPassBeginInfo::default()
+            .render_pass(raw_rp)
+            .framebuffer(fb)
+            .render_area(vk::Rect2D {
+                offset: vk::Offset2D::default(),
+                extent,
+            })
+            .clear_values(&scratch.clears);
+        let sp_begin = vk::SubpassBeginInfo::default().contents(vk::SubpassContents::INLINE);
+        let cb = self.token.cb;
+        // SAFETY: recording, outside any render pass; the framebuffer matches the render pass.
+        unsafe {
+            self.ctx
+                .device
+                .cmd_begin_render_pass2(cb, &begin, &sp_begin)
+        };
+        for (i, s) in rp.subpasses.iter().enumerate() {
+            if i > 0 {
+                // SAFETY: inside the render pass, more subpasses remain.
+                unsafe {
+                    self.ctx
+                        .device
+                        .cmd_next_subpass2(cb, &sp_begin, &vk::SubpassEndInfo::default())
+                };
+            }
+            let name = plan.pass(s.pass).map_or("?", |p| p.name.as_str());
+            let target = RenderPassRef {
+                handle: raw_rp,
+                subpass: i as u32,
+                serial,
+            };
+            self.run_pass(s.pass, name, Some(target), extent)?;
+        }
+        // SAFETY: matches cmd_begin_render_pass2.
+        unsafe {
+            self.ctx
+                .device
+                .cmd_end_render_pass2(cb, &vk::SubpassEndInfo::default())
+        };
+        Ok(())
+    }
+
+    /// Records one pass through its payload, in a debug label and between two timestamps.
+    fn run_pass(
+        &mut self,
+        pass: PassId,
+        name: &str,
+        render_pass: Option<RenderPassRef>,
+        render_area: vk::Extent2D,
+    ) -> Result<(), VkError> {
+        let (ctx, cb, slot) = (self.ctx, self.token.cb, self.token.slot);
+        ctx.begin_label(cb, name);
+        let q = self.queries.begin_pass(ctx, cb, slot, name, true)?;
+        let mut pc = PassContext {
+            ctx,
+            cb,
+            pass,
+            pass_name: name,
+            frame_slot: slot,
+            frame: self.token.frame,
+            render_pass,
+            render_area,
+            resources: self.resources,
+            externals: self.externals,
+        };
+        let r = (self.record)(pass, &mut pc);
+        self.queries.end_pass(ctx, cb, slot, q)?;
+        ctx.end_label(cb);
+        r
+    }
+}
+
+/// The physical image of `id`: the caller's, or the graph's.
+fn image_of<'x>(
+    externals: &'x Externals,
+    resources: &'x Resources,
+    id: ResourceId,
+) -> Option<&'x ImageHandle> {
+    match externals.get(id) {
+        Some(External::Image(h)) => Some(h),
+        Some(External::Buffer(_)) => None,
+        None => resources.image(id),
+    }
+}
+
+/// The physical buffer of `id`: the caller's, or the graph's.
+fn buffer_of(externals: &Externals, resources: &Resources, id: ResourceId) -> Option<BufferHandle> {
+    match externals.get(id) {
+        Some(External::Buffer(b)) => Some(*b),
+        Some(External::Image(_)) => None,
+        None => resources.buffer(id),
+    }
+}
