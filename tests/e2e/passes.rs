@@ -10,7 +10,7 @@ use tilegraph_passes::{
 };
 use tilegraph_profile::SortOrder;
 use tilegraph_scene::Scene;
-use tilegraph_vk::first_frame::RgbaImage;
+use tilegraph_vk::readback::RgbaImage;
 
 const W: u32 = 160;
 const H: u32 = 90;

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use tilegraph_vk::first_frame::RgbaImage;
+use tilegraph_vk::readback::RgbaImage;
 
 pub fn write_png(path: &Path, img: &RgbaImage) -> Result<(), String> {
     if let Some(dir) = path.parent() {

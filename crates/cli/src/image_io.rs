@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use tilegraph_vk::first_frame::RgbaImage;
+use tilegraph_vk::readback::RgbaImage;
 
 use crate::CliError;
 

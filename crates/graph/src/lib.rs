@@ -16,6 +16,7 @@
 
 #![forbid(unsafe_code)]
 
+mod cache;
 mod compile;
 mod declare;
 mod display;
@@ -26,6 +27,7 @@ mod plan;
 mod testing;
 mod types;
 
+pub use cache::{CachedFrame, PlanCache};
 pub use compile::{assign_aliases, estimated_requirements, CompiledGraph};
 pub use declare::{
     BufferDesc, BufferId, ComputePassBuilder, Coverage, GraphBuilder, ImageDesc, ImageId, Import,

@@ -31,16 +31,16 @@ pub(crate) fn never_merge() -> Profile {
     p
 }
 
-pub(crate) fn rgba8(g: &mut GraphBuilder<()>, name: &str) -> ImageId {
+pub(crate) fn rgba8<P>(g: &mut GraphBuilder<P>, name: &str) -> ImageId {
     g.create_image(name, ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM))
 }
 
-pub(crate) fn d24s8(g: &mut GraphBuilder<()>, name: &str) -> ImageId {
+pub(crate) fn d24s8<P>(g: &mut GraphBuilder<P>, name: &str) -> ImageId {
     g.create_image(name, ImageDesc::new(EXTENT, Format::D24_UNORM_S8_UINT))
 }
 
 /// An imported swapchain-like image, exported.
-pub(crate) fn swapchain(g: &mut GraphBuilder<()>) -> ImageId {
+pub(crate) fn swapchain<P>(g: &mut GraphBuilder<P>) -> ImageId {
     let id = g.import_image(
         "swapchain",
         ImageDesc::new(EXTENT, Format::B8G8R8A8_SRGB),
@@ -51,7 +51,7 @@ pub(crate) fn swapchain(g: &mut GraphBuilder<()>) -> ImageId {
 }
 
 /// An imported image whose content is kept (history), in `ShaderReadOnly`.
-pub(crate) fn history(g: &mut GraphBuilder<()>, name: &str) -> ImageId {
+pub(crate) fn history<P>(g: &mut GraphBuilder<P>, name: &str) -> ImageId {
     g.import_image(
         name,
         ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM),

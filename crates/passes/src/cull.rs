@@ -11,16 +11,21 @@ use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
 use serde::Serialize;
 use tilegraph_cull::{DepthConvention as CullDepth, Frustum, NpotMode};
+use tilegraph_graph::{
+    AccessFlags, BufferId, Import, InitialContent, PassClass, PipelineStages, ResourceState,
+};
 use tilegraph_profile::MemoryUse;
-use tilegraph_scene::DepthConvention;
+use tilegraph_scene::{CameraFrame, DepthConvention};
 use tilegraph_vk::ash;
-use tilegraph_vk::executor::BufferHandle;
+use tilegraph_vk::executor::{BufferHandle, PassContext};
 use tilegraph_vk::pipeline::{
     allocate_set, create_compute_pipeline, create_pipeline_layout, create_set_layout,
     write_buffer_set, Stage,
 };
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
 
+use crate::draws::DrawList;
+use crate::frame::{DrawSource, FrameGraph, Payload};
 use crate::hiz::{HizBuilder, HizLayout};
 
 /// Which culling a frame runs before drawing.
@@ -107,6 +112,144 @@ impl Culling {
     pub fn uses_pyramid(self) -> bool {
         matches!(self, Culling::Hiz | Culling::HizTwoPhase)
     }
+}
+
+/// The culling buffers in one frame's graph. They live as long as the renderer (visibility and
+/// the pyramid carry over from frame to frame, tools read the drawn set back), so each frame
+/// imports them; the graph then orders the culling dispatches, the indirect draws and the
+/// pyramid build, and puts the barriers between them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CullLists {
+    pub commands: BufferId,
+    pub counts: BufferId,
+    pub draw_ids: BufferId,
+    pub visibility: BufferId,
+    pub pyramid: Option<BufferId>,
+}
+
+impl CullLists {
+    /// The draws of culling phase `phase` (0: early or only, 1: late).
+    pub fn source(self, phase: u32) -> DrawSource {
+        DrawSource::Gpu {
+            commands: self.commands,
+            counts: self.counts,
+            draw_ids: self.draw_ids,
+            phase,
+        }
+    }
+}
+
+/// Imports `state`'s buffers into the frame's graph.
+pub fn import_cull_buffers(g: &mut FrameGraph, state: &CullState) -> CullLists {
+    // Conservative boundary states: whatever touched them last frame, this frame waits for.
+    let any = ResourceState::buffer(
+        PipelineStages::ALL_COMMANDS,
+        AccessFlags::MEMORY_READ.union(AccessFlags::MEMORY_WRITE),
+    );
+    let import = |content| Import {
+        initial: any,
+        content,
+        final_state: any,
+    };
+    let discard = import(InitialContent::Discard);
+    let keep = import(InitialContent::Preserve);
+    let commands = g.import_buffer("cull-commands", state.commands.size, discard);
+    let counts = g.import_buffer("cull-counts", state.counts.size, discard);
+    let draw_ids = g.import_buffer("cull-draw-ids", state.draw_ids.size, discard);
+    let visibility = g.import_buffer("visibility", state.visibility.size, keep);
+    let pyramid = state
+        .pyramid
+        .as_ref()
+        .map(|p| g.import_buffer("hiz-pyramid", p.size, keep));
+    // What the next frame reads survives this one.
+    g.export(visibility);
+    if let Some(p) = pyramid {
+        g.export(p);
+    }
+    // Tools read the drawn set back after the frame.
+    g.export(counts);
+    g.export(draw_ids);
+    CullLists {
+        commands,
+        counts,
+        draw_ids,
+        visibility,
+        pyramid,
+    }
+}
+
+/// Declares the culling of the early (or only) phase of `culling`: the counts reset, then the
+/// dispatch that writes the indirect lists. Frustum and HiZ test every instance (HiZ against
+/// last frame's pyramid); two-phase culling's early phase draws last frame's visible set;
+/// raster occlusion turns the flags its boxes wrote into lists.
+pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
+    let two_phase = culling == Culling::HizTwoPhase;
+    let counts = lists.counts;
+    let reset: Payload = Box::new(move |pc, _| zero_fill(pc, counts));
+    g.transfer_pass("cull-reset", PassClass::Compute, reset)
+        .transfer_dst(lists.counts);
+    let mut c = g.compute_pass(
+        if two_phase { "cull-early" } else { "cull" },
+        PassClass::Compute,
+        dispatch(0),
+    );
+    c.storage_read_write(lists.counts)
+        .storage_write(lists.commands)
+        .storage_write(lists.draw_ids);
+    if two_phase {
+        c.storage_read(lists.visibility);
+    }
+    if culling == Culling::RasterOcclusion {
+        // cull.comp's visibility binding is writable (the late phase writes it), so
+        // synchronization validation counts the dispatch as a writer.
+        c.storage_read_write(lists.visibility);
+    }
+    if let (Culling::Hiz, Some(p)) = (culling, lists.pyramid) {
+        c.storage_read(p);
+    }
+}
+
+/// Declares two-phase culling's late phase: the instances the early phase left out, tested
+/// against the pyramid of the early phase's depth; the newly visible ones are appended to the
+/// lists and become next frame's early set.
+pub fn add_cull_late(g: &mut FrameGraph, lists: CullLists) {
+    let mut c = g.compute_pass("cull-late", PassClass::Compute, dispatch(1));
+    c.storage_read_write(lists.counts)
+        .storage_read_write(lists.commands)
+        .storage_write(lists.draw_ids)
+        .storage_read_write(lists.visibility);
+    if let Some(p) = lists.pyramid {
+        c.storage_read(p);
+    }
+}
+
+/// The culling dispatch `which` (0 early or only, 1 late).
+fn dispatch(which: usize) -> Payload {
+    Box::new(move |pc, res| {
+        let scene_set = res
+            .scene
+            .set(pc.frame_slot)
+            .ok_or_else(|| VkError::Invalid {
+                what: pc.pass_name.into(),
+                reason: format!("no scene descriptor set for frame slot {}", pc.frame_slot),
+            })?;
+        match res.culling.as_ref() {
+            Some(c) => c.record_dispatch(pc.ctx, pc.cb, scene_set, pc.frame_slot, which),
+            None => Ok(()),
+        }
+    })
+}
+
+/// Zeroes a whole buffer (the graph put it in TRANSFER_DST use for the pass).
+pub fn zero_fill(pc: &PassContext<'_>, buffer: BufferId) -> Result<(), VkError> {
+    let b = pc.buffer(buffer)?;
+    // SAFETY: recording outside a render pass; the buffer is live and a transfer destination.
+    unsafe {
+        pc.ctx
+            .device
+            .cmd_fill_buffer(pc.cb, b.raw, 0, vk::WHOLE_SIZE, 0)
+    };
+    Ok(())
 }
 
 /// Draw lists the culling shader writes: opaque and alpha-tested, single- and double-sided,
@@ -410,6 +553,64 @@ impl CullState {
         ctx.write_mapped(b, 0, bytemuck::cast_slice(order))
     }
 
+    /// Writes slot `slot`'s culling inputs for `frame`: each instance's entry in the lists in
+    /// the CPU list's draw order (so the culled frame draws its survivors in the unculled
+    /// order), and both dispatches' parameters. After a camera cut, single-phase HiZ tests
+    /// nothing against the previous pyramid (another view's depth would cull at random): that
+    /// frame is frustum-culled only.
+    pub fn write_frame(
+        &mut self,
+        ctx: &Context,
+        slot: usize,
+        frame: &CameraFrame,
+        draws: &DrawList,
+        extent: (u32, u32),
+    ) -> Result<(), VkError> {
+        let m = &frame.current;
+        self.write_order(ctx, slot, &gpu_order(draws, self.instance_count as usize))?;
+        let planes = gpu_planes(m.view_projection, m.depth)?;
+        let levels = self
+            .hiz_layout
+            .as_ref()
+            .map_or(0, |l| l.levels.len() as u32);
+        let (pw, ph) = self
+            .hiz_layout
+            .as_ref()
+            .and_then(|l| l.levels.first())
+            .map_or(extent, |l| (l.width, l.height));
+        let reverse = u32::from(m.depth == DepthConvention::Reverse);
+        let n = self.instance_count;
+        let params = |phase: Phase, view_proj: Mat4, levels: u32| CullParams {
+            planes,
+            hiz_view_proj: view_proj.to_cols_array_2d(),
+            info: [n, phase as u32, levels, reverse],
+            screen: [pw, ph, n.max(1), 0],
+        };
+        let first = match self.culling {
+            Culling::Hiz => params(
+                Phase::HizPrevious,
+                frame.reproject,
+                if self.pyramid_convention == Some(m.depth) && !frame.cut {
+                    levels
+                } else {
+                    0
+                },
+            ),
+            // Raster occlusion: the early phase reads this frame's flags.
+            Culling::HizTwoPhase | Culling::RasterOcclusion => {
+                params(Phase::Early, m.view_projection, 0)
+            }
+            _ => params(Phase::Frustum, m.view_projection, 0),
+        };
+        self.write_params(ctx, slot, 0, &first)?;
+        self.write_params(
+            ctx,
+            slot,
+            1,
+            &params(Phase::Late, m.view_projection, levels),
+        )
+    }
+
     /// Records the culling dispatch (the graph put the barriers around it).
     pub fn record_dispatch(
         &self,
@@ -579,7 +780,7 @@ pub fn cpu_frustum_mask(
 }
 
 /// Each instance's entry in the GPU lists, in the order the CPU draw list draws it (single-sided
-/// draws of a class first, then double-sided, as [`crate::render`] records them): `list *
+/// draws of a class first, then double-sided, as [`crate::recording`] records them): `list *
 /// stride + position`, `u32::MAX` for blended instances (not culled on the GPU).
 pub fn gpu_order(draws: &crate::draws::DrawList, instance_count: usize) -> Vec<u32> {
     let stride = instance_count.max(1) as u32;

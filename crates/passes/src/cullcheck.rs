@@ -15,7 +15,8 @@ use tilegraph_scene::{CameraPath, Scene};
 use tilegraph_vk::Context;
 
 use crate::cull::Culling;
-use crate::render::{RenderError, RenderOptions, SceneRenderer};
+use crate::options::{RenderError, RenderOptions};
+use crate::renderer::SceneRenderer;
 use crate::setup::Technique;
 
 /// One frame's comparison.

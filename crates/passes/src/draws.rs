@@ -23,6 +23,31 @@ pub struct Draw {
     pub double_sided: bool,
 }
 
+/// The material classes, in the order a frame draws them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DrawClass {
+    Opaque,
+    AlphaTested,
+    /// Blended: drawn back to front, never culled on the GPU.
+    Blended,
+}
+
+impl DrawClass {
+    /// The class's number in the shaders (`class` specialization constant, culling lists).
+    pub const fn index(self) -> u32 {
+        self as u32
+    }
+
+    /// The material class of a scene material.
+    pub fn of(class: Option<MaterialClass>) -> Self {
+        match class {
+            Some(MaterialClass::AlphaTested { .. }) => DrawClass::AlphaTested,
+            Some(MaterialClass::Blended) => DrawClass::Blended,
+            Some(MaterialClass::Opaque) | None => DrawClass::Opaque,
+        }
+    }
+}
+
 /// The frame's draw list, split by material class.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DrawList {
@@ -34,6 +59,15 @@ pub struct DrawList {
 }
 
 impl DrawList {
+    /// The draws of one material class.
+    pub fn of(&self, class: DrawClass) -> &[Draw] {
+        match class {
+            DrawClass::Opaque => &self.opaque,
+            DrawClass::AlphaTested => &self.alpha_tested,
+            DrawClass::Blended => &self.blended,
+        }
+    }
+
     pub fn triangles(&self) -> u64 {
         [&self.opaque, &self.alpha_tested, &self.blended]
             .iter()
@@ -63,11 +97,7 @@ pub fn build(
         if visible.is_some_and(|v| !v.get(i).copied().unwrap_or(false)) {
             continue;
         }
-        let class = match scene.instance_material(inst).map(|m| m.class) {
-            Some(MaterialClass::AlphaTested { .. }) => 1,
-            Some(MaterialClass::Blended) => 2,
-            _ => 0,
-        };
+        let class = DrawClass::of(scene.instance_material(inst).map(|m| m.class)).index() as usize;
         let d = inst.bounds.center - eye;
         classes[class].push(Item {
             instance: i as u32,

@@ -1,4 +1,5 @@
-//! GPU hierarchical-Z pyramid build (see docs/CULLING.md for the algorithm it must match).
+//! GPU hierarchical-Z pyramid build (see docs/CULLING.md for the algorithm it must match):
+//! [`add_hiz_build`] declares it on a frame's graph, [`HizBuilder`] records it.
 //!
 //! The pyramid is one storage buffer of `f32` holding every level packed (level 0 first, each
 //! row-major with row 0 at the top); [`HizLayout`] says where each level lives. It is a buffer
@@ -14,6 +15,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use tilegraph_cull::{level_extents, Extent2d};
+use tilegraph_graph::{BufferId, ImageId, PassClass};
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::BufferHandle;
 use tilegraph_vk::pipeline::{
@@ -21,7 +23,62 @@ use tilegraph_vk::pipeline::{
 };
 use tilegraph_vk::{Context, VkError};
 
+use crate::cull::cull_convention;
+use crate::frame::{FrameGraph, Payload};
+
 pub use tilegraph_cull::{AxisScale, DepthConvention, DepthFormat, NpotMode};
+
+/// The pyramid a build wrote: read by culling passes after it (this frame's late phase, or the
+/// next frame's single-phase test).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HizPyramid {
+    pub buffer: BufferId,
+}
+
+/// Declares the pyramid build: `depth` sampled, every level of `pyramid` (a buffer the culling
+/// state keeps across frames) written. The frame's depth convention picks the reduction (the
+/// farther depth of each footprint): a camera path may change it from one frame to the next.
+pub fn add_hiz_build(g: &mut FrameGraph, depth: ImageId, pyramid: BufferId) -> HizPyramid {
+    let build: Payload = Box::new(move |pc, res| {
+        let view = pc.image(depth)?.view;
+        let buffer = pc.buffer(pyramid)?;
+        let convention = res.frame.depth;
+        let missing = |what: &str| VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: format!("no {what}"),
+        };
+        let culling = res
+            .culling
+            .as_mut()
+            .ok_or_else(|| missing("culling state"))?;
+        let layout = culling
+            .hiz_layout
+            .as_mut()
+            .ok_or_else(|| missing("pyramid layout"))?;
+        // The stored layout follows the frame, for whoever reads the pyramid back.
+        layout.convention = cull_convention(convention);
+        let builder = culling
+            .hiz
+            .as_mut()
+            .ok_or_else(|| missing("pyramid builder"))?;
+        // The graph samples depth formats in DEPTH_STENCIL_READ_ONLY_OPTIMAL.
+        builder.record(
+            pc.ctx,
+            pc.cb,
+            pc.frame_slot,
+            view,
+            vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
+            buffer,
+            layout,
+        )?;
+        culling.pyramid_convention = Some(convention);
+        Ok(())
+    });
+    g.compute_pass("hiz-build", PassClass::Compute, build)
+        .sampled(depth)
+        .storage_read_write(pyramid);
+    HizPyramid { buffer: pyramid }
+}
 
 /// SPIR-V of the level-0 copy (`shaders/hiz_copy.comp`).
 pub const HIZ_COPY_SPV: &[u8] = include_bytes!("../../../shaders/spv/hiz_copy.comp.spv");

@@ -1,20 +1,38 @@
 //! The passes tilegraph ships, on top of the graph (`tilegraph-graph`) and the Vulkan backend
 //! (`tilegraph-vk`), drawing the scenes of `tilegraph-scene`.
 //!
-//! - [`setup`]: which passes a frame needs, from the scene's content and the profile, with the
-//!   reason for every pass included or left out.
-//! - [`draws`]: instanced draw lists sorted as the profile asks.
-//! - [`gpu_scene`]: the scene's buffers on the GPU and the per-frame data.
+//! Each pass module owns its pass: an `add_*` function declares it on a [`FrameGraph`] with its
+//! recording ([`frame`] says how payloads get what they record with), and an engine can call the
+//! same functions with its own passes in between.
+//!
+//! - passes: [`prepass`] (depth pre-pass), [`forward`] (colour, blended, clear), [`visbuf`] (ids
+//!   and resolve), [`cull`] (GPU frustum, HiZ and two-phase culling into indirect lists), [`hiz`]
+//!   (the pyramid build), [`occlusion`] (hardware queries, raster occlusion);
+//! - what they share: [`targets`] (colour, depth, ids and their first-use clears), [`draws`]
+//!   (draw lists), [`recording`] (draw recording), [`pipelines`] (every graphics pipeline, in one
+//!   cache), [`gpu_scene`] (the scene's buffers);
+//! - the frame: [`setup`] (which passes, and why), [`renderer`] (the composition, frame after
+//!   frame), [`cullcheck`] (a culling technique against the exact oracle).
 
 pub mod cull;
 pub mod cullcheck;
 pub mod draws;
+pub mod forward;
+pub mod frame;
 pub mod gpu_scene;
 pub mod hiz;
 pub mod occlusion;
-mod pipelines;
-pub mod render;
+pub mod options;
+pub mod pipelines;
+pub mod prepass;
+pub mod recording;
+pub mod renderer;
 pub mod setup;
+pub mod targets;
+pub mod visbuf;
 
-pub use render::{required_features, FrameReport, RenderError, RenderOptions, SceneRenderer};
+pub use frame::{DrawSource, FrameData, FrameGraph, Payload, SceneResources};
+pub use options::{required_features, FrameReport, RenderError, RenderOptions};
+pub use renderer::SceneRenderer;
 pub use setup::{decide, FrameSetup, PassDecision, PassKind, SceneContent, Technique};
+pub use targets::SceneTargets;

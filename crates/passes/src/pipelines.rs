@@ -1,55 +1,291 @@
-//! Graphics pipelines cached per render pass and subpass.
+//! Every graphics pipeline the shipped passes draw with, in one cache.
 //!
-//! A pipeline is created against one render pass and stays valid with any compatible one. The
-//! executor destroys its render passes when the plan changes, and a driver may give the same
-//! handle value to a new, incompatible render pass: the cache is keyed on the render pass's
-//! serial ([`RenderPassRef::serial`]), which is never reused, and [`PipelineCache::prune`] drops
-//! what was created for render passes that no longer exist.
+//! A pipeline is created against one render pass and subpass, on first use, and stays valid with
+//! any compatible one. The executor destroys its render passes when the plan changes, and a
+//! driver may give the same handle value to a new, incompatible render pass: the cache is keyed
+//! on the render pass's serial ([`RenderPassRef::serial`]), which is never reused, and
+//! [`Pipelines::prune`] drops what was created for render passes that no longer exist.
+//!
+//! The scene's pipelines ([`Variant`]: depth pre-pass, forward colour, visibility-buffer ids and
+//! resolve) and the occlusion proxies' ([`Proxy`]) are described here, since several passes share
+//! them; a pass with a pipeline of its own describes it and caches it through
+//! [`Pipelines::get_or_create`].
 
 use std::collections::HashMap;
-use std::hash::Hash;
 
+use tilegraph_scene::DepthConvention;
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::{PassContext, RenderPassRef};
+use tilegraph_vk::pipeline::{
+    create_graphics_pipeline, create_pipeline_layout, create_set_layout, Blend, DepthState,
+    GraphicsDesc, RenderTarget, Stage, VertexLayout,
+};
 use tilegraph_vk::{Context, VkError};
 
-/// Pipelines by (render pass serial, subpass, `K`): `K` holds what else the pipeline bakes in.
-pub(crate) struct PipelineCache<K> {
-    pipelines: HashMap<(u64, u32, K), vk::Pipeline>,
+use crate::draws::DrawClass;
+
+mod spv {
+    pub const DEPTH_VS: &[u8] = include_bytes!("../../../shaders/spv/depth.vert.spv");
+    pub const DEPTH_ALPHA_VS: &[u8] = include_bytes!("../../../shaders/spv/depth_alpha.vert.spv");
+    pub const DEPTH_ALPHA_FS: &[u8] = include_bytes!("../../../shaders/spv/depth_alpha.frag.spv");
+    pub const FORWARD_VS: &[u8] = include_bytes!("../../../shaders/spv/forward.vert.spv");
+    pub const FORWARD_FS: &[u8] = include_bytes!("../../../shaders/spv/forward.frag.spv");
+    pub const FORWARD_EARLY_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_early.frag.spv");
+    pub const FORWARD_COUNT_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_count.frag.spv");
+    pub const FORWARD_COUNT_LATE_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_count_late.frag.spv");
+    pub const VISBUF_VS: &[u8] = include_bytes!("../../../shaders/spv/visbuf.vert.spv");
+    pub const VISBUF_FS: &[u8] = include_bytes!("../../../shaders/spv/visbuf.frag.spv");
+    pub const FULLSCREEN_VS: &[u8] = include_bytes!("../../../shaders/spv/fullscreen.vert.spv");
+    pub const RESOLVE_INPUT_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/visbuf_resolve_input.frag.spv");
+    pub const RESOLVE_SAMPLED_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/visbuf_resolve_sampled.frag.spv");
+    pub const OQ_BOX_VS: &[u8] = include_bytes!("../../../shaders/spv/oq_box.vert.spv");
+    pub const RASTER_VS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.vert.spv");
+    pub const RASTER_FS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.frag.spv");
 }
 
-impl<K> Default for PipelineCache<K> {
-    fn default() -> Self {
-        PipelineCache {
-            pipelines: HashMap::new(),
+/// `fullscreen.vert`: one triangle covering the render area, no vertex input.
+pub const FULLSCREEN_VS: &[u8] = spv::FULLSCREEN_VS;
+
+/// The scene's pipelines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Variant {
+    /// Depth pre-pass of opaque geometry: positions only, no fragment shader.
+    DepthOpaque,
+    /// Depth pre-pass of alpha-tested geometry, with its discard.
+    DepthAlpha,
+    /// Forward colour of a material class; `equal` tests depth EQUAL after a pre-pass.
+    Forward { class: DrawClass, equal: bool },
+    /// Visibility-buffer ids of opaque or alpha-tested geometry.
+    Visbuf { alpha: bool },
+    /// The resolve reading the ids as an input attachment (tilers) ...
+    ResolveInput,
+    /// ... or sampling them.
+    ResolveSampled,
+}
+
+/// The occlusion proxies: a bounding box drawn against the frame's depth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Proxy {
+    /// One box per occlusion query (`oq_box.vert`, push constants).
+    QueryBox,
+    /// Every instance's box, flagging visible instances (`raster_occlusion.*`); the vertex
+    /// shader's `scale` widens it for a depth of 1/scale resolution.
+    RasterBox { scale: u32 },
+}
+
+/// What a cached pipeline bakes in besides its render pass and subpass.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PipelineKey {
+    /// The depth compare is baked in, and a camera may change the convention.
+    Scene {
+        variant: Variant,
+        double_sided: bool,
+        reverse_z: bool,
+    },
+    Proxy {
+        proxy: Proxy,
+        reverse_z: bool,
+    },
+    /// A pass's own pipeline, named by the pass.
+    Named(&'static str),
+}
+
+const POSITION: (u32, vk::Format, u32) = (0, vk::Format::R32G32B32_SFLOAT, 0);
+const NORMAL: (u32, vk::Format, u32) = (1, vk::Format::R32G32B32_SFLOAT, 12);
+const UV: (u32, vk::Format, u32) = (2, vk::Format::R32G32_SFLOAT, 24);
+const VERTEX_STRIDE: u32 = 32;
+
+/// The graphics pipelines and the pipeline layouts of the scene's variants.
+pub struct Pipelines {
+    cache: HashMap<(u64, u32, PipelineKey), vk::Pipeline>,
+    /// Pipelines of render passes with serials below this are destroyed.
+    pruned_below: u64,
+    /// Count fragments in the colour passes (`forward_count*.frag`).
+    count_fragments: bool,
+    /// Set 0: the scene (`GpuScene::set_layout`, owned by the scene).
+    pub scene_layout: vk::PipelineLayout,
+    /// Set 1 of the resolve: the ids as an input attachment, or sampled.
+    pub input_set_layout: vk::DescriptorSetLayout,
+    pub sampled_set_layout: vk::DescriptorSetLayout,
+    pub input_layout: vk::PipelineLayout,
+    pub sampled_layout: vk::PipelineLayout,
+}
+
+impl Pipelines {
+    /// The layouts of the scene's variants over `scene_set_layout` (set 0).
+    pub fn new(
+        ctx: &Context,
+        scene_set_layout: vk::DescriptorSetLayout,
+        count_fragments: bool,
+    ) -> Result<Self, VkError> {
+        let mut p = Pipelines {
+            cache: HashMap::new(),
+            pruned_below: 0,
+            count_fragments,
+            scene_layout: vk::PipelineLayout::null(),
+            input_set_layout: vk::DescriptorSetLayout::null(),
+            sampled_set_layout: vk::DescriptorSetLayout::null(),
+            input_layout: vk::PipelineLayout::null(),
+            sampled_layout: vk::PipelineLayout::null(),
+        };
+        match p.create_layouts(ctx, scene_set_layout) {
+            Ok(()) => Ok(p),
+            Err(e) => {
+                p.destroy(ctx);
+                Err(e)
+            }
         }
     }
-}
 
-/// The render pass `pc` records into; `what` names the recording in the error when there is
-/// none (a compute or transfer pass).
-pub(crate) fn render_pass_of(pc: &PassContext<'_>, what: &str) -> Result<RenderPassRef, VkError> {
-    pc.render_pass.ok_or_else(|| VkError::Invalid {
-        what: pc.pass_name.into(),
-        reason: format!("{what} record inside a render pass"),
-    })
-}
-
-impl<K: Copy + Eq + Hash> PipelineCache<K> {
-    pub fn get(&self, rp: RenderPassRef, key: K) -> Option<vk::Pipeline> {
-        self.pipelines.get(&(rp.serial, rp.subpass, key)).copied()
+    fn create_layouts(
+        &mut self,
+        ctx: &Context,
+        scene_set_layout: vk::DescriptorSetLayout,
+    ) -> Result<(), VkError> {
+        let all = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
+        self.scene_layout = create_pipeline_layout(ctx, &[scene_set_layout], None)?;
+        self.input_set_layout = create_set_layout(
+            ctx,
+            &[(
+                0,
+                vk::DescriptorType::INPUT_ATTACHMENT,
+                vk::ShaderStageFlags::FRAGMENT,
+            )],
+        )?;
+        self.sampled_set_layout =
+            create_set_layout(ctx, &[(0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER, all)])?;
+        self.input_layout =
+            create_pipeline_layout(ctx, &[scene_set_layout, self.input_set_layout], None)?;
+        self.sampled_layout =
+            create_pipeline_layout(ctx, &[scene_set_layout, self.sampled_set_layout], None)?;
+        Ok(())
     }
 
-    pub fn insert(&mut self, rp: RenderPassRef, key: K, pipeline: vk::Pipeline) {
-        self.pipelines
-            .insert((rp.serial, rp.subpass, key), pipeline);
+    /// The pipeline cached for the subpass `pc` records into under `key`, or the one
+    /// `describe` describes, created now.
+    pub fn get_or_create(
+        &mut self,
+        pc: &PassContext<'_>,
+        key: PipelineKey,
+        describe: impl FnOnce(RenderTarget<'static>) -> Result<vk::Pipeline, VkError>,
+    ) -> Result<vk::Pipeline, VkError> {
+        let rp = render_pass_of(pc)?;
+        let at = (rp.serial, rp.subpass, key);
+        if let Some(&p) = self.cache.get(&at) {
+            return Ok(p);
+        }
+        let p = describe(RenderTarget::Subpass {
+            render_pass: rp.handle,
+            subpass: rp.subpass,
+            color_count: 0,
+        })?;
+        self.cache.insert(at, p);
+        Ok(p)
+    }
+
+    /// A scene pipeline for the subpass `pc` records into: `color_count` colour attachments,
+    /// depth compared in `depth`'s direction.
+    pub fn scene(
+        &mut self,
+        pc: &PassContext<'_>,
+        variant: Variant,
+        double_sided: bool,
+        color_count: u32,
+        depth: DepthConvention,
+    ) -> Result<vk::Pipeline, VkError> {
+        let key = PipelineKey::Scene {
+            variant,
+            double_sided,
+            reverse_z: depth == DepthConvention::Reverse,
+        };
+        let layouts = (self.scene_layout, self.input_layout, self.sampled_layout);
+        let count_fragments = self.count_fragments;
+        self.get_or_create(pc, key, |target| {
+            let target = with_colors(target, color_count);
+            scene_pipeline(
+                pc,
+                target,
+                layouts,
+                variant,
+                double_sided,
+                depth,
+                count_fragments,
+            )
+        })
+    }
+
+    /// An occlusion proxy's pipeline (`layout`: the proxy's own) for the subpass `pc` records
+    /// into: depth tested against the frame's depth, nothing written, both faces (a box seen
+    /// from inside still counts). The box encloses its object, so where the object is in front
+    /// of the depth the box is too, or level with it: hence OR_EQUAL.
+    pub fn proxy(
+        &mut self,
+        pc: &PassContext<'_>,
+        proxy: Proxy,
+        layout: vk::PipelineLayout,
+        depth: DepthConvention,
+    ) -> Result<vk::Pipeline, VkError> {
+        let reverse = depth == DepthConvention::Reverse;
+        let key = PipelineKey::Proxy {
+            proxy,
+            reverse_z: reverse,
+        };
+        self.get_or_create(pc, key, |target| {
+            let scale;
+            let (vertex, fragment) = match proxy {
+                Proxy::QueryBox => (stage("oq_box.vert", spv::OQ_BOX_VS), None),
+                Proxy::RasterBox { scale: s } => {
+                    scale = [(0, s)];
+                    (
+                        Stage {
+                            name: "raster_occlusion.vert",
+                            spirv: spv::RASTER_VS,
+                            specialization: &scale,
+                        },
+                        Some(stage("raster_occlusion.frag", spv::RASTER_FS)),
+                    )
+                }
+            };
+            create_graphics_pipeline(
+                pc.ctx,
+                &GraphicsDesc {
+                    name: pc.pass_name,
+                    vertex,
+                    fragment,
+                    vertex_layout: None,
+                    layout,
+                    target,
+                    depth: DepthState {
+                        test: true,
+                        write: false,
+                        compare: if reverse {
+                            vk::CompareOp::GREATER_OR_EQUAL
+                        } else {
+                            vk::CompareOp::LESS_OR_EQUAL
+                        },
+                    },
+                    blend: Blend::NoColorWrites,
+                    cull: vk::CullModeFlags::NONE,
+                    samples: vk::SampleCountFlags::TYPE_1,
+                },
+            )
+        })
     }
 
     /// Destroys the pipelines made for render passes older than `floor`
-    /// ([`Executor::render_pass_serial_floor`](tilegraph_vk::executor::Executor::render_pass_serial_floor)):
-    /// those render passes are gone and no frame in flight uses their pipelines.
+    /// ([`Executor::render_pass_serial_floor`](tilegraph_vk::executor::Executor::render_pass_serial_floor)),
+    /// once per floor: those render passes are gone and no frame in flight uses their pipelines.
     pub fn prune(&mut self, ctx: &Context, floor: u64) {
-        self.pipelines.retain(|&(serial, _, _), p| {
+        if floor <= self.pruned_below {
+            return;
+        }
+        self.pruned_below = floor;
+        self.cache.retain(|&(serial, _, _), p| {
             let keep = serial >= floor;
             if !keep {
                 // SAFETY: no frame in flight uses it (the executor waited before rebuilding).
@@ -59,15 +295,223 @@ impl<K: Copy + Eq + Hash> PipelineCache<K> {
         });
     }
 
+    /// Graphics pipelines cached now.
     pub fn len(&self) -> usize {
-        self.pipelines.len()
+        self.cache.len()
     }
 
-    /// Destroys every pipeline; the GPU must be idle.
+    pub fn is_empty(&self) -> bool {
+        self.cache.is_empty()
+    }
+
+    /// Destroys every pipeline and layout; the GPU must be idle.
     pub fn destroy(self, ctx: &Context) {
-        for (_, p) in self.pipelines {
-            // SAFETY: the GPU is idle (caller's guarantee).
-            unsafe { ctx.device.destroy_pipeline(p, None) };
+        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
+        unsafe {
+            for (_, p) in self.cache {
+                ctx.device.destroy_pipeline(p, None);
+            }
+            ctx.device.destroy_pipeline_layout(self.scene_layout, None);
+            ctx.device.destroy_pipeline_layout(self.input_layout, None);
+            ctx.device
+                .destroy_pipeline_layout(self.sampled_layout, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.input_set_layout, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.sampled_set_layout, None);
         }
     }
+}
+
+/// The render pass `pc` records into; an error naming the pass when there is none (a compute or
+/// transfer pass).
+pub fn render_pass_of(pc: &PassContext<'_>) -> Result<RenderPassRef, VkError> {
+    pc.render_pass.ok_or_else(|| VkError::Invalid {
+        what: pc.pass_name.into(),
+        reason: "graphics pipelines record inside a render pass".into(),
+    })
+}
+
+fn stage(name: &'static str, spirv: &'static [u8]) -> Stage<'static> {
+    Stage {
+        name,
+        spirv,
+        specialization: &[],
+    }
+}
+
+fn with_colors(target: RenderTarget<'static>, color_count: u32) -> RenderTarget<'static> {
+    match target {
+        RenderTarget::Subpass {
+            render_pass,
+            subpass,
+            ..
+        } => RenderTarget::Subpass {
+            render_pass,
+            subpass,
+            color_count,
+        },
+        other => other,
+    }
+}
+
+/// The depth compare that lets a nearer fragment through.
+pub fn nearer(depth: DepthConvention) -> vk::CompareOp {
+    match depth {
+        DepthConvention::Reverse => vk::CompareOp::GREATER,
+        DepthConvention::Standard => vk::CompareOp::LESS,
+    }
+}
+
+/// (vertex stage, fragment stage, vertex attributes, depth state, blend, layout) of a variant.
+type VariantState<'a> = (
+    Stage<'a>,
+    Option<Stage<'a>>,
+    &'a [(u32, vk::Format, u32)],
+    DepthState,
+    Blend,
+    vk::PipelineLayout,
+);
+
+/// Describes and creates one scene variant's pipeline.
+fn scene_pipeline(
+    pc: &PassContext<'_>,
+    target: RenderTarget<'_>,
+    (scene_layout, input_layout, sampled_layout): (
+        vk::PipelineLayout,
+        vk::PipelineLayout,
+        vk::PipelineLayout,
+    ),
+    variant: Variant,
+    double_sided: bool,
+    depth: DepthConvention,
+    count_fragments: bool,
+) -> Result<vk::Pipeline, VkError> {
+    let write = DepthState {
+        test: true,
+        write: true,
+        compare: nearer(depth),
+    };
+    let pos_only = [POSITION];
+    let pos_uv = [POSITION, UV];
+    let all = [POSITION, NORMAL, UV];
+    let class_spec: [(u32, u32); 1];
+    let (vs, fs, attrs, depth_state, blend, layout): VariantState<'_> = match variant {
+        Variant::DepthOpaque => (
+            stage("depth.vert", spv::DEPTH_VS),
+            None,
+            &pos_only,
+            write,
+            Blend::NoColorWrites,
+            scene_layout,
+        ),
+        Variant::DepthAlpha => (
+            stage("depth_alpha.vert", spv::DEPTH_ALPHA_VS),
+            Some(stage("depth_alpha.frag", spv::DEPTH_ALPHA_FS)),
+            &pos_uv,
+            write,
+            Blend::NoColorWrites,
+            scene_layout,
+        ),
+        Variant::Forward { class, equal } => {
+            class_spec = [(0, class.index())];
+            let depth_state = match (class, equal) {
+                (DrawClass::Blended, _) => DepthState {
+                    test: true,
+                    write: false,
+                    compare: nearer(depth),
+                },
+                (_, true) => DepthState {
+                    test: true,
+                    write: false,
+                    compare: vk::CompareOp::EQUAL,
+                },
+                _ => write,
+            };
+            let blend = if class == DrawClass::Blended {
+                Blend::Alpha
+            } else {
+                Blend::Opaque
+            };
+            // Early fragment tests unless a discard decides what depth is written (alpha
+            // tested without a pre-pass): seed 003, discard disables early-Z.
+            let late = class == DrawClass::AlphaTested && !equal;
+            let (fs_name, fs) = match (late, count_fragments) {
+                (true, true) => ("forward_count_late.frag", spv::FORWARD_COUNT_LATE_FS),
+                (true, false) => ("forward.frag", spv::FORWARD_FS),
+                (false, true) => ("forward_count.frag", spv::FORWARD_COUNT_FS),
+                (false, false) => ("forward_early.frag", spv::FORWARD_EARLY_FS),
+            };
+            (
+                stage("forward.vert", spv::FORWARD_VS),
+                Some(Stage {
+                    name: fs_name,
+                    spirv: fs,
+                    specialization: &class_spec,
+                }),
+                &all,
+                depth_state,
+                blend,
+                scene_layout,
+            )
+        }
+        Variant::Visbuf { alpha } => {
+            class_spec = [(0, u32::from(alpha))];
+            (
+                stage("visbuf.vert", spv::VISBUF_VS),
+                Some(Stage {
+                    name: "visbuf.frag",
+                    spirv: spv::VISBUF_FS,
+                    specialization: &class_spec,
+                }),
+                &pos_uv,
+                write,
+                Blend::Opaque,
+                scene_layout,
+            )
+        }
+        Variant::ResolveInput => (
+            stage("fullscreen.vert", spv::FULLSCREEN_VS),
+            Some(stage("visbuf_resolve_input.frag", spv::RESOLVE_INPUT_FS)),
+            &[],
+            DepthState::OFF,
+            Blend::Opaque,
+            input_layout,
+        ),
+        Variant::ResolveSampled => (
+            stage("fullscreen.vert", spv::FULLSCREEN_VS),
+            Some(stage(
+                "visbuf_resolve_sampled.frag",
+                spv::RESOLVE_SAMPLED_FS,
+            )),
+            &[],
+            DepthState::OFF,
+            Blend::Opaque,
+            sampled_layout,
+        ),
+    };
+    let vertex_layout = (!attrs.is_empty()).then_some(VertexLayout {
+        stride: VERTEX_STRIDE,
+        attributes: attrs,
+    });
+    let fullscreen = matches!(variant, Variant::ResolveInput | Variant::ResolveSampled);
+    create_graphics_pipeline(
+        pc.ctx,
+        &GraphicsDesc {
+            name: pc.pass_name,
+            vertex: vs,
+            fragment: fs,
+            vertex_layout,
+            layout,
+            target,
+            depth: depth_state,
+            blend,
+            cull: if double_sided || fullscreen {
+                vk::CullModeFlags::NONE
+            } else {
+                vk::CullModeFlags::BACK
+            },
+            samples: vk::SampleCountFlags::TYPE_1,
+        },
+    )
 }

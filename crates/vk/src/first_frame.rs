@@ -8,26 +8,9 @@ use ash::vk;
 use tilegraph_profile::MemoryUse;
 
 use crate::error::{VkError, VkResultExt};
+use crate::readback::RgbaImage;
 use crate::shader::{create_shader_module, embedded};
 use crate::Context;
-
-/// An RGBA8 image read back from the GPU, rows top to bottom.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct RgbaImage {
-    pub width: u32,
-    pub height: u32,
-    pub pixels: Vec<u8>,
-}
-
-impl RgbaImage {
-    pub fn pixel(&self, x: u32, y: u32) -> Option<[u8; 4]> {
-        if x >= self.width || y >= self.height {
-            return None;
-        }
-        let i = ((y * self.width + x) * 4) as usize;
-        self.pixels.get(i..i + 4).map(|p| [p[0], p[1], p[2], p[3]])
-    }
-}
 
 const CLEAR: [f32; 4] = [0.05, 0.05, 0.08, 1.0];
 

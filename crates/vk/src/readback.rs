@@ -7,6 +7,24 @@ use tilegraph_profile::MemoryUse;
 use crate::executor::{BufferHandle, ImageHandle};
 use crate::{Context, VkError};
 
+/// An RGBA8 image read back from the GPU, rows top to bottom.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RgbaImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<u8>,
+}
+
+impl RgbaImage {
+    pub fn pixel(&self, x: u32, y: u32) -> Option<[u8; 4]> {
+        if x >= self.width || y >= self.height {
+            return None;
+        }
+        let i = ((y * self.width + x) * 4) as usize;
+        self.pixels.get(i..i + 4).map(|p| [p[0], p[1], p[2], p[3]])
+    }
+}
+
 /// Bytes per texel of the formats tilegraph reads back.
 pub fn texel_bytes(format: vk::Format) -> Option<u32> {
     Some(match format {

@@ -70,6 +70,11 @@ impl<P> CompiledGraph<P> {
         self.payloads.get_mut(pass.index()).and_then(Option::take)
     }
 
+    /// The plan and the payloads indexed by `PassId` (`None`: pruned, or taken).
+    pub fn into_plan_and_payloads(self) -> (Plan, Vec<Option<P>>) {
+        (self.plan, self.payloads)
+    }
+
     /// The plan and the payloads in execution order (`plan.passes[i]` owns `payloads[i]`).
     pub fn into_parts(self) -> (Plan, Vec<(PassId, P)>) {
         let mut payloads = self.payloads;

@@ -15,18 +15,18 @@
 
 use ash::vk;
 use glam::{DVec3, Mat4, Vec3, Vec4};
+use tilegraph_graph::{
+    AccessFlags, BufferId, ImageId, Import, InitialContent, PassClass, PipelineStages,
+    ResourceState, Retention,
+};
 use tilegraph_scene::{DepthConvention, FrameMatrices, Scene};
 use tilegraph_vk::ash;
 use tilegraph_vk::executor::PassContext;
-
-use crate::pipelines::{render_pass_of, PipelineCache};
-use tilegraph_vk::pipeline::{
-    create_graphics_pipeline, create_pipeline_layout, Blend, DepthState, GraphicsDesc,
-    RenderTarget, Stage,
-};
+use tilegraph_vk::pipeline::create_pipeline_layout;
 use tilegraph_vk::{Buffer, Context, VkError};
 
-const BOX_VS: &[u8] = include_bytes!("../../../shaders/spv/oq_box.vert.spv");
+use crate::frame::{FrameGraph, Payload, SceneResources};
+use crate::pipelines::Proxy;
 
 /// Push constants of `oq_box.vert`.
 #[repr(C)]
@@ -162,7 +162,6 @@ pub struct OqState {
     frame_slot: usize,
     frames: u64,
     pub pipeline_layout: vk::PipelineLayout,
-    pipelines: PipelineCache<bool>,
     /// Conditional rendering: this frame's results on the GPU, one u32 per query.
     pub conditions: Option<Buffer>,
     /// Per query: whether this frame issued it (the others draw unconditionally).
@@ -213,7 +212,6 @@ impl OqState {
             frame_slot: 0,
             frames: 0,
             pipeline_layout,
-            pipelines: PipelineCache::default(),
             conditions: None,
             current_issued: Vec::new(),
             current_drawable: Vec::new(),
@@ -380,32 +378,12 @@ impl OqState {
         self.frame_slot = slot;
     }
 
-    fn pipeline(
-        &mut self,
-        pc: &PassContext<'_>,
-        depth: DepthConvention,
-    ) -> Result<vk::Pipeline, VkError> {
-        let vertex = Stage {
-            name: "oq_box.vert",
-            spirv: BOX_VS,
-            specialization: &[],
-        };
-        proxy_pipeline(
-            pc,
-            &mut self.pipelines,
-            depth,
-            vertex,
-            None,
-            self.pipeline_layout,
-        )
-    }
-
     /// Records this frame's queries (inside the query pass's subpass).
     pub fn record(
-        &mut self,
+        &self,
         pc: &PassContext<'_>,
         scene_set: vk::DescriptorSet,
-        depth: DepthConvention,
+        pipeline: vk::Pipeline,
     ) -> Result<(), VkError> {
         let pool = *self
             .pools
@@ -423,7 +401,6 @@ impl OqState {
                 ),
             });
         }
-        let pipeline = self.pipeline(pc, depth)?;
         pc.set_full_viewport();
         let d = &pc.ctx.device;
         // SAFETY: inside the query subpass; pipeline, layout and set are live; every query of
@@ -540,20 +517,10 @@ impl OqState {
             .collect())
     }
 
-    /// Drops pipelines of render passes that no longer exist (see [`PipelineCache::prune`]).
-    pub(crate) fn prune_pipelines(&mut self, ctx: &Context, floor: u64) {
-        self.pipelines.prune(ctx, floor);
-    }
-
-    pub(crate) fn pipeline_count(&self) -> usize {
-        self.pipelines.len()
-    }
-
     pub fn destroy(self, ctx: &Context) {
         if let Some(b) = self.conditions {
             ctx.destroy_buffer(b);
         }
-        self.pipelines.destroy(ctx);
         // SAFETY: the GPU is idle (caller's guarantee).
         unsafe {
             for p in self.pools {
@@ -565,447 +532,65 @@ impl OqState {
     }
 }
 
-/// Raster occlusion (`Culling::RasterOcclusion`): every instance's box drawn against the
-/// pre-pass depth with early fragment tests, surviving fragments flag the instance in the
-/// culling `visibility` buffer, which `cull.comp` (its early phase) turns into indirect draws.
-pub struct RasterOcclusion {
-    set_layout: vk::DescriptorSetLayout,
-    pool: vk::DescriptorPool,
-    set: vk::DescriptorSet,
-    pub pipeline_layout: vk::PipelineLayout,
-    pipelines: PipelineCache<bool>,
-    instance_count: u32,
-    /// 1: full resolution; k > 1: against a conservative ~1/k-resolution depth.
-    pub scale: u32,
-    downsample: Option<Downsample>,
-}
-
-/// The farthest-depth downsampling pass of raster occlusion at reduced resolution.
-struct Downsample {
-    set_layout: vk::DescriptorSetLayout,
-    pool: vk::DescriptorPool,
-    sets: Vec<vk::DescriptorSet>,
-    layout: vk::PipelineLayout,
-    sampler: vk::Sampler,
-    pipelines: PipelineCache<()>,
-}
-
-/// Push constants of `raster_occlusion_downsample.frag`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-struct DownsamplePush {
-    scale: [f32; 4],
-    info: [u32; 4],
-}
-
-const DOWNSAMPLE_FS: &[u8] =
-    include_bytes!("../../../shaders/spv/raster_occlusion_downsample.frag.spv");
-const FULLSCREEN_VS: &[u8] = include_bytes!("../../../shaders/spv/fullscreen.vert.spv");
-
-impl Downsample {
-    fn new(ctx: &Context, frames_in_flight: usize) -> Result<Self, VkError> {
-        let set_layout = tilegraph_vk::pipeline::create_set_layout(
-            ctx,
-            &[(
-                0,
-                vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-                vk::ShaderStageFlags::FRAGMENT,
-            )],
-        )?;
-        let mut d = Downsample {
-            set_layout,
-            pool: vk::DescriptorPool::null(),
-            sets: Vec::new(),
-            layout: vk::PipelineLayout::null(),
-            sampler: vk::Sampler::null(),
-            pipelines: PipelineCache::default(),
-        };
-        if let Err(e) = d.init(ctx, frames_in_flight.max(1)) {
-            d.destroy(ctx);
-            return Err(e);
-        }
-        Ok(d)
-    }
-
-    fn init(&mut self, ctx: &Context, slots: usize) -> Result<(), VkError> {
-        let push = vk::PushConstantRange {
-            stage_flags: vk::ShaderStageFlags::FRAGMENT,
-            offset: 0,
-            size: std::mem::size_of::<DownsamplePush>() as u32,
-        };
-        self.layout = create_pipeline_layout(ctx, &[self.set_layout], Some(push))?;
-        let sizes = [vk::DescriptorPoolSize {
-            ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-            descriptor_count: slots as u32,
-        }];
-        let pool_info = vk::DescriptorPoolCreateInfo::default()
-            .max_sets(slots as u32)
-            .pool_sizes(&sizes);
-        // SAFETY: valid create info.
-        self.pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
-            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
-        for _ in 0..slots {
-            self.sets.push(tilegraph_vk::pipeline::allocate_set(
-                ctx,
-                self.pool,
-                self.set_layout,
-            )?);
-        }
-        let sampler_info = vk::SamplerCreateInfo::default()
-            .mag_filter(vk::Filter::NEAREST)
-            .min_filter(vk::Filter::NEAREST)
-            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
-            .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-            .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-            .max_lod(0.0);
-        // SAFETY: valid create info.
-        self.sampler = unsafe { ctx.device.create_sampler(&sampler_info, None) }
-            .map_err(|r| VkError::call("vkCreateSampler", r))?;
-        Ok(())
-    }
-
-    fn destroy(self, ctx: &Context) {
-        self.pipelines.destroy(ctx);
-        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
-        unsafe {
-            ctx.device.destroy_sampler(self.sampler, None);
-            ctx.device.destroy_pipeline_layout(self.layout, None);
-            ctx.device.destroy_descriptor_pool(self.pool, None);
-            ctx.device
-                .destroy_descriptor_set_layout(self.set_layout, None);
-        }
-    }
-}
-
-const RASTER_VS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.vert.spv");
-const RASTER_FS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.frag.spv");
-
-impl RasterOcclusion {
-    pub fn new(
-        ctx: &Context,
-        scene_set_layout: vk::DescriptorSetLayout,
-        visibility: &Buffer,
-        instance_count: u32,
-        scale: u32,
-        frames_in_flight: usize,
-    ) -> Result<Self, VkError> {
-        let set_layout = tilegraph_vk::pipeline::create_set_layout(
-            ctx,
-            &[(
-                0,
-                vk::DescriptorType::STORAGE_BUFFER,
-                vk::ShaderStageFlags::FRAGMENT,
-            )],
-        )?;
-        let sizes = [vk::DescriptorPoolSize {
-            ty: vk::DescriptorType::STORAGE_BUFFER,
-            descriptor_count: 1,
-        }];
-        let pool_info = vk::DescriptorPoolCreateInfo::default()
-            .max_sets(1)
-            .pool_sizes(&sizes);
-        // SAFETY: valid create info.
-        let pool = match unsafe { ctx.device.create_descriptor_pool(&pool_info, None) } {
-            Ok(p) => p,
-            Err(r) => {
-                // SAFETY: the layout is unused.
-                unsafe { ctx.device.destroy_descriptor_set_layout(set_layout, None) };
-                return Err(VkError::call("vkCreateDescriptorPool", r));
-            }
-        };
-        let mut state = RasterOcclusion {
-            set_layout,
-            pool,
-            set: vk::DescriptorSet::null(),
-            pipeline_layout: vk::PipelineLayout::null(),
-            pipelines: PipelineCache::default(),
-            instance_count,
-            scale: scale.max(1),
-            downsample: None,
-        };
-        if state.scale > 1 {
-            match Downsample::new(ctx, frames_in_flight) {
-                Ok(d) => state.downsample = Some(d),
-                Err(e) => {
-                    state.destroy(ctx);
-                    return Err(e);
-                }
-            }
-        }
-        match create_pipeline_layout(ctx, &[scene_set_layout, set_layout], None) {
-            Ok(l) => state.pipeline_layout = l,
-            Err(e) => {
-                state.destroy(ctx);
-                return Err(e);
-            }
-        }
-        match tilegraph_vk::pipeline::allocate_set(ctx, pool, set_layout) {
-            Ok(s) => state.set = s,
-            Err(e) => {
-                state.destroy(ctx);
-                return Err(e);
-            }
-        }
-        let info = [vk::DescriptorBufferInfo {
-            buffer: visibility.raw,
-            offset: 0,
-            range: vk::WHOLE_SIZE,
-        }];
-        let write = vk::WriteDescriptorSet::default()
-            .dst_set(state.set)
-            .dst_binding(0)
-            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-            .buffer_info(&info);
-        // SAFETY: a new set, not in use; the buffer is live as long as the culling state.
-        unsafe { ctx.device.update_descriptor_sets(&[write], &[]) };
-        Ok(state)
-    }
-
-    fn pipeline(
-        &mut self,
-        pc: &PassContext<'_>,
-        depth: DepthConvention,
-    ) -> Result<vk::Pipeline, VkError> {
-        let scale = [(0, self.scale)];
-        let vertex = Stage {
-            name: "raster_occlusion.vert",
-            spirv: RASTER_VS,
-            specialization: &scale,
-        };
-        let fragment = Stage {
-            name: "raster_occlusion.frag",
-            spirv: RASTER_FS,
-            specialization: &[],
-        };
-        proxy_pipeline(
-            pc,
-            &mut self.pipelines,
-            depth,
-            vertex,
-            Some(fragment),
-            self.pipeline_layout,
-        )
-    }
-
-    /// Records one instanced draw of every instance's box.
-    pub fn record(
-        &mut self,
-        pc: &PassContext<'_>,
-        scene_set: vk::DescriptorSet,
-        depth: DepthConvention,
-    ) -> Result<(), VkError> {
-        let pipeline = self.pipeline(pc, depth)?;
-        pc.set_full_viewport();
-        let d = &pc.ctx.device;
-        // SAFETY: inside the raster-occlusion subpass; pipeline, layout and sets are live; the
-        // graph put the visibility buffer in fragment-shader storage-write use for this pass.
-        unsafe {
-            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
-            d.cmd_bind_descriptor_sets(
-                pc.cb,
-                vk::PipelineBindPoint::GRAPHICS,
-                self.pipeline_layout,
-                0,
-                &[scene_set, self.set],
-                &[],
-            );
-            d.cmd_draw(pc.cb, 36, self.instance_count, 0, 0);
-        }
-        Ok(())
-    }
-
-    /// The low-resolution size for a full-resolution `extent` (`ceil(extent / scale)`).
-    pub fn low_extent(&self, extent: (u32, u32)) -> (u32, u32) {
-        (
-            extent.0.div_ceil(self.scale).max(1),
-            extent.1.div_ceil(self.scale).max(1),
-        )
-    }
-
-    /// Records the farthest-depth downsampling of `depth` (sampled, full resolution) into the
-    /// current render pass's low-resolution depth attachment.
-    pub fn record_downsample(
-        &mut self,
-        pc: &PassContext<'_>,
-        depth_view: vk::ImageView,
-        full: (u32, u32),
-        convention: DepthConvention,
-    ) -> Result<(), VkError> {
-        let low = self.low_extent(full);
-        let Some(ds) = self.downsample.as_mut() else {
+/// Declares the occlusion queries: every queried box drawn against `depth` (tested, not
+/// written), in a pass kept without an export (its results leave the graph through the query
+/// pool). With `conditions` (the size of the buffer the results are copied to, for conditional
+/// rendering in the same frame), a copy of the results follows, and the buffer is returned for
+/// the colour passes to declare as their predicate.
+pub fn add_occlusion_queries(
+    g: &mut FrameGraph,
+    depth: ImageId,
+    conditions: Option<u64>,
+) -> Option<BufferId> {
+    let queries: Payload = Box::new(|pc, res| {
+        let set = res
+            .scene
+            .set(pc.frame_slot)
+            .ok_or_else(|| VkError::Invalid {
+                what: pc.pass_name.into(),
+                reason: format!("no scene descriptor set for frame slot {}", pc.frame_slot),
+            })?;
+        let SceneResources {
+            pipelines,
+            queries,
+            frame,
+            ..
+        } = res;
+        let Some(q) = queries.as_ref() else {
             return Ok(());
         };
-        let rp = render_pass_of(pc, "the depth downsample must")?;
-        let pipeline = match ds.pipelines.get(rp, ()) {
-            Some(p) => p,
-            None => {
-                let p = create_graphics_pipeline(
-                    pc.ctx,
-                    &GraphicsDesc {
-                        name: pc.pass_name,
-                        vertex: Stage {
-                            name: "fullscreen.vert",
-                            spirv: FULLSCREEN_VS,
-                            specialization: &[],
-                        },
-                        fragment: Some(Stage {
-                            name: "raster_occlusion_downsample.frag",
-                            spirv: DOWNSAMPLE_FS,
-                            specialization: &[],
-                        }),
-                        vertex_layout: None,
-                        layout: ds.layout,
-                        target: RenderTarget::Subpass {
-                            render_pass: rp.handle,
-                            subpass: rp.subpass,
-                            color_count: 0,
-                        },
-                        depth: DepthState {
-                            test: true,
-                            write: true,
-                            compare: vk::CompareOp::ALWAYS,
-                        },
-                        blend: Blend::NoColorWrites,
-                        cull: vk::CullModeFlags::NONE,
-                        samples: vk::SampleCountFlags::TYPE_1,
-                    },
-                )?;
-                ds.pipelines.insert(rp, (), p);
-                p
-            }
-        };
-        let set = *ds.sets.get(pc.frame_slot).ok_or_else(|| VkError::Invalid {
-            what: pc.pass_name.into(),
-            reason: format!("no descriptor set for slot {}", pc.frame_slot),
-        })?;
-        let info = [vk::DescriptorImageInfo {
-            sampler: ds.sampler,
-            image_view: depth_view,
-            image_layout: vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
-        }];
-        let write = vk::WriteDescriptorSet::default()
-            .dst_set(set)
-            .dst_binding(0)
-            .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-            .image_info(&info);
-        let push = DownsamplePush {
-            scale: [
-                full.0 as f32 / low.0 as f32,
-                full.1 as f32 / low.1 as f32,
-                0.0,
-                0.0,
-            ],
-            info: [
-                u32::from(convention == DepthConvention::Reverse),
-                full.0,
-                full.1,
-                0,
-            ],
-        };
-        pc.set_full_viewport();
-        let d = &pc.ctx.device;
-        // SAFETY: the slot's previous frame completed (executor guarantee), so its set is idle;
-        // the graph samples depth formats in DEPTH_STENCIL_READ_ONLY_OPTIMAL; recording inside
-        // the downsample subpass.
-        unsafe {
-            d.update_descriptor_sets(&[write], &[]);
-            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
-            d.cmd_bind_descriptor_sets(
-                pc.cb,
-                vk::PipelineBindPoint::GRAPHICS,
-                ds.layout,
-                0,
-                &[set],
-                &[],
-            );
-            d.cmd_push_constants(
-                pc.cb,
-                ds.layout,
-                vk::ShaderStageFlags::FRAGMENT,
-                0,
-                bytemuck::bytes_of(&push),
-            );
-            d.cmd_draw(pc.cb, 3, 1, 0, 0);
-        }
-        Ok(())
-    }
-
-    /// Drops pipelines of render passes that no longer exist (see [`PipelineCache::prune`]).
-    pub(crate) fn prune_pipelines(&mut self, ctx: &Context, floor: u64) {
-        self.pipelines.prune(ctx, floor);
-        if let Some(d) = self.downsample.as_mut() {
-            d.pipelines.prune(ctx, floor);
-        }
-    }
-
-    pub(crate) fn pipeline_count(&self) -> usize {
-        self.pipelines.len() + self.downsample.as_ref().map_or(0, |d| d.pipelines.len())
-    }
-
-    pub fn destroy(self, ctx: &Context) {
-        if let Some(d) = self.downsample {
-            d.destroy(ctx);
-        }
-        self.pipelines.destroy(ctx);
-        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
-        unsafe {
-            ctx.device
-                .destroy_pipeline_layout(self.pipeline_layout, None);
-            ctx.device.destroy_descriptor_pool(self.pool, None);
-            ctx.device
-                .destroy_descriptor_set_layout(self.set_layout, None);
-        }
-    }
-}
-
-/// The pipeline of an occlusion proxy (query box or raster-occlusion box) for the subpass the
-/// pass records into, cached per (render pass, subpass, depth convention): depth tested against
-/// the frame's depth, nothing written, both faces (a box seen from inside still counts). The box
-/// encloses its object, so where the object is in front of the depth the box is too, or level
-/// with it: hence OR_EQUAL.
-fn proxy_pipeline(
-    pc: &PassContext<'_>,
-    cache: &mut PipelineCache<bool>,
-    depth: DepthConvention,
-    vertex: Stage<'_>,
-    fragment: Option<Stage<'_>>,
-    layout: vk::PipelineLayout,
-) -> Result<vk::Pipeline, VkError> {
-    let rp = render_pass_of(pc, "occlusion proxies")?;
-    let reverse = depth == DepthConvention::Reverse;
-    if let Some(p) = cache.get(rp, reverse) {
-        return Ok(p);
-    }
-    let compare = if reverse {
-        vk::CompareOp::GREATER_OR_EQUAL
-    } else {
-        vk::CompareOp::LESS_OR_EQUAL
-    };
-    let p = create_graphics_pipeline(
-        pc.ctx,
-        &GraphicsDesc {
-            name: pc.pass_name,
-            vertex,
-            fragment,
-            vertex_layout: None,
-            layout,
-            target: RenderTarget::Subpass {
-                render_pass: rp.handle,
-                subpass: rp.subpass,
-                color_count: 0,
-            },
-            depth: DepthState {
-                test: true,
-                write: false,
-                compare,
-            },
-            blend: Blend::NoColorWrites,
-            cull: vk::CullModeFlags::NONE,
-            samples: vk::SampleCountFlags::TYPE_1,
+        let pipeline = pipelines.proxy(pc, Proxy::QueryBox, q.pipeline_layout, frame.depth)?;
+        q.record(pc, set, pipeline)
+    });
+    let query_pass = g
+        .raster_pass("occlusion-queries", PassClass::OcclusionQuery, queries)
+        .depth_stencil_read_only(depth)
+        .retention(Retention::Always)
+        .id();
+    let size = conditions?;
+    let any = ResourceState::buffer(
+        PipelineStages::ALL_COMMANDS,
+        AccessFlags::MEMORY_READ.union(AccessFlags::MEMORY_WRITE),
+    );
+    let conditions = g.import_buffer(
+        "oq-conditions",
+        size,
+        Import {
+            initial: any,
+            content: InitialContent::Discard,
+            final_state: any,
         },
-    )?;
-    cache.insert(rp, reverse, p);
-    Ok(p)
+    );
+    // Tools read the drawn set back after the frame.
+    g.export(conditions);
+    let copy: Payload = Box::new(|pc, res| match res.queries.as_ref() {
+        Some(q) => q.record_copy(pc),
+        None => Ok(()),
+    });
+    g.transfer_pass("oq-copy-results", PassClass::Transfer, copy)
+        .transfer_dst(conditions)
+        .after(query_pass);
+    Some(conditions)
 }
 
 #[cfg(test)]

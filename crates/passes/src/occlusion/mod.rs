@@ -1,0 +1,9 @@
+//! Occlusion tested by rasterizing bounding boxes against this frame's depth: hardware
+//! occlusion queries ([`queries`]) and raster occlusion ([`raster`]). Both draw the same proxy
+//! boxes (`Proxy` in `pipelines.rs`).
+
+pub mod queries;
+pub mod raster;
+
+pub use queries::{add_occlusion_queries, build_groups, crosses_near_plane, proxy_corner, OqState};
+pub use raster::{add_raster_occlusion, RasterOcclusion};

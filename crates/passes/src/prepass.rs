@@ -1,0 +1,34 @@
+//! The depth pre-pass (seed 003's recipe): one material class's geometry drawn depth-only, so
+//! that the colour pass after it shades each pixel once, testing depth EQUAL without writing it.
+//! Opaque geometry needs positions only and no fragment shader; alpha-tested geometry runs its
+//! discard here, once, in depth only (seed 001), so its colour pass keeps early depth tests.
+
+use tilegraph_graph::{PassClass, PassId};
+
+use crate::draws::DrawClass;
+use crate::frame::{DrawSource, FrameGraph, Payload};
+use crate::pipelines::Variant;
+use crate::recording::record_class;
+use crate::targets::SceneTargets;
+
+/// Declares the depth pre-pass of `class` (opaque or alpha-tested) named `name`, drawing from
+/// `source` into the targets' depth (cleared if no pass wrote it yet).
+pub fn add_depth_prepass(
+    g: &mut FrameGraph,
+    targets: &mut SceneTargets,
+    class: DrawClass,
+    source: DrawSource,
+    name: &str,
+) -> PassId {
+    let variant = if class == DrawClass::AlphaTested {
+        Variant::DepthAlpha
+    } else {
+        Variant::DepthOpaque
+    };
+    let record: Payload =
+        Box::new(move |pc, res| record_class(pc, res, variant, class, source, 0, false));
+    let mut p = g.raster_pass(name, PassClass::DepthPrepass, record);
+    targets.attach_depth(&mut p, false);
+    source.declare_reads(&mut p);
+    p.id()
+}

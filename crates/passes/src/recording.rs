@@ -1,0 +1,238 @@
+//! Recording the scene's draws, for every pass that draws scene geometry: the CPU draw lists as
+//! instanced draws (or one draw per instance under conditional rendering), and the culling
+//! shader's lists as indirect draws with a GPU count. Single- and double-sided draws take two
+//! pipelines; blended draws keep their back-to-front order and switch where the sidedness
+//! changes, the others are grouped by pipeline (their order only helps early depth rejection).
+
+use tilegraph_vk::ash::vk;
+use tilegraph_vk::executor::PassContext;
+use tilegraph_vk::VkError;
+
+use crate::cull::list_index;
+use crate::draws::DrawClass;
+use crate::frame::{DrawSource, SceneResources};
+use crate::pipelines::Variant;
+
+/// Binds the scene's vertex and index buffers and set 0 (`culled`: the set whose draw list is
+/// the culling shader's), and sets the viewport.
+pub fn bind_geometry(
+    pc: &PassContext<'_>,
+    res: &SceneResources,
+    culled: bool,
+) -> Result<(), VkError> {
+    let slot = pc.frame_slot;
+    let set = if culled {
+        res.scene.culled_set(slot)
+    } else {
+        res.scene.set(slot)
+    }
+    .ok_or_else(|| VkError::Invalid {
+        what: pc.pass_name.into(),
+        reason: format!(
+            "no {}scene descriptor set for frame slot {slot}",
+            if culled { "culled " } else { "" }
+        ),
+    })?;
+    pc.set_full_viewport();
+    let d = &pc.ctx.device;
+    // SAFETY: recording inside a subpass; buffers and set are live.
+    unsafe {
+        d.cmd_bind_vertex_buffers(pc.cb, 0, &[res.scene.vertices.raw], &[0]);
+        d.cmd_bind_index_buffer(pc.cb, res.scene.indices.raw, 0, vk::IndexType::UINT32);
+        d.cmd_bind_descriptor_sets(
+            pc.cb,
+            vk::PipelineBindPoint::GRAPHICS,
+            res.pipelines.scene_layout,
+            0,
+            &[set],
+            &[],
+        );
+    }
+    Ok(())
+}
+
+/// Records the draws of material `class` from `source` with `variant` into a subpass with
+/// `colors` colour attachments; `predicated`: each instance is drawn under conditional
+/// rendering on its occlusion query's result.
+pub fn record_class(
+    pc: &PassContext<'_>,
+    res: &mut SceneResources,
+    variant: Variant,
+    class: DrawClass,
+    source: DrawSource,
+    colors: u32,
+    predicated: bool,
+) -> Result<(), VkError> {
+    match source {
+        DrawSource::Cpu if predicated => record_conditional(pc, res, variant, class, colors),
+        DrawSource::Cpu => record_cpu(pc, res, variant, class, colors),
+        DrawSource::Gpu { phase, .. } => record_indirect(pc, res, variant, class, phase, colors),
+    }
+}
+
+/// The CPU draw list's instanced draws.
+fn record_cpu(
+    pc: &PassContext<'_>,
+    res: &mut SceneResources,
+    variant: Variant,
+    class: DrawClass,
+    colors: u32,
+) -> Result<(), VkError> {
+    if res.frame.draws.of(class).is_empty() {
+        return Ok(());
+    }
+    bind_geometry(pc, res, false)?;
+    let SceneResources {
+        pipelines, frame, ..
+    } = res;
+    let draws = frame.draws.of(class);
+    let d = &pc.ctx.device;
+    let groups: &[Option<bool>] = if class == DrawClass::Blended {
+        &[None]
+    } else {
+        &[Some(false), Some(true)]
+    };
+    for &group in groups {
+        let mut bound: Option<bool> = None;
+        for draw in draws
+            .iter()
+            .filter(|d| group.is_none_or(|sided| d.double_sided == sided))
+        {
+            if bound != Some(draw.double_sided) {
+                let p = pipelines.scene(pc, variant, draw.double_sided, colors, frame.depth)?;
+                // SAFETY: inside the subpass; the pipeline is live.
+                unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
+                bound = Some(draw.double_sided);
+            }
+            // SAFETY: the draw's ranges lie inside the scene's buffers (built from the scene).
+            unsafe {
+                d.cmd_draw_indexed(
+                    pc.cb,
+                    draw.index_count,
+                    draw.instance_count,
+                    draw.first_index,
+                    draw.vertex_offset,
+                    draw.first_instance,
+                )
+            };
+        }
+    }
+    Ok(())
+}
+
+/// The CPU draw list one instance at a time, each predicated on its occlusion query's result
+/// (instances the frame did not query are drawn unconditionally). Same order as the instanced
+/// draws, so the image equals the unculled one.
+fn record_conditional(
+    pc: &PassContext<'_>,
+    res: &mut SceneResources,
+    variant: Variant,
+    class: DrawClass,
+    colors: u32,
+) -> Result<(), VkError> {
+    if res.frame.draws.of(class).is_empty() {
+        return Ok(());
+    }
+    bind_geometry(pc, res, false)?;
+    let SceneResources {
+        pipelines,
+        frame,
+        queries,
+        ..
+    } = res;
+    let (Some(cond), Some(queries)) = (pc.ctx.conditional_rendering(), queries.as_ref()) else {
+        return Err(VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: "conditional draws need VK_EXT_conditional_rendering and occlusion queries"
+                .into(),
+        });
+    };
+    let Some(conditions) = queries.conditions.as_ref().map(|b| b.raw) else {
+        return Err(VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: "the occlusion queries keep no results on the GPU".into(),
+        });
+    };
+    let d = &pc.ctx.device;
+    for sided in [false, true] {
+        let mut bound = false;
+        for draw in frame
+            .draws
+            .of(class)
+            .iter()
+            .filter(|d| d.double_sided == sided)
+        {
+            if !bound {
+                let p = pipelines.scene(pc, variant, sided, colors, frame.depth)?;
+                // SAFETY: inside the subpass; the pipeline is live.
+                unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
+                bound = true;
+            }
+            for k in draw.first_instance..draw.first_instance + draw.instance_count {
+                let offset = frame
+                    .draws
+                    .instances
+                    .get(k as usize)
+                    .and_then(|&id| queries.condition_offset(id));
+                if let Some(offset) = offset {
+                    let begin = vk::ConditionalRenderingBeginInfoEXT::default()
+                        .buffer(conditions)
+                        .offset(offset);
+                    // SAFETY: the buffer has CONDITIONAL_RENDERING usage, the offset is a
+                    // multiple of 4 inside it; the copy pass wrote it and the graph made it
+                    // visible to the conditional-rendering stage (the pass's predicate).
+                    unsafe { (cond.fp().cmd_begin_conditional_rendering_ext)(pc.cb, &begin) };
+                }
+                // SAFETY: the draw's ranges lie inside the scene's buffers.
+                unsafe {
+                    d.cmd_draw_indexed(
+                        pc.cb,
+                        draw.index_count,
+                        1,
+                        draw.first_index,
+                        draw.vertex_offset,
+                        k,
+                    )
+                };
+                if offset.is_some() {
+                    // SAFETY: ends the conditional block begun above, in the same subpass.
+                    unsafe { (cond.fp().cmd_end_conditional_rendering_ext)(pc.cb) };
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The culling shader's lists of one material class and phase (single- and double-sided, each
+/// with its pipeline) as indirect draws with a GPU count.
+fn record_indirect(
+    pc: &PassContext<'_>,
+    res: &mut SceneResources,
+    variant: Variant,
+    class: DrawClass,
+    phase: u32,
+    colors: u32,
+) -> Result<(), VkError> {
+    bind_geometry(pc, res, true)?;
+    let SceneResources {
+        pipelines,
+        frame,
+        culling,
+        ..
+    } = res;
+    let Some(culling) = culling.as_ref() else {
+        return Err(VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: "indirect draws without GPU culling".into(),
+        });
+    };
+    let d = &pc.ctx.device;
+    for sided in [false, true] {
+        let p = pipelines.scene(pc, variant, sided, colors, frame.depth)?;
+        // SAFETY: inside the subpass; the pipeline is live.
+        unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
+        culling.record_draws(pc.ctx, pc.cb, list_index(class.index(), sided, phase));
+    }
+    Ok(())
+}

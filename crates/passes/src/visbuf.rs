@@ -1,0 +1,209 @@
+//! The visibility buffer: an id pass writes, per pixel, the instance and triangle that own it
+//! (one raster pass, depth tested and written), and a full-screen resolve shades each pixel once
+//! from its id. On a tiler the resolve reads the id as an input attachment, so it can be a
+//! subpass of the id pass's render pass and the ids never leave tile memory; on immediate GPUs
+//! it samples them.
+
+use std::collections::HashMap;
+
+use tilegraph_graph::{ClearColor, Format, ImageDesc, ImageId, PassClass, PassId};
+use tilegraph_vk::ash::vk;
+use tilegraph_vk::executor::PassContext;
+use tilegraph_vk::pipeline::allocate_set;
+use tilegraph_vk::{Context, VkError};
+
+use crate::draws::DrawClass;
+use crate::frame::{DrawSource, FrameGraph, Payload, SceneResources};
+use crate::pipelines::Variant;
+use crate::recording::record_class;
+use crate::targets::SceneTargets;
+
+/// Declares an id pass named `name` of phase `phase` (0 clears the ids; two-phase culling's
+/// second phase adds to them), drawing opaque then alpha-tested geometry from `source`.
+/// Returns the ids: the targets' (imported when the caller keeps them), or an image created by
+/// the first id pass.
+pub fn add_visbuf_write(
+    g: &mut FrameGraph,
+    targets: &mut SceneTargets,
+    phase: u32,
+    source: DrawSource,
+    name: &str,
+) -> ImageId {
+    let extent = targets.extent;
+    let ids = *targets.ids.get_or_insert_with(|| {
+        g.create_image("visbuf-id", ImageDesc::new(extent, Format::R32_UINT))
+    });
+    let record: Payload = Box::new(move |pc, res| {
+        for (class, alpha) in [(DrawClass::Opaque, false), (DrawClass::AlphaTested, true)] {
+            record_class(pc, res, Variant::Visbuf { alpha }, class, source, 1, false)?;
+        }
+        Ok(())
+    });
+    let mut p = g.raster_pass(name, PassClass::Opaque, record);
+    if phase == 0 {
+        p.color_clear(ids, ClearColor::Uint([u32::MAX; 4]));
+    } else {
+        p.color(ids);
+    }
+    targets.attach_depth(&mut p, false);
+    source.declare_reads(&mut p);
+    ids
+}
+
+/// Declares the resolve: shades every pixel of the colour target from `ids`, read as an input
+/// attachment (`input`, tilers) or sampled.
+pub fn add_visbuf_resolve(
+    g: &mut FrameGraph,
+    targets: &mut SceneTargets,
+    ids: ImageId,
+    input: bool,
+) -> PassId {
+    let record: Payload = Box::new(move |pc, res| record_resolve(pc, res, ids, input));
+    let mut p = g.raster_pass("visbuf-resolve", PassClass::Opaque, record);
+    if input {
+        p.input(ids);
+    } else {
+        p.sampled(ids);
+    }
+    targets.attach_color(&mut p);
+    p.id()
+}
+
+/// The resolve's descriptor sets (set 1: the ids), one per frame slot and way of reading.
+pub struct ResolveSets {
+    pool: vk::DescriptorPool,
+    sampler: vk::Sampler,
+    sets: HashMap<(usize, bool), vk::DescriptorSet>,
+}
+
+impl ResolveSets {
+    pub fn new(ctx: &Context, frames_in_flight: usize) -> Result<Self, VkError> {
+        let n = frames_in_flight.max(1) as u32;
+        let sizes = [
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::INPUT_ATTACHMENT,
+                descriptor_count: n,
+            },
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+                descriptor_count: n,
+            },
+        ];
+        let pool_info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(2 * n)
+            .pool_sizes(&sizes);
+        // SAFETY: valid create info.
+        let pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
+            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
+        let sampler_info = vk::SamplerCreateInfo::default()
+            .mag_filter(vk::Filter::NEAREST)
+            .min_filter(vk::Filter::NEAREST)
+            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+            .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .max_lod(0.0);
+        // SAFETY: valid create info.
+        let sampler = match unsafe { ctx.device.create_sampler(&sampler_info, None) } {
+            Ok(s) => s,
+            Err(r) => {
+                // SAFETY: the pool is unused.
+                unsafe { ctx.device.destroy_descriptor_pool(pool, None) };
+                return Err(VkError::call("vkCreateSampler", r));
+            }
+        };
+        Ok(ResolveSets {
+            pool,
+            sampler,
+            sets: HashMap::new(),
+        })
+    }
+
+    pub fn destroy(self, ctx: &Context) {
+        // SAFETY: the GPU is idle (caller's guarantee); the sets go with the pool.
+        unsafe {
+            ctx.device.destroy_sampler(self.sampler, None);
+            ctx.device.destroy_descriptor_pool(self.pool, None);
+        }
+    }
+}
+
+fn record_resolve(
+    pc: &mut PassContext<'_>,
+    res: &mut SceneResources,
+    ids: ImageId,
+    input: bool,
+) -> Result<(), VkError> {
+    let variant = if input {
+        Variant::ResolveInput
+    } else {
+        Variant::ResolveSampled
+    };
+    let pipeline = res
+        .pipelines
+        .scene(pc, variant, false, 1, res.frame.depth)?;
+    let scene_set = res
+        .scene
+        .set(pc.frame_slot)
+        .ok_or_else(|| VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: format!("no scene descriptor set for frame slot {}", pc.frame_slot),
+        })?;
+    let (set_layout, layout) = if input {
+        (res.pipelines.input_set_layout, res.pipelines.input_layout)
+    } else {
+        (
+            res.pipelines.sampled_set_layout,
+            res.pipelines.sampled_layout,
+        )
+    };
+    let Some(sets) = res.resolve.as_mut() else {
+        return Err(VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: "the renderer has no visibility-buffer resolve".into(),
+        });
+    };
+    let key = (pc.frame_slot, input);
+    let set = match sets.sets.get(&key) {
+        Some(s) => *s,
+        None => {
+            // The pool holds a set per slot and way of reading.
+            let s = allocate_set(pc.ctx, sets.pool, set_layout)?;
+            sets.sets.insert(key, s);
+            s
+        }
+    };
+    let view = pc.image(ids)?.view;
+    let info = [vk::DescriptorImageInfo {
+        sampler: sets.sampler,
+        image_view: view,
+        image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
+    }];
+    let ty = if input {
+        vk::DescriptorType::INPUT_ATTACHMENT
+    } else {
+        vk::DescriptorType::COMBINED_IMAGE_SAMPLER
+    };
+    let write = vk::WriteDescriptorSet::default()
+        .dst_set(set)
+        .dst_binding(0)
+        .descriptor_type(ty)
+        .image_info(&info);
+    pc.set_full_viewport();
+    let d = &pc.ctx.device;
+    // SAFETY: the slot's previous frame completed (executor guarantee), so the set is idle;
+    // recording inside the resolve subpass.
+    unsafe {
+        d.update_descriptor_sets(&[write], &[]);
+        d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+        d.cmd_bind_descriptor_sets(
+            pc.cb,
+            vk::PipelineBindPoint::GRAPHICS,
+            layout,
+            0,
+            &[scene_set, set],
+            &[],
+        );
+        d.cmd_draw(pc.cb, 3, 1, 0, 0);
+    }
+    Ok(())
+}
