@@ -11,8 +11,8 @@ use std::mem::{offset_of, size_of};
 use tilegraph_cull::{dequantize_d16, DepthFormat, Extent2d, HizPyramid};
 use tilegraph_e2e::gpu;
 use tilegraph_passes::hiz::{
-    DepthConvention, HizBuilder, HizLayout, HizPush, NpotMode, HIZ_COPY_SPV, HIZ_REDUCE_SPV,
-    MAX_PYRAMID_BYTES, WORKGROUP_SIZE,
+    DepthConvention, HizBuilder, HizLayout, HizPush, NpotMode, SampledDepth, HIZ_COPY_SPV,
+    HIZ_REDUCE_SPV, MAX_PYRAMID_BYTES, WORKGROUP_SIZE,
 };
 use tilegraph_profile::MemoryUse;
 use tilegraph_vk::ash::vk;
@@ -297,7 +297,9 @@ fn gpu_build(
         size: pyramid.size,
     };
     let result = ctx
-        .submit_and_wait(|cb| builder.record(ctx, cb, 0, depth.view, READ_LAYOUT, handle, layout))
+        .submit_and_wait(|cb| {
+            builder.record(ctx, cb, 0, sampled(depth.view, READ_LAYOUT), handle, layout)
+        })
         .and_then(|_| read_buffer(ctx, handle))
         .map(|b| floats(&b));
     ctx.destroy_buffer(pyramid);
@@ -688,14 +690,27 @@ fn record_rejects_bad_input_without_recording() {
     let errors = g
         .submit_and_wait(|cb| {
             Ok([
-                builder.record(&g, cb, 2, image.view, READ_LAYOUT, small_handle, &layout),
-                builder.record(&g, cb, 0, image.view, READ_LAYOUT, small_handle, &layout),
+                builder.record(
+                    &g,
+                    cb,
+                    2,
+                    sampled(image.view, READ_LAYOUT),
+                    small_handle,
+                    &layout,
+                ),
                 builder.record(
                     &g,
                     cb,
                     0,
-                    image.view,
-                    vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                    sampled(image.view, READ_LAYOUT),
+                    small_handle,
+                    &layout,
+                ),
+                builder.record(
+                    &g,
+                    cb,
+                    0,
+                    sampled(image.view, vk::ImageLayout::TRANSFER_DST_OPTIMAL),
                     small_handle,
                     &layout,
                 ),
@@ -836,7 +851,7 @@ fn median_build_ms(
                     &vk::DependencyInfo::default().memory_barriers(&waw),
                 )?;
                 ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, pool, 0)?;
-                builder.record(ctx, cb, 0, depth.view, READ_LAYOUT, handle, layout)?;
+                builder.record(ctx, cb, 0, sampled(depth.view, READ_LAYOUT), handle, layout)?;
                 ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, pool, 1)
             })?;
             let mut ts = [0u64; 2];
@@ -901,4 +916,9 @@ fn gpu_cost_per_mode() {
         }
     }
     builder.destroy(&g);
+}
+
+/// The depth a build reads.
+fn sampled(view: vk::ImageView, layout: vk::ImageLayout) -> SampledDepth {
+    SampledDepth { view, layout }
 }

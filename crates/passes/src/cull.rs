@@ -9,8 +9,7 @@
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
-use serde::Serialize;
-use tilegraph_cull::{DepthConvention as CullDepth, Frustum, NpotMode};
+use tilegraph_cull::Frustum;
 use tilegraph_graph::{
     AccessFlags, BufferId, Import, InitialContent, PassClass, PipelineStages, ResourceState,
 };
@@ -24,95 +23,11 @@ use tilegraph_vk::pipeline::{
 };
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
 
+pub use crate::setup::Culling;
+
 use crate::draws::DrawList;
-use crate::frame::{DrawSource, FrameGraph, Payload};
-use crate::hiz::{HizBuilder, HizLayout};
-
-/// Which culling a frame runs before drawing.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Culling {
-    /// Everything is drawn (the CPU draw lists).
-    None,
-    /// GPU frustum culling.
-    Frustum,
-    /// Frustum + HiZ against the previous frame's pyramid with the previous matrices: cheap,
-    /// but wrong for a frame after a cut or a fast turn (false negatives, measured).
-    Hiz,
-    /// Two-phase occlusion culling: last frame's visible set, pyramid from that depth, then the
-    /// rest; no dependence on the previous camera.
-    HizTwoPhase,
-    /// Hardware occlusion queries on bounding boxes against this frame's depth, read back the
-    /// next frame without waiting: the drawn set lags one frame (false negatives when objects
-    /// appear, measured).
-    Oq,
-    /// The same queries in the same frame, against a depth pre-pass: results copied to a buffer
-    /// on the GPU, each instance drawn under `VK_EXT_conditional_rendering` on its result.
-    /// Conservative: no false negatives, the unculled image.
-    OqConditional,
-    /// Bounding boxes rasterized against the depth pre-pass with early fragment tests; each
-    /// surviving fragment flags its instance, the culling shader turns flags into indirect
-    /// draws. Conservative: no false negatives, the unculled image.
-    RasterOcclusion,
-}
-
-impl Culling {
-    pub fn parse(s: &str) -> Option<Culling> {
-        match s {
-            "none" => Some(Culling::None),
-            "frustum" => Some(Culling::Frustum),
-            "hiz" => Some(Culling::Hiz),
-            "hiz-2phase" => Some(Culling::HizTwoPhase),
-            "oq" => Some(Culling::Oq),
-            "oq-conditional" => Some(Culling::OqConditional),
-            "raster-occlusion" => Some(Culling::RasterOcclusion),
-            _ => None,
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Culling::None => "none",
-            Culling::Frustum => "frustum",
-            Culling::Hiz => "hiz",
-            Culling::HizTwoPhase => "hiz-2phase",
-            Culling::Oq => "oq",
-            Culling::OqConditional => "oq-conditional",
-            Culling::RasterOcclusion => "raster-occlusion",
-        }
-    }
-
-    /// Whether the technique draws opaque and alpha-tested geometry through the culling
-    /// shader's indirect lists (the others select the CPU draw lists).
-    pub fn uses_gpu_lists(self) -> bool {
-        matches!(
-            self,
-            Culling::Frustum | Culling::Hiz | Culling::HizTwoPhase | Culling::RasterOcclusion
-        )
-    }
-
-    /// Whether the technique issues hardware occlusion queries.
-    pub fn uses_queries(self) -> bool {
-        matches!(self, Culling::Oq | Culling::OqConditional)
-    }
-
-    /// Whether colour draws are predicated on this frame's query results on the GPU.
-    pub fn conditional(self) -> bool {
-        self == Culling::OqConditional
-    }
-
-    /// Whether the technique needs a depth pre-pass whatever the profile says.
-    pub fn needs_prepass(self) -> bool {
-        matches!(
-            self,
-            Culling::HizTwoPhase | Culling::OqConditional | Culling::RasterOcclusion
-        )
-    }
-
-    pub fn uses_pyramid(self) -> bool {
-        matches!(self, Culling::Hiz | Culling::HizTwoPhase)
-    }
-}
+use crate::frame::{scene_set, DrawSource, FrameGraph, PassState, Payload};
+use crate::hiz::{cull_convention, HizState, PyramidInfo};
 
 /// The culling buffers in one frame's graph. They live as long as the renderer (visibility and
 /// the pyramid carry over from frame to frame, tools read the drawn set back), so each frame
@@ -139,8 +54,12 @@ impl CullLists {
     }
 }
 
-/// Imports `state`'s buffers into the frame's graph.
-pub fn import_cull_buffers(g: &mut FrameGraph, state: &CullState) -> CullLists {
+/// Imports `state`'s buffers (and `hiz`'s pyramid) into the frame's graph.
+pub fn import_cull_buffers(
+    g: &mut FrameGraph,
+    state: &CullState,
+    hiz: Option<&HizState>,
+) -> CullLists {
     // Conservative boundary states: whatever touched them last frame, this frame waits for.
     let any = ResourceState::buffer(
         PipelineStages::ALL_COMMANDS,
@@ -157,10 +76,7 @@ pub fn import_cull_buffers(g: &mut FrameGraph, state: &CullState) -> CullLists {
     let counts = g.import_buffer("cull-counts", state.counts.size, discard);
     let draw_ids = g.import_buffer("cull-draw-ids", state.draw_ids.size, discard);
     let visibility = g.import_buffer("visibility", state.visibility.size, keep);
-    let pyramid = state
-        .pyramid
-        .as_ref()
-        .map(|p| g.import_buffer("hiz-pyramid", p.size, keep));
+    let pyramid = hiz.map(|h| g.import_buffer("hiz-pyramid", h.pyramid.size, keep));
     // What the next frame reads survives this one.
     g.export(visibility);
     if let Some(p) = pyramid {
@@ -226,17 +142,9 @@ pub fn add_cull_late(g: &mut FrameGraph, lists: CullLists) {
 /// The culling dispatch `which` (0 early or only, 1 late).
 fn dispatch(which: usize) -> Payload {
     Box::new(move |pc, res| {
-        let scene_set = res
-            .scene
-            .set(pc.frame_slot)
-            .ok_or_else(|| VkError::Invalid {
-                what: pc.pass_name.into(),
-                reason: format!("no scene descriptor set for frame slot {}", pc.frame_slot),
-            })?;
-        match res.culling.as_ref() {
-            Some(c) => c.record_dispatch(pc.ctx, pc.cb, scene_set, pc.frame_slot, which),
-            None => Ok(()),
-        }
+        let set = scene_set(pc, res)?;
+        let culling = res.states.require::<CullState>(pc.pass_name)?;
+        culling.record_dispatch(pc.ctx, pc.cb, set, pc.frame_slot, which)
     })
 }
 
@@ -284,13 +192,6 @@ pub enum Phase {
     Late = 3,
 }
 
-pub(crate) fn cull_convention(c: DepthConvention) -> CullDepth {
-    match c {
-        DepthConvention::Reverse => CullDepth::Reverse,
-        DepthConvention::Standard => CullDepth::Standard,
-    }
-}
-
 /// Frustum planes of a camera-relative view-projection, for the shader (absent far plane of an
 /// infinite projection becomes a plane every point passes).
 pub fn gpu_planes(view_proj: Mat4, convention: DepthConvention) -> Result<[[f32; 4]; 6], VkError> {
@@ -312,10 +213,6 @@ pub struct CullState {
     pub counts: Buffer,
     pub draw_ids: Buffer,
     pub visibility: Buffer,
-    pub pyramid: Option<Buffer>,
-    pub levels: Option<Buffer>,
-    pub hiz_layout: Option<HizLayout>,
-    pub hiz: Option<HizBuilder>,
     params: Vec<Buffer>,
     /// Per frame slot: each instance's list entry in CPU draw order (`Order` of cull.comp).
     order: Vec<Buffer>,
@@ -324,14 +221,15 @@ pub struct CullState {
     pipeline: vk::Pipeline,
     pool: vk::DescriptorPool,
     sets: Vec<vk::DescriptorSet>,
-    /// The depth convention of the depth the pyramid was last built from (`None`: never built).
-    /// Single-phase HiZ tests a frame against the previous frame's pyramid only when the
-    /// conventions agree: a pyramid of the other convention holds the wrong extreme of each
-    /// footprint, and its reprojection maps depth the other way.
-    pub pyramid_convention: Option<DepthConvention>,
 }
 
 const CULL_SPV: &[u8] = include_bytes!("../../../shaders/spv/cull.comp.spv");
+
+impl PassState for CullState {
+    fn destroy(self: Box<Self>, ctx: &Context) {
+        self.destroy_all(ctx);
+    }
+}
 
 impl CullState {
     /// Device features GPU culling needs.
@@ -339,72 +237,97 @@ impl CullState {
         [Feature::DrawIndirectCount, Feature::MultiDrawIndirect]
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// The buffers, pipeline and descriptor sets of `culling` for `instance_count` instances;
+    /// `hiz`: the pyramid the HiZ techniques test against (bound for the shader).
     pub fn new(
         ctx: &Context,
         culling: Culling,
         instance_count: u32,
-        extent: (u32, u32),
-        depth: DepthConvention,
-        mode: NpotMode,
         scene_set_layout: vk::DescriptorSetLayout,
         frames_in_flight: usize,
+        hiz: Option<&HizState>,
     ) -> Result<Self, VkError> {
         let n = u64::from(instance_count.max(1));
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let gpu = MemoryUse::GpuOnly;
-        let commands = ctx.create_buffer(
-            "cull commands",
-            n * u64::from(LIST_COUNT) * 20,
-            storage | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
-            gpu,
-        )?;
-        let counts = ctx.create_buffer(
-            "cull counts",
-            u64::from(LIST_COUNT) * 4,
-            storage
-                | vk::BufferUsageFlags::INDIRECT_BUFFER
-                | vk::BufferUsageFlags::TRANSFER_DST
-                | vk::BufferUsageFlags::TRANSFER_SRC,
-            gpu,
-        )?;
-        let draw_ids = ctx.create_buffer(
-            "cull draw ids",
-            n * u64::from(LIST_COUNT) * 4,
-            storage | vk::BufferUsageFlags::TRANSFER_SRC,
-            gpu,
-        )?;
-        let visibility = ctx.create_buffer(
-            "visibility",
-            n * 4,
-            storage | vk::BufferUsageFlags::TRANSFER_DST,
-            gpu,
-        )?;
-        let (pyramid, levels, hiz_layout, hiz) = if culling.uses_pyramid() {
-            // The renderer's depth attachment is D32_SFLOAT.
-            let layout = HizLayout::new(
-                extent,
-                mode,
-                cull_convention(depth),
-                tilegraph_cull::DepthFormat::D32Float,
-            )?;
-            let pyramid = ctx.create_buffer(
-                "hiz pyramid",
-                layout.size_bytes(),
-                storage | vk::BufferUsageFlags::TRANSFER_SRC,
-                gpu,
-            )?;
-            let table = level_table(&layout);
-            let levels =
-                crate::gpu_scene::upload(ctx, "hiz levels", bytemuck::cast_slice(&table), storage)?;
-            let builder = HizBuilder::new(ctx, frames_in_flight)?;
-            (Some(pyramid), Some(levels), Some(layout), Some(builder))
-        } else {
-            (None, None, None, None)
+        let indirect = vk::BufferUsageFlags::INDIRECT_BUFFER;
+        let src = vk::BufferUsageFlags::TRANSFER_SRC;
+        let dst = vk::BufferUsageFlags::TRANSFER_DST;
+        let specs = [
+            (
+                "cull commands",
+                n * u64::from(LIST_COUNT) * 20,
+                storage | indirect | src,
+            ),
+            (
+                "cull counts",
+                u64::from(LIST_COUNT) * 4,
+                storage | indirect | dst | src,
+            ),
+            (
+                "cull draw ids",
+                n * u64::from(LIST_COUNT) * 4,
+                storage | src,
+            ),
+            ("visibility", n * 4, storage | dst),
+        ];
+        let mut made: Vec<Buffer> = Vec::with_capacity(specs.len());
+        for (name, size, usage) in specs {
+            match ctx.create_buffer(name, size, usage, MemoryUse::GpuOnly) {
+                Ok(b) => made.push(b),
+                Err(e) => {
+                    for b in made {
+                        ctx.destroy_buffer(b);
+                    }
+                    return Err(e);
+                }
+            }
+        }
+        let mut made = made.into_iter();
+        let (Some(commands), Some(counts), Some(draw_ids), Some(visibility)) =
+            (made.next(), made.next(), made.next(), made.next())
+        else {
+            return Err(VkError::Invalid {
+                what: "cull".into(),
+                reason: "buffers missing".into(),
+            });
         };
+        // Vulkan objects start null and are filled in; on error `destroy` frees what exists
+        // (destroying VK_NULL_HANDLE is a no-op).
+        let mut state = CullState {
+            culling,
+            instance_count,
+            commands,
+            counts,
+            draw_ids,
+            visibility,
+            params: Vec::new(),
+            order: Vec::new(),
+            set_layout: vk::DescriptorSetLayout::null(),
+            pipeline_layout: vk::PipelineLayout::null(),
+            pipeline: vk::Pipeline::null(),
+            pool: vk::DescriptorPool::null(),
+            sets: Vec::new(),
+        };
+        match state.init(ctx, scene_set_layout, frames_in_flight, hiz) {
+            Ok(()) => Ok(state),
+            Err(e) => {
+                state.destroy_all(ctx);
+                Err(e)
+            }
+        }
+    }
+
+    fn init(
+        &mut self,
+        ctx: &Context,
+        scene_set_layout: vk::DescriptorSetLayout,
+        frames_in_flight: usize,
+        hiz: Option<&HizState>,
+    ) -> Result<(), VkError> {
+        let n = u64::from(self.instance_count.max(1));
         let c = vk::ShaderStageFlags::COMPUTE;
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
-        let set_layout = create_set_layout(
+        self.set_layout = create_set_layout(
             ctx,
             &[
                 (0, vk::DescriptorType::UNIFORM_BUFFER, c),
@@ -417,15 +340,16 @@ impl CullState {
                 (7, ssbo, c),
             ],
         )?;
-        let pipeline_layout = create_pipeline_layout(ctx, &[scene_set_layout, set_layout], None)?;
-        let pipeline = create_compute_pipeline(
+        self.pipeline_layout =
+            create_pipeline_layout(ctx, &[scene_set_layout, self.set_layout], None)?;
+        self.pipeline = create_compute_pipeline(
             ctx,
             &Stage {
                 name: "cull.comp",
                 spirv: CULL_SPV,
                 specialization: &[],
             },
-            pipeline_layout,
+            self.pipeline_layout,
         )?;
         let slots = frames_in_flight.max(1) as u32;
         let sizes = [
@@ -442,28 +366,8 @@ impl CullState {
             .max_sets(4 * slots)
             .pool_sizes(&sizes);
         // SAFETY: valid create info.
-        let pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
+        self.pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
             .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
-        let mut state = CullState {
-            culling,
-            instance_count,
-            commands,
-            counts,
-            draw_ids,
-            visibility,
-            pyramid,
-            levels,
-            hiz_layout,
-            hiz,
-            params: Vec::new(),
-            order: Vec::new(),
-            set_layout,
-            pipeline_layout,
-            pipeline,
-            pool,
-            sets: Vec::new(),
-            pyramid_convention: None,
-        };
         // Two parameter blocks per slot: the early (or only) and the late dispatch.
         for i in 0..2 * slots {
             let b = ctx.create_buffer(
@@ -472,30 +376,36 @@ impl CullState {
                 vk::BufferUsageFlags::UNIFORM_BUFFER,
                 MemoryUse::Streaming,
             )?;
-            state.params.push(b);
+            self.params.push(b);
         }
         for i in 0..slots {
             let b = ctx.create_buffer(
                 &format!("cull order[{i}]"),
                 n * 4,
-                storage,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
                 MemoryUse::Streaming,
             )?;
-            state.order.push(b);
+            self.order.push(b);
         }
+        // Without a pyramid the shader never reads bindings 5 and 6; bind small live buffers.
+        let pyramid = hiz.map_or(self.counts.raw, |h| h.pyramid.raw);
+        let levels = hiz.map_or(self.counts.raw, |h| h.levels.raw);
         for i in 0..2 * slots as usize {
-            let set = state.write_set(ctx, i)?;
-            state.sets.push(set);
+            let set = self.write_set(ctx, i, pyramid, levels)?;
+            self.sets.push(set);
         }
-        Ok(state)
+        Ok(())
     }
 
-    fn write_set(&self, ctx: &Context, index: usize) -> Result<vk::DescriptorSet, VkError> {
+    fn write_set(
+        &self,
+        ctx: &Context,
+        index: usize,
+        pyramid: vk::Buffer,
+        levels: vk::Buffer,
+    ) -> Result<vk::DescriptorSet, VkError> {
         // The pool holds a set per parameter block.
         let set = allocate_set(ctx, self.pool, self.set_layout)?;
-        // Without a pyramid the shader never reads bindings 5 and 6; bind small live buffers.
-        let pyramid = self.pyramid.as_ref().map_or(self.counts.raw, |b| b.raw);
-        let levels = self.levels.as_ref().map_or(self.counts.raw, |b| b.raw);
         let order = self.order.get(index / 2).ok_or_else(|| VkError::Invalid {
             what: "cull".into(),
             reason: format!("no order buffer for set {index}"),
@@ -565,19 +475,13 @@ impl CullState {
         frame: &CameraFrame,
         draws: &DrawList,
         extent: (u32, u32),
+        pyramid: Option<PyramidInfo>,
     ) -> Result<(), VkError> {
         let m = &frame.current;
         self.write_order(ctx, slot, &gpu_order(draws, self.instance_count as usize))?;
         let planes = gpu_planes(m.view_projection, m.depth)?;
-        let levels = self
-            .hiz_layout
-            .as_ref()
-            .map_or(0, |l| l.levels.len() as u32);
-        let (pw, ph) = self
-            .hiz_layout
-            .as_ref()
-            .and_then(|l| l.levels.first())
-            .map_or(extent, |l| (l.width, l.height));
+        let levels = pyramid.map_or(0, |p| p.levels);
+        let (pw, ph) = pyramid.map_or(extent, |p| p.extent_px);
         let reverse = u32::from(m.depth == DepthConvention::Reverse);
         let n = self.instance_count;
         let params = |phase: Phase, view_proj: Mat4, levels: u32| CullParams {
@@ -590,7 +494,7 @@ impl CullState {
             Culling::Hiz => params(
                 Phase::HizPrevious,
                 frame.reproject,
-                if self.pyramid_convention == Some(m.depth) && !frame.cut {
+                if pyramid.is_some_and(|p| p.built_from == Some(m.depth)) && !frame.cut {
                     levels
                 } else {
                     0
@@ -696,11 +600,8 @@ impl CullState {
         Ok(out)
     }
 
-    pub fn destroy(self, ctx: &Context) {
-        if let Some(h) = self.hiz {
-            h.destroy(ctx);
-        }
-        // SAFETY: the GPU is idle (caller's guarantee).
+    fn destroy_all(self, ctx: &Context) {
+        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
             ctx.device.destroy_pipeline(self.pipeline, None);
             ctx.device
@@ -709,46 +610,14 @@ impl CullState {
             ctx.device
                 .destroy_descriptor_set_layout(self.set_layout, None);
         }
-        for b in [
-            Some(self.commands),
-            Some(self.counts),
-            Some(self.draw_ids),
-            Some(self.visibility),
-            self.pyramid,
-            self.levels,
-        ]
-        .into_iter()
-        .flatten()
+        for b in [self.commands, self.counts, self.draw_ids, self.visibility]
+            .into_iter()
+            .chain(self.params)
+            .chain(self.order)
         {
             ctx.destroy_buffer(b);
         }
-        for b in self.params.into_iter().chain(self.order) {
-            ctx.destroy_buffer(b);
-        }
     }
-}
-
-/// `Levels` of `cull.comp`: per level (offset, width, height, 0) and the pixel -> texel scale.
-pub fn level_table(layout: &HizLayout) -> Vec<[u32; 4]> {
-    let mut out = Vec::with_capacity(2 * layout.levels.len());
-    let (w0, h0) = layout
-        .levels
-        .first()
-        .map_or((1, 1), |l| (l.width, l.height));
-    let (p_w, p_h) = layout.levels.get(1).map_or((1, 1), |l| (l.width, l.height));
-    for (k, l) in layout.levels.iter().enumerate() {
-        out.push([l.offset_texels as u32, l.width, l.height, 0]);
-        let scale = match (layout.mode, k) {
-            (_, 0) => [1, 1, 1, 1],
-            (NpotMode::PadToPow2, k) => {
-                let f = 1u32 << (k - 1);
-                [p_w, w0 * f, p_h, h0 * f]
-            }
-            (_, k) => [1, 1 << k, 1, 1 << k],
-        };
-        out.push(scale);
-    }
-    out
 }
 
 /// CPU plane-test frustum culling (the reference's conservative test) of every instance, in

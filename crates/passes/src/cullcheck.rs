@@ -122,7 +122,7 @@ pub fn cull_check_with(
         raster_occlusion_scale: options.raster_occlusion_scale,
         ..Default::default()
     };
-    let mut oracle = SceneRenderer::new(
+    let oracle = SceneRenderer::new(
         ctx,
         scene,
         RenderOptions {
@@ -131,184 +131,220 @@ pub fn cull_check_with(
             ..base.clone()
         },
     )?;
-    let mut reference = SceneRenderer::new(
-        ctx,
-        scene,
-        RenderOptions {
-            technique: Technique::Forward,
-            ..base.clone()
-        },
-    )?;
-    let mut tested = SceneRenderer::new(
-        ctx,
-        scene,
-        RenderOptions {
-            technique: Technique::Forward,
-            culling,
-            ..base
-        },
-    )?;
-    let result = run(
-        ctx,
+    let reference = RenderOptions {
+        technique: Technique::Forward,
+        ..base.clone()
+    };
+    let reference = match SceneRenderer::new(ctx, scene, reference) {
+        Ok(r) => r,
+        Err(e) => {
+            oracle.destroy(ctx);
+            return Err(e);
+        }
+    };
+    let tested = RenderOptions {
+        technique: Technique::Forward,
+        culling,
+        ..base
+    };
+    let tested = match SceneRenderer::new(ctx, scene, tested) {
+        Ok(r) => r,
+        Err(e) => {
+            oracle.destroy(ctx);
+            reference.destroy(ctx);
+            return Err(e);
+        }
+    };
+    let mut renderers = Renderers {
+        oracle,
+        reference,
+        tested,
+    };
+    let run = Run {
         scene,
         culling,
         path,
         size,
         max_frames,
-        &mut oracle,
-        &mut reference,
-        &mut tested,
-    );
+    };
+    let result = run.check(ctx, &mut renderers);
+    let Renderers {
+        oracle,
+        reference,
+        tested,
+    } = renderers;
     oracle.destroy(ctx);
     reference.destroy(ctx);
     tested.destroy(ctx);
     result
 }
 
-#[allow(clippy::too_many_arguments)]
-fn run(
-    ctx: &Context,
-    scene: &Scene,
+/// The three renderers of a check, on one device.
+struct Renderers {
+    /// Visibility buffer, no culling, ids captured.
+    oracle: SceneRenderer,
+    /// Forward, no culling.
+    reference: SceneRenderer,
+    /// Forward, with the culling under test.
+    tested: SceneRenderer,
+}
+
+/// What a check runs.
+struct Run<'a> {
+    scene: &'a Scene,
     culling: Culling,
-    path: &CameraPath,
+    path: &'a CameraPath,
     size: (u32, u32),
     max_frames: Option<usize>,
-    oracle: &mut SceneRenderer,
-    reference: &mut SceneRenderer,
-    tested: &mut SceneRenderer,
-) -> Result<CullCheck, RenderError> {
-    let aspect = size.0 as f32 / size.1 as f32;
-    let n = scene.instances().len();
-    let blended: Vec<bool> = scene
-        .instances()
-        .iter()
-        .map(|i| {
-            scene
-                .instance_material(i)
-                .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
-        })
-        .collect();
-    let tri = |i: usize| {
-        scene
+}
+
+impl Run<'_> {
+    fn check(&self, ctx: &Context, r: &mut Renderers) -> Result<CullCheck, RenderError> {
+        let Run {
+            scene,
+            culling,
+            path,
+            size,
+            max_frames,
+        } = *self;
+        let Renderers {
+            oracle,
+            reference,
+            tested,
+        } = r;
+        let aspect = size.0 as f32 / size.1 as f32;
+        let n = scene.instances().len();
+        let blended: Vec<bool> = scene
             .instances()
-            .get(i)
-            .and_then(|inst| scene.mesh(inst.mesh))
-            .map_or(0, |m| u64::from(m.triangle_count()))
-    };
-    let count = max_frames.map_or(path.len(), |m| m.min(path.len()));
-    let mut frames = Vec::with_capacity(count);
-    for index in 0..count {
-        let Some(frame) = path.frame(index, aspect) else {
-            break;
+            .iter()
+            .map(|i| {
+                scene
+                    .instance_material(i)
+                    .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
+            })
+            .collect();
+        let tri = |i: usize| {
+            scene
+                .instances()
+                .get(i)
+                .and_then(|inst| scene.mesh(inst.mesh))
+                .map_or(0, |m| u64::from(m.triangle_count()))
         };
-        oracle.render_frame(ctx, scene, &frame)?;
-        let ids = oracle.read_instance_ids(ctx)?.unwrap_or_default();
-        let mut visible = vec![false; n];
-        for &id in &ids {
-            if let Some(v) = visible.get_mut(id as usize) {
-                *v = true;
+        let count = max_frames.map_or(path.len(), |m| m.min(path.len()));
+        let mut frames = Vec::with_capacity(count);
+        for index in 0..count {
+            let Some(frame) = path.frame(index, aspect) else {
+                break;
+            };
+            oracle.render_frame(ctx, scene, &frame)?;
+            let ids = oracle.read_instance_ids(ctx)?.unwrap_or_default();
+            let mut visible = vec![false; n];
+            for &id in &ids {
+                if let Some(v) = visible.get_mut(id as usize) {
+                    *v = true;
+                }
             }
-        }
-        reference.render_frame(ctx, scene, &frame)?;
-        let want = reference.read_image(ctx)?;
-        tested.render_frame(ctx, scene, &frame)?;
-        let got = tested.read_image(ctx)?;
-        let mut drawn = vec![false; n];
-        match tested.drawn_instances(ctx)? {
-            Some(list) => {
-                for id in list {
-                    if let Some(d) = drawn.get_mut(id as usize) {
-                        *d = true;
+            reference.render_frame(ctx, scene, &frame)?;
+            let want = reference.read_image(ctx)?;
+            tested.render_frame(ctx, scene, &frame)?;
+            let got = tested.read_image(ctx)?;
+            let mut drawn = vec![false; n];
+            match tested.drawn_instances(ctx)? {
+                Some(list) => {
+                    for id in list {
+                        if let Some(d) = drawn.get_mut(id as usize) {
+                            *d = true;
+                        }
+                    }
+                }
+                None => drawn.iter_mut().for_each(|d| *d = true),
+            }
+            let mut check = FrameCheck {
+                frame: index,
+                cut: frame.cut,
+                visible: 0,
+                drawn: 0,
+                false_negatives: 0,
+                false_positives: 0,
+                image_equal: got == want,
+                image_diff_pixels: 0,
+                image_diff_pixels_owner_drawn: 0,
+                triangles_drawn: 0,
+                false_negative_ids: Vec::new(),
+            };
+            for (p, (a, b)) in got
+                .pixels
+                .chunks_exact(4)
+                .zip(want.pixels.chunks_exact(4))
+                .enumerate()
+            {
+                if a != b {
+                    check.image_diff_pixels += 1;
+                    let owner = ids.get(p).copied().unwrap_or(u32::MAX) as usize;
+                    if drawn.get(owner).copied().unwrap_or(false) {
+                        check.image_diff_pixels_owner_drawn += 1;
                     }
                 }
             }
-            None => drawn.iter_mut().for_each(|d| *d = true),
-        }
-        let mut check = FrameCheck {
-            frame: index,
-            cut: frame.cut,
-            visible: 0,
-            drawn: 0,
-            false_negatives: 0,
-            false_positives: 0,
-            image_equal: got == want,
-            image_diff_pixels: 0,
-            image_diff_pixels_owner_drawn: 0,
-            triangles_drawn: 0,
-            false_negative_ids: Vec::new(),
-        };
-        for (p, (a, b)) in got
-            .pixels
-            .chunks_exact(4)
-            .zip(want.pixels.chunks_exact(4))
-            .enumerate()
-        {
-            if a != b {
-                check.image_diff_pixels += 1;
-                let owner = ids.get(p).copied().unwrap_or(u32::MAX) as usize;
-                if drawn.get(owner).copied().unwrap_or(false) {
-                    check.image_diff_pixels_owner_drawn += 1;
+            for i in (0..n).filter(|&i| !blended[i]) {
+                check.visible += usize::from(visible[i]);
+                if drawn[i] {
+                    check.drawn += 1;
+                    check.triangles_drawn += tri(i);
                 }
-            }
-        }
-        for i in (0..n).filter(|&i| !blended[i]) {
-            check.visible += usize::from(visible[i]);
-            if drawn[i] {
-                check.drawn += 1;
-                check.triangles_drawn += tri(i);
-            }
-            match (visible[i], drawn[i]) {
-                (true, false) => {
-                    check.false_negatives += 1;
-                    if check.false_negative_ids.len() < 8 {
-                        check.false_negative_ids.push(i as u32);
+                match (visible[i], drawn[i]) {
+                    (true, false) => {
+                        check.false_negatives += 1;
+                        if check.false_negative_ids.len() < 8 {
+                            check.false_negative_ids.push(i as u32);
+                        }
                     }
+                    (false, true) => check.false_positives += 1,
+                    _ => {}
                 }
-                (false, true) => check.false_positives += 1,
-                _ => {}
             }
+            frames.push(check);
         }
-        frames.push(check);
+        tested.finish(ctx)?;
+        let medians = tested.medians();
+        let is_cull = |name: &str| {
+            ["cull", "hiz", "occlusion", "oq-", "raster-occlusion"]
+                .iter()
+                .any(|p| name.starts_with(p))
+        };
+        let totals = Totals {
+            frames: frames.len(),
+            instances: blended.iter().filter(|b| !**b).count(),
+            visible: frames.iter().map(|f| f.visible).sum(),
+            drawn: frames.iter().map(|f| f.drawn).sum(),
+            false_negatives: frames.iter().map(|f| f.false_negatives).sum(),
+            false_positives: frames.iter().map(|f| f.false_positives).sum(),
+            false_positive_rate: {
+                let drawn: usize = frames.iter().map(|f| f.drawn).sum();
+                let fp: usize = frames.iter().map(|f| f.false_positives).sum();
+                if drawn == 0 {
+                    0.0
+                } else {
+                    fp as f64 / drawn as f64
+                }
+            },
+            frames_with_false_negatives: frames.iter().filter(|f| f.false_negatives > 0).count(),
+            frames_image_equal: frames.iter().filter(|f| f.image_equal).count(),
+            triangles_drawn: frames.iter().map(|f| f.triangles_drawn).sum(),
+            // Folded from +0.0: an empty f64 sum is -0.0, which prints as "-0.0 ms".
+            cull_gpu_ms: medians
+                .iter()
+                .filter(|m| is_cull(&m.name))
+                .fold(0.0, |a, m| a + m.median_gpu_ms),
+            frame_gpu_ms: medians.iter().fold(0.0, |a, m| a + m.median_gpu_ms),
+        };
+        Ok(CullCheck {
+            technique: culling.name().to_string(),
+            scene: scene.name().to_string(),
+            profile: ctx.profile().name.clone(),
+            size: [size.0, size.1],
+            frames,
+            totals,
+        })
     }
-    tested.finish(ctx)?;
-    let medians = tested.medians();
-    let is_cull = |name: &str| {
-        ["cull", "hiz", "occlusion", "oq-", "raster-occlusion"]
-            .iter()
-            .any(|p| name.starts_with(p))
-    };
-    let totals = Totals {
-        frames: frames.len(),
-        instances: blended.iter().filter(|b| !**b).count(),
-        visible: frames.iter().map(|f| f.visible).sum(),
-        drawn: frames.iter().map(|f| f.drawn).sum(),
-        false_negatives: frames.iter().map(|f| f.false_negatives).sum(),
-        false_positives: frames.iter().map(|f| f.false_positives).sum(),
-        false_positive_rate: {
-            let drawn: usize = frames.iter().map(|f| f.drawn).sum();
-            let fp: usize = frames.iter().map(|f| f.false_positives).sum();
-            if drawn == 0 {
-                0.0
-            } else {
-                fp as f64 / drawn as f64
-            }
-        },
-        frames_with_false_negatives: frames.iter().filter(|f| f.false_negatives > 0).count(),
-        frames_image_equal: frames.iter().filter(|f| f.image_equal).count(),
-        triangles_drawn: frames.iter().map(|f| f.triangles_drawn).sum(),
-        // Folded from +0.0: an empty f64 sum is -0.0, which prints as "-0.0 ms".
-        cull_gpu_ms: medians
-            .iter()
-            .filter(|m| is_cull(&m.name))
-            .fold(0.0, |a, m| a + m.median_gpu_ms),
-        frame_gpu_ms: medians.iter().fold(0.0, |a, m| a + m.median_gpu_ms),
-    };
-    Ok(CullCheck {
-        technique: culling.name().to_string(),
-        scene: scene.name().to_string(),
-        profile: ctx.profile().name.clone(),
-        size: [size.0, size.1],
-        frames,
-        totals,
-    })
 }

@@ -6,19 +6,18 @@
 //! with arrives as arguments — the executor's [`PassContext`] and the [`SceneResources`] the
 //! renderer keeps across frames. So a frame whose declaration did not change keeps its
 //! payloads, and an engine's own passes sit on the same graph with the same signature (they
-//! capture their own state, and may ignore the scene's).
+//! capture their own state, or keep it among the resources' [`States`]).
+
+use std::any::Any;
 
 use tilegraph_graph::{BufferId, GraphBuilder, RasterPassBuilder};
 use tilegraph_scene::DepthConvention;
 use tilegraph_vk::executor::PassContext;
 use tilegraph_vk::{Context, VkError};
 
-use crate::cull::CullState;
 use crate::draws::DrawList;
 use crate::gpu_scene::GpuScene;
-use crate::occlusion::{OqState, RasterOcclusion};
 use crate::pipelines::Pipelines;
-use crate::visbuf::ResolveSets;
 
 /// A pass's recording: called once per frame inside the pass's subpass (raster passes) or on
 /// its own (compute and transfer passes), after the graph's barriers.
@@ -37,40 +36,88 @@ pub struct FrameData {
     pub depth: DepthConvention,
 }
 
-/// What the shipped passes record with, kept by the renderer across frames and handed to every
-/// payload: the scene's buffers, the pipelines, this frame's draw lists, and the state of the
-/// culling technique in use.
+/// What the passes record with, kept by the renderer across frames and handed to every
+/// payload: the scene's buffers, the pipelines, this frame's draw lists, and the state of each
+/// technique in use (the culling buffers, the pyramid, the query pools...).
 pub struct SceneResources {
     pub scene: GpuScene,
     pub pipelines: Pipelines,
     pub frame: FrameData,
-    /// GPU culling: the indirect lists, visibility and the HiZ pyramid.
-    pub culling: Option<CullState>,
-    /// Occlusion queries.
-    pub queries: Option<OqState>,
-    /// Raster occlusion.
-    pub raster: Option<RasterOcclusion>,
-    /// The visibility buffer's resolve.
-    pub resolve: Option<ResolveSets>,
+    pub states: States,
 }
 
 impl SceneResources {
     /// Destroys everything; the GPU must be idle.
     pub fn destroy(self, ctx: &Context) {
-        if let Some(c) = self.culling {
-            c.destroy(ctx);
-        }
-        if let Some(q) = self.queries {
-            q.destroy(ctx);
-        }
-        if let Some(r) = self.raster {
-            r.destroy(ctx);
-        }
-        if let Some(r) = self.resolve {
-            r.destroy(ctx);
-        }
+        self.states.destroy(ctx);
         self.pipelines.destroy(ctx);
         self.scene.destroy(ctx);
+    }
+}
+
+/// GPU state a technique keeps across frames (its buffers, pools, pipelines), owned by the
+/// frame's [`SceneResources`] and found by its type.
+pub trait PassState: Any {
+    /// Destroys its Vulkan objects; the GPU must be idle.
+    fn destroy(self: Box<Self>, ctx: &Context);
+}
+
+/// The techniques' states, one per type. A handful at most: looked up by a scan.
+#[derive(Default)]
+pub struct States {
+    items: Vec<Box<dyn PassState>>,
+}
+
+impl States {
+    /// Adds `state`; one of the same type already there is handed back.
+    pub fn insert<T: PassState>(&mut self, state: T) -> Option<T> {
+        let old = self
+            .items
+            .iter()
+            .position(|s| (&**s as &dyn Any).is::<T>())
+            .map(|i| self.items.swap_remove(i));
+        self.items.push(Box::new(state));
+        old.and_then(|b| (b as Box<dyn Any>).downcast::<T>().ok().map(|b| *b))
+    }
+
+    pub fn get<T: PassState>(&self) -> Option<&T> {
+        self.items
+            .iter()
+            .find_map(|s| (&**s as &dyn Any).downcast_ref::<T>())
+    }
+
+    pub fn get_mut<T: PassState>(&mut self) -> Option<&mut T> {
+        self.items
+            .iter_mut()
+            .find_map(|s| (&mut **s as &mut dyn Any).downcast_mut::<T>())
+    }
+
+    /// The state of type `T`, or an error naming it and the pass that wanted it.
+    pub fn require<T: PassState>(&self, pass: &str) -> Result<&T, VkError> {
+        self.get().ok_or_else(|| missing::<T>(pass))
+    }
+
+    /// [`Self::require`], mutable.
+    pub fn require_mut<T: PassState>(&mut self, pass: &str) -> Result<&mut T, VkError> {
+        self.get_mut().ok_or_else(|| missing::<T>(pass))
+    }
+
+    /// Destroys every state; the GPU must be idle.
+    pub fn destroy(self, ctx: &Context) {
+        for s in self.items {
+            s.destroy(ctx);
+        }
+    }
+}
+
+#[cold]
+fn missing<T>(pass: &str) -> VkError {
+    VkError::Invalid {
+        what: pass.into(),
+        reason: format!(
+            "records with a {}, which the renderer does not keep",
+            std::any::type_name::<T>()
+        ),
     }
 }
 
@@ -102,5 +149,57 @@ impl DrawSource {
         {
             p.indirect(commands).indirect(counts).storage_read(draw_ids);
         }
+    }
+}
+
+/// The scene's descriptor set 0 of a frame slot, or an error naming the pass.
+pub fn scene_set(
+    pc: &PassContext<'_>,
+    res: &SceneResources,
+) -> Result<tilegraph_vk::ash::vk::DescriptorSet, VkError> {
+    res.scene
+        .set(pc.frame_slot)
+        .ok_or_else(|| VkError::Invalid {
+            what: pc.pass_name.into(),
+            reason: format!("no scene descriptor set for frame slot {}", pc.frame_slot),
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct A(u32);
+    struct B;
+    struct Missing;
+    impl PassState for A {
+        fn destroy(self: Box<Self>, _: &Context) {}
+    }
+    impl PassState for B {
+        fn destroy(self: Box<Self>, _: &Context) {}
+    }
+    impl PassState for Missing {
+        fn destroy(self: Box<Self>, _: &Context) {}
+    }
+
+    #[test]
+    fn states_are_found_by_type_and_replaced_by_one_of_the_same_type() {
+        let mut s = States::default();
+        assert!(s.get::<A>().is_none());
+        assert!(s.insert(A(1)).is_none());
+        assert!(s.insert(B).is_none());
+        assert_eq!(s.get::<A>().map(|a| a.0), Some(1));
+        if let Some(a) = s.get_mut::<A>() {
+            a.0 = 2;
+        }
+        assert_eq!(s.insert(A(3)).map(|a| a.0), Some(2));
+        assert_eq!(s.get::<A>().map(|a| a.0), Some(3));
+        assert!(s.get::<B>().is_some());
+        let e = s.require::<Missing>("post").err().map(|e| e.to_string());
+        assert!(
+            e.as_deref()
+                .is_some_and(|e| e.contains("post") && e.contains("Missing")),
+            "{e:?}"
+        );
     }
 }

@@ -16,15 +16,17 @@
 use bytemuck::{Pod, Zeroable};
 use tilegraph_cull::{level_extents, Extent2d};
 use tilegraph_graph::{BufferId, ImageId, PassClass};
+use tilegraph_profile::MemoryUse;
+use tilegraph_scene::DepthConvention as SceneDepth;
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::BufferHandle;
 use tilegraph_vk::pipeline::{
     create_compute_pipeline, create_pipeline_layout, create_set_layout, Stage,
 };
-use tilegraph_vk::{Context, VkError};
+use tilegraph_vk::{Buffer, Context, VkError};
 
-use crate::cull::cull_convention;
-use crate::frame::{FrameGraph, Payload};
+use crate::frame::{FrameGraph, PassState, Payload};
+use crate::gpu_scene::upload;
 
 pub use tilegraph_cull::{AxisScale, DepthConvention, DepthFormat, NpotMode};
 
@@ -35,49 +37,153 @@ pub struct HizPyramid {
     pub buffer: BufferId,
 }
 
-/// Declares the pyramid build: `depth` sampled, every level of `pyramid` (a buffer the culling
-/// state keeps across frames) written. The frame's depth convention picks the reduction (the
-/// farther depth of each footprint): a camera path may change it from one frame to the next.
+/// Declares the pyramid build: `depth` sampled, every level of `pyramid` (the [`HizState`]'s
+/// buffer, imported into the frame) written. The frame's depth convention picks the reduction
+/// (the farther depth of each footprint): a camera path may change it from one frame to the
+/// next.
 pub fn add_hiz_build(g: &mut FrameGraph, depth: ImageId, pyramid: BufferId) -> HizPyramid {
     let build: Payload = Box::new(move |pc, res| {
         let view = pc.image(depth)?.view;
         let buffer = pc.buffer(pyramid)?;
         let convention = res.frame.depth;
-        let missing = |what: &str| VkError::Invalid {
-            what: pc.pass_name.into(),
-            reason: format!("no {what}"),
-        };
-        let culling = res
-            .culling
-            .as_mut()
-            .ok_or_else(|| missing("culling state"))?;
-        let layout = culling
-            .hiz_layout
-            .as_mut()
-            .ok_or_else(|| missing("pyramid layout"))?;
+        let hiz = res.states.require_mut::<HizState>(pc.pass_name)?;
         // The stored layout follows the frame, for whoever reads the pyramid back.
-        layout.convention = cull_convention(convention);
-        let builder = culling
-            .hiz
-            .as_mut()
-            .ok_or_else(|| missing("pyramid builder"))?;
+        hiz.layout.convention = cull_convention(convention);
         // The graph samples depth formats in DEPTH_STENCIL_READ_ONLY_OPTIMAL.
-        builder.record(
-            pc.ctx,
-            pc.cb,
-            pc.frame_slot,
+        let source = SampledDepth {
             view,
-            vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
-            buffer,
-            layout,
-        )?;
-        culling.pyramid_convention = Some(convention);
+            layout: vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
+        };
+        hiz.builder
+            .record(pc.ctx, pc.cb, pc.frame_slot, source, buffer, &hiz.layout)?;
+        hiz.built_from = Some(convention);
         Ok(())
     });
     g.compute_pass("hiz-build", PassClass::Compute, build)
         .sampled(depth)
         .storage_read_write(pyramid);
     HizPyramid { buffer: pyramid }
+}
+
+/// The pyramid a renderer keeps across frames: its buffer, the level table the culling shader
+/// reads, the build's pipelines, and the convention of the depth it was last built from.
+pub struct HizState {
+    pub layout: HizLayout,
+    pub pyramid: Buffer,
+    /// `Levels` of `cull.comp` ([`level_table`]).
+    pub levels: Buffer,
+    builder: HizBuilder,
+    /// The depth convention of the depth the pyramid was last built from (`None`: never
+    /// built). Single-phase HiZ tests a frame against the previous frame's pyramid only when
+    /// the conventions agree: a pyramid of the other convention holds the wrong extreme of each
+    /// footprint, and its reprojection maps depth the other way.
+    pub built_from: Option<SceneDepth>,
+}
+
+impl HizState {
+    /// The pyramid of a D32 depth buffer of `extent_px`, built with `mode`.
+    pub fn new(
+        ctx: &Context,
+        extent_px: (u32, u32),
+        mode: NpotMode,
+        depth: SceneDepth,
+        frames_in_flight: usize,
+    ) -> Result<Self, VkError> {
+        let layout = HizLayout::new(
+            extent_px,
+            mode,
+            cull_convention(depth),
+            DepthFormat::D32Float,
+        )?;
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let pyramid = ctx.create_buffer(
+            "hiz pyramid",
+            layout.size_bytes(),
+            storage | vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryUse::GpuOnly,
+        )?;
+        let table = level_table(&layout);
+        let levels = match upload(ctx, "hiz levels", bytemuck::cast_slice(&table), storage) {
+            Ok(l) => l,
+            Err(e) => {
+                ctx.destroy_buffer(pyramid);
+                return Err(e);
+            }
+        };
+        match HizBuilder::new(ctx, frames_in_flight) {
+            Ok(builder) => Ok(HizState {
+                layout,
+                pyramid,
+                levels,
+                builder,
+                built_from: None,
+            }),
+            Err(e) => {
+                ctx.destroy_buffer(pyramid);
+                ctx.destroy_buffer(levels);
+                Err(e)
+            }
+        }
+    }
+}
+
+/// What the culling shader's parameters say of the pyramid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PyramidInfo {
+    pub levels: u32,
+    /// Level 0's size.
+    pub extent_px: (u32, u32),
+    /// The convention of the depth it was last built from.
+    pub built_from: Option<SceneDepth>,
+}
+
+impl HizState {
+    pub fn info(&self) -> PyramidInfo {
+        PyramidInfo {
+            levels: self.layout.levels.len() as u32,
+            extent_px: self.layout.extent_px(),
+            built_from: self.built_from,
+        }
+    }
+}
+
+impl PassState for HizState {
+    fn destroy(self: Box<Self>, ctx: &Context) {
+        self.builder.destroy(ctx);
+        ctx.destroy_buffer(self.pyramid);
+        ctx.destroy_buffer(self.levels);
+    }
+}
+
+/// The culling crate's name for a scene's depth convention.
+pub(crate) fn cull_convention(c: SceneDepth) -> DepthConvention {
+    match c {
+        SceneDepth::Reverse => DepthConvention::Reverse,
+        SceneDepth::Standard => DepthConvention::Standard,
+    }
+}
+
+/// `Levels` of `cull.comp`: per level (offset, width, height, 0) and the pixel -> texel scale.
+pub fn level_table(layout: &HizLayout) -> Vec<[u32; 4]> {
+    let mut out = Vec::with_capacity(2 * layout.levels.len());
+    let (w0, h0) = layout
+        .levels
+        .first()
+        .map_or((1, 1), |l| (l.width, l.height));
+    let (p_w, p_h) = layout.levels.get(1).map_or((1, 1), |l| (l.width, l.height));
+    for (k, l) in layout.levels.iter().enumerate() {
+        out.push([l.offset_texels as u32, l.width, l.height, 0]);
+        let scale = match (layout.mode, k) {
+            (_, 0) => [1, 1, 1, 1],
+            (NpotMode::PadToPow2, k) => {
+                let f = 1u32 << (k - 1);
+                [p_w, w0 * f, p_h, h0 * f]
+            }
+            (_, k) => [1, 1 << k, 1, 1 << k],
+        };
+        out.push(scale);
+    }
+    out
 }
 
 /// SPIR-V of the level-0 copy (`shaders/hiz_copy.comp`).
@@ -332,6 +438,13 @@ const READABLE_DEPTH_LAYOUTS: [vk::ImageLayout; 5] = [
     vk::ImageLayout::GENERAL,
 ];
 
+/// The depth a build reads: a DEPTH-aspect, single-mip view, sampled in `layout`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SampledDepth {
+    pub view: vk::ImageView,
+    pub layout: vk::ImageLayout,
+}
+
 /// The pipelines and per-frame-slot descriptor sets of the build.
 pub struct HizBuilder {
     set_layout: vk::DescriptorSetLayout,
@@ -443,27 +556,28 @@ impl HizBuilder {
         self.sets.len()
     }
 
-    /// Records the whole build: level 0 from `depth_view` (a DEPTH-aspect, single-mip view of an
-    /// image whose extent is `layout`'s level 0 and whose format is `layout.format`, sampled in
-    /// `depth_layout`), then every level. `pyramid` must hold at least `layout.size_bytes()`.
+    /// Records the whole build: level 0 from `depth` (a view of an image whose extent is
+    /// `layout`'s level 0 and whose format is `layout.format`), then every level. `pyramid` must hold at least `layout.size_bytes()`.
     ///
     /// The caller has already made the depth image readable by compute shaders in
-    /// `depth_layout` and made earlier accesses to `pyramid` safe (a graph pass declaring it
+    /// `depth.layout` and made earlier accesses to `pyramid` safe (a graph pass declaring it
     /// StorageReadWrite gets both barriers); this function inserts the barriers *between*
     /// levels only. After it, the pyramid was written by COMPUTE_SHADER / SHADER_STORAGE_WRITE.
     /// The previous use of `frame_slot`'s descriptor set must have completed (the executor's
     /// frames-in-flight guarantee); two builds in one command buffer need two slots.
-    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &mut self,
         ctx: &Context,
         cb: vk::CommandBuffer,
         frame_slot: usize,
-        depth_view: vk::ImageView,
-        depth_layout: vk::ImageLayout,
+        depth: SampledDepth,
         pyramid: BufferHandle,
         layout: &HizLayout,
     ) -> Result<(), VkError> {
+        let SampledDepth {
+            view: depth_view,
+            layout: depth_layout,
+        } = depth;
         let invalid = |reason: String| VkError::Invalid {
             what: "hiz build".into(),
             reason,

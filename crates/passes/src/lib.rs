@@ -14,6 +14,7 @@
 //! - the frame: [`setup`] (which passes, and why), [`renderer`] (the composition, frame after
 //!   frame), [`cullcheck`] (a culling technique against the exact oracle).
 
+pub mod compose;
 pub mod cull;
 pub mod cullcheck;
 pub mod draws;

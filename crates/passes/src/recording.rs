@@ -8,9 +8,10 @@ use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::PassContext;
 use tilegraph_vk::VkError;
 
-use crate::cull::list_index;
+use crate::cull::{list_index, CullState};
 use crate::draws::DrawClass;
 use crate::frame::{DrawSource, SceneResources};
+use crate::occlusion::OqState;
 use crate::pipelines::Variant;
 
 /// Binds the scene's vertex and index buffers and set 0 (`culled`: the set whose draw list is
@@ -137,14 +138,14 @@ fn record_conditional(
     let SceneResources {
         pipelines,
         frame,
-        queries,
+        states,
         ..
     } = res;
-    let (Some(cond), Some(queries)) = (pc.ctx.conditional_rendering(), queries.as_ref()) else {
+    let queries = states.require::<OqState>(pc.pass_name)?;
+    let Some(cond) = pc.ctx.conditional_rendering() else {
         return Err(VkError::Invalid {
             what: pc.pass_name.into(),
-            reason: "conditional draws need VK_EXT_conditional_rendering and occlusion queries"
-                .into(),
+            reason: "conditional draws need VK_EXT_conditional_rendering".into(),
         });
     };
     let Some(conditions) = queries.conditions.as_ref().map(|b| b.raw) else {
@@ -218,15 +219,10 @@ fn record_indirect(
     let SceneResources {
         pipelines,
         frame,
-        culling,
+        states,
         ..
     } = res;
-    let Some(culling) = culling.as_ref() else {
-        return Err(VkError::Invalid {
-            what: pc.pass_name.into(),
-            reason: "indirect draws without GPU culling".into(),
-        });
-    };
+    let culling = states.require::<CullState>(pc.pass_name)?;
     let d = &pc.ctx.device;
     for sided in [false, true] {
         let p = pipelines.scene(pc, variant, sided, colors, frame.depth)?;

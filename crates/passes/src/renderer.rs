@@ -5,64 +5,36 @@
 //! this frame's data into the slot's buffers: CPU frustum culling where the technique needs it,
 //! the draw lists in the profile's order, camera-relative instances, the culling inputs, the
 //! occlusion queries' results. Then the frame's graph is recorded: [`SceneRenderer::render_frame`]
-//! declares the scene's passes ([`SceneRenderer::declare_scene`]) only when what they depend on
+//! declares the scene's passes (`compose.rs`) only when what they depend on
 //! changed (the depth convention, and the first frame's imports) and otherwise reuses the
 //! declared payloads and the compiled plan; [`SceneRenderer::execute_graph`] records a graph the
 //! caller declared — an engine's frame, the shipped passes and its own on one graph.
 
 use std::sync::Arc;
 
-use tilegraph_graph::{
-    AccessFlags, Extent2d, Format, ImageDesc, Import, InitialContent, Layout, PipelineStages, Plan,
-    PlanCache, ResourceState,
-};
-use tilegraph_profile::Profile;
+use tilegraph_graph::{Plan, PlanCache};
 use tilegraph_scene::{Camera, CameraFrame, DepthConvention, MaterialClass, Scene};
 use tilegraph_vk::ash::vk;
-use tilegraph_vk::executor::{Executor, External, Externals, ImageHandle};
+use tilegraph_vk::executor::{Executor, Externals, FrameStats, ImageHandle};
 use tilegraph_vk::queries::PassMedian;
 use tilegraph_vk::readback::RgbaImage;
-use tilegraph_vk::{Context, Image};
+use tilegraph_vk::{Context, Image, VkError};
 
-use crate::cull::{
-    add_cull, add_cull_late, cpu_frustum_mask, import_cull_buffers, CullState, Culling,
-};
-use crate::draws::{self, DrawClass};
-use crate::forward::{add_clear, add_forward, add_transparent};
-use crate::frame::{DrawSource, FrameData, FrameGraph, Payload, SceneResources};
+use crate::compose::{declare_scene, DeclarationKey, SceneFrame};
+use crate::cull::{cpu_frustum_mask, CullState, Culling};
+use crate::draws;
+use crate::frame::{FrameData, FrameGraph, Payload, SceneResources, States};
 use crate::gpu_scene::{FrameUniforms, GpuScene};
-use crate::hiz::add_hiz_build;
-use crate::occlusion::{add_occlusion_queries, add_raster_occlusion, OqState, RasterOcclusion};
+use crate::hiz::HizState;
+use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
 use crate::pipelines::Pipelines;
-use crate::prepass::add_depth_prepass;
-use crate::setup::{decide, FrameSetup, PassKind, SceneContent};
-use crate::targets::{create_target, destroy_target, SceneTargets};
-use crate::visbuf::{add_visbuf_resolve, add_visbuf_write, ResolveSets};
-
-/// What the scene's declaration depends on besides the renderer's options: when it is the same
-/// as the last frame's, the declared payloads and the compiled plan are reused.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct DeclarationKey {
-    /// The clear value of depth, and the compare of every pipeline.
-    depth: DepthConvention,
-    /// The first frame imports its targets `UNDEFINED`; later ones in the layout the last
-    /// frame left them in.
-    first_frame: bool,
-}
+use crate::setup::{decide, FrameSetup, SceneContent, Technique};
+use crate::targets::{create_target, destroy_target};
+use crate::visbuf::ResolveSets;
 
 /// An image the renderer keeps across frames, with its view.
 type Target = (Image, ImageHandle);
-
-/// One geometry pass to declare: which, in which culling phase (0: early or only), drawing
-/// from where, predicated on which query results, under which name.
-struct Geometry<'n> {
-    pass: PassKind,
-    phase: u32,
-    source: DrawSource,
-    predicate: Option<tilegraph_graph::BufferId>,
-    name: &'n str,
-}
 
 /// The scene's frame as declared and compiled.
 struct Declared {
@@ -199,7 +171,15 @@ impl SceneRenderer {
         if self.declared.as_ref().is_none_or(|d| d.key != key) {
             self.declared = None;
             let profile = ctx.profile();
-            let (graph, externals) = self.declare_scene(profile, key);
+            let (graph, externals) = declare_scene(&SceneFrame {
+                options: &self.options,
+                setup: &self.setup,
+                profile,
+                key,
+                states: &self.resources.states,
+                target: &self.target.1,
+                ids_target: self.ids_target.as_ref().map(|(_, h)| h),
+            });
             let (plan, payloads) = graph.compile(profile)?.into_plan_and_payloads();
             self.declared = Some(Declared {
                 key,
@@ -216,7 +196,7 @@ impl SceneRenderer {
         } = self;
         let Some(declared) = declared.as_mut() else {
             // Declared just above.
-            return Err(RenderError::Vk(tilegraph_vk::VkError::Invalid {
+            return Err(RenderError::Vk(VkError::Invalid {
                 what: "scene renderer".into(),
                 reason: "no declared frame".into(),
             }));
@@ -268,7 +248,7 @@ impl SceneRenderer {
         &mut self,
         ctx: &Context,
         plan: Arc<Plan>,
-        stats: tilegraph_vk::executor::FrameStats,
+        stats: FrameStats,
     ) -> Result<FrameReport, RenderError> {
         // After a rebuild, the pipelines of the destroyed render passes go (at the first frame
         // that succeeds after it: the floor only rises).
@@ -317,7 +297,7 @@ impl SceneRenderer {
         let slot = self.executor.acquire_slot(ctx)?;
         // Occlusion queries: the newest complete frame's results select what this frame draws
         // (read now, never waited for: the acquired slot's frame has completed).
-        if let Some(oq) = self.resources.queries.as_mut() {
+        if let Some(oq) = self.resources.states.get_mut::<OqState>() {
             oq.collect(ctx, slot)?;
             if culling.conditional() {
                 // Same-frame results on the GPU; reading the slot only recycles its pool.
@@ -359,241 +339,16 @@ impl SceneRenderer {
             .scene
             .write_frame(ctx, slot, scene, m.eye, &uniforms, &draws)?;
         self.last_slot = slot;
-        if let Some(cull) = self.resources.culling.as_mut() {
-            cull.write_frame(ctx, slot, frame, &draws, (w, h))?;
+        let states = &mut self.resources.states;
+        let pyramid = states.get::<HizState>().map(HizState::info);
+        if let Some(cull) = states.get_mut::<CullState>() {
+            cull.write_frame(ctx, slot, frame, &draws, (w, h), pyramid)?;
         }
         self.resources.frame = FrameData {
             draws,
             depth: m.depth,
         };
         Ok(())
-    }
-
-    /// Declares the scene's frame: the frame setup's passes, composed from the `add_*`
-    /// functions in the order the technique needs, and the physical resources of its imports.
-    fn declare_scene(&self, profile: &Profile, key: DeclarationKey) -> (FrameGraph, Externals) {
-        let extent = Extent2d::new(self.options.width, self.options.height);
-        let culling = self.options.culling;
-        let setup = &self.setup;
-        let mut g = FrameGraph::new();
-        let mut externals = Externals::new();
-        // The targets survive frames: after the first they are in TRANSFER_SRC from the last
-        // frame's release, read by the readback copy.
-        let kept = ResourceState::image(
-            Layout::TransferSrc,
-            PipelineStages::COPY,
-            AccessFlags::TRANSFER_READ,
-        );
-        let import = Import {
-            initial: if key.first_frame {
-                ResourceState::UNDEFINED
-            } else {
-                kept
-            },
-            content: InitialContent::Discard,
-            final_state: kept,
-        };
-        let color = g.import_image(
-            "color",
-            ImageDesc::new(extent, Format::R8G8B8A8_UNORM),
-            import,
-        );
-        externals.insert(color, External::Image(self.target.1.clone()));
-        let depth = g.create_image("depth", ImageDesc::new(extent, Format::D32_SFLOAT));
-        let mut t = SceneTargets::new(color, depth, extent, self.options.clear_color, key.depth);
-        if let Some((_, handle)) = &self.ids_target {
-            let ids = g.import_image(
-                "visbuf-id",
-                ImageDesc::new(extent, Format::R32_UINT),
-                import,
-            );
-            g.export(ids);
-            externals.insert(ids, External::Image(handle.clone()));
-            t.ids = Some(ids);
-        }
-        let lists = self.resources.culling.as_ref().map(|c| {
-            let lists = import_cull_buffers(&mut g, c);
-            for (id, buffer) in [
-                (lists.commands, &c.commands),
-                (lists.counts, &c.counts),
-                (lists.draw_ids, &c.draw_ids),
-                (lists.visibility, &c.visibility),
-            ] {
-                externals.insert(id, External::Buffer(CullState::handle(buffer)));
-            }
-            if let (Some(id), Some(buffer)) = (lists.pyramid, c.pyramid.as_ref()) {
-                externals.insert(id, External::Buffer(CullState::handle(buffer)));
-            }
-            lists
-        });
-        let conditions_size = self
-            .resources
-            .queries
-            .as_ref()
-            .and_then(|q| q.conditions.as_ref())
-            .map(|b| b.size);
-        let mut conditions = None;
-
-        if let (Some(lists), false) = (lists, culling == Culling::RasterOcclusion) {
-            add_cull(&mut g, lists, culling);
-        }
-        // Two-phase with a pre-pass: depth of the early lists, pyramid, late culling, depth of
-        // the late lists, then colour once over the union (the early lists, which the late
-        // dispatch completes) in the unculled order. The visibility buffer draws ids in both
-        // phases instead.
-        let two_phase = culling == Culling::HizTwoPhase;
-        let split_depth = two_phase && setup.has_prepass();
-        let phases: &[u32] = if two_phase { &[0, 1] } else { &[0] };
-        let mut flags_declared = false;
-        for &phase in phases {
-            if phase == 1 {
-                // No depth written by the early phase (nothing opaque or alpha-tested): no
-                // occluders, no pyramid, and no late lists to fill.
-                if let (Some(lists), true) = (lists, t.depth_written()) {
-                    if let Some(pyramid) = lists.pyramid {
-                        add_hiz_build(&mut g, t.depth, pyramid);
-                    }
-                    add_cull_late(&mut g, lists);
-                }
-            }
-            let suffix = match (two_phase, phase) {
-                (false, _) => "",
-                (true, 0) => "-early",
-                (true, _) => "-late",
-            };
-            for pass in setup.included() {
-                let depth_only = matches!(
-                    pass,
-                    PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha
-                );
-                if split_depth && !depth_only {
-                    continue; // colour after both depth phases
-                }
-                if culling.conditional() && !depth_only && conditions.is_none() && t.depth_written()
-                {
-                    // Boxes against the pre-pass depth, then colour predicated on them.
-                    conditions =
-                        self.declare_queries(&mut g, &mut externals, t.depth, conditions_size);
-                }
-                if culling == Culling::RasterOcclusion && !depth_only && !flags_declared {
-                    match (lists, t.depth_written()) {
-                        (Some(lists), true) => add_raster_occlusion(
-                            &mut g,
-                            &t,
-                            lists,
-                            self.options.raster_occlusion_scale.max(1),
-                        ),
-                        // No pre-pass depth (nothing opaque): no boxes to test; the lists
-                        // still get written.
-                        (Some(lists), false) => add_cull(&mut g, lists, Culling::RasterOcclusion),
-                        (None, _) => {}
-                    }
-                    flags_declared = true;
-                }
-                // Raster occlusion tests boxes against the depth of everything: its pre-pass
-                // draws the CPU lists; everything else draws the culling shader's lists.
-                let source = match (lists, culling, depth_only) {
-                    (Some(_), Culling::RasterOcclusion, true) | (None, _, _) => DrawSource::Cpu,
-                    (Some(lists), _, _) => lists.source(phase),
-                };
-                let name = format!("{}{suffix}", pass.name());
-                let geometry = Geometry {
-                    pass,
-                    phase,
-                    source,
-                    predicate: conditions,
-                    name: &name,
-                };
-                self.declare_geometry(&mut g, &mut t, geometry);
-            }
-        }
-        if split_depth {
-            for pass in setup
-                .included()
-                .filter(|p| matches!(p, PassKind::Opaque | PassKind::AlphaTested))
-            {
-                let geometry = Geometry {
-                    pass,
-                    phase: 0,
-                    source: lists.map_or(DrawSource::Cpu, |l| l.source(0)),
-                    predicate: conditions,
-                    name: pass.name(),
-                };
-                self.declare_geometry(&mut g, &mut t, geometry);
-            }
-        }
-        if let (true, Some(ids)) = (setup.includes(PassKind::VisbufResolve), t.ids) {
-            add_visbuf_resolve(&mut g, &mut t, ids, profile.is_tiler());
-        }
-        if setup.includes(PassKind::Transparent) {
-            add_transparent(&mut g, &mut t);
-        }
-        if let (Culling::Hiz, Some(pyramid)) = (culling, lists.and_then(|l| l.pyramid)) {
-            // Next frame's occluders: this frame's depth.
-            add_hiz_build(&mut g, t.depth, pyramid);
-        }
-        if culling.uses_queries() && !culling.conditional() && t.depth_written() {
-            // After all opaque work (the graph's class order); results are read next frame.
-            self.declare_queries(&mut g, &mut externals, t.depth, None);
-        }
-        if !t.color_written() {
-            add_clear(&mut g, &mut t);
-        }
-        g.export(color);
-        (g, externals)
-    }
-
-    /// The occlusion queries, with their results buffer among the externals.
-    fn declare_queries(
-        &self,
-        g: &mut FrameGraph,
-        externals: &mut Externals,
-        depth: tilegraph_graph::ImageId,
-        conditions_size: Option<u64>,
-    ) -> Option<tilegraph_graph::BufferId> {
-        let conditions = add_occlusion_queries(g, depth, conditions_size)?;
-        let buffer = self.resources.queries.as_ref()?.conditions.as_ref()?;
-        externals.insert(conditions, External::Buffer(CullState::handle(buffer)));
-        Some(conditions)
-    }
-
-    /// One geometry pass of the frame setup.
-    fn declare_geometry(&self, g: &mut FrameGraph, t: &mut SceneTargets, geometry: Geometry<'_>) {
-        let Geometry {
-            pass,
-            phase,
-            source,
-            predicate,
-            name,
-        } = geometry;
-        match pass {
-            PassKind::DepthPrepassOpaque => {
-                add_depth_prepass(g, t, DrawClass::Opaque, source, name);
-            }
-            PassKind::DepthPrepassAlpha => {
-                add_depth_prepass(g, t, DrawClass::AlphaTested, source, name);
-            }
-            PassKind::Opaque => {
-                let prepassed = self.setup.prepassed(0);
-                add_forward(g, t, DrawClass::Opaque, prepassed, source, predicate, name);
-            }
-            PassKind::AlphaTested => {
-                let prepassed = self.setup.prepassed(1);
-                add_forward(
-                    g,
-                    t,
-                    DrawClass::AlphaTested,
-                    prepassed,
-                    source,
-                    predicate,
-                    name,
-                );
-            }
-            PassKind::VisbufWrite => {
-                add_visbuf_write(g, t, phase, source, name);
-            }
-            PassKind::VisbufResolve | PassKind::Transparent => {} // after the geometry phases
-        }
     }
 
     /// The instance owning each pixel of the last frame (`u32::MAX` for background), from the
@@ -629,12 +384,12 @@ impl SceneRenderer {
         if let Some(d) = &self.last_drawn {
             return Ok(Some(d.clone()));
         }
-        if let Some(oq) = self.resources.queries.as_ref() {
+        if let Some(oq) = self.resources.states.get::<OqState>() {
             if oq.conditions.is_some() {
                 return Ok(Some(oq.conditional_drawn(ctx)?));
             }
         }
-        match self.resources.culling.as_ref() {
+        match self.resources.states.get::<CullState>() {
             Some(c) => Ok(Some(c.drawn_instances(ctx)?)),
             None => Ok(None),
         }
@@ -704,7 +459,8 @@ impl SceneRenderer {
 }
 
 /// The GPU side of a renderer: the scene uploaded, the pipelines' layouts, and the state of the
-/// culling technique. Whatever was created is destroyed again when a later step fails.
+/// culling technique (`blended`: per instance, whether its material is blended). Whatever was
+/// created is destroyed again when a later step fails.
 fn create_resources(
     ctx: &Context,
     scene: &Scene,
@@ -712,7 +468,7 @@ fn create_resources(
     blended: &[bool],
     frames_in_flight: usize,
 ) -> Result<SceneResources, RenderError> {
-    let mut gpu = GpuScene::new(ctx, scene, frames_in_flight)?;
+    let gpu = GpuScene::new(ctx, scene, frames_in_flight)?;
     let pipelines = match Pipelines::new(ctx, gpu.set_layout, options.count_fragments) {
         Ok(p) => p,
         Err(e) => {
@@ -720,84 +476,83 @@ fn create_resources(
             return Err(e.into());
         }
     };
-    let culling = options.culling;
-    let mut culling_state = None;
-    if culling.uses_gpu_lists() {
-        let depth = scene
-            .camera_path()
-            .camera(0)
-            .map_or(DepthConvention::Reverse, |c| {
-                c.projection.depth_convention()
-            });
-        let made = CullState::new(
-            ctx,
-            culling,
-            scene.instances().len() as u32,
-            (options.width, options.height),
-            depth,
-            options.hiz_mode,
-            gpu.set_layout,
-            frames_in_flight,
-        )
-        .and_then(|c| match gpu.add_culled_sets(ctx, c.draw_ids.raw) {
-            Ok(()) => Ok(c),
-            Err(e) => {
-                c.destroy(ctx);
-                Err(e)
-            }
-        });
-        match made {
-            Ok(c) => culling_state = Some(c),
-            Err(e) => {
-                pipelines.destroy(ctx);
-                gpu.destroy(ctx);
-                return Err(e.into());
-            }
-        }
-    }
     let mut res = SceneResources {
         scene: gpu,
         pipelines,
         frame: FrameData::default(),
-        culling: culling_state,
-        queries: None,
-        raster: None,
-        resolve: None,
+        states: States::default(),
     };
-    let made = (|| -> Result<(), tilegraph_vk::VkError> {
-        if culling.uses_queries() {
-            res.queries = Some(OqState::new(
-                ctx,
-                scene,
-                options.oq_group,
-                culling.conditional(),
-                blended,
-                res.scene.set_layout,
-                frames_in_flight,
-            )?);
-        }
-        if let (Culling::RasterOcclusion, Some(c)) = (culling, res.culling.as_ref()) {
-            res.raster = Some(RasterOcclusion::new(
-                ctx,
-                res.scene.set_layout,
-                &c.visibility,
-                scene.instances().len() as u32,
-                options.raster_occlusion_scale,
-                frames_in_flight,
-            )?);
-        }
-        if options.technique == crate::setup::Technique::Visbuf {
-            res.resolve = Some(ResolveSets::new(ctx, frames_in_flight)?);
-        }
-        Ok(())
-    })();
-    match made {
+    match add_states(ctx, scene, options, blended, frames_in_flight, &mut res) {
         Ok(()) => Ok(res),
         Err(e) => {
             res.destroy(ctx);
             Err(e.into())
         }
     }
+}
+
+/// The states of `options`' techniques.
+fn add_states(
+    ctx: &Context,
+    scene: &Scene,
+    options: &RenderOptions,
+    blended: &[bool],
+    frames_in_flight: usize,
+    res: &mut SceneResources,
+) -> Result<(), VkError> {
+    let culling = options.culling;
+    let instances = scene.instances().len() as u32;
+    let set_layout = res.scene.set_layout;
+    if culling.uses_pyramid() {
+        let depth = scene
+            .camera_path()
+            .camera(0)
+            .map_or(DepthConvention::Reverse, |c| {
+                c.projection.depth_convention()
+            });
+        let size = (options.width, options.height);
+        let hiz = HizState::new(ctx, size, options.hiz_mode, depth, frames_in_flight)?;
+        res.states.insert(hiz);
+    }
+    if culling.uses_gpu_lists() {
+        let hiz = res.states.get::<HizState>();
+        let c = CullState::new(ctx, culling, instances, set_layout, frames_in_flight, hiz)?;
+        let draw_ids = c.draw_ids.raw;
+        res.states.insert(c);
+        res.scene.add_culled_sets(ctx, draw_ids)?;
+        if culling == Culling::RasterOcclusion {
+            let visibility = res.states.get::<CullState>().map(|c| &c.visibility);
+            if let Some(visibility) = visibility {
+                let scale = options.raster_occlusion_scale;
+                let raster = RasterOcclusion::new(
+                    ctx,
+                    set_layout,
+                    visibility,
+                    instances,
+                    scale,
+                    frames_in_flight,
+                )?;
+                res.states.insert(raster);
+            }
+        }
+    }
+    if culling.uses_queries() {
+        let conditional = culling.conditional();
+        let oq = OqState::new(
+            ctx,
+            scene,
+            options.oq_group,
+            conditional,
+            blended,
+            set_layout,
+            frames_in_flight,
+        )?;
+        res.states.insert(oq);
+    }
+    if options.technique == Technique::Visbuf {
+        res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);
+    }
+    Ok(())
 }
 
 /// The colour target, and the id target when the ids are captured.
@@ -807,7 +562,7 @@ fn create_targets(
 ) -> Result<(Target, Option<Target>), RenderError> {
     let size = (options.width, options.height);
     let target = create_target(ctx, size, vk::Format::R8G8B8A8_UNORM)?;
-    if !(options.capture_ids && options.technique == crate::setup::Technique::Visbuf) {
+    if !(options.capture_ids && options.technique == Technique::Visbuf) {
         return Ok((target, None));
     }
     match create_target(ctx, size, vk::Format::R32_UINT) {

@@ -37,6 +37,92 @@ impl Technique {
     }
 }
 
+/// Which culling a frame runs before drawing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Culling {
+    /// Everything is drawn (the CPU draw lists).
+    None,
+    /// GPU frustum culling.
+    Frustum,
+    /// Frustum + HiZ against the previous frame's pyramid with the previous matrices: cheap,
+    /// but wrong for a frame after a cut or a fast turn (false negatives, measured).
+    Hiz,
+    /// Two-phase occlusion culling: last frame's visible set, pyramid from that depth, then the
+    /// rest; no dependence on the previous camera.
+    HizTwoPhase,
+    /// Hardware occlusion queries on bounding boxes against this frame's depth, read back the
+    /// next frame without waiting: the drawn set lags one frame (false negatives when objects
+    /// appear, measured).
+    Oq,
+    /// The same queries in the same frame, against a depth pre-pass: results copied to a buffer
+    /// on the GPU, each instance drawn under `VK_EXT_conditional_rendering` on its result.
+    /// Conservative: no false negatives, the unculled image.
+    OqConditional,
+    /// Bounding boxes rasterized against the depth pre-pass with early fragment tests; each
+    /// surviving fragment flags its instance, the culling shader turns flags into indirect
+    /// draws. Conservative: no false negatives, the unculled image.
+    RasterOcclusion,
+}
+
+impl Culling {
+    pub fn parse(s: &str) -> Option<Culling> {
+        match s {
+            "none" => Some(Culling::None),
+            "frustum" => Some(Culling::Frustum),
+            "hiz" => Some(Culling::Hiz),
+            "hiz-2phase" => Some(Culling::HizTwoPhase),
+            "oq" => Some(Culling::Oq),
+            "oq-conditional" => Some(Culling::OqConditional),
+            "raster-occlusion" => Some(Culling::RasterOcclusion),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Culling::None => "none",
+            Culling::Frustum => "frustum",
+            Culling::Hiz => "hiz",
+            Culling::HizTwoPhase => "hiz-2phase",
+            Culling::Oq => "oq",
+            Culling::OqConditional => "oq-conditional",
+            Culling::RasterOcclusion => "raster-occlusion",
+        }
+    }
+
+    /// Whether the technique draws opaque and alpha-tested geometry through the culling
+    /// shader's indirect lists (the others select the CPU draw lists).
+    pub fn uses_gpu_lists(self) -> bool {
+        matches!(
+            self,
+            Culling::Frustum | Culling::Hiz | Culling::HizTwoPhase | Culling::RasterOcclusion
+        )
+    }
+
+    /// Whether the technique issues hardware occlusion queries.
+    pub fn uses_queries(self) -> bool {
+        matches!(self, Culling::Oq | Culling::OqConditional)
+    }
+
+    /// Whether colour draws are predicated on this frame's query results on the GPU.
+    pub fn conditional(self) -> bool {
+        self == Culling::OqConditional
+    }
+
+    /// Whether the technique needs a depth pre-pass whatever the profile says.
+    pub fn needs_prepass(self) -> bool {
+        matches!(
+            self,
+            Culling::HizTwoPhase | Culling::OqConditional | Culling::RasterOcclusion
+        )
+    }
+
+    pub fn uses_pyramid(self) -> bool {
+        matches!(self, Culling::Hiz | Culling::HizTwoPhase)
+    }
+}
+
 /// Every pass the frame setup knows about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -114,7 +200,7 @@ impl FrameSetup {
     /// Adjusts the setup for a culling technique: two-phase occlusion culling draws geometry in
     /// two phases with a pyramid build between them, so the depth pre-pass is left out (it
     /// would need two phases of its own to stay exact).
-    pub fn with_culling(mut self, culling: crate::cull::Culling) -> FrameSetup {
+    pub fn with_culling(mut self, culling: Culling) -> FrameSetup {
         if !culling.needs_prepass() || self.technique == Technique::Visbuf {
             return self;
         }
@@ -132,8 +218,8 @@ impl FrameSetup {
             if wanted && !d.included {
                 d.included = true;
                 d.reason = match culling {
-                    crate::cull::Culling::OqConditional => "conditional occlusion queries: boxes tested against the pre-pass depth, colour predicated on their results",
-                    crate::cull::Culling::RasterOcclusion => "raster occlusion: boxes rasterized against the pre-pass depth flag the instances the colour passes draw",
+                    Culling::OqConditional => "conditional occlusion queries: boxes tested against the pre-pass depth, colour predicated on their results",
+                    Culling::RasterOcclusion => "raster occlusion: boxes rasterized against the pre-pass depth flag the instances the colour passes draw",
                     _ => "two-phase occlusion culling: depth of last frame's visible set, the pyramid, then the newly visible; colour once",
                 }
                 .into();

@@ -13,7 +13,7 @@ use tilegraph_vk::pipeline::allocate_set;
 use tilegraph_vk::{Context, VkError};
 
 use crate::draws::DrawClass;
-use crate::frame::{DrawSource, FrameGraph, Payload, SceneResources};
+use crate::frame::{scene_set, DrawSource, FrameGraph, PassState, Payload, SceneResources};
 use crate::pipelines::Variant;
 use crate::recording::record_class;
 use crate::targets::SceneTargets;
@@ -117,8 +117,10 @@ impl ResolveSets {
             sets: HashMap::new(),
         })
     }
+}
 
-    pub fn destroy(self, ctx: &Context) {
+impl PassState for ResolveSets {
+    fn destroy(self: Box<Self>, ctx: &Context) {
         // SAFETY: the GPU is idle (caller's guarantee); the sets go with the pool.
         unsafe {
             ctx.device.destroy_sampler(self.sampler, None);
@@ -141,13 +143,7 @@ fn record_resolve(
     let pipeline = res
         .pipelines
         .scene(pc, variant, false, 1, res.frame.depth)?;
-    let scene_set = res
-        .scene
-        .set(pc.frame_slot)
-        .ok_or_else(|| VkError::Invalid {
-            what: pc.pass_name.into(),
-            reason: format!("no scene descriptor set for frame slot {}", pc.frame_slot),
-        })?;
+    let scene_set = scene_set(pc, res)?;
     let (set_layout, layout) = if input {
         (res.pipelines.input_set_layout, res.pipelines.input_layout)
     } else {
@@ -156,12 +152,7 @@ fn record_resolve(
             res.pipelines.sampled_layout,
         )
     };
-    let Some(sets) = res.resolve.as_mut() else {
-        return Err(VkError::Invalid {
-            what: pc.pass_name.into(),
-            reason: "the renderer has no visibility-buffer resolve".into(),
-        });
-    };
+    let sets = res.states.require_mut::<ResolveSets>(pc.pass_name)?;
     let key = (pc.frame_slot, input);
     let set = match sets.sets.get(&key) {
         Some(s) => *s,

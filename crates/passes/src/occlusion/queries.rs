@@ -25,7 +25,7 @@ use tilegraph_vk::executor::PassContext;
 use tilegraph_vk::pipeline::create_pipeline_layout;
 use tilegraph_vk::{Buffer, Context, VkError};
 
-use crate::frame::{FrameGraph, Payload, SceneResources};
+use crate::frame::{scene_set, FrameGraph, PassState, Payload, SceneResources};
 use crate::pipelines::Proxy;
 
 /// Push constants of `oq_box.vert`.
@@ -170,6 +170,12 @@ pub struct OqState {
     current_drawable: Vec<bool>,
 }
 
+impl PassState for OqState {
+    fn destroy(self: Box<Self>, ctx: &Context) {
+        self.destroy_all(ctx);
+    }
+}
+
 impl OqState {
     /// Device features the queries need: host query reset (pools are reset on the CPU when
     /// their results are read, so no reset command has to sit outside the query render pass).
@@ -177,7 +183,6 @@ impl OqState {
         [tilegraph_vk::Feature::HostQueryReset]
     }
 
-    #[allow(clippy::too_many_arguments)]
     pub fn new(
         ctx: &Context,
         scene: &Scene,
@@ -229,7 +234,7 @@ impl OqState {
             ) {
                 Ok(b) => state.conditions = Some(b),
                 Err(e) => {
-                    state.destroy(ctx);
+                    state.destroy_all(ctx);
                     return Err(e);
                 }
             }
@@ -242,7 +247,7 @@ impl OqState {
             let pool = match unsafe { ctx.device.create_query_pool(&info, None) } {
                 Ok(p) => p,
                 Err(r) => {
-                    state.destroy(ctx);
+                    state.destroy_all(ctx);
                     return Err(VkError::call("vkCreateQueryPool", r));
                 }
             };
@@ -517,7 +522,7 @@ impl OqState {
             .collect())
     }
 
-    pub fn destroy(self, ctx: &Context) {
+    fn destroy_all(self, ctx: &Context) {
         if let Some(b) = self.conditions {
             ctx.destroy_buffer(b);
         }
@@ -543,22 +548,14 @@ pub fn add_occlusion_queries(
     conditions: Option<u64>,
 ) -> Option<BufferId> {
     let queries: Payload = Box::new(|pc, res| {
-        let set = res
-            .scene
-            .set(pc.frame_slot)
-            .ok_or_else(|| VkError::Invalid {
-                what: pc.pass_name.into(),
-                reason: format!("no scene descriptor set for frame slot {}", pc.frame_slot),
-            })?;
+        let set = scene_set(pc, res)?;
         let SceneResources {
             pipelines,
-            queries,
+            states,
             frame,
             ..
         } = res;
-        let Some(q) = queries.as_ref() else {
-            return Ok(());
-        };
+        let q = states.require::<OqState>(pc.pass_name)?;
         let pipeline = pipelines.proxy(pc, Proxy::QueryBox, q.pipeline_layout, frame.depth)?;
         q.record(pc, set, pipeline)
     });
@@ -583,10 +580,8 @@ pub fn add_occlusion_queries(
     );
     // Tools read the drawn set back after the frame.
     g.export(conditions);
-    let copy: Payload = Box::new(|pc, res| match res.queries.as_ref() {
-        Some(q) => q.record_copy(pc),
-        None => Ok(()),
-    });
+    let copy: Payload =
+        Box::new(|pc, res| res.states.require::<OqState>(pc.pass_name)?.record_copy(pc));
     g.transfer_pass("oq-copy-results", PassClass::Transfer, copy)
         .transfer_dst(conditions)
         .after(query_pass);

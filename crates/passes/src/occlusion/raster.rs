@@ -15,7 +15,7 @@ use tilegraph_vk::pipeline::{
 use tilegraph_vk::{Buffer, Context, VkError};
 
 use crate::cull::{add_cull, zero_fill, CullLists, Culling};
-use crate::frame::{FrameGraph, Payload, SceneResources};
+use crate::frame::{scene_set, FrameGraph, PassState, Payload, SceneResources};
 use crate::pipelines::{PipelineKey, Pipelines, Proxy, FULLSCREEN_VS};
 use crate::targets::SceneTargets;
 
@@ -33,22 +33,14 @@ pub fn add_raster_occlusion(
     g.transfer_pass("raster-occlusion-clear", PassClass::Compute, clear)
         .transfer_dst(visibility);
     let boxes: Payload = Box::new(|pc, res| {
-        let set = res
-            .scene
-            .set(pc.frame_slot)
-            .ok_or_else(|| VkError::Invalid {
-                what: pc.pass_name.into(),
-                reason: format!("no scene descriptor set for frame slot {}", pc.frame_slot),
-            })?;
+        let set = scene_set(pc, res)?;
         let SceneResources {
             pipelines,
-            raster,
+            states,
             frame,
             ..
         } = res;
-        let Some(r) = raster.as_ref() else {
-            return Ok(());
-        };
+        let r = states.require::<RasterOcclusion>(pc.pass_name)?;
         let proxy = Proxy::RasterBox { scale: r.scale };
         let pipeline = pipelines.proxy(pc, proxy, r.pipeline_layout, frame.depth)?;
         r.record(pc, set, pipeline)
@@ -65,14 +57,12 @@ pub fn add_raster_occlusion(
             let view = pc.image(depth)?.view;
             let SceneResources {
                 pipelines,
-                raster,
+                states,
                 frame,
                 ..
             } = res;
-            match raster.as_ref() {
-                Some(r) => r.record_downsample(pc, pipelines, view, full, frame.depth),
-                None => Ok(()),
-            }
+            let r = states.require::<RasterOcclusion>(pc.pass_name)?;
+            r.record_downsample(pc, pipelines, view, full, frame.depth)
         });
         g.raster_pass(
             "raster-occlusion-depth",
@@ -198,6 +188,12 @@ impl Downsample {
     }
 }
 
+impl PassState for RasterOcclusion {
+    fn destroy(self: Box<Self>, ctx: &Context) {
+        self.destroy_all(ctx);
+    }
+}
+
 impl RasterOcclusion {
     pub fn new(
         ctx: &Context,
@@ -244,7 +240,7 @@ impl RasterOcclusion {
             match Downsample::new(ctx, frames_in_flight) {
                 Ok(d) => state.downsample = Some(d),
                 Err(e) => {
-                    state.destroy(ctx);
+                    state.destroy_all(ctx);
                     return Err(e);
                 }
             }
@@ -252,14 +248,14 @@ impl RasterOcclusion {
         match create_pipeline_layout(ctx, &[scene_set_layout, set_layout], None) {
             Ok(l) => state.pipeline_layout = l,
             Err(e) => {
-                state.destroy(ctx);
+                state.destroy_all(ctx);
                 return Err(e);
             }
         }
         match tilegraph_vk::pipeline::allocate_set(ctx, pool, set_layout) {
             Ok(s) => state.set = s,
             Err(e) => {
-                state.destroy(ctx);
+                state.destroy_all(ctx);
                 return Err(e);
             }
         }
@@ -416,7 +412,7 @@ impl RasterOcclusion {
         Ok(())
     }
 
-    pub fn destroy(self, ctx: &Context) {
+    fn destroy_all(self, ctx: &Context) {
         if let Some(d) = self.downsample {
             d.destroy(ctx);
         }

@@ -1,0 +1,296 @@
+//! The scene's frame as a composition of the shipped passes: the frame setup's decisions, in
+//! the order the culling technique needs them, each an `add_*` call. This is the file to read
+//! to see what a frame of a given technique declares; each pass's own file says what the pass
+//! does.
+
+use tilegraph_graph::{
+    AccessFlags, BufferId, Extent2d, Format, ImageDesc, ImageId, Import, InitialContent, Layout,
+    PipelineStages, ResourceState,
+};
+use tilegraph_profile::Profile;
+use tilegraph_scene::DepthConvention;
+use tilegraph_vk::executor::{External, Externals, ImageHandle};
+use tilegraph_vk::Buffer;
+
+use crate::cull::{add_cull, add_cull_late, import_cull_buffers, CullState, Culling};
+use crate::draws::DrawClass;
+use crate::forward::{add_clear, add_forward, add_transparent};
+use crate::frame::{DrawSource, FrameGraph, States};
+use crate::hiz::{add_hiz_build, HizState};
+use crate::occlusion::{add_occlusion_queries, add_raster_occlusion, OqState};
+use crate::options::RenderOptions;
+use crate::prepass::add_depth_prepass;
+use crate::setup::{FrameSetup, PassKind};
+use crate::targets::SceneTargets;
+use crate::visbuf::{add_visbuf_resolve, add_visbuf_write};
+
+/// What the scene's declaration depends on besides the renderer's options: when it is the same
+/// as the last frame's, the declared payloads and the compiled plan are reused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct DeclarationKey {
+    /// The clear value of depth, and the compare of every pipeline.
+    pub depth: DepthConvention,
+    /// The first frame imports its targets `UNDEFINED`; later ones in the layout the last
+    /// frame left them in.
+    pub first_frame: bool,
+}
+
+/// What the scene's frame is declared from.
+#[derive(Clone, Copy)]
+pub(crate) struct SceneFrame<'a> {
+    pub options: &'a RenderOptions,
+    pub setup: &'a FrameSetup,
+    pub profile: &'a Profile,
+    pub key: DeclarationKey,
+    /// The techniques' states, whose buffers the frame imports.
+    pub states: &'a States,
+    /// The renderer's colour target, and its id target when it keeps the ids.
+    pub target: &'a ImageHandle,
+    pub ids_target: Option<&'a ImageHandle>,
+}
+
+/// One geometry pass to declare: which, in which culling phase (0: early or only), drawing
+/// from where, predicated on which query results, under which name.
+struct Geometry<'n> {
+    pass: PassKind,
+    phase: u32,
+    source: DrawSource,
+    predicate: Option<BufferId>,
+    name: &'n str,
+}
+
+/// Declares the scene's frame: the frame setup's passes, composed from the `add_*`
+/// functions in the order the technique needs, and the physical resources of its imports.
+pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> (FrameGraph, Externals) {
+    let SceneFrame {
+        options,
+        setup,
+        profile,
+        key,
+        states,
+        target,
+        ids_target,
+    } = *spec;
+    let extent = Extent2d::new(options.width, options.height);
+    let culling = options.culling;
+    let mut g = FrameGraph::new();
+    let mut externals = Externals::new();
+    // The targets survive frames: after the first they are in TRANSFER_SRC from the last
+    // frame's release, read by the readback copy.
+    let kept = ResourceState::image(
+        Layout::TransferSrc,
+        PipelineStages::COPY,
+        AccessFlags::TRANSFER_READ,
+    );
+    let import = Import {
+        initial: if key.first_frame {
+            ResourceState::UNDEFINED
+        } else {
+            kept
+        },
+        content: InitialContent::Discard,
+        final_state: kept,
+    };
+    let color = g.import_image(
+        "color",
+        ImageDesc::new(extent, Format::R8G8B8A8_UNORM),
+        import,
+    );
+    externals.insert(color, External::Image(target.clone()));
+    let depth = g.create_image("depth", ImageDesc::new(extent, Format::D32_SFLOAT));
+    let mut t = SceneTargets::new(color, depth, extent, options.clear_color, key.depth);
+    if let Some(handle) = ids_target {
+        let ids = g.import_image(
+            "visbuf-id",
+            ImageDesc::new(extent, Format::R32_UINT),
+            import,
+        );
+        g.export(ids);
+        externals.insert(ids, External::Image(handle.clone()));
+        t.ids = Some(ids);
+    }
+    let hiz = states.get::<HizState>();
+    let lists = states.get::<CullState>().map(|c| {
+        let lists = import_cull_buffers(&mut g, c, hiz);
+        for (id, buffer) in [
+            (lists.commands, &c.commands),
+            (lists.counts, &c.counts),
+            (lists.draw_ids, &c.draw_ids),
+            (lists.visibility, &c.visibility),
+        ] {
+            externals.insert(id, External::Buffer(CullState::handle(buffer)));
+        }
+        if let (Some(id), Some(h)) = (lists.pyramid, hiz) {
+            externals.insert(id, External::Buffer(CullState::handle(&h.pyramid)));
+        }
+        lists
+    });
+    let queries = states.get::<OqState>();
+    let conditions_buffer = queries.and_then(|q| q.conditions.as_ref());
+    let mut conditions = None;
+
+    if let (Some(lists), false) = (lists, culling == Culling::RasterOcclusion) {
+        add_cull(&mut g, lists, culling);
+    }
+    // Two-phase with a pre-pass: depth of the early lists, pyramid, late culling, depth of
+    // the late lists, then colour once over the union (the early lists, which the late
+    // dispatch completes) in the unculled order. The visibility buffer draws ids in both
+    // phases instead.
+    let two_phase = culling == Culling::HizTwoPhase;
+    let split_depth = two_phase && setup.has_prepass();
+    let phases: &[u32] = if two_phase { &[0, 1] } else { &[0] };
+    let mut flags_declared = false;
+    for &phase in phases {
+        if phase == 1 {
+            // No depth written by the early phase (nothing opaque or alpha-tested): no
+            // occluders, no pyramid, and no late lists to fill.
+            if let (Some(lists), true) = (lists, t.depth_written()) {
+                if let Some(pyramid) = lists.pyramid {
+                    add_hiz_build(&mut g, t.depth, pyramid);
+                }
+                add_cull_late(&mut g, lists);
+            }
+        }
+        let suffix = match (two_phase, phase) {
+            (false, _) => "",
+            (true, 0) => "-early",
+            (true, _) => "-late",
+        };
+        for pass in setup.included() {
+            let depth_only = matches!(
+                pass,
+                PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha
+            );
+            if split_depth && !depth_only {
+                continue; // colour after both depth phases
+            }
+            if culling.conditional() && !depth_only && conditions.is_none() && t.depth_written() {
+                // Boxes against the pre-pass depth, then colour predicated on them.
+                conditions = declare_queries(&mut g, &mut externals, t.depth, conditions_buffer);
+            }
+            if culling == Culling::RasterOcclusion && !depth_only && !flags_declared {
+                match (lists, t.depth_written()) {
+                    (Some(lists), true) => add_raster_occlusion(
+                        &mut g,
+                        &t,
+                        lists,
+                        options.raster_occlusion_scale.max(1),
+                    ),
+                    // No pre-pass depth (nothing opaque): no boxes to test; the lists
+                    // still get written.
+                    (Some(lists), false) => add_cull(&mut g, lists, Culling::RasterOcclusion),
+                    (None, _) => {}
+                }
+                flags_declared = true;
+            }
+            // Raster occlusion tests boxes against the depth of everything: its pre-pass
+            // draws the CPU lists; everything else draws the culling shader's lists.
+            let source = match (lists, culling, depth_only) {
+                (Some(_), Culling::RasterOcclusion, true) | (None, _, _) => DrawSource::Cpu,
+                (Some(lists), _, _) => lists.source(phase),
+            };
+            let name = format!("{}{suffix}", pass.name());
+            let geometry = Geometry {
+                pass,
+                phase,
+                source,
+                predicate: conditions,
+                name: &name,
+            };
+            declare_geometry(&mut g, &mut t, setup, geometry);
+        }
+    }
+    if split_depth {
+        for pass in setup
+            .included()
+            .filter(|p| matches!(p, PassKind::Opaque | PassKind::AlphaTested))
+        {
+            let geometry = Geometry {
+                pass,
+                phase: 0,
+                source: lists.map_or(DrawSource::Cpu, |l| l.source(0)),
+                predicate: conditions,
+                name: pass.name(),
+            };
+            declare_geometry(&mut g, &mut t, setup, geometry);
+        }
+    }
+    if let (true, Some(ids)) = (setup.includes(PassKind::VisbufResolve), t.ids) {
+        add_visbuf_resolve(&mut g, &mut t, ids, profile.is_tiler());
+    }
+    if setup.includes(PassKind::Transparent) {
+        add_transparent(&mut g, &mut t);
+    }
+    if let (Culling::Hiz, Some(pyramid)) = (culling, lists.and_then(|l| l.pyramid)) {
+        // Next frame's occluders: this frame's depth.
+        add_hiz_build(&mut g, t.depth, pyramid);
+    }
+    if culling.uses_queries() && !culling.conditional() && t.depth_written() {
+        // After all opaque work (the graph's class order); results are read next frame.
+        declare_queries(&mut g, &mut externals, t.depth, None);
+    }
+    if !t.color_written() {
+        add_clear(&mut g, &mut t);
+    }
+    g.export(color);
+    (g, externals)
+}
+
+/// The occlusion queries; with `conditions` (their results on the GPU, for conditional
+/// rendering), the copy of the results too, its buffer among the externals.
+fn declare_queries(
+    g: &mut FrameGraph,
+    externals: &mut Externals,
+    depth: ImageId,
+    conditions: Option<&Buffer>,
+) -> Option<BufferId> {
+    let id = add_occlusion_queries(g, depth, conditions.map(|b| b.size))?;
+    if let Some(buffer) = conditions {
+        externals.insert(id, External::Buffer(CullState::handle(buffer)));
+    }
+    Some(id)
+}
+
+/// One geometry pass of the frame setup.
+fn declare_geometry(
+    g: &mut FrameGraph,
+    t: &mut SceneTargets,
+    setup: &FrameSetup,
+    geometry: Geometry<'_>,
+) {
+    let Geometry {
+        pass,
+        phase,
+        source,
+        predicate,
+        name,
+    } = geometry;
+    match pass {
+        PassKind::DepthPrepassOpaque => {
+            add_depth_prepass(g, t, DrawClass::Opaque, source, name);
+        }
+        PassKind::DepthPrepassAlpha => {
+            add_depth_prepass(g, t, DrawClass::AlphaTested, source, name);
+        }
+        PassKind::Opaque => {
+            let prepassed = setup.prepassed(0);
+            add_forward(g, t, DrawClass::Opaque, prepassed, source, predicate, name);
+        }
+        PassKind::AlphaTested => {
+            let prepassed = setup.prepassed(1);
+            add_forward(
+                g,
+                t,
+                DrawClass::AlphaTested,
+                prepassed,
+                source,
+                predicate,
+                name,
+            );
+        }
+        PassKind::VisbufWrite => {
+            add_visbuf_write(g, t, phase, source, name);
+        }
+        PassKind::VisbufResolve | PassKind::Transparent => {} // after the geometry phases
+    }
+}
