@@ -4,17 +4,13 @@
 use std::collections::BTreeSet;
 use std::ffi::CStr;
 use std::mem::ManuallyDrop;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::AtomicU64;
 use std::sync::Mutex;
 
 use ash::vk;
-use gpu_allocator::vulkan::{
-    Allocation, AllocationCreateDesc, AllocationScheme, Allocator, AllocatorCreateDesc,
-};
-use gpu_allocator::{AllocationSizes, AllocatorDebugSettings, MemoryLocation};
-use tilegraph_profile::{
-    select_memory_type, MemoryChoice, MemoryUse, Profile, ProfileSet, Selection,
-};
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+use gpu_allocator::{AllocationSizes, AllocatorDebugSettings};
+use tilegraph_profile::{Profile, ProfileSet, Selection};
 
 use crate::error::{VkError, VkResultExt};
 use crate::features::{Feature, FeatureRequest, FeatureStructs};
@@ -47,53 +43,13 @@ impl ContextOptions {
     }
 }
 
-/// A buffer and its memory.
-#[derive(Debug)]
-pub struct Buffer {
-    pub raw: vk::Buffer,
-    pub size: u64,
-    pub memory: MemoryChoice,
-    allocation: Allocation,
-}
-
-impl Buffer {
-    /// The mapped bytes, when the memory type is host-visible.
-    pub fn mapped(&self) -> Option<&[u8]> {
-        self.allocation.mapped_slice()
-    }
-    pub fn mapped_mut(&mut self) -> Option<&mut [u8]> {
-        self.allocation.mapped_slice_mut()
-    }
-    /// Memory property flags of the allocation, as gpu-allocator reports them.
-    pub fn memory_properties(&self) -> vk::MemoryPropertyFlags {
-        self.allocation.memory_properties()
-    }
-}
-
-/// An image and its memory.
-#[derive(Debug)]
-pub struct Image {
-    pub raw: vk::Image,
-    pub format: vk::Format,
-    pub extent: vk::Extent2D,
-    pub mip_levels: u32,
-    pub memory: MemoryChoice,
-    allocation: Allocation,
-}
-
-impl Image {
-    pub fn memory_properties(&self) -> vk::MemoryPropertyFlags {
-        self.allocation.memory_properties()
-    }
-}
-
 /// Device-level function tables for paths that differ between Vulkan 1.2 (+extensions) and 1.3.
-enum Sync2 {
+pub(crate) enum Sync2 {
     Core,
     Khr(ash::khr::synchronization2::Device),
     Missing,
 }
-enum DynRendering {
+pub(crate) enum DynRendering {
     Core,
     Khr(ash::khr::dynamic_rendering::Device),
     Missing,
@@ -106,14 +62,14 @@ pub struct Context {
     pub device: ash::Device,
     pub queue: vk::Queue,
     pub queue_family: u32,
-    enabled: BTreeSet<Feature>,
-    allocator: ManuallyDrop<Mutex<Allocator>>,
-    allocations: AtomicU64,
-    sync2: Sync2,
-    dynrend: DynRendering,
-    debug_utils: Option<ash::ext::debug_utils::Device>,
-    conditional: Option<ash::ext::conditional_rendering::Device>,
-    upload_pool: vk::CommandPool,
+    pub(crate) enabled: BTreeSet<Feature>,
+    pub(crate) allocator: ManuallyDrop<Mutex<Allocator>>,
+    pub(crate) allocations: AtomicU64,
+    pub(crate) sync2: Sync2,
+    pub(crate) dynrend: DynRendering,
+    pub(crate) debug_utils: Option<ash::ext::debug_utils::Device>,
+    pub(crate) conditional: Option<ash::ext::conditional_rendering::Device>,
+    pub(crate) upload_pool: vk::CommandPool,
     /// The device and what it owns are destroyed (by `destroy_checked` or Drop).
     device_destroyed: bool,
     // Declared last: dropped after the device is destroyed in Drop.
@@ -422,415 +378,6 @@ impl Context {
         self.instance.validation_enabled()
     }
 
-    /// Number of device-memory allocations made through this context so far.
-    pub fn allocation_count(&self) -> u64 {
-        self.allocations.load(Ordering::Relaxed)
-    }
-
-    /// The memory type the profile picks for `use_` among `type_bits`.
-    pub fn choose_memory(&self, use_: MemoryUse, type_bits: u32) -> Result<MemoryChoice, VkError> {
-        Ok(select_memory_type(
-            &self.profile().memory,
-            &self.physical.identity.memory_types,
-            type_bits,
-            use_,
-        )?)
-    }
-
-    /// Allocates memory for `requirements` in exactly the type the profile chooses: the
-    /// requirement's type bits are narrowed to that one type before gpu-allocator sees them.
-    pub fn allocate(
-        &self,
-        name: &str,
-        requirements: vk::MemoryRequirements,
-        use_: MemoryUse,
-        linear: bool,
-    ) -> Result<(Allocation, MemoryChoice), VkError> {
-        let choice = self.choose_memory(use_, requirements.memory_type_bits)?;
-        let narrowed = vk::MemoryRequirements {
-            memory_type_bits: 1 << choice.type_index,
-            ..requirements
-        };
-        let mut allocator = self.allocator.lock().map_err(|_| VkError::Invalid {
-            what: "allocator".into(),
-            reason: "a thread panicked while holding it".into(),
-        })?;
-        let allocation = allocator
-            .allocate(&AllocationCreateDesc {
-                name,
-                requirements: narrowed,
-                // Unknown: let the narrowed type bits alone decide; gpu-allocator maps the
-                // memory whenever the type is host-visible.
-                location: MemoryLocation::Unknown,
-                linear,
-                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-            })
-            .map_err(|source| VkError::Allocation {
-                name: name.to_string(),
-                source,
-            })?;
-        self.allocations.fetch_add(1, Ordering::Relaxed);
-        Ok((allocation, choice))
-    }
-
-    pub fn free(&self, allocation: Allocation) {
-        match self.allocator.lock() {
-            Ok(mut a) => {
-                if let Err(e) = a.free(allocation) {
-                    log::error!("freeing device memory: {e}");
-                }
-            }
-            Err(_) => log::error!("allocator lock poisoned; leaking an allocation"),
-        }
-    }
-
-    /// Creates a buffer in the memory type the profile picks for `use_`.
-    pub fn create_buffer(
-        &self,
-        name: &str,
-        size: u64,
-        usage: vk::BufferUsageFlags,
-        use_: MemoryUse,
-    ) -> Result<Buffer, VkError> {
-        if size == 0 {
-            return Err(VkError::Invalid {
-                what: format!("buffer {name:?}"),
-                reason: "size is zero".into(),
-            });
-        }
-        let info = vk::BufferCreateInfo::default()
-            .size(size)
-            .usage(usage)
-            .sharing_mode(vk::SharingMode::EXCLUSIVE);
-        // SAFETY: valid create info with non-zero size.
-        let raw = unsafe { self.device.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
-        // SAFETY: raw is a live buffer of this device.
-        let req = unsafe { self.device.get_buffer_memory_requirements(raw) };
-        let (allocation, memory) = match self.allocate(name, req, use_, true) {
-            Ok(a) => a,
-            Err(e) => {
-                // SAFETY: unbound, unused buffer.
-                unsafe { self.device.destroy_buffer(raw, None) };
-                return Err(e);
-            }
-        };
-        // SAFETY: the allocation satisfies the buffer's requirements (size, alignment, type).
-        if let Err(r) = unsafe {
-            self.device
-                .bind_buffer_memory(raw, allocation.memory(), allocation.offset())
-        } {
-            // SAFETY: unused buffer; allocation returned to the allocator.
-            unsafe { self.device.destroy_buffer(raw, None) };
-            self.free(allocation);
-            return Err(VkError::call("vkBindBufferMemory", r));
-        }
-        self.set_name(raw, name);
-        Ok(Buffer {
-            raw,
-            size,
-            memory,
-            allocation,
-        })
-    }
-
-    /// The range of a buffer's memory to flush or invalidate: atom-aligned, and never past the
-    /// end of its memory object (a dedicated allocation's object is exactly its size, which
-    /// need not be a multiple of the atom: that range runs to `VK_WHOLE_SIZE`).
-    fn mapped_range(&self, buffer: &Buffer) -> vk::MappedMemoryRange<'static> {
-        let atom = self.physical.limits.non_coherent_atom_size.max(1);
-        let a = &buffer.allocation;
-        let start = a.offset() / atom * atom;
-        // SAFETY: the allocation's memory object is live while the buffer is.
-        let range = vk::MappedMemoryRange::default().memory(unsafe { a.memory() });
-        if a.is_dedicated() {
-            return range.offset(start).size(vk::WHOLE_SIZE);
-        }
-        // Sub-allocated: gpu-allocator's blocks are far larger than an atom and sized in
-        // multiples of it, so rounding up stays inside the block.
-        let end = (a.offset() + a.size()).div_ceil(atom) * atom;
-        range.offset(start).size(end - start)
-    }
-
-    fn is_coherent(buffer: &Buffer) -> bool {
-        buffer
-            .memory
-            .flags
-            .contains(tilegraph_profile::MemoryFlags::HOST_COHERENT)
-    }
-
-    /// Makes GPU writes visible to the host for a mapped buffer in non-coherent memory (no-op on
-    /// coherent memory). Call after the fence that covers the writes.
-    pub fn invalidate_mapped(&self, buffer: &Buffer) -> Result<(), VkError> {
-        if Self::is_coherent(buffer) {
-            return Ok(());
-        }
-        let range = self.mapped_range(buffer);
-        // SAFETY: the memory is mapped by gpu-allocator; the range is atom-aligned and inside it.
-        unsafe { self.device.invalidate_mapped_memory_ranges(&[range]) }
-            .vk("vkInvalidateMappedMemoryRanges")
-    }
-
-    /// Makes host writes to a mapped buffer in non-coherent memory visible to the device (no-op
-    /// on coherent memory). Call before submitting work that reads them.
-    pub fn flush_mapped(&self, buffer: &Buffer) -> Result<(), VkError> {
-        if Self::is_coherent(buffer) {
-            return Ok(());
-        }
-        let range = self.mapped_range(buffer);
-        // SAFETY: as for `invalidate_mapped`.
-        unsafe { self.device.flush_mapped_memory_ranges(&[range]) }.vk("vkFlushMappedMemoryRanges")
-    }
-
-    /// Copies `bytes` into a mapped buffer at `offset` and flushes it (non-coherent memory):
-    /// the one way the host writes GPU-visible memory. Errors when the buffer is not mapped or
-    /// too small.
-    pub fn write_mapped(
-        &self,
-        buffer: &mut Buffer,
-        offset: usize,
-        bytes: &[u8],
-    ) -> Result<(), VkError> {
-        let size = buffer.size;
-        let target = buffer
-            .mapped_mut()
-            .and_then(|m| m.get_mut(offset..offset.checked_add(bytes.len())?));
-        let Some(target) = target else {
-            return Err(VkError::Invalid {
-                what: format!("buffer of {size} bytes"),
-                reason: format!(
-                    "cannot write {} bytes at offset {offset}: not host-visible or too small",
-                    bytes.len()
-                ),
-            });
-        };
-        target.copy_from_slice(bytes);
-        self.flush_mapped(buffer)
-    }
-
-    pub fn destroy_buffer(&self, buffer: Buffer) {
-        // SAFETY: the caller guarantees the GPU no longer uses the buffer.
-        unsafe { self.device.destroy_buffer(buffer.raw, None) };
-        self.free(buffer.allocation);
-    }
-
-    /// Creates a 2D image in the memory type the profile picks for `use_`.
-    pub fn create_image(
-        &self,
-        name: &str,
-        info: &vk::ImageCreateInfo<'_>,
-        use_: MemoryUse,
-    ) -> Result<Image, VkError> {
-        if info.extent.width == 0 || info.extent.height == 0 {
-            return Err(VkError::Invalid {
-                what: format!("image {name:?}"),
-                reason: "zero extent".into(),
-            });
-        }
-        // SAFETY: valid create info (checked extent; format/usage validated by the layer).
-        let raw = unsafe { self.device.create_image(info, None) }.vk("vkCreateImage")?;
-        // SAFETY: live image.
-        let req = unsafe { self.device.get_image_memory_requirements(raw) };
-        let linear = info.tiling == vk::ImageTiling::LINEAR;
-        let (allocation, memory) = match self.allocate(name, req, use_, linear) {
-            Ok(a) => a,
-            Err(e) => {
-                // SAFETY: unbound, unused image.
-                unsafe { self.device.destroy_image(raw, None) };
-                return Err(e);
-            }
-        };
-        // SAFETY: allocation satisfies the requirements.
-        if let Err(r) = unsafe {
-            self.device
-                .bind_image_memory(raw, allocation.memory(), allocation.offset())
-        } {
-            // SAFETY: unused image.
-            unsafe { self.device.destroy_image(raw, None) };
-            self.free(allocation);
-            return Err(VkError::call("vkBindImageMemory", r));
-        }
-        self.set_name(raw, name);
-        Ok(Image {
-            raw,
-            format: info.format,
-            extent: vk::Extent2D {
-                width: info.extent.width,
-                height: info.extent.height,
-            },
-            mip_levels: info.mip_levels,
-            memory,
-            allocation,
-        })
-    }
-
-    pub fn destroy_image(&self, image: Image) {
-        // SAFETY: the caller guarantees the GPU no longer uses the image.
-        unsafe { self.device.destroy_image(image.raw, None) };
-        self.free(image.allocation);
-    }
-
-    /// Names an object for validation messages and capture tools (no-op without debug utils).
-    pub fn set_name<H: vk::Handle>(&self, handle: H, name: &str) {
-        if let Some(du) = &self.debug_utils {
-            let Ok(c) = std::ffi::CString::new(name.replace('\0', "")) else {
-                return;
-            };
-            let info = vk::DebugUtilsObjectNameInfoEXT::default()
-                .object_handle(handle)
-                .object_name(&c);
-            // SAFETY: handle belongs to this device; name is NUL-terminated.
-            if let Err(e) = unsafe { du.set_debug_utils_object_name(&info) } {
-                log::debug!("naming {name}: {e}");
-            }
-        }
-    }
-
-    /// Opens a debug label region named after a pass (no-op without debug utils).
-    pub fn begin_label(&self, cb: vk::CommandBuffer, name: &str) {
-        if let Some(du) = &self.debug_utils {
-            let Ok(c) = std::ffi::CString::new(name.replace('\0', "")) else {
-                return;
-            };
-            let label = vk::DebugUtilsLabelEXT::default().label_name(&c);
-            // SAFETY: cb is recording.
-            unsafe { du.cmd_begin_debug_utils_label(cb, &label) };
-        }
-    }
-
-    pub fn end_label(&self, cb: vk::CommandBuffer) {
-        if let Some(du) = &self.debug_utils {
-            // SAFETY: matches a begin_label on the same command buffer.
-            unsafe { du.cmd_end_debug_utils_label(cb) };
-        }
-    }
-
-    pub fn has_debug_labels(&self) -> bool {
-        self.debug_utils.is_some()
-    }
-
-    /// `vkCmdPipelineBarrier2` through core 1.3 or VK_KHR_synchronization2.
-    pub fn cmd_pipeline_barrier2(
-        &self,
-        cb: vk::CommandBuffer,
-        info: &vk::DependencyInfo<'_>,
-    ) -> Result<(), VkError> {
-        match &self.sync2 {
-            // SAFETY: synchronization2 was enabled at device creation.
-            Sync2::Core => unsafe { self.device.cmd_pipeline_barrier2(cb, info) },
-            // SAFETY: as above, through the extension.
-            Sync2::Khr(k) => unsafe { k.cmd_pipeline_barrier2(cb, info) },
-            Sync2::Missing => return Err(missing_feature(Feature::Synchronization2)),
-        }
-        Ok(())
-    }
-
-    /// `vkCmdWriteTimestamp2` through core 1.3 or VK_KHR_synchronization2.
-    pub fn cmd_write_timestamp2(
-        &self,
-        cb: vk::CommandBuffer,
-        stage: vk::PipelineStageFlags2,
-        pool: vk::QueryPool,
-        query: u32,
-    ) -> Result<(), VkError> {
-        match &self.sync2 {
-            // SAFETY: synchronization2 was enabled at device creation; the query was reset.
-            Sync2::Core => unsafe { self.device.cmd_write_timestamp2(cb, stage, pool, query) },
-            // SAFETY: as above, through the extension.
-            Sync2::Khr(k) => unsafe { k.cmd_write_timestamp2(cb, stage, pool, query) },
-            Sync2::Missing => return Err(missing_feature(Feature::Synchronization2)),
-        }
-        Ok(())
-    }
-
-    pub fn cmd_begin_rendering(
-        &self,
-        cb: vk::CommandBuffer,
-        info: &vk::RenderingInfo<'_>,
-    ) -> Result<(), VkError> {
-        match &self.dynrend {
-            // SAFETY: dynamic rendering was enabled at device creation.
-            DynRendering::Core => unsafe { self.device.cmd_begin_rendering(cb, info) },
-            // SAFETY: as above, through the extension.
-            DynRendering::Khr(k) => unsafe { k.cmd_begin_rendering(cb, info) },
-            DynRendering::Missing => return Err(missing_feature(Feature::DynamicRendering)),
-        }
-        Ok(())
-    }
-
-    pub fn cmd_end_rendering(&self, cb: vk::CommandBuffer) -> Result<(), VkError> {
-        match &self.dynrend {
-            // SAFETY: matches cmd_begin_rendering.
-            DynRendering::Core => unsafe { self.device.cmd_end_rendering(cb) },
-            // SAFETY: as above.
-            DynRendering::Khr(k) => unsafe { k.cmd_end_rendering(cb) },
-            DynRendering::Missing => return Err(missing_feature(Feature::DynamicRendering)),
-        }
-        Ok(())
-    }
-
-    /// VK_EXT_conditional_rendering entry points, when that feature was enabled.
-    pub fn conditional_rendering(&self) -> Option<&ash::ext::conditional_rendering::Device> {
-        self.conditional.as_ref()
-    }
-
-    /// Records `record` into a one-time command buffer, submits it and waits. For uploads,
-    /// readbacks and tests — never on a per-frame path.
-    pub fn submit_and_wait<R>(
-        &self,
-        record: impl FnOnce(vk::CommandBuffer) -> Result<R, VkError>,
-    ) -> Result<R, VkError> {
-        let alloc = vk::CommandBufferAllocateInfo::default()
-            .command_pool(self.upload_pool)
-            .level(vk::CommandBufferLevel::PRIMARY)
-            .command_buffer_count(1);
-        // SAFETY: the pool belongs to this device; Context is not Sync, so one thread at a time
-        // records into it.
-        let cbs = unsafe { self.device.allocate_command_buffers(&alloc) }
-            .vk("vkAllocateCommandBuffers")?;
-        let cb = cbs[0];
-        let result = (|| {
-            let begin = vk::CommandBufferBeginInfo::default()
-                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-            // SAFETY: freshly allocated command buffer.
-            unsafe { self.device.begin_command_buffer(cb, &begin) }.vk("vkBeginCommandBuffer")?;
-            let r = record(cb)?;
-            // SAFETY: recording.
-            unsafe { self.device.end_command_buffer(cb) }.vk("vkEndCommandBuffer")?;
-            // SAFETY: valid device.
-            let fence = unsafe {
-                self.device
-                    .create_fence(&vk::FenceCreateInfo::default(), None)
-            }
-            .vk("vkCreateFence")?;
-            let cbs = [cb];
-            let submit = vk::SubmitInfo::default().command_buffers(&cbs);
-            // SAFETY: the command buffer is executable; the fence is unsignalled.
-            let submitted = unsafe { self.device.queue_submit(self.queue, &[submit], fence) }
-                .vk("vkQueueSubmit");
-            let waited = submitted.and_then(|_| {
-                // SAFETY: the fence was just submitted with the command buffer.
-                let waited = unsafe { self.device.wait_for_fences(&[fence], true, u64::MAX) }
-                    .vk("vkWaitForFences");
-                if waited.is_err() {
-                    // Submitted but not known to be done (device lost, say): wait for the whole
-                    // device before the fence and the command buffer go.
-                    // SAFETY: plain wait.
-                    if let Err(e) = unsafe { self.device.device_wait_idle() } {
-                        log::error!("vkDeviceWaitIdle after a failed fence wait: {e}");
-                    }
-                }
-                waited
-            });
-            // SAFETY: the submit failed, or the fence signalled, or the device was waited for
-            // (or lost): either way unused now.
-            unsafe { self.device.destroy_fence(fence, None) };
-            waited.map(|_| r)
-        })();
-        // SAFETY: execution finished (or never started); the buffer is no longer in use.
-        unsafe { self.device.free_command_buffers(self.upload_pool, &cbs) };
-        result
-    }
-
     /// Waits until the device is idle.
     pub fn wait_idle(&self) -> Result<(), VkError> {
         // SAFETY: valid device.
@@ -838,7 +385,7 @@ impl Context {
     }
 }
 
-fn missing_feature(f: Feature) -> VkError {
+pub(crate) fn missing_feature(f: Feature) -> VkError {
     VkError::MissingRequired {
         device: String::new(),
         what: "feature (not enabled)",

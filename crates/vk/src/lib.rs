@@ -7,6 +7,7 @@
 //!   it (`tilegraph-profile`), and memory allocated in the type the profile picks per use.
 //! - [`first_frame`]: the smallest end-to-end frame, used by tests and the demo.
 
+mod commands;
 mod context;
 mod error;
 pub mod executor;
@@ -14,6 +15,7 @@ mod features;
 pub mod first_frame;
 pub mod frames;
 mod instance;
+mod memory;
 pub mod pipeline;
 pub mod queries;
 pub mod readback;
@@ -21,8 +23,9 @@ pub mod shader;
 mod validation;
 
 pub use ash;
-pub use context::{Buffer, Context, ContextOptions, Image};
+pub use context::{Context, ContextOptions};
 pub use error::VkError;
 pub use features::{Feature, FeatureRequest};
 pub use instance::{DeviceLimits, Instance, PhysicalDevice, MIN_API_VERSION};
+pub use memory::{Buffer, Image};
 pub use validation::{Validation, ValidationSink};

@@ -1,0 +1,229 @@
+//! What a scene is made of: vertices, meshes and materials, and instances placing meshes in the
+//! world with f64 translations and world bounds.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{DAffine3, DVec3, Mat3, Mat4, Vec3};
+use serde::Serialize;
+
+use crate::bounds::{Aabb, DAabb, DSphere};
+
+use super::gpu::GpuInstance;
+
+/// One vertex of the shared vertex buffer. 32 bytes, std430-compatible (scalar floats only).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable, Serialize)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub uv: [f32; 2],
+}
+
+/// Index of a [`Mesh`] in [`Scene::meshes`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct MeshId(pub u32);
+
+/// Index of a [`Material`] in [`Scene::materials`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct MaterialId(pub u32);
+
+/// Index of an [`Instance`] in [`Scene::instances`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct InstanceId(pub u32);
+
+impl MeshId {
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+impl MaterialId {
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+impl InstanceId {
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+/// How a material's coverage is decided, which is what the visibility passes care about.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub enum MaterialClass {
+    /// Writes depth, never discards: a strong occluder.
+    Opaque,
+    /// glTF alphaMode MASK: discards below `cutoff`; needs the alpha-tested pre-pass.
+    AlphaTested { cutoff: f32 },
+    /// glTF alphaMode BLEND: no depth write, drawn after the opaque work.
+    Blended,
+}
+
+impl MaterialClass {
+    /// The value stored in [`GpuMaterial::class`].
+    pub fn gpu_code(self) -> u32 {
+        match self {
+            MaterialClass::Opaque => 0,
+            MaterialClass::AlphaTested { .. } => 1,
+            MaterialClass::Blended => 2,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Material {
+    pub base_color: [f32; 4],
+    pub class: MaterialClass,
+    pub double_sided: bool,
+}
+
+impl Material {
+    pub fn opaque(base_color: [f32; 4]) -> Self {
+        Material {
+            base_color,
+            class: MaterialClass::Opaque,
+            double_sided: false,
+        }
+    }
+}
+
+/// A tilegraph mesh: one glTF primitive, one material, a range of the shared buffers.
+///
+/// Indices are relative to `vertex_offset`, as `vkCmdDrawIndexed` expects.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Mesh {
+    pub first_index: u32,
+    pub index_count: u32,
+    /// Added to every index; i32 because that is the type of `VkDrawIndexedIndirectCommand::vertexOffset`.
+    pub vertex_offset: i32,
+    pub vertex_count: u32,
+    pub material: MaterialId,
+    pub local_aabb: Aabb,
+}
+
+impl Mesh {
+    pub fn triangle_count(&self) -> u32 {
+        self.index_count / 3
+    }
+}
+
+/// A placement in the world: an f32 3x3 linear part (rotation, scale, shear) and an f64
+/// translation. The split is what keeps large worlds precise: the translation is never rounded to
+/// f32 until the camera position has been subtracted from it (see [`Transform::camera_relative`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transform {
+    pub linear: Mat3,
+    pub translation: DVec3,
+}
+
+impl Transform {
+    pub const IDENTITY: Transform = Transform {
+        linear: Mat3::IDENTITY,
+        translation: DVec3::ZERO,
+    };
+
+    pub fn new(linear: Mat3, translation: DVec3) -> Self {
+        Transform {
+            linear,
+            translation,
+        }
+    }
+
+    pub fn from_translation(translation: DVec3) -> Self {
+        Transform {
+            linear: Mat3::IDENTITY,
+            translation,
+        }
+    }
+
+    /// From an f64 affine transform (the glTF loader composes node hierarchies in f64).
+    pub fn from_daffine(a: &DAffine3) -> Self {
+        Transform {
+            linear: a.matrix3.as_mat3(),
+            translation: a.translation,
+        }
+    }
+
+    pub fn to_daffine(&self) -> DAffine3 {
+        DAffine3 {
+            matrix3: self.linear.as_dmat3(),
+            translation: self.translation,
+        }
+    }
+
+    /// The f32 model matrix with the camera at the origin: translation minus eye, subtracted in f64.
+    pub fn camera_relative(&self, eye: DVec3) -> Mat4 {
+        let t = (self.translation - eye).as_vec3();
+        Mat4::from_cols(
+            self.linear.x_axis.extend(0.0),
+            self.linear.y_axis.extend(0.0),
+            self.linear.z_axis.extend(0.0),
+            t.extend(1.0),
+        )
+    }
+
+    /// A local point in world space, in f64.
+    pub fn transform_point(&self, p: Vec3) -> DVec3 {
+        self.translation + (self.linear * p).as_dvec3()
+    }
+
+    pub fn is_finite(&self) -> bool {
+        self.linear.is_finite() && self.translation.is_finite()
+    }
+}
+
+/// World bounds of an instance: an AABB and a sphere that share one f64 centre.
+///
+/// Only the centre needs f64; extents and radius are sizes, which f32 holds fine at any distance
+/// from the origin. Per frame they become camera-relative f32 ([`GpuInstance`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InstanceBounds {
+    pub center: DVec3,
+    pub half_extents: Vec3,
+    pub radius: f32,
+}
+
+impl InstanceBounds {
+    pub fn aabb(&self) -> DAabb {
+        let h = self.half_extents.as_dvec3();
+        DAabb::new(self.center - h, self.center + h)
+    }
+
+    pub fn sphere(&self) -> DSphere {
+        DSphere {
+            center: self.center,
+            radius: f64::from(self.radius),
+        }
+    }
+}
+
+/// One drawn object: a mesh placed in the world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    pub transform: Transform,
+    pub mesh: MeshId,
+    pub bounds: InstanceBounds,
+}
+
+impl Instance {
+    /// The per-frame record for the GPU, relative to the camera at `eye`.
+    #[inline]
+    pub fn gpu_record(&self, eye: DVec3) -> GpuInstance {
+        let t = (self.transform.translation - eye).as_vec3();
+        let c = (self.bounds.center - eye).as_vec3();
+        let l = self.transform.linear;
+        // The translation and the centre are rounded to f32 separately (and the GPU adds the
+        // translation in f32): grow the box by a few ulps of both so it still encloses what is
+        // drawn.
+        let pad = (t.abs() + c.abs()) * (4.0 * f32::EPSILON / 2.0);
+        GpuInstance {
+            model_rows: [
+                [l.x_axis.x, l.y_axis.x, l.z_axis.x, t.x],
+                [l.x_axis.y, l.y_axis.y, l.z_axis.y, t.y],
+                [l.x_axis.z, l.y_axis.z, l.z_axis.z, t.z],
+            ],
+            center: c.to_array(),
+            mesh: self.mesh.0,
+            half_extents: (self.bounds.half_extents + pad).to_array(),
+            radius: self.bounds.radius + pad.length(),
+        }
+    }
+}
