@@ -8,6 +8,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
+mod structure;
+
 /// A system piece, how to recognise it, and the Debian/Ubuntu package that provides it.
 struct Requirement {
     what: &'static str,
@@ -69,6 +71,7 @@ fn main() -> ExitCode {
             )
         }),
         "deps" => ensure_system(),
+        "structure" => check_structure(rest.first().map(PathBuf::from)),
         _ => {
             eprintln!(
                 "usage: cargo xtask <command>\n\
@@ -76,6 +79,7 @@ fn main() -> ExitCode {
                  \n  test            fmt --check, clippy -D warnings, shader check, every test\
                  \n  shaders [--check]  compile shaders/*.{{vert,frag,comp}} to shaders/spv (or check them)\
                  \n  bench           criterion benchmarks\
+                 \n  structure [DIR] file sizes, too_many_arguments allowances, import cycles\
                  \n  deps            install/check the system pieces (Vulkan, lavapipe, validation, glslc)"
             );
             return if cmd == "help" {
@@ -176,6 +180,7 @@ fn test(rest: &[String]) -> Result<(), String> {
             "warnings",
         ]),
     )?;
+    check_structure(None)?;
     // The shader check (staleness + spirv-val) is xtask's own unit test, run by cargo test below.
     // Every GPU test requires the validation layer (with synchronization validation).
     run(
@@ -185,6 +190,17 @@ fn test(rest: &[String]) -> Result<(), String> {
             .args(rest)
             .env("TILEGRAPH_VALIDATION", "required"),
     )
+}
+
+/// The structure rules of `structure.rs`, over the whole workspace (or the one at `dir`).
+fn check_structure(dir: Option<PathBuf>) -> Result<(), String> {
+    println!("==> structure rules (file sizes, allowances, import cycles)");
+    let problems = structure::check(&dir.unwrap_or_else(root))?;
+    if problems.is_empty() {
+        Ok(())
+    } else {
+        Err(problems.join("\n"))
+    }
 }
 
 fn bench(rest: &[String]) -> Result<(), String> {
