@@ -331,6 +331,18 @@ fn draw(
     })
 }
 
+/// A full-screen post-process that reads `input` at the same pixel (an input attachment) and
+/// writes `1 - rgb` with alpha 1 (`test_post_input.frag`): an engine's own pass.
+pub fn post_invert(kit: &Rc<RefCell<Kit>>, input: ImageId) -> Payload {
+    let quad = Quad {
+        rect: FULL,
+        depth: 0.0,
+        color: [0.0; 4],
+        id: 0,
+    };
+    draw(kit, Kind::Post, 1, vec![quad], Some(input.0))
+}
+
 pub const FULL: [f32; 4] = [-1.0, -1.0, 1.0, 1.0];
 pub const LEFT: [f32; 4] = [-1.0, -1.0, 0.0, 1.0];
 pub const CENTER: [f32; 4] = [-0.25, -0.25, 0.25, 0.25];
