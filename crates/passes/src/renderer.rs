@@ -37,7 +37,7 @@ use crate::visbuf::ResolveSets;
 type Target = (Image, ImageHandle);
 
 /// The scene's frame as declared and compiled.
-struct Declared {
+struct DeclaredFrame {
     key: DeclarationKey,
     plan: Arc<Plan>,
     /// Indexed by `PassId`; `None` for pruned passes.
@@ -64,7 +64,7 @@ pub struct SceneRenderer {
     last_drawn: Option<Vec<u32>>,
     /// The camera of the last frame rendered.
     last_camera: Option<Camera>,
-    declared: Option<Declared>,
+    declared: Option<DeclaredFrame>,
     /// Plans of graphs declared by the caller ([`Self::execute_graph`]).
     plan_cache: PlanCache,
 }
@@ -181,7 +181,7 @@ impl SceneRenderer {
                 ids_target: self.ids_target.as_ref().map(|(_, h)| h),
             });
             let (plan, payloads) = graph.compile(profile)?.into_plan_and_payloads();
-            self.declared = Some(Declared {
+            self.declared = Some(DeclaredFrame {
                 key,
                 plan: Arc::new(plan),
                 payloads,

@@ -103,7 +103,7 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Step> {
             }
         })
         .collect();
-    let mut scratch = Scratch {
+    let mut tables = AttachmentTables {
         content_from,
         attachment_of: vec![(NONE, NONE); input.resources.len()],
         tracks: Vec::new(),
@@ -120,7 +120,7 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Step> {
         steps.push(match group.kind {
             GroupKind::Render => {
                 let mut rp = RenderPass::empty();
-                build_render_pass(input, &mut scratch, g as u32, group, &mut rp);
+                build_render_pass(input, &mut tables, g as u32, group, &mut rp);
                 Step::RenderPass(rp)
             }
             GroupKind::Compute => Step::Compute { pass: first },
@@ -130,8 +130,9 @@ pub(crate) fn infer_load_store(input: &LoadStoreInput<'_>) -> Vec<Step> {
     steps
 }
 
-/// Per-frame tables, and buffers reused from one render pass to the next.
-struct Scratch {
+/// Where each resource is attached and what each attachment has seen: per-frame tables, and
+/// lists reused from one render pass to the next.
+struct AttachmentTables {
     /// Per resource: the first group that sees content in it (0: imported with content; the
     /// group after its first writer; NONE: never).
     content_from: Vec<u32>,
@@ -145,7 +146,7 @@ struct Scratch {
 
 fn build_render_pass(
     input: &LoadStoreInput<'_>,
-    scratch: &mut Scratch,
+    tables: &mut AttachmentTables,
     g: u32,
     group: &Group,
     rp: &mut RenderPass,
@@ -159,12 +160,12 @@ fn build_render_pass(
     } = rp;
     subpasses.reserve(group.end - group.start);
     deps.reserve(2 * (group.end - group.start).saturating_sub(1));
-    let content_from = &scratch.content_from;
-    let attachment_of = &mut scratch.attachment_of;
-    let tracks = &mut scratch.tracks;
+    let content_from = &tables.content_from;
+    let attachment_of = &mut tables.attachment_of;
+    let tracks = &mut tables.tracks;
     tracks.clear();
     // (attachment, subpass, stages) of reads since the attachment's last write.
-    let readers = &mut scratch.readers;
+    let readers = &mut tables.readers;
     readers.clear();
 
     for (s, &p) in input.order[group.start..group.end].iter().enumerate() {
@@ -183,7 +184,7 @@ fn build_render_pass(
         };
         let mut resolve_refs: Vec<(ResourceId, AttachmentRef)> = Vec::new();
         // The pass's attachment accesses, by their first attachment use.
-        let order = &mut scratch.order;
+        let order = &mut tables.order;
         order.clear();
         let mut mixed = false;
         for (k, a) in accesses.iter().enumerate() {
@@ -300,7 +301,7 @@ fn build_render_pass(
     // only read it (loaded, never written), NONE keeps it without a write-back where the
     // profile's drivers take it.
     for (i, att) in attachments.iter_mut().enumerate() {
-        let track = scratch.tracks.get(i);
+        let track = tables.tracks.get(i);
         let needed = track.is_some_and(|t| t.needed_after);
         let written = att.load_op != LoadOp::Load || track.is_none_or(|t| t.write.is_some());
         att.store_op = if !needed {
@@ -337,7 +338,7 @@ fn build_render_pass(
     rp.on_chip_bytes_per_px = rp
         .attachments
         .iter()
-        .zip(scratch.tracks.iter())
+        .zip(tables.tracks.iter())
         .filter(|(_, t)| t.on_chip)
         .map(|(a, _)| a.format.bytes_per_pixel() * a.samples.count())
         .sum();

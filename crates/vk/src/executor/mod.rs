@@ -23,7 +23,7 @@ pub use recorder::{PassContext, RecordFn, RecordPass};
 pub use render_pass::RenderPassRef;
 pub use resources::{aspect_of, BufferHandle, External, Externals, ImageHandle, Resources};
 
-use recorder::{FrameRecorder, RecordScratch};
+use recorder::{FrameRecorder, RecorderState};
 use render_pass::RenderPasses;
 use resources::build_resources;
 
@@ -59,7 +59,7 @@ pub struct Executor {
     plan: Option<Arc<Plan>>,
     resources: Option<Resources>,
     render_passes: RenderPasses,
-    scratch: RecordScratch,
+    state: RecorderState,
     /// Every render pass created since the last rebuild has a serial at least this.
     render_pass_serial_floor: u64,
     /// Frame number of the first frame recorded with the current resources.
@@ -104,7 +104,7 @@ impl Executor {
             plan: None,
             resources: None,
             render_passes: RenderPasses::default(),
-            scratch: RecordScratch::default(),
+            state: RecorderState::default(),
             render_pass_serial_floor: render_pass::next_serial(),
             resources_since: 0,
             last_stats: FrameStats::default(),
@@ -192,7 +192,7 @@ impl Executor {
                 let placed = resources.placed().unwrap_or(plan);
                 // Resources created by the graph were last touched by an earlier frame (same
                 // memory); the first frame after a rebuild has no earlier user.
-                self.scratch
+                self.state
                     .first_uses
                     .begin(placed.resources.len(), token.frame > self.resources_since);
                 FrameRecorder {
@@ -203,7 +203,7 @@ impl Executor {
                     frames: &mut self.frames,
                     queries: &mut self.queries,
                     render_passes: &mut self.render_passes,
-                    scratch: &mut self.scratch,
+                    state: &mut self.state,
                     token: &mut token,
                     stats: &mut stats,
                     record,

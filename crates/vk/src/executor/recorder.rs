@@ -2,8 +2,8 @@
 //! its physical resources, the caller's externals and the frame's command buffer through the
 //! plan's steps — barrier batches as one `vkCmdPipelineBarrier2` each, render passes with their
 //! subpasses, compute and transfer passes, flushes — and hands each pass to its payload with a
-//! [`PassContext`], wrapped in a debug label and a pair of timestamps. Scratch lists live in
-//! [`RecordScratch`], kept by the executor from frame to frame: a steady frame allocates
+//! [`PassContext`], wrapped in a debug label and a pair of timestamps. Its lists live in
+//! [`RecorderState`], kept by the executor from frame to frame: a steady frame allocates
 //! nothing here.
 
 use ash::vk;
@@ -136,9 +136,10 @@ impl<F: FnMut(&mut PassContext<'_>) -> Result<(), VkError>> RecordPass for F {
 /// The callback that records each pass of a frame (the payloads, looked up by [`PassId`]).
 pub type RecordFn<'a> = dyn FnMut(PassId, &mut PassContext<'_>) -> Result<(), VkError> + 'a;
 
-/// Lists reused by every frame's recording.
+/// What the recorder keeps from frame to frame: its barrier, view and clear lists (reused, so a
+/// steady frame allocates nothing) and which resources this frame has touched.
 #[derive(Default)]
-pub(super) struct RecordScratch {
+pub(super) struct RecorderState {
     images: Vec<vk::ImageMemoryBarrier2<'static>>,
     buffers: Vec<vk::BufferMemoryBarrier2<'static>>,
     waited: Vec<ResourceId>,
@@ -157,7 +158,7 @@ pub(super) struct FrameRecorder<'a, 'r> {
     pub frames: &'a mut FrameRing,
     pub queries: &'a mut QueryRing,
     pub render_passes: &'a mut RenderPasses,
-    pub scratch: &'a mut RecordScratch,
+    pub state: &'a mut RecorderState,
     pub token: &'a mut FrameToken,
     pub stats: &'a mut FrameStats,
     pub record: &'a mut RecordFn<'r>,
@@ -179,7 +180,7 @@ impl FrameRecorder<'_, '_> {
                 }
                 Step::Compute { pass } | Step::Transfer { pass } => {
                     self.wait_for_earlier_frames(std::slice::from_ref(pass).iter().copied())?;
-                    self.scratch.first_uses.mark(plan, *pass);
+                    self.state.first_uses.mark(plan, *pass);
                     let name = plan.pass(*pass).map_or("?", |p| p.name.as_str());
                     self.run_pass(*pass, name, None, vk::Extent2D::default())?;
                 }
@@ -188,7 +189,7 @@ impl FrameRecorder<'_, '_> {
                     self.stats.subpasses += rp.subpasses.len() as u32;
                     self.wait_for_earlier_frames(rp.subpasses.iter().map(|s| s.pass))?;
                     for s in &rp.subpasses {
-                        self.scratch.first_uses.mark(plan, s.pass);
+                        self.state.first_uses.mark(plan, s.pass);
                     }
                     self.render_pass(step_index, rp)?;
                 }
@@ -199,17 +200,17 @@ impl FrameRecorder<'_, '_> {
 
     fn barriers(&mut self, batch: &BarrierBatch) -> Result<(), VkError> {
         let (plan, externals, resources) = (self.plan, self.externals, self.resources);
-        let scratch = &mut *self.scratch;
-        scratch.images.clear();
-        scratch.buffers.clear();
+        let state = &mut *self.state;
+        state.images.clear();
+        state.buffers.clear();
         for b in &batch.images {
             let h = image_of(externals, resources, b.resource)
                 .ok_or_else(|| missing("barrier", b.resource))?;
             let (src_s, src_a) =
-                scratch
+                state
                     .first_uses
                     .barrier_source(plan, b.resource, b.src_stages, b.src_access);
-            scratch.images.push(
+            state.images.push(
                 vk::ImageMemoryBarrier2::default()
                     .src_stage_mask(vk::PipelineStageFlags2::from_raw(src_s.bits()))
                     .src_access_mask(vk::AccessFlags2::from_raw(src_a.bits()))
@@ -231,10 +232,10 @@ impl FrameRecorder<'_, '_> {
             let h = buffer_of(externals, resources, b.resource)
                 .ok_or_else(|| missing("barrier", b.resource))?;
             let (src_s, src_a) =
-                scratch
+                state
                     .first_uses
                     .barrier_source(plan, b.resource, b.src_stages, b.src_access);
-            scratch.buffers.push(
+            state.buffers.push(
                 vk::BufferMemoryBarrier2::default()
                     .src_stage_mask(vk::PipelineStageFlags2::from_raw(src_s.bits()))
                     .src_access_mask(vk::AccessFlags2::from_raw(src_a.bits()))
@@ -244,12 +245,12 @@ impl FrameRecorder<'_, '_> {
                     .size(vk::WHOLE_SIZE),
             );
         }
-        if scratch.images.is_empty() && scratch.buffers.is_empty() {
+        if state.images.is_empty() && state.buffers.is_empty() {
             return Ok(());
         }
         let info = vk::DependencyInfo::default()
-            .image_memory_barriers(&scratch.images)
-            .buffer_memory_barriers(&scratch.buffers);
+            .image_memory_barriers(&state.images)
+            .buffer_memory_barriers(&state.buffers);
         self.ctx.cmd_pipeline_barrier2(self.token.cb, &info)
     }
 
@@ -260,27 +261,27 @@ impl FrameRecorder<'_, '_> {
         passes: impl Iterator<Item = PassId>,
     ) -> Result<(), VkError> {
         let (plan, externals, resources) = (self.plan, self.externals, self.resources);
-        let scratch = &mut *self.scratch;
-        if !scratch.first_uses.reused() {
+        let state = &mut *self.state;
+        if !state.first_uses.reused() {
             return Ok(());
         }
-        scratch.buffers.clear();
-        scratch.waited.clear();
+        state.buffers.clear();
+        state.waited.clear();
         for u in passes.filter_map(|p| plan.pass(p)).flat_map(|p| &p.uses) {
             let id = u.resource;
-            if scratch.waited.contains(&id) || !scratch.first_uses.is_fresh_owned(plan, id) {
+            if state.waited.contains(&id) || !state.first_uses.is_fresh_owned(plan, id) {
                 continue;
             }
             let Some(h) = buffer_of(externals, resources, id) else {
                 continue;
             };
-            scratch.waited.push(id);
-            scratch.buffers.push(buffer_wait(h.raw));
+            state.waited.push(id);
+            state.buffers.push(buffer_wait(h.raw));
         }
-        if scratch.buffers.is_empty() {
+        if state.buffers.is_empty() {
             return Ok(());
         }
-        let info = vk::DependencyInfo::default().buffer_memory_barriers(&scratch.buffers);
+        let info = vk::DependencyInfo::default().buffer_memory_barriers(&state.buffers);
         self.ctx.cmd_pipeline_barrier2(self.token.cb, &info)
     }
 
@@ -299,21 +300,19 @@ impl FrameRecorder<'_, '_> {
             height: rp.render_area_px.height_px,
         };
         let (externals, resources) = (self.externals, self.resources);
-        let scratch = &mut *self.scratch;
-        scratch.views.clear();
+        let state = &mut *self.state;
+        state.views.clear();
         for a in &rp.attachments {
             let h = image_of(externals, resources, a.resource)
                 .ok_or_else(|| missing(first_name, a.resource))?;
             check_attachment_image(plan, first_name, a, h, extent)?;
-            scratch.views.push(h.view);
+            state.views.push(h.view);
         }
         let fb =
             self.render_passes
-                .framebuffer(self.ctx, step_index, raw_rp, &scratch.views, extent)?;
-        scratch.clears.clear();
-        scratch
-            .clears
-            .extend(rp.attachments.iter().map(clear_value));
+                .framebuffer(self.ctx, step_index, raw_rp, &state.views, extent)?;
+        state.clears.clear();
+        state.clears.extend(rp.attachments.iter().map(clear_value));
         let begin = vk::RenderPassBeginInfo::default()
             .render_pass(raw_rp)
             .framebuffer(fb)
@@ -321,7 +320,7 @@ impl FrameRecorder<'_, '_> {
                 offset: vk::Offset2D::default(),
                 extent,
             })
-            .clear_values(&scratch.clears);
+            .clear_values(&state.clears);
         let sp_begin = vk::SubpassBeginInfo::default().contents(vk::SubpassContents::INLINE);
         let cb = self.token.cb;
         // SAFETY: recording, outside any render pass; the framebuffer matches the render pass.
