@@ -81,3 +81,91 @@ pub(crate) fn trace_dataflow(
         last_writer,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::*;
+    use crate::*;
+
+    #[test]
+    fn read_before_write_names_the_pass_and_the_resource() {
+        let mut g = GraphBuilder::new();
+        let hdr = rgba8(&mut g, "hdr");
+        let out = swapchain(&mut g);
+        g.raster_pass("post", PassClass::Post, ())
+            .sampled(hdr)
+            .color(out);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::ReadBeforeWrite {
+                pass: "post".into(),
+                resource: "hdr".into(),
+                usage: "sampled",
+            }
+        );
+    }
+
+    #[test]
+    fn declaration_order_is_program_order() {
+        // Written only by a pass declared later: still read before write.
+        let mut g = GraphBuilder::new();
+        let hdr = rgba8(&mut g, "hdr");
+        let out = swapchain(&mut g);
+        g.raster_pass("post", PassClass::Post, ())
+            .sampled(hdr)
+            .color(out);
+        g.raster_pass("opaque", PassClass::Opaque, ())
+            .color_clear(hdr, ClearColor::BLACK);
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::ReadBeforeWrite { pass, .. } if pass == "post"
+        ));
+    }
+
+    #[test]
+    fn imported_content_can_be_read_discarded_content_cannot() {
+        let mut g = GraphBuilder::new();
+        let prev = history(&mut g, "history");
+        let out = swapchain(&mut g);
+        g.raster_pass("taa", PassClass::Post, ())
+            .sampled(prev)
+            .color(out)
+            .coverage(Coverage::Full);
+        assert_eq!(compile(g, &tiler()).passes.len(), 1);
+
+        let mut g = GraphBuilder::new();
+        let acquired = g.import_image(
+            "acquired",
+            ImageDesc::new(EXTENT, Format::R8G8B8A8_UNORM),
+            Import::SWAPCHAIN,
+        );
+        let out = swapchain(&mut g);
+        g.raster_pass("copy", PassClass::Post, ())
+            .input(acquired)
+            .color(out);
+        assert!(matches!(
+            compile_err(g, &tiler()),
+            GraphError::ReadBeforeWrite { resource, usage: "input", .. } if resource == "acquired"
+        ));
+    }
+
+    #[test]
+    fn exports_must_name_something_that_has_content() {
+        let mut g: GraphBuilder<()> = GraphBuilder::new();
+        g.export(ResourceId(7));
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::ExportOfUnknownResource { index: 7 }
+        );
+
+        let mut g: GraphBuilder<()> = GraphBuilder::new();
+        let never = rgba8(&mut g, "never_written");
+        g.export(never);
+        assert_eq!(
+            compile_err(g, &tiler()),
+            GraphError::ExportOfUnwrittenResource {
+                resource: "never_written".into()
+            }
+        );
+    }
+}

@@ -258,3 +258,150 @@ pub(crate) fn infer_usage(desc: &ResourceDesc, roles: u16, residency: Residency)
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::testing::*;
+    use crate::*;
+
+    /// A static depth buffer (baked once, imported every frame with its content) that the frame
+    /// only tests against: nothing in the frame changed it, so nothing may discard it, exported
+    /// or not. Written by the frame and not exported, it is the caller's to lose.
+    #[test]
+    fn an_import_the_frame_only_reads_keeps_its_content() {
+        let frame = |write_it: bool, profile: &tilegraph_profile::Profile| {
+            let mut g = GraphBuilder::new();
+            let baked = g.import_image(
+                "baked_depth",
+                ImageDesc::new(EXTENT, Format::D24_UNORM_S8_UINT),
+                Import {
+                    initial: ResourceState::image(
+                        Layout::DepthStencilReadOnly,
+                        PipelineStages::NONE,
+                        AccessFlags::NONE,
+                    ),
+                    content: InitialContent::Preserve,
+                    final_state: ResourceState::image(
+                        Layout::DepthStencilReadOnly,
+                        PipelineStages::NONE,
+                        AccessFlags::NONE,
+                    ),
+                },
+            );
+            let out = swapchain(&mut g);
+            if write_it {
+                g.raster_pass("stamp", PassClass::Opaque, ())
+                    .depth_stencil(baked);
+            }
+            g.raster_pass("decals", PassClass::Transparent, ())
+                .depth_stencil_read_only(baked)
+                .color(out)
+                .coverage(Coverage::Full);
+            compile(g, profile)
+        };
+        let mut no_none = tiler();
+        no_none.render_pass.store_op_none = false;
+        for (profile, kept) in [(tiler(), StoreOp::None), (no_none, StoreOp::Store)] {
+            let plan = frame(false, &profile);
+            let baked = attachment(&plan, "baked_depth");
+            assert_eq!(baked.load_op, LoadOp::Load, "{plan}");
+            assert_eq!(
+                (baked.store_op, baked.stencil_store_op),
+                (kept, kept),
+                "{plan}"
+            );
+        }
+        let written = frame(true, &tiler());
+        assert_eq!(
+            attachment(&written, "baked_depth").store_op,
+            StoreOp::DontCare,
+            "{written}"
+        );
+
+        // A later writer that is pruned changes nothing: what survives decides.
+        for survivor_writes in [false, true] {
+            let mut g = GraphBuilder::new();
+            let baked = g.import_image(
+                "baked_depth",
+                ImageDesc::new(EXTENT, Format::D24_UNORM_S8_UINT),
+                Import {
+                    initial: ResourceState::image(
+                        Layout::DepthStencilAttachment,
+                        PipelineStages::NONE,
+                        AccessFlags::NONE,
+                    ),
+                    content: InitialContent::Preserve,
+                    final_state: ResourceState::image(
+                        Layout::DepthStencilAttachment,
+                        PipelineStages::NONE,
+                        AccessFlags::NONE,
+                    ),
+                },
+            );
+            let out = swapchain(&mut g);
+            let unread = rgba8(&mut g, "unread");
+            let mut decals = g.raster_pass("decals", PassClass::Opaque, ());
+            decals.color(out).coverage(Coverage::Full);
+            if survivor_writes {
+                decals.depth_stencil(baked);
+            } else {
+                decals.depth_stencil_read_only(baked);
+            }
+            g.raster_pass("nobody_reads", PassClass::Other, ())
+                .depth_stencil(baked)
+                .color(unread);
+            let plan = compile(g, &tiler());
+            assert_eq!(plan.pruned.len(), 1, "{plan}");
+            let expected = if survivor_writes {
+                StoreOp::DontCare
+            } else {
+                StoreOp::None
+            };
+            assert_eq!(
+                attachment(&plan, "baked_depth").store_op,
+                expected,
+                "{plan}"
+            );
+        }
+    }
+
+    #[test]
+    fn attachments_that_never_leave_the_render_pass_are_transient_on_tilers() {
+        let build = || {
+            let mut g = GraphBuilder::new();
+            let depth = d24s8(&mut g, "depth");
+            let out = swapchain(&mut g);
+            g.raster_pass("opaque", PassClass::Opaque, ())
+                .color_clear(out, ClearColor::BLACK)
+                .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+            g
+        };
+        let plan = compile(build(), &tiler());
+        let depth = plan.resource_by_name("depth").cloned();
+        assert_eq!(
+            depth.as_ref().map(|d| d.residency),
+            Some(Residency::Transient)
+        );
+        assert_eq!(
+            depth.as_ref().map(|d| d.usage),
+            Some(Usage::Image(
+                ImageUsage::DEPTH_STENCIL_ATTACHMENT | ImageUsage::TRANSIENT_ATTACHMENT
+            ))
+        );
+        let block = depth
+            .and_then(|d| d.memory)
+            .map(|m| plan.aliasing.blocks[m.block.0 as usize].class);
+        assert_eq!(block, Some(MemoryClass::LazilyAllocated));
+        assert_eq!(attachment(&plan, "depth").residency, Residency::Transient);
+
+        // No lazily allocated memory on desktop: ordinary (aliasable) memory, still not stored.
+        let plan = compile(build(), &desktop());
+        let depth = plan.resource_by_name("depth");
+        assert_eq!(depth.map(|d| d.residency), Some(Residency::FrameLocal));
+        assert_eq!(
+            depth.map(|d| d.usage),
+            Some(Usage::Image(ImageUsage::DEPTH_STENCIL_ATTACHMENT))
+        );
+        assert_eq!(attachment(&plan, "depth").store_op, StoreOp::DontCare);
+    }
+}
