@@ -1398,6 +1398,22 @@ fn check_access_support(plan: &Plan) -> Result<(), String> {
     Ok(())
 }
 
+/// Memory requirements unlike compile's estimates, as a driver's may be: each resource's size
+/// scaled by `scale / 4` and aligned to `2^align_log2` (`scales` cycled over the resources).
+fn other_requirements(plan: &Plan, scales: &[(u64, u32)]) -> Vec<MemoryRequirements> {
+    plan.estimated_requirements()
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let (scale, align_log2) = scales[i % scales.len()];
+            MemoryRequirements {
+                size_bytes: (r.size_bytes * scale / 4).max(1),
+                alignment_bytes: 1 << align_log2,
+            }
+        })
+        .collect()
+}
+
 fn check_plan(plan: &Plan, built: &Built, profile: &Profile) -> Result<(), String> {
     check_access_support(plan)?;
     check_store_none(plan, profile.render_pass.store_op_none)?;
@@ -1454,18 +1470,7 @@ proptest! {
             return Ok(());
         };
         let mut plan = compiled.plan;
-        let requirements: Vec<MemoryRequirements> = plan
-            .estimated_requirements()
-            .iter()
-            .enumerate()
-            .map(|(i, r)| {
-                let (scale, align_log2) = scales[i % scales.len()];
-                MemoryRequirements {
-                    size_bytes: (r.size_bytes * scale / 4).max(1),
-                    alignment_bytes: 1 << align_log2,
-                }
-            })
-            .collect();
+        let requirements = other_requirements(&plan, &scales);
         if let Err(e) = plan.reassign_aliases(&requirements) {
             return Err(TestCaseError::fail(format!("re-placing failed: {e}\n{plan}")));
         }
@@ -1566,18 +1571,7 @@ fn plans_match_their_recorded_digests() {
             Ok(c) => {
                 let mut plan = c.plan;
                 let mut text = format!("{plan}\n{plan:?}\n");
-                let requirements: Vec<MemoryRequirements> = plan
-                    .estimated_requirements()
-                    .iter()
-                    .enumerate()
-                    .map(|(i, r)| {
-                        let (scale, align_log2) = scales[i % scales.len()];
-                        MemoryRequirements {
-                            size_bytes: (r.size_bytes * scale / 4).max(1),
-                            alignment_bytes: 1 << align_log2,
-                        }
-                    })
-                    .collect();
+                let requirements = other_requirements(&plan, &scales);
                 match plan.reassign_aliases(&requirements) {
                     Ok(()) => text.push_str(&format!("re-placed\n{plan}\n{plan:?}\n")),
                     Err(e) => text.push_str(&format!("re-placing failed: {e} {e:?}\n")),
