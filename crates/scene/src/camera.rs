@@ -964,6 +964,43 @@ mod tests {
         assert!(!ab.frame(18, 1.0).unwrap().cut);
     }
 
+    /// Camera paths and anything else that stores a projection keep this exact text: the
+    /// types may move between crates, their serialized form may not.
+    #[test]
+    fn projection_and_depth_convention_serialize_to_a_fixed_form() {
+        fn text<T: Serialize>(value: &T) -> String {
+            serde_json::to_string(value).unwrap()
+        }
+        assert_eq!(text(&DepthConvention::Standard), r#""standard""#);
+        assert_eq!(text(&DepthConvention::Reverse), r#""reverse""#);
+        assert_eq!(
+            text(&Projection::default()),
+            r#"{"kind":"perspective","fov_y_rad":1.0471976,"near":0.1,"far":null,"depth":"reverse"}"#
+        );
+        let ortho = Projection::Orthographic {
+            half_height: 5.0,
+            near: 0.5,
+            far: 100.0,
+            depth: DepthConvention::Standard,
+        };
+        assert_eq!(
+            text(&ortho),
+            r#"{"kind":"orthographic","half_height":5.0,"near":0.5,"far":100.0,"depth":"standard"}"#
+        );
+        let back: Projection = serde_json::from_str(&text(&ortho)).unwrap();
+        assert_eq!(back, ortho);
+        let frame = CameraPath::new(
+            "t",
+            vec![PathKey {
+                camera: Camera::looking_at(DVec3::ZERO, DVec3::NEG_Z),
+                cut: false,
+            }],
+        )
+        .unwrap()
+        .to_json();
+        assert!(frame.contains(r#""depth": "reverse""#), "{frame}");
+    }
+
     #[test]
     fn json_round_trips_and_defaults_apply() {
         let text = r#"{"frames": [
