@@ -41,4 +41,4 @@ pub use project::{
     project_aabb, project_obb, project_sphere, project_sphere_view, ProjectedBounds,
     ScreenProjection, DEPTH_MARGIN_ULPS,
 };
-pub use screen::{ClampedRect, Extent2d, NdcRect, PixelRect, MAX_EXTENT_PX};
+pub use screen::{ClampedRect, Extent2d, ExtentExt, NdcRect, PixelRect, MAX_EXTENT_PX};

@@ -10,9 +10,9 @@ mod support;
 use glam::{DVec3, Mat4, Vec3};
 use support::{look, render_boxes, Render};
 use tilegraph_cull::{
-    project_aabb, project_sphere, Aabb, DepthConvention, DepthFormat, Extent2d, FarPlane, Frustum,
-    FrustumPlane, HizOutcome, HizPyramid, NpotMode, PlaneTest, Projection, SatTest,
-    ScreenProjection, Sphere,
+    project_aabb, project_sphere, Aabb, DepthConvention, DepthFormat, Extent2d, ExtentExt,
+    FarPlane, Frustum, FrustumPlane, HizOutcome, HizPyramid, NpotMode, PlaneTest, Projection,
+    SatTest, ScreenProjection, Sphere,
 };
 
 struct World {
@@ -78,7 +78,7 @@ impl World {
         World {
             view,
             projection,
-            extent: Extent2d::new(w, h).unwrap(),
+            extent: Extent2d::try_new(w, h).unwrap(),
             format,
             occluders,
         }
@@ -356,7 +356,7 @@ fn tiny_near_plane() -> Vec<Row> {
 fn spheres() -> Vec<Row> {
     let p = Projection::tilegraph_default(FOV, 1.0, 0.1).unwrap();
     let view = forward();
-    let extent = Extent2d::new(64, 64).unwrap();
+    let extent = Extent2d::try_new(64, 64).unwrap();
     let frustum =
         Frustum::from_clip_from_world(&(p.matrix() * view), DepthConvention::Reverse).unwrap();
     let wall_depth =
@@ -480,7 +480,7 @@ fn zero_extent() -> Vec<Row> {
         ScreenProjection::Projected(b) => {
             let r = b
                 .rect_ndc
-                .to_pixel_rect(Extent2d::new(64, 64).unwrap())
+                .to_pixel_rect(Extent2d::try_new(64, 64).unwrap())
                 .unwrap();
             ((r.max_x - r.min_x + 1) * (r.max_y - r.min_y + 1)) as u32
         }
@@ -508,7 +508,7 @@ fn zero_extent() -> Vec<Row> {
 /// origin, results must be identical; the naive all-f32 world-space path is shown for scale.
 fn large_coordinates() -> Vec<Row> {
     let p = Projection::tilegraph_default(FOV, 16.0 / 9.0, 0.1).unwrap();
-    let extent = Extent2d::new(1920, 1080).unwrap();
+    let extent = Extent2d::try_new(1920, 1080).unwrap();
     let offset = DVec3::new(1e6 + 0.37, 1e6 - 0.21, -1e6 + 0.55);
     let eye = offset;
     let target_rel = DVec3::new(0.3, -0.1, -1.0);

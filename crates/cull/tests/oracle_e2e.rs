@@ -12,7 +12,7 @@ use rand_pcg::Pcg64;
 use support::{render_boxes, BACKGROUND_ID};
 use tilegraph_cull::{
     project_aabb, visible_set_from_id_buffer, Aabb, CullStats, DepthConvention, DepthFormat,
-    Extent2d, FarPlane, Frustum, HizPyramid, InstanceSet, NpotMode, Projection,
+    Extent2d, ExtentExt, FarPlane, Frustum, HizPyramid, InstanceSet, NpotMode, Projection,
 };
 
 fn projection(kind: u32, aspect: f32) -> Projection {
@@ -47,7 +47,7 @@ fn run_scene(seed: u64) -> Outcome {
         (96, 7),
     ];
     let (w, h) = sizes[rng.random_range(0..sizes.len())];
-    let extent = Extent2d::new(w, h).unwrap();
+    let extent = Extent2d::try_new(w, h).unwrap();
     let p = projection(rng.random_range(0..5), w as f32 / h as f32);
     let conv = p.depth_convention();
     let format = if rng.random_range(0..2u32) == 0 {

@@ -14,7 +14,7 @@
 //! range the mode's rule picks ([`ReduceRule`]). A buffer barrier separates consecutive levels.
 
 use bytemuck::{Pod, Zeroable};
-use tilegraph_cull::{level_extents, Extent2d};
+use tilegraph_cull::{level_extents, Extent2d, ExtentExt};
 use tilegraph_graph::{BufferId, ImageId, PassClass};
 use tilegraph_profile::MemoryUse;
 use tilegraph_scene::DepthConvention as SceneDepth;
@@ -312,18 +312,16 @@ impl HizLayout {
         let extent = Extent2d::named("depth extent", extent_px.0, extent_px.1)
             .map_err(|e| invalid(e.to_string()))?;
         let extents = level_extents(extent, mode);
-        let (w, h) = (extent.width_px(), extent.height_px());
-        let (pw, ph) = extents
-            .get(1)
-            .map_or((w, h), |e| (e.width_px(), e.height_px()));
+        let (w, h) = (extent.width_px, extent.height_px);
+        let (pw, ph) = extents.get(1).map_or((w, h), |e| (e.width_px, e.height_px));
         let mut levels = Vec::with_capacity(extents.len());
         let mut offset = 0u64;
         for (k, e) in extents.iter().enumerate() {
             let k = k as u32;
             let info = HizLevelInfo {
                 offset_texels: offset,
-                width: e.width_px(),
-                height: e.height_px(),
+                width: e.width_px,
+                height: e.height_px,
                 scale_x: axis_scale(mode, k, w, pw),
                 scale_y: axis_scale(mode, k, h, ph),
                 rule: match (mode, k) {

@@ -5,7 +5,7 @@
 #![allow(dead_code)]
 
 use glam::{DMat4, DVec3, Mat4, Vec3};
-use tilegraph_cull::{Aabb, DepthFormat, Extent2d, Projection};
+use tilegraph_cull::{Aabb, DepthFormat, Extent2d, ExtentExt, Projection};
 
 pub const BACKGROUND_ID: u32 = u32::MAX;
 
@@ -26,8 +26,8 @@ fn pixel_ray(
     py: u32,
 ) -> (DVec3, DVec3) {
     let (sx, sy) = projection.ndc_scale();
-    let ndc_x = (f64::from(px) + 0.5) / f64::from(extent.width_px()) * 2.0 - 1.0;
-    let ndc_y = (f64::from(py) + 0.5) / f64::from(extent.height_px()) * 2.0 - 1.0;
+    let ndc_x = (f64::from(px) + 0.5) / f64::from(extent.width_px) * 2.0 - 1.0;
+    let ndc_y = (f64::from(py) + 0.5) / f64::from(extent.height_px) * 2.0 - 1.0;
     if projection.is_perspective() {
         let dir_view = DVec3::new(ndc_x / sx, ndc_y / sy, -1.0);
         let origin = world_from_view.transform_point3(DVec3::ZERO);
@@ -72,11 +72,11 @@ pub fn render_boxes(
 ) -> Render {
     let convention = projection.depth_convention();
     let near = f64::from(projection.near_m());
-    let mut depth = vec![convention.far_clear_value(); extent.pixel_count()];
-    let mut ids = vec![BACKGROUND_ID; extent.pixel_count()];
+    let mut depth = vec![convention.far_clear_value(); extent.buffer_len()];
+    let mut ids = vec![BACKGROUND_ID; extent.buffer_len()];
     let world_from_view = view.as_dmat4().inverse();
-    for py in 0..extent.height_px() {
-        for px in 0..extent.width_px() {
+    for py in 0..extent.height_px {
+        for px in 0..extent.width_px {
             let (o, d) = pixel_ray(&world_from_view, projection, extent, px, py);
             let mut best: Option<(f64, u32)> = None;
             for (i, b) in boxes.iter().enumerate() {
@@ -103,7 +103,7 @@ pub fn render_boxes(
                 }
             }
             if let Some((t, id)) = best {
-                let idx = (py * extent.width_px() + px) as usize;
+                let idx = (py * extent.width_px + px) as usize;
                 depth[idx] = format.store(projection.depth_at_distance(t) as f32);
                 ids[idx] = id;
             }
