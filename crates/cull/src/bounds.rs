@@ -3,9 +3,9 @@
 //! transformed original: the culling tests downstream are only as conservative as their bounds.
 
 use glam::{Affine3A, DVec3, Vec3};
+use tilegraph_types::round::{f64_to_f32_round_down, f64_to_f32_round_up};
 
 use crate::check::{finite_affine, finite_f32, finite_vec3};
-use crate::depth::{f64_to_f32_round_down, f64_to_f32_round_up};
 use crate::CullError;
 
 /// Axis-aligned box, metres. `min == max` on an axis is allowed (flat or point objects).

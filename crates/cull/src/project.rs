@@ -4,11 +4,11 @@
 //! rounded toward the camera, then moved [`DEPTH_MARGIN_ULPS`] further toward it.
 
 use glam::{Affine3A, DVec3, Mat4, Vec2};
+use tilegraph_types::round::{f64_to_f32_round_down, f64_to_f32_round_up};
 
 use crate::bounds::{Aabb, Obb, Sphere};
 use crate::camera::Projection;
 use crate::check::finite_mat4;
-use crate::depth::{f64_to_f32_round_down, f64_to_f32_round_up};
 use crate::screen::NdcRect;
 use crate::CullError;
 

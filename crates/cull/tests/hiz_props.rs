@@ -30,7 +30,7 @@ fn format() -> impl Strategy<Value = DepthFormat> {
 /// flat regions (where culling happens) and single-pixel holes (where NPOT bugs show) occur.
 fn depth_buffer(w: u32, h: u32, seed: u64, conv: DepthConvention, format: DepthFormat) -> Vec<f32> {
     let mut rng = Pcg64::seed_from_u64(seed);
-    let mut depth = vec![conv.far_clear_value(); (w * h) as usize];
+    let mut depth = vec![conv.far_depth(); (w * h) as usize];
     let rects = rng.random_range(0..12u32);
     for _ in 0..rects {
         let x0 = rng.random_range(0..w);

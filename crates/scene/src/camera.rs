@@ -12,64 +12,10 @@ use std::path::Path;
 
 use glam::{DMat4, DVec3, Mat4, Vec3, Vec4};
 use serde::{Deserialize, Serialize};
+use tilegraph_types::DepthConvention;
 
 use crate::bounds::DAabb;
 use crate::error::SceneError;
-
-/// Which way depth grows, so that culling and depth tests pick the right compare.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DepthConvention {
-    /// near -> 0, far -> 1; depth test LESS, clear to 1, HiZ keeps the max.
-    Standard,
-    /// near -> 1, far (or infinity) -> 0; depth test GREATER, clear to 0, HiZ keeps the min.
-    #[default]
-    Reverse,
-}
-
-impl DepthConvention {
-    /// The depth-buffer clear value (the farthest depth).
-    pub fn far_depth(self) -> f32 {
-        match self {
-            DepthConvention::Standard => 1.0,
-            DepthConvention::Reverse => 0.0,
-        }
-    }
-
-    /// The depth of the near plane.
-    pub fn near_depth(self) -> f32 {
-        match self {
-            DepthConvention::Standard => 0.0,
-            DepthConvention::Reverse => 1.0,
-        }
-    }
-
-    /// Whether depth `a` is strictly closer to the camera than depth `b`.
-    pub fn is_closer(self, a: f32, b: f32) -> bool {
-        match self {
-            DepthConvention::Standard => a < b,
-            DepthConvention::Reverse => a > b,
-        }
-    }
-
-    /// The closer of two depths (what a HiZ pyramid must *not* keep: it keeps the farther).
-    pub fn closer(self, a: f32, b: f32) -> f32 {
-        if self.is_closer(a, b) {
-            a
-        } else {
-            b
-        }
-    }
-
-    /// The farther of two depths (what a conservative HiZ pyramid keeps per texel).
-    pub fn farther(self, a: f32, b: f32) -> f32 {
-        if self.is_closer(a, b) {
-            b
-        } else {
-            a
-        }
-    }
-}
 
 /// A projection into Vulkan clip space (y flipped, depth in [0, 1]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

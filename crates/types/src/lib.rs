@@ -4,6 +4,9 @@
 //! re-export them from their old paths.
 //!
 //! - [`Extent2d`]: width and height in pixels.
+//! - [`DepthConvention`]: which end of [0, 1] is near (reverse-Z by default), with the compares
+//!   and conservative roundings that follow from it; [`round`] has the directed f64 -> f32
+//!   roundings behind them.
 //!
 //! Pure data and arithmetic: no Vulkan, no `unsafe`, no error type. Checks that report errors
 //! stay in the crate whose error type they return, as functions or extension traits over these
@@ -11,6 +14,9 @@
 
 #![forbid(unsafe_code)]
 
+mod depth;
 mod extent;
+pub mod round;
 
+pub use depth::DepthConvention;
 pub use extent::Extent2d;

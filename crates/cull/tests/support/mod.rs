@@ -72,7 +72,7 @@ pub fn render_boxes(
 ) -> Render {
     let convention = projection.depth_convention();
     let near = f64::from(projection.near_m());
-    let mut depth = vec![convention.far_clear_value(); extent.buffer_len()];
+    let mut depth = vec![convention.far_depth(); extent.buffer_len()];
     let mut ids = vec![BACKGROUND_ID; extent.buffer_len()];
     let world_from_view = view.as_dmat4().inverse();
     for py in 0..extent.height_px {
