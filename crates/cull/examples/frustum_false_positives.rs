@@ -10,8 +10,8 @@ use glam::{EulerRot, Mat4, Quat, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use tilegraph_cull::{
-    measure_plane_test_false_positives, Aabb, CullError, DepthConvention, FarPlane, Frustum,
-    Projection,
+    measure_plane_test_false_positives, Aabb, AabbExt, CullError, DepthConvention, FarPlane,
+    Frustum, Projection,
 };
 
 fn main() -> Result<(), CullError> {

@@ -8,7 +8,7 @@
 use glam::{DMat4, DVec3, DVec4, Mat4, Vec4};
 use serde::{Deserialize, Serialize};
 
-use crate::bounds::{Aabb, Obb, Sphere};
+use crate::bounds::{Aabb, AabbExt, Obb, Sphere};
 use crate::check::finite_mat4;
 use crate::depth::DepthConvention;
 use crate::CullError;
@@ -599,7 +599,7 @@ mod tests {
         // larger x farther away, so what separates them is an axis mixing the box's y edge
         // with a frustum side edge, never a frustum face.
         let vertex_x = 12.0 * 0.6f32.tan() * std::f32::consts::SQRT_2;
-        let b = Aabb::new(
+        let b = Aabb::try_new(
             Vec3::new(vertex_x * 1.1, -3.0 * vertex_x, -12.0),
             Vec3::new(vertex_x * 3.0, 3.0 * vertex_x, -8.0),
         )
@@ -614,7 +614,7 @@ mod tests {
             "{sat:?}"
         );
         // The same box moved to straddle the diamond's vertex overlaps.
-        let b2 = Aabb::new(
+        let b2 = Aabb::try_new(
             Vec3::new(vertex_x * 0.9, -3.0 * vertex_x, -12.0),
             Vec3::new(vertex_x * 3.0, 3.0 * vertex_x, -8.0),
         )
@@ -649,7 +649,7 @@ mod tests {
         )
         .unwrap();
         let (_, f) = camera(&p);
-        let local = Aabb::new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)).unwrap();
+        let local = Aabb::try_new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)).unwrap();
         let inside = Obb::new(
             local,
             Affine3A::from_rotation_translation(
@@ -668,7 +668,7 @@ mod tests {
         )
         .unwrap();
         assert!(f.sat_obb(&outside).unwrap().is_separated());
-        let point = Aabb::new(Vec3::new(0.0, 0.0, -5.0), Vec3::new(0.0, 0.0, -5.0)).unwrap();
+        let point = Aabb::try_new(Vec3::new(0.0, 0.0, -5.0), Vec3::new(0.0, 0.0, -5.0)).unwrap();
         assert_eq!(f.sat_aabb(&point).unwrap(), SatTest::Overlapping);
     }
 

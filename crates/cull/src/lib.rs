@@ -24,7 +24,7 @@ pub mod oracle;
 pub mod project;
 pub mod screen;
 
-pub use bounds::{Aabb, Obb, Sphere};
+pub use bounds::{Aabb, AabbExt, Obb, Sphere};
 pub use camera::{view_look_at, FarPlane, Projection, ProjectionKind};
 pub use depth::{dequantize_d16, quantize_d16, DepthConvention, DepthFormat};
 pub use error::CullError;

@@ -6,7 +6,7 @@
 use glam::{Affine3A, DVec3, Mat4, Vec2};
 use tilegraph_types::round::{f64_to_f32_round_down, f64_to_f32_round_up};
 
-use crate::bounds::{Aabb, Obb, Sphere};
+use crate::bounds::{Aabb, AabbExt, Obb, Sphere};
 use crate::camera::Projection;
 use crate::check::finite_mat4;
 use crate::screen::NdcRect;
@@ -250,7 +250,7 @@ mod tests {
     /// saturates (finite, covering the screen) instead of turning into infinities.
     #[test]
     fn huge_finite_bounds_saturate_to_a_finite_rect() {
-        let b = Aabb::new(Vec3::new(-1e38, -1.0, -1.0), Vec3::new(1e38, 1.0, -0.5)).unwrap();
+        let b = Aabb::try_new(Vec3::new(-1e38, -1.0, -1.0), Vec3::new(1e38, 1.0, -0.5)).unwrap();
         let square = Projection::tilegraph_default(1.0, 1.0, 0.1).unwrap();
         let p = projected(project_aabb(&b, &Mat4::IDENTITY, &square).unwrap());
         assert_eq!(p.rect_ndc.min.x, -f32::MAX);
@@ -341,17 +341,19 @@ mod tests {
             ScreenProjection::BeforeNearPlane
         );
         let view = Mat4::IDENTITY;
-        let box_behind = Aabb::new(Vec3::new(-1.0, -1.0, 2.0), Vec3::new(1.0, 1.0, 3.0)).unwrap();
+        let box_behind =
+            Aabb::try_new(Vec3::new(-1.0, -1.0, 2.0), Vec3::new(1.0, 1.0, 3.0)).unwrap();
         assert_eq!(
             project_aabb(&box_behind, &view, &p).unwrap(),
             ScreenProjection::BeforeNearPlane
         );
-        let box_around = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)).unwrap();
+        let box_around = Aabb::try_new(Vec3::splat(-1.0), Vec3::splat(1.0)).unwrap();
         assert_eq!(
             project_aabb(&box_around, &view, &p).unwrap(),
             ScreenProjection::CameraInside
         );
-        let box_crossing = Aabb::new(Vec3::new(0.5, -1.0, -3.0), Vec3::new(1.0, 1.0, 1.0)).unwrap();
+        let box_crossing =
+            Aabb::try_new(Vec3::new(0.5, -1.0, -3.0), Vec3::new(1.0, 1.0, 1.0)).unwrap();
         assert_eq!(
             project_aabb(&box_crossing, &view, &p).unwrap(),
             ScreenProjection::TouchesNearPlane
@@ -369,7 +371,8 @@ mod tests {
                 Vec3::new(0.0, 0.0, -20.0),
                 Vec3::Y,
             );
-            let b = Aabb::new(Vec3::new(-2.0, -1.0, -15.0), Vec3::new(1.0, 3.0, -11.0)).unwrap();
+            let b =
+                Aabb::try_new(Vec3::new(-2.0, -1.0, -15.0), Vec3::new(1.0, 3.0, -11.0)).unwrap();
             let pb = projected(project_aabb(&b, &view, &p).unwrap());
             let clip = p.matrix() * view;
             for c in b.corners() {
@@ -405,7 +408,7 @@ mod tests {
     #[test]
     fn non_affine_view_is_an_error() {
         let p = reverse_inf();
-        let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)).unwrap();
+        let b = Aabb::try_new(Vec3::splat(-1.0), Vec3::splat(1.0)).unwrap();
         assert!(matches!(
             project_aabb(&b, &p.matrix(), &p),
             Err(CullError::InvalidProjection { .. })

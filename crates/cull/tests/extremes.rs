@@ -10,7 +10,7 @@ mod support;
 use glam::{DVec3, Mat4, Vec3};
 use support::{look, render_boxes, Render};
 use tilegraph_cull::{
-    project_aabb, project_sphere, Aabb, DepthConvention, DepthFormat, Extent2d, ExtentExt,
+    project_aabb, project_sphere, Aabb, AabbExt, DepthConvention, DepthFormat, Extent2d, ExtentExt,
     FarPlane, Frustum, FrustumPlane, HizOutcome, HizPyramid, NpotMode, PlaneTest, Projection,
     SatTest, ScreenProjection, Sphere,
 };
@@ -158,7 +158,7 @@ fn forward() -> Mat4 {
 
 /// A slab facing the camera at distance `dist` m (thickness 1% of it), `half` m wide.
 fn wall(dist: f32, half: f32) -> Aabb {
-    Aabb::new(
+    Aabb::try_new(
         Vec3::new(-half, -half, -dist * 1.01),
         Vec3::new(half, half, -dist),
     )
@@ -466,7 +466,7 @@ fn camera_inside_and_behind() -> Vec<Row> {
 
 fn zero_extent() -> Vec<Row> {
     let p = Projection::tilegraph_default(FOV, 1.0, 0.1).unwrap();
-    let point = Aabb::new(Vec3::new(0.5, 0.25, -30.0), Vec3::new(0.5, 0.25, -30.0)).unwrap();
+    let point = Aabb::try_new(Vec3::new(0.5, 0.25, -30.0), Vec3::new(0.5, 0.25, -30.0)).unwrap();
     let hidden = World::new(
         forward(),
         p,
@@ -534,7 +534,7 @@ fn large_coordinates() -> Vec<Row> {
     // Naive: f32 world coordinates and an f32 view matrix with the 1e6 translation.
     let naive_eye = eye.as_vec3();
     let naive_view = Mat4::look_at_rh(naive_eye, naive_eye + target_rel.as_vec3(), Vec3::Y);
-    let naive_obj = Aabb::new(
+    let naive_obj = Aabb::try_new(
         (object_rel_min + offset).as_vec3(),
         (object_rel_max + offset).as_vec3(),
     )
@@ -590,12 +590,12 @@ fn viewports() -> Vec<Row> {
         // At 1 px wide there is no "all but the last column": the wall covers everything.
         let wall_box = if w > 1 {
             let r = reach(dist);
-            Aabb::new(Vec3::new(-r, -r, -dist * 1.01), Vec3::new(edge_x, r, -dist)).unwrap()
+            Aabb::try_new(Vec3::new(-r, -r, -dist * 1.01), Vec3::new(edge_x, r, -dist)).unwrap()
         } else {
             full_wall
         };
         let r = reach(60.0);
-        let right = Aabb::new(Vec3::new(-r, -r, -60.0), Vec3::new(r, r, -50.0)).unwrap();
+        let right = Aabb::try_new(Vec3::new(-r, -r, -60.0), Vec3::new(r, r, -50.0)).unwrap();
         let world_gap = World::new(forward(), p, (w, h), DepthFormat::D32Float, vec![wall_box]);
         let world_full = World::new(forward(), p, (w, h), DepthFormat::D32Float, vec![full_wall]);
         let through_gap = world_gap.probe(right);
@@ -637,8 +637,9 @@ fn depth_formats() -> Vec<Row> {
         let w = World::new(forward(), p, (32, 32), format, vec![wall(10.0, 50.0)]);
         // 1 mm behind the wall's front face: 0.1/10 vs 0.1/10.001, 1e-6 apart: below one D16
         // step (1.5e-5), above D32's resolution.
-        let just_behind =
-            w.probe(Aabb::new(Vec3::new(-0.5, -0.5, -10.2), Vec3::new(0.5, 0.5, -10.001)).unwrap());
+        let just_behind = w.probe(
+            Aabb::try_new(Vec3::new(-0.5, -0.5, -10.2), Vec3::new(0.5, 0.5, -10.001)).unwrap(),
+        );
         let well_behind = w.probe(cube(Vec3::new(0.0, 0.0, -40.0), 1.0));
         let expect_just = format == DepthFormat::D32Float;
         rows.push(row(
@@ -707,10 +708,10 @@ fn one_pixel_objects() -> Vec<Row> {
     let (ya, yb) = (to_y(cy), to_y(cy + 1.0));
     let (y0, y1) = (ya.min(yb), ya.max(yb));
     let z = (-10.1, -10.0);
-    holed.push(Aabb::new(Vec3::new(-50.0, -50.0, z.0), Vec3::new(x0, 50.0, z.1)).unwrap());
-    holed.push(Aabb::new(Vec3::new(x1, -50.0, z.0), Vec3::new(50.0, 50.0, z.1)).unwrap());
-    holed.push(Aabb::new(Vec3::new(x0, -50.0, z.0), Vec3::new(x1, y0, z.1)).unwrap());
-    holed.push(Aabb::new(Vec3::new(x0, y1, z.0), Vec3::new(x1, 50.0, z.1)).unwrap());
+    holed.push(Aabb::try_new(Vec3::new(-50.0, -50.0, z.0), Vec3::new(x0, 50.0, z.1)).unwrap());
+    holed.push(Aabb::try_new(Vec3::new(x1, -50.0, z.0), Vec3::new(50.0, 50.0, z.1)).unwrap());
+    holed.push(Aabb::try_new(Vec3::new(x0, -50.0, z.0), Vec3::new(x1, y0, z.1)).unwrap());
+    holed.push(Aabb::try_new(Vec3::new(x0, y1, z.0), Vec3::new(x1, 50.0, z.1)).unwrap());
     let through_hole = World::new(forward(), p, (w, h), DepthFormat::D32Float, holed).probe(obj);
     vec![
         row(

@@ -5,7 +5,7 @@ use glam::{Affine3A, DVec3, EulerRot, Mat4, Quat, Vec3};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use tilegraph_cull::{Aabb, DepthConvention, FarPlane, Frustum, Obb, Projection};
+use tilegraph_cull::{Aabb, AabbExt, DepthConvention, FarPlane, Frustum, Obb, Projection};
 
 fn projection(kind: u8) -> Projection {
     let (s, r) = (DepthConvention::Standard, DepthConvention::Reverse);

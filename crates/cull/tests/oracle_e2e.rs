@@ -11,8 +11,9 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use support::{render_boxes, BACKGROUND_ID};
 use tilegraph_cull::{
-    project_aabb, visible_set_from_id_buffer, Aabb, CullStats, DepthConvention, DepthFormat,
-    Extent2d, ExtentExt, FarPlane, Frustum, HizPyramid, InstanceSet, NpotMode, Projection,
+    project_aabb, visible_set_from_id_buffer, Aabb, AabbExt, CullStats, DepthConvention,
+    DepthFormat, Extent2d, ExtentExt, FarPlane, Frustum, HizPyramid, InstanceSet, NpotMode,
+    Projection,
 };
 
 fn projection(kind: u32, aspect: f32) -> Projection {

@@ -5,7 +5,7 @@
 use glam::{DVec3, EulerRot, Mat4, Quat, Vec3};
 use proptest::prelude::*;
 use tilegraph_cull::{
-    project_aabb, project_sphere_view, Aabb, DepthConvention, FarPlane, Projection,
+    project_aabb, project_sphere_view, Aabb, AabbExt, DepthConvention, FarPlane, Projection,
     ScreenProjection, Sphere,
 };
 

@@ -9,7 +9,7 @@
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
-use tilegraph_cull::Frustum;
+use tilegraph_cull::{AabbExt, Frustum};
 use tilegraph_graph::{
     AccessFlags, BufferId, Import, InitialContent, PassClass, PipelineStages, ResourceState,
 };

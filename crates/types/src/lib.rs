@@ -7,6 +7,7 @@
 //! - [`DepthConvention`]: which end of [0, 1] is near (reverse-Z by default), with the compares
 //!   and conservative roundings that follow from it; [`round`] has the directed f64 -> f32
 //!   roundings behind them.
+//! - [`Aabb`]: an axis-aligned box in f32.
 //!
 //! Pure data and arithmetic: no Vulkan, no `unsafe`, no error type. Checks that report errors
 //! stay in the crate whose error type they return, as functions or extension traits over these
@@ -14,9 +15,11 @@
 
 #![forbid(unsafe_code)]
 
+mod bounds;
 mod depth;
 mod extent;
 pub mod round;
 
+pub use bounds::Aabb;
 pub use depth::DepthConvention;
 pub use extent::Extent2d;
