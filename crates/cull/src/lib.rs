@@ -6,7 +6,12 @@
 //! [`DepthConvention`] Standard (LESS, HiZ max) or Reverse (GREATER, HiZ min; the default, with
 //! an infinite far plane).
 //!
-//! - [`bounds`]: [`Aabb`], [`Sphere`], [`Obb`] and their (outward-rounded) transforms.
+//! The shared vocabulary ([`Aabb`], [`DepthConvention`], [`Extent2d`], [`Projection`]) is
+//! tilegraph-types', re-exported here; this crate adds its checks and conservative operations
+//! over it ([`AabbExt`], [`ExtentExt`], [`ProjectionExt`]).
+//!
+//! - [`bounds`]: [`Sphere`], [`Obb`], and every volume's (outward-rounded) transforms.
+//! - [`camera`]: the projection check; the viewport's aspect travels beside the projection.
 //! - [`frustum`]: Gribb-Hartmann planes, conservative plane tests, exact SAT vs boxes.
 //! - [`project`]: sphere / box -> NDC rect + conservative nearest depth.
 //! - [`hiz`]: the pyramid (three [`NpotMode`]s) and the occlusion test.
@@ -25,7 +30,7 @@ pub mod project;
 pub mod screen;
 
 pub use bounds::{Aabb, AabbExt, Obb, Sphere};
-pub use camera::{view_look_at, FarPlane, Projection, ProjectionKind};
+pub use camera::{view_look_at, Projection, ProjectionExt};
 pub use depth::{dequantize_d16, quantize_d16, DepthConvention, DepthFormat};
 pub use error::CullError;
 pub use frustum::{

@@ -8,6 +8,9 @@
 //!   and conservative roundings that follow from it; [`round`] has the directed f64 -> f32
 //!   roundings behind them.
 //! - [`Aabb`]: an axis-aligned box in f32.
+//! - [`Projection`]: a camera's projection into Vulkan clip space (y flipped, depth in
+//!   [0, 1]), perspective or orthographic; the viewport's aspect is given where a matrix or an
+//!   NDC scale is computed.
 //!
 //! Pure data and arithmetic: no Vulkan, no `unsafe`, no error type. Checks that report errors
 //! stay in the crate whose error type they return, as functions or extension traits over these
@@ -18,8 +21,10 @@
 mod bounds;
 mod depth;
 mod extent;
+mod projection;
 pub mod round;
 
 pub use bounds::Aabb;
 pub use depth::DepthConvention;
 pub use extent::Extent2d;
+pub use projection::Projection;
