@@ -1,7 +1,8 @@
 //! tilegraph-types: the geometry vocabulary tilegraph's pure crates share, as wgpu-types is for
-//! wgpu. Each type here used to be defined in two crates and converted by hand between them;
-//! now `tilegraph-graph`, `tilegraph-cull` and `tilegraph-scene` use these definitions and
-//! re-export them from their old paths.
+//! wgpu. A value made by one crate (a scene's camera, a graph's extent) is handed to another
+//! (the culling references, the passes) as it is: there is one definition of each type and no
+//! conversion between copies. `tilegraph-graph`, `tilegraph-cull` and `tilegraph-scene`
+//! re-export these types from their own paths, so their users name them as before.
 //!
 //! - [`Extent2d`]: width and height in pixels.
 //! - [`DepthConvention`]: which end of [0, 1] is near (reverse-Z by default), with the compares
