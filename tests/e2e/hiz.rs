@@ -8,7 +8,7 @@
 
 use std::mem::{offset_of, size_of};
 
-use tilegraph_cull::{dequantize_d16, DepthFormat, Extent2d, HizPyramid};
+use tilegraph_cull::{dequantize_d16, DepthFormat, Extent2d, ExtentExt, HizPyramid};
 use tilegraph_e2e::gpu;
 use tilegraph_passes::hiz::{
     DepthConvention, HizBuilder, HizLayout, HizPush, NpotMode, SampledDepth, HIZ_COPY_SPV,
@@ -322,7 +322,7 @@ fn assert_same(layout: &HizLayout, gpu: &[f32], cpu: &HizPyramid, what: &str) {
         let e = level.extent();
         assert_eq!(
             (info.width, info.height),
-            (e.width_px(), e.height_px()),
+            (e.width_px, e.height_px),
             "{what}: level {k} extent"
         );
         assert_eq!(
@@ -354,7 +354,7 @@ fn assert_same(layout: &HizLayout, gpu: &[f32], cpu: &HizPyramid, what: &str) {
 }
 
 fn extent((w, h): (u32, u32)) -> Extent2d {
-    Extent2d::new(w, h).unwrap()
+    Extent2d::try_new(w, h).unwrap()
 }
 
 /// Uploads `depth`, then for every mode and convention builds on the GPU and compares with the

@@ -4,7 +4,7 @@
 use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use tilegraph_cull::{DepthConvention, DepthFormat, Extent2d, HizPyramid, NpotMode};
+use tilegraph_cull::{DepthConvention, DepthFormat, Extent2d, ExtentExt, HizPyramid, NpotMode};
 
 /// Reverse-Z depth with a few hundred occluder rectangles over a cleared (0) background.
 fn depth_buffer(w: u32, h: u32) -> Vec<f32> {
@@ -29,7 +29,7 @@ fn depth_buffer(w: u32, h: u32) -> Vec<f32> {
 fn hiz_build(c: &mut Criterion) {
     let mut group = c.benchmark_group("hiz_build");
     for (w, h) in [(1920u32, 1080u32), (27, 13)] {
-        let extent = Extent2d::new(w, h).expect("valid bench extent");
+        let extent = Extent2d::try_new(w, h).expect("valid bench extent");
         let depth = depth_buffer(w, h);
         for mode in [
             NpotMode::EdgeAware,

@@ -10,40 +10,58 @@ use glam::{EulerRot, Mat4, Quat, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use tilegraph_cull::{
-    measure_plane_test_false_positives, Aabb, CullError, DepthConvention, FarPlane, Frustum,
-    Projection,
+    measure_plane_test_false_positives, Aabb, AabbExt, CullError, DepthConvention, Frustum,
+    Projection, ProjectionExt,
 };
 
 fn main() -> Result<(), CullError> {
     let (s, r) = (DepthConvention::Standard, DepthConvention::Reverse);
+    let wide = 16.0 / 9.0;
+    let perspective = |fov_y_rad, near, far, depth| Projection::Perspective {
+        fov_y_rad,
+        near,
+        far,
+        depth,
+    };
     let cases = [
         (
             "perspective reverse-Z infinite, fov 1.1",
-            Projection::tilegraph_default(1.1, 16.0 / 9.0, 0.1)?,
+            Projection::tilegraph_default(1.1, 0.1),
+            wide,
         ),
         (
             "perspective reverse-Z far 60 m, fov 0.8",
-            Projection::perspective(0.8, 16.0 / 9.0, 0.05, FarPlane::Finite { far_m: 60.0 }, r)?,
+            perspective(0.8, 0.05, Some(60.0), r),
+            wide,
         ),
         (
             "perspective standard far 40 m, fov 1.4",
-            Projection::perspective(1.4, 16.0 / 9.0, 0.5, FarPlane::Finite { far_m: 40.0 }, s)?,
+            perspective(1.4, 0.5, Some(40.0), s),
+            wide,
         ),
         (
             "orthographic 30 x 20 m, 0..50 m",
-            Projection::orthographic(30.0, 20.0, 0.0, 50.0, s)?,
+            Projection::Orthographic {
+                half_height: 10.0,
+                near: 0.0,
+                far: 50.0,
+                depth: s,
+            },
+            30.0 / 20.0,
         ),
     ];
     let boxes_per_case = 100_000;
     println!("| projection | boxes | plane test rejects | SAT rejects | kept by planes but separated (share of kept) | plane rejects SAT keeps |");
     println!("|---|---|---|---|---|---|");
-    for (name, p) in cases {
+    for (name, p, aspect) in cases {
+        p.validate(aspect)?;
         let mut rng = Pcg64::seed_from_u64(42);
         let rot = Quat::from_euler(EulerRot::YXZ, 0.4, 0.2, 0.7);
         let eye = Vec3::new(1.0, 2.0, 3.0);
         let forward = rot * Vec3::NEG_Z;
         let view = Mat4::look_at_rh(eye, eye + forward, rot * Vec3::Y);
-        let frustum = Frustum::from_clip_from_world(&(p.matrix() * view), p.depth_convention())?;
+        let frustum =
+            Frustum::from_clip_from_world(&(p.matrix(aspect) * view), p.depth_convention())?;
         let boxes = (0..boxes_per_case)
             .map(|_| {
                 let c = eye

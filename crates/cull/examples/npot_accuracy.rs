@@ -10,8 +10,8 @@
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use tilegraph_cull::{
-    exact_is_occluded, CullError, DepthConvention, DepthFormat, Extent2d, HizOutcome, HizPyramid,
-    NpotMode, PixelRect,
+    exact_is_occluded, CullError, DepthConvention, DepthFormat, Extent2d, ExtentExt, HizOutcome,
+    HizPyramid, NpotMode, PixelRect,
 };
 
 const RECTS_PER_VIEWPORT: usize = 20_000;
@@ -64,7 +64,7 @@ fn main() -> Result<(), CullError> {
         (1920, 1080),
         (4096, 1),
     ] {
-        let extent = Extent2d::new(w, h)?;
+        let extent = Extent2d::try_new(w, h)?;
         let mut rng = Pcg64::seed_from_u64(u64::from(w) * 7919 + u64::from(h));
         let depth = depth_buffer(w, h, &mut rng);
         let pyramids: Vec<HizPyramid> = modes

@@ -3,17 +3,12 @@
 //! transformed original: the culling tests downstream are only as conservative as their bounds.
 
 use glam::{Affine3A, DVec3, Vec3};
+use tilegraph_types::round::{f64_to_f32_round_down, f64_to_f32_round_up};
 
 use crate::check::{finite_affine, finite_f32, finite_vec3};
-use crate::depth::{f64_to_f32_round_down, f64_to_f32_round_up};
 use crate::CullError;
 
-/// Axis-aligned box, metres. `min == max` on an axis is allowed (flat or point objects).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Aabb {
-    pub min: Vec3,
-    pub max: Vec3,
-}
+pub use tilegraph_types::Aabb;
 
 /// Sphere, metres. Radius 0 is allowed (a point).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -78,25 +73,57 @@ fn widen_up(x: DVec3) -> DVec3 {
     x + x.abs() * F64_SLACK
 }
 
-impl Aabb {
+/// The culling references' checked and outward-rounded operations on the shared [`Aabb`]:
+/// validation with [`CullError`], constructors that reject bad input, and transforms that
+/// round away from the box. A trait because the box lives in tilegraph-types, which knows
+/// neither [`CullError`] nor this crate's [`Sphere`]. Public fields make it possible to build a
+/// box without the checks, so every entry point here that takes a box validates it.
+pub trait AabbExt: Sized {
     /// A validated box: all components finite and `min <= max` per axis.
-    pub fn new(min: Vec3, max: Vec3) -> Result<Self, CullError> {
+    fn try_new(min: Vec3, max: Vec3) -> Result<Self, CullError>;
+
+    /// A box from its centre and half extents (each >= 0).
+    fn from_center_half_extents(center: Vec3, half_extents_m: Vec3) -> Result<Self, CullError>;
+
+    /// The smallest box holding every point (error when `points` is empty or holds NaN).
+    fn try_from_points(points: &[Vec3]) -> Result<Self, CullError>;
+
+    /// A box given in f64 world coordinates, made camera-relative: `(world - eye)` is formed
+    /// in f64 and rounded outward to f32. At 10^6 m an f32 world coordinate has a 6 cm step;
+    /// relative to the eye the step shrinks with the distance to the eye instead.
+    fn from_world_f64(
+        min_world: DVec3,
+        max_world: DVec3,
+        eye_world: DVec3,
+    ) -> Result<Self, CullError>;
+
+    /// Checks the invariants [`AabbExt::try_new`] establishes.
+    fn validate(&self, what: &'static str) -> Result<(), CullError>;
+
+    /// The world AABB of this box under `m` (Arvo 1990: centre transformed, half extents through
+    /// the absolute matrix), computed in f64 and rounded outward.
+    fn transformed(&self, m: &Affine3A) -> Result<Self, CullError>;
+
+    /// The sphere through the corners (centre at the box centre).
+    fn bounding_sphere(&self) -> Sphere;
+}
+
+impl AabbExt for Aabb {
+    fn try_new(min: Vec3, max: Vec3) -> Result<Self, CullError> {
         let b = Aabb { min, max };
         b.validate("aabb")?;
         Ok(b)
     }
 
-    /// A box from its centre and half extents (each >= 0).
-    pub fn from_center_half_extents(center: Vec3, half_extents_m: Vec3) -> Result<Self, CullError> {
+    fn from_center_half_extents(center: Vec3, half_extents_m: Vec3) -> Result<Self, CullError> {
         finite_vec3("aabb", "center", center)?;
         finite_vec3("aabb", "half_extents_m", half_extents_m)?;
         let lo = dvec(center) - dvec(half_extents_m);
         let hi = dvec(center) + dvec(half_extents_m);
-        Aabb::new(round_down_vec(widen_down(lo)), round_up_vec(widen_up(hi)))
+        Aabb::try_new(round_down_vec(widen_down(lo)), round_up_vec(widen_up(hi)))
     }
 
-    /// The smallest box holding every point (error when `points` is empty or holds NaN).
-    pub fn from_points(points: &[Vec3]) -> Result<Self, CullError> {
+    fn try_from_points(points: &[Vec3]) -> Result<Self, CullError> {
         let Some(first) = points.first() else {
             return Err(CullError::BufferSizeMismatch {
                 what: "aabb points",
@@ -111,13 +138,10 @@ impl Aabb {
             min = min.min(p);
             max = max.max(p);
         }
-        Aabb::new(min, max)
+        Aabb::try_new(min, max)
     }
 
-    /// A box given in f64 world coordinates, made camera-relative: `(world - eye)` is formed
-    /// in f64 and rounded outward to f32. At 10^6 m an f32 world coordinate has a 6 cm step;
-    /// relative to the eye the step shrinks with the distance to the eye instead.
-    pub fn from_world_f64(
+    fn from_world_f64(
         min_world: DVec3,
         max_world: DVec3,
         eye_world: DVec3,
@@ -137,15 +161,13 @@ impl Aabb {
                 }
             }
         }
-        Aabb::new(
+        Aabb::try_new(
             round_down_vec(widen_down(min_world - eye_world)),
             round_up_vec(widen_up(max_world - eye_world)),
         )
     }
 
-    /// Checks the invariants [`Aabb::new`] establishes; public fields make it possible to build
-    /// a box without them, so every entry point that takes a box calls this.
-    pub fn validate(&self, what: &'static str) -> Result<(), CullError> {
+    fn validate(&self, what: &'static str) -> Result<(), CullError> {
         finite_vec3(what, "min", self.min)?;
         finite_vec3(what, "max", self.max)?;
         for (axis, (lo, hi)) in ['x', 'y', 'z']
@@ -164,47 +186,20 @@ impl Aabb {
         Ok(())
     }
 
-    pub fn center(&self) -> Vec3 {
-        (self.min + self.max) * 0.5
-    }
-
-    pub fn half_extents(&self) -> Vec3 {
-        (self.max - self.min) * 0.5
-    }
-
-    /// The 8 corners; bit 0 of the index selects max x, bit 1 max y, bit 2 max z.
-    pub fn corners(&self) -> [Vec3; 8] {
-        std::array::from_fn(|i| {
-            Vec3::new(
-                if i & 1 == 0 { self.min.x } else { self.max.x },
-                if i & 2 == 0 { self.min.y } else { self.max.y },
-                if i & 4 == 0 { self.min.z } else { self.max.z },
-            )
-        })
-    }
-
-    /// Closed containment test.
-    pub fn contains_point(&self, p: Vec3) -> bool {
-        p.cmpge(self.min).all() && p.cmple(self.max).all()
-    }
-
-    /// The world AABB of this box under `m` (Arvo 1990: centre transformed, half extents through
-    /// the absolute matrix), computed in f64 and rounded outward.
-    pub fn transformed(&self, m: &Affine3A) -> Result<Aabb, CullError> {
+    fn transformed(&self, m: &Affine3A) -> Result<Self, CullError> {
         self.validate("aabb")?;
         finite_affine("aabb transform", m)?;
         let cols = linear_columns_f64(m);
         let c = transform_point_f64(m, (dvec(self.min) + dvec(self.max)) * 0.5);
         let e = (dvec(self.max) - dvec(self.min)) * 0.5;
         let ext = cols[0].abs() * e.x + cols[1].abs() * e.y + cols[2].abs() * e.z;
-        Aabb::new(
+        Aabb::try_new(
             round_down_vec(widen_down(c - ext)),
             round_up_vec(widen_up(c + ext)),
         )
     }
 
-    /// The sphere through the corners (centre at the box centre).
-    pub fn bounding_sphere(&self) -> Sphere {
+    fn bounding_sphere(&self) -> Sphere {
         let c = (dvec(self.min) + dvec(self.max)) * 0.5;
         let r = ((dvec(self.max) - dvec(self.min)) * 0.5).length();
         let center = c.as_vec3();
@@ -384,11 +379,11 @@ mod tests {
     #[test]
     fn rejects_invalid_boxes_and_spheres() {
         assert!(matches!(
-            Aabb::new(Vec3::new(1.0, 0.0, 0.0), Vec3::ZERO),
+            Aabb::try_new(Vec3::new(1.0, 0.0, 0.0), Vec3::ZERO),
             Err(CullError::InvertedBounds { axis: 'x', .. })
         ));
         assert!(matches!(
-            Aabb::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::ONE),
+            Aabb::try_new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::ONE),
             Err(CullError::NonFiniteValue { field: "min", .. })
         ));
         assert!(matches!(
@@ -396,18 +391,18 @@ mod tests {
             Err(CullError::NegativeRadius { .. })
         ));
         assert!(
-            Aabb::new(Vec3::ONE, Vec3::ONE).is_ok(),
+            Aabb::try_new(Vec3::ONE, Vec3::ONE).is_ok(),
             "zero extent is a valid point box"
         );
         assert!(matches!(
-            Aabb::from_points(&[]),
+            Aabb::try_from_points(&[]),
             Err(CullError::BufferSizeMismatch { .. })
         ));
     }
 
     #[test]
     fn transformed_aabb_contains_transformed_corners() {
-        let b = Aabb::new(Vec3::new(-1.0, 2.0, 0.5), Vec3::new(3.0, 2.5, 4.0)).unwrap();
+        let b = Aabb::try_new(Vec3::new(-1.0, 2.0, 0.5), Vec3::new(3.0, 2.5, 4.0)).unwrap();
         let m = Affine3A::from_scale_rotation_translation(
             Vec3::new(2.0, 0.5, 3.0),
             Quat::from_euler(glam::EulerRot::XYZ, 0.3, 1.1, -0.7),
@@ -456,7 +451,7 @@ mod tests {
 
     #[test]
     fn obb_corners_and_aabb_agree() {
-        let local = Aabb::new(Vec3::new(-1.0, -2.0, -0.5), Vec3::new(1.0, 2.0, 0.5)).unwrap();
+        let local = Aabb::try_new(Vec3::new(-1.0, -2.0, -0.5), Vec3::new(1.0, 2.0, 0.5)).unwrap();
         let m = Affine3A::from_rotation_translation(
             Quat::from_rotation_y(0.6),
             Vec3::new(4.0, 0.0, -9.0),

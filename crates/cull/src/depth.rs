@@ -1,80 +1,10 @@
-//! Depth conventions, depth formats and the rounding rules that keep comparisons conservative.
+//! Depth formats and the D16 rounding rules that keep comparisons conservative. The depth
+//! convention (which end of [0, 1] is near) is tilegraph-types' [`DepthConvention`], re-exported
+//! here.
 
 use serde::{Deserialize, Serialize};
 
-/// Which end of [0, 1] is near.
-///
-/// - `Standard`: near -> 0, far -> 1, nearer = smaller, depth compare LESS, HiZ keeps the MAX.
-/// - `Reverse`: near -> 1, far (or infinity) -> 0, nearer = larger, compare GREATER, HiZ keeps
-///   the MIN. tilegraph's default (with an infinite far plane): floating-point density near 0
-///   matches the 1/z distribution, so precision is nearly uniform in log-distance.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
-pub enum DepthConvention {
-    Standard,
-    #[default]
-    Reverse,
-}
-
-impl DepthConvention {
-    /// The farther of two depths: `max` for Standard, `min` for Reverse. This is the only
-    /// arithmetic the HiZ pyramid performs, so a GPU reproduces it bit for bit.
-    #[inline]
-    pub fn farther(self, a: f32, b: f32) -> f32 {
-        match self {
-            DepthConvention::Standard => a.max(b),
-            DepthConvention::Reverse => a.min(b),
-        }
-    }
-
-    /// The nearer of two depths.
-    #[inline]
-    pub fn nearer(self, a: f32, b: f32) -> f32 {
-        match self {
-            DepthConvention::Standard => a.min(b),
-            DepthConvention::Reverse => a.max(b),
-        }
-    }
-
-    /// True when `depth` lies strictly behind `reference` (farther from the camera). Equal depths
-    /// are never "behind": a fragment at the same depth may still pass LESS_OR_EQUAL.
-    #[inline]
-    pub fn is_strictly_behind(self, depth: f32, reference: f32) -> bool {
-        match self {
-            DepthConvention::Standard => depth > reference,
-            DepthConvention::Reverse => depth < reference,
-        }
-    }
-
-    /// The value a depth buffer is cleared to: the farthest representable depth.
-    #[inline]
-    pub fn far_clear_value(self) -> f32 {
-        match self {
-            DepthConvention::Standard => 1.0,
-            DepthConvention::Reverse => 0.0,
-        }
-    }
-
-    /// Rounds an exact (f64) depth to f32 in the direction of the camera, so the result is
-    /// never farther than the exact value.
-    pub fn round_toward_near(self, depth: f64) -> f32 {
-        match self {
-            DepthConvention::Standard => f64_to_f32_round_down(depth),
-            DepthConvention::Reverse => f64_to_f32_round_up(depth),
-        }
-    }
-
-    /// Moves `depth` `ulps` representable f32 steps toward the camera.
-    pub fn nudge_toward_near(self, depth: f32, ulps: u32) -> f32 {
-        let mut d = depth;
-        for _ in 0..ulps {
-            d = match self {
-                DepthConvention::Standard => next_f32_down(d),
-                DepthConvention::Reverse => next_f32_up(d),
-            };
-        }
-        d
-    }
-}
+pub use tilegraph_types::DepthConvention;
 
 /// The format of the depth attachment the pyramid is built from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -156,47 +86,6 @@ impl DepthFormat {
     }
 }
 
-/// The next f32 toward +infinity (`f32::next_up`, stable only since Rust 1.86).
-pub(crate) fn next_f32_up(x: f32) -> f32 {
-    if x.is_nan() || x == f32::INFINITY {
-        return x;
-    }
-    if x == 0.0 {
-        return f32::from_bits(1);
-    }
-    let bits = x.to_bits();
-    if x > 0.0 {
-        f32::from_bits(bits + 1)
-    } else {
-        f32::from_bits(bits - 1)
-    }
-}
-
-/// The next f32 toward -infinity.
-pub(crate) fn next_f32_down(x: f32) -> f32 {
-    -next_f32_up(-x)
-}
-
-/// Largest f32 not above `x`.
-pub(crate) fn f64_to_f32_round_down(x: f64) -> f32 {
-    let y = x as f32;
-    if f64::from(y) > x {
-        next_f32_down(y)
-    } else {
-        y
-    }
-}
-
-/// Smallest f32 not below `x`.
-pub(crate) fn f64_to_f32_round_up(x: f64) -> f32 {
-    let y = x as f32;
-    if f64::from(y) < x {
-        next_f32_up(y)
-    } else {
-        y
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -236,32 +125,5 @@ mod tests {
                 assert!(!convention.is_strictly_behind(q, stored));
             }
         }
-    }
-
-    #[test]
-    fn directed_rounding_brackets_the_exact_value() {
-        for x in [1.0 / 3.0, 1e-30, -2.5e-7, 0.999_999_999_9, 1e7 + 0.1] {
-            let down = f64_to_f32_round_down(x);
-            let up = f64_to_f32_round_up(x);
-            assert!(f64::from(down) <= x && x <= f64::from(up), "{x}");
-            assert!(f64::from(up) - f64::from(down) <= f64::from(next_f32_up(up)) - f64::from(up));
-        }
-        assert_eq!(next_f32_up(0.0), f32::from_bits(1));
-        assert_eq!(next_f32_down(0.0), -f32::from_bits(1));
-        assert_eq!(next_f32_up(-f32::from_bits(1)), -0.0);
-    }
-
-    #[test]
-    fn farther_and_behind_follow_the_convention() {
-        let s = DepthConvention::Standard;
-        let r = DepthConvention::Reverse;
-        assert_eq!(s.farther(0.2, 0.7), 0.7);
-        assert_eq!(r.farther(0.2, 0.7), 0.2);
-        assert!(s.is_strictly_behind(0.7, 0.2));
-        assert!(r.is_strictly_behind(0.2, 0.7));
-        assert!(!s.is_strictly_behind(0.5, 0.5));
-        assert!(!r.is_strictly_behind(0.5, 0.5));
-        assert_eq!(s.nudge_toward_near(0.5, 1), next_f32_down(0.5));
-        assert_eq!(r.nudge_toward_near(0.5, 1), next_f32_up(0.5));
     }
 }

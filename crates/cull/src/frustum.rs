@@ -8,7 +8,7 @@
 use glam::{DMat4, DVec3, DVec4, Mat4, Vec4};
 use serde::{Deserialize, Serialize};
 
-use crate::bounds::{Aabb, Obb, Sphere};
+use crate::bounds::{Aabb, AabbExt, Obb, Sphere};
 use crate::check::finite_mat4;
 use crate::depth::DepthConvention;
 use crate::CullError;
@@ -493,12 +493,13 @@ pub fn measure_plane_test_false_positives(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::{FarPlane, Projection};
+    use crate::camera::Projection;
     use glam::{Affine3A, Quat, Vec3};
 
+    /// A square viewport, looking down -z from the origin.
     fn camera(p: &Projection) -> (Mat4, Frustum) {
         let view = Mat4::look_at_rh(Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 0.0, -1.0), Vec3::Y);
-        let m = p.matrix() * view;
+        let m = p.matrix(1.0) * view;
         (
             m,
             Frustum::from_clip_from_world(&m, p.depth_convention()).unwrap(),
@@ -508,7 +509,12 @@ mod tests {
     #[test]
     fn infinite_far_plane_is_absent_not_nan() {
         for depth in [DepthConvention::Reverse, DepthConvention::Standard] {
-            let p = Projection::perspective(1.0, 1.0, 0.1, FarPlane::Infinite, depth).unwrap();
+            let p = Projection::Perspective {
+                fov_y_rad: 1.0,
+                near: 0.1,
+                far: None,
+                depth,
+            };
             let (_, f) = camera(&p);
             assert!(f.plane(FrustumPlane::Far).is_none(), "{depth:?}");
             for w in [
@@ -531,9 +537,12 @@ mod tests {
     #[test]
     fn finite_far_plane_is_where_it_should_be() {
         for depth in [DepthConvention::Reverse, DepthConvention::Standard] {
-            let p =
-                Projection::perspective(1.0, 1.0, 0.1, FarPlane::Finite { far_m: 250.0 }, depth)
-                    .unwrap();
+            let p = Projection::Perspective {
+                fov_y_rad: 1.0,
+                near: 0.1,
+                far: Some(250.0),
+                depth,
+            };
             let (_, f) = camera(&p);
             let far = f.plane(FrustumPlane::Far).unwrap();
             assert!((far.normal - DVec3::Z).length() < 1e-6, "{depth:?} {far:?}");
@@ -551,7 +560,7 @@ mod tests {
 
     #[test]
     fn top_plane_is_view_up() {
-        let p = Projection::tilegraph_default(1.0, 1.0, 0.1).unwrap();
+        let p = Projection::tilegraph_default(1.0, 0.1);
         let (_, f) = camera(&p);
         let top = f.plane(FrustumPlane::Top).unwrap();
         // The top plane faces down (into the frustum), i.e. it bounds +y.
@@ -579,19 +588,17 @@ mod tests {
             Vec3::new(0.0, 0.0, -1.0),
             Vec3::new(1.0, 1.0, 0.0).normalize(),
         );
-        Frustum::from_clip_from_world(&(p.matrix() * view), p.depth_convention()).unwrap()
+        Frustum::from_clip_from_world(&(p.matrix(1.0) * view), p.depth_convention()).unwrap()
     }
 
     #[test]
     fn box_beside_a_rolled_frustum_is_a_plane_test_false_positive_that_sat_separates() {
-        let p = Projection::perspective(
-            1.2,
-            1.0,
-            0.1,
-            FarPlane::Finite { far_m: 100.0 },
-            DepthConvention::Reverse,
-        )
-        .unwrap();
+        let p = Projection::Perspective {
+            fov_y_rad: 1.2,
+            near: 0.1,
+            far: Some(100.0),
+            depth: DepthConvention::Reverse,
+        };
         let f = rolled_camera(&p);
         // At depth <= 12 every frustum point has |x| <= 12 tan(0.6) sqrt(2) (the diamond's
         // vertex). A box within depths 8..12 entirely beyond that in x but tall in y straddles
@@ -599,7 +606,7 @@ mod tests {
         // larger x farther away, so what separates them is an axis mixing the box's y edge
         // with a frustum side edge, never a frustum face.
         let vertex_x = 12.0 * 0.6f32.tan() * std::f32::consts::SQRT_2;
-        let b = Aabb::new(
+        let b = Aabb::try_new(
             Vec3::new(vertex_x * 1.1, -3.0 * vertex_x, -12.0),
             Vec3::new(vertex_x * 3.0, 3.0 * vertex_x, -8.0),
         )
@@ -614,7 +621,7 @@ mod tests {
             "{sat:?}"
         );
         // The same box moved to straddle the diamond's vertex overlaps.
-        let b2 = Aabb::new(
+        let b2 = Aabb::try_new(
             Vec3::new(vertex_x * 0.9, -3.0 * vertex_x, -12.0),
             Vec3::new(vertex_x * 3.0, 3.0 * vertex_x, -8.0),
         )
@@ -624,7 +631,7 @@ mod tests {
 
     #[test]
     fn sat_handles_infinite_far_exactly() {
-        let p = Projection::tilegraph_default(1.0, 1.0, 0.1).unwrap();
+        let p = Projection::tilegraph_default(1.0, 0.1);
         let (_, f) = camera(&p);
         // Far away, straight ahead: inside an infinite frustum.
         let far_box =
@@ -640,16 +647,14 @@ mod tests {
 
     #[test]
     fn sat_obb_rotated_and_degenerate() {
-        let p = Projection::perspective(
-            1.0,
-            1.0,
-            0.1,
-            FarPlane::Finite { far_m: 100.0 },
-            DepthConvention::Standard,
-        )
-        .unwrap();
+        let p = Projection::Perspective {
+            fov_y_rad: 1.0,
+            near: 0.1,
+            far: Some(100.0),
+            depth: DepthConvention::Standard,
+        };
         let (_, f) = camera(&p);
-        let local = Aabb::new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)).unwrap();
+        let local = Aabb::try_new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)).unwrap();
         let inside = Obb::new(
             local,
             Affine3A::from_rotation_translation(
@@ -668,20 +673,18 @@ mod tests {
         )
         .unwrap();
         assert!(f.sat_obb(&outside).unwrap().is_separated());
-        let point = Aabb::new(Vec3::new(0.0, 0.0, -5.0), Vec3::new(0.0, 0.0, -5.0)).unwrap();
+        let point = Aabb::try_new(Vec3::new(0.0, 0.0, -5.0), Vec3::new(0.0, 0.0, -5.0)).unwrap();
         assert_eq!(f.sat_aabb(&point).unwrap(), SatTest::Overlapping);
     }
 
     #[test]
     fn accuracy_counts_are_consistent() {
-        let p = Projection::perspective(
-            1.2,
-            1.0,
-            0.1,
-            FarPlane::Finite { far_m: 100.0 },
-            DepthConvention::Reverse,
-        )
-        .unwrap();
+        let p = Projection::Perspective {
+            fov_y_rad: 1.2,
+            near: 0.1,
+            far: Some(100.0),
+            depth: DepthConvention::Reverse,
+        };
         let f = rolled_camera(&p);
         let mut boxes = Vec::new();
         for i in 0..20 {

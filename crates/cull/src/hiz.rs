@@ -43,7 +43,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::depth::{DepthConvention, DepthFormat};
 use crate::project::ScreenProjection;
-use crate::screen::{ClampedRect, Extent2d, PixelRect};
+use crate::screen::{ClampedRect, Extent2d, ExtentExt, PixelRect};
 use crate::CullError;
 
 /// How odd (non-power-of-two) sizes are reduced.
@@ -97,13 +97,13 @@ impl HizLevel {
     /// The texel that level-0 pixel `px` maps to.
     pub fn texel_of_pixel(&self, px: UVec2) -> UVec2 {
         UVec2::new(
-            map_axis(px.x, self.scale_x, self.extent.width_px()),
-            map_axis(px.y, self.scale_y, self.extent.height_px()),
+            map_axis(px.x, self.scale_x, self.extent.width_px),
+            map_axis(px.y, self.scale_y, self.extent.height_px),
         )
     }
 
     fn at(&self, x: u32, y: u32) -> f32 {
-        self.texels[y as usize * self.extent.width_px() as usize + x as usize]
+        self.texels[y as usize * self.extent.width_px as usize + x as usize]
     }
 }
 
@@ -125,7 +125,7 @@ fn pow2_below(n: u32) -> u32 {
 /// The extents of every level for a depth buffer of `extent`, as a GPU allocates them.
 pub fn level_extents(extent: Extent2d, mode: NpotMode) -> Vec<Extent2d> {
     let mut out = vec![extent];
-    let (mut w, mut h) = (extent.width_px(), extent.height_px());
+    let (mut w, mut h) = (extent.width_px, extent.height_px);
     let mut first = true;
     while w > 1 || h > 1 {
         (w, h) = match (mode, first) {
@@ -133,10 +133,7 @@ pub fn level_extents(extent: Extent2d, mode: NpotMode) -> Vec<Extent2d> {
             _ => ((w / 2).max(1), (h / 2).max(1)),
         };
         first = false;
-        // Sides only shrink from a valid extent, so this cannot fail; skip rather than panic.
-        if let Ok(e) = Extent2d::new(w, h) {
-            out.push(e);
-        }
+        out.push(Extent2d::new(w, h));
     }
     out
 }
@@ -253,8 +250,9 @@ pub struct HizPyramid {
 }
 
 impl HizPyramid {
-    /// Builds the pyramid from a row-major depth buffer (row 0 = top). Rejects a buffer whose
-    /// length does not match, non-finite depths, and (for D16) values that are not `k/65535`.
+    /// Builds the pyramid from a row-major depth buffer (row 0 = top). Rejects an extent
+    /// outside 1..=[`crate::MAX_EXTENT_PX`], a buffer whose length does not match, non-finite
+    /// depths, and (for D16) values that are not `k/65535`.
     pub fn build(
         depth: &[f32],
         extent: Extent2d,
@@ -262,8 +260,9 @@ impl HizPyramid {
         format: DepthFormat,
         mode: NpotMode,
     ) -> Result<Self, CullError> {
+        extent.validate("depth extent")?;
         extent.check_len("depth buffer", depth.len())?;
-        let w = extent.width_px();
+        let w = extent.width_px;
         // One pass for the common (valid) case; the pixel position is only worked out for the
         // error.
         if let Some(i) = depth.iter().position(|&d| !format.is_representable(d)) {
@@ -290,8 +289,8 @@ impl HizPyramid {
         let mut levels: Vec<HizLevel> = Vec::with_capacity(extents.len());
         levels.push(HizLevel {
             extent,
-            scale_x: axis_scale(mode, 0, extent.width_px(), pow2.width_px()),
-            scale_y: axis_scale(mode, 0, extent.height_px(), pow2.height_px()),
+            scale_x: axis_scale(mode, 0, extent.width_px, pow2.width_px),
+            scale_y: axis_scale(mode, 0, extent.height_px, pow2.height_px),
             texels: depth.to_vec(),
         });
         for (k, &dst) in extents.iter().enumerate().skip(1) {
@@ -300,8 +299,8 @@ impl HizPyramid {
             let texels = reduce(src, dst, level, mode, convention);
             levels.push(HizLevel {
                 extent: dst,
-                scale_x: axis_scale(mode, level, extent.width_px(), pow2.width_px()),
-                scale_y: axis_scale(mode, level, extent.height_px(), pow2.height_px()),
+                scale_x: axis_scale(mode, level, extent.width_px, pow2.width_px),
+                scale_y: axis_scale(mode, level, extent.height_px, pow2.height_px),
                 texels,
             });
         }
@@ -352,8 +351,8 @@ impl HizPyramid {
     /// of it). Pure function of the sizes, independent of the stored values.
     pub fn footprint(&self, level: u32, texel: UVec2) -> Result<TexelRect, CullError> {
         let _ = self.level(level)?;
-        let x = self.footprint_axis(level, texel.x, |e| e.width_px());
-        let y = self.footprint_axis(level, texel.y, |e| e.height_px());
+        let x = self.footprint_axis(level, texel.x, |e| e.width_px);
+        let y = self.footprint_axis(level, texel.y, |e| e.height_px);
         Ok(TexelRect {
             min_x: x.0,
             min_y: y.0,
@@ -472,7 +471,7 @@ impl HizPyramid {
     ) -> Result<Option<TexelMismatch>, CullError> {
         let l = self.level(level)?;
         l.extent.check_len("gpu hiz level", actual.len())?;
-        let w = l.extent.width_px();
+        let w = l.extent.width_px;
         Ok(l.texels
             .iter()
             .zip(actual)
@@ -508,15 +507,15 @@ fn reduce_with(
     mode: NpotMode,
     farther: impl Fn(f32, f32) -> f32,
 ) -> Vec<f32> {
-    let (sw, sh) = (src.extent.width_px(), src.extent.height_px());
-    let (dw, dh) = (dst.width_px(), dst.height_px());
+    let (sw, sh) = (src.extent.width_px, src.extent.height_px);
+    let (dw, dh) = (dst.width_px, dst.height_px);
     let xs: Vec<(usize, usize)> = (0..dw)
         .map(|t| {
             let (lo, hi) = source_range(mode, level, t, dw, sw);
             (lo as usize, hi as usize)
         })
         .collect();
-    let mut out = Vec::with_capacity(dst.pixel_count());
+    let mut out = Vec::with_capacity(dst.buffer_len());
     for ty in 0..dh {
         let (y0, y1) = source_range(mode, level, ty, dh, sh);
         let rows: Vec<&[f32]> = (y0..=y1)
@@ -546,6 +545,7 @@ pub fn exact_is_occluded(
     rect: PixelRect,
     nearest_depth: f32,
 ) -> Result<Option<bool>, CullError> {
+    extent.validate("depth extent")?;
     extent.check_len("depth buffer", depth.len())?;
     rect.validate()?;
     crate::check::finite_f32("exact occlusion", "nearest_depth", nearest_depth)?;
@@ -559,7 +559,7 @@ pub fn exact_is_occluded(
         return Ok(None);
     };
     let c = format.toward_near(convention, nearest_depth);
-    let w = extent.width_px() as usize;
+    let w = extent.width_px as usize;
     for y in min_y..=max_y {
         let row = &depth[y as usize * w..(y as usize + 1) * w];
         if !row[min_x as usize..=max_x as usize]
@@ -579,24 +579,24 @@ mod tests {
     const MODES: [NpotMode; 2] = [NpotMode::EdgeAware, NpotMode::PadToPow2];
 
     fn extent(w: u32, h: u32) -> Extent2d {
-        Extent2d::new(w, h).unwrap()
+        Extent2d::try_new(w, h).unwrap()
     }
 
     #[test]
     fn chain_27x13_matches_the_seed() {
         let widths: Vec<u32> = level_extents(extent(27, 13), NpotMode::EdgeAware)
             .iter()
-            .map(|e| e.width_px())
+            .map(|e| e.width_px)
             .collect();
         assert_eq!(widths, vec![27, 13, 6, 3, 1]);
         let heights: Vec<u32> = level_extents(extent(27, 13), NpotMode::EdgeAware)
             .iter()
-            .map(|e| e.height_px())
+            .map(|e| e.height_px)
             .collect();
         assert_eq!(heights, vec![13, 6, 3, 1, 1]);
         let pad: Vec<(u32, u32)> = level_extents(extent(27, 13), NpotMode::PadToPow2)
             .iter()
-            .map(|e| (e.width_px(), e.height_px()))
+            .map(|e| (e.width_px, e.height_px))
             .collect();
         assert_eq!(pad, vec![(27, 13), (16, 8), (8, 4), (4, 2), (2, 1), (1, 1)]);
         assert_eq!(level_extents(extent(1, 1), NpotMode::EdgeAware).len(), 1);
@@ -604,7 +604,7 @@ mod tests {
             level_extents(extent(4096, 1), NpotMode::PadToPow2)
                 .last()
                 .unwrap()
-                .width_px(),
+                .width_px,
             1
         );
         assert_eq!(pow2_below(16), 8);
@@ -617,7 +617,7 @@ mod tests {
     fn naive_reduction_loses_the_last_column_of_27x13() {
         // Everything near except the last column, which is far (standard: 1.0).
         let e = extent(27, 13);
-        let mut depth = vec![0.25f32; e.pixel_count()];
+        let mut depth = vec![0.25f32; e.buffer_len()];
         for y in 0..13 {
             depth[y * 27 + 26] = 1.0;
         }
@@ -680,7 +680,7 @@ mod tests {
             (17, 33),
         ] {
             let e = extent(w, h);
-            let depth: Vec<f32> = (0..e.pixel_count())
+            let depth: Vec<f32> = (0..e.buffer_len())
                 .map(|i| ((i * 7919) % 1000) as f32 / 1000.0)
                 .collect();
             for mode in MODES {
@@ -689,8 +689,8 @@ mod tests {
                         HizPyramid::build(&depth, e, conv, DepthFormat::D32Float, mode).unwrap();
                     for (k, l) in p.levels().iter().enumerate() {
                         let k = k as u32;
-                        for ty in 0..l.extent().height_px() {
-                            for tx in 0..l.extent().width_px() {
+                        for ty in 0..l.extent().height_px {
+                            for tx in 0..l.extent().width_px {
                                 let f = p.footprint(k, UVec2::new(tx, ty)).unwrap();
                                 let mut far = depth[(f.min_y * w + f.min_x) as usize];
                                 for y in f.min_y..=f.max_y {
@@ -727,7 +727,7 @@ mod tests {
     fn test_reads_at_most_2x2_and_is_conservative_on_a_step() {
         let e = extent(27, 13);
         // Left half near (0.2), right half far (standard 0.9).
-        let depth: Vec<f32> = (0..e.pixel_count())
+        let depth: Vec<f32> = (0..e.buffer_len())
             .map(|i| if i % 27 < 13 { 0.2 } else { 0.9 })
             .collect();
         for mode in MODES {

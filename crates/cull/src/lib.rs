@@ -6,7 +6,12 @@
 //! [`DepthConvention`] Standard (LESS, HiZ max) or Reverse (GREATER, HiZ min; the default, with
 //! an infinite far plane).
 //!
-//! - [`bounds`]: [`Aabb`], [`Sphere`], [`Obb`] and their (outward-rounded) transforms.
+//! The shared vocabulary ([`Aabb`], [`DepthConvention`], [`Extent2d`], [`Projection`]) is
+//! tilegraph-types', re-exported here; this crate adds its checks and conservative operations
+//! over it ([`AabbExt`], [`ExtentExt`], [`ProjectionExt`]).
+//!
+//! - [`bounds`]: [`Sphere`], [`Obb`], and every volume's (outward-rounded) transforms.
+//! - [`camera`]: the projection check; the viewport's aspect travels beside the projection.
 //! - [`frustum`]: Gribb-Hartmann planes, conservative plane tests, exact SAT vs boxes.
 //! - [`project`]: sphere / box -> NDC rect + conservative nearest depth.
 //! - [`hiz`]: the pyramid (three [`NpotMode`]s) and the occlusion test.
@@ -24,8 +29,8 @@ pub mod oracle;
 pub mod project;
 pub mod screen;
 
-pub use bounds::{Aabb, Obb, Sphere};
-pub use camera::{view_look_at, FarPlane, Projection, ProjectionKind};
+pub use bounds::{Aabb, AabbExt, Obb, Sphere};
+pub use camera::{view_look_at, Projection, ProjectionExt};
 pub use depth::{dequantize_d16, quantize_d16, DepthConvention, DepthFormat};
 pub use error::CullError;
 pub use frustum::{
@@ -41,4 +46,4 @@ pub use project::{
     project_aabb, project_obb, project_sphere, project_sphere_view, ProjectedBounds,
     ScreenProjection, DEPTH_MARGIN_ULPS,
 };
-pub use screen::{ClampedRect, Extent2d, NdcRect, PixelRect, MAX_EXTENT_PX};
+pub use screen::{ClampedRect, Extent2d, ExtentExt, NdcRect, PixelRect, MAX_EXTENT_PX};

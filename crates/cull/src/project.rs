@@ -4,11 +4,11 @@
 //! rounded toward the camera, then moved [`DEPTH_MARGIN_ULPS`] further toward it.
 
 use glam::{Affine3A, DVec3, Mat4, Vec2};
+use tilegraph_types::round::{f64_to_f32_round_down, f64_to_f32_round_up};
 
-use crate::bounds::{Aabb, Obb, Sphere};
-use crate::camera::Projection;
+use crate::bounds::{Aabb, AabbExt, Obb, Sphere};
+use crate::camera::{Projection, ProjectionExt};
 use crate::check::finite_mat4;
-use crate::depth::{f64_to_f32_round_down, f64_to_f32_round_up};
 use crate::screen::NdcRect;
 use crate::CullError;
 
@@ -97,15 +97,19 @@ fn outward_rect(min: (f64, f64), max: (f64, f64)) -> NdcRect {
 /// for each. The same for y. The rectangle is exact (tight) for the silhouette.
 ///
 /// Orthographic: centre +/- radius, scaled.
+///
+/// `aspect` is the viewport's width / height, which the projection leaves open.
 pub fn project_sphere_view(
     sphere_view: &Sphere,
     projection: &Projection,
+    aspect: f32,
 ) -> Result<ScreenProjection, CullError> {
     sphere_view.validate("sphere")?;
+    projection.validate(aspect)?;
     let c = sphere_view.center.as_dvec3();
     let r = f64::from(sphere_view.radius);
-    let near = f64::from(projection.near_m());
-    let (sx, sy) = projection.ndc_scale();
+    let near = f64::from(projection.near());
+    let (sx, sy) = projection.ndc_scale(aspect);
     // Distance along the view axis is -z.
     let nearest = -c.z - r;
     let farthest = -c.z + r;
@@ -156,9 +160,10 @@ pub fn project_sphere(
     sphere_world: &Sphere,
     view_from_world: &Mat4,
     projection: &Projection,
+    aspect: f32,
 ) -> Result<ScreenProjection, CullError> {
     let view = affine_view(view_from_world)?;
-    project_sphere_view(&sphere_world.transformed(&view)?, projection)
+    project_sphere_view(&sphere_world.transformed(&view)?, projection, aspect)
 }
 
 /// Projects a world-space AABB: the rect of its 8 projected corners.
@@ -166,9 +171,10 @@ pub fn project_aabb(
     aabb_world: &Aabb,
     view_from_world: &Mat4,
     projection: &Projection,
+    aspect: f32,
 ) -> Result<ScreenProjection, CullError> {
     aabb_world.validate("aabb")?;
-    project_obb(&Obb::from(*aabb_world), view_from_world, projection)
+    project_obb(&Obb::from(*aabb_world), view_from_world, projection, aspect)
 }
 
 /// Projects a world-space oriented box: the rect of its 8 projected corners.
@@ -180,9 +186,11 @@ pub fn project_obb(
     obb_world: &Obb,
     view_from_world: &Mat4,
     projection: &Projection,
+    aspect: f32,
 ) -> Result<ScreenProjection, CullError> {
     obb_world.validate("obb")?;
     affine_view(view_from_world)?;
+    projection.validate(aspect)?;
     // Composed in f64: an f32 view * world_from_local product would add its own rounding to
     // the corners (and hence to the nearest depth).
     let view = view_from_world.as_dmat4();
@@ -191,7 +199,7 @@ pub fn project_obb(
         .half_edges_f64()
         .map(|e| view.transform_vector3(e));
     let corners = obb_world.corners_f64().map(|c| view.transform_point3(c));
-    let near = f64::from(projection.near_m());
+    let near = f64::from(projection.near());
 
     if projection.is_perspective() && eye_inside(center, half_edges) {
         return Ok(ScreenProjection::CameraInside);
@@ -208,7 +216,7 @@ pub fn project_obb(
         return Ok(ScreenProjection::TouchesNearPlane);
     }
 
-    let (sx, sy) = projection.ndc_scale();
+    let (sx, sy) = projection.ndc_scale(aspect);
     let mut lo = (f64::INFINITY, f64::INFINITY);
     let mut hi = (f64::NEG_INFINITY, f64::NEG_INFINITY);
     for p in &corners {
@@ -238,21 +246,23 @@ fn eye_inside(center: DVec3, e: [DVec3; 3]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::FarPlane;
     use crate::depth::DepthConvention;
     use glam::Vec3;
 
+    /// The viewport `reverse_inf` is used on.
+    const WIDE: f32 = 16.0 / 9.0;
+
     fn reverse_inf() -> Projection {
-        Projection::tilegraph_default(1.0, 16.0 / 9.0, 0.1).unwrap()
+        Projection::tilegraph_default(1.0, 0.1)
     }
 
     /// A box 10^38 m wide in front of the camera: its NDC extent passes f32's range. The rect
     /// saturates (finite, covering the screen) instead of turning into infinities.
     #[test]
     fn huge_finite_bounds_saturate_to_a_finite_rect() {
-        let b = Aabb::new(Vec3::new(-1e38, -1.0, -1.0), Vec3::new(1e38, 1.0, -0.5)).unwrap();
-        let square = Projection::tilegraph_default(1.0, 1.0, 0.1).unwrap();
-        let p = projected(project_aabb(&b, &Mat4::IDENTITY, &square).unwrap());
+        let b = Aabb::try_new(Vec3::new(-1e38, -1.0, -1.0), Vec3::new(1e38, 1.0, -0.5)).unwrap();
+        let square = Projection::tilegraph_default(1.0, 0.1);
+        let p = projected(project_aabb(&b, &Mat4::IDENTITY, &square, 1.0).unwrap());
         assert_eq!(p.rect_ndc.min.x, -f32::MAX);
         assert_eq!(p.rect_ndc.max.x, f32::MAX);
         assert!(p.rect_ndc.min.y.is_finite() && p.rect_ndc.max.y.is_finite());
@@ -269,8 +279,8 @@ mod tests {
     fn centred_sphere_is_symmetric_and_tight() {
         let p = reverse_inf();
         let s = Sphere::new(Vec3::new(0.0, 0.0, -10.0), 1.0).unwrap();
-        let b = projected(project_sphere_view(&s, &p).unwrap());
-        let (sx, sy) = p.ndc_scale();
+        let b = projected(project_sphere_view(&s, &p, WIDE).unwrap());
+        let (sx, sy) = p.ndc_scale(WIDE);
         // On axis: tan of the half-angle subtended = r / sqrt(d^2 - r^2).
         let half = 1.0 / (100.0f64 - 1.0).sqrt();
         assert!((f64::from(b.rect_ndc.max.x) - sx * half).abs() < 1e-6);
@@ -284,9 +294,9 @@ mod tests {
     #[test]
     fn off_axis_sphere_rect_contains_every_surface_point_and_touches_the_extremes() {
         let p = reverse_inf();
-        let (sx, sy) = p.ndc_scale();
+        let (sx, sy) = p.ndc_scale(WIDE);
         let s = Sphere::new(Vec3::new(3.0, -2.0, -6.0), 1.5).unwrap();
-        let b = projected(project_sphere_view(&s, &p).unwrap());
+        let b = projected(project_sphere_view(&s, &p, WIDE).unwrap());
         let mut extreme = (
             f64::INFINITY,
             f64::NEG_INFINITY,
@@ -327,33 +337,35 @@ mod tests {
         let p = reverse_inf();
         let inside = Sphere::new(Vec3::new(0.0, 0.0, -0.5), 1.0).unwrap();
         assert_eq!(
-            project_sphere_view(&inside, &p).unwrap(),
+            project_sphere_view(&inside, &p, WIDE).unwrap(),
             ScreenProjection::CameraInside
         );
         let crossing = Sphere::new(Vec3::new(2.0, 0.0, -0.5), 1.0).unwrap();
         assert_eq!(
-            project_sphere_view(&crossing, &p).unwrap(),
+            project_sphere_view(&crossing, &p, WIDE).unwrap(),
             ScreenProjection::TouchesNearPlane
         );
         let behind = Sphere::new(Vec3::new(0.0, 0.0, 5.0), 1.0).unwrap();
         assert_eq!(
-            project_sphere_view(&behind, &p).unwrap(),
+            project_sphere_view(&behind, &p, WIDE).unwrap(),
             ScreenProjection::BeforeNearPlane
         );
         let view = Mat4::IDENTITY;
-        let box_behind = Aabb::new(Vec3::new(-1.0, -1.0, 2.0), Vec3::new(1.0, 1.0, 3.0)).unwrap();
+        let box_behind =
+            Aabb::try_new(Vec3::new(-1.0, -1.0, 2.0), Vec3::new(1.0, 1.0, 3.0)).unwrap();
         assert_eq!(
-            project_aabb(&box_behind, &view, &p).unwrap(),
+            project_aabb(&box_behind, &view, &p, WIDE).unwrap(),
             ScreenProjection::BeforeNearPlane
         );
-        let box_around = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)).unwrap();
+        let box_around = Aabb::try_new(Vec3::splat(-1.0), Vec3::splat(1.0)).unwrap();
         assert_eq!(
-            project_aabb(&box_around, &view, &p).unwrap(),
+            project_aabb(&box_around, &view, &p, WIDE).unwrap(),
             ScreenProjection::CameraInside
         );
-        let box_crossing = Aabb::new(Vec3::new(0.5, -1.0, -3.0), Vec3::new(1.0, 1.0, 1.0)).unwrap();
+        let box_crossing =
+            Aabb::try_new(Vec3::new(0.5, -1.0, -3.0), Vec3::new(1.0, 1.0, 1.0)).unwrap();
         assert_eq!(
-            project_aabb(&box_crossing, &view, &p).unwrap(),
+            project_aabb(&box_crossing, &view, &p, WIDE).unwrap(),
             ScreenProjection::TouchesNearPlane
         );
     }
@@ -361,17 +373,22 @@ mod tests {
     #[test]
     fn aabb_rect_contains_projected_corners_and_depth_is_nearest() {
         for depth in [DepthConvention::Standard, DepthConvention::Reverse] {
-            let p =
-                Projection::perspective(0.9, 1.3, 0.05, FarPlane::Finite { far_m: 300.0 }, depth)
-                    .unwrap();
+            let aspect = 1.3;
+            let p = Projection::Perspective {
+                fov_y_rad: 0.9,
+                near: 0.05,
+                far: Some(300.0),
+                depth,
+            };
             let view = Mat4::look_at_rh(
                 Vec3::new(1.0, 2.0, 3.0),
                 Vec3::new(0.0, 0.0, -20.0),
                 Vec3::Y,
             );
-            let b = Aabb::new(Vec3::new(-2.0, -1.0, -15.0), Vec3::new(1.0, 3.0, -11.0)).unwrap();
-            let pb = projected(project_aabb(&b, &view, &p).unwrap());
-            let clip = p.matrix() * view;
+            let b =
+                Aabb::try_new(Vec3::new(-2.0, -1.0, -15.0), Vec3::new(1.0, 3.0, -11.0)).unwrap();
+            let pb = projected(project_aabb(&b, &view, &p, aspect).unwrap());
+            let clip = p.matrix(aspect) * view;
             for c in b.corners() {
                 let q = clip * c.extend(1.0);
                 let (x, y, z) = (q.x / q.w, q.y / q.w, q.z / q.w);
@@ -387,17 +404,25 @@ mod tests {
 
     #[test]
     fn orthographic_sphere_and_box() {
-        let p =
-            Projection::orthographic(20.0, 10.0, 0.0, 100.0, DepthConvention::Standard).unwrap();
+        // 20 m x 10 m.
+        let (p, aspect) = (
+            Projection::Orthographic {
+                half_height: 5.0,
+                near: 0.0,
+                far: 100.0,
+                depth: DepthConvention::Standard,
+            },
+            2.0,
+        );
         let s = Sphere::new(Vec3::new(5.0, 2.0, -50.0), 1.0).unwrap();
-        let b = projected(project_sphere_view(&s, &p).unwrap());
+        let b = projected(project_sphere_view(&s, &p, aspect).unwrap());
         assert!((b.rect_ndc.min.x - 0.4).abs() < 1e-6 && (b.rect_ndc.max.x - 0.6).abs() < 1e-6);
         // +y is up, so the rect lies in the upper (negative NDC y) half.
         assert!((b.rect_ndc.min.y + 0.6).abs() < 1e-6 && (b.rect_ndc.max.y + 0.2).abs() < 1e-6);
         assert!((b.nearest_depth - 0.49).abs() < 1e-6);
         let crossing = Sphere::new(Vec3::new(0.0, 0.0, 0.5), 1.0).unwrap();
         assert_eq!(
-            project_sphere_view(&crossing, &p).unwrap(),
+            project_sphere_view(&crossing, &p, aspect).unwrap(),
             ScreenProjection::TouchesNearPlane
         );
     }
@@ -405,9 +430,9 @@ mod tests {
     #[test]
     fn non_affine_view_is_an_error() {
         let p = reverse_inf();
-        let b = Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)).unwrap();
+        let b = Aabb::try_new(Vec3::splat(-1.0), Vec3::splat(1.0)).unwrap();
         assert!(matches!(
-            project_aabb(&b, &p.matrix(), &p),
+            project_aabb(&b, &p.matrix(WIDE), &p, WIDE),
             Err(CullError::InvalidProjection { .. })
         ));
     }

@@ -13,20 +13,42 @@ use crate::CullError;
 /// `maxImageDimension2D`.
 pub const MAX_EXTENT_PX: u32 = 16384;
 
-/// A validated 2D extent in pixels (both sides in 1..=[`MAX_EXTENT_PX`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct Extent2d {
-    width_px: u32,
-    height_px: u32,
+pub use tilegraph_types::Extent2d;
+
+/// The culling references' checks on the shared [`Extent2d`], which any pair of sides can
+/// build: every entry point that takes an extent validates it (both sides in
+/// 1..=[`MAX_EXTENT_PX`]) with [`ExtentExt::validate`], and the constructors here validate
+/// at once. A trait because the type lives in tilegraph-types, which knows no [`CullError`].
+pub trait ExtentExt: Sized {
+    /// A validated extent, reported as `"extent"` in errors.
+    fn try_new(width_px: u32, height_px: u32) -> Result<Self, CullError>;
+
+    /// Like [`ExtentExt::try_new`], with the name errors report.
+    fn named(what: &'static str, width_px: u32, height_px: u32) -> Result<Self, CullError>;
+
+    /// Both sides in 1..=[`MAX_EXTENT_PX`]; `what` names the extent in the error.
+    fn validate(&self, what: &'static str) -> Result<(), CullError>;
+
+    /// The length of a row-major buffer of one value per pixel.
+    fn buffer_len(&self) -> usize;
+
+    /// Checks that a row-major buffer matches this extent.
+    fn check_len(&self, what: &'static str, len: usize) -> Result<(), CullError>;
 }
 
-impl Extent2d {
-    pub fn new(width_px: u32, height_px: u32) -> Result<Self, CullError> {
+impl ExtentExt for Extent2d {
+    fn try_new(width_px: u32, height_px: u32) -> Result<Self, CullError> {
         Extent2d::named("extent", width_px, height_px)
     }
 
-    /// Like [`Extent2d::new`], with the name errors report.
-    pub fn named(what: &'static str, width_px: u32, height_px: u32) -> Result<Self, CullError> {
+    fn named(what: &'static str, width_px: u32, height_px: u32) -> Result<Self, CullError> {
+        let extent = Extent2d::new(width_px, height_px);
+        extent.validate(what)?;
+        Ok(extent)
+    }
+
+    fn validate(&self, what: &'static str) -> Result<(), CullError> {
+        let (width_px, height_px) = (self.width_px, self.height_px);
         if width_px == 0 || height_px == 0 {
             return Err(CullError::ZeroExtent {
                 what,
@@ -42,32 +64,20 @@ impl Extent2d {
                 max_px: MAX_EXTENT_PX,
             });
         }
-        Ok(Extent2d {
-            width_px,
-            height_px,
-        })
+        Ok(())
     }
 
-    pub fn width_px(&self) -> u32 {
-        self.width_px
-    }
-
-    pub fn height_px(&self) -> u32 {
-        self.height_px
-    }
-
-    pub fn pixel_count(&self) -> usize {
+    fn buffer_len(&self) -> usize {
         self.width_px as usize * self.height_px as usize
     }
 
-    /// Checks that a row-major buffer matches this extent.
-    pub fn check_len(&self, what: &'static str, len: usize) -> Result<(), CullError> {
-        if len == self.pixel_count() {
+    fn check_len(&self, what: &'static str, len: usize) -> Result<(), CullError> {
+        if len == self.buffer_len() {
             Ok(())
         } else {
             Err(CullError::BufferSizeMismatch {
                 what,
-                expected_len: self.pixel_count(),
+                expected_len: self.buffer_len(),
                 actual_len: len,
             })
         }
@@ -107,6 +117,7 @@ impl NdcRect {
     /// sub-pixel vertex snapping and any rounding in the rect itself: an object can only cover
     /// pixels whose centres lie inside its projected silhouette, and those are all included.
     pub fn to_pixel_rect(&self, extent: Extent2d) -> Result<PixelRect, CullError> {
+        extent.validate("screen extent")?;
         for (field, v) in [("rect_ndc.min", self.min), ("rect_ndc.max", self.max)] {
             for c in v.to_array() {
                 crate::check::finite_f32("ndc rect", field, c)?;
@@ -172,12 +183,13 @@ impl PixelRect {
         Ok(())
     }
 
-    /// Clamps to `[0, extent - 1]`; a rect with no pixel on screen is `OffScreen`.
+    /// Clamps to `[0, extent - 1]`; a rect with no pixel on screen is `OffScreen` (so is every
+    /// rect on a screen with no pixel: an empty extent has no `extent - 1` to clamp to).
     pub fn clamp_to(&self, extent: Extent2d) -> ClampedRect {
-        let (w, h) = (extent.width_px as i64, extent.height_px as i64);
+        let (w, h) = (i64::from(extent.width_px), i64::from(extent.height_px));
         let (x0, x1) = (i64::from(self.min_x), i64::from(self.max_x));
         let (y0, y1) = (i64::from(self.min_y), i64::from(self.max_y));
-        if x1 < 0 || y1 < 0 || x0 >= w || y0 >= h {
+        if w == 0 || h == 0 || x1 < 0 || y1 < 0 || x0 >= w || y0 >= h {
             return ClampedRect::OffScreen;
         }
         // Each value is in [0, w-1] or [0, h-1] after the clamp, so it fits u32.
@@ -197,18 +209,18 @@ mod tests {
     #[test]
     fn extent_validation() {
         assert!(matches!(
-            Extent2d::new(0, 5),
+            Extent2d::try_new(0, 5),
             Err(CullError::ZeroExtent { .. })
         ));
         assert!(matches!(
-            Extent2d::new(5, 0),
+            Extent2d::try_new(5, 0),
             Err(CullError::ZeroExtent { .. })
         ));
         assert!(matches!(
-            Extent2d::new(MAX_EXTENT_PX + 1, 1),
+            Extent2d::try_new(MAX_EXTENT_PX + 1, 1),
             Err(CullError::ExtentTooLarge { .. })
         ));
-        let e = Extent2d::new(27, 13).unwrap();
+        let e = Extent2d::try_new(27, 13).unwrap();
         assert!(e.check_len("d", 27 * 13).is_ok());
         assert!(matches!(
             e.check_len("d", 27 * 13 - 1),
@@ -222,7 +234,7 @@ mod tests {
 
     #[test]
     fn pixel_centres_map_back_to_their_pixel() {
-        let e = Extent2d::new(27, 13).unwrap();
+        let e = Extent2d::try_new(27, 13).unwrap();
         for py in 0..13u32 {
             for px in 0..27u32 {
                 let ndc = Vec2::new(
@@ -240,7 +252,7 @@ mod tests {
 
     #[test]
     fn full_screen_and_off_screen_rects() {
-        let e = Extent2d::new(4, 3).unwrap();
+        let e = Extent2d::try_new(4, 3).unwrap();
         let full = NdcRect {
             min: Vec2::splat(-1.0),
             max: Vec2::splat(1.0),

@@ -10,14 +10,16 @@ mod support;
 use glam::{DVec3, Mat4, Vec3};
 use support::{look, render_boxes, Render};
 use tilegraph_cull::{
-    project_aabb, project_sphere, Aabb, DepthConvention, DepthFormat, Extent2d, FarPlane, Frustum,
-    FrustumPlane, HizOutcome, HizPyramid, NpotMode, PlaneTest, Projection, SatTest,
+    project_aabb, project_sphere, Aabb, AabbExt, DepthConvention, DepthFormat, Extent2d, ExtentExt,
+    Frustum, FrustumPlane, HizOutcome, HizPyramid, NpotMode, PlaneTest, Projection, SatTest,
     ScreenProjection, Sphere,
 };
 
 struct World {
     view: Mat4,
     projection: Projection,
+    /// The viewport's width / height the projection is used with.
+    aspect: f32,
     extent: Extent2d,
     format: DepthFormat,
     occluders: Vec<Aabb>,
@@ -70,7 +72,7 @@ impl Probe {
 impl World {
     fn new(
         view: Mat4,
-        projection: Projection,
+        (projection, aspect): (Projection, f32),
         (w, h): (u32, u32),
         format: DepthFormat,
         occluders: Vec<Aabb>,
@@ -78,7 +80,8 @@ impl World {
         World {
             view,
             projection,
-            extent: Extent2d::new(w, h).unwrap(),
+            aspect,
+            extent: Extent2d::try_new(w, h).unwrap(),
             format,
             occluders,
         }
@@ -87,21 +90,30 @@ impl World {
     fn probe(&self, object: Aabb) -> Probe {
         let conv = self.projection.depth_convention();
         let frustum =
-            Frustum::from_clip_from_world(&(self.projection.matrix() * self.view), conv).unwrap();
+            Frustum::from_clip_from_world(&(self.projection.matrix(self.aspect) * self.view), conv)
+                .unwrap();
         // HiZ is built from the occluders alone (phase 1 of two-phase occlusion); the exact
         // render includes the object.
         let occ: Render = render_boxes(
             &self.view,
             &self.projection,
+            self.aspect,
             self.extent,
             self.format,
             &self.occluders,
         );
         let mut all = self.occluders.clone();
         all.push(object);
-        let full = render_boxes(&self.view, &self.projection, self.extent, self.format, &all);
+        let full = render_boxes(
+            &self.view,
+            &self.projection,
+            self.aspect,
+            self.extent,
+            self.format,
+            &all,
+        );
         let object_id = self.occluders.len() as u32;
-        let projection = project_aabb(&object, &self.view, &self.projection).unwrap();
+        let projection = project_aabb(&object, &self.view, &self.projection, self.aspect).unwrap();
         let test = |mode| {
             HizPyramid::build(&occ.depth, self.extent, conv, self.format, mode)
                 .unwrap()
@@ -158,7 +170,7 @@ fn forward() -> Mat4 {
 
 /// A slab facing the camera at distance `dist` m (thickness 1% of it), `half` m wide.
 fn wall(dist: f32, half: f32) -> Aabb {
-    Aabb::new(
+    Aabb::try_new(
         Vec3::new(-half, -half, -dist * 1.01),
         Vec3::new(half, half, -dist),
     )
@@ -172,19 +184,26 @@ fn cube(center: Vec3, half: f32) -> Aabb {
 const FOV: f32 = 1.0;
 
 fn reverse_infinite_far() -> Vec<Row> {
-    let p = Projection::tilegraph_default(FOV, 16.0 / 9.0, 0.1).unwrap();
+    let (p, aspect) = (Projection::tilegraph_default(FOV, 0.1), 16.0 / 9.0);
     let w = World::new(
         forward(),
-        p,
+        (p, aspect),
         (160, 90),
         DepthFormat::D32Float,
         vec![wall(10.0, 100.0)],
     );
     let behind = w.probe(cube(Vec3::new(0.0, 0.0, -1e6), 1e4));
-    let open = World::new(forward(), p, (160, 90), DepthFormat::D32Float, vec![])
-        .probe(cube(Vec3::new(0.0, 0.0, -1e6), 1e4));
+    let open = World::new(
+        forward(),
+        (p, aspect),
+        (160, 90),
+        DepthFormat::D32Float,
+        vec![],
+    )
+    .probe(cube(Vec3::new(0.0, 0.0, -1e6), 1e4));
     let f =
-        Frustum::from_clip_from_world(&(p.matrix() * forward()), DepthConvention::Reverse).unwrap();
+        Frustum::from_clip_from_world(&(p.matrix(aspect) * forward()), DepthConvention::Reverse)
+            .unwrap();
     vec![
         row(
             "reverse-Z, infinite far",
@@ -211,25 +230,32 @@ fn reverse_infinite_far() -> Vec<Row> {
 }
 
 fn reverse_finite_far() -> Vec<Row> {
-    let p = Projection::perspective(
-        FOV,
+    let (p, aspect) = (
+        Projection::Perspective {
+            fov_y_rad: FOV,
+            near: 1e-3,
+            far: Some(1e7),
+            depth: DepthConvention::Reverse,
+        },
         16.0 / 9.0,
-        1e-3,
-        FarPlane::Finite { far_m: 1e7 },
-        DepthConvention::Reverse,
-    )
-    .unwrap();
+    );
     let w = World::new(
         forward(),
-        p,
+        (p, aspect),
         (160, 90),
         DepthFormat::D32Float,
         vec![wall(10.0, 100.0)],
     );
     let behind = w.probe(cube(Vec3::new(0.0, 0.0, -5e6), 1e5));
     let beyond = w.probe(cube(Vec3::new(0.0, 0.0, -2e7), 1e5));
-    let open = World::new(forward(), p, (160, 90), DepthFormat::D32Float, vec![])
-        .probe(cube(Vec3::new(0.0, 0.0, -5e6), 1e5));
+    let open = World::new(
+        forward(),
+        (p, aspect),
+        (160, 90),
+        DepthFormat::D32Float,
+        vec![],
+    )
+    .probe(cube(Vec3::new(0.0, 0.0, -5e6), 1e5));
     vec![
         row(
             "reverse-Z, finite far",
@@ -257,17 +283,18 @@ fn reverse_finite_far() -> Vec<Row> {
 
 fn standard_and_ortho() -> Vec<Row> {
     let mut rows = Vec::new();
-    let persp = Projection::perspective(
-        FOV,
+    let (persp, persp_aspect) = (
+        Projection::Perspective {
+            fov_y_rad: FOV,
+            near: 0.1,
+            far: Some(1000.0),
+            depth: DepthConvention::Standard,
+        },
         4.0 / 3.0,
-        0.1,
-        FarPlane::Finite { far_m: 1000.0 },
-        DepthConvention::Standard,
-    )
-    .unwrap();
+    );
     let w = World::new(
         forward(),
-        persp,
+        (persp, persp_aspect),
         (64, 48),
         DepthFormat::D32Float,
         vec![wall(20.0, 100.0)],
@@ -285,10 +312,18 @@ fn standard_and_ortho() -> Vec<Row> {
             && front.visible_px > 0,
     ));
     for conv in [DepthConvention::Standard, DepthConvention::Reverse] {
-        let ortho = Projection::orthographic(40.0, 30.0, 0.0, 500.0, conv).unwrap();
+        let (ortho, ortho_aspect) = (
+            Projection::Orthographic {
+                half_height: 15.0,
+                near: 0.0,
+                far: 500.0,
+                depth: conv,
+            },
+            40.0 / 30.0,
+        );
         let w = World::new(
             forward(),
-            ortho,
+            (ortho, ortho_aspect),
             (64, 48),
             DepthFormat::D32Float,
             vec![wall(20.0, 100.0)],
@@ -314,10 +349,10 @@ fn standard_and_ortho() -> Vec<Row> {
 }
 
 fn tiny_near_plane() -> Vec<Row> {
-    let p = Projection::tilegraph_default(FOV, 1.0, 1e-4).unwrap();
+    let (p, aspect) = (Projection::tilegraph_default(FOV, 1e-4), 1.0);
     let w = World::new(
         forward(),
-        p,
+        (p, aspect),
         (64, 64),
         DepthFormat::D32Float,
         vec![wall(1e-2, 1.0)],
@@ -354,13 +389,21 @@ fn tiny_near_plane() -> Vec<Row> {
 /// The same near-plane cases for spheres (exact tangent-plane projection), against a HiZ of a
 /// wall at 5 m.
 fn spheres() -> Vec<Row> {
-    let p = Projection::tilegraph_default(FOV, 1.0, 0.1).unwrap();
+    let (p, aspect) = (Projection::tilegraph_default(FOV, 0.1), 1.0);
     let view = forward();
-    let extent = Extent2d::new(64, 64).unwrap();
+    let extent = Extent2d::try_new(64, 64).unwrap();
     let frustum =
-        Frustum::from_clip_from_world(&(p.matrix() * view), DepthConvention::Reverse).unwrap();
-    let wall_depth =
-        render_boxes(&view, &p, extent, DepthFormat::D32Float, &[wall(5.0, 50.0)]).depth;
+        Frustum::from_clip_from_world(&(p.matrix(aspect) * view), DepthConvention::Reverse)
+            .unwrap();
+    let wall_depth = render_boxes(
+        &view,
+        &p,
+        aspect,
+        extent,
+        DepthFormat::D32Float,
+        &[wall(5.0, 50.0)],
+    )
+    .depth;
     let hiz = HizPyramid::build(
         &wall_depth,
         extent,
@@ -371,7 +414,7 @@ fn spheres() -> Vec<Row> {
     .unwrap();
     let case = |c: Vec3, r: f32| {
         let s = Sphere::new(c, r).unwrap();
-        let proj = project_sphere(&s, &view, &p).unwrap();
+        let proj = project_sphere(&s, &view, &p, aspect).unwrap();
         (
             frustum.test_sphere(&s).unwrap(),
             proj,
@@ -434,10 +477,10 @@ fn spheres() -> Vec<Row> {
 }
 
 fn camera_inside_and_behind() -> Vec<Row> {
-    let p = Projection::tilegraph_default(FOV, 1.0, 0.1).unwrap();
+    let (p, aspect) = (Projection::tilegraph_default(FOV, 0.1), 1.0);
     let w = World::new(
         forward(),
-        p,
+        (p, aspect),
         (64, 64),
         DepthFormat::D32Float,
         vec![wall(5.0, 50.0)],
@@ -465,22 +508,29 @@ fn camera_inside_and_behind() -> Vec<Row> {
 }
 
 fn zero_extent() -> Vec<Row> {
-    let p = Projection::tilegraph_default(FOV, 1.0, 0.1).unwrap();
-    let point = Aabb::new(Vec3::new(0.5, 0.25, -30.0), Vec3::new(0.5, 0.25, -30.0)).unwrap();
+    let (p, aspect) = (Projection::tilegraph_default(FOV, 0.1), 1.0);
+    let point = Aabb::try_new(Vec3::new(0.5, 0.25, -30.0), Vec3::new(0.5, 0.25, -30.0)).unwrap();
     let hidden = World::new(
         forward(),
-        p,
+        (p, aspect),
         (64, 64),
         DepthFormat::D32Float,
         vec![wall(10.0, 50.0)],
     )
     .probe(point);
-    let open = World::new(forward(), p, (64, 64), DepthFormat::D32Float, vec![]).probe(point);
+    let open = World::new(
+        forward(),
+        (p, aspect),
+        (64, 64),
+        DepthFormat::D32Float,
+        vec![],
+    )
+    .probe(point);
     let rect_px = match open.projection {
         ScreenProjection::Projected(b) => {
             let r = b
                 .rect_ndc
-                .to_pixel_rect(Extent2d::new(64, 64).unwrap())
+                .to_pixel_rect(Extent2d::try_new(64, 64).unwrap())
                 .unwrap();
             ((r.max_x - r.min_x + 1) * (r.max_y - r.min_y + 1)) as u32
         }
@@ -507,8 +557,8 @@ fn zero_extent() -> Vec<Row> {
 /// The caller makes coordinates camera-relative in f64. Compared with the same scene at the
 /// origin, results must be identical; the naive all-f32 world-space path is shown for scale.
 fn large_coordinates() -> Vec<Row> {
-    let p = Projection::tilegraph_default(FOV, 16.0 / 9.0, 0.1).unwrap();
-    let extent = Extent2d::new(1920, 1080).unwrap();
+    let (p, aspect) = (Projection::tilegraph_default(FOV, 0.1), 16.0 / 9.0);
+    let extent = Extent2d::try_new(1920, 1080).unwrap();
     let offset = DVec3::new(1e6 + 0.37, 1e6 - 0.21, -1e6 + 0.55);
     let eye = offset;
     let target_rel = DVec3::new(0.3, -0.1, -1.0);
@@ -525,7 +575,7 @@ fn large_coordinates() -> Vec<Row> {
     let org = |lo: DVec3, hi: DVec3| Aabb::from_world_f64(lo, hi, DVec3::ZERO).unwrap();
     let near_obj = org(object_rel_min, object_rel_max);
 
-    let rect_of = |b: &Aabb, view: &Mat4| match project_aabb(b, view, &p).unwrap() {
+    let rect_of = |b: &Aabb, view: &Mat4| match project_aabb(b, view, &p, aspect).unwrap() {
         ScreenProjection::Projected(pb) => Some(pb.rect_ndc.to_pixel_rect(extent).unwrap()),
         _ => None,
     };
@@ -534,7 +584,7 @@ fn large_coordinates() -> Vec<Row> {
     // Naive: f32 world coordinates and an f32 view matrix with the 1e6 translation.
     let naive_eye = eye.as_vec3();
     let naive_view = Mat4::look_at_rh(naive_eye, naive_eye + target_rel.as_vec3(), Vec3::Y);
-    let naive_obj = Aabb::new(
+    let naive_obj = Aabb::try_new(
         (object_rel_min + offset).as_vec3(),
         (object_rel_max + offset).as_vec3(),
     )
@@ -546,7 +596,7 @@ fn large_coordinates() -> Vec<Row> {
     };
     let w = World::new(
         view_rel,
-        p,
+        (p, aspect),
         (1920, 1080),
         DepthFormat::D32Float,
         vec![far_wall],
@@ -576,12 +626,12 @@ fn viewports() -> Vec<Row> {
         (4096, 1),
     ] {
         let aspect = w as f32 / h as f32;
-        let p = Projection::tilegraph_default(FOV, aspect, 0.1).unwrap();
-        let (sx, _) = p.ndc_scale();
+        let p = Projection::tilegraph_default(FOV, 0.1);
+        let (sx, _) = p.ndc_scale(aspect);
         let dist = 10.0f32;
         // NDC x of the left edge of the last column, as view x at the wall's distance.
         // Half the view's width/height at distance d is d / |scale|; walls reach twice that.
-        let sy = p.ndc_scale().1.abs();
+        let sy = p.ndc_scale(aspect).1.abs();
         let reach = |d: f32| (2.0 * f64::from(d) * (1.0 / sx).max(1.0 / sy)) as f32 + 1.0;
         // NDC x of the left edge of the last column, as view x at the wall's distance.
         let edge_ndc = (w as f64 - 1.0) / w as f64 * 2.0 - 1.0;
@@ -590,14 +640,26 @@ fn viewports() -> Vec<Row> {
         // At 1 px wide there is no "all but the last column": the wall covers everything.
         let wall_box = if w > 1 {
             let r = reach(dist);
-            Aabb::new(Vec3::new(-r, -r, -dist * 1.01), Vec3::new(edge_x, r, -dist)).unwrap()
+            Aabb::try_new(Vec3::new(-r, -r, -dist * 1.01), Vec3::new(edge_x, r, -dist)).unwrap()
         } else {
             full_wall
         };
         let r = reach(60.0);
-        let right = Aabb::new(Vec3::new(-r, -r, -60.0), Vec3::new(r, r, -50.0)).unwrap();
-        let world_gap = World::new(forward(), p, (w, h), DepthFormat::D32Float, vec![wall_box]);
-        let world_full = World::new(forward(), p, (w, h), DepthFormat::D32Float, vec![full_wall]);
+        let right = Aabb::try_new(Vec3::new(-r, -r, -60.0), Vec3::new(r, r, -50.0)).unwrap();
+        let world_gap = World::new(
+            forward(),
+            (p, aspect),
+            (w, h),
+            DepthFormat::D32Float,
+            vec![wall_box],
+        );
+        let world_full = World::new(
+            forward(),
+            (p, aspect),
+            (w, h),
+            DepthFormat::D32Float,
+            vec![full_wall],
+        );
         let through_gap = world_gap.probe(right);
         let behind_full = world_full.probe(right);
         let gap_expected_visible = w > 1;
@@ -632,13 +694,20 @@ fn viewports() -> Vec<Row> {
 
 fn depth_formats() -> Vec<Row> {
     let mut rows = Vec::new();
-    let p = Projection::tilegraph_default(FOV, 1.0, 0.1).unwrap();
+    let (p, aspect) = (Projection::tilegraph_default(FOV, 0.1), 1.0);
     for format in [DepthFormat::D32Float, DepthFormat::D16Unorm] {
-        let w = World::new(forward(), p, (32, 32), format, vec![wall(10.0, 50.0)]);
+        let w = World::new(
+            forward(),
+            (p, aspect),
+            (32, 32),
+            format,
+            vec![wall(10.0, 50.0)],
+        );
         // 1 mm behind the wall's front face: 0.1/10 vs 0.1/10.001, 1e-6 apart: below one D16
         // step (1.5e-5), above D32's resolution.
-        let just_behind =
-            w.probe(Aabb::new(Vec3::new(-0.5, -0.5, -10.2), Vec3::new(0.5, 0.5, -10.001)).unwrap());
+        let just_behind = w.probe(
+            Aabb::try_new(Vec3::new(-0.5, -0.5, -10.2), Vec3::new(0.5, 0.5, -10.001)).unwrap(),
+        );
         let well_behind = w.probe(cube(Vec3::new(0.0, 0.0, -40.0), 1.0));
         let expect_just = format == DepthFormat::D32Float;
         rows.push(row(
@@ -663,7 +732,7 @@ fn depth_formats() -> Vec<Row> {
     // far occluders and far objects collapse onto code 0/1 and cannot cull each other.
     let w = World::new(
         forward(),
-        p,
+        (p, aspect),
         (32, 32),
         DepthFormat::D16Unorm,
         vec![wall(5000.0, 1e5)],
@@ -680,21 +749,28 @@ fn depth_formats() -> Vec<Row> {
 }
 
 fn one_pixel_objects() -> Vec<Row> {
-    let p = Projection::tilegraph_default(FOV, 16.0 / 9.0, 0.1).unwrap();
+    let (p, aspect) = (Projection::tilegraph_default(FOV, 0.1), 16.0 / 9.0);
     let (w, h) = (1920u32, 1080u32);
     // A 1 cm cube at 20 m: about 0.47 px wide.
     let obj = cube(Vec3::new(0.05, 0.03, -20.0), 0.005);
     let hidden = World::new(
         forward(),
-        p,
+        (p, aspect),
         (w, h),
         DepthFormat::D32Float,
         vec![wall(10.0, 50.0)],
     )
     .probe(obj);
-    let open = World::new(forward(), p, (w, h), DepthFormat::D32Float, vec![]).probe(obj);
+    let open = World::new(
+        forward(),
+        (p, aspect),
+        (w, h),
+        DepthFormat::D32Float,
+        vec![],
+    )
+    .probe(obj);
     // A wall with a one-pixel hole exactly where the object is.
-    let (sx, sy) = p.ndc_scale();
+    let (sx, sy) = p.ndc_scale(aspect);
     let mut holed = Vec::new();
     let px = |x: f64| ((x + 1.0) * 0.5 * f64::from(w)).floor();
     let py = |y: f64| ((y + 1.0) * 0.5 * f64::from(h)).floor();
@@ -707,11 +783,12 @@ fn one_pixel_objects() -> Vec<Row> {
     let (ya, yb) = (to_y(cy), to_y(cy + 1.0));
     let (y0, y1) = (ya.min(yb), ya.max(yb));
     let z = (-10.1, -10.0);
-    holed.push(Aabb::new(Vec3::new(-50.0, -50.0, z.0), Vec3::new(x0, 50.0, z.1)).unwrap());
-    holed.push(Aabb::new(Vec3::new(x1, -50.0, z.0), Vec3::new(50.0, 50.0, z.1)).unwrap());
-    holed.push(Aabb::new(Vec3::new(x0, -50.0, z.0), Vec3::new(x1, y0, z.1)).unwrap());
-    holed.push(Aabb::new(Vec3::new(x0, y1, z.0), Vec3::new(x1, 50.0, z.1)).unwrap());
-    let through_hole = World::new(forward(), p, (w, h), DepthFormat::D32Float, holed).probe(obj);
+    holed.push(Aabb::try_new(Vec3::new(-50.0, -50.0, z.0), Vec3::new(x0, 50.0, z.1)).unwrap());
+    holed.push(Aabb::try_new(Vec3::new(x1, -50.0, z.0), Vec3::new(50.0, 50.0, z.1)).unwrap());
+    holed.push(Aabb::try_new(Vec3::new(x0, -50.0, z.0), Vec3::new(x1, y0, z.1)).unwrap());
+    holed.push(Aabb::try_new(Vec3::new(x0, y1, z.0), Vec3::new(x1, 50.0, z.1)).unwrap());
+    let through_hole =
+        World::new(forward(), (p, aspect), (w, h), DepthFormat::D32Float, holed).probe(obj);
     vec![
         row(
             "one-pixel object",

@@ -5,17 +5,31 @@ use glam::{Affine3A, DVec3, EulerRot, Mat4, Quat, Vec3};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use tilegraph_cull::{Aabb, DepthConvention, FarPlane, Frustum, Obb, Projection};
+use tilegraph_cull::{Aabb, AabbExt, DepthConvention, Frustum, Obb, Projection};
 
-fn projection(kind: u8) -> Projection {
+/// A projection and the aspect of the viewport it is used on.
+fn projection(kind: u8) -> (Projection, f32) {
     let (s, r) = (DepthConvention::Standard, DepthConvention::Reverse);
+    let perspective = |fov_y_rad, near, far, depth| Projection::Perspective {
+        fov_y_rad,
+        near,
+        far,
+        depth,
+    };
+    let orthographic = |half_height, near, far, depth| Projection::Orthographic {
+        half_height,
+        near,
+        far,
+        depth,
+    };
     match kind % 6 {
-        0 => Projection::tilegraph_default(1.1, 1.6, 0.1).unwrap(),
-        1 => Projection::perspective(0.8, 1.0, 0.05, FarPlane::Finite { far_m: 60.0 }, r).unwrap(),
-        2 => Projection::perspective(1.4, 2.0, 0.5, FarPlane::Finite { far_m: 40.0 }, s).unwrap(),
-        3 => Projection::perspective(0.5, 0.7, 0.01, FarPlane::Infinite, s).unwrap(),
-        4 => Projection::orthographic(30.0, 20.0, -5.0, 50.0, s).unwrap(),
-        _ => Projection::orthographic(12.0, 24.0, 1.0, 30.0, r).unwrap(),
+        0 => (Projection::tilegraph_default(1.1, 0.1), 1.6),
+        1 => (perspective(0.8, 0.05, Some(60.0), r), 1.0),
+        2 => (perspective(1.4, 0.5, Some(40.0), s), 2.0),
+        3 => (perspective(0.5, 0.01, None, s), 0.7),
+        // 30 m x 20 m and 12 m x 24 m.
+        4 => (orthographic(10.0, -5.0, 50.0, s), 1.5),
+        _ => (orthographic(12.0, 1.0, 30.0, r), 0.5),
     }
 }
 
@@ -26,14 +40,14 @@ struct Setup {
 }
 
 fn setup(kind: u8, eye: [f32; 3], yaw: f32, pitch: f32, roll: f32) -> Setup {
-    let p = projection(kind);
+    let (p, aspect) = projection(kind);
     let eye = Vec3::from(eye);
     let rot = Quat::from_euler(EulerRot::YXZ, yaw, pitch, roll);
     let forward = rot * Vec3::NEG_Z;
     let up = rot * Vec3::Y;
     let view = Mat4::look_at_rh(eye, eye + forward, up);
     let frustum =
-        Frustum::from_clip_from_world(&(p.matrix() * view), p.depth_convention()).unwrap();
+        Frustum::from_clip_from_world(&(p.matrix(aspect) * view), p.depth_convention()).unwrap();
     Setup {
         frustum,
         eye,

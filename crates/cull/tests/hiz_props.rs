@@ -6,8 +6,8 @@ use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use tilegraph_cull::{
-    exact_is_occluded, DepthConvention, DepthFormat, Extent2d, HizOutcome, HizPyramid, NpotMode,
-    PixelRect,
+    exact_is_occluded, DepthConvention, DepthFormat, Extent2d, ExtentExt, HizOutcome, HizPyramid,
+    NpotMode, PixelRect,
 };
 
 fn convention() -> impl Strategy<Value = DepthConvention> {
@@ -30,7 +30,7 @@ fn format() -> impl Strategy<Value = DepthFormat> {
 /// flat regions (where culling happens) and single-pixel holes (where NPOT bugs show) occur.
 fn depth_buffer(w: u32, h: u32, seed: u64, conv: DepthConvention, format: DepthFormat) -> Vec<f32> {
     let mut rng = Pcg64::seed_from_u64(seed);
-    let mut depth = vec![conv.far_clear_value(); (w * h) as usize];
+    let mut depth = vec![conv.far_depth(); (w * h) as usize];
     let rects = rng.random_range(0..12u32);
     for _ in 0..rects {
         let x0 = rng.random_range(0..w);
@@ -68,7 +68,7 @@ proptest! {
         w in 1u32..=300, h in 1u32..=300, seed in any::<u64>(),
         conv in convention(), mode in fixed_mode(), format in format(),
     ) {
-        let extent = Extent2d::new(w, h).unwrap();
+        let extent = Extent2d::try_new(w, h).unwrap();
         let depth = depth_buffer(w, h, seed, conv, format);
         let hiz = HizPyramid::build(&depth, extent, conv, format, mode).unwrap();
         let mut rng = Pcg64::seed_from_u64(seed ^ 0x9e37_79b9_7f4a_7c15);
@@ -105,16 +105,16 @@ proptest! {
         w in 1u32..=300, h in 1u32..=300, seed in any::<u64>(),
         conv in convention(), mode in fixed_mode(),
     ) {
-        let extent = Extent2d::new(w, h).unwrap();
+        let extent = Extent2d::try_new(w, h).unwrap();
         let depth = depth_buffer(w, h, seed, conv, DepthFormat::D32Float);
         let hiz = HizPyramid::build(&depth, extent, conv, DepthFormat::D32Float, mode).unwrap();
         let last = hiz.levels().last().unwrap();
-        prop_assert_eq!((last.extent().width_px(), last.extent().height_px()), (1, 1));
+        prop_assert_eq!((last.extent().width_px, last.extent().height_px), (1, 1));
         let global_far = depth.iter().copied().fold(depth[0], |a, b| conv.farther(a, b));
         prop_assert_eq!(last.texels()[0], global_far);
         for (k, level) in hiz.levels().iter().enumerate() {
-            let lw = level.extent().width_px();
-            for ty in 0..level.extent().height_px() {
+            let lw = level.extent().width_px;
+            for ty in 0..level.extent().height_px {
                 for tx in 0..lw {
                     let f = hiz.footprint(k as u32, UVec2::new(tx, ty)).unwrap();
                     let mut far = depth[(f.min_y * w + f.min_x) as usize];
@@ -143,7 +143,7 @@ proptest! {
 #[test]
 fn naive_reduction_breaks_the_invariant_somewhere_on_27x13() {
     let (w, h) = (27u32, 13u32);
-    let extent = Extent2d::new(w, h).unwrap();
+    let extent = Extent2d::try_new(w, h).unwrap();
     let conv = DepthConvention::Reverse;
     let mut violations = 0;
     for seed in 0..20u64 {
@@ -157,7 +157,7 @@ fn naive_reduction_breaks_the_invariant_somewhere_on_27x13() {
         )
         .unwrap();
         for level in hiz.levels() {
-            let lw = level.extent().width_px();
+            let lw = level.extent().width_px;
             for py in 0..h {
                 for px in 0..w {
                     let t = level.texel_of_pixel(UVec2::new(px, py));
@@ -180,7 +180,7 @@ fn naive_reduction_breaks_the_invariant_somewhere_on_27x13() {
 #[test]
 fn hiz_does_cull_behind_a_full_screen_wall() {
     for (w, h) in [(1u32, 1u32), (2, 1), (3, 3), (27, 13), (300, 7), (1, 300)] {
-        let extent = Extent2d::new(w, h).unwrap();
+        let extent = Extent2d::try_new(w, h).unwrap();
         for conv in [DepthConvention::Standard, DepthConvention::Reverse] {
             let (wall, behind) = match conv {
                 DepthConvention::Standard => (0.4, 0.6),

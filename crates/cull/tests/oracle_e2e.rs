@@ -11,22 +11,39 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use support::{render_boxes, BACKGROUND_ID};
 use tilegraph_cull::{
-    project_aabb, visible_set_from_id_buffer, Aabb, CullStats, DepthConvention, DepthFormat,
-    Extent2d, FarPlane, Frustum, HizPyramid, InstanceSet, NpotMode, Projection,
+    project_aabb, visible_set_from_id_buffer, Aabb, AabbExt, CullStats, DepthConvention,
+    DepthFormat, Extent2d, ExtentExt, Frustum, HizPyramid, InstanceSet, NpotMode, Projection,
 };
 
-fn projection(kind: u32, aspect: f32) -> Projection {
+/// A projection used on a viewport of any aspect (the orthographic ones are 30 and 40 m tall).
+fn projection(kind: u32) -> Projection {
     let (s, r) = (DepthConvention::Standard, DepthConvention::Reverse);
     match kind % 5 {
-        0 => Projection::tilegraph_default(1.0, aspect, 0.1).unwrap(),
-        1 => {
-            Projection::perspective(1.2, aspect, 0.05, FarPlane::Finite { far_m: 80.0 }, r).unwrap()
-        }
-        2 => {
-            Projection::perspective(0.9, aspect, 0.2, FarPlane::Finite { far_m: 120.0 }, s).unwrap()
-        }
-        3 => Projection::orthographic(30.0 * aspect, 30.0, -10.0, 100.0, s).unwrap(),
-        _ => Projection::orthographic(40.0 * aspect, 40.0, 0.0, 90.0, r).unwrap(),
+        0 => Projection::tilegraph_default(1.0, 0.1),
+        1 => Projection::Perspective {
+            fov_y_rad: 1.2,
+            near: 0.05,
+            far: Some(80.0),
+            depth: r,
+        },
+        2 => Projection::Perspective {
+            fov_y_rad: 0.9,
+            near: 0.2,
+            far: Some(120.0),
+            depth: s,
+        },
+        3 => Projection::Orthographic {
+            half_height: 15.0,
+            near: -10.0,
+            far: 100.0,
+            depth: s,
+        },
+        _ => Projection::Orthographic {
+            half_height: 20.0,
+            near: 0.0,
+            far: 90.0,
+            depth: r,
+        },
     }
 }
 
@@ -47,8 +64,8 @@ fn run_scene(seed: u64) -> Outcome {
         (96, 7),
     ];
     let (w, h) = sizes[rng.random_range(0..sizes.len())];
-    let extent = Extent2d::new(w, h).unwrap();
-    let p = projection(rng.random_range(0..5), w as f32 / h as f32);
+    let extent = Extent2d::try_new(w, h).unwrap();
+    let (p, aspect) = (projection(rng.random_range(0..5)), w as f32 / h as f32);
     let conv = p.depth_convention();
     let format = if rng.random_range(0..2u32) == 0 {
         DepthFormat::D32Float
@@ -102,9 +119,9 @@ fn run_scene(seed: u64) -> Outcome {
             Aabb::from_center_half_extents(c, half).unwrap()
         })
         .collect();
-    let render = render_boxes(&view, &p, extent, format, &boxes);
+    let render = render_boxes(&view, &p, aspect, extent, format, &boxes);
     let visible = visible_set_from_id_buffer(&render.ids, BACKGROUND_ID);
-    let frustum = Frustum::from_clip_from_world(&(p.matrix() * view), conv).unwrap();
+    let frustum = Frustum::from_clip_from_world(&(p.matrix(aspect) * view), conv).unwrap();
     let mut stats = Vec::new();
     for mode in [NpotMode::EdgeAware, NpotMode::PadToPow2] {
         let hiz = HizPyramid::build(&render.depth, extent, conv, format, mode).unwrap();
@@ -114,7 +131,7 @@ fn run_scene(seed: u64) -> Outcome {
             .filter(|(_, b)| {
                 !frustum.test_aabb(b).unwrap().is_outside()
                     && !hiz
-                        .test_projection(&project_aabb(b, &view, &p).unwrap())
+                        .test_projection(&project_aabb(b, &view, &p, aspect).unwrap())
                         .unwrap()
                         .is_culled()
             })

@@ -5,25 +5,39 @@
 use glam::{DVec3, EulerRot, Mat4, Quat, Vec3};
 use proptest::prelude::*;
 use tilegraph_cull::{
-    project_aabb, project_sphere_view, Aabb, DepthConvention, FarPlane, Projection,
+    project_aabb, project_sphere_view, Aabb, AabbExt, DepthConvention, Projection,
     ScreenProjection, Sphere,
 };
 
-fn projection(kind: u8) -> Projection {
+/// A projection and the aspect of the viewport it is used on.
+fn projection(kind: u8) -> (Projection, f32) {
     let (s, r) = (DepthConvention::Standard, DepthConvention::Reverse);
+    let perspective = |fov_y_rad, near, far, depth| Projection::Perspective {
+        fov_y_rad,
+        near,
+        far,
+        depth,
+    };
+    let orthographic = |half_height, near, far, depth| Projection::Orthographic {
+        half_height,
+        near,
+        far,
+        depth,
+    };
     match kind % 6 {
-        0 => Projection::tilegraph_default(1.1, 1.6, 0.1).unwrap(),
-        1 => Projection::perspective(0.8, 1.0, 1e-4, FarPlane::Finite { far_m: 1e7 }, r).unwrap(),
-        2 => Projection::perspective(1.4, 2.0, 0.5, FarPlane::Finite { far_m: 400.0 }, s).unwrap(),
-        3 => Projection::perspective(0.5, 0.7, 0.01, FarPlane::Infinite, s).unwrap(),
-        4 => Projection::orthographic(30.0, 20.0, -5.0, 500.0, s).unwrap(),
-        _ => Projection::orthographic(12.0, 24.0, 1.0, 300.0, r).unwrap(),
+        0 => (Projection::tilegraph_default(1.1, 0.1), 1.6),
+        1 => (perspective(0.8, 1e-4, Some(1e7), r), 1.0),
+        2 => (perspective(1.4, 0.5, Some(400.0), s), 2.0),
+        3 => (perspective(0.5, 0.01, None, s), 0.7),
+        // 30 m x 20 m and 12 m x 24 m.
+        4 => (orthographic(10.0, -5.0, 500.0, s), 1.5),
+        _ => (orthographic(12.0, 1.0, 300.0, r), 0.5),
     }
 }
 
 /// NDC x, y of a view-space point, and its view distance.
-fn project_point(p: &Projection, v: DVec3) -> (f64, f64, f64) {
-    let (sx, sy) = p.ndc_scale();
+fn project_point(p: &Projection, aspect: f32, v: DVec3) -> (f64, f64, f64) {
+    let (sx, sy) = p.ndc_scale(aspect);
     let dist = -v.z;
     let w = if p.is_perspective() { dist } else { 1.0 };
     (sx * v.x / w, sy * v.y / w, dist)
@@ -56,16 +70,16 @@ proptest! {
         c in prop::array::uniform3(-60.0f32..60.0),
         r in 0.0f32..20.0,
     ) {
-        let p = projection(kind);
+        let (p, aspect) = projection(kind);
         let s = Sphere::new(Vec3::from(c), r).unwrap();
         let center = s.center.as_dvec3();
         let radius = f64::from(r);
-        let near = f64::from(p.near_m());
-        match project_sphere_view(&s, &p).unwrap() {
+        let near = f64::from(p.near());
+        match project_sphere_view(&s, &p, aspect).unwrap() {
             ScreenProjection::Projected(b) => {
                 let conv = p.depth_convention();
                 for q in sphere_points(center, radius, 120) {
-                    let (x, y, dist) = project_point(&p, q);
+                    let (x, y, dist) = project_point(&p, aspect, q);
                     prop_assert!(dist >= near * (1.0 - 1e-12));
                     let eps = 1e-9 * (1.0 + x.abs().max(y.abs()));
                     prop_assert!(x >= f64::from(b.rect_ndc.min.x) - eps && x <= f64::from(b.rect_ndc.max.x) + eps);
@@ -78,7 +92,7 @@ proptest! {
                 // perspective, parallel to the view axis for orthographic) that touches the
                 // sphere. Checked analytically: sampling is useless near grazing angles, where
                 // NDC changes arbitrarily fast along the surface.
-                let (sx, sy) = p.ndc_scale();
+                let (sx, sy) = p.ndc_scale(aspect);
                 for (edge, scale, coord) in [
                     (b.rect_ndc.min.x, sx, center.x),
                     (b.rect_ndc.max.x, sx, center.x),
@@ -113,7 +127,7 @@ proptest! {
         half in prop::array::uniform3(0.0f32..10.0),
         samples in prop::collection::vec(prop::array::uniform3(-1.0f64..=1.0), 40),
     ) {
-        let p = projection(kind);
+        let (p, aspect) = projection(kind);
         let rot = Quat::from_euler(EulerRot::YXZ, yaw, pitch, 0.0);
         let eye = Vec3::from(eye);
         let view = Mat4::look_at_rh(eye, eye + rot * Vec3::NEG_Z, rot * Vec3::Y);
@@ -123,12 +137,12 @@ proptest! {
         let mut pts: Vec<DVec3> = b.corners().iter().map(|q| q.as_dvec3()).collect();
         pts.extend(samples.iter().map(|s| bc + bh * DVec3::from(*s)));
         let view_pts: Vec<DVec3> = pts.iter().map(|q| view64.transform_point3(*q)).collect();
-        let near = f64::from(p.near_m());
-        match project_aabb(&b, &view, &p).unwrap() {
+        let near = f64::from(p.near());
+        match project_aabb(&b, &view, &p, aspect).unwrap() {
             ScreenProjection::Projected(pb) => {
                 let conv = p.depth_convention();
                 for v in &view_pts {
-                    let (x, y, dist) = project_point(&p, *v);
+                    let (x, y, dist) = project_point(&p, aspect, *v);
                     // The view matrix is f32: allow its rounding (relative 1e-6 of the coordinates).
                     let eps = 1e-5 * (1.0 + x.abs().max(y.abs()));
                     prop_assert!(dist >= near - 1e-5 * (1.0 + dist.abs()));

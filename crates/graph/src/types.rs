@@ -7,63 +7,9 @@
 
 use std::fmt;
 
-/// Width and height of an image or render area, in pixels.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct Extent2d {
-    pub width_px: u32,
-    pub height_px: u32,
-}
-
-impl Extent2d {
-    pub const fn new(width_px: u32, height_px: u32) -> Self {
-        Self {
-            width_px,
-            height_px,
-        }
-    }
-
-    pub const fn pixel_count(self) -> u64 {
-        self.width_px as u64 * self.height_px as u64
-    }
-
-    /// Extent of mip `level` (each side halves, rounding down, never below 1).
-    pub const fn mip(self, level: u32) -> Self {
-        let w = if level >= 32 {
-            0
-        } else {
-            self.width_px >> level
-        };
-        let h = if level >= 32 {
-            0
-        } else {
-            self.height_px >> level
-        };
-        Self {
-            width_px: if w == 0 { 1 } else { w },
-            height_px: if h == 0 { 1 } else { h },
-        }
-    }
-
-    /// Length of the full mip chain down to 1x1.
-    pub const fn full_mip_count(self) -> u32 {
-        let max = if self.width_px > self.height_px {
-            self.width_px
-        } else {
-            self.height_px
-        };
-        if max == 0 {
-            0
-        } else {
-            32 - max.leading_zeros()
-        }
-    }
-}
-
-impl fmt::Display for Extent2d {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}x{}", self.width_px, self.height_px)
-    }
-}
+/// Extents are shared with the culling references and the scene passes, so the type lives in
+/// tilegraph-types; the graph's paths (`tilegraph_graph::Extent2d`) keep naming it.
+pub use tilegraph_types::Extent2d;
 
 /// Image formats the graph knows the size of. Names and `vk_raw()` values are Vulkan's `VkFormat`.
 #[allow(non_camel_case_types)]
@@ -642,16 +588,6 @@ mod tests {
         assert_eq!(Format::D24_UNORM_S8_UINT.bytes_per_pixel(), 4);
         assert!(!Format::D32_SFLOAT.has_stencil());
         assert!(!Format::R32_UINT.is_depth_stencil());
-    }
-
-    #[test]
-    fn mips_round_down_and_stop_at_one() {
-        let e = Extent2d::new(27, 13);
-        assert_eq!(e.full_mip_count(), 5);
-        assert_eq!(e.mip(1), Extent2d::new(13, 6));
-        assert_eq!(e.mip(4), Extent2d::new(1, 1));
-        assert_eq!(e.mip(40), Extent2d::new(1, 1));
-        assert_eq!(Extent2d::new(1, 1).full_mip_count(), 1);
     }
 
     #[test]

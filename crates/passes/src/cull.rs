@@ -9,7 +9,7 @@
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
-use tilegraph_cull::Frustum;
+use tilegraph_cull::{AabbExt, Frustum};
 use tilegraph_graph::{
     AccessFlags, BufferId, Import, InitialContent, PassClass, PipelineStages, ResourceState,
 };
@@ -27,7 +27,7 @@ pub use crate::setup::Culling;
 
 use crate::draws::DrawList;
 use crate::frame::{scene_set, DrawSource, FrameGraph, PassState, Payload};
-use crate::hiz::{cull_convention, HizState, PyramidInfo};
+use crate::hiz::{HizState, PyramidInfo};
 
 /// The culling buffers in one frame's graph. They live as long as the renderer (visibility and
 /// the pyramid carry over from frame to frame, tools read the drawn set back), so each frame
@@ -196,11 +196,9 @@ pub enum Phase {
 /// infinite projection becomes a plane every point passes).
 pub fn gpu_planes(view_proj: Mat4, convention: DepthConvention) -> Result<[[f32; 4]; 6], VkError> {
     let f =
-        Frustum::from_clip_from_world(&view_proj, cull_convention(convention)).map_err(|e| {
-            VkError::Invalid {
-                what: "frustum".into(),
-                reason: e.to_string(),
-            }
+        Frustum::from_clip_from_world(&view_proj, convention).map_err(|e| VkError::Invalid {
+            what: "frustum".into(),
+            reason: e.to_string(),
         })?;
     Ok(f.gpu_planes().map(|p| p.to_array()))
 }
@@ -631,8 +629,7 @@ pub fn cpu_frustum_mask(
         what: "frustum".into(),
         reason: e.to_string(),
     };
-    let frustum = Frustum::from_clip_from_world(&m.view_projection, cull_convention(m.depth))
-        .map_err(invalid)?;
+    let frustum = Frustum::from_clip_from_world(&m.view_projection, m.depth).map_err(invalid)?;
     scene
         .instances()
         .iter()

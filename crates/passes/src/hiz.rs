@@ -14,10 +14,9 @@
 //! range the mode's rule picks ([`ReduceRule`]). A buffer barrier separates consecutive levels.
 
 use bytemuck::{Pod, Zeroable};
-use tilegraph_cull::{level_extents, Extent2d};
+use tilegraph_cull::{level_extents, Extent2d, ExtentExt};
 use tilegraph_graph::{BufferId, ImageId, PassClass};
 use tilegraph_profile::MemoryUse;
-use tilegraph_scene::DepthConvention as SceneDepth;
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::BufferHandle;
 use tilegraph_vk::pipeline::{
@@ -48,7 +47,7 @@ pub fn add_hiz_build(g: &mut FrameGraph, depth: ImageId, pyramid: BufferId) -> H
         let convention = res.frame.depth;
         let hiz = res.states.require_mut::<HizState>(pc.pass_name)?;
         // The stored layout follows the frame, for whoever reads the pyramid back.
-        hiz.layout.convention = cull_convention(convention);
+        hiz.layout.convention = convention;
         // The graph samples depth formats in DEPTH_STENCIL_READ_ONLY_OPTIMAL.
         let source = SampledDepth {
             view,
@@ -77,7 +76,7 @@ pub struct HizState {
     /// built). Single-phase HiZ tests a frame against the previous frame's pyramid only when
     /// the conventions agree: a pyramid of the other convention holds the wrong extreme of each
     /// footprint, and its reprojection maps depth the other way.
-    pub built_from: Option<SceneDepth>,
+    pub built_from: Option<DepthConvention>,
 }
 
 impl HizState {
@@ -86,15 +85,10 @@ impl HizState {
         ctx: &Context,
         extent_px: (u32, u32),
         mode: NpotMode,
-        depth: SceneDepth,
+        depth: DepthConvention,
         frames_in_flight: usize,
     ) -> Result<Self, VkError> {
-        let layout = HizLayout::new(
-            extent_px,
-            mode,
-            cull_convention(depth),
-            DepthFormat::D32Float,
-        )?;
+        let layout = HizLayout::new(extent_px, mode, depth, DepthFormat::D32Float)?;
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let pyramid = ctx.create_buffer(
             "hiz pyramid",
@@ -134,7 +128,7 @@ pub struct PyramidInfo {
     /// Level 0's size.
     pub extent_px: (u32, u32),
     /// The convention of the depth it was last built from.
-    pub built_from: Option<SceneDepth>,
+    pub built_from: Option<DepthConvention>,
 }
 
 impl HizState {
@@ -152,14 +146,6 @@ impl PassState for HizState {
         self.builder.destroy(ctx);
         ctx.destroy_buffer(self.pyramid);
         ctx.destroy_buffer(self.levels);
-    }
-}
-
-/// The culling crate's name for a scene's depth convention.
-pub(crate) fn cull_convention(c: SceneDepth) -> DepthConvention {
-    match c {
-        SceneDepth::Reverse => DepthConvention::Reverse,
-        SceneDepth::Standard => DepthConvention::Standard,
     }
 }
 
@@ -312,18 +298,16 @@ impl HizLayout {
         let extent = Extent2d::named("depth extent", extent_px.0, extent_px.1)
             .map_err(|e| invalid(e.to_string()))?;
         let extents = level_extents(extent, mode);
-        let (w, h) = (extent.width_px(), extent.height_px());
-        let (pw, ph) = extents
-            .get(1)
-            .map_or((w, h), |e| (e.width_px(), e.height_px()));
+        let (w, h) = (extent.width_px, extent.height_px);
+        let (pw, ph) = extents.get(1).map_or((w, h), |e| (e.width_px, e.height_px));
         let mut levels = Vec::with_capacity(extents.len());
         let mut offset = 0u64;
         for (k, e) in extents.iter().enumerate() {
             let k = k as u32;
             let info = HizLevelInfo {
                 offset_texels: offset,
-                width: e.width_px(),
-                height: e.height_px(),
+                width: e.width_px,
+                height: e.height_px,
                 scale_x: axis_scale(mode, k, w, pw),
                 scale_y: axis_scale(mode, k, h, ph),
                 rule: match (mode, k) {

@@ -1,50 +1,12 @@
-//! Axis-aligned boxes and spheres, in f32 (mesh-local) and f64 (world).
+//! Axis-aligned boxes and spheres: f32 [`Aabb`] (mesh-local, from tilegraph-types) and f64
+//! [`DAabb`], [`DSphere`] (world).
 
 use glam::{DVec3, Mat3, Vec3};
 use serde::Serialize;
 
-/// An axis-aligned box in f32, used for mesh-local bounds (small coordinates).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct Aabb {
-    pub min: Vec3,
-    pub max: Vec3,
-}
-
-impl Aabb {
-    /// The empty box: min = +inf, max = -inf, so that any point extends it.
-    pub const EMPTY: Aabb = Aabb {
-        min: Vec3::splat(f32::INFINITY),
-        max: Vec3::splat(f32::NEG_INFINITY),
-    };
-
-    pub fn new(min: Vec3, max: Vec3) -> Self {
-        Aabb { min, max }
-    }
-
-    pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Self {
-        points.into_iter().fold(Aabb::EMPTY, |b, p| b.including(p))
-    }
-
-    #[must_use]
-    pub fn including(self, p: Vec3) -> Self {
-        Aabb {
-            min: self.min.min(p),
-            max: self.max.max(p),
-        }
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.min.cmpgt(self.max).any()
-    }
-
-    pub fn center(&self) -> Vec3 {
-        (self.min + self.max) * 0.5
-    }
-
-    pub fn half_extents(&self) -> Vec3 {
-        (self.max - self.min) * 0.5
-    }
-}
+/// The f32 box (mesh-local bounds) is shared with the culling references, so it lives in
+/// tilegraph-types; the f64 world types below are the scene's own.
+pub use tilegraph_types::Aabb;
 
 /// An axis-aligned box in f64, used for world bounds (coordinates may be large).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -179,13 +141,5 @@ mod tests {
             );
         }
         assert!(f64::from(r) <= half.as_dvec3().length() + 1e-4);
-    }
-
-    #[test]
-    fn empty_box_grows_to_points() {
-        let b = Aabb::from_points([Vec3::ONE, -Vec3::ONE]);
-        assert!(!b.is_empty());
-        assert!(Aabb::EMPTY.is_empty());
-        assert_eq!(b.center(), Vec3::ZERO);
     }
 }

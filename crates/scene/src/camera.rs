@@ -7,214 +7,65 @@
 //!   y = -1 is the top row of the image;
 //! - the default projection is reverse-Z with an infinite far plane (near -> depth 1,
 //!   infinity -> depth 0). [`DepthConvention`] tells culling code which compare to use.
+//!
+//! [`Projection`] and [`DepthConvention`] are tilegraph-types', shared with the culling
+//! references; the checks a camera path applies to them are here.
 
 use std::path::Path;
 
-use glam::{DMat4, DVec3, Mat4, Vec3, Vec4};
+use glam::{DMat4, DVec3, Mat4, Vec3};
 use serde::{Deserialize, Serialize};
+use tilegraph_types::{DepthConvention, Projection};
 
 use crate::bounds::DAabb;
 use crate::error::SceneError;
-
-/// Which way depth grows, so that culling and depth tests pick the right compare.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DepthConvention {
-    /// near -> 0, far -> 1; depth test LESS, clear to 1, HiZ keeps the max.
-    Standard,
-    /// near -> 1, far (or infinity) -> 0; depth test GREATER, clear to 0, HiZ keeps the min.
-    #[default]
-    Reverse,
-}
-
-impl DepthConvention {
-    /// The depth-buffer clear value (the farthest depth).
-    pub fn far_depth(self) -> f32 {
-        match self {
-            DepthConvention::Standard => 1.0,
-            DepthConvention::Reverse => 0.0,
-        }
-    }
-
-    /// The depth of the near plane.
-    pub fn near_depth(self) -> f32 {
-        match self {
-            DepthConvention::Standard => 0.0,
-            DepthConvention::Reverse => 1.0,
-        }
-    }
-
-    /// Whether depth `a` is strictly closer to the camera than depth `b`.
-    pub fn is_closer(self, a: f32, b: f32) -> bool {
-        match self {
-            DepthConvention::Standard => a < b,
-            DepthConvention::Reverse => a > b,
-        }
-    }
-
-    /// The closer of two depths (what a HiZ pyramid must *not* keep: it keeps the farther).
-    pub fn closer(self, a: f32, b: f32) -> f32 {
-        if self.is_closer(a, b) {
-            a
-        } else {
-            b
-        }
-    }
-
-    /// The farther of two depths (what a conservative HiZ pyramid keeps per texel).
-    pub fn farther(self, a: f32, b: f32) -> f32 {
-        if self.is_closer(a, b) {
-            b
-        } else {
-            a
-        }
-    }
-}
-
-/// A projection into Vulkan clip space (y flipped, depth in [0, 1]).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum Projection {
-    Perspective {
-        fov_y_rad: f32,
-        near: f32,
-        /// `None`: infinite far plane.
-        far: Option<f32>,
-        depth: DepthConvention,
-    },
-    Orthographic {
-        /// Half the visible height in metres (glTF's `ymag`); the width follows the aspect.
-        half_height: f32,
-        near: f32,
-        far: f32,
-        depth: DepthConvention,
-    },
-}
-
-impl Default for Projection {
-    /// 60 degrees vertical, near 0.1 m, reverse-Z, infinite far plane.
-    fn default() -> Self {
-        Projection::Perspective {
-            fov_y_rad: 60f32.to_radians(),
-            near: 0.1,
-            far: None,
-            depth: DepthConvention::Reverse,
-        }
-    }
-}
 
 /// Width / height of the most extreme viewports a projection must survive: 1 x 32768 to
 /// 32768 x 1 px (32768 is above every driver's `maxImageDimension2D`).
 const EXTREME_ASPECTS: [f32; 3] = [1.0 / 32768.0, 1.0, 32768.0];
 
-/// Multiplies the y row by -1: Vulkan's framebuffer y points down, glTF's world y points up.
-const FLIP_Y: Mat4 = Mat4::from_cols(Vec4::X, Vec4::new(0.0, -1.0, 0.0, 0.0), Vec4::Z, Vec4::W);
-
-impl Projection {
-    pub fn depth_convention(&self) -> DepthConvention {
-        match *self {
-            Projection::Perspective { depth, .. } | Projection::Orthographic { depth, .. } => depth,
+/// Checks a camera's projection, which any caller can build (its fields are public) and a
+/// camera path reads from JSON; `Err((field, reason))`.
+fn check_projection(projection: &Projection) -> Result<(), (&'static str, String)> {
+    let near = projection.near();
+    if !near.is_finite() || near <= 0.0 {
+        return Err(("near", format!("must be finite and > 0, got {near}")));
+    }
+    if let Some(far) = projection.far() {
+        if !far.is_finite() {
+            return Err(("far", format!("must be finite or null, got {far}")));
+        }
+        if far <= near {
+            return Err(("far", format!("{far} must be greater than near {near}")));
         }
     }
-
-    pub fn near(&self) -> f32 {
-        match *self {
-            Projection::Perspective { near, .. } | Projection::Orthographic { near, .. } => near,
-        }
-    }
-
-    /// The far plane; `None` when it is at infinity.
-    pub fn far(&self) -> Option<f32> {
-        match *self {
-            Projection::Perspective { far, .. } => far,
-            Projection::Orthographic { far, .. } => Some(far),
-        }
-    }
-
-    /// The projection matrix for a viewport of `aspect` = width / height.
-    ///
-    /// Reverse-Z with a finite far plane is the standard matrix with near and far swapped, which
-    /// maps near -> 1 and far -> 0 (the same trick for orthographic).
-    pub fn matrix(&self, aspect: f32) -> Mat4 {
-        let m = match *self {
-            Projection::Perspective {
-                fov_y_rad,
-                near,
-                far,
-                depth,
-            } => match (far, depth) {
-                (None, DepthConvention::Reverse) => {
-                    Mat4::perspective_infinite_reverse_rh(fov_y_rad, aspect, near)
-                }
-                (None, DepthConvention::Standard) => {
-                    Mat4::perspective_infinite_rh(fov_y_rad, aspect, near)
-                }
-                (Some(far), DepthConvention::Standard) => {
-                    Mat4::perspective_rh(fov_y_rad, aspect, near, far)
-                }
-                (Some(far), DepthConvention::Reverse) => {
-                    Mat4::perspective_rh(fov_y_rad, aspect, far, near)
-                }
-            },
-            Projection::Orthographic {
-                half_height,
-                near,
-                far,
-                depth,
-            } => {
-                let hw = half_height * aspect;
-                match depth {
-                    DepthConvention::Standard => {
-                        Mat4::orthographic_rh(-hw, hw, -half_height, half_height, near, far)
-                    }
-                    DepthConvention::Reverse => {
-                        Mat4::orthographic_rh(-hw, hw, -half_height, half_height, far, near)
-                    }
-                }
+    match *projection {
+        Projection::Perspective { fov_y_rad, .. } => {
+            let deg = fov_y_rad.to_degrees();
+            if !(fov_y_rad.is_finite() && deg > 0.0 && deg < 180.0) {
+                return Err(("fov_y_deg", format!("must be in (0, 180), got {deg}")));
             }
+        }
+        Projection::Orthographic { half_height, .. } => {
+            if !(half_height.is_finite() && half_height > 0.0) {
+                return Err(("half_height", format!("must be > 0, got {half_height}")));
+            }
+        }
+    }
+    // Each value in range can still overflow the matrix (a field of view of 1e-37 degrees,
+    // planes near f32's limit), at some viewport shape if not at a square one: the GPU
+    // would get infinities and NaN clip coordinates.
+    if EXTREME_ASPECTS
+        .iter()
+        .any(|&a| !projection.matrix(a).is_finite())
+    {
+        let field = match projection {
+            Projection::Perspective { .. } => "fov_y_deg",
+            Projection::Orthographic { .. } => "half_height",
         };
-        FLIP_Y * m
+        return Err((field, "the projection matrix overflows f32".into()));
     }
-
-    /// Checks the parameters; `Err((field, reason))`.
-    fn check(&self) -> Result<(), (&'static str, String)> {
-        let near = self.near();
-        if !near.is_finite() || near <= 0.0 {
-            return Err(("near", format!("must be finite and > 0, got {near}")));
-        }
-        if let Some(far) = self.far() {
-            if !far.is_finite() {
-                return Err(("far", format!("must be finite or null, got {far}")));
-            }
-            if far <= near {
-                return Err(("far", format!("{far} must be greater than near {near}")));
-            }
-        }
-        match *self {
-            Projection::Perspective { fov_y_rad, .. } => {
-                let deg = fov_y_rad.to_degrees();
-                if !(fov_y_rad.is_finite() && deg > 0.0 && deg < 180.0) {
-                    return Err(("fov_y_deg", format!("must be in (0, 180), got {deg}")));
-                }
-            }
-            Projection::Orthographic { half_height, .. } => {
-                if !(half_height.is_finite() && half_height > 0.0) {
-                    return Err(("half_height", format!("must be > 0, got {half_height}")));
-                }
-            }
-        }
-        // Each value in range can still overflow the matrix (a field of view of 1e-37 degrees,
-        // planes near f32's limit), at some viewport shape if not at a square one: the GPU
-        // would get infinities and NaN clip coordinates.
-        if EXTREME_ASPECTS.iter().any(|&a| !self.matrix(a).is_finite()) {
-            let field = match self {
-                Projection::Perspective { .. } => "fov_y_deg",
-                Projection::Orthographic { .. } => "half_height",
-            };
-            return Err((field, "the projection matrix overflows f32".into()));
-        }
-        Ok(())
-    }
+    Ok(())
 }
 
 /// A camera: where it is, what it looks at, and how it projects.
@@ -275,7 +126,7 @@ impl Camera {
         if sin.is_nan() || sin < 1e-3 {
             return Err(("up", "parallel to the view direction".into()));
         }
-        self.projection.check()
+        check_projection(&self.projection)
     }
 
     /// The unit view direction, computed in f64 before rounding.
@@ -775,7 +626,7 @@ mod tests {
         };
         assert!(ortho.matrix(1.0).is_finite());
         assert_eq!(
-            ortho.check().map_err(|(field, _)| field),
+            check_projection(&ortho).map_err(|(field, _)| field),
             Err("half_height")
         );
         let usual = Projection::Orthographic {
@@ -784,106 +635,7 @@ mod tests {
             far: 10.0,
             depth: DepthConvention::Reverse,
         };
-        assert_eq!(usual.check(), Ok(()));
-    }
-
-    fn clip(m: Mat4, p: Vec3) -> Vec3 {
-        let c = m * p.extend(1.0);
-        c.truncate() / c.w
-    }
-
-    fn persp(far: Option<f32>, depth: DepthConvention) -> Projection {
-        Projection::Perspective {
-            fov_y_rad: 1.0,
-            near: 0.5,
-            far,
-            depth,
-        }
-    }
-
-    #[test]
-    fn depth_ranges_follow_each_convention() {
-        use DepthConvention::*;
-        let cases = [
-            (persp(None, Reverse), 1.0, None),
-            (persp(None, Standard), 0.0, None),
-            (persp(Some(100.0), Reverse), 1.0, Some(0.0)),
-            (persp(Some(100.0), Standard), 0.0, Some(1.0)),
-            (
-                Projection::Orthographic {
-                    half_height: 5.0,
-                    near: 0.5,
-                    far: 100.0,
-                    depth: Reverse,
-                },
-                1.0,
-                Some(0.0),
-            ),
-            (
-                Projection::Orthographic {
-                    half_height: 5.0,
-                    near: 0.5,
-                    far: 100.0,
-                    depth: Standard,
-                },
-                0.0,
-                Some(1.0),
-            ),
-        ];
-        for (p, near_depth, far_depth) in cases {
-            let m = p.matrix(1.5);
-            let d_near = clip(m, Vec3::new(0.0, 0.0, -0.5)).z;
-            assert!(
-                (d_near - near_depth).abs() < 1e-5,
-                "{p:?}: near -> {d_near}"
-            );
-            assert_eq!(p.depth_convention().near_depth(), near_depth);
-            if let Some(fd) = far_depth {
-                let d_far = clip(m, Vec3::new(0.0, 0.0, -100.0)).z;
-                assert!((d_far - fd).abs() < 1e-4, "{p:?}: far -> {d_far}");
-                assert_eq!(p.depth_convention().far_depth(), fd);
-            } else {
-                let d_inf = clip(m, Vec3::new(0.0, 0.0, -1e9)).z;
-                assert!((d_inf - p.depth_convention().far_depth()).abs() < 1e-6);
-            }
-            // Something halfway is strictly between, and closer than the far end.
-            let mid = clip(m, Vec3::new(0.0, 0.0, -10.0)).z;
-            assert!(p
-                .depth_convention()
-                .is_closer(mid, p.depth_convention().far_depth()));
-        }
-    }
-
-    #[test]
-    fn projection_flips_y_so_up_is_the_top_row() {
-        for p in [
-            persp(None, DepthConvention::Reverse),
-            persp(Some(10.0), DepthConvention::Standard),
-            Projection::Orthographic {
-                half_height: 1.0,
-                near: 0.1,
-                far: 10.0,
-                depth: DepthConvention::Reverse,
-            },
-        ] {
-            let above = clip(p.matrix(1.0), Vec3::new(0.0, 0.5, -2.0));
-            assert!(
-                above.y < 0.0,
-                "{p:?}: world-up must map to NDC y < 0 (top row)"
-            );
-        }
-    }
-
-    #[test]
-    fn default_projection_matches_glam_reverse_infinite_with_y_flip() {
-        let p = Projection::default();
-        let mut expected = Mat4::perspective_infinite_reverse_rh(60f32.to_radians(), 2.0, 0.1);
-        expected.x_axis.y *= -1.0;
-        expected.y_axis.y *= -1.0;
-        expected.z_axis.y *= -1.0;
-        expected.w_axis.y *= -1.0;
-        assert!(p.matrix(2.0).abs_diff_eq(expected, 1e-6));
-        assert_eq!(p.depth_convention(), DepthConvention::Reverse);
+        assert_eq!(check_projection(&usual), Ok(()));
     }
 
     /// Finite eye and target whose difference overflows: the direction is NaN, which no
@@ -962,6 +714,43 @@ mod tests {
         assert!(cut.cut);
         assert_eq!(cut.previous, cut.current);
         assert!(!ab.frame(18, 1.0).unwrap().cut);
+    }
+
+    /// Camera paths and anything else that stores a projection keep this exact text: the
+    /// types may move between crates, their serialized form may not.
+    #[test]
+    fn projection_and_depth_convention_serialize_to_a_fixed_form() {
+        fn text<T: Serialize>(value: &T) -> String {
+            serde_json::to_string(value).unwrap()
+        }
+        assert_eq!(text(&DepthConvention::Standard), r#""standard""#);
+        assert_eq!(text(&DepthConvention::Reverse), r#""reverse""#);
+        assert_eq!(
+            text(&Projection::default()),
+            r#"{"kind":"perspective","fov_y_rad":1.0471976,"near":0.1,"far":null,"depth":"reverse"}"#
+        );
+        let ortho = Projection::Orthographic {
+            half_height: 5.0,
+            near: 0.5,
+            far: 100.0,
+            depth: DepthConvention::Standard,
+        };
+        assert_eq!(
+            text(&ortho),
+            r#"{"kind":"orthographic","half_height":5.0,"near":0.5,"far":100.0,"depth":"standard"}"#
+        );
+        let back: Projection = serde_json::from_str(&text(&ortho)).unwrap();
+        assert_eq!(back, ortho);
+        let frame = CameraPath::new(
+            "t",
+            vec![PathKey {
+                camera: Camera::looking_at(DVec3::ZERO, DVec3::NEG_Z),
+                cut: false,
+            }],
+        )
+        .unwrap()
+        .to_json();
+        assert!(frame.contains(r#""depth": "reverse""#), "{frame}");
     }
 
     #[test]

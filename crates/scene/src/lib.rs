@@ -45,9 +45,7 @@ use std::path::Path;
 use glam::DVec3;
 
 pub use bounds::{Aabb, DAabb, DSphere};
-pub use camera::{
-    Camera, CameraFrame, CameraPath, DepthConvention, FrameMatrices, PathKey, Projection, Waypoint,
-};
+pub use camera::{Camera, CameraFrame, CameraPath, FrameMatrices, PathKey, Waypoint};
 pub use error::SceneError;
 pub use gltf_load::{
     load_gltf, load_gltf_bytes, FileResolver, Limits, MemoryResources, NoResources,
@@ -59,6 +57,9 @@ pub use scene::{
     InstanceBounds, InstanceId, Material, MaterialClass, MaterialId, Mesh, MeshId, Scene,
     SceneBuilder, SceneInfo, SceneSource, Transform, Vertex,
 };
+/// Shared with the culling references and the passes (tilegraph-types); re-exported so scene
+/// users name them from here as before.
+pub use tilegraph_types::{DepthConvention, Projection};
 
 /// Size and seed of the embedded default scene.
 pub const DEFAULT_SCENE: ProceduralParams = ProceduralParams {

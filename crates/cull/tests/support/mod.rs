@@ -5,7 +5,7 @@
 #![allow(dead_code)]
 
 use glam::{DMat4, DVec3, Mat4, Vec3};
-use tilegraph_cull::{Aabb, DepthFormat, Extent2d, Projection};
+use tilegraph_cull::{Aabb, DepthFormat, Extent2d, ExtentExt, Projection};
 
 pub const BACKGROUND_ID: u32 = u32::MAX;
 
@@ -20,14 +20,14 @@ pub struct Render {
 /// distance of the point. Orthographic: origin on the z = 0 view plane, direction = view -z.
 fn pixel_ray(
     world_from_view: &DMat4,
-    projection: &Projection,
+    (projection, aspect): (&Projection, f32),
     extent: Extent2d,
     px: u32,
     py: u32,
 ) -> (DVec3, DVec3) {
-    let (sx, sy) = projection.ndc_scale();
-    let ndc_x = (f64::from(px) + 0.5) / f64::from(extent.width_px()) * 2.0 - 1.0;
-    let ndc_y = (f64::from(py) + 0.5) / f64::from(extent.height_px()) * 2.0 - 1.0;
+    let (sx, sy) = projection.ndc_scale(aspect);
+    let ndc_x = (f64::from(px) + 0.5) / f64::from(extent.width_px) * 2.0 - 1.0;
+    let ndc_y = (f64::from(py) + 0.5) / f64::from(extent.height_px) * 2.0 - 1.0;
     if projection.is_perspective() {
         let dir_view = DVec3::new(ndc_x / sx, ndc_y / sy, -1.0);
         let origin = world_from_view.transform_point3(DVec3::ZERO);
@@ -63,21 +63,23 @@ fn ray_box(origin: DVec3, dir: DVec3, b: &Aabb) -> Option<(f64, f64)> {
 
 /// Renders `boxes` (ids = indices). The nearest surface at or beyond the near plane wins; a box
 /// cut by the near plane shows its far side (no back-face culling). A finite far plane clips.
+/// `aspect` is the viewport's width / height the projection is used with.
 pub fn render_boxes(
     view: &Mat4,
     projection: &Projection,
+    aspect: f32,
     extent: Extent2d,
     format: DepthFormat,
     boxes: &[Aabb],
 ) -> Render {
     let convention = projection.depth_convention();
-    let near = f64::from(projection.near_m());
-    let mut depth = vec![convention.far_clear_value(); extent.pixel_count()];
-    let mut ids = vec![BACKGROUND_ID; extent.pixel_count()];
+    let near = f64::from(projection.near());
+    let mut depth = vec![convention.far_depth(); extent.buffer_len()];
+    let mut ids = vec![BACKGROUND_ID; extent.buffer_len()];
     let world_from_view = view.as_dmat4().inverse();
-    for py in 0..extent.height_px() {
-        for px in 0..extent.width_px() {
-            let (o, d) = pixel_ray(&world_from_view, projection, extent, px, py);
+    for py in 0..extent.height_px {
+        for px in 0..extent.width_px {
+            let (o, d) = pixel_ray(&world_from_view, (projection, aspect), extent, px, py);
             let mut best: Option<(f64, u32)> = None;
             for (i, b) in boxes.iter().enumerate() {
                 let Some((t0, t1)) = ray_box(o, d, b) else {
@@ -103,7 +105,7 @@ pub fn render_boxes(
                 }
             }
             if let Some((t, id)) = best {
-                let idx = (py * extent.width_px() + px) as usize;
+                let idx = (py * extent.width_px + px) as usize;
                 depth[idx] = format.store(projection.depth_at_distance(t) as f32);
                 ids[idx] = id;
             }

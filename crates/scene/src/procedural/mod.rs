@@ -25,8 +25,8 @@ use glam::{DVec3, Mat3, Vec3};
 use rand::{RngCore, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
+use tilegraph_types::{DepthConvention, Projection};
 
-use crate::camera::{DepthConvention, Projection};
 use crate::error::SceneError;
 use crate::scene::{MaterialId, MeshId, Scene, SceneBuilder, SceneSource, Transform};
 use shapes::MeshData;
