@@ -12,7 +12,7 @@ use tilegraph_scene::DepthConvention;
 use tilegraph_vk::executor::{External, Externals, ImageHandle};
 use tilegraph_vk::Buffer;
 
-use crate::cull::{add_cull, add_cull_late, import_cull_buffers, CullState, Culling};
+use crate::cull::{add_cull, add_cull_late, import_cull_buffers, CullLists, CullState, Culling};
 use crate::draws::DrawClass;
 use crate::forward::{add_clear, add_forward, add_transparent};
 use crate::frame::{DrawSource, FrameGraph, States};
@@ -62,95 +62,144 @@ struct Geometry<'n> {
 /// Declares the scene's frame: the frame setup's passes, composed from the `add_*`
 /// functions in the order the technique needs, and the physical resources of its imports.
 pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> (FrameGraph, Externals) {
-    let SceneFrame {
-        options,
-        setup,
-        profile,
-        key,
-        states,
-        target,
-        ids_target,
-    } = *spec;
-    let extent = Extent2d::new(options.width, options.height);
-    let culling = options.culling;
-    let mut g = FrameGraph::new();
-    let mut externals = Externals::new();
-    // The targets survive frames: after the first they are in TRANSFER_SRC from the last
-    // frame's release, read by the readback copy.
-    let kept = ResourceState::image(
-        Layout::TransferSrc,
-        PipelineStages::COPY,
-        AccessFlags::TRANSFER_READ,
-    );
-    let import = Import {
-        initial: if key.first_frame {
-            ResourceState::UNDEFINED
-        } else {
-            kept
-        },
-        content: InitialContent::Discard,
-        final_state: kept,
-    };
-    let color = g.import_image(
-        "color",
-        ImageDesc::new(extent, Format::R8G8B8A8_UNORM),
-        import,
-    );
-    externals.insert(color, External::Image(target.clone()));
-    let depth = g.create_image("depth", ImageDesc::new(extent, Format::D32_SFLOAT));
-    let mut t = SceneTargets::new(color, depth, extent, options.clear_color, key.depth);
-    if let Some(handle) = ids_target {
-        let ids = g.import_image(
-            "visbuf-id",
-            ImageDesc::new(extent, Format::R32_UINT),
+    let mut c = Composition::import(spec);
+    let culling = c.culling();
+    // GPU culling of the early (or only) phase; raster occlusion culls after its boxes.
+    if let (Some(lists), false) = (c.lists, culling == Culling::RasterOcclusion) {
+        add_cull(&mut c.g, lists, culling);
+    }
+    let two_phase = culling == Culling::HizTwoPhase;
+    for phase in if two_phase { 0..2 } else { 0..1 } {
+        if phase == 1 {
+            c.pyramid_and_late_culling();
+        }
+        c.geometry_phase(phase, two_phase);
+    }
+    c.colour_after_split_depth();
+    c.after_geometry();
+    c.finish()
+}
+
+/// A scene frame being composed: the graph, the physical resources of its imports, the
+/// targets, and what the culling technique has declared so far.
+struct Composition<'a> {
+    spec: &'a SceneFrame<'a>,
+    g: FrameGraph,
+    externals: Externals,
+    t: SceneTargets,
+    /// The culling buffers, with GPU culling.
+    lists: Option<CullLists>,
+    /// Same-frame occlusion queries: their results on the GPU, once declared.
+    conditions: Option<BufferId>,
+    /// Raster occlusion: its flags and culling are declared.
+    flags_declared: bool,
+}
+
+impl<'a> Composition<'a> {
+    /// Imports the targets (the renderer's colour, the ids it keeps) and the technique's
+    /// buffers, and creates the depth.
+    fn import(spec: &'a SceneFrame<'a>) -> Self {
+        let SceneFrame {
+            options,
+            key,
+            states,
+            target,
+            ids_target,
+            ..
+        } = *spec;
+        let extent = Extent2d::new(options.width, options.height);
+        let mut g = FrameGraph::new();
+        let mut externals = Externals::new();
+        // The targets survive frames: after the first they are in TRANSFER_SRC from the last
+        // frame's release, read by the readback copy.
+        let kept = ResourceState::image(
+            Layout::TransferSrc,
+            PipelineStages::COPY,
+            AccessFlags::TRANSFER_READ,
+        );
+        let import = Import {
+            initial: if key.first_frame {
+                ResourceState::UNDEFINED
+            } else {
+                kept
+            },
+            content: InitialContent::Discard,
+            final_state: kept,
+        };
+        let color = g.import_image(
+            "color",
+            ImageDesc::new(extent, Format::R8G8B8A8_UNORM),
             import,
         );
-        g.export(ids);
-        externals.insert(ids, External::Image(handle.clone()));
-        t.ids = Some(ids);
-    }
-    let hiz = states.get::<HizState>();
-    let lists = states.get::<CullState>().map(|c| {
-        let lists = import_cull_buffers(&mut g, c, hiz);
-        for (id, buffer) in [
-            (lists.commands, &c.commands),
-            (lists.counts, &c.counts),
-            (lists.draw_ids, &c.draw_ids),
-            (lists.visibility, &c.visibility),
-        ] {
-            externals.insert(id, External::Buffer(CullState::handle(buffer)));
+        externals.insert(color, External::Image(target.clone()));
+        let depth = g.create_image("depth", ImageDesc::new(extent, Format::D32_SFLOAT));
+        let mut t = SceneTargets::new(color, depth, extent, options.clear_color, key.depth);
+        if let Some(handle) = ids_target {
+            let ids = g.import_image(
+                "visbuf-id",
+                ImageDesc::new(extent, Format::R32_UINT),
+                import,
+            );
+            g.export(ids);
+            externals.insert(ids, External::Image(handle.clone()));
+            t.ids = Some(ids);
         }
-        if let (Some(id), Some(h)) = (lists.pyramid, hiz) {
-            externals.insert(id, External::Buffer(CullState::handle(&h.pyramid)));
-        }
-        lists
-    });
-    let queries = states.get::<OqState>();
-    let conditions_buffer = queries.and_then(|q| q.conditions.as_ref());
-    let mut conditions = None;
-
-    if let (Some(lists), false) = (lists, culling == Culling::RasterOcclusion) {
-        add_cull(&mut g, lists, culling);
-    }
-    // Two-phase with a pre-pass: depth of the early lists, pyramid, late culling, depth of
-    // the late lists, then colour once over the union (the early lists, which the late
-    // dispatch completes) in the unculled order. The visibility buffer draws ids in both
-    // phases instead.
-    let two_phase = culling == Culling::HizTwoPhase;
-    let split_depth = two_phase && setup.has_prepass();
-    let phases: &[u32] = if two_phase { &[0, 1] } else { &[0] };
-    let mut flags_declared = false;
-    for &phase in phases {
-        if phase == 1 {
-            // No depth written by the early phase (nothing opaque or alpha-tested): no
-            // occluders, no pyramid, and no late lists to fill.
-            if let (Some(lists), true) = (lists, t.depth_written()) {
-                if let Some(pyramid) = lists.pyramid {
-                    add_hiz_build(&mut g, t.depth, pyramid);
-                }
-                add_cull_late(&mut g, lists);
+        let hiz = states.get::<HizState>();
+        let lists = states.get::<CullState>().map(|c| {
+            let lists = import_cull_buffers(&mut g, c, hiz);
+            for (id, buffer) in [
+                (lists.commands, &c.commands),
+                (lists.counts, &c.counts),
+                (lists.draw_ids, &c.draw_ids),
+                (lists.visibility, &c.visibility),
+            ] {
+                externals.insert(id, External::Buffer(CullState::handle(buffer)));
             }
+            if let (Some(id), Some(h)) = (lists.pyramid, hiz) {
+                externals.insert(id, External::Buffer(CullState::handle(&h.pyramid)));
+            }
+            lists
+        });
+        Composition {
+            spec,
+            g,
+            externals,
+            t,
+            lists,
+            conditions: None,
+            flags_declared: false,
         }
+    }
+
+    fn culling(&self) -> Culling {
+        self.spec.options.culling
+    }
+
+    /// Two-phase culling with a pre-pass: depth of the early lists, pyramid, late culling,
+    /// depth of the late lists, then colour once over the union (the early lists, which the
+    /// late dispatch completes) in the unculled order. The visibility buffer draws ids in both
+    /// phases instead.
+    fn split_depth(&self) -> bool {
+        self.culling() == Culling::HizTwoPhase && self.spec.setup.has_prepass()
+    }
+
+    /// Between two-phase culling's phases: the pyramid of the early phase's depth, and the
+    /// culling of what the early phase left out. No depth written by the early phase (nothing
+    /// opaque or alpha-tested): no occluders, no pyramid, and no late lists to fill.
+    fn pyramid_and_late_culling(&mut self) {
+        if let (Some(lists), true) = (self.lists, self.t.depth_written()) {
+            if let Some(pyramid) = lists.pyramid {
+                add_hiz_build(&mut self.g, self.t.depth, pyramid);
+            }
+            add_cull_late(&mut self.g, lists);
+        }
+    }
+
+    /// The frame setup's geometry passes of one culling phase, with what must precede the
+    /// first colour pass: same-frame queries, raster occlusion.
+    fn geometry_phase(&mut self, phase: u32, two_phase: bool) {
+        let culling = self.culling();
+        let setup = self.spec.setup;
         let suffix = match (two_phase, phase) {
             (false, _) => "",
             (true, 0) => "-early",
@@ -161,79 +210,112 @@ pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> (FrameGraph, Externals) {
                 pass,
                 PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha
             );
-            if split_depth && !depth_only {
+            if self.split_depth() && !depth_only {
                 continue; // colour after both depth phases
             }
-            if culling.conditional() && !depth_only && conditions.is_none() && t.depth_written() {
-                // Boxes against the pre-pass depth, then colour predicated on them.
-                conditions = declare_queries(&mut g, &mut externals, t.depth, conditions_buffer);
-            }
-            if culling == Culling::RasterOcclusion && !depth_only && !flags_declared {
-                match (lists, t.depth_written()) {
-                    (Some(lists), true) => add_raster_occlusion(
-                        &mut g,
-                        &t,
-                        lists,
-                        options.raster_occlusion_scale.max(1),
-                    ),
-                    // No pre-pass depth (nothing opaque): no boxes to test; the lists
-                    // still get written.
-                    (Some(lists), false) => add_cull(&mut g, lists, Culling::RasterOcclusion),
-                    (None, _) => {}
-                }
-                flags_declared = true;
+            if !depth_only {
+                self.before_colour();
             }
             // Raster occlusion tests boxes against the depth of everything: its pre-pass
             // draws the CPU lists; everything else draws the culling shader's lists.
-            let source = match (lists, culling, depth_only) {
+            let source = match (self.lists, culling, depth_only) {
                 (Some(_), Culling::RasterOcclusion, true) | (None, _, _) => DrawSource::Cpu,
                 (Some(lists), _, _) => lists.source(phase),
             };
             let name = format!("{}{suffix}", pass.name());
-            let geometry = Geometry {
+            self.geometry(Geometry {
                 pass,
                 phase,
                 source,
-                predicate: conditions,
+                predicate: self.conditions,
                 name: &name,
-            };
-            declare_geometry(&mut g, &mut t, setup, geometry);
+            });
         }
     }
-    if split_depth {
+
+    /// What the first colour pass needs declared before it, once there is depth to test
+    /// against: same-frame queries (colour is predicated on them), raster occlusion's boxes and
+    /// culling (colour draws the lists they write).
+    fn before_colour(&mut self) {
+        let culling = self.culling();
+        if culling.conditional() && self.conditions.is_none() && self.t.depth_written() {
+            let results = self
+                .spec
+                .states
+                .get::<OqState>()
+                .and_then(|q| q.conditions.as_ref());
+            self.conditions =
+                declare_queries(&mut self.g, &mut self.externals, self.t.depth, results);
+        }
+        if culling == Culling::RasterOcclusion && !self.flags_declared {
+            match (self.lists, self.t.depth_written()) {
+                (Some(lists), true) => {
+                    let scale = self.spec.options.raster_occlusion_scale.max(1);
+                    add_raster_occlusion(&mut self.g, &self.t, lists, scale);
+                }
+                // No pre-pass depth (nothing opaque): no boxes to test; the lists still get
+                // written.
+                (Some(lists), false) => add_cull(&mut self.g, lists, Culling::RasterOcclusion),
+                (None, _) => {}
+            }
+            self.flags_declared = true;
+        }
+    }
+
+    /// Two-phase culling's colour, once over the union of both phases.
+    fn colour_after_split_depth(&mut self) {
+        if !self.split_depth() {
+            return;
+        }
+        let setup = self.spec.setup;
         for pass in setup
             .included()
             .filter(|p| matches!(p, PassKind::Opaque | PassKind::AlphaTested))
         {
-            let geometry = Geometry {
+            self.geometry(Geometry {
                 pass,
                 phase: 0,
-                source: lists.map_or(DrawSource::Cpu, |l| l.source(0)),
-                predicate: conditions,
+                source: self.lists.map_or(DrawSource::Cpu, |l| l.source(0)),
+                predicate: self.conditions,
                 name: pass.name(),
-            };
-            declare_geometry(&mut g, &mut t, setup, geometry);
+            });
         }
     }
-    if let (true, Some(ids)) = (setup.includes(PassKind::VisbufResolve), t.ids) {
-        add_visbuf_resolve(&mut g, &mut t, ids, profile.is_tiler());
+
+    /// After the geometry: the visibility buffer's resolve, blended geometry, next frame's
+    /// occluders (single-phase HiZ: this frame's depth; occlusion queries read next frame,
+    /// after all opaque work by the graph's class order), and a clear when nothing drew (an
+    /// empty view of an empty scene still produces a cleared image).
+    fn after_geometry(&mut self) {
+        let setup = self.spec.setup;
+        let culling = self.culling();
+        let (g, t) = (&mut self.g, &mut self.t);
+        if let (true, Some(ids)) = (setup.includes(PassKind::VisbufResolve), t.ids) {
+            add_visbuf_resolve(g, t, ids, self.spec.profile.is_tiler());
+        }
+        if setup.includes(PassKind::Transparent) {
+            add_transparent(g, t);
+        }
+        if let (Culling::Hiz, Some(pyramid)) = (culling, self.lists.and_then(|l| l.pyramid)) {
+            add_hiz_build(g, t.depth, pyramid);
+        }
+        if culling.uses_queries() && !culling.conditional() && t.depth_written() {
+            declare_queries(g, &mut self.externals, t.depth, None);
+        }
+        if !t.color_written() {
+            add_clear(g, t);
+        }
     }
-    if setup.includes(PassKind::Transparent) {
-        add_transparent(&mut g, &mut t);
+
+    fn finish(mut self) -> (FrameGraph, Externals) {
+        self.g.export(self.t.color);
+        (self.g, self.externals)
     }
-    if let (Culling::Hiz, Some(pyramid)) = (culling, lists.and_then(|l| l.pyramid)) {
-        // Next frame's occluders: this frame's depth.
-        add_hiz_build(&mut g, t.depth, pyramid);
+
+    /// One geometry pass of the frame setup.
+    fn geometry(&mut self, geometry: Geometry<'_>) {
+        declare_geometry(&mut self.g, &mut self.t, self.spec.setup, geometry);
     }
-    if culling.uses_queries() && !culling.conditional() && t.depth_written() {
-        // After all opaque work (the graph's class order); results are read next frame.
-        declare_queries(&mut g, &mut externals, t.depth, None);
-    }
-    if !t.color_written() {
-        add_clear(&mut g, &mut t);
-    }
-    g.export(color);
-    (g, externals)
 }
 
 /// The occlusion queries; with `conditions` (their results on the GPU, for conditional
