@@ -316,8 +316,12 @@ fn culling_a_scene_of_only_blended_geometry_renders() {
         for technique in [Technique::Forward, Technique::Prepass] {
             let g = gpu_with(
                 None,
-                tilegraph_passes::required_features(technique)
-                    .require(features.required.iter().copied()),
+                RenderOptions {
+                    technique,
+                    ..Default::default()
+                }
+                .device_features()
+                .require(features.required.iter().copied()),
             )
             .unwrap();
             let mut r = SceneRenderer::new(

@@ -5,9 +5,7 @@
 
 use tilegraph_e2e::gpu_with;
 use tilegraph_graph::Plan;
-use tilegraph_passes::{
-    required_features, FrameReport, PassKind, RenderOptions, SceneRenderer, Technique,
-};
+use tilegraph_passes::{FrameReport, PassKind, RenderOptions, SceneRenderer, Technique};
 use tilegraph_profile::SortOrder;
 use tilegraph_scene::Scene;
 use tilegraph_vk::readback::RgbaImage;
@@ -41,8 +39,12 @@ fn render_ordered(
     count: bool,
     order: Option<SortOrder>,
 ) -> Rendered {
-    let features =
-        required_features(technique).want([tilegraph_vk::Feature::FragmentStoresAndAtomics]);
+    let features = RenderOptions {
+        technique,
+        ..Default::default()
+    }
+    .device_features()
+    .want([tilegraph_vk::Feature::FragmentStoresAndAtomics]);
     let g = gpu_with(Some(profile), features).unwrap();
     let options = RenderOptions {
         technique,
@@ -278,7 +280,15 @@ fn forward_frames_match_their_golden_images() {
 #[test]
 fn pipelines_of_rebuilt_render_passes_are_dropped() {
     let scene = tilegraph_scene::load("city:200").unwrap();
-    let g = gpu_with(Some("adreno-7xx"), required_features(Technique::Prepass)).unwrap();
+    let g = gpu_with(
+        Some("adreno-7xx"),
+        RenderOptions {
+            technique: Technique::Prepass,
+            ..Default::default()
+        }
+        .device_features(),
+    )
+    .unwrap();
     let options = RenderOptions {
         technique: Technique::Prepass,
         width: W,

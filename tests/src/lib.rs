@@ -72,6 +72,7 @@ pub fn gpu_with(profile: Option<&str>, features: FeatureRequest) -> Result<Gpu, 
     Ok(Gpu::new(Context::new(options(profile, features))?))
 }
 
+pub mod engine;
 pub mod frames;
 
 /// `$TILEGRAPH_TEST_DATA` or `../shared/data` beside the repository.

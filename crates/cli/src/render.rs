@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use tilegraph_passes::{required_features, FrameReport, RenderOptions, SceneRenderer, Technique};
+use tilegraph_passes::{FrameReport, RenderOptions, SceneRenderer, Technique};
 use tilegraph_scene::Scene;
 use tilegraph_vk::{Context, ContextOptions};
 
@@ -25,9 +25,14 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
     if let Some(p) = args.profile {
         options.profile = Some(p.to_string());
     }
-    let needed = required_features(args.technique);
-    options.features.required.extend(needed.required);
-    options.features.optional.extend(needed.optional);
+    let mut ropts = RenderOptions {
+        technique: args.technique,
+        width: args.size.0,
+        height: args.size.1,
+        ..Default::default()
+    };
+    ropts.lighting.heavy_iterations = args.heavy;
+    options.features = ropts.device_features();
     let ctx = Context::new(options)?;
     let scene = args.scene;
     let camera = scene
@@ -40,13 +45,6 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
                 scene.camera_path().len()
             ))
         })?;
-    let mut ropts = RenderOptions {
-        technique: args.technique,
-        width: args.size.0,
-        height: args.size.1,
-        ..Default::default()
-    };
-    ropts.lighting.heavy_iterations = args.heavy;
     let mut renderer = SceneRenderer::new(&ctx, scene, ropts)?;
     let result = (|| {
         let mut last: Option<FrameReport> = None;

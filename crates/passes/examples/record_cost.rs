@@ -19,15 +19,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let scene = tilegraph_scene::load(&scene_name)?;
     let mut options = ContextOptions::from_env();
     options.validation = Validation::Off;
-    options
-        .features
-        .required
-        .extend(tilegraph_passes::cull::CullState::required_features());
-    let ctx = Context::new(options)?;
     let render = RenderOptions {
         culling: Culling::Frustum,
         ..RenderOptions::default()
     };
+    options.features = render.device_features();
+    let ctx = Context::new(options)?;
     let mut renderer = SceneRenderer::new(&ctx, &scene, render)?;
     let camera = scene
         .camera_path()

@@ -33,7 +33,7 @@ pub mod targets;
 pub mod visbuf;
 
 pub use frame::{DrawSource, FrameData, FrameGraph, Payload, SceneResources};
-pub use options::{required_features, FrameReport, RenderError, RenderOptions};
+pub use options::{FrameReport, RenderError, RenderOptions, WantedBy};
 pub use renderer::SceneRenderer;
 pub use setup::{decide, FrameSetup, PassDecision, PassKind, SceneContent, Technique};
 pub use targets::SceneTargets;

@@ -26,16 +26,10 @@ pub enum RenderError {
         instances: usize,
         max_triangles: u32,
     },
-    #[error("technique {technique} needs device feature {feature}, which {device:?} does not have (or it was not requested)")]
+    #[error("{wanted_by} needs device feature {feature}, which {device:?} does not have or was not created with (ask RenderOptions::device_features before creating the device)")]
     MissingFeature {
-        technique: &'static str,
         feature: Feature,
-        device: String,
-    },
-    #[error("culling {culling} needs {extension}, which {device:?} does not have (or it was not requested)")]
-    MissingExtension {
-        culling: &'static str,
-        extension: &'static str,
+        wanted_by: WantedBy,
         device: String,
     },
     #[error("culling {culling} does not support the {technique} technique (it needs a depth pre-pass before colour)")]
@@ -108,12 +102,67 @@ pub struct FrameReport {
     pub triangles: u64,
 }
 
-/// Device features a technique needs (request them when creating the context).
-pub fn required_features(technique: Technique) -> FeatureRequest {
-    let r = FeatureRequest::default();
-    match technique {
-        Technique::Visbuf => r.require([Feature::GeometryShader]),
-        Technique::Forward | Technique::Prepass => r,
+/// What in [`RenderOptions`] wants a device feature (named in [`RenderError::MissingFeature`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WantedBy {
+    /// The executor itself (barriers, dynamic rendering).
+    Executor,
+    Technique(Technique),
+    Culling(Culling),
+    /// [`RenderOptions::count_fragments`].
+    FragmentCounting,
+}
+
+impl std::fmt::Display for WantedBy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            WantedBy::Executor => f.write_str("the executor"),
+            WantedBy::Technique(t) => write!(f, "technique {}", t.name()),
+            WantedBy::Culling(c) => write!(f, "culling {}", c.name()),
+            WantedBy::FragmentCounting => f.write_str("fragment counting"),
+        }
+    }
+}
+
+impl RenderOptions {
+    /// Every device feature these options need, each with what wants it.
+    pub fn needs(&self) -> Vec<(Feature, WantedBy)> {
+        let mut needs: Vec<(Feature, WantedBy)> = FeatureRequest::executor()
+            .required
+            .into_iter()
+            .map(|f| (f, WantedBy::Executor))
+            .collect();
+        if self.technique == Technique::Visbuf {
+            needs.push((Feature::GeometryShader, WantedBy::Technique(self.technique)));
+        }
+        let culling = WantedBy::Culling(self.culling);
+        if self.culling.uses_gpu_lists() {
+            needs.extend(CullState::required_features().map(|f| (f, culling)));
+        }
+        if self.culling.uses_queries() {
+            needs.extend(OqState::required_features().map(|f| (f, culling)));
+        }
+        if self.culling.conditional() {
+            needs.push((Feature::ConditionalRendering, culling));
+        }
+        if self.culling == Culling::RasterOcclusion {
+            needs.push((Feature::FragmentStoresAndAtomics, culling));
+        }
+        if self.count_fragments {
+            needs.push((
+                Feature::FragmentStoresAndAtomics,
+                WantedBy::FragmentCounting,
+            ));
+        }
+        needs
+    }
+
+    /// What a device must be created with to render with these options: the executor's
+    /// features and everything in [`RenderOptions::needs`] required. An engine that creates
+    /// its own device asks for this first (`tilegraph_vk::DeviceConfig::new` turns it into
+    /// extensions and feature structs for the physical device).
+    pub fn device_features(&self) -> FeatureRequest {
+        FeatureRequest::executor().require(self.needs().into_iter().map(|(f, _)| f))
     }
 }
 
@@ -147,16 +196,6 @@ pub(crate) fn check_device(
             max_triangles: max_tris,
         });
     }
-    let mut needed = required_features(options.technique);
-    if options.culling.uses_gpu_lists() {
-        needed.required.extend(CullState::required_features());
-    }
-    if options.culling == Culling::RasterOcclusion || options.count_fragments {
-        needed.required.insert(Feature::FragmentStoresAndAtomics);
-    }
-    if options.culling.uses_queries() {
-        needed.required.extend(OqState::required_features());
-    }
     if options.technique == Technique::Visbuf
         && matches!(
             options.culling,
@@ -170,22 +209,16 @@ pub(crate) fn check_device(
             technique: options.technique.name(),
         });
     }
-    let device = || ctx.physical.identity.device_name.clone();
-    if options.culling.conditional() && !ctx.has_feature(Feature::ConditionalRendering) {
-        return Err(RenderError::MissingExtension {
-            culling: options.culling.name(),
-            extension: "VK_EXT_conditional_rendering",
-            device: device(),
+    if let Some((feature, wanted_by)) = options
+        .needs()
+        .into_iter()
+        .find(|(f, _)| !ctx.has_feature(*f))
+    {
+        return Err(RenderError::MissingFeature {
+            feature,
+            wanted_by,
+            device: ctx.physical.identity.device_name.clone(),
         });
-    }
-    for f in needed.required {
-        if !ctx.has_feature(f) {
-            return Err(RenderError::MissingFeature {
-                technique: options.technique.name(),
-                feature: f,
-                device: device(),
-            });
-        }
     }
     Ok(instance_bits)
 }

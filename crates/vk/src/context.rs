@@ -14,7 +14,7 @@ use tilegraph_profile::{Profile, ProfileSet, Selection};
 
 use crate::error::{VkError, VkResultExt};
 use crate::features::{Feature, FeatureRequest, FeatureStructs};
-use crate::instance::{Instance, PhysicalDevice};
+use crate::instance::{Instance, PhysicalDevice, MIN_API_VERSION};
 use crate::validation::Validation;
 
 /// How to build a [`Context`].
@@ -70,7 +70,9 @@ pub struct Context {
     pub(crate) debug_utils: Option<ash::ext::debug_utils::Device>,
     pub(crate) conditional: Option<ash::ext::conditional_rendering::Device>,
     pub(crate) upload_pool: vk::CommandPool,
-    /// The device and what it owns are destroyed (by `destroy_checked` or Drop).
+    /// tilegraph created the device (and destroys it); an adopted one is the engine's.
+    owns_device: bool,
+    /// What tilegraph made on the device is destroyed (by `destroy_checked` or Drop).
     device_destroyed: bool,
     // Declared last: dropped after the device is destroyed in Drop.
     instance: ManuallyDrop<Instance>,
@@ -85,28 +87,7 @@ impl Context {
     pub fn new(options: ContextOptions) -> Result<Self, VkError> {
         let instance = Instance::new(&options.app_name, options.validation)?;
         let physical = instance.choose_device(options.device.as_deref())?;
-        let profiles = ProfileSet::from_env()?;
-        let mut selection = profiles.select(&physical.identity, options.profile.as_deref())?;
-        if selection.profile.render_pass.store_op_none && !physical.api13() {
-            // VK_ATTACHMENT_STORE_OP_NONE is core from 1.3 (tilegraph enables none of the
-            // extensions that add it earlier): plans for this device store read-only
-            // attachments instead, and the graph synchronizes that store as the write it is.
-            log::info!(
-                "{:?} is a Vulkan {} device: profile {} plans STORE instead of STORE_OP_NONE",
-                physical.identity.device_name,
-                physical.identity.api_version_string(),
-                selection.profile.name
-            );
-            selection.profile.render_pass.store_op_none = false;
-        }
-        log::info!(
-            "device {:?} ({}; Vulkan {}), profile {} ({})",
-            physical.identity.device_name,
-            physical.driver_name,
-            physical.identity.api_version_string(),
-            selection.profile.name,
-            selection.matched_by
-        );
+        let selection = select_profile(&physical, options.profile.as_deref())?;
         Self::with_instance(instance, physical, selection, &options.features)
     }
 
@@ -116,89 +97,127 @@ impl Context {
         selection: Selection,
         request: &FeatureRequest,
     ) -> Result<Self, VkError> {
-        let missing: Vec<String> = request
-            .required
-            .iter()
-            .filter(|f| !physical.supported.contains(f))
-            .map(|f| f.to_string())
-            .collect();
-        if !missing.is_empty() {
-            return Err(VkError::MissingRequired {
-                device: physical.identity.device_name.clone(),
-                what: "features",
-                missing: missing.join(", "),
-            });
-        }
-        let mut enabled: BTreeSet<Feature> = request.required.clone();
-        for f in &request.optional {
-            if physical.supported.contains(f) {
-                enabled.insert(*f);
-            } else {
-                log::info!("optional feature {f} is not supported by {:?}; passes that want it take another path", physical.identity.device_name);
-            }
-        }
-        let api13 = physical.identity.api_version >= vk::API_VERSION_1_3;
-        let queue_family = physical
-            .queue_family
-            .ok_or_else(|| VkError::MissingRequired {
-                device: physical.identity.device_name.clone(),
-                what: "queue family",
-                missing: "graphics + compute".into(),
-            })?;
-
-        let mut s = FeatureStructs::default();
-        let mut ext_names: Vec<&CStr> = Vec::new();
-        for f in &enabled {
-            s.set(*f, api13);
-            if let Some(e) = FeatureStructs::extension(*f, api13) {
-                if !ext_names.contains(&e) {
-                    ext_names.push(e);
-                }
-            }
-        }
-        // A portability implementation (MoltenVK) must have its subset extension enabled
-        // (VUID-VkDeviceCreateInfo-pProperties-04451).
-        let portability = c"VK_KHR_portability_subset";
-        if physical
-            .extensions
-            .iter()
-            .any(|e| e.as_c_str() == portability)
-        {
-            ext_names.push(portability);
-        }
-        let ext_ptrs: Vec<_> = ext_names.iter().map(|e| e.as_ptr()).collect();
+        let mut config = DeviceConfig::new(&physical, request)?;
+        let queue_family = config.queue_family;
         let priorities = [1.0f32];
         let queue_info = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(queue_family)
             .queue_priorities(&priorities)];
-        let uses = |f: Feature| enabled.contains(&f);
-        let mut f2 = vk::PhysicalDeviceFeatures2::default().features(s.core);
-        let mut info = vk::DeviceCreateInfo::default()
-            .queue_create_infos(&queue_info)
-            .enabled_extension_names(&ext_ptrs);
-        info = info
-            .push_next(&mut f2)
-            .push_next(&mut s.v11)
-            .push_next(&mut s.v12);
-        if api13 {
-            info = info.push_next(&mut s.v13);
-        } else {
-            if uses(Feature::Synchronization2) {
-                info = info.push_next(&mut s.sync2);
-            }
-            if uses(Feature::DynamicRendering) {
-                info = info.push_next(&mut s.dynrend);
-            }
-        }
-        if uses(Feature::ConditionalRendering) {
-            info = info.push_next(&mut s.cond);
-        }
+        let info = config.chain(vk::DeviceCreateInfo::default().queue_create_infos(&queue_info));
         // SAFETY: feature structs are chained only for this API version / enabled extensions, and
         // every enabled feature was reported as supported.
         let device = unsafe { instance.raw.create_device(physical.raw, &info, None) }
             .vk("vkCreateDevice")?;
         // SAFETY: queue 0 of a family we created.
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
+        log::info!(
+            "device created with features [{}] and extensions [{}]",
+            config
+                .enabled
+                .iter()
+                .map(|f| f.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            config
+                .extensions
+                .iter()
+                .map(|e| e.to_string_lossy())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let enabled = std::mem::take(&mut config.enabled);
+        let made = DeviceParts {
+            device,
+            queue,
+            queue_family,
+            enabled,
+            owned: true,
+        };
+        Self::from_device(instance, physical, selection, made)
+    }
+
+    /// Adopts an engine's device: tilegraph records on its `queue_family` with the features the
+    /// engine says it enabled, chooses the profile from the device's identity (or the one
+    /// forced by name), and never destroys the device or the instance — only what it creates
+    /// on them (its allocator's memory, its command pool, and what its executors and passes
+    /// make). Ask [`DeviceConfig::new`] what to enable before creating the device.
+    ///
+    /// # Safety
+    ///
+    /// `adopted.device` was created from `adopted.physical_device` of `instance` with at least
+    /// the features in `adopted.enabled` and their extensions ([`DeviceConfig`]), has a queue
+    /// `queue_index` in `queue_family`, and stays valid until this context is destroyed. The
+    /// engine synchronizes its own use of that queue with tilegraph's (one thread at a time),
+    /// and has waited for the GPU work tilegraph's objects are used by before destroying the
+    /// context.
+    pub unsafe fn adopt(instance: Instance, adopted: AdoptedDevice) -> Result<Self, VkError> {
+        let AdoptedDevice {
+            physical_device,
+            device,
+            queue_family,
+            queue_index,
+            enabled,
+            profile,
+        } = adopted;
+        if device == vk::Device::null() {
+            return Err(VkError::Invalid {
+                what: "adopted device".into(),
+                reason: "the handle is null".into(),
+            });
+        }
+        let physical = instance.physical_device(physical_device, queue_family)?;
+        if physical.api_version() < MIN_API_VERSION {
+            return Err(VkError::MissingRequired {
+                device: physical.identity.device_name.clone(),
+                what: "Vulkan version",
+                missing: "1.2".into(),
+            });
+        }
+        let unsupported: Vec<String> = enabled
+            .iter()
+            .filter(|f| !physical.supported.contains(f))
+            .map(|f| f.to_string())
+            .collect();
+        if !unsupported.is_empty() {
+            return Err(VkError::MissingRequired {
+                device: physical.identity.device_name.clone(),
+                what: "features the engine says it enabled (the device does not support them)",
+                missing: unsupported.join(", "),
+            });
+        }
+        let selection = select_profile(&physical, profile.as_deref())?;
+        // SAFETY: the caller vouches that `device` was created from this instance.
+        let device = unsafe { ash::Device::load(instance.raw.fp_v1_0(), device) };
+        // SAFETY: the caller vouches that the queue exists.
+        let queue = unsafe { device.get_device_queue(queue_family, queue_index) };
+        let made = DeviceParts {
+            device,
+            queue,
+            queue_family,
+            enabled,
+            owned: false,
+        };
+        Self::from_device(instance, physical, selection, made)
+    }
+
+    /// The context over a device: extension function tables for what is enabled, the
+    /// allocator and the upload pool. A device tilegraph created is destroyed again when this
+    /// fails.
+    fn from_device(
+        instance: Instance,
+        physical: PhysicalDevice,
+        selection: Selection,
+        made: DeviceParts,
+    ) -> Result<Self, VkError> {
+        let DeviceParts {
+            device,
+            queue,
+            queue_family,
+            enabled,
+            owned,
+        } = made;
+        let api13 = physical.api13();
+        let uses = |f: Feature| enabled.contains(&f);
         let sync2 = match (uses(Feature::Synchronization2), api13) {
             (false, _) => Sync2::Missing,
             (true, true) => Sync2::Core,
@@ -221,7 +240,12 @@ impl Context {
             .map(|_| ash::ext::debug_utils::Device::new(&instance.raw, &device));
         let conditional = uses(Feature::ConditionalRendering)
             .then(|| ash::ext::conditional_rendering::Device::new(&instance.raw, &device));
-
+        let destroy_device = |device: &ash::Device| {
+            if owned {
+                // SAFETY: nothing made from the device is alive (the callers' order).
+                unsafe { device.destroy_device(None) };
+            }
+        };
         let allocator = Allocator::new(&AllocatorCreateDesc {
             instance: instance.raw.clone(),
             device: device.clone(),
@@ -233,8 +257,7 @@ impl Context {
         let allocator = match allocator {
             Ok(a) => a,
             Err(source) => {
-                // SAFETY: nothing was created from the device yet.
-                unsafe { device.destroy_device(None) };
+                destroy_device(&device);
                 return Err(VkError::Allocation {
                     name: "allocator".into(),
                     source,
@@ -252,24 +275,10 @@ impl Context {
             Ok(p) => p,
             Err(r) => {
                 drop(allocator);
-                // SAFETY: the allocator is gone; nothing else was created.
-                unsafe { device.destroy_device(None) };
+                destroy_device(&device);
                 return Err(VkError::call("vkCreateCommandPool", r));
             }
         };
-        log::info!(
-            "device created with features [{}] and extensions [{}]",
-            enabled
-                .iter()
-                .map(|f| f.to_string())
-                .collect::<Vec<_>>()
-                .join(", "),
-            ext_names
-                .iter()
-                .map(|e| e.to_string_lossy())
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
         Ok(Context {
             physical,
             selection,
@@ -284,10 +293,16 @@ impl Context {
             debug_utils,
             conditional,
             upload_pool,
+            owns_device: owned,
             device_destroyed: false,
             instance: ManuallyDrop::new(instance),
             _one_thread: std::marker::PhantomData,
         })
+    }
+
+    /// Whether tilegraph created the device (and destroys it); an adopted one is the engine's.
+    pub fn owns_device(&self) -> bool {
+        self.owns_device
     }
 
     pub fn profile(&self) -> &Profile {
@@ -385,6 +400,167 @@ impl Context {
     }
 }
 
+/// The profile for `physical`: the one forced by name, else the one its identity matches.
+/// `STORE_OP_NONE` is core from Vulkan 1.3 (tilegraph enables none of the extensions that add
+/// it earlier): on older devices plans store read-only attachments instead, and the graph
+/// synchronizes that store as the write it is.
+fn select_profile(physical: &PhysicalDevice, forced: Option<&str>) -> Result<Selection, VkError> {
+    let profiles = ProfileSet::from_env()?;
+    let mut selection = profiles.select(&physical.identity, forced)?;
+    if selection.profile.render_pass.store_op_none && !physical.api13() {
+        log::info!(
+            "{:?} is a Vulkan {} device: profile {} plans STORE instead of STORE_OP_NONE",
+            physical.identity.device_name,
+            physical.identity.api_version_string(),
+            selection.profile.name
+        );
+        selection.profile.render_pass.store_op_none = false;
+    }
+    log::info!(
+        "device {:?} ({}; Vulkan {}), profile {} ({})",
+        physical.identity.device_name,
+        physical.driver_name,
+        physical.identity.api_version_string(),
+        selection.profile.name,
+        selection.matched_by
+    );
+    Ok(selection)
+}
+
+/// A device made or adopted, before the context around it.
+struct DeviceParts {
+    device: ash::Device,
+    queue: vk::Queue,
+    queue_family: u32,
+    enabled: BTreeSet<Feature>,
+    owned: bool,
+}
+
+/// An engine's device, handed to [`Context::adopt`].
+#[derive(Debug, Clone)]
+pub struct AdoptedDevice {
+    pub physical_device: vk::PhysicalDevice,
+    pub device: vk::Device,
+    /// The queue tilegraph records for (graphics and compute), and submits to when it owns
+    /// the frame's submission.
+    pub queue_family: u32,
+    pub queue_index: u32,
+    /// The tilegraph features the engine enabled on the device ([`DeviceConfig::enabled`]):
+    /// tilegraph uses no other.
+    pub enabled: BTreeSet<Feature>,
+    /// A profile forced by name (as `TILEGRAPH_PROFILE` does), else the device's own.
+    pub profile: Option<String>,
+}
+
+/// What a device must be created with for a [`FeatureRequest`]: the features (the required
+/// ones, and the optional ones the device supports), their Vulkan feature structs, and the
+/// extensions they need. An engine asks for it before creating its device, enables at least
+/// this, and hands [`DeviceConfig::enabled`] to [`Context::adopt`].
+pub struct DeviceConfig {
+    pub enabled: BTreeSet<Feature>,
+    pub extensions: Vec<&'static CStr>,
+    /// The graphics + compute queue family tilegraph would use.
+    pub queue_family: u32,
+    structs: Box<FeatureStructs>,
+    extension_ptrs: Vec<*const std::ffi::c_char>,
+    api13: bool,
+}
+
+impl DeviceConfig {
+    /// The configuration `request` needs on `physical`: an error naming what is missing when a
+    /// required feature is not supported.
+    pub fn new(physical: &PhysicalDevice, request: &FeatureRequest) -> Result<Self, VkError> {
+        let missing: Vec<String> = request
+            .required
+            .iter()
+            .filter(|f| !physical.supported.contains(f))
+            .map(|f| f.to_string())
+            .collect();
+        if !missing.is_empty() {
+            return Err(VkError::MissingRequired {
+                device: physical.identity.device_name.clone(),
+                what: "features",
+                missing: missing.join(", "),
+            });
+        }
+        let mut enabled: BTreeSet<Feature> = request.required.clone();
+        for f in &request.optional {
+            if physical.supported.contains(f) {
+                enabled.insert(*f);
+            } else {
+                log::info!("optional feature {f} is not supported by {:?}; passes that want it take another path", physical.identity.device_name);
+            }
+        }
+        let queue_family = physical
+            .queue_family
+            .ok_or_else(|| VkError::MissingRequired {
+                device: physical.identity.device_name.clone(),
+                what: "queue family",
+                missing: "graphics + compute".into(),
+            })?;
+        let api13 = physical.api13();
+        let mut structs = Box::<FeatureStructs>::default();
+        let mut extensions: Vec<&'static CStr> = Vec::new();
+        for f in &enabled {
+            structs.set(*f, api13);
+            if let Some(e) = FeatureStructs::extension(*f, api13) {
+                if !extensions.contains(&e) {
+                    extensions.push(e);
+                }
+            }
+        }
+        // A portability implementation (MoltenVK) must have its subset extension enabled
+        // (VUID-VkDeviceCreateInfo-pProperties-04451).
+        let portability = c"VK_KHR_portability_subset";
+        if physical.has_extension(portability) {
+            extensions.push(portability);
+        }
+        let extension_ptrs = extensions.iter().map(|e| e.as_ptr()).collect();
+        Ok(DeviceConfig {
+            enabled,
+            extensions,
+            queue_family,
+            structs,
+            extension_ptrs,
+            api13,
+        })
+    }
+
+    /// `info` with the extensions and the feature structs chained (replacing its extension
+    /// list; `info` must chain no feature struct of its own).
+    pub fn chain<'a>(&'a mut self, info: vk::DeviceCreateInfo<'a>) -> vk::DeviceCreateInfo<'a> {
+        let uses = |f: Feature| self.enabled.contains(&f);
+        let (sync2, dynrend, cond) = (
+            uses(Feature::Synchronization2),
+            uses(Feature::DynamicRendering),
+            uses(Feature::ConditionalRendering),
+        );
+        let api13 = self.api13;
+        let s = &mut *self.structs;
+        let mut info = info.enabled_extension_names(&self.extension_ptrs);
+        info.p_enabled_features = std::ptr::null();
+        s.features2 = vk::PhysicalDeviceFeatures2::default().features(s.core);
+        info = info
+            .push_next(&mut s.features2)
+            .push_next(&mut s.v11)
+            .push_next(&mut s.v12);
+        if api13 {
+            info = info.push_next(&mut s.v13);
+        } else {
+            if sync2 {
+                info = info.push_next(&mut s.sync2);
+            }
+            if dynrend {
+                info = info.push_next(&mut s.dynrend);
+            }
+        }
+        if cond {
+            info = info.push_next(&mut s.cond);
+        }
+        info
+    }
+}
+
 pub(crate) fn missing_feature(f: Feature) -> VkError {
     VkError::MissingRequired {
         device: String::new(),
@@ -402,14 +578,19 @@ impl Context {
         }
         self.device_destroyed = true;
         // SAFETY: teardown order: wait, then every child object, the allocator (which frees its
-        // memory blocks), then the device. Runs once (flag above).
+        // memory blocks), then the device. Runs once (flag above). An adopted device is the
+        // engine's: it has waited for the GPU (Context::adopt's contract) and destroys it.
         unsafe {
-            if let Err(e) = self.device.device_wait_idle() {
-                log::error!("vkDeviceWaitIdle at teardown: {e}");
+            if self.owns_device {
+                if let Err(e) = self.device.device_wait_idle() {
+                    log::error!("vkDeviceWaitIdle at teardown: {e}");
+                }
             }
             self.device.destroy_command_pool(self.upload_pool, None);
             ManuallyDrop::drop(&mut self.allocator);
-            self.device.destroy_device(None);
+            if self.owns_device {
+                self.device.destroy_device(None);
+            }
         }
     }
 

@@ -96,6 +96,8 @@ impl FeatureRequest {
 #[derive(Default)]
 pub(crate) struct FeatureStructs {
     pub core: vk::PhysicalDeviceFeatures,
+    /// Chains `core` (filled by `DeviceConfig::chain`).
+    pub features2: vk::PhysicalDeviceFeatures2<'static>,
     pub v11: vk::PhysicalDeviceVulkan11Features<'static>,
     pub v12: vk::PhysicalDeviceVulkan12Features<'static>,
     pub v13: vk::PhysicalDeviceVulkan13Features<'static>,

@@ -25,6 +25,8 @@ pub struct Instance {
     /// Boxed so its address, handed to the messenger, never moves.
     sink: Box<ValidationSink>,
     validation_enabled: bool,
+    /// tilegraph created the instance and destroys it; an adopted one is the engine's.
+    owned: bool,
 }
 
 /// One physical device as discovered, before any logical device exists.
@@ -218,7 +220,89 @@ impl Instance {
             messenger,
             sink,
             validation_enabled,
+            owned: true,
         })
+    }
+
+    /// An instance the engine created, adopted from its handle and the `vkGetInstanceProcAddr`
+    /// it was created through. tilegraph never destroys it and installs no messenger: validation
+    /// messages go wherever the engine sends them. Object names and debug labels are used only
+    /// when `debug_utils` says the engine enabled `VK_EXT_debug_utils` on it.
+    ///
+    /// # Safety
+    ///
+    /// `get_instance_proc_addr` resolves functions for `raw` (the loader's, or a layer
+    /// chain's), `raw` is a live instance, and both stay valid until every object tilegraph
+    /// makes from this adoption is gone; with `debug_utils`, the extension is enabled on `raw`.
+    pub unsafe fn adopt(
+        get_instance_proc_addr: vk::PFN_vkGetInstanceProcAddr,
+        raw: vk::Instance,
+        debug_utils: bool,
+    ) -> Result<Self, VkError> {
+        if raw == vk::Instance::null() {
+            return Err(VkError::Invalid {
+                what: "adopted instance".into(),
+                reason: "the handle is null".into(),
+            });
+        }
+        // SAFETY: the caller vouches for the function and the handle (above).
+        let entry = unsafe {
+            ash::Entry::from_static_fn(ash::StaticFn {
+                get_instance_proc_addr,
+            })
+        };
+        // SAFETY: as above: `raw` was created through this entry point.
+        let instance = unsafe { ash::Instance::load(entry.static_fn(), raw) };
+        let debug_utils =
+            debug_utils.then(|| ash::ext::debug_utils::Instance::new(&entry, &instance));
+        Ok(Instance {
+            _entry: entry,
+            raw: instance,
+            debug_utils,
+            messenger: vk::DebugUtilsMessengerEXT::null(),
+            sink: Box::default(),
+            validation_enabled: false,
+            owned: false,
+        })
+    }
+
+    /// Whether tilegraph created this instance (and destroys it).
+    pub fn owned(&self) -> bool {
+        self.owned
+    }
+
+    /// The physical device `raw` of this instance, described, with `queue_family` as the
+    /// queue family tilegraph records for (it must do graphics and compute).
+    pub fn physical_device(
+        &self,
+        raw: vk::PhysicalDevice,
+        queue_family: u32,
+    ) -> Result<PhysicalDevice, VkError> {
+        // SAFETY: valid instance.
+        let raws =
+            unsafe { self.raw.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
+        let index = raws
+            .iter()
+            .position(|&r| r == raw)
+            .ok_or_else(|| VkError::Invalid {
+                what: "adopted physical device".into(),
+                reason: "it is not a physical device of the adopted instance".into(),
+            })?;
+        let mut pd = self.describe(index, raw)?;
+        // SAFETY: `raw` belongs to this instance (found above).
+        let families = unsafe { self.raw.get_physical_device_queue_family_properties(raw) };
+        let want = vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE;
+        let family = families
+            .get(queue_family as usize)
+            .filter(|q| q.queue_flags.contains(want))
+            .ok_or_else(|| VkError::MissingRequired {
+                device: pd.identity.device_name.clone(),
+                what: "queue family",
+                missing: format!("graphics + compute on family {queue_family}"),
+            })?;
+        pd.queue_family = Some(queue_family);
+        pd.limits.timestamp_valid_bits = family.timestamp_valid_bits;
+        Ok(pd)
     }
 
     pub fn validation_enabled(&self) -> bool {
@@ -439,6 +523,9 @@ impl Instance {
 
 impl Drop for Instance {
     fn drop(&mut self) {
+        if !self.owned {
+            return; // the engine's: it destroys it
+        }
         if let Some(du) = &self.debug_utils {
             if self.messenger != vk::DebugUtilsMessengerEXT::null() {
                 // SAFETY: created from this instance; destroyed once, before the sink is dropped.

@@ -23,7 +23,7 @@ pub mod shader;
 mod validation;
 
 pub use ash;
-pub use context::{Context, ContextOptions};
+pub use context::{AdoptedDevice, Context, ContextOptions, DeviceConfig};
 pub use error::VkError;
 pub use features::{Feature, FeatureRequest};
 pub use instance::{DeviceLimits, Instance, PhysicalDevice, MIN_API_VERSION};
