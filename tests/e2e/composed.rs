@@ -111,7 +111,8 @@ fn an_engine_frame_composes_the_shipped_passes_with_its_own() {
         let mut plans = Vec::new();
         for i in 0..3 {
             r.prepare_frame(&g, &scene, &frame).unwrap();
-            let (graph, externals) = engine_frame(&kit, r.target(), i == 0, options.clear_color);
+            let (graph, externals) =
+                engine_frame(&kit, r.target().unwrap(), i == 0, options.clear_color);
             let report = r.execute_graph(&g, graph, &externals).unwrap();
             let got = r.read_image(&g).unwrap();
             for (p, (a, b)) in got

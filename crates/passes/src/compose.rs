@@ -30,9 +30,41 @@ use crate::visbuf::{add_visbuf_resolve, add_visbuf_write};
 pub(crate) struct DeclarationKey {
     /// The clear value of depth, and the compare of every pipeline.
     pub depth: DepthConvention,
-    /// The first frame imports its targets `UNDEFINED`; later ones in the layout the last
-    /// frame left them in.
+    /// The first frame imports the targets the renderer keeps `UNDEFINED`; later ones in the
+    /// layout the last frame left them in.
     pub first_frame: bool,
+    /// The colour target: its format, the state it starts the frame in and the state the
+    /// frame leaves it in (an engine's target says; the renderer's own follows `first_frame`).
+    pub color: ColorTarget,
+}
+
+/// The colour target as the frame declares it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct ColorTarget {
+    pub format: Format,
+    pub import: Import,
+}
+
+/// The state the targets the renderer keeps are left in after a frame, and found in by the
+/// next: `TRANSFER_SRC`, for the readback copy.
+pub(crate) const KEPT: ResourceState = ResourceState::image(
+    Layout::TransferSrc,
+    PipelineStages::COPY,
+    AccessFlags::TRANSFER_READ,
+);
+
+/// How a target the renderer keeps is imported: discarded and left `KEPT`, found `KEPT`
+/// after the first frame.
+pub(crate) fn kept_import(first_frame: bool) -> Import {
+    Import {
+        initial: if first_frame {
+            ResourceState::UNDEFINED
+        } else {
+            KEPT
+        },
+        content: InitialContent::Discard,
+        final_state: KEPT,
+    }
 }
 
 /// What the scene's frame is declared from.
@@ -59,9 +91,17 @@ struct Geometry<'n> {
     name: &'n str,
 }
 
+/// A scene frame declared: the graph, the physical resources of its imports, and which
+/// of them is the colour target (an engine's target changes from frame to frame).
+pub(crate) struct DeclaredScene {
+    pub graph: FrameGraph,
+    pub externals: Externals,
+    pub color: ImageId,
+}
+
 /// Declares the scene's frame: the frame setup's passes, composed from the `add_*`
 /// functions in the order the technique needs, and the physical resources of its imports.
-pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> (FrameGraph, Externals) {
+pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
     let mut c = Composition::import(spec);
     let culling = c.culling();
     // GPU culling of the early (or only) phase; raster occlusion culls after its boxes.
@@ -110,26 +150,10 @@ impl<'a> Composition<'a> {
         let extent = Extent2d::new(options.width, options.height);
         let mut g = FrameGraph::new();
         let mut externals = Externals::new();
-        // The targets survive frames: after the first they are in TRANSFER_SRC from the last
-        // frame's release, read by the readback copy.
-        let kept = ResourceState::image(
-            Layout::TransferSrc,
-            PipelineStages::COPY,
-            AccessFlags::TRANSFER_READ,
-        );
-        let import = Import {
-            initial: if key.first_frame {
-                ResourceState::UNDEFINED
-            } else {
-                kept
-            },
-            content: InitialContent::Discard,
-            final_state: kept,
-        };
         let color = g.import_image(
             "color",
-            ImageDesc::new(extent, Format::R8G8B8A8_UNORM),
-            import,
+            ImageDesc::new(extent, key.color.format),
+            key.color.import,
         );
         externals.insert(color, External::Image(target.clone()));
         let depth = g.create_image("depth", ImageDesc::new(extent, Format::D32_SFLOAT));
@@ -138,7 +162,7 @@ impl<'a> Composition<'a> {
             let ids = g.import_image(
                 "visbuf-id",
                 ImageDesc::new(extent, Format::R32_UINT),
-                import,
+                kept_import(key.first_frame),
             );
             g.export(ids);
             externals.insert(ids, External::Image(handle.clone()));
@@ -307,9 +331,13 @@ impl<'a> Composition<'a> {
         }
     }
 
-    fn finish(mut self) -> (FrameGraph, Externals) {
+    fn finish(mut self) -> DeclaredScene {
         self.g.export(self.t.color);
-        (self.g, self.externals)
+        DeclaredScene {
+            graph: self.g,
+            externals: self.externals,
+            color: self.t.color,
+        }
     }
 
     /// One geometry pass of the frame setup.

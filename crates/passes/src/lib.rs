@@ -34,6 +34,6 @@ pub mod visbuf;
 
 pub use frame::{DrawSource, FrameData, FrameGraph, Payload, SceneResources};
 pub use options::{FrameReport, RenderError, RenderOptions, WantedBy};
-pub use renderer::SceneRenderer;
+pub use renderer::{EngineTarget, SceneRenderer};
 pub use setup::{decide, FrameSetup, PassDecision, PassKind, SceneContent, Technique};
 pub use targets::SceneTargets;

@@ -37,6 +37,10 @@ pub enum RenderError {
         culling: &'static str,
         technique: &'static str,
     },
+    #[error("the engine's colour target: {0}")]
+    Target(String),
+    #[error("this renderer draws into the engine's target and the engine submits its frames: use SceneRenderer::record")]
+    EngineSubmits,
     #[error("invalid render size {width}x{height}")]
     Size { width: u32, height: u32 },
 }

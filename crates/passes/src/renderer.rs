@@ -12,15 +12,18 @@
 
 use std::sync::Arc;
 
-use tilegraph_graph::{Plan, PlanCache};
+use tilegraph_graph::{Format, ImageId, Import, Plan, PlanCache, ResourceState};
 use tilegraph_scene::{Camera, CameraFrame, DepthConvention, MaterialClass, Scene};
 use tilegraph_vk::ash::vk;
-use tilegraph_vk::executor::{Executor, Externals, FrameStats, ImageHandle};
+use tilegraph_vk::executor::{
+    EngineFrame, Executor, External, Externals, FrameStats, ImageHandle, PassContext, Submission,
+};
+use tilegraph_vk::frames::DEFAULT_FRAMES_IN_FLIGHT;
 use tilegraph_vk::queries::PassMedian;
 use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::{Context, Image, VkError};
 
-use crate::compose::{declare_scene, DeclarationKey, SceneFrame};
+use crate::compose::{declare_scene, kept_import, ColorTarget, DeclarationKey, SceneFrame};
 use crate::cull::{cpu_frustum_mask, CullState, Culling};
 use crate::draws;
 use crate::frame::{FrameData, FrameGraph, Payload, SceneResources, States};
@@ -43,6 +46,23 @@ struct DeclaredFrame {
     /// Indexed by `PassId`; `None` for pruned passes.
     payloads: Vec<Option<Payload>>,
     externals: Externals,
+    /// The colour target's id (its image may change from frame to frame: an engine's).
+    color: ImageId,
+}
+
+/// An engine's colour target for one frame ([`SceneRenderer::record`]): the image the frame
+/// renders into (a swapchain image, an offscreen target of the engine's), the state the engine
+/// left it in, and the state the frame must leave it in.
+#[derive(Debug, Clone, Copy)]
+pub struct EngineTarget<'a> {
+    /// Its extent must be the renderer's size, its format a colour format of the graph's.
+    pub image: &'a ImageHandle,
+    /// Layout, stages and access of the engine's last use (`ResourceState::UNDEFINED` discards
+    /// the content, as for an acquired swapchain image).
+    pub initial: ResourceState,
+    /// Where the frame leaves it: `ResourceState::PRESENT` for a swapchain image, a shader
+    /// read for the engine's post-processing, `TRANSFER_SRC` for a copy.
+    pub final_state: ResourceState,
 }
 
 /// Renders one scene frame after frame.
@@ -52,7 +72,8 @@ pub struct SceneRenderer {
     setup: Arc<FrameSetup>,
     executor: Executor,
     resources: SceneResources,
-    target: Target,
+    /// The colour target the renderer keeps (`None` when it renders into an engine's).
+    target: Option<Target>,
     /// The captured id image (with `capture_ids`).
     ids_target: Option<Target>,
     instance_bits: Option<u32>,
@@ -70,9 +91,40 @@ pub struct SceneRenderer {
 }
 
 impl SceneRenderer {
+    /// A renderer that submits its own frames into a colour target it keeps.
     pub fn new(ctx: &Context, scene: &Scene, options: RenderOptions) -> Result<Self, RenderError> {
+        Self::build(
+            ctx,
+            scene,
+            options,
+            Submission::Owned,
+            DEFAULT_FRAMES_IN_FLIGHT,
+        )
+    }
+
+    /// A renderer whose frames the engine submits ([`SceneRenderer::record`]): with
+    /// `frames_in_flight` slots, rendering into the engine's colour target (it keeps none).
+    pub fn for_engine(
+        ctx: &Context,
+        scene: &Scene,
+        options: RenderOptions,
+        frames_in_flight: usize,
+    ) -> Result<Self, RenderError> {
+        Self::build(ctx, scene, options, Submission::Engine, frames_in_flight)
+    }
+
+    fn build(
+        ctx: &Context,
+        scene: &Scene,
+        options: RenderOptions,
+        submission: Submission,
+        frames_in_flight: usize,
+    ) -> Result<Self, RenderError> {
         let instance_bits = check_device(ctx, &options, scene)?;
-        let executor = Executor::new(ctx)?;
+        let executor = match submission {
+            Submission::Owned => Executor::with_frames(ctx, frames_in_flight, 256)?,
+            Submission::Engine => Executor::for_engine(ctx, frames_in_flight)?,
+        };
         let blended: Vec<bool> = scene
             .instances()
             .iter()
@@ -83,13 +135,15 @@ impl SceneRenderer {
             })
             .collect();
         let parts = create_resources(ctx, scene, &options, &blended, executor.frames_in_flight())
-            .and_then(|resources| match create_targets(ctx, &options) {
-                Ok(targets) => Ok((resources, targets)),
-                Err(e) => {
-                    resources.destroy(ctx);
-                    Err(e)
-                }
-            });
+            .and_then(
+                |resources| match create_targets(ctx, &options, submission) {
+                    Ok(targets) => Ok((resources, targets)),
+                    Err(e) => {
+                        resources.destroy(ctx);
+                        Err(e)
+                    }
+                },
+            );
         let (resources, (target, ids_target)) = match parts {
             Ok(p) => p,
             Err(e) => {
@@ -131,9 +185,10 @@ impl SceneRenderer {
         &self.setup
     }
 
-    /// The colour target every frame ends in (`TRANSFER_SRC_OPTIMAL` after a frame).
-    pub fn target(&self) -> &ImageHandle {
-        &self.target.1
+    /// The colour target every frame ends in (`TRANSFER_SRC_OPTIMAL` after a frame); `None`
+    /// for a renderer that draws into an engine's target.
+    pub fn target(&self) -> Option<&ImageHandle> {
+        self.target.as_ref().map(|(_, h)| h)
     }
 
     /// Renders one frame from a lone `camera`: a still camera when it is the last frame's
@@ -163,29 +218,99 @@ impl SceneRenderer {
         scene: &Scene,
         frame: &CameraFrame,
     ) -> Result<FrameReport, RenderError> {
+        let Some((_, handle)) = &self.target else {
+            return Err(RenderError::EngineSubmits);
+        };
+        let handle = handle.clone();
         self.prepare_frame(ctx, scene, frame)?;
+        let color = ColorTarget {
+            format: Format::R8G8B8A8_UNORM,
+            import: kept_import(self.frames == 0),
+        };
+        self.run_scene(ctx, frame.current.depth, color, &handle, None)
+    }
+
+    /// Records one frame of a camera path into the engine's command buffer and colour target
+    /// (a renderer made with [`SceneRenderer::for_engine`]). Nothing is submitted: the engine
+    /// submits `engine.command_buffer` on the context's queue after the frames it recorded
+    /// before, waits for it before handing `engine.slot` again, and owns its swapchain's
+    /// synchronisation (EMBEDDING.md). An unchanged frame reuses its declaration and plan.
+    pub fn record(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        frame: &CameraFrame,
+        engine: EngineFrame,
+        target: &EngineTarget<'_>,
+    ) -> Result<FrameReport, RenderError> {
+        let color = self.check_target(target)?;
+        self.prepare_frame_in_slot(ctx, scene, frame, engine.slot)?;
+        self.run_scene(ctx, frame.current.depth, color, target.image, Some(engine))
+    }
+
+    /// The engine's target as the frame declares it, or what is wrong with it.
+    fn check_target(&self, target: &EngineTarget<'_>) -> Result<ColorTarget, RenderError> {
+        let (w, h) = (self.options.width, self.options.height);
+        let extent = target.image.extent;
+        if (extent.width, extent.height) != (w, h) {
+            return Err(RenderError::Target(format!(
+                "its extent {}x{} is not the renderer's {w}x{h}",
+                extent.width, extent.height
+            )));
+        }
+        let raw = target.image.format.as_raw();
+        let format = Format::ALL
+            .into_iter()
+            .find(|f| f.vk_raw() == raw && !f.is_depth_stencil())
+            .ok_or_else(|| {
+                RenderError::Target(format!(
+                    "VkFormat {raw} is not a colour format of the graph's"
+                ))
+            })?;
+        Ok(ColorTarget {
+            format,
+            import: Import {
+                initial: target.initial,
+                content: tilegraph_graph::InitialContent::Discard,
+                final_state: target.final_state,
+            },
+        })
+    }
+
+    /// Declares the scene's frame when what it depends on changed, and records it: submitted
+    /// by the executor, or into the engine's command buffer.
+    fn run_scene(
+        &mut self,
+        ctx: &Context,
+        depth: DepthConvention,
+        color: ColorTarget,
+        image: &ImageHandle,
+        engine: Option<EngineFrame>,
+    ) -> Result<FrameReport, RenderError> {
         let key = DeclarationKey {
-            depth: frame.current.depth,
+            depth,
             first_frame: self.frames == 0,
+            color,
         };
         if self.declared.as_ref().is_none_or(|d| d.key != key) {
             self.declared = None;
             let profile = ctx.profile();
-            let (graph, externals) = declare_scene(&SceneFrame {
+            let declared = declare_scene(&SceneFrame {
                 options: &self.options,
                 setup: &self.setup,
                 profile,
                 key,
                 states: &self.resources.states,
-                target: &self.target.1,
+                target: image,
                 ids_target: self.ids_target.as_ref().map(|(_, h)| h),
             });
-            let (plan, payloads) = graph.compile(profile)?.into_plan_and_payloads();
+            let (plan, payloads) = declared.graph.compile(profile)?.into_plan_and_payloads();
             self.declared = Some(DeclaredFrame {
                 key,
                 plan: Arc::new(plan),
                 payloads,
-                externals,
+                externals: declared.externals,
+                color: declared.color,
             });
         }
         let SceneRenderer {
@@ -201,21 +326,28 @@ impl SceneRenderer {
                 reason: "no declared frame".into(),
             }));
         };
-        let stats =
-            executor.execute(
-                ctx,
-                &declared.plan,
-                &declared.externals,
-                &mut |id, pc| match declared
-                    .payloads
-                    .get_mut(id.index())
-                    .and_then(Option::as_mut)
-                {
-                    Some(p) => p(pc, resources),
-                    None => Ok(()),
-                },
-            )?;
-        let plan = Arc::clone(&declared.plan);
+        // An engine's target may be another image every frame (its swapchain's).
+        declared
+            .externals
+            .insert(declared.color, External::Image(image.clone()));
+        let DeclaredFrame {
+            plan,
+            payloads,
+            externals,
+            ..
+        } = declared;
+        let mut record = |id: tilegraph_graph::PassId, pc: &mut PassContext<'_>| match payloads
+            .get_mut(id.index())
+            .and_then(Option::as_mut)
+        {
+            Some(p) => p(pc, resources),
+            None => Ok(()),
+        };
+        let stats = match engine {
+            None => executor.execute(ctx, plan, externals, &mut record)?,
+            Some(f) => executor.record(ctx, plan, externals, f, &mut record)?,
+        };
+        let plan = Arc::clone(plan);
         self.finish_frame(ctx, plan, stats)
     }
 
@@ -229,18 +361,46 @@ impl SceneRenderer {
         graph: FrameGraph,
         externals: &Externals,
     ) -> Result<FrameReport, RenderError> {
+        self.run_graph(ctx, graph, externals, None)
+    }
+
+    /// [`Self::execute_graph`] for a renderer whose frames the engine submits: records into
+    /// `engine.command_buffer`, after [`Self::prepare_frame_in_slot`] with `engine.slot`.
+    pub fn record_graph(
+        &mut self,
+        ctx: &Context,
+        graph: FrameGraph,
+        externals: &Externals,
+        engine: EngineFrame,
+    ) -> Result<FrameReport, RenderError> {
+        self.run_graph(ctx, graph, externals, Some(engine))
+    }
+
+    fn run_graph(
+        &mut self,
+        ctx: &Context,
+        graph: FrameGraph,
+        externals: &Externals,
+        engine: Option<EngineFrame>,
+    ) -> Result<FrameReport, RenderError> {
         let mut frame = self.plan_cache.compile(graph, ctx.profile())?;
         let resources = &mut self.resources;
-        let stats =
-            self.executor
-                .execute(ctx, &frame.plan, externals, &mut |id, pc| match frame
-                    .payloads
-                    .get_mut(id.index())
-                    .and_then(Option::as_mut)
-                {
-                    Some(p) => p(pc, resources),
-                    None => Ok(()),
-                })?;
+        let mut record = |id: tilegraph_graph::PassId, pc: &mut PassContext<'_>| match frame
+            .payloads
+            .get_mut(id.index())
+            .and_then(Option::as_mut)
+        {
+            Some(p) => p(pc, resources),
+            None => Ok(()),
+        };
+        let stats = match engine {
+            None => self
+                .executor
+                .execute(ctx, &frame.plan, externals, &mut record)?,
+            Some(f) => self
+                .executor
+                .record(ctx, &frame.plan, externals, f, &mut record)?,
+        };
         self.finish_frame(ctx, frame.plan, stats)
     }
 
@@ -276,6 +436,37 @@ impl SceneRenderer {
         scene: &Scene,
         frame: &CameraFrame,
     ) -> Result<(), RenderError> {
+        self.prepare(ctx, scene, frame, None)
+    }
+
+    /// [`Self::prepare_frame`] into the engine's frame slot `slot` (a renderer whose frames
+    /// the engine submits; the GPU has finished the slot's previous frame).
+    pub fn prepare_frame_in_slot(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        frame: &CameraFrame,
+        slot: usize,
+    ) -> Result<(), RenderError> {
+        let slots = self.executor.frames_in_flight();
+        if slot >= slots {
+            return Err(RenderError::Vk(VkError::Invalid {
+                what: "engine frame".into(),
+                reason: format!(
+                    "slot {slot} out of the {slots} frames in flight the renderer was made for"
+                ),
+            }));
+        }
+        self.prepare(ctx, scene, frame, Some(slot))
+    }
+
+    fn prepare(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        frame: &CameraFrame,
+        slot: Option<usize>,
+    ) -> Result<(), RenderError> {
         let (w, h) = (self.options.width, self.options.height);
         self.last_camera = Some(frame.camera);
         let m = frame.current;
@@ -294,7 +485,10 @@ impl SceneRenderer {
                     .collect::<Vec<bool>>(),
             ),
         };
-        let slot = self.executor.acquire_slot(ctx)?;
+        let slot = match slot {
+            Some(s) => s,
+            None => self.executor.acquire_slot(ctx)?,
+        };
         // Occlusion queries: the newest complete frame's results select what this frame draws
         // (read now, never waited for: the acquired slot's frame has completed).
         if let Some(oq) = self.resources.states.get_mut::<OqState>() {
@@ -422,12 +616,16 @@ impl SceneRenderer {
         &self.executor
     }
 
-    /// Reads the last frame's image (waits for the GPU).
+    /// Reads the last frame's image (waits for the GPU); not for a renderer that draws into
+    /// an engine's target.
     pub fn read_image(&mut self, ctx: &Context) -> Result<RgbaImage, RenderError> {
+        let Some((_, target)) = &self.target else {
+            return Err(RenderError::EngineSubmits);
+        };
         self.executor.finish(ctx)?;
         let pixels = tilegraph_vk::readback::read_image(
             ctx,
-            &self.target.1,
+            target,
             vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
             0,
         )?;
@@ -451,7 +649,9 @@ impl SceneRenderer {
         // The payloads only hold handles; dropped before what they name.
         drop(declared);
         resources.destroy(ctx);
-        destroy_target(ctx, target);
+        if let Some(target) = target {
+            destroy_target(ctx, target);
+        }
         if let Some(ids) = ids_target {
             destroy_target(ctx, ids);
         }
@@ -559,16 +759,22 @@ fn add_states(
 fn create_targets(
     ctx: &Context,
     options: &RenderOptions,
-) -> Result<(Target, Option<Target>), RenderError> {
+    submission: Submission,
+) -> Result<(Option<Target>, Option<Target>), RenderError> {
     let size = (options.width, options.height);
-    let target = create_target(ctx, size, vk::Format::R8G8B8A8_UNORM)?;
+    let target = match submission {
+        Submission::Owned => Some(create_target(ctx, size, vk::Format::R8G8B8A8_UNORM)?),
+        Submission::Engine => None,
+    };
     if !(options.capture_ids && options.technique == Technique::Visbuf) {
         return Ok((target, None));
     }
     match create_target(ctx, size, vk::Format::R32_UINT) {
         Ok(ids) => Ok((target, Some(ids))),
         Err(e) => {
-            destroy_target(ctx, target);
+            if let Some(target) = target {
+                destroy_target(ctx, target);
+            }
             Err(e.into())
         }
     }

@@ -61,9 +61,24 @@ impl Feature {
     ];
 }
 
+impl Feature {
+    /// The extension that provides the feature on every Vulkan version (none of the others:
+    /// they are core features, or core from 1.3 and enabled through an extension before).
+    pub fn extension_only(self) -> Option<&'static str> {
+        match self {
+            Feature::ConditionalRendering => Some("VK_EXT_conditional_rendering"),
+            _ => None,
+        }
+    }
+}
+
 impl fmt::Display for Feature {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        fmt::Debug::fmt(self, f)
+        fmt::Debug::fmt(self, f)?;
+        match self.extension_only() {
+            Some(e) => write!(f, " ({e})"),
+            None => Ok(()),
+        }
     }
 }
 

@@ -1,6 +1,11 @@
 //! Frames in flight: each slot has its own command pool, command buffer and fence, so the CPU
 //! records frame N+1 while the GPU runs frame N, and nothing a slot used is touched again before
 //! its fence says the GPU is done with it.
+//!
+//! An engine that owns submission ([`Submission::Engine`]) brings its own command buffer and
+//! frame slot instead: it vouches that the GPU finished the frame last recorded for that slot
+//! (it waited on its own fence), which is all tilegraph needs to reuse the slot's buffers and read
+//! its queries. Its slots have no pool and no fence; waiting for every frame is a device wait.
 
 use ash::vk;
 
@@ -30,10 +35,22 @@ struct FrameSlot {
     frame: u64,
 }
 
+/// Who submits the recorded frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Submission {
+    /// tilegraph: its own command buffers, fences and queue submits.
+    Owned,
+    /// The engine: it hands tilegraph a command buffer in the recording state and its frame
+    /// slot, submits the buffer itself on the context's queue, in recording order, and
+    /// re-uses a slot only after the GPU finished the frame last recorded for it.
+    Engine,
+}
+
 /// The ring of frame slots.
 pub struct FrameRing {
     slots: Vec<FrameSlot>,
     next_frame: u64,
+    submission: Submission,
 }
 
 /// The slot being recorded: its command buffer is in the recording state.
@@ -47,14 +64,40 @@ pub struct FrameToken {
     pub completed_frame: Option<u64>,
 }
 
+impl FrameSlot {
+    /// A slot of the engine's: it brings the command buffer, and its fence is its own.
+    fn engines() -> Self {
+        FrameSlot {
+            pool: vk::CommandPool::null(),
+            cbs: Vec::new(),
+            begun: 0,
+            fence: vk::Fence::null(),
+            flushed: false,
+            abandoned: false,
+            in_flight: false,
+            completed: None,
+            frame: 0,
+        }
+    }
+}
+
 impl FrameRing {
-    pub fn new(ctx: &Context, frames_in_flight: usize) -> Result<Self, VkError> {
+    pub fn new(
+        ctx: &Context,
+        frames_in_flight: usize,
+        submission: Submission,
+    ) -> Result<Self, VkError> {
         let mut ring = FrameRing {
             slots: Vec::new(),
             next_frame: 0,
+            submission,
         };
         for i in 0..frames_in_flight.max(1) {
-            match Self::slot(ctx, i) {
+            let slot = match submission {
+                Submission::Owned => Self::slot(ctx, i),
+                Submission::Engine => Ok(FrameSlot::engines()),
+            };
+            match slot {
                 Ok(s) => ring.slots.push(s),
                 Err(e) => {
                     ring.destroy(ctx);
@@ -118,6 +161,10 @@ impl FrameRing {
         self.slots.iter().map(|s| s.cbs.len()).sum()
     }
 
+    pub fn submission(&self) -> Submission {
+        self.submission
+    }
+
     /// The frame number the next [`FrameRing::begin`] hands out.
     pub fn next_frame(&self) -> u64 {
         self.next_frame
@@ -132,6 +179,7 @@ impl FrameRing {
     /// buffers may be rewritten, and returns the slot. `begin` does this too; call it first when
     /// the CPU must write the slot's data before recording.
     pub fn wait_next(&mut self, ctx: &Context) -> Result<usize, VkError> {
+        self.expect(Submission::Owned)?;
         let slot = self.next_slot();
         let s = &mut self.slots[slot];
         if s.in_flight {
@@ -180,8 +228,73 @@ impl FrameRing {
         })
     }
 
+    /// Begins frame recording into the engine's `cb` (recording) for its slot `slot`, whose
+    /// previous frame the engine vouches has completed.
+    pub fn begin_engine(
+        &mut self,
+        slot: usize,
+        cb: vk::CommandBuffer,
+    ) -> Result<FrameToken, VkError> {
+        self.expect(Submission::Engine)?;
+        let n = self.slots.len();
+        if cb == vk::CommandBuffer::null() {
+            return Err(VkError::Invalid {
+                what: "engine frame".into(),
+                reason: "the command buffer is null".into(),
+            });
+        }
+        let s = self.slots.get_mut(slot).ok_or_else(|| VkError::Invalid {
+            what: "engine frame".into(),
+            reason: format!(
+                "slot {slot} out of the {n} frames in flight the renderer was made for"
+            ),
+        })?;
+        let completed_frame = (s.in_flight && !s.abandoned).then_some(s.frame);
+        s.in_flight = false;
+        s.abandoned = false;
+        s.completed = None;
+        let frame = self.next_frame;
+        s.frame = frame;
+        self.next_frame += 1;
+        Ok(FrameToken {
+            slot,
+            frame,
+            cb,
+            completed_frame,
+        })
+    }
+
+    /// The engine's frame is recorded: it submits it.
+    pub fn end_engine(&mut self, token: &FrameToken) {
+        if let Some(s) = self.slots.get_mut(token.slot) {
+            s.in_flight = true;
+        }
+    }
+
+    fn expect(&self, submission: Submission) -> Result<(), VkError> {
+        if self.submission == submission {
+            return Ok(());
+        }
+        Err(VkError::Invalid {
+            what: "frame ring".into(),
+            reason: match submission {
+                Submission::Owned => {
+                    "the engine submits this renderer's frames: record them into its command buffer"
+                        .into()
+                }
+                Submission::Engine => {
+                    "this renderer submits its own frames: it takes no command buffer".into()
+                }
+            },
+        })
+    }
+
     /// Ends recording and submits; the slot's fence signals when the GPU is done.
     pub fn submit(&mut self, ctx: &Context, token: FrameToken) -> Result<(), VkError> {
+        if self.submission == Submission::Engine {
+            self.end_engine(&token);
+            return Ok(());
+        }
         let s = self
             .slots
             .get_mut(token.slot)
@@ -217,6 +330,7 @@ impl FrameRing {
     /// Submits the commands recorded so far and continues recording in a fresh command buffer of
     /// the same slot (seed 001: a flush before the occlusion-query render pass on Adreno).
     pub fn flush(&mut self, ctx: &Context, token: &mut FrameToken) -> Result<(), VkError> {
+        self.expect(Submission::Owned)?;
         let s = self
             .slots
             .get_mut(token.slot)
@@ -274,6 +388,12 @@ impl FrameRing {
             return Ok(());
         };
         s.abandoned = true;
+        if self.submission == Submission::Engine {
+            // The engine does not submit a frame whose recording failed (EMBEDDING.md); the
+            // slot holds nothing to read.
+            s.in_flight = true;
+            return Ok(());
+        }
         if s.flushed {
             // SAFETY: unsignalled fence of this slot (waited and reset before `begin`).
             let tracked =
@@ -297,6 +417,19 @@ impl FrameRing {
     /// Waits for every slot (before reading results or tearing down).
     pub fn wait_all(&mut self, ctx: &Context) -> Result<Vec<u64>, VkError> {
         let mut done = Vec::new();
+        if self.submission == Submission::Engine {
+            // No fence of ours tracks the engine's submissions: wait for the device (the
+            // engine's queue is not in use meanwhile: Context::adopt's contract).
+            if self.slots.iter().any(|s| s.in_flight) {
+                ctx.wait_idle()?;
+            }
+            for s in &mut self.slots {
+                if std::mem::take(&mut s.in_flight) && !s.abandoned {
+                    done.push(s.frame);
+                }
+            }
+            return Ok(done);
+        }
         for s in &mut self.slots {
             if let Some(f) = s.completed.take() {
                 done.push(f);

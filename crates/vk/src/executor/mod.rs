@@ -19,6 +19,7 @@ use std::sync::Arc;
 use ash::vk;
 use tilegraph_graph::Plan;
 
+pub use crate::frames::Submission;
 pub use recorder::{PassContext, RecordFn, RecordPass};
 pub use render_pass::RenderPassRef;
 pub use resources::{aspect_of, BufferHandle, External, Externals, ImageHandle, Resources};
@@ -28,7 +29,7 @@ use render_pass::RenderPasses;
 use resources::build_resources;
 
 use crate::error::VkError;
-use crate::frames::{FrameRing, DEFAULT_FRAMES_IN_FLIGHT};
+use crate::frames::{FrameRing, FrameToken, DEFAULT_FRAMES_IN_FLIGHT};
 use crate::queries::{FrameTimings, PassMedian, QueryRing, TimingHistory};
 use crate::{Context, Feature};
 
@@ -42,11 +43,25 @@ pub struct FrameStats {
     pub subpasses: u32,
     pub barriers: u32,
     pub flushes: u32,
+    /// Flush steps of the plan not made because the engine owns submission (the Adreno
+    /// profile's flush before occlusion queries: EMBEDDING.md says how an engine makes it).
+    pub flushes_left_to_engine: u32,
     /// Whether the resource cache was (re)built this frame.
     pub rebuilt: bool,
     /// Whether aliased resources share memory (false when real requirements forced dedicated
     /// allocations, see [`Resources`]).
     pub aliasing_used: bool,
+}
+
+/// The engine's side of a frame it submits itself ([`Executor::record`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EngineFrame {
+    /// A primary command buffer in the recording state, outside any render pass. tilegraph
+    /// records into it and neither begins, ends nor submits it.
+    pub command_buffer: vk::CommandBuffer,
+    /// The engine's frame slot, below the frames in flight the executor was made for: the GPU
+    /// has finished the frame last recorded with this slot (the engine waited on its fence).
+    pub slot: usize,
 }
 
 /// Executes plans frame after frame.
@@ -73,11 +88,26 @@ impl Executor {
         Self::with_frames(ctx, DEFAULT_FRAMES_IN_FLIGHT, 256)
     }
 
+    /// An executor whose frames the engine submits ([`Executor::record`]), with
+    /// `frames_in_flight` slots.
+    pub fn for_engine(ctx: &Context, frames_in_flight: usize) -> Result<Self, VkError> {
+        Self::build(ctx, frames_in_flight, 256, Submission::Engine)
+    }
+
     /// `frames_in_flight` frames, each timing up to `max_passes` passes.
     pub fn with_frames(
         ctx: &Context,
         frames_in_flight: usize,
         max_passes: u32,
+    ) -> Result<Self, VkError> {
+        Self::build(ctx, frames_in_flight, max_passes, Submission::Owned)
+    }
+
+    fn build(
+        ctx: &Context,
+        frames_in_flight: usize,
+        max_passes: u32,
+        submission: Submission,
     ) -> Result<Self, VkError> {
         // Barriers, timestamps and the subpass dependencies of every render pass are
         // synchronization2 structures: without the feature they would be invalid usage.
@@ -88,7 +118,7 @@ impl Executor {
                 missing: Feature::Synchronization2.to_string(),
             });
         }
-        let mut frames = FrameRing::new(ctx, frames_in_flight)?;
+        let mut frames = FrameRing::new(ctx, frames_in_flight, submission)?;
         let queries = match QueryRing::new(ctx, frames.frames_in_flight(), max_passes) {
             Ok(q) => q,
             Err(e) => {
@@ -113,6 +143,11 @@ impl Executor {
 
     pub fn frames_in_flight(&self) -> usize {
         self.frames.frames_in_flight()
+    }
+
+    /// Who submits this executor's frames.
+    pub fn submission(&self) -> Submission {
+        self.frames.submission()
     }
 
     /// Command buffers allocated over all frame slots: one per slot, plus one per flush step of
@@ -167,57 +202,40 @@ impl Executor {
         externals: &Externals,
         record: &mut RecordFn<'_>,
     ) -> Result<FrameStats, VkError> {
+        self.run(ctx, plan, externals, None, record)
+    }
+
+    /// Records one frame of `plan` into the engine's command buffer (an executor made with
+    /// [`Executor::for_engine`]), as [`Executor::execute`] does but submitting nothing: the
+    /// engine submits `frame.command_buffer` on the context's queue, after every earlier
+    /// frame's, and waits for it before it hands the same slot again. A plan step that would
+    /// flush is counted in [`FrameStats::flushes_left_to_engine`] instead. After an error the
+    /// command buffer holds part of a frame (perhaps inside a render pass): the engine resets
+    /// it and does not submit it.
+    pub fn record(
+        &mut self,
+        ctx: &Context,
+        plan: &Arc<Plan>,
+        externals: &Externals,
+        frame: EngineFrame,
+        record: &mut RecordFn<'_>,
+    ) -> Result<FrameStats, VkError> {
+        self.run(ctx, plan, externals, Some(frame), record)
+    }
+
+    fn run(
+        &mut self,
+        ctx: &Context,
+        plan: &Arc<Plan>,
+        externals: &Externals,
+        engine: Option<EngineFrame>,
+        record: &mut RecordFn<'_>,
+    ) -> Result<FrameStats, VkError> {
         let allocations_before = ctx.allocation_count();
         let mut stats = FrameStats::default();
-        match &self.plan {
-            Some(current) if Arc::ptr_eq(current, plan) => {}
-            Some(current) if **current == **plan => self.plan = Some(Arc::clone(plan)),
-            _ => {
-                self.rebuild(ctx, plan)?;
-                stats.rebuilt = true;
-            }
-        }
-        let mut token = self.frames.begin(ctx)?;
-        if token.completed_frame.is_some() {
-            if let Some(t) = self.queries.collect(ctx, token.slot)? {
-                self.history.record(&t);
-                self.latest = Some(t);
-            }
-        }
-        self.queries
-            .begin_frame(ctx, token.cb, token.slot, token.frame)?;
-        let result = match self.resources.as_ref() {
-            Some(resources) => {
-                // The placed plan: same passes and render passes, barriers for the real layout.
-                let placed = resources.placed().unwrap_or(plan);
-                // Resources created by the graph were last touched by an earlier frame (same
-                // memory); the first frame after a rebuild has no earlier user.
-                self.state
-                    .first_uses
-                    .begin(placed.resources.len(), token.frame > self.resources_since);
-                FrameRecorder {
-                    ctx,
-                    plan: placed,
-                    resources,
-                    externals,
-                    frames: &mut self.frames,
-                    queries: &mut self.queries,
-                    render_passes: &mut self.render_passes,
-                    state: &mut self.state,
-                    token: &mut token,
-                    stats: &mut stats,
-                    record,
-                }
-                .record_steps()
-            }
-            None => Err(VkError::Invalid {
-                what: "executor".into(),
-                reason: "no resources".into(),
-            }),
-        };
-        // After a recording error nothing more is submitted. The command buffer may be inside a
-        // render pass, so it is not ended: the pool reset at the slot's next use takes it back
-        // from the recording state. Work already flushed this frame is tracked by the fence.
+        let mut token = self.begin(ctx, engine)?;
+        // The slot is the frame's from here: a failure ends it (nothing of it is submitted).
+        let result = self.run_token(ctx, plan, externals, &mut token, &mut stats, record);
         if let Err(e) = result {
             if let Err(gave_up) = self.frames.abandon(ctx, &token) {
                 log::error!("giving up the frame after \"{e}\": {gave_up}");
@@ -228,12 +246,75 @@ impl Executor {
         stats.frame = token.frame;
         stats.allocations = ctx.allocation_count() - allocations_before;
         stats.aliasing_used = self.resources.as_ref().is_some_and(|r| r.aliasing_used());
-        self.last_stats = stats.clone();
+        self.last_stats.clone_from(&stats);
         Ok(stats)
     }
 
-    /// A different plan: waits for every frame in flight, then builds its resources.
-    fn rebuild(&mut self, ctx: &Context, plan: &Arc<Plan>) -> Result<(), VkError> {
+    /// Starts a frame in the next slot of ours, or the engine's.
+    fn begin(&mut self, ctx: &Context, engine: Option<EngineFrame>) -> Result<FrameToken, VkError> {
+        match engine {
+            None => self.frames.begin(ctx),
+            Some(f) => self.frames.begin_engine(f.slot, f.command_buffer),
+        }
+    }
+
+    fn run_token(
+        &mut self,
+        ctx: &Context,
+        plan: &Arc<Plan>,
+        externals: &Externals,
+        token: &mut FrameToken,
+        stats: &mut FrameStats,
+        record: &mut RecordFn<'_>,
+    ) -> Result<(), VkError> {
+        if token.completed_frame.is_some() {
+            if let Some(t) = self.queries.collect(ctx, token.slot)? {
+                self.history.record(&t);
+                self.latest = Some(t);
+            }
+        }
+        match &self.plan {
+            Some(current) if Arc::ptr_eq(current, plan) => {}
+            Some(current) if **current == **plan => self.plan = Some(Arc::clone(plan)),
+            _ => {
+                self.rebuild(ctx, plan, token.frame)?;
+                stats.rebuilt = true;
+            }
+        }
+        self.queries
+            .begin_frame(ctx, token.cb, token.slot, token.frame)?;
+        let Some(resources) = self.resources.as_ref() else {
+            return Err(VkError::Invalid {
+                what: "executor".into(),
+                reason: "no resources".into(),
+            });
+        };
+        // The placed plan: same passes and render passes, barriers for the real layout.
+        let placed = resources.placed().unwrap_or(plan);
+        // Resources created by the graph were last touched by an earlier frame (same memory);
+        // the first frame after a rebuild has no earlier user.
+        self.state
+            .first_uses
+            .begin(placed.resources.len(), token.frame > self.resources_since);
+        FrameRecorder {
+            ctx,
+            plan: placed,
+            resources,
+            externals,
+            frames: &mut self.frames,
+            queries: &mut self.queries,
+            render_passes: &mut self.render_passes,
+            state: &mut self.state,
+            token,
+            stats,
+            record,
+        }
+        .record_steps()
+    }
+
+    /// A different plan: waits for every frame in flight, then builds its resources for the
+    /// frames from `frame` on.
+    fn rebuild(&mut self, ctx: &Context, plan: &Arc<Plan>, frame: u64) -> Result<(), VkError> {
         self.collect_all(ctx)?;
         if let Some(old) = self.resources.take() {
             old.destroy(ctx);
@@ -245,7 +326,7 @@ impl Executor {
         self.plan = None;
         self.resources = Some(build_resources(ctx, plan)?);
         self.plan = Some(Arc::clone(plan));
-        self.resources_since = self.frames.next_frame();
+        self.resources_since = frame;
         Ok(())
     }
 

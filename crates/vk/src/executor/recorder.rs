@@ -14,7 +14,7 @@ use super::resources::{BufferHandle, External, Externals, ImageHandle, Resources
 use super::sync::{buffer_wait, FirstUses};
 use super::FrameStats;
 use crate::error::VkError;
-use crate::frames::{FrameRing, FrameToken};
+use crate::frames::{FrameRing, FrameToken, Submission};
 use crate::queries::QueryRing;
 use crate::Context;
 
@@ -174,10 +174,13 @@ impl FrameRecorder<'_, '_> {
                     self.stats.barriers += batch.len() as u32;
                     self.barriers(batch)?;
                 }
-                Step::Flush(_) => {
-                    self.stats.flushes += 1;
-                    self.frames.flush(self.ctx, self.token)?;
-                }
+                Step::Flush(_) => match self.frames.submission() {
+                    Submission::Owned => {
+                        self.stats.flushes += 1;
+                        self.frames.flush(self.ctx, self.token)?;
+                    }
+                    Submission::Engine => self.stats.flushes_left_to_engine += 1,
+                },
                 Step::Compute { pass } | Step::Transfer { pass } => {
                     self.wait_for_earlier_frames(std::slice::from_ref(pass).iter().copied())?;
                     self.state.first_uses.mark(plan, *pass);
