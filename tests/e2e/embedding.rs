@@ -402,3 +402,35 @@ fn a_flush_the_engine_owns_is_counted_not_made() {
     let messages = engine.destroy();
     assert!(messages.is_empty(), "validation: {messages:#?}");
 }
+
+/// Out-of-memory injected through the context's memory budget: the frame that needs memory
+/// fails with a typed error, nothing is left half-made, and once memory is available the next
+/// frame renders the same image as an undisturbed renderer.
+#[test]
+fn out_of_memory_fails_the_frame_cleanly_and_the_next_one_succeeds() {
+    let scene = city();
+    let g = gpu_with(Some("mali-valhall"), options().device_features()).unwrap();
+    let reference = render(&g, &scene);
+    let mut r = SceneRenderer::new(&g, &scene, options()).unwrap();
+    let frames: Vec<_> = scene.camera_path().frames(aspect()).take(FRAMES).collect();
+    // The renderer holds its scene; the first frame still needs its attachments.
+    g.set_memory_budget(Some(g.allocated_bytes()));
+    let err = r.render_frame(&g, &scene, &frames[0]).unwrap_err();
+    assert!(err.is_out_of_memory(), "{err}");
+    assert!(err.to_string().contains("out of device memory"), "{err}");
+    let held = g.allocated_bytes();
+    // Failing again holds no more memory.
+    let err = r.render_frame(&g, &scene, &frames[0]).unwrap_err();
+    assert!(err.is_out_of_memory(), "{err}");
+    assert_eq!(g.allocated_bytes(), held);
+    g.set_memory_budget(None);
+    for frame in &frames {
+        r.render_frame(&g, &scene, frame).unwrap();
+    }
+    let image = r.read_image(&g).unwrap();
+    assert!(
+        image.pixels == reference.pixels,
+        "the frame after the failure differs"
+    );
+    r.destroy(&g);
+}

@@ -45,6 +45,19 @@ pub enum RenderError {
     Size { width: u32, height: u32 },
 }
 
+impl RenderError {
+    /// Out of memory (the device's, the host's, or the context's budget): the frame failed
+    /// cleanly; free memory (or raise the budget) and render the next one.
+    pub fn is_out_of_memory(&self) -> bool {
+        matches!(self, RenderError::Vk(e) if e.is_out_of_memory())
+    }
+
+    /// The device was lost: destroy the renderer, the context and the device.
+    pub fn is_device_lost(&self) -> bool {
+        matches!(self, RenderError::Vk(e) if e.is_device_lost())
+    }
+}
+
 /// How to render.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderOptions {

@@ -65,6 +65,10 @@ pub struct Context {
     pub(crate) enabled: BTreeSet<Feature>,
     pub(crate) allocator: ManuallyDrop<Mutex<Allocator>>,
     pub(crate) allocations: AtomicU64,
+    /// Bytes of device memory allocated through the context and not freed yet.
+    pub(crate) allocated_bytes: AtomicU64,
+    /// The most bytes the context may hold ([`Context::set_memory_budget`]; `u64::MAX`: no cap).
+    pub(crate) memory_budget: AtomicU64,
     pub(crate) sync2: Sync2,
     pub(crate) dynrend: DynRendering,
     pub(crate) debug_utils: Option<ash::ext::debug_utils::Device>,
@@ -288,6 +292,8 @@ impl Context {
             enabled,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             allocations: AtomicU64::new(0),
+            allocated_bytes: AtomicU64::new(0),
+            memory_budget: AtomicU64::new(u64::MAX),
             sync2,
             dynrend,
             debug_utils,

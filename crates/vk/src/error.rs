@@ -62,6 +62,27 @@ impl VkError {
     }
 }
 
+impl VkError {
+    /// Out of host or device memory, from a Vulkan call, gpu-allocator or the context's memory
+    /// budget: freeing memory and retrying the frame may succeed.
+    pub fn is_out_of_memory(&self) -> bool {
+        matches!(
+            self,
+            VkError::OutOfMemory { .. }
+                | VkError::Allocation {
+                    source: gpu_allocator::AllocationError::OutOfMemory,
+                    ..
+                }
+        )
+    }
+
+    /// The device was lost: the engine destroys what it made on it (tilegraph's objects too)
+    /// and the device.
+    pub fn is_device_lost(&self) -> bool {
+        matches!(self, VkError::DeviceLost { .. })
+    }
+}
+
 /// Shorthand: `unsafe { device.foo() }.vk("vkFoo")?`.
 pub(crate) trait VkResultExt<T> {
     fn vk(self, call: &'static str) -> Result<T, VkError>;

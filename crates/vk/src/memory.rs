@@ -57,6 +57,20 @@ impl Context {
         self.allocations.load(Ordering::Relaxed)
     }
 
+    /// Bytes of device memory tilegraph holds now (every allocation through this context).
+    pub fn allocated_bytes(&self) -> u64 {
+        self.allocated_bytes.load(Ordering::Relaxed)
+    }
+
+    /// Caps the device memory tilegraph may hold: an allocation past `bytes` fails with
+    /// [`VkError::OutOfMemory`], as the driver's would, and the frame that needed it fails
+    /// cleanly (the next one retries). `None` lifts the cap. For an engine that shares the
+    /// device's memory with tilegraph — and for tests that inject out-of-memory.
+    pub fn set_memory_budget(&self, bytes: Option<u64>) {
+        self.memory_budget
+            .store(bytes.unwrap_or(u64::MAX), Ordering::Relaxed);
+    }
+
     /// The memory type the profile picks for `use_` among `type_bits`.
     pub fn choose_memory(&self, use_: MemoryUse, type_bits: u32) -> Result<MemoryChoice, VkError> {
         Ok(select_memory_type(
@@ -76,6 +90,18 @@ impl Context {
         use_: MemoryUse,
         linear: bool,
     ) -> Result<(Allocation, MemoryChoice), VkError> {
+        let budget = self.memory_budget.load(Ordering::Relaxed);
+        if self.allocated_bytes().saturating_add(requirements.size) > budget {
+            log::warn!(
+                "memory for {name:?} ({} bytes) would exceed the budget of {budget} bytes ({} held)",
+                requirements.size,
+                self.allocated_bytes()
+            );
+            return Err(VkError::OutOfMemory {
+                call: "allocation within the context's memory budget",
+                kind: "device",
+            });
+        }
         let choice = self.choose_memory(use_, requirements.memory_type_bits)?;
         let narrowed = vk::MemoryRequirements {
             memory_type_bits: 1 << choice.type_index,
@@ -100,10 +126,14 @@ impl Context {
                 source,
             })?;
         self.allocations.fetch_add(1, Ordering::Relaxed);
+        self.allocated_bytes
+            .fetch_add(allocation.size(), Ordering::Relaxed);
         Ok((allocation, choice))
     }
 
     pub fn free(&self, allocation: Allocation) {
+        self.allocated_bytes
+            .fetch_sub(allocation.size(), Ordering::Relaxed);
         match self.allocator.lock() {
             Ok(mut a) => {
                 if let Err(e) = a.free(allocation) {
