@@ -34,6 +34,16 @@ const REQUIREMENTS: &[Requirement] = &[
         present: has_validation_layer,
     },
     Requirement {
+        what: "Vulkan C headers (the C ABI's tests compile C programs against them)",
+        package: "libvulkan-dev",
+        present: || Path::new("/usr/include/vulkan/vulkan.h").exists(),
+    },
+    Requirement {
+        what: "C compiler (cc)",
+        package: "gcc",
+        present: || on_path("cc"),
+    },
+    Requirement {
         what: "glslc",
         package: "glslc",
         present: || on_path("glslc"),
@@ -181,6 +191,12 @@ fn test(rest: &[String]) -> Result<(), String> {
         ]),
     )?;
     check_structure(None)?;
+    // The C programs of tests/capi link the static library: built first, with the profile
+    // the tests use (so it shares their compiled dependencies).
+    run(
+        "cargo build --profile test -p tilegraph-capi (libtilegraph.a for the C tests)",
+        cargo().args(["build", "--profile", "test", "-p", "tilegraph-capi"]),
+    )?;
     // The shader check (staleness + spirv-val) is xtask's own unit test, run by cargo test below.
     // Every GPU test requires the validation layer (with synchronization validation).
     run(

@@ -56,6 +56,11 @@ impl Format {
         Format::D32_SFLOAT_S8_UINT,
     ];
 
+    /// The format of a `VkFormat` value, if the graph has it.
+    pub fn from_vk_raw(raw: i32) -> Option<Format> {
+        Format::ALL.into_iter().find(|f| f.vk_raw() == raw)
+    }
+
     /// `VkFormat` value.
     pub const fn vk_raw(self) -> i32 {
         match self {
@@ -197,6 +202,23 @@ pub enum Layout {
 }
 
 impl Layout {
+    pub const ALL: [Layout; 9] = [
+        Layout::Undefined,
+        Layout::General,
+        Layout::ColorAttachment,
+        Layout::DepthStencilAttachment,
+        Layout::DepthStencilReadOnly,
+        Layout::ShaderReadOnly,
+        Layout::TransferSrc,
+        Layout::TransferDst,
+        Layout::Present,
+    ];
+
+    /// The layout of a `VkImageLayout` value, if the graph has it.
+    pub fn from_vk_raw(raw: i32) -> Option<Layout> {
+        Layout::ALL.into_iter().find(|l| l.vk_raw() == raw)
+    }
+
     pub const fn vk_raw(self) -> i32 {
         match self {
             Layout::Undefined => 0,

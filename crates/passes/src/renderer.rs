@@ -259,9 +259,8 @@ impl SceneRenderer {
             )));
         }
         let raw = target.image.format.as_raw();
-        let format = Format::ALL
-            .into_iter()
-            .find(|f| f.vk_raw() == raw && !f.is_depth_stencil())
+        let format = Format::from_vk_raw(raw)
+            .filter(|f| !f.is_depth_stencil())
             .ok_or_else(|| {
                 RenderError::Target(format!(
                     "VkFormat {raw} is not a colour format of the graph's"

@@ -93,7 +93,7 @@ impl Camera {
 
     /// Checks the camera: finite values, a view direction, an up not parallel to it, and a
     /// valid projection. `Err((field, reason))`.
-    pub(crate) fn check(&self) -> Result<(), (&'static str, String)> {
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
         if !self.eye.is_finite() {
             return Err(("eye", format!("non-finite value {:?}", self.eye.to_array())));
         }
@@ -194,6 +194,24 @@ pub struct CameraFrame {
     pub reproject: Mat4,
 }
 
+impl CameraFrame {
+    /// Frame `index` seen by `camera` after `previous` (`None`: a cut — the first frame, or a
+    /// jump — where nothing of the last frame applies), for a viewport of `aspect`.
+    pub fn new(index: usize, camera: Camera, previous: Option<&Camera>, aspect: f32) -> Self {
+        let current = camera.matrices(aspect);
+        let prev = previous.map_or(current, |p| p.matrices(aspect));
+        let delta = (current.eye - prev.eye).as_vec3();
+        CameraFrame {
+            index,
+            camera,
+            cut: previous.is_none(),
+            current,
+            previous: prev,
+            reproject: prev.view_projection * Mat4::from_translation(delta),
+        }
+    }
+}
+
 /// One key of a camera path: a camera, and whether the path cuts (jumps) to it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PathKey {
@@ -249,7 +267,7 @@ impl CameraPath {
         }
         for (i, k) in keys.iter().enumerate() {
             k.camera
-                .check()
+                .validate()
                 .map_err(|(field, reason)| path_error(&name, Some(i), field, reason))?;
         }
         Ok(CameraPath { name, keys })
@@ -444,20 +462,11 @@ impl CameraPath {
     /// Frame `index` with the previous frame's matrices, for a viewport of `aspect`.
     pub fn frame(&self, index: usize, aspect: f32) -> Option<CameraFrame> {
         let key = self.keys.get(index)?;
-        let current = key.camera.matrices(aspect);
         let previous = match index.checked_sub(1).and_then(|p| self.keys.get(p)) {
-            Some(prev) if !key.cut => prev.camera.matrices(aspect),
-            _ => current,
+            Some(prev) if !key.cut => Some(&prev.camera),
+            _ => None,
         };
-        let delta = (current.eye - previous.eye).as_vec3();
-        Some(CameraFrame {
-            index,
-            camera: key.camera,
-            cut: key.cut || index == 0,
-            current,
-            previous,
-            reproject: previous.view_projection * Mat4::from_translation(delta),
-        })
+        Some(CameraFrame::new(index, key.camera, previous, aspect))
     }
 
     /// Every frame in order.
@@ -513,7 +522,7 @@ impl CameraPath {
                 projection,
             };
             camera
-                .check()
+                .validate()
                 .map_err(|(field, reason)| err(field, reason))?;
             keys.push(PathKey { camera, cut: f.cut });
         }
@@ -643,7 +652,7 @@ mod tests {
     #[test]
     fn an_overflowing_view_direction_is_rejected() {
         let cam = Camera::looking_at(DVec3::new(1e308, 0.0, 0.0), DVec3::new(-1e308, 0.0, 0.0));
-        assert_eq!(cam.check().map_err(|(field, _)| field), Err("target"));
+        assert_eq!(cam.validate().map_err(|(field, _)| field), Err("target"));
     }
 
     #[test]

@@ -82,6 +82,8 @@ pub struct Context {
     instance: ManuallyDrop<Instance>,
     /// Not `Sync`: the upload pool and the queue are used by `&self` methods and must be
     /// externally synchronized (one thread at a time). Still `Send`.
+    /// A failure the next frame reports ([`Context::inject_fault`]).
+    injected_fault: std::cell::Cell<Option<vk::Result>>,
     _one_thread: std::marker::PhantomData<std::cell::Cell<()>>,
 }
 
@@ -302,8 +304,24 @@ impl Context {
             owns_device: owned,
             device_destroyed: false,
             instance: ManuallyDrop::new(instance),
+            injected_fault: std::cell::Cell::new(None),
             _one_thread: std::marker::PhantomData,
         })
+    }
+
+    /// Makes the next frame executed on this context fail as if a Vulkan call had returned
+    /// `result` (`ERROR_DEVICE_LOST`, `ERROR_OUT_OF_DEVICE_MEMORY`, ...), after the frame
+    /// began: fault injection, for tests of an engine's error paths and of tilegraph's.
+    pub fn inject_fault(&self, result: vk::Result) {
+        self.injected_fault.set(Some(result));
+    }
+
+    /// The injected fault, once, as the error of `call`.
+    pub(crate) fn injected_fault(&self, call: &'static str) -> Result<(), VkError> {
+        match self.injected_fault.take() {
+            Some(result) => Err(VkError::call(call, result)),
+            None => Ok(()),
+        }
     }
 
     /// Whether tilegraph created the device (and destroys it); an adopted one is the engine's.

@@ -107,6 +107,81 @@ impl FeatureRequest {
     }
 }
 
+/// Feature structs of someone else's (an engine's `VkDeviceCreateInfo` chain) to enable
+/// features in; `None` for a struct not chained.
+#[derive(Default)]
+pub struct FeatureTargets<'a> {
+    pub core: Option<&'a mut vk::PhysicalDeviceFeatures>,
+    pub v11: Option<&'a mut vk::PhysicalDeviceVulkan11Features<'static>>,
+    pub v12: Option<&'a mut vk::PhysicalDeviceVulkan12Features<'static>>,
+    pub v13: Option<&'a mut vk::PhysicalDeviceVulkan13Features<'static>>,
+    pub sync2: Option<&'a mut vk::PhysicalDeviceSynchronization2Features<'static>>,
+    pub dynrend: Option<&'a mut vk::PhysicalDeviceDynamicRenderingFeatures<'static>>,
+    pub cond: Option<&'a mut vk::PhysicalDeviceConditionalRenderingFeaturesEXT<'static>>,
+}
+
+impl FeatureTargets<'_> {
+    /// Sets `f`'s boolean in the struct that holds it on a device of this API version;
+    /// `Err(struct name)` when that struct is `None`.
+    pub fn enable(&mut self, f: Feature, api13: bool) -> Result<(), &'static str> {
+        fn set<T>(
+            s: &mut Option<&mut T>,
+            name: &'static str,
+            field: impl FnOnce(&mut T),
+        ) -> Result<(), &'static str> {
+            s.as_deref_mut().map(field).ok_or(name)
+        }
+        let t = vk::TRUE;
+        const CORE: &str = "VkPhysicalDeviceFeatures";
+        const V11: &str = "VkPhysicalDeviceVulkan11Features";
+        const V12: &str = "VkPhysicalDeviceVulkan12Features";
+        const V13: &str = "VkPhysicalDeviceVulkan13Features";
+        match f {
+            Feature::Synchronization2 if api13 => {
+                set(&mut self.v13, V13, |s| s.synchronization2 = t)
+            }
+            Feature::Synchronization2 => set(
+                &mut self.sync2,
+                "VkPhysicalDeviceSynchronization2Features",
+                |s| s.synchronization2 = t,
+            ),
+            Feature::DynamicRendering if api13 => {
+                set(&mut self.v13, V13, |s| s.dynamic_rendering = t)
+            }
+            Feature::DynamicRendering => set(
+                &mut self.dynrend,
+                "VkPhysicalDeviceDynamicRenderingFeatures",
+                |s| s.dynamic_rendering = t,
+            ),
+            Feature::DrawIndirectCount => set(&mut self.v12, V12, |s| s.draw_indirect_count = t),
+            Feature::MultiDrawIndirect => set(&mut self.core, CORE, |s| s.multi_draw_indirect = t),
+            Feature::ShaderDrawParameters => {
+                set(&mut self.v11, V11, |s| s.shader_draw_parameters = t)
+            }
+            Feature::SamplerFilterMinmax => {
+                set(&mut self.v12, V12, |s| s.sampler_filter_minmax = t)
+            }
+            Feature::HostQueryReset => set(&mut self.v12, V12, |s| s.host_query_reset = t),
+            Feature::PipelineStatisticsQuery => {
+                set(&mut self.core, CORE, |s| s.pipeline_statistics_query = t)
+            }
+            Feature::OcclusionQueryPrecise => {
+                set(&mut self.core, CORE, |s| s.occlusion_query_precise = t)
+            }
+            Feature::ConditionalRendering => set(
+                &mut self.cond,
+                "VkPhysicalDeviceConditionalRenderingFeaturesEXT",
+                |s| s.conditional_rendering = t,
+            ),
+            Feature::FragmentStoresAndAtomics => {
+                set(&mut self.core, CORE, |s| s.fragment_stores_and_atomics = t)
+            }
+            Feature::DepthClamp => set(&mut self.core, CORE, |s| s.depth_clamp = t),
+            Feature::GeometryShader => set(&mut self.core, CORE, |s| s.geometry_shader = t),
+        }
+    }
+}
+
 /// Owned feature structs for querying / enabling, chained on demand.
 #[derive(Default)]
 pub(crate) struct FeatureStructs {
@@ -148,24 +223,18 @@ impl FeatureStructs {
     }
 
     pub fn set(&mut self, f: Feature, api13: bool) {
-        let t = vk::TRUE;
-        match f {
-            Feature::Synchronization2 if api13 => self.v13.synchronization2 = t,
-            Feature::Synchronization2 => self.sync2.synchronization2 = t,
-            Feature::DynamicRendering if api13 => self.v13.dynamic_rendering = t,
-            Feature::DynamicRendering => self.dynrend.dynamic_rendering = t,
-            Feature::DrawIndirectCount => self.v12.draw_indirect_count = t,
-            Feature::MultiDrawIndirect => self.core.multi_draw_indirect = t,
-            Feature::ShaderDrawParameters => self.v11.shader_draw_parameters = t,
-            Feature::SamplerFilterMinmax => self.v12.sampler_filter_minmax = t,
-            Feature::HostQueryReset => self.v12.host_query_reset = t,
-            Feature::PipelineStatisticsQuery => self.core.pipeline_statistics_query = t,
-            Feature::OcclusionQueryPrecise => self.core.occlusion_query_precise = t,
-            Feature::ConditionalRendering => self.cond.conditional_rendering = t,
-            Feature::FragmentStoresAndAtomics => self.core.fragment_stores_and_atomics = t,
-            Feature::DepthClamp => self.core.depth_clamp = t,
-            Feature::GeometryShader => self.core.geometry_shader = t,
-        }
+        let mut targets = FeatureTargets {
+            core: Some(&mut self.core),
+            v11: Some(&mut self.v11),
+            v12: Some(&mut self.v12),
+            v13: Some(&mut self.v13),
+            sync2: Some(&mut self.sync2),
+            dynrend: Some(&mut self.dynrend),
+            cond: Some(&mut self.cond),
+        };
+        // Every struct is present: nothing can be missing.
+        let enabled = targets.enable(f, api13);
+        debug_assert!(enabled.is_ok());
     }
 
     /// The device extension a feature needs on this API version, if any.

@@ -66,7 +66,7 @@ impl PhysicalDevice {
     pub fn api_version(&self) -> u32 {
         self.identity.api_version
     }
-    pub(crate) fn api13(&self) -> bool {
+    pub fn api13(&self) -> bool {
         self.identity.api_version >= vk::API_VERSION_1_3
     }
     pub fn has_extension(&self, name: &CStr) -> bool {

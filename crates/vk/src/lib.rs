@@ -25,7 +25,7 @@ mod validation;
 pub use ash;
 pub use context::{AdoptedDevice, Context, ContextOptions, DeviceConfig};
 pub use error::VkError;
-pub use features::{Feature, FeatureRequest};
+pub use features::{Feature, FeatureRequest, FeatureTargets};
 pub use instance::{DeviceLimits, Instance, PhysicalDevice, MIN_API_VERSION};
 pub use memory::{Buffer, Image};
 pub use validation::{Validation, ValidationSink};

@@ -376,6 +376,19 @@ impl<P> GraphBuilder<P> {
         TransferPassBuilder { graph: self, pass }
     }
 
+    /// The raster pass `pass`, to declare more of its uses (`None`: no such raster pass). For
+    /// callers that declare a pass over several calls (the C API).
+    pub fn raster(&mut self, pass: PassId) -> Option<RasterPassBuilder<'_, P>> {
+        let decl = self.passes.get(pass.index())?;
+        (decl.kind == PassKind::Raster).then_some(RasterPassBuilder { graph: self, pass })
+    }
+
+    /// The compute pass `pass`, to declare more of its uses (`None`: no such compute pass).
+    pub fn compute(&mut self, pass: PassId) -> Option<ComputePassBuilder<'_, P>> {
+        let decl = self.passes.get(pass.index())?;
+        (decl.kind == PassKind::Compute).then_some(ComputePassBuilder { graph: self, pass })
+    }
+
     fn pass_mut(&mut self, pass: PassId) -> Option<&mut PassDecl> {
         self.passes.get_mut(pass.index())
     }

@@ -267,6 +267,7 @@ impl Executor {
         stats: &mut FrameStats,
         record: &mut RecordFn<'_>,
     ) -> Result<(), VkError> {
+        ctx.injected_fault("recording the frame (injected fault)")?;
         if token.completed_frame.is_some() {
             if let Some(t) = self.queries.collect(ctx, token.slot)? {
                 self.history.record(&t);

@@ -1,0 +1,41 @@
+//! tilegraph's C ABI: what an engine written in C or C++ links (`libtilegraph.so` or
+//! `libtilegraph.a`) and includes (`include/tilegraph.h`, generated from this crate by
+//! cbindgen and checked stale by the tests).
+//!
+//! Every exported function goes through [`status::boundary`]: it returns a [`TgStatus`], its
+//! failure leaves a message for `tg_last_error`, and a panic is caught there — nothing unwinds
+//! into C. Arguments are checked before use: null pointers, misaligned arrays, zero sizes,
+//! unknown enum values; handles are numbers checked against a per-thread registry
+//! (`registry.rs`), so a destroyed or foreign handle is a status, never undefined behaviour.
+//!
+//! - `context.rs`: what to enable on the engine's device, adopting it, the profile, a memory
+//!   budget;
+//! - `scene.rs`: scenes from plain arrays or a glTF file, cameras;
+//! - `renderer.rs`: recording a scene's frame into the engine's command buffer, statistics;
+//! - `graph.rs`, `plan.rs`: the compiler alone — declare, compile, walk the plan;
+//! - `features.rs`: tilegraph's features set in the engine's own feature structs.
+
+pub mod context;
+pub mod features;
+pub mod graph;
+pub mod plan;
+mod registry;
+pub mod renderer;
+pub mod scene;
+pub mod status;
+
+pub use context::{
+    TgAdoptInfo, TgContext, TgCulling, TgDeviceQuery, TgDeviceRequirements, TgFeature, TgTechnique,
+};
+pub use features::TgFeatureStructs;
+pub use graph::{TgGraph, TgPassClass, TgUse};
+pub use plan::{
+    TgAttachment, TgBarrier, TgPlan, TgPlanSummary, TgResidency, TgStep, TgStepKind, TgSubpass,
+};
+pub use renderer::{
+    TgEngineFrame, TgFrameStats, TgImageState, TgPassTime, TgRenderer, TgRendererDesc, TgTarget,
+};
+pub use scene::{
+    TgCamera, TgInstance, TgMaterial, TgMaterialClass, TgMesh, TgScene, TgSceneDesc, TgVertex,
+};
+pub use status::TgStatus;

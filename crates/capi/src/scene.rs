@@ -1,0 +1,365 @@
+//! Scenes: uploaded from plain arrays (no glTF needed), or loaded from a glTF file or a
+//! procedural spec; the cameras of a scene's path.
+
+use std::ffi::c_char;
+
+use glam::{DVec3, Mat3, Vec3};
+use tilegraph_scene::{
+    Camera, DepthConvention, Material, MaterialClass, MaterialId, MeshId, Projection, Scene,
+    SceneBuilder, Transform, Vertex,
+};
+
+use crate::registry::{self, Kind};
+use crate::status::{arg, array, boundary, out, string, Failure, TgStatus};
+
+/// A scene.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TgScene {
+    pub raw: u64,
+}
+
+/// How a material's coverage is decided.
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TgMaterialClass {
+    /// Writes depth, never discards.
+    Opaque = 0,
+    /// Discards below `alpha_cutoff` (glTF alphaMode MASK).
+    AlphaTested = 1,
+    /// Blended, no depth write, drawn back to front after the opaque work.
+    Blended = 2,
+}
+
+/// One vertex: 32 bytes, 4-byte aligned.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct TgVertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub uv: [f32; 2],
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct TgMaterial {
+    pub base_color: [f32; 4],
+    /// A TgMaterialClass.
+    pub material_class: u32,
+    /// For TG_MATERIAL_CLASS_ALPHA_TESTED: alpha below it is discarded.
+    pub alpha_cutoff: f32,
+    /// Non-zero: drawn without back-face culling.
+    pub double_sided: u32,
+}
+
+/// A mesh: a range of the scene's vertices and indices (indices relative to `first_vertex`)
+/// with one material.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct TgMesh {
+    pub first_vertex: u32,
+    pub vertex_count: u32,
+    pub first_index: u32,
+    pub index_count: u32,
+    pub material: u32,
+}
+
+/// A mesh placed in the world: a column-major 3x3 linear part (rotation, scale) and an f64
+/// translation (large worlds keep millimetres).
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct TgInstance {
+    pub linear: [f32; 9],
+    pub translation: [f64; 3],
+    pub mesh: u32,
+}
+
+/// A scene as plain arrays. Arrays must be aligned for their element type.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct TgSceneDesc {
+    /// The scene's name in messages (may be null).
+    pub name: *const c_char,
+    pub vertices: *const TgVertex,
+    pub vertex_count: u32,
+    pub indices: *const u32,
+    pub index_count: u32,
+    pub materials: *const TgMaterial,
+    pub material_count: u32,
+    pub meshes: *const TgMesh,
+    pub mesh_count: u32,
+    pub instances: *const TgInstance,
+    pub instance_count: u32,
+}
+
+/// A camera: f64 eye and target, a perspective projection.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TgCamera {
+    pub eye: [f64; 3],
+    pub target: [f64; 3],
+    pub up: [f32; 3],
+    /// Vertical field of view, radians.
+    pub fov_y: f32,
+    pub near_plane: f32,
+    /// 0: an infinite far plane.
+    pub far_plane: f32,
+    /// Non-zero: reverse-Z (near at depth 1), tilegraph's default; zero: standard depth.
+    pub reverse_z: u32,
+}
+
+impl TgCamera {
+    pub(crate) fn from_camera(c: &Camera) -> Result<Self, Failure> {
+        let Projection::Perspective {
+            fov_y_rad,
+            near,
+            far,
+            depth,
+        } = c.projection
+        else {
+            return Err(Failure::invalid(
+                "the camera is orthographic; TgCamera holds perspective cameras",
+            ));
+        };
+        Ok(TgCamera {
+            eye: c.eye.to_array(),
+            target: c.target.to_array(),
+            up: c.up.to_array(),
+            fov_y: fov_y_rad,
+            near_plane: near,
+            far_plane: far.unwrap_or(0.0),
+            reverse_z: u32::from(depth == DepthConvention::Reverse),
+        })
+    }
+
+    /// The camera, checked (finite, a view direction, a valid projection).
+    pub(crate) fn to_camera(self) -> Result<Camera, Failure> {
+        let camera = Camera {
+            eye: DVec3::from_array(self.eye),
+            target: DVec3::from_array(self.target),
+            up: Vec3::from_array(self.up),
+            projection: Projection::Perspective {
+                fov_y_rad: self.fov_y,
+                near: self.near_plane,
+                far: (self.far_plane != 0.0).then_some(self.far_plane),
+                depth: if self.reverse_z != 0 {
+                    DepthConvention::Reverse
+                } else {
+                    DepthConvention::Standard
+                },
+            },
+        };
+        camera
+            .validate()
+            .map_err(|(field, reason)| Failure::invalid(format!("camera {field}: {reason}")))?;
+        Ok(camera)
+    }
+}
+
+fn material(index: usize, m: &TgMaterial) -> Result<Material, Failure> {
+    let class = match m.material_class {
+        0 => MaterialClass::Opaque,
+        1 => MaterialClass::AlphaTested {
+            cutoff: m.alpha_cutoff,
+        },
+        2 => MaterialClass::Blended,
+        c => {
+            return Err(Failure::invalid(format!(
+                "materials[{index}].material_class {c} is no TgMaterialClass"
+            )))
+        }
+    };
+    Ok(Material {
+        base_color: m.base_color,
+        class,
+        double_sided: m.double_sided != 0,
+    })
+}
+
+/// The scene `desc` describes, checked element by element.
+fn build(desc: &TgSceneDesc) -> Result<Scene, Failure> {
+    // SAFETY: the caller's contract (tg_scene_create).
+    let name = if desc.name.is_null() {
+        "scene"
+    } else {
+        // SAFETY: as above.
+        unsafe { string(desc.name, "desc->name") }?
+    };
+    // SAFETY: as above: each array holds its count of elements.
+    let (vertices, indices, materials, meshes, instances) = unsafe {
+        (
+            array(desc.vertices, desc.vertex_count as usize, "desc->vertices")?,
+            array(desc.indices, desc.index_count as usize, "desc->indices")?,
+            array(
+                desc.materials,
+                desc.material_count as usize,
+                "desc->materials",
+            )?,
+            array(desc.meshes, desc.mesh_count as usize, "desc->meshes")?,
+            array(
+                desc.instances,
+                desc.instance_count as usize,
+                "desc->instances",
+            )?,
+        )
+    };
+    if instances.is_empty() || meshes.is_empty() || materials.is_empty() {
+        return Err(Failure::invalid(format!(
+            "a scene needs instances, meshes and materials (counts {}, {}, {})",
+            instances.len(),
+            meshes.len(),
+            materials.len()
+        )));
+    }
+    let mut b = SceneBuilder::new(name);
+    for (i, m) in materials.iter().enumerate() {
+        b.add_material(material(i, m)?);
+    }
+    let vertices: Vec<Vertex> = vertices
+        .iter()
+        .map(|v| Vertex {
+            position: v.position,
+            normal: v.normal,
+            uv: v.uv,
+        })
+        .collect();
+    for (i, m) in meshes.iter().enumerate() {
+        let range = |first: u32, count: u32, len: usize, what: &str| {
+            let (first, count) = (first as usize, count as usize);
+            if first.checked_add(count).is_none_or(|end| end > len) {
+                return Err(Failure::invalid(format!(
+                    "meshes[{i}]: {what} {first}..{} is past the {len} given",
+                    first.saturating_add(count)
+                )));
+            }
+            Ok(first..first + count)
+        };
+        let v = range(m.first_vertex, m.vertex_count, vertices.len(), "vertices")?;
+        let x = range(m.first_index, m.index_count, indices.len(), "indices")?;
+        b.add_mesh(&vertices[v], &indices[x], MaterialId(m.material))?;
+    }
+    for inst in instances {
+        let transform = Transform::new(
+            Mat3::from_cols_array(&inst.linear),
+            DVec3::from_array(inst.translation),
+        );
+        b.add_instance(transform, MeshId(inst.mesh))?;
+    }
+    Ok(b.build(None)?)
+}
+
+/// Uploads nothing yet: builds a scene from plain arrays (a renderer uploads it). Every
+/// element is checked: indices in range, finite values, existing materials and meshes.
+///
+/// # Safety
+/// `desc` and its arrays are valid for their counts; `out_scene` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn tg_scene_create(
+    desc: *const TgSceneDesc,
+    out_scene: *mut TgScene,
+) -> TgStatus {
+    boundary("tg_scene_create", || {
+        // SAFETY: the caller's contract.
+        let desc = unsafe { arg(desc, "desc") }?;
+        // SAFETY: as above.
+        let out_scene = unsafe { out(out_scene, "out_scene") }?;
+        *out_scene = TgScene { raw: 0 };
+        let scene = build(desc)?;
+        *out_scene = TgScene {
+            raw: registry::insert(Kind::Scene, scene)?,
+        };
+        Ok(())
+    })
+}
+
+/// Loads a scene from a spec: a glTF path (.gltf or .glb), or a procedural scene such as
+/// "city:300" (docs/SCENES.md).
+///
+/// # Safety
+/// `spec` is a NUL-terminated string; `out_scene` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn tg_scene_load(spec: *const c_char, out_scene: *mut TgScene) -> TgStatus {
+    boundary("tg_scene_load", || {
+        // SAFETY: the caller's contract.
+        let spec = unsafe { string(spec, "spec") }?;
+        // SAFETY: as above.
+        let out_scene = unsafe { out(out_scene, "out_scene") }?;
+        *out_scene = TgScene { raw: 0 };
+        let scene = tilegraph_scene::load(spec)?;
+        *out_scene = TgScene {
+            raw: registry::insert(Kind::Scene, scene)?,
+        };
+        Ok(())
+    })
+}
+
+/// Destroys a scene (renderers drawing it are destroyed first: TG_STATUS_IN_USE otherwise).
+/// A zero handle is a no-op.
+#[no_mangle]
+pub extern "C" fn tg_scene_destroy(scene: TgScene) -> TgStatus {
+    boundary("tg_scene_destroy", || {
+        if scene.raw == 0 {
+            return Ok(());
+        }
+        registry::remove::<Scene>(scene.raw, Kind::Scene, "scene").map(drop)
+    })
+}
+
+/// The number of instances and of cameras in the scene's camera path.
+///
+/// # Safety
+/// The out-pointers are writable (either may be null).
+#[no_mangle]
+pub unsafe extern "C" fn tg_scene_counts(
+    scene: TgScene,
+    out_instances: *mut u32,
+    out_path_cameras: *mut u32,
+) -> TgStatus {
+    boundary("tg_scene_counts", || {
+        registry::with(scene.raw, Kind::Scene, "scene", |s: &Scene| {
+            if !out_instances.is_null() {
+                // SAFETY: the caller's contract.
+                unsafe { *out(out_instances, "out_instances")? = s.instances().len() as u32 };
+            }
+            if !out_path_cameras.is_null() {
+                // SAFETY: as above.
+                unsafe {
+                    *out(out_path_cameras, "out_path_cameras")? = s.camera_path().len() as u32
+                };
+            }
+            Ok(())
+        })
+    })
+}
+
+/// Camera `index` of the scene's camera path, and whether the path cuts (jumps) to it.
+///
+/// # Safety
+/// `out_camera` is writable; `out_cut` is writable or null.
+#[no_mangle]
+pub unsafe extern "C" fn tg_scene_path_camera(
+    scene: TgScene,
+    index: u32,
+    out_camera: *mut TgCamera,
+    out_cut: *mut u32,
+) -> TgStatus {
+    boundary("tg_scene_path_camera", || {
+        // SAFETY: the caller's contract.
+        let out_camera = unsafe { out(out_camera, "out_camera") }?;
+        registry::with(scene.raw, Kind::Scene, "scene", |s: &Scene| {
+            let keys = s.camera_path().keys();
+            let key = keys.get(index as usize).ok_or_else(|| {
+                Failure::invalid(format!(
+                    "camera {index} is past the path's {} cameras",
+                    keys.len()
+                ))
+            })?;
+            *out_camera = TgCamera::from_camera(&key.camera)?;
+            if !out_cut.is_null() {
+                // SAFETY: the caller's contract.
+                unsafe { *out(out_cut, "out_cut")? = u32::from(key.cut || index == 0) };
+            }
+            Ok(())
+        })
+    })
+}

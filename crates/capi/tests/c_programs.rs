@@ -1,0 +1,147 @@
+//! The C programs of `tests/capi/`, compiled with the system `cc` against `libtilegraph.a` and
+//! the Vulkan headers, run on lavapipe with their own validation:
+//!
+//! - `sample.c` renders the city with two-phase HiZ on the C engine's own device, into its own
+//!   image, through its own command buffers; its pixels equal the Rust path's, bit for bit;
+//! - `errors.c` drives every error status and checks each message, faults included.
+//!
+//! `cargo xtask test` builds the static library first (`cargo build --profile test -p
+//! tilegraph-capi`); a library older than the sources is an error naming that command.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::SystemTime;
+
+use tilegraph_e2e::gpu_with;
+use tilegraph_passes::cull::Culling;
+use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// `target/debug` (or wherever this test binary was built).
+fn target_dir() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    // target/<profile dir>/deps/c_programs-HASH
+    exe.parent().and_then(Path::parent).unwrap().to_path_buf()
+}
+
+fn newest_source(dir: &Path, newest: &mut SystemTime) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            newest_source(&p, newest);
+        } else if p
+            .extension()
+            .is_some_and(|x| x == "rs" || x == "spv" || x == "toml")
+        {
+            if let Ok(m) = e.metadata().and_then(|m| m.modified()) {
+                *newest = (*newest).max(m);
+            }
+        }
+    }
+}
+
+/// The static library, checked to be newer than every source it is built from.
+fn library() -> PathBuf {
+    let lib = target_dir().join("libtilegraph.a");
+    let rebuild =
+        "build it with `cargo build --profile test -p tilegraph-capi` (`cargo xtask test` does)";
+    let built = std::fs::metadata(&lib)
+        .and_then(|m| m.modified())
+        .unwrap_or_else(|_| panic!("{} is missing: {rebuild}", lib.display()));
+    let mut newest = SystemTime::UNIX_EPOCH;
+    for dir in ["crates", "shaders/spv", "config"] {
+        newest_source(&root().join(dir), &mut newest);
+    }
+    assert!(
+        built >= newest,
+        "{} is older than the sources: {rebuild}",
+        lib.display()
+    );
+    lib
+}
+
+/// Compiles `tests/capi/<name>.c` into an executable.
+fn compile(name: &str) -> PathBuf {
+    let out = target_dir().join(format!("capi-{name}"));
+    let status = Command::new("cc")
+        .args(["-std=c11", "-O1", "-g", "-Wall", "-Wextra", "-Werror"])
+        .arg("-I")
+        .arg(root().join("crates/capi/include"))
+        .arg("-I")
+        .arg(root().join("tests/capi"))
+        .arg(root().join(format!("tests/capi/{name}.c")))
+        .arg(library())
+        .args(["-lvulkan", "-lpthread", "-ldl", "-lm", "-o"])
+        .arg(&out)
+        .status()
+        .expect("cc (install gcc: `cargo xtask deps`)");
+    assert!(status.success(), "compiling tests/capi/{name}.c failed");
+    out
+}
+
+fn run(exe: &Path, args: &[&str]) -> String {
+    let output = Command::new(exe).args(args).output().unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        output.status.success(),
+        "{} failed ({}):\n{stdout}\n{stderr}",
+        exe.display(),
+        output.status
+    );
+    stdout
+}
+
+/// The Rust path: tilegraph's own device and submission, the same frames.
+fn rust_reference() -> Vec<u8> {
+    let scene = tilegraph_scene::load("city:300").unwrap();
+    let options = RenderOptions {
+        technique: Technique::Prepass,
+        culling: Culling::HizTwoPhase,
+        width: 160,
+        height: 90,
+        ..Default::default()
+    };
+    let g = gpu_with(Some("mali-valhall"), options.device_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+    for frame in scene.camera_path().frames(160.0 / 90.0).take(4) {
+        r.render_frame(&g, &scene, &frame).unwrap();
+    }
+    let image = r.read_image(&g).unwrap();
+    r.destroy(&g);
+    image.pixels
+}
+
+#[test]
+fn the_c_sample_renders_the_rust_paths_image() {
+    let exe = compile("sample");
+    let out = target_dir().join("capi-sample.rgba");
+    let log = run(&exe, &[out.to_str().unwrap(), "mali-valhall"]);
+    assert!(log.contains("profile mali-valhall (forced"), "{log}");
+    assert!(log.contains("GPU times of frame"), "{log}");
+    let pixels = std::fs::read(&out).unwrap();
+    let reference = rust_reference();
+    assert_eq!(pixels.len(), reference.len());
+    let differing = pixels
+        .iter()
+        .zip(&reference)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert_eq!(
+        differing, 0,
+        "{differing} bytes differ from the Rust path's image"
+    );
+}
+
+#[test]
+fn the_c_error_test_drives_every_status() {
+    let exe = compile("errors");
+    let log = run(&exe, &[]);
+    assert!(log.trim_end().ends_with("ok"), "{log}");
+}

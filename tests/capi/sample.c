@@ -1,0 +1,138 @@
+/*
+ * The C sample: a C engine with its own Vulkan instance and device (validation and
+ * synchronization validation on, every message counted) hands them to tilegraph, renders the
+ * city with two-phase HiZ culling into its own image — recording into its own command
+ * buffers, two frames in flight, submitting itself — reads the pixels back, and writes them
+ * to the file named by argv[1] (raw RGBA8) for the test to compare with the Rust path's.
+ *
+ * Usage: sample OUT.rgba [PROFILE]. Exits non-zero on any failure or validation message.
+ */
+#include "engine.h"
+
+enum { WIDTH = 160, HEIGHT = 90, FRAMES = 4, SLOTS = 2 };
+
+/* Copies the image (left in TRANSFER_SRC by tilegraph) into host memory. */
+static void read_back(const Engine *e, const EngineImage *img, const char *path) {
+    VkDeviceSize size = (VkDeviceSize)WIDTH * HEIGHT * 4;
+    VkBufferCreateInfo info = {.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO,
+                               .size = size,
+                               .usage = VK_BUFFER_USAGE_TRANSFER_DST_BIT};
+    VkBuffer buffer;
+    VK_CHECK(vkCreateBuffer(e->device, &info, NULL, &buffer));
+    VkMemoryRequirements req;
+    vkGetBufferMemoryRequirements(e->device, buffer, &req);
+    VkMemoryAllocateInfo alloc = {
+        .sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO,
+        .allocationSize = req.size,
+        .memoryTypeIndex = engine_memory_type(e, req.memoryTypeBits,
+                                              VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
+                                                  VK_MEMORY_PROPERTY_HOST_COHERENT_BIT)};
+    VkDeviceMemory memory;
+    VK_CHECK(vkAllocateMemory(e->device, &alloc, NULL, &memory));
+    VK_CHECK(vkBindBufferMemory(e->device, buffer, memory, 0));
+
+    EngineSlot s = engine_slot(e);
+    engine_begin(e, &s);
+    VkBufferImageCopy region = {.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
+                                .imageExtent = {WIDTH, HEIGHT, 1}};
+    vkCmdCopyImageToBuffer(s.cb, img->image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, buffer, 1,
+                           &region);
+    VkMemoryBarrier2 to_host = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER_2,
+                                .srcStageMask = VK_PIPELINE_STAGE_2_COPY_BIT,
+                                .srcAccessMask = VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                                .dstStageMask = VK_PIPELINE_STAGE_2_HOST_BIT,
+                                .dstAccessMask = VK_ACCESS_2_HOST_READ_BIT};
+    VkDependencyInfo dep = {.sType = VK_STRUCTURE_TYPE_DEPENDENCY_INFO,
+                            .memoryBarrierCount = 1,
+                            .pMemoryBarriers = &to_host};
+    vkCmdPipelineBarrier2(s.cb, &dep);
+    engine_submit(e, &s);
+    VK_CHECK(vkWaitForFences(e->device, 1, &s.fence, VK_TRUE, UINT64_MAX));
+
+    void *pixels;
+    VK_CHECK(vkMapMemory(e->device, memory, 0, size, 0, &pixels));
+    FILE *f = fopen(path, "wb");
+    CHECK(f != NULL, "cannot write %s", path);
+    CHECK(fwrite(pixels, 1, (size_t)size, f) == (size_t)size, "short write to %s", path);
+    fclose(f);
+    vkUnmapMemory(e->device, memory);
+    engine_slot_destroy(e, &s);
+    vkDestroyBuffer(e->device, buffer, NULL);
+    vkFreeMemory(e->device, memory, NULL);
+}
+
+int main(int argc, char **argv) {
+    CHECK(argc >= 2, "usage: sample OUT.rgba [PROFILE]");
+    const char *profile = argc >= 3 ? argv[2] : "mali-valhall";
+
+    Engine e;
+    engine_start(&e);
+    engine_create_device(&e, TG_TECHNIQUE_PREPASS, TG_CULLING_HIZ_TWO_PHASE, 0);
+
+    TgContext context;
+    TG_CHECK(engine_adopt(&e, profile, &context));
+    const char *name;
+    const char *reason;
+    TG_CHECK(tg_context_profile(context, &name, &reason));
+    printf("profile %s (%s)\n", name, reason);
+    CHECK(strcmp(name, profile) == 0, "profile %s, not %s", name, profile);
+
+    TgScene scene;
+    TG_CHECK(tg_scene_load("city:300", &scene));
+    TgRendererDesc desc = {.technique = TG_TECHNIQUE_PREPASS,
+                           .culling = TG_CULLING_HIZ_TWO_PHASE,
+                           .width = WIDTH,
+                           .height = HEIGHT,
+                           .frames_in_flight = SLOTS,
+                           .clear_color = {0.55f, 0.65f, 0.78f, 1.0f}};
+    TgRenderer renderer;
+    TG_CHECK(tg_renderer_create(context, scene, &desc, &renderer));
+
+    EngineImage target = engine_image(&e, WIDTH, HEIGHT);
+    EngineSlot slots[SLOTS] = {engine_slot(&e), engine_slot(&e)};
+    for (uint32_t i = 0; i < FRAMES; i++) {
+        EngineSlot *s = &slots[i % SLOTS];
+        engine_begin(&e, s);
+        TgCamera camera;
+        uint32_t cut;
+        TG_CHECK(tg_scene_path_camera(scene, i, &camera, &cut));
+        /* First frame: the image's content is undefined; later ones: where the last left it. */
+        TgTarget t = i == 0 ? engine_target(&target, WIDTH, HEIGHT, VK_IMAGE_LAYOUT_UNDEFINED,
+                                             VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE)
+                            : engine_target(&target, WIDTH, HEIGHT,
+                                            VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                                            VK_PIPELINE_STAGE_2_COPY_BIT,
+                                            VK_ACCESS_2_TRANSFER_READ_BIT);
+        TgEngineFrame frame = {.command_buffer = s->cb, .slot = i % SLOTS};
+        TG_CHECK(tg_renderer_record(renderer, &camera, cut, &frame, &t));
+        engine_submit(&e, s);
+
+        TgFrameStats stats;
+        TG_CHECK(tg_renderer_stats(renderer, &stats));
+        printf("frame %llu: %u render passes, %u barriers, %u draws; GPU times of frame %llu: "
+               "%u passes, %.3f ms\n",
+               (unsigned long long)stats.frame, stats.render_passes, stats.barriers,
+               stats.draws, (unsigned long long)stats.timed_frame, stats.timed_pass_count,
+               stats.timed_gpu_ms);
+        for (uint32_t p = 0; p < stats.timed_pass_count; p++) {
+            TgPassTime time;
+            TG_CHECK(tg_renderer_pass_time(renderer, p, &time));
+            printf("  %-24s %.3f ms\n", time.name, time.gpu_ms);
+        }
+    }
+    VK_CHECK(vkQueueWaitIdle(e.queue));
+    read_back(&e, &target, argv[1]);
+
+    TG_CHECK(tg_renderer_destroy(renderer));
+    TG_CHECK(tg_scene_destroy(scene));
+    TG_CHECK(tg_context_destroy(context));
+    for (int i = 0; i < SLOTS; i++) {
+        engine_slot_destroy(&e, &slots[i]);
+    }
+    engine_image_destroy(&e, &target);
+    /* The engine destroys its device: tilegraph never did, and left nothing alive on it. */
+    int messages = engine_destroy(&e);
+    CHECK(messages == 0, "%d validation message(s)", messages);
+    printf("ok\n");
+    return 0;
+}
