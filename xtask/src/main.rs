@@ -191,6 +191,7 @@ fn test(rest: &[String]) -> Result<(), String> {
         ]),
     )?;
     check_structure(None)?;
+    android()?;
     // The C programs of tests/capi link the static library: built first, with the profile
     // the tests use (so it shares their compiled dependencies).
     run(
@@ -205,6 +206,52 @@ fn test(rest: &[String]) -> Result<(), String> {
             .args(["test", "--workspace"])
             .args(rest)
             .env("TILEGRAPH_VALIDATION", "required"),
+    )
+}
+
+/// The Android target: the sample checked (with clippy) and the C ABI built as a static
+/// library for aarch64-linux-android. Neither links, so no NDK is needed (docs/ANDROID.md).
+fn android() -> Result<(), String> {
+    const TARGET: &str = "aarch64-linux-android";
+    let installed = Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .output()
+        .map(|o| {
+            String::from_utf8_lossy(&o.stdout)
+                .lines()
+                .any(|l| l.trim() == TARGET)
+        })
+        .map_err(|e| format!("rustup (needed for the {TARGET} target): {e}"))?;
+    if !installed {
+        run(
+            &format!("rustup target add {TARGET}"),
+            Command::new("rustup").args(["target", "add", TARGET]),
+        )?;
+    }
+    run(
+        &format!("cargo clippy --target {TARGET} -p tilegraph-android"),
+        cargo().args([
+            "clippy",
+            "--target",
+            TARGET,
+            "-p",
+            "tilegraph-android",
+            "--",
+            "-D",
+            "warnings",
+        ]),
+    )?;
+    run(
+        &format!("tilegraph-capi as a staticlib for {TARGET}"),
+        cargo().args([
+            "rustc",
+            "--target",
+            TARGET,
+            "-p",
+            "tilegraph-capi",
+            "--crate-type",
+            "staticlib",
+        ]),
     )
 }
 

@@ -550,8 +550,18 @@ impl DeviceConfig {
         })
     }
 
+    /// Adds an extension of the engine's own (`VK_KHR_swapchain`, ...) to the list
+    /// [`DeviceConfig::chain`] enables; a name already there is not repeated.
+    pub fn add_extension(&mut self, name: &'static CStr) {
+        if !self.extensions.contains(&name) {
+            self.extensions.push(name);
+            self.extension_ptrs.push(name.as_ptr());
+        }
+    }
+
     /// `info` with the extensions and the feature structs chained (replacing its extension
-    /// list; `info` must chain no feature struct of its own).
+    /// list — add the engine's own with [`DeviceConfig::add_extension`]; `info` must chain no
+    /// feature struct of its own).
     pub fn chain<'a>(&'a mut self, info: vk::DeviceCreateInfo<'a>) -> vk::DeviceCreateInfo<'a> {
         let uses = |f: Feature| self.enabled.contains(&f);
         let (sync2, dynrend, cond) = (
