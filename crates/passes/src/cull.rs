@@ -212,8 +212,10 @@ pub struct CullState {
     pub draw_ids: Buffer,
     pub visibility: Buffer,
     params: Vec<Buffer>,
-    /// Per frame slot: each instance's list entry in CPU draw order (`Order` of cull.comp).
+    /// Per frame slot: each instance's entry in the lists in CPU draw order (`Order` of cull.comp).
     order: Vec<Buffer>,
+    /// The order being written (kept: no allocation per frame).
+    order_scratch: Vec<u32>,
     set_layout: vk::DescriptorSetLayout,
     pub pipeline_layout: vk::PipelineLayout,
     pipeline: vk::Pipeline,
@@ -300,6 +302,7 @@ impl CullState {
             visibility,
             params: Vec::new(),
             order: Vec::new(),
+            order_scratch: Vec::new(),
             set_layout: vk::DescriptorSetLayout::null(),
             pipeline_layout: vk::PipelineLayout::null(),
             pipeline: vk::Pipeline::null(),
@@ -476,7 +479,11 @@ impl CullState {
         pyramid: Option<PyramidInfo>,
     ) -> Result<(), VkError> {
         let m = &frame.current;
-        self.write_order(ctx, slot, &gpu_order(draws, self.instance_count as usize))?;
+        let mut order = std::mem::take(&mut self.order_scratch);
+        gpu_order_into(draws, self.instance_count as usize, &mut order);
+        let written = self.write_order(ctx, slot, &order);
+        self.order_scratch = order;
+        written?;
         let planes = gpu_planes(m.view_projection, m.depth)?;
         let levels = pyramid.map_or(0, |p| p.levels);
         let (pw, ph) = pyramid.map_or(extent, |p| p.extent_px);
@@ -625,32 +632,49 @@ pub fn cpu_frustum_mask(
     scene: &tilegraph_scene::Scene,
     m: &tilegraph_scene::FrameMatrices,
 ) -> Result<Vec<bool>, VkError> {
+    let mut mask = Vec::new();
+    cpu_frustum_mask_into(scene, m, &mut mask)?;
+    Ok(mask)
+}
+
+/// [`cpu_frustum_mask`] into `mask` (cleared and refilled: no allocation once it has the
+/// scene's length).
+pub fn cpu_frustum_mask_into(
+    scene: &tilegraph_scene::Scene,
+    m: &tilegraph_scene::FrameMatrices,
+    mask: &mut Vec<bool>,
+) -> Result<(), VkError> {
     let invalid = |e: tilegraph_cull::CullError| VkError::Invalid {
         what: "frustum".into(),
         reason: e.to_string(),
     };
     let frustum = Frustum::from_clip_from_world(&m.view_projection, m.depth).map_err(invalid)?;
-    scene
-        .instances()
-        .iter()
-        .map(|inst| {
-            let b = inst.bounds.aabb();
-            let aabb =
-                tilegraph_cull::Aabb::from_world_f64(b.min, b.max, m.eye).map_err(invalid)?;
-            Ok(!matches!(
-                frustum.test_aabb(&aabb).map_err(invalid)?,
-                tilegraph_cull::PlaneTest::Outside(_)
-            ))
-        })
-        .collect()
+    mask.clear();
+    for inst in scene.instances() {
+        let b = inst.bounds.aabb();
+        let aabb = tilegraph_cull::Aabb::from_world_f64(b.min, b.max, m.eye).map_err(invalid)?;
+        mask.push(!matches!(
+            frustum.test_aabb(&aabb).map_err(invalid)?,
+            tilegraph_cull::PlaneTest::Outside(_)
+        ));
+    }
+    Ok(())
 }
 
 /// Each instance's entry in the GPU lists, in the order the CPU draw list draws it (single-sided
 /// draws of a class first, then double-sided, as [`crate::recording`] records them): `list *
 /// stride + position`, `u32::MAX` for blended instances (not culled on the GPU).
 pub fn gpu_order(draws: &crate::draws::DrawList, instance_count: usize) -> Vec<u32> {
+    let mut order = Vec::new();
+    gpu_order_into(draws, instance_count, &mut order);
+    order
+}
+
+/// [`gpu_order`] into `order` (refilled in place).
+pub fn gpu_order_into(draws: &crate::draws::DrawList, instance_count: usize, order: &mut Vec<u32>) {
     let stride = instance_count.max(1) as u32;
-    let mut order = vec![u32::MAX; instance_count];
+    order.clear();
+    order.resize(instance_count, u32::MAX);
     for (class, list_draws) in [(0u32, &draws.opaque), (1, &draws.alpha_tested)] {
         for sided in [false, true] {
             let list = list_index(class, sided, 0);
@@ -667,7 +691,6 @@ pub fn gpu_order(draws: &crate::draws::DrawList, instance_count: usize) -> Vec<u
             }
         }
     }
-    order
 }
 
 #[cfg(test)]

@@ -77,7 +77,7 @@ impl DrawList {
     }
 }
 
-#[derive(Clone, Copy)]
+#[derive(Debug, Clone, Copy)]
 struct Item {
     instance: u32,
     mesh: u32,
@@ -92,34 +92,65 @@ pub fn build(
     opaque_sort: SortOrder,
     visible: Option<&[bool]>,
 ) -> DrawList {
-    let mut classes: [Vec<Item>; 3] = [Vec::new(), Vec::new(), Vec::new()];
-    for (i, inst) in scene.instances().iter().enumerate() {
-        if visible.is_some_and(|v| !v.get(i).copied().unwrap_or(false)) {
-            continue;
-        }
-        let class = DrawClass::of(scene.instance_material(inst).map(|m| m.class)).index() as usize;
-        let d = inst.bounds.center - eye;
-        classes[class].push(Item {
-            instance: i as u32,
-            mesh: inst.mesh.0,
-            distance_sq: d.length_squared(),
-        });
-    }
     let mut list = DrawList::default();
-    let orders = [opaque_sort, opaque_sort, SortOrder::None];
-    for (class, (items, order)) in classes.iter_mut().zip(orders).enumerate() {
-        let draws = if class == 2 {
-            back_to_front(scene, items, &mut list.instances)
-        } else {
-            grouped(scene, items, order, &mut list.instances)
-        };
-        match class {
-            0 => list.opaque = draws,
-            1 => list.alpha_tested = draws,
-            _ => list.blended = draws,
-        }
-    }
+    DrawBuilder::default().build_into(scene, eye, opaque_sort, visible, &mut list);
     list
+}
+
+/// Builds draw lists frame after frame without allocating: its sorting buffers, and the
+/// lists it fills, keep their capacity.
+#[derive(Debug, Default)]
+pub struct DrawBuilder {
+    classes: [Vec<Item>; 3],
+    groups: Vec<(f64, u32, std::ops::Range<usize>)>,
+}
+
+impl DrawBuilder {
+    /// [`build`] into `list` (its vectors cleared and refilled).
+    pub fn build_into(
+        &mut self,
+        scene: &Scene,
+        eye: DVec3,
+        opaque_sort: SortOrder,
+        visible: Option<&[bool]>,
+        list: &mut DrawList,
+    ) {
+        for c in &mut self.classes {
+            c.clear();
+        }
+        for (i, inst) in scene.instances().iter().enumerate() {
+            if visible.is_some_and(|v| !v.get(i).copied().unwrap_or(false)) {
+                continue;
+            }
+            let class =
+                DrawClass::of(scene.instance_material(inst).map(|m| m.class)).index() as usize;
+            let d = inst.bounds.center - eye;
+            self.classes[class].push(Item {
+                instance: i as u32,
+                mesh: inst.mesh.0,
+                distance_sq: d.length_squared(),
+            });
+        }
+        list.instances.clear();
+        let [opaque, alpha, blended] = &mut self.classes;
+        grouped(
+            scene,
+            opaque,
+            opaque_sort,
+            &mut self.groups,
+            &mut list.instances,
+            &mut list.opaque,
+        );
+        grouped(
+            scene,
+            alpha,
+            opaque_sort,
+            &mut self.groups,
+            &mut list.instances,
+            &mut list.alpha_tested,
+        );
+        back_to_front(scene, blended, &mut list.instances, &mut list.blended);
+    }
 }
 
 fn draw_for(scene: &Scene, mesh: u32, first_instance: u32, instance_count: u32) -> Option<Draw> {
@@ -140,24 +171,35 @@ fn draw_for(scene: &Scene, mesh: u32, first_instance: u32, instance_count: u32) 
 
 /// One draw per mesh. Front to back: instances sorted by distance inside each draw, draws by
 /// their nearest instance — a mesh group cannot be both instanced and globally depth-sorted,
-/// and nearest-first per group is what coarse front-to-back sorting means in practice.
-fn grouped(scene: &Scene, items: &mut [Item], order: SortOrder, out: &mut Vec<u32>) -> Vec<Draw> {
+/// and nearest-first per group is what coarse front-to-back sorting means in practice. Every
+/// sort key ends in a unique id (instance, mesh), so unstable sorts (which allocate nothing)
+/// give the one order.
+fn grouped(
+    scene: &Scene,
+    items: &mut [Item],
+    order: SortOrder,
+    groups: &mut Vec<(f64, u32, std::ops::Range<usize>)>,
+    out: &mut Vec<u32>,
+    draws: &mut Vec<Draw>,
+) {
     match order {
-        SortOrder::BackToFront => items.sort_by(|a, b| {
+        SortOrder::BackToFront => items.sort_unstable_by(|a, b| {
             a.mesh
                 .cmp(&b.mesh)
                 .then(b.distance_sq.total_cmp(&a.distance_sq))
                 .then(a.instance.cmp(&b.instance))
         }),
-        SortOrder::FrontToBack => items.sort_by(|a, b| {
+        SortOrder::FrontToBack => items.sort_unstable_by(|a, b| {
             a.mesh
                 .cmp(&b.mesh)
                 .then(a.distance_sq.total_cmp(&b.distance_sq))
                 .then(a.instance.cmp(&b.instance))
         }),
-        SortOrder::ByState | SortOrder::None => items.sort_by_key(|a| (a.mesh, a.instance)),
+        SortOrder::ByState | SortOrder::None => {
+            items.sort_unstable_by_key(|a| (a.mesh, a.instance))
+        }
     }
-    let mut groups: Vec<(f64, u32, std::ops::Range<usize>)> = Vec::new();
+    groups.clear();
     let mut start = 0;
     while start < items.len() {
         let mesh = items[start].mesh;
@@ -173,34 +215,35 @@ fn grouped(scene: &Scene, items: &mut [Item], order: SortOrder, out: &mut Vec<u3
         start = end;
     }
     match order {
-        SortOrder::FrontToBack => groups.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1))),
-        SortOrder::BackToFront => groups.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1))),
+        SortOrder::FrontToBack => {
+            groups.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+        }
+        SortOrder::BackToFront => {
+            groups.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)))
+        }
         SortOrder::ByState | SortOrder::None => {}
     }
-    let mut draws = Vec::with_capacity(groups.len());
-    for (_, mesh, range) in groups {
+    draws.clear();
+    for (_, mesh, range) in groups.iter() {
         let first = out.len() as u32;
         out.extend(items[range.clone()].iter().map(|i| i.instance));
-        if let Some(d) = draw_for(scene, mesh, first, range.len() as u32) {
+        if let Some(d) = draw_for(scene, *mesh, first, range.len() as u32) {
             draws.push(d);
         }
     }
-    draws
 }
 
 /// Blended geometry: one draw per instance, farthest first, so blending composes correctly.
-fn back_to_front(scene: &Scene, items: &mut [Item], out: &mut Vec<u32>) -> Vec<Draw> {
-    items.sort_by(|a, b| {
+fn back_to_front(scene: &Scene, items: &mut [Item], out: &mut Vec<u32>, draws: &mut Vec<Draw>) {
+    items.sort_unstable_by(|a, b| {
         b.distance_sq
             .total_cmp(&a.distance_sq)
             .then(a.instance.cmp(&b.instance))
     });
-    items
-        .iter()
-        .filter_map(|i| {
-            let first = out.len() as u32;
-            out.push(i.instance);
-            draw_for(scene, i.mesh, first, 1)
-        })
-        .collect()
+    draws.clear();
+    draws.extend(items.iter().filter_map(|i| {
+        let first = out.len() as u32;
+        out.push(i.instance);
+        draw_for(scene, i.mesh, first, 1)
+    }));
 }

@@ -587,8 +587,12 @@ impl HizBuilder {
                 layout.size_bytes()
             )));
         }
-        // Computed up front so a bad layout fails before anything is recorded.
-        let pushes = layout.push_constants()?;
+        // Checked up front so a bad layout fails before anything is recorded (computed again
+        // per dispatch below: no list is kept, nothing allocated per frame).
+        let levels = layout.levels.len();
+        for k in 0..levels {
+            layout.push_for_level(k)?;
+        }
 
         let image_info = [vk::DescriptorImageInfo {
             sampler: vk::Sampler::null(),
@@ -644,7 +648,8 @@ impl HizBuilder {
             .buffer(pyramid.raw)
             .offset(0)
             .size(layout.size_bytes())];
-        for (k, push) in pushes.iter().enumerate() {
+        for k in 0..levels {
+            let push = &layout.push_for_level(k)?;
             if k > 0 {
                 ctx.cmd_pipeline_barrier2(
                     cb,

@@ -114,6 +114,9 @@ pub struct FrameReport {
     /// The compiled plan (shared with the frames that reuse it).
     pub plan: Arc<Plan>,
     pub stats: FrameStats,
+    /// The frame declared its graph and compiled it (the first frame, or what the declaration
+    /// depends on changed); otherwise it reused the last frame's declaration and plan.
+    pub declared: bool,
     /// Draws and triangles of the CPU draw lists.
     pub draws: usize,
     pub triangles: u64,

@@ -24,8 +24,8 @@ use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::{Context, Image, VkError};
 
 use crate::compose::{declare_scene, kept_import, ColorTarget, DeclarationKey, SceneFrame};
-use crate::cull::{cpu_frustum_mask, CullState, Culling};
-use crate::draws;
+use crate::cull::{cpu_frustum_mask_into, CullState, Culling};
+use crate::draws::DrawBuilder;
 use crate::frame::{FrameData, FrameGraph, Payload, SceneResources, States};
 use crate::gpu_scene::{FrameUniforms, GpuScene};
 use crate::hiz::HizState;
@@ -81,6 +81,10 @@ pub struct SceneRenderer {
     last_slot: usize,
     /// Per instance: whether its material is blended.
     blended: Vec<bool>,
+    /// Per instance: whether this frame draws it (CPU frustum culling, query results); kept
+    /// from frame to frame, as are the draw lists' sorting buffers: no allocation per frame.
+    visible: Vec<bool>,
+    draw_builder: DrawBuilder,
     /// Occlusion queries: the opaque and alpha-tested instances the last frame drew.
     last_drawn: Option<Vec<u32>>,
     /// The camera of the last frame rendered.
@@ -164,6 +168,8 @@ impl SceneRenderer {
             frames: 0,
             last_slot: 0,
             blended,
+            visible: Vec::new(),
+            draw_builder: DrawBuilder::default(),
             last_drawn: None,
             last_camera: None,
             declared: None,
@@ -288,10 +294,13 @@ impl SceneRenderer {
     ) -> Result<FrameReport, RenderError> {
         let key = DeclarationKey {
             depth,
-            first_frame: self.frames == 0,
+            // Only the id target the renderer keeps is imported differently on the first
+            // frame (the colour target's import is in `color`).
+            first_frame: self.frames == 0 && self.ids_target.is_some(),
             color,
         };
-        if self.declared.as_ref().is_none_or(|d| d.key != key) {
+        let declare = self.declared.as_ref().is_none_or(|d| d.key != key);
+        if declare {
             self.declared = None;
             let profile = ctx.profile();
             let declared = declare_scene(&SceneFrame {
@@ -347,7 +356,7 @@ impl SceneRenderer {
             Some(f) => executor.record(ctx, plan, externals, f, &mut record)?,
         };
         let plan = Arc::clone(plan);
-        self.finish_frame(ctx, plan, stats)
+        self.finish_frame(ctx, plan, stats, declare)
     }
 
     /// Records and submits a frame the caller declared on `graph` — the shipped `add_*`
@@ -400,7 +409,7 @@ impl SceneRenderer {
                 .executor
                 .record(ctx, &frame.plan, externals, f, &mut record)?,
         };
-        self.finish_frame(ctx, frame.plan, stats)
+        self.finish_frame(ctx, frame.plan, stats, !frame.reused)
     }
 
     fn finish_frame(
@@ -408,6 +417,7 @@ impl SceneRenderer {
         ctx: &Context,
         plan: Arc<Plan>,
         stats: FrameStats,
+        declared: bool,
     ) -> Result<FrameReport, RenderError> {
         // After a rebuild, the pipelines of the destroyed render passes go (at the first frame
         // that succeeds after it: the floor only rises).
@@ -420,6 +430,7 @@ impl SceneRenderer {
             setup: Arc::clone(&self.setup),
             plan,
             stats,
+            declared,
             draws: draws.opaque.len() + draws.alpha_tested.len() + draws.blended.len(),
             triangles: draws.triangles(),
         })
@@ -474,16 +485,13 @@ impl SceneRenderer {
         // Techniques whose CPU lists draw opaque geometry (queries, and the pre-pass that raster
         // occlusion tests against) frustum-cull all of it here; the others only blended.
         let cpu_frustum_all = culling.uses_queries() || culling == Culling::RasterOcclusion;
-        let mut visible = match culling {
-            Culling::None => None,
-            _ => Some(
-                cpu_frustum_mask(scene, &m)?
-                    .into_iter()
-                    .zip(&self.blended)
-                    .map(|(v, b)| v || (!b && !cpu_frustum_all))
-                    .collect::<Vec<bool>>(),
-            ),
-        };
+        let mut masked = culling != Culling::None;
+        if masked {
+            cpu_frustum_mask_into(scene, &m, &mut self.visible)?;
+            for (v, b) in self.visible.iter_mut().zip(&self.blended) {
+                *v = *v || (!b && !cpu_frustum_all);
+            }
+        }
         let slot = match slot {
             Some(s) => s,
             None => self.executor.acquire_slot(ctx)?,
@@ -492,27 +500,30 @@ impl SceneRenderer {
         // (read now, never waited for: the acquired slot's frame has completed).
         if let Some(oq) = self.resources.states.get_mut::<OqState>() {
             oq.collect(ctx, slot)?;
+            let mask = masked.then_some(self.visible.as_slice());
             if culling.conditional() {
                 // Same-frame results on the GPU; reading the slot only recycles its pool.
-                oq.prepare(slot, &m, h as f32, visible.as_deref());
+                oq.prepare(slot, &m, h as f32, mask);
             } else {
                 let passed = oq.mask();
                 // Every instance in the frustum is queried, drawn or not: a hidden one must be
                 // able to come back.
-                oq.prepare(slot, &m, h as f32, visible.as_deref());
-                let combined: Vec<bool> = visible
-                    .unwrap_or_else(|| vec![true; passed.len()])
-                    .into_iter()
-                    .zip(passed)
-                    .map(|(a, b)| a && b)
-                    .collect();
+                oq.prepare(slot, &m, h as f32, mask);
+                if !masked {
+                    self.visible.clear();
+                    self.visible.resize(passed.len(), true);
+                    masked = true;
+                }
+                for (v, p) in self.visible.iter_mut().zip(passed) {
+                    *v = *v && p;
+                }
+                let blended = &self.blended;
                 self.last_drawn = Some(
-                    (0..combined.len())
-                        .filter(|&i| combined[i] && !self.blended.get(i).copied().unwrap_or(false))
+                    (0..self.visible.len())
+                        .filter(|&i| self.visible[i] && !blended.get(i).copied().unwrap_or(false))
                         .map(|i| i as u32)
                         .collect(),
                 );
-                visible = Some(combined);
             }
         }
         let profile = ctx.profile();
@@ -520,7 +531,15 @@ impl SceneRenderer {
             .options
             .opaque_order
             .unwrap_or(profile.passes.opaque_sort);
-        let draws = draws::build(scene, m.eye, order, visible.as_deref());
+        let res = &mut self.resources;
+        self.draw_builder.build_into(
+            scene,
+            m.eye,
+            order,
+            masked.then_some(self.visible.as_slice()),
+            &mut res.frame.draws,
+        );
+        res.frame.depth = m.depth;
         let uniforms = FrameUniforms::new(
             m.view_projection,
             m.depth,
@@ -528,19 +547,13 @@ impl SceneRenderer {
             &self.options.lighting,
             self.instance_bits.unwrap_or(32),
         );
-        self.resources
-            .scene
-            .write_frame(ctx, slot, scene, m.eye, &uniforms, &draws)?;
+        res.scene
+            .write_frame(ctx, slot, scene, m.eye, &uniforms, &res.frame.draws)?;
         self.last_slot = slot;
-        let states = &mut self.resources.states;
-        let pyramid = states.get::<HizState>().map(HizState::info);
-        if let Some(cull) = states.get_mut::<CullState>() {
-            cull.write_frame(ctx, slot, frame, &draws, (w, h), pyramid)?;
+        let pyramid = res.states.get::<HizState>().map(HizState::info);
+        if let Some(cull) = res.states.get_mut::<CullState>() {
+            cull.write_frame(ctx, slot, frame, &res.frame.draws, (w, h), pyramid)?;
         }
-        self.resources.frame = FrameData {
-            draws,
-            depth: m.depth,
-        };
         Ok(())
     }
 

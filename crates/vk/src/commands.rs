@@ -27,14 +27,21 @@ impl Context {
 
     /// Opens a debug label region named after a pass (no-op without debug utils).
     pub fn begin_label(&self, cb: vk::CommandBuffer, name: &str) {
-        if let Some(du) = &self.debug_utils {
-            let Ok(c) = std::ffi::CString::new(name.replace('\0', "")) else {
-                return;
-            };
-            let label = vk::DebugUtilsLabelEXT::default().label_name(&c);
-            // SAFETY: cb is recording.
-            unsafe { du.cmd_begin_debug_utils_label(cb, &label) };
-        }
+        let Some(du) = &self.debug_utils else {
+            return;
+        };
+        let Ok(mut buf) = self.label_scratch.try_borrow_mut() else {
+            return;
+        };
+        buf.clear();
+        buf.extend(name.bytes().filter(|b| *b != 0));
+        buf.push(0);
+        let Ok(c) = std::ffi::CStr::from_bytes_with_nul(&buf) else {
+            return;
+        };
+        let label = vk::DebugUtilsLabelEXT::default().label_name(c);
+        // SAFETY: cb is recording; the name is NUL-terminated and outlives the call.
+        unsafe { du.cmd_begin_debug_utils_label(cb, &label) };
     }
 
     pub fn end_label(&self, cb: vk::CommandBuffer) {

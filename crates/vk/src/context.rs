@@ -82,6 +82,8 @@ pub struct Context {
     instance: ManuallyDrop<Instance>,
     /// Not `Sync`: the upload pool and the queue are used by `&self` methods and must be
     /// externally synchronized (one thread at a time). Still `Send`.
+    /// The NUL-terminated name of the debug label being opened (kept: labels allocate nothing).
+    pub(crate) label_scratch: std::cell::RefCell<Vec<u8>>,
     /// A failure the next frame reports ([`Context::inject_fault`]).
     injected_fault: std::cell::Cell<Option<vk::Result>>,
     _one_thread: std::marker::PhantomData<std::cell::Cell<()>>,
@@ -304,6 +306,7 @@ impl Context {
             owns_device: owned,
             device_destroyed: false,
             instance: ManuallyDrop::new(instance),
+            label_scratch: std::cell::RefCell::new(Vec::new()),
             injected_fault: std::cell::Cell::new(None),
             _one_thread: std::marker::PhantomData,
         })

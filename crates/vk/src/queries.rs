@@ -29,17 +29,40 @@ pub struct PassTiming {
 }
 
 /// Every pass of one frame, in execution order.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct FrameTimings {
     pub frame: u64,
     pub passes: Vec<PassTiming>,
 }
 
+impl FrameTimings {
+    /// Room for `names` (a plan's passes): entries with those names, overwritten by the next
+    /// collection without allocating.
+    pub fn reserve<'a>(&mut self, names: impl Iterator<Item = &'a str>) {
+        for (i, name) in names.enumerate() {
+            match self.passes.get_mut(i) {
+                Some(p) if p.name.capacity() >= name.len() => {}
+                Some(p) => p.name.reserve(name.len()),
+                None => self.passes.push(PassTiming {
+                    name: name.to_string(),
+                    begin_ticks: 0,
+                    end_ticks: 0,
+                    gpu_ms: 0.0,
+                    vertex_invocations: None,
+                    fragment_invocations: None,
+                }),
+            }
+        }
+    }
+}
+
 struct Slot {
     timestamps: vk::QueryPool,
     stats: vk::QueryPool,
-    /// Names of the passes recorded into this slot, in order; empty when the slot holds nothing.
+    /// Names of the passes recorded into this slot, in order: the first `passes` of them
+    /// (the strings are kept and overwritten, so a steady frame allocates nothing).
     names: Vec<String>,
+    passes: usize,
     frame: u64,
     /// Whether statistics queries were begun (and so must be read) for each pass.
     has_stats: Vec<bool>,
@@ -48,6 +71,9 @@ struct Slot {
 /// The ring. `capacity_passes` bounds how many passes one frame may time.
 pub struct QueryRing {
     slots: Vec<Slot>,
+    /// Result buffers of `collect`, kept.
+    timestamp_results: Vec<[u64; 2]>,
+    statistics_results: Vec<[u64; 3]>,
     capacity_passes: u32,
     period_ns: f64,
     valid_mask: u64,
@@ -74,6 +100,8 @@ impl QueryRing {
         let bits = ctx.physical.limits.timestamp_valid_bits;
         let mut ring = QueryRing {
             slots: Vec::with_capacity(slots),
+            timestamp_results: Vec::new(),
+            statistics_results: Vec::new(),
             // Two timestamps per pass in one pool: at most u32::MAX / 2 passes.
             capacity_passes: capacity_passes.clamp(1, u32::MAX / 2),
             period_ns: f64::from(ctx.physical.limits.timestamp_period_ns),
@@ -120,6 +148,7 @@ impl QueryRing {
                 timestamps,
                 stats,
                 names: Vec::new(),
+                passes: 0,
                 frame: 0,
                 has_stats: Vec::new(),
             });
@@ -151,7 +180,7 @@ impl QueryRing {
     ) -> Result<(), VkError> {
         let cap = self.capacity_passes;
         let s = self.slot_mut(slot)?;
-        s.names.clear();
+        s.passes = 0;
         s.has_stats.clear();
         s.frame = frame;
         // SAFETY: cb is recording outside a render pass; the pools are not in use by the GPU
@@ -180,7 +209,7 @@ impl QueryRing {
         let cap = self.capacity_passes;
         let stats_ok = self.stats_supported;
         let s = self.slot_mut(slot)?;
-        let index = s.names.len() as u32;
+        let index = s.passes as u32;
         if index >= cap {
             return Err(VkError::Invalid {
                 what: format!("timing pass {name:?}"),
@@ -189,7 +218,14 @@ impl QueryRing {
                 ),
             });
         }
-        s.names.push(name.to_string());
+        match s.names.get_mut(s.passes) {
+            Some(kept) => {
+                kept.clear();
+                kept.push_str(name);
+            }
+            None => s.names.push(name.to_string()),
+        }
+        s.passes += 1;
         let stats = statistics && stats_ok;
         s.has_stats.push(stats);
         ctx.cmd_write_timestamp2(
@@ -230,24 +266,58 @@ impl QueryRing {
         )
     }
 
-    /// Reads a completed slot without waiting. `Ok(None)` when the slot holds nothing or its
-    /// results are not available yet (the caller should only ask after the frame's fence).
-    pub fn collect(&mut self, ctx: &Context, slot: usize) -> Result<Option<FrameTimings>, VkError> {
+    /// Room for a frame of `names` (a plan's passes) in every slot and in the result
+    /// buffers: recording and collecting such frames allocate nothing.
+    pub fn reserve<'a>(&mut self, names: impl Iterator<Item = &'a str> + Clone) {
+        let n = names.clone().count();
+        self.timestamp_results.reserve(2 * n);
+        self.statistics_results.reserve(n);
+        for s in &mut self.slots {
+            s.has_stats.reserve(n);
+            for (i, name) in names.clone().enumerate() {
+                match s.names.get_mut(i) {
+                    Some(kept) => kept.reserve(name.len()),
+                    None => s.names.push(name.to_string()),
+                }
+            }
+        }
+    }
+
+    /// Reads a completed slot without waiting into `out` (its passes overwritten in place:
+    /// no allocation once it has held as many passes). `Ok(false)` when the slot holds nothing
+    /// or its results are not available yet (the caller asks only after the frame completed).
+    pub fn collect_into(
+        &mut self,
+        ctx: &Context,
+        slot: usize,
+        out: &mut FrameTimings,
+    ) -> Result<bool, VkError> {
         let period_ns = self.period_ns;
         let mask = self.valid_mask;
-        let s = self.slot_mut(slot)?;
-        let n = s.names.len();
+        let n_slots = self.slots.len();
+        let QueryRing {
+            slots,
+            timestamp_results: ts,
+            statistics_results: stats,
+            ..
+        } = self;
+        let s = slots.get_mut(slot).ok_or_else(|| VkError::Invalid {
+            what: "query ring".into(),
+            reason: format!("slot {slot} out of {n_slots}"),
+        })?;
+        let n = s.passes;
         if n == 0 {
-            return Ok(None);
+            return Ok(false);
         }
         // [value, availability] pairs.
-        let mut ts = vec![[0u64; 2]; 2 * n];
+        ts.clear();
+        ts.resize(2 * n, [0; 2]);
         // SAFETY: queries 0..2n were written in this slot's frame; no WAIT flag: never stalls.
         let r = unsafe {
             ctx.device.get_query_pool_results(
                 s.timestamps,
                 0,
-                &mut ts,
+                ts.as_mut_slice(),
                 vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WITH_AVAILABILITY,
             )
         };
@@ -256,17 +326,17 @@ impl QueryRing {
             Err(e) => return Err(VkError::call("vkGetQueryPoolResults", e)),
         }
         if ts.iter().any(|[_, avail]| *avail == 0) {
-            return Ok(None);
+            return Ok(false);
         }
-        let mut stats = vec![[0u64; 3]; n];
-        let any_stats = s.has_stats.iter().any(|b| *b);
-        if any_stats {
+        stats.clear();
+        stats.resize(n, [0; 3]);
+        if s.has_stats.iter().any(|b| *b) {
             // SAFETY: as above; statistics layout: [vertex, fragment, availability].
             let r = unsafe {
                 ctx.device.get_query_pool_results(
                     s.stats,
                     0,
-                    &mut stats,
+                    stats.as_mut_slice(),
                     vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WITH_AVAILABILITY,
                 )
             };
@@ -275,26 +345,50 @@ impl QueryRing {
                 Err(e) => return Err(VkError::call("vkGetQueryPoolResults", e)),
             }
         }
-        let passes = (0..n)
-            .map(|i| {
-                let begin = ts[2 * i][0] & mask;
-                let end = ts[2 * i + 1][0] & mask;
-                let st = s.has_stats[i] && stats[i][2] != 0;
-                PassTiming {
-                    name: s.names[i].clone(),
-                    begin_ticks: begin,
-                    end_ticks: end,
-                    // The counter wraps at 2^timestampValidBits, not 2^64.
-                    gpu_ms: (end.wrapping_sub(begin) & mask) as f64 * period_ns / 1e6,
-                    vertex_invocations: st.then_some(stats[i][0]),
-                    fragment_invocations: st.then_some(stats[i][1]),
+        out.frame = s.frame;
+        out.passes.truncate(n);
+        for i in 0..n {
+            let begin = ts[2 * i][0] & mask;
+            let end = ts[2 * i + 1][0] & mask;
+            let st = s.has_stats.get(i).copied().unwrap_or(false) && stats[i][2] != 0;
+            let name = s.names.get(i).map_or("?", String::as_str);
+            let timing = PassTiming {
+                name: String::new(),
+                begin_ticks: begin,
+                end_ticks: end,
+                // The counter wraps at 2^timestampValidBits, not 2^64.
+                gpu_ms: (end.wrapping_sub(begin) & mask) as f64 * period_ns / 1e6,
+                vertex_invocations: st.then_some(stats[i][0]),
+                fragment_invocations: st.then_some(stats[i][1]),
+            };
+            match out.passes.get_mut(i) {
+                Some(kept) => {
+                    let mut kept_name = std::mem::take(&mut kept.name);
+                    kept_name.clear();
+                    kept_name.push_str(name);
+                    *kept = PassTiming {
+                        name: kept_name,
+                        ..timing
+                    };
                 }
-            })
-            .collect();
-        let frame = s.frame;
-        s.names.clear();
+                None => out.passes.push(PassTiming {
+                    name: name.to_string(),
+                    ..timing
+                }),
+            }
+        }
+        s.passes = 0;
         s.has_stats.clear();
-        Ok(Some(FrameTimings { frame, passes }))
+        Ok(true)
+    }
+
+    /// [`QueryRing::collect_into`] a new [`FrameTimings`].
+    pub fn collect(&mut self, ctx: &Context, slot: usize) -> Result<Option<FrameTimings>, VkError> {
+        let mut out = FrameTimings {
+            frame: 0,
+            passes: Vec::new(),
+        };
+        Ok(self.collect_into(ctx, slot, &mut out)?.then_some(out))
     }
 
     fn slot_mut(&mut self, slot: usize) -> Result<&mut Slot, VkError> {
@@ -319,12 +413,22 @@ impl QueryRing {
     }
 }
 
-/// Per-pass history over frames, for medians.
+/// Per-pass history over the last [`TimingHistory::WINDOW`] frames, for medians. Its memory
+/// is bounded (a game runs for hours) and taken once per pass name: recording a frame
+/// allocates nothing once its passes are known.
 #[derive(Debug, Default, Clone)]
 pub struct TimingHistory {
-    by_pass: BTreeMap<String, Vec<f64>>,
+    by_pass: BTreeMap<String, PassSamples>,
     order: Vec<String>,
     frames: u64,
+}
+
+/// One pass's newest samples, a ring.
+#[derive(Debug, Default, Clone)]
+struct PassSamples {
+    samples: Vec<f64>,
+    /// Where the next sample goes once the ring is full.
+    next: usize,
 }
 
 /// Median GPU time of one pass over the recorded frames.
@@ -336,16 +440,44 @@ pub struct PassMedian {
 }
 
 impl TimingHistory {
+    /// Samples kept per pass.
+    pub const WINDOW: usize = 2048;
+
+    /// A ring for each of `names` (a plan's passes) not yet seen.
+    pub fn reserve<'a>(&mut self, names: impl Iterator<Item = &'a str>) {
+        for name in names {
+            if !self.by_pass.contains_key(name) {
+                self.order.push(name.to_string());
+                self.by_pass.insert(
+                    name.to_string(),
+                    PassSamples {
+                        samples: Vec::with_capacity(Self::WINDOW),
+                        next: 0,
+                    },
+                );
+            }
+        }
+    }
+
     pub fn record(&mut self, frame: &FrameTimings) {
         self.frames += 1;
         for p in &frame.passes {
-            if !self.by_pass.contains_key(&p.name) {
-                self.order.push(p.name.clone());
+            let ring = match self.by_pass.get_mut(&p.name) {
+                Some(ring) => ring,
+                None => {
+                    self.order.push(p.name.clone());
+                    self.by_pass.entry(p.name.clone()).or_insert(PassSamples {
+                        samples: Vec::with_capacity(Self::WINDOW),
+                        next: 0,
+                    })
+                }
+            };
+            if ring.samples.len() < Self::WINDOW {
+                ring.samples.push(p.gpu_ms);
+            } else {
+                ring.samples[ring.next] = p.gpu_ms;
+                ring.next = (ring.next + 1) % Self::WINDOW;
             }
-            self.by_pass
-                .entry(p.name.clone())
-                .or_default()
-                .push(p.gpu_ms);
         }
     }
 
@@ -358,7 +490,7 @@ impl TimingHistory {
         self.order
             .iter()
             .filter_map(|name| {
-                let v = self.by_pass.get(name)?;
+                let v = &self.by_pass.get(name)?.samples;
                 Some(PassMedian {
                     name: name.clone(),
                     median_gpu_ms: median(v)?,

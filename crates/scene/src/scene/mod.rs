@@ -132,7 +132,10 @@ impl Scene {
     /// one thread on a 2-core machine, where measurements showed a second thread losing as often
     /// as winning. See [`Self::write_gpu_instances_threads`] to choose.
     pub fn write_gpu_instances(&self, eye: DVec3, out: &mut Vec<GpuInstance>) {
-        let cores = std::thread::available_parallelism().map_or(1, |t| t.get());
+        // Asked once: the query reads cgroup files (and allocates) every time.
+        static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+        let cores =
+            *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |t| t.get()));
         self.write_gpu_instances_threads(eye, out, cores / 2);
     }
 

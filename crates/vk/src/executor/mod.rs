@@ -69,7 +69,11 @@ pub struct Executor {
     frames: FrameRing,
     queries: QueryRing,
     history: TimingHistory,
-    latest: Option<FrameTimings>,
+    /// The newest timed frame (valid when `timed`), and the one being collected: swapped, and
+    /// sized for the plan's passes when it is built, so collecting allocates nothing.
+    latest: FrameTimings,
+    timed: bool,
+    collecting: FrameTimings,
     /// The plan as last given (its physical resources are `resources`).
     plan: Option<Arc<Plan>>,
     resources: Option<Resources>,
@@ -130,7 +134,9 @@ impl Executor {
             frames,
             queries,
             history: TimingHistory::default(),
-            latest: None,
+            latest: FrameTimings::default(),
+            timed: false,
+            collecting: FrameTimings::default(),
             plan: None,
             resources: None,
             render_passes: RenderPasses::default(),
@@ -176,7 +182,7 @@ impl Executor {
 
     /// The most recent frame whose timings were collected.
     pub fn latest_timings(&self) -> Option<&FrameTimings> {
-        self.latest.as_ref()
+        self.timed.then_some(&self.latest)
     }
 
     pub fn history(&self) -> &TimingHistory {
@@ -269,10 +275,7 @@ impl Executor {
     ) -> Result<(), VkError> {
         ctx.injected_fault("recording the frame (injected fault)")?;
         if token.completed_frame.is_some() {
-            if let Some(t) = self.queries.collect(ctx, token.slot)? {
-                self.history.record(&t);
-                self.latest = Some(t);
-            }
+            self.collect_slot(ctx, token.slot)?;
         }
         match &self.plan {
             Some(current) if Arc::ptr_eq(current, plan) => {}
@@ -327,7 +330,24 @@ impl Executor {
         self.plan = None;
         self.resources = Some(build_resources(ctx, plan)?);
         self.plan = Some(Arc::clone(plan));
+        // Room for the plan's passes in everything timing them, so that recording and
+        // collecting its frames allocate nothing.
+        let names = || plan.passes.iter().map(|p| p.name.as_str());
+        self.queries.reserve(names());
+        self.history.reserve(names());
+        self.collecting.reserve(names());
+        self.latest.reserve(names());
         self.resources_since = frame;
+        Ok(())
+    }
+
+    /// Reads a completed slot's timings into the history and makes them the latest.
+    fn collect_slot(&mut self, ctx: &Context, slot: usize) -> Result<(), VkError> {
+        if self.queries.collect_into(ctx, slot, &mut self.collecting)? {
+            self.history.record(&self.collecting);
+            std::mem::swap(&mut self.latest, &mut self.collecting);
+            self.timed = true;
+        }
         Ok(())
     }
 
@@ -337,10 +357,7 @@ impl Executor {
         frames.sort_unstable();
         for f in frames {
             if let Some(slot) = self.frames.slot_of(f) {
-                if let Some(t) = self.queries.collect(ctx, slot)? {
-                    self.history.record(&t);
-                    self.latest = Some(t);
-                }
+                self.collect_slot(ctx, slot)?;
             }
         }
         Ok(())
