@@ -1217,6 +1217,14 @@ const char *tg_last_error(void);
  */
 const char *tg_status_name(uint32_t status);
 
+/**
+ * Checks the library's panic boundary: runs a deliberate internal failure (a panic) inside it
+ * and returns what any function would after a bug in tilegraph — TG_STATUS_INTERNAL, with a
+ * message. An engine calls it once in its tests: a build of tilegraph with `panic = "abort"`
+ * cannot catch panics and aborts here instead of returning.
+ */
+TgStatus tg_check_panic_boundary(void);
+
 #ifdef __cplusplus
 }  // extern "C"
 #endif  // __cplusplus

@@ -184,6 +184,17 @@ pub extern "C" fn tg_status_name(status: u32) -> *const c_char {
         .map_or(c"TG_STATUS_UNKNOWN".as_ptr(), |s| s.name().as_ptr())
 }
 
+/// Checks the library's panic boundary: runs a deliberate internal failure (a panic) inside it
+/// and returns what any function would after a bug in tilegraph — TG_STATUS_INTERNAL, with a
+/// message. An engine calls it once in its tests: a build of tilegraph with `panic = "abort"`
+/// cannot catch panics and aborts here instead of returning.
+#[no_mangle]
+pub extern "C" fn tg_check_panic_boundary() -> TgStatus {
+    boundary("tg_check_panic_boundary", || {
+        std::panic::panic_any("the deliberate failure of tg_check_panic_boundary")
+    })
+}
+
 /// Runs an exported function's body: its failure (or a panic) becomes a status and this
 /// thread's last error; a success clears the last error.
 pub fn boundary(function: &str, body: impl FnOnce() -> Result<(), Failure>) -> TgStatus {
