@@ -1,8 +1,8 @@
 #version 450
-// GPU-driven culling, one thread per instance (seeds 000, 002, 004). Writes each instance's
-// VkDrawIndexedIndirectCommand (instanceCount 1 = drawn, 0 = culled) at its fixed entry of the
-// list of its draw class, and the instance id into the GPU draw list, for
-// vkCmdDrawIndexedIndirectCount.
+// GPU-driven culling, one thread per instance (seeds 000, 002, 004). Marks each instance's fixed
+// entry in the list of its draw class (instance id + 1 = drawn, 0 = culled);
+// cull_compact.comp and cull_commands.comp then pack the survivors into instanced indirect
+// commands (common/cull.glsl).
 //
 // Phases (cull.info.y):
 //   0 frustum      frustum only;
@@ -15,18 +15,12 @@
 //                  frame's visibility.
 // Blended instances are not culled here (they are sorted back to front on the CPU).
 #include "scene.glsl"
+#include "cull.glsl"
 
 layout(local_size_x = 64) in;
 
-layout(set = 1, binding = 0, std140) uniform CullParams {
-    vec4 planes[6];        // camera-relative frustum planes (xyz normal, w distance); (0,0,0,1) = absent
-    mat4 hiz_view_proj;    // camera-relative position -> clip space of the frame the pyramid was built in
-    uvec4 info;            // x: instances, y: phase, z: HiZ levels (0 = no pyramid), w: 1 reverse-Z
-    uvec4 screen;          // x, y: pyramid level-0 size (px), z: list stride (instances)
-} cull;
-layout(set = 1, binding = 1, std430) writeonly buffer Commands { uint commands[]; }; // 5 uints each
-layout(set = 1, binding = 2, std430) buffer Counts { uint counts[]; };              // 8 lists
-layout(set = 1, binding = 3, std430) writeonly buffer DrawIds { uint draw_ids[]; };
+// Per entry: 0 = culled, instance id + 1 = drawn (read by cull_compact.comp).
+layout(set = 1, binding = 8, std430) writeonly buffer Entries { uint entries[]; };
 layout(set = 1, binding = 4, std430) buffer Visibility { uint visible_last[]; };     // 0 / 1 per instance
 layout(set = 1, binding = 5, std430) readonly buffer Pyramid { float pyramid[]; };
 // Per level: (offset, width, height, 0), then (texels_x, pixels_x, texels_y, pixels_y): level-0
@@ -108,20 +102,10 @@ bool hiz_visible(Instance inst) {
     return true;
 }
 
-// Writes the instance's command at its fixed entry of list `list`: drawn (instanceCount 1) or
-// not (0). Entries never move, so the frame is deterministic (no atomic append order).
-void emit(uint list, uint id, Instance inst, bool draw) {
-    Mesh m = meshes[inst.mesh];
-    uint entry = order[id];
-    uint position = entry % cull.screen.z;
-    uint at = list * cull.screen.z + position;
-    commands[5u * at + 0u] = m.index_count;
-    commands[5u * at + 1u] = draw ? 1u : 0u;
-    commands[5u * at + 2u] = m.first_index;
-    commands[5u * at + 3u] = uint(m.vertex_offset);
-    commands[5u * at + 4u] = at; // firstInstance: the draw-list entry
-    draw_ids[at] = id;
-    atomicMax(counts[list], position + 1u);
+// Marks the instance's entry of list `list`: drawn or not. Entries never move, so the frame is
+// deterministic (no atomic append order); the compaction packs them in entry order.
+void mark(uint list, uint id, bool draw) {
+    entries[list * cull.screen.z + order[id] % cull.screen.z] = draw ? id + 1u : 0u;
 }
 
 void main() {
@@ -137,19 +121,19 @@ void main() {
     uint phase = cull.info.y;
     bool in_frustum = frustum_visible(inst);
     if (phase == 0u) {
-        emit(list, id, inst, in_frustum);
+        mark(list, id, in_frustum);
     } else if (phase == 1u) {
-        emit(list, id, inst, in_frustum && hiz_visible(inst));
+        mark(list, id, in_frustum && hiz_visible(inst));
     } else if (phase == 2u) {
-        emit(list, id, inst, in_frustum && visible_last[id] != 0u);
+        mark(list, id, in_frustum && visible_last[id] != 0u);
     } else {
         bool visible = in_frustum && hiz_visible(inst);
         bool late = visible && visible_last[id] == 0u;
-        emit(4u + list, id, inst, late);
+        mark(4u + list, id, late);
         if (late) {
             // The colour pass draws the early lists completed with the newly visible: the union,
-            // in the unculled order.
-            commands[5u * (list * cull.screen.z + order[id] % cull.screen.z) + 1u] = 1u;
+            // in the unculled order (the late compaction packs the early lists again).
+            mark(list, id, true);
         }
         visible_last[id] = visible ? 1u : 0u;
     }

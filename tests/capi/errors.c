@@ -217,20 +217,20 @@ static void device_errors(void) {
 static void missing_feature(void) {
     Engine e;
     engine_start(&e);
-    engine_create_device(&e, TG_TECHNIQUE_PREPASS, TG_CULLING_HIZ_TWO_PHASE,
+    engine_create_device(&e, TG_TECHNIQUE_PREPASS, TG_CULLING_OQ,
                          TG_FEATURE_SYNCHRONIZATION2 | TG_FEATURE_DYNAMIC_RENDERING);
     TgContext context;
     TG_CHECK(engine_adopt(&e, NULL, &context));
     TgScene scene;
     TG_CHECK(tg_scene_load("city:50", &scene));
     TgRendererDesc desc = {.technique = TG_TECHNIQUE_PREPASS,
-                           .culling = TG_CULLING_HIZ_TWO_PHASE,
+                           .culling = TG_CULLING_OQ,
                            .width = WIDTH,
                            .height = HEIGHT,
                            .frames_in_flight = 2};
     TgRenderer renderer;
     expect(tg_renderer_create(context, scene, &desc, &renderer), TG_STATUS_MISSING_FEATURE,
-           "culling hiz-2phase needs device feature DrawIndirectCount", "missing feature");
+           "culling oq needs device feature HostQueryReset", "missing feature");
     TG_CHECK(tg_scene_destroy(scene));
     TG_CHECK(tg_context_destroy(context));
     int messages = engine_destroy(&e);

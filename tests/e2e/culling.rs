@@ -4,8 +4,9 @@
 //! measured, not hidden.
 
 use tilegraph_e2e::gpu_with;
-use tilegraph_passes::cull::Culling;
+use tilegraph_passes::cull::{Culling, DrawCount, GpuLists, IndirectDraw};
 use tilegraph_passes::cullcheck::{cull_check, CullCheck};
+use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
 use tilegraph_scene::{CameraPath, PathKey, Scene};
 use tilegraph_vk::{Feature, FeatureRequest};
 
@@ -346,4 +347,74 @@ fn culling_a_scene_of_only_blended_geometry_renders() {
             r.destroy(&g);
         }
     }
+}
+
+/// The lists of one two-phase HiZ frame sequence on a device forced to `profile`.
+fn lists_along_path(profile: Option<&str>, scene: &Scene, path: &CameraPath) -> Vec<GpuLists> {
+    let features = FeatureRequest::default().require([
+        Feature::GeometryShader,
+        Feature::DrawIndirectCount,
+        Feature::MultiDrawIndirect,
+    ]);
+    let g = gpu_with(profile, features).unwrap();
+    let options = RenderOptions {
+        technique: Technique::Prepass,
+        culling: Culling::HizTwoPhase,
+        width: SIZE.0,
+        height: SIZE.1,
+        ..Default::default()
+    };
+    let mut r = SceneRenderer::new(&g, scene, options).unwrap();
+    let aspect = SIZE.0 as f32 / SIZE.1 as f32;
+    let mut out = Vec::new();
+    for index in 0..path.len() {
+        let frame = path.frame(index, aspect).unwrap();
+        r.render_frame(&g, scene, &frame).unwrap();
+        out.push(r.gpu_lists(&g).unwrap().unwrap());
+    }
+    r.destroy(&g);
+    out
+}
+
+/// Ordered compaction: each list's commands cover survivors only (with the GPU draw count) and
+/// draw them in the unculled order; a profile without `drawIndirectCount` (forced on lavapipe)
+/// draws one command per group, culled groups empty, and the same instances in the same order.
+#[test]
+fn compacted_lists_keep_the_unculled_order_with_either_draw_count() {
+    let scene = tilegraph_scene::load("city:1500").unwrap();
+    let path = test_path(&scene, 6);
+    let counted = lists_along_path(None, &scene, &path);
+    let fixed = lists_along_path(Some("mali-valhall"), &scene, &path);
+    let mut empty_groups = 0;
+    for (frame, (c, f)) in counted.iter().zip(&fixed).enumerate() {
+        assert_eq!(c.draw_count, DrawCount::Gpu);
+        assert!(matches!(f.draw_count, DrawCount::Fixed { .. }));
+        for (list, (cl, fl)) in c.lists.iter().zip(&f.lists).enumerate() {
+            assert!(
+                cl.iter().all(|d| !d.instances.is_empty()),
+                "frame {frame} list {list}: the draw count covers an empty command"
+            );
+            assert!(fl.len() >= cl.len());
+            empty_groups += fl.iter().filter(|d| d.instances.is_empty()).count();
+            let ids = |l: &[IndirectDraw]| -> Vec<u32> {
+                l.iter().flat_map(|d| d.instances.iter().copied()).collect()
+            };
+            assert_eq!(ids(cl), ids(fl), "frame {frame} list {list}");
+            // The unculled order: entries strictly increase along the list, and a command
+            // draws one mesh (its index range is its group's).
+            let entries: Vec<u32> = ids(cl).iter().map(|&i| c.order[i as usize]).collect();
+            let list_phase0 = (list % 4) as u32;
+            assert!(
+                entries.windows(2).all(|w| w[0] < w[1]),
+                "frame {frame} list {list}: survivors out of the unculled order"
+            );
+            assert!(entries
+                .iter()
+                .all(|e| *e / scene.instances().len() as u32 == list_phase0));
+        }
+    }
+    assert!(
+        empty_groups > 0,
+        "occlusion culls whole groups on the street path"
+    );
 }

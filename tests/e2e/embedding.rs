@@ -104,23 +104,27 @@ fn an_adopted_device_gets_the_profile_of_its_identity() {
 fn a_missing_feature_on_an_adopted_device_names_the_feature_and_its_user() {
     let scene = city();
     let mut engine = Engine::start();
-    // The engine enabled only what the executor needs: no indirect-count draws.
+    // The engine enabled only what the executor needs: no host query reset.
     let ctx = engine.adopt(&FeatureRequest::executor(), None).unwrap();
-    let err = SceneRenderer::new(&ctx, &scene, options())
+    let queries = RenderOptions {
+        culling: Culling::Oq,
+        ..options()
+    };
+    let err = SceneRenderer::new(&ctx, &scene, queries)
         .err()
         .expect("the renderer must refuse the device");
     match &err {
         RenderError::MissingFeature {
             feature, wanted_by, ..
         } => {
-            assert_eq!(*feature, Feature::DrawIndirectCount);
-            assert_eq!(*wanted_by, WantedBy::Culling(Culling::HizTwoPhase));
+            assert_eq!(*feature, Feature::HostQueryReset);
+            assert_eq!(*wanted_by, WantedBy::Culling(Culling::Oq));
         }
         other => panic!("unexpected error: {other}"),
     }
     let text = err.to_string();
     assert!(
-        text.contains("culling hiz-2phase") && text.contains("DrawIndirectCount"),
+        text.contains("culling oq") && text.contains("HostQueryReset"),
         "{text}"
     );
     ctx.destroy_checked().unwrap();

@@ -176,6 +176,8 @@ impl<'a> Composition<'a> {
                 (lists.counts, &c.counts),
                 (lists.draw_ids, &c.draw_ids),
                 (lists.visibility, &c.visibility),
+                (lists.entries, &c.entries),
+                (lists.survivors, &c.survivors),
             ] {
                 externals.insert(id, External::Buffer(CullState::handle(buffer)));
             }

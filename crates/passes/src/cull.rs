@@ -1,10 +1,20 @@
 //! GPU-driven culling: frustum, HiZ against last frame's pyramid, and two-phase occlusion
-//! culling (seeds 000, 002, 004), as compute passes that write indirect draws.
+//! culling (seeds 000, 002, 004), as compute passes that write compacted indirect draws.
+//!
+//! Each culling phase is three dispatches (docs/ARCHITECTURE.md, "ordered compaction"):
+//! `cull.comp` marks every instance's fixed entry in the unculled draw order,
+//! `cull_compact.comp` packs the survivors of each draw group (one mesh's run of entries, the
+//! CPU list's instanced draw) in that order, and `cull_commands.comp` writes one instanced
+//! command per group that kept an instance, in group order, with the draw count. The culled
+//! frame therefore draws its survivors in the unculled order (images stay bit-equal), and the
+//! command processor walks survivors only. Where the device or the profile does without
+//! `drawIndirectCount`, every group keeps its command (zero instances when culled) and the CPU
+//! draws the list's group count.
 //!
 //! The buffers live as long as the renderer (they carry visibility and the pyramid from frame to
 //! frame, and tools read the drawn set back); each frame imports them into its graph, so the
-//! graph orders the culling compute, the indirect draws and the pyramid build and puts the
-//! barriers between them.
+//! graph orders the dispatches, the indirect draws and the pyramid build and puts the barriers
+//! between them.
 
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
@@ -13,7 +23,7 @@ use tilegraph_cull::{AabbExt, Frustum};
 use tilegraph_graph::{
     AccessFlags, BufferId, Import, InitialContent, PassClass, PipelineStages, ResourceState,
 };
-use tilegraph_profile::MemoryUse;
+use tilegraph_profile::{IndirectCount, MemoryUse};
 use tilegraph_scene::{CameraFrame, DepthConvention};
 use tilegraph_vk::ash;
 use tilegraph_vk::executor::{BufferHandle, PassContext};
@@ -39,6 +49,10 @@ pub struct CullLists {
     pub counts: BufferId,
     pub draw_ids: BufferId,
     pub visibility: BufferId,
+    /// Per list entry: 0 culled, instance id + 1 drawn (`cull.comp` → `cull_compact.comp`).
+    pub entries: BufferId,
+    /// Per draw group and phase: how many instances survived (→ `cull_commands.comp`).
+    pub survivors: BufferId,
     pub pyramid: Option<BufferId>,
 }
 
@@ -76,6 +90,8 @@ pub fn import_cull_buffers(
     let counts = g.import_buffer("cull-counts", state.counts.size, discard);
     let draw_ids = g.import_buffer("cull-draw-ids", state.draw_ids.size, discard);
     let visibility = g.import_buffer("visibility", state.visibility.size, keep);
+    let entries = g.import_buffer("cull-entries", state.entries.size, discard);
+    let survivors = g.import_buffer("cull-survivors", state.survivors.size, discard);
     let pyramid = hiz.map(|h| g.import_buffer("hiz-pyramid", h.pyramid.size, keep));
     // What the next frame reads survives this one.
     g.export(visibility);
@@ -84,34 +100,44 @@ pub fn import_cull_buffers(
     }
     // Tools read the drawn set back after the frame.
     g.export(counts);
+    g.export(commands);
     g.export(draw_ids);
     CullLists {
         commands,
         counts,
         draw_ids,
         visibility,
+        entries,
+        survivors,
         pyramid,
     }
 }
 
+/// The three dispatches of a culling phase.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Step {
+    /// `cull.comp`: one thread per instance marks its entries.
+    Mark,
+    /// `cull_compact.comp`: one workgroup per draw group packs its survivors.
+    Compact,
+    /// `cull_commands.comp`: one workgroup per list writes its commands and count.
+    Commands,
+}
+
 /// Declares the culling of the early (or only) phase of `culling`: the counts reset, then the
-/// dispatch that writes the indirect lists. Frustum and HiZ test every instance (HiZ against
+/// dispatches that write the indirect lists. Frustum and HiZ test every instance (HiZ against
 /// last frame's pyramid); two-phase culling's early phase draws last frame's visible set;
 /// raster occlusion turns the flags its boxes wrote into lists.
 pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
     let two_phase = culling == Culling::HizTwoPhase;
     let counts = lists.counts;
     let reset: Payload = Box::new(move |pc, _| zero_fill(pc, counts));
+    // The late lists' counts of a single-phase frame stay zero (tools read all eight).
     g.transfer_pass("cull-reset", PassClass::Compute, reset)
         .transfer_dst(lists.counts);
-    let mut c = g.compute_pass(
-        if two_phase { "cull-early" } else { "cull" },
-        PassClass::Compute,
-        dispatch(0),
-    );
-    c.storage_read_write(lists.counts)
-        .storage_write(lists.commands)
-        .storage_write(lists.draw_ids);
+    let name = if two_phase { "cull-early" } else { "cull" };
+    let mut c = g.compute_pass(name, PassClass::Compute, dispatch(0, Step::Mark));
+    c.storage_write(lists.entries);
     if two_phase {
         c.storage_read(lists.visibility);
     }
@@ -123,28 +149,51 @@ pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
     if let (Culling::Hiz, Some(p)) = (culling, lists.pyramid) {
         c.storage_read(p);
     }
+    let (compact, commands) = if two_phase {
+        ("cull-early-compact", "cull-early-commands")
+    } else {
+        ("cull-compact", "cull-commands")
+    };
+    add_compaction(g, lists, 0, [compact, commands]);
+}
+
+/// The compaction of phase `which` (0 early or only, 1 late): survivors packed per group, then
+/// the commands and counts.
+fn add_compaction(g: &mut FrameGraph, lists: CullLists, which: usize, names: [&'static str; 2]) {
+    g.compute_pass(names[0], PassClass::Compute, dispatch(which, Step::Compact))
+        .storage_read(lists.entries)
+        .storage_write(lists.draw_ids)
+        .storage_write(lists.survivors);
+    g.compute_pass(
+        names[1],
+        PassClass::Compute,
+        dispatch(which, Step::Commands),
+    )
+    .storage_read(lists.survivors)
+    .storage_write(lists.commands)
+    .storage_write(lists.counts);
 }
 
 /// Declares two-phase culling's late phase: the instances the early phase left out, tested
-/// against the pyramid of the early phase's depth; the newly visible ones are appended to the
-/// lists and become next frame's early set.
+/// against the pyramid of the early phase's depth; the newly visible ones get the late lists
+/// (the late depth pass) and join the early lists (the colour pass draws the union), and become
+/// next frame's early set.
 pub fn add_cull_late(g: &mut FrameGraph, lists: CullLists) {
-    let mut c = g.compute_pass("cull-late", PassClass::Compute, dispatch(1));
-    c.storage_read_write(lists.counts)
-        .storage_read_write(lists.commands)
-        .storage_write(lists.draw_ids)
+    let mut c = g.compute_pass("cull-late", PassClass::Compute, dispatch(1, Step::Mark));
+    c.storage_read_write(lists.entries)
         .storage_read_write(lists.visibility);
     if let Some(p) = lists.pyramid {
         c.storage_read(p);
     }
+    add_compaction(g, lists, 1, ["cull-late-compact", "cull-late-commands"]);
 }
 
-/// The culling dispatch `which` (0 early or only, 1 late).
-fn dispatch(which: usize) -> Payload {
+/// The culling dispatch `step` of phase `which` (0 early or only, 1 late).
+fn dispatch(which: usize, step: Step) -> Payload {
     Box::new(move |pc, res| {
         let set = scene_set(pc, res)?;
         let culling = res.states.require::<CullState>(pc.pass_name)?;
-        culling.record_dispatch(pc.ctx, pc.cb, set, pc.frame_slot, which)
+        culling.record_dispatch(pc.ctx, pc.cb, set, pc.frame_slot, which, step)
     })
 }
 
@@ -171,7 +220,7 @@ pub fn list_index(class: u32, double_sided: bool, phase: u32) -> u32 {
     phase * LISTS_PER_PHASE + class * 2 + u32::from(double_sided)
 }
 
-/// `CullParams` of `shaders/cull.comp` (std140).
+/// `CullParams` of `shaders/common/cull.glsl` (std140).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct CullParams {
@@ -181,6 +230,12 @@ pub struct CullParams {
     pub info: [u32; 4],
     /// x, y pyramid level-0 size; z list stride.
     pub screen: [u32; 4],
+    /// x draw groups per phase (at least 1), y 1 = keep empty commands (fixed draw count).
+    pub groups: [u32; 4],
+    /// Per list of a phase: its first draw group.
+    pub group_start: [u32; 4],
+    /// Per list of a phase: its number of draw groups.
+    pub group_count: [u32; 4],
 }
 
 /// The phase argument of `cull.comp`.
@@ -190,6 +245,31 @@ pub enum Phase {
     HizPrevious = 1,
     Early = 2,
     Late = 3,
+}
+
+/// How the culled lists are drawn (chosen when the culling state is made, from the profile's
+/// `indirect_count` and the device's features).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DrawCount {
+    /// `vkCmdDrawIndexedIndirectCount`: the GPU's count covers the surviving groups only.
+    Gpu,
+    /// One command per draw group, culled groups with zero instances; `multi_draw`: in one
+    /// `vkCmdDrawIndexedIndirect` (else one call per command, without `multiDrawIndirect`).
+    Fixed { multi_draw: bool },
+}
+
+impl DrawCount {
+    /// The mode for `ctx`'s profile and device.
+    pub fn for_device(ctx: &Context) -> Self {
+        let wanted = ctx.profile().passes.indirect_count == IndirectCount::WhenSupported;
+        if wanted && ctx.has_feature(Feature::DrawIndirectCount) {
+            DrawCount::Gpu
+        } else {
+            DrawCount::Fixed {
+                multi_draw: ctx.has_feature(Feature::MultiDrawIndirect),
+            }
+        }
+    }
 }
 
 /// Frustum planes of a camera-relative view-projection, for the shader (absent far plane of an
@@ -203,27 +283,71 @@ pub fn gpu_planes(view_proj: Mat4, convention: DepthConvention) -> Result<[[f32;
     Ok(f.gpu_planes().map(|p| p.to_array()))
 }
 
+/// One indirect command of the culled lists, read back.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IndirectDraw {
+    pub index_count: u32,
+    pub first_index: u32,
+    /// The instance ids it draws, in draw order (empty: a culled group of a fixed count).
+    pub instances: Vec<u32>,
+}
+
+/// The GPU lists of the last frame, read back for tests and tools.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GpuLists {
+    pub draw_count: DrawCount,
+    /// Per list ([`list_index`]), the commands its draw count covers.
+    pub lists: Vec<Vec<IndirectDraw>>,
+    /// Per instance, its entry in the unculled order of the last frame written
+    /// ([`GpuLayout::order`]).
+    pub order: Vec<u32>,
+}
+
+/// Per frame slot: what the CPU wrote for the GPU lists of that slot's frame.
+struct SlotInputs {
+    params: [Buffer; 2],
+    /// Each instance's entry (`Order` of cull.comp).
+    order: Buffer,
+    /// The draw groups (`Groups` of common/cull.glsl).
+    groups: Buffer,
+    /// Groups per list of a phase, as written (what the draws of that frame cover).
+    group_count: [u32; 4],
+    /// Groups per phase.
+    group_total: u32,
+}
+
 /// The persistent culling state of one renderer.
 pub struct CullState {
     pub culling: Culling,
     pub instance_count: u32,
+    pub draw_count: DrawCount,
     pub commands: Buffer,
     pub counts: Buffer,
     pub draw_ids: Buffer,
     pub visibility: Buffer,
-    params: Vec<Buffer>,
-    /// Per frame slot: each instance's entry in the lists in CPU draw order (`Order` of cull.comp).
-    order: Vec<Buffer>,
-    /// The order being written (kept: no allocation per frame).
-    order_scratch: Vec<u32>,
+    pub entries: Buffer,
+    pub survivors: Buffer,
+    /// Bound for the pyramid and its levels when there is none (the shader reads neither then;
+    /// a buffer nothing writes keeps synchronization validation quiet about the binding).
+    no_pyramid: Buffer,
+    slots: Vec<SlotInputs>,
+    /// The layout being written (kept: no allocation per frame).
+    layout: GpuLayout,
     set_layout: vk::DescriptorSetLayout,
     pub pipeline_layout: vk::PipelineLayout,
-    pipeline: vk::Pipeline,
+    /// `cull.comp`, `cull_compact.comp`, `cull_commands.comp`.
+    pipelines: [vk::Pipeline; 3],
     pool: vk::DescriptorPool,
+    /// Two per slot: the early (or only) and the late phase.
     sets: Vec<vk::DescriptorSet>,
 }
 
 const CULL_SPV: &[u8] = include_bytes!("../../../shaders/spv/cull.comp.spv");
+const COMPACT_SPV: &[u8] = include_bytes!("../../../shaders/spv/cull_compact.comp.spv");
+const COMMANDS_SPV: &[u8] = include_bytes!("../../../shaders/spv/cull_commands.comp.spv");
+
+/// The culling descriptor set's storage buffers (bindings 1-10).
+const STORAGE_BINDINGS: u32 = 10;
 
 impl PassState for CullState {
     fn destroy(self: Box<Self>, ctx: &Context) {
@@ -231,13 +355,21 @@ impl PassState for CullState {
     }
 }
 
+/// Destroys what was made before an error.
+fn destroy_buffers(ctx: &Context, made: Vec<Buffer>) {
+    for b in made {
+        ctx.destroy_buffer(b);
+    }
+}
+
 impl CullState {
-    /// Device features GPU culling needs.
-    pub fn required_features() -> [Feature; 2] {
+    /// Device features GPU culling uses where the device has them: the GPU draw count and
+    /// several indirect commands per call ([`DrawCount`]). Without them it still runs.
+    pub fn wanted_features() -> [Feature; 2] {
         [Feature::DrawIndirectCount, Feature::MultiDrawIndirect]
     }
 
-    /// The buffers, pipeline and descriptor sets of `culling` for `instance_count` instances;
+    /// The buffers, pipelines and descriptor sets of `culling` for `instance_count` instances;
     /// `hiz`: the pyramid the HiZ techniques test against (bound for the shader).
     pub fn new(
         ctx: &Context,
@@ -248,64 +380,63 @@ impl CullState {
         hiz: Option<&HizState>,
     ) -> Result<Self, VkError> {
         let n = u64::from(instance_count.max(1));
+        let lists = u64::from(LIST_COUNT);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let indirect = vk::BufferUsageFlags::INDIRECT_BUFFER;
         let src = vk::BufferUsageFlags::TRANSFER_SRC;
         let dst = vk::BufferUsageFlags::TRANSFER_DST;
         let specs = [
-            (
-                "cull commands",
-                n * u64::from(LIST_COUNT) * 20,
-                storage | indirect | src,
-            ),
-            (
-                "cull counts",
-                u64::from(LIST_COUNT) * 4,
-                storage | indirect | dst | src,
-            ),
-            (
-                "cull draw ids",
-                n * u64::from(LIST_COUNT) * 4,
-                storage | src,
-            ),
+            ("cull commands", n * lists * 20, storage | indirect | src),
+            ("cull counts", lists * 4, storage | indirect | dst | src),
+            ("cull draw ids", n * lists * 4, storage | src),
             ("visibility", n * 4, storage | dst),
+            ("cull entries", n * lists * 4, storage),
+            // At most one group per instance and phase.
+            ("cull survivors", 2 * n * 4, storage),
+            // Bound as the pyramid without one: never written, never read (the levels say 0).
+            ("cull no pyramid", 16, storage),
         ];
         let mut made: Vec<Buffer> = Vec::with_capacity(specs.len());
         for (name, size, usage) in specs {
             match ctx.create_buffer(name, size, usage, MemoryUse::GpuOnly) {
                 Ok(b) => made.push(b),
                 Err(e) => {
-                    for b in made {
-                        ctx.destroy_buffer(b);
-                    }
+                    destroy_buffers(ctx, made);
                     return Err(e);
                 }
             }
         }
-        let mut made = made.into_iter();
-        let (Some(commands), Some(counts), Some(draw_ids), Some(visibility)) =
-            (made.next(), made.next(), made.next(), made.next())
-        else {
-            return Err(VkError::Invalid {
-                what: "cull".into(),
-                reason: "buffers missing".into(),
-            });
-        };
+        let [commands, counts, draw_ids, visibility, entries, survivors, no_pyramid]: [Buffer; 7] =
+            match made.try_into() {
+                Ok(b) => b,
+                Err(made) => {
+                    destroy_buffers(ctx, made);
+                    return Err(VkError::Invalid {
+                        what: "cull".into(),
+                        reason: "buffers missing".into(),
+                    });
+                }
+            };
+        let draw_count = DrawCount::for_device(ctx);
+        log::info!("GPU culling draws with {draw_count:?}");
         // Vulkan objects start null and are filled in; on error `destroy` frees what exists
         // (destroying VK_NULL_HANDLE is a no-op).
         let mut state = CullState {
             culling,
             instance_count,
+            draw_count,
             commands,
             counts,
             draw_ids,
             visibility,
-            params: Vec::new(),
-            order: Vec::new(),
-            order_scratch: Vec::new(),
+            entries,
+            survivors,
+            no_pyramid,
+            slots: Vec::new(),
+            layout: GpuLayout::default(),
             set_layout: vk::DescriptorSetLayout::null(),
             pipeline_layout: vk::PipelineLayout::null(),
-            pipeline: vk::Pipeline::null(),
+            pipelines: [vk::Pipeline::null(); 3],
             pool: vk::DescriptorPool::null(),
             sets: Vec::new(),
         };
@@ -328,74 +459,63 @@ impl CullState {
         let n = u64::from(self.instance_count.max(1));
         let c = vk::ShaderStageFlags::COMPUTE;
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
-        self.set_layout = create_set_layout(
-            ctx,
-            &[
-                (0, vk::DescriptorType::UNIFORM_BUFFER, c),
-                (1, ssbo, c),
-                (2, ssbo, c),
-                (3, ssbo, c),
-                (4, ssbo, c),
-                (5, ssbo, c),
-                (6, ssbo, c),
-                (7, ssbo, c),
-            ],
-        )?;
+        let mut bindings = vec![(0, vk::DescriptorType::UNIFORM_BUFFER, c)];
+        bindings.extend((1..=STORAGE_BINDINGS).map(|b| (b, ssbo, c)));
+        self.set_layout = create_set_layout(ctx, &bindings)?;
         self.pipeline_layout =
             create_pipeline_layout(ctx, &[scene_set_layout, self.set_layout], None)?;
-        self.pipeline = create_compute_pipeline(
-            ctx,
-            &Stage {
-                name: "cull.comp",
-                spirv: CULL_SPV,
-                specialization: &[],
-            },
-            self.pipeline_layout,
-        )?;
+        let stages = [
+            ("cull.comp", CULL_SPV),
+            ("cull_compact.comp", COMPACT_SPV),
+            ("cull_commands.comp", COMMANDS_SPV),
+        ];
+        for (pipeline, (name, spirv)) in self.pipelines.iter_mut().zip(stages) {
+            *pipeline = create_compute_pipeline(
+                ctx,
+                &Stage {
+                    name,
+                    spirv,
+                    specialization: &[],
+                },
+                self.pipeline_layout,
+            )?;
+        }
         let slots = frames_in_flight.max(1) as u32;
         let sizes = [
             vk::DescriptorPoolSize {
                 ty: vk::DescriptorType::UNIFORM_BUFFER,
-                descriptor_count: 4 * slots,
+                descriptor_count: 2 * slots,
             },
             vk::DescriptorPoolSize {
                 ty: ssbo,
-                descriptor_count: 28 * slots,
+                descriptor_count: 2 * STORAGE_BINDINGS * slots,
             },
         ];
         let pool_info = vk::DescriptorPoolCreateInfo::default()
-            .max_sets(4 * slots)
+            .max_sets(2 * slots)
             .pool_sizes(&sizes);
         // SAFETY: valid create info.
         self.pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
             .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
-        // Two parameter blocks per slot: the early (or only) and the late dispatch.
-        for i in 0..2 * slots {
-            let b = ctx.create_buffer(
-                &format!("cull params[{i}]"),
-                std::mem::size_of::<CullParams>() as u64,
-                vk::BufferUsageFlags::UNIFORM_BUFFER,
-                MemoryUse::Streaming,
-            )?;
-            self.params.push(b);
+        for slot in 0..slots {
+            let inputs = SlotInputs::new(ctx, slot, n)?;
+            self.slots.push(inputs);
         }
-        for i in 0..slots {
-            let b = ctx.create_buffer(
-                &format!("cull order[{i}]"),
-                n * 4,
-                vk::BufferUsageFlags::STORAGE_BUFFER,
-                MemoryUse::Streaming,
-            )?;
-            self.order.push(b);
-        }
-        // Without a pyramid the shader never reads bindings 5 and 6; bind small live buffers.
-        let pyramid = hiz.map_or(self.counts.raw, |h| h.pyramid.raw);
-        let levels = hiz.map_or(self.counts.raw, |h| h.levels.raw);
+        // Without a pyramid the shader never reads bindings 5 and 6.
+        let pyramid = hiz.map_or(self.no_pyramid.raw, |h| h.pyramid.raw);
+        let levels = hiz.map_or(self.no_pyramid.raw, |h| h.levels.raw);
         for i in 0..2 * slots as usize {
             let set = self.write_set(ctx, i, pyramid, levels)?;
             self.sets.push(set);
         }
         Ok(())
+    }
+
+    fn slot(&self, slot: usize) -> Result<&SlotInputs, VkError> {
+        self.slots.get(slot).ok_or_else(|| VkError::Invalid {
+            what: "cull".into(),
+            reason: format!("no inputs for frame slot {slot}"),
+        })
     }
 
     fn write_set(
@@ -405,12 +525,9 @@ impl CullState {
         pyramid: vk::Buffer,
         levels: vk::Buffer,
     ) -> Result<vk::DescriptorSet, VkError> {
+        let inputs = self.slot(index / 2)?;
         // The pool holds a set per parameter block.
         let set = allocate_set(ctx, self.pool, self.set_layout)?;
-        let order = self.order.get(index / 2).ok_or_else(|| VkError::Invalid {
-            what: "cull".into(),
-            reason: format!("no order buffer for set {index}"),
-        })?;
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
         write_buffer_set(
             ctx,
@@ -419,7 +536,7 @@ impl CullState {
                 (
                     0,
                     vk::DescriptorType::UNIFORM_BUFFER,
-                    self.params[index].raw,
+                    inputs.params[index % 2].raw,
                 ),
                 (1, ssbo, self.commands.raw),
                 (2, ssbo, self.counts.raw),
@@ -427,48 +544,20 @@ impl CullState {
                 (4, ssbo, self.visibility.raw),
                 (5, ssbo, pyramid),
                 (6, ssbo, levels),
-                (7, ssbo, order.raw),
+                (7, ssbo, inputs.order.raw),
+                (8, ssbo, self.entries.raw),
+                (9, ssbo, inputs.groups.raw),
+                (10, ssbo, self.survivors.raw),
             ],
         );
         Ok(set)
     }
 
-    /// Writes the parameters of the dispatch `which` (0 early/only, 1 late) of frame slot `slot`.
-    pub fn write_params(
-        &mut self,
-        ctx: &Context,
-        slot: usize,
-        which: usize,
-        params: &CullParams,
-    ) -> Result<(), VkError> {
-        let i = 2 * slot + which;
-        let b = self.params.get_mut(i).ok_or_else(|| VkError::Invalid {
-            what: "cull params".into(),
-            reason: format!("slot {slot}"),
-        })?;
-        ctx.write_mapped(b, 0, bytemuck::bytes_of(params))
-    }
-
-    /// Writes frame slot `slot`'s draw order: for each instance, its list entry
-    /// (`list * stride + position`, see [`gpu_order`]).
-    pub fn write_order(
-        &mut self,
-        ctx: &Context,
-        slot: usize,
-        order: &[u32],
-    ) -> Result<(), VkError> {
-        let b = self.order.get_mut(slot).ok_or_else(|| VkError::Invalid {
-            what: "cull order".into(),
-            reason: format!("slot {slot}"),
-        })?;
-        ctx.write_mapped(b, 0, bytemuck::cast_slice(order))
-    }
-
     /// Writes slot `slot`'s culling inputs for `frame`: each instance's entry in the lists in
-    /// the CPU list's draw order (so the culled frame draws its survivors in the unculled
-    /// order), and both dispatches' parameters. After a camera cut, single-phase HiZ tests
-    /// nothing against the previous pyramid (another view's depth would cull at random): that
-    /// frame is frustum-culled only.
+    /// the CPU list's draw order and the draw groups (so the culled frame draws its survivors
+    /// in the unculled order), and both phases' parameters. After a camera cut, single-phase
+    /// HiZ tests nothing against the previous pyramid (another view's depth would cull at
+    /// random): that frame is frustum-culled only.
     pub fn write_frame(
         &mut self,
         ctx: &Context,
@@ -479,21 +568,23 @@ impl CullState {
         pyramid: Option<PyramidInfo>,
     ) -> Result<(), VkError> {
         let m = &frame.current;
-        let mut order = std::mem::take(&mut self.order_scratch);
-        gpu_order_into(draws, self.instance_count as usize, &mut order);
-        let written = self.write_order(ctx, slot, &order);
-        self.order_scratch = order;
-        written?;
+        self.layout.fill(draws, self.instance_count as usize);
         let planes = gpu_planes(m.view_projection, m.depth)?;
         let levels = pyramid.map_or(0, |p| p.levels);
         let (pw, ph) = pyramid.map_or(extent, |p| p.extent_px);
         let reverse = u32::from(m.depth == DepthConvention::Reverse);
         let n = self.instance_count;
+        let layout = &self.layout;
+        let total = layout.groups.len() as u32;
+        let keep_empty = u32::from(matches!(self.draw_count, DrawCount::Fixed { .. }));
         let params = |phase: Phase, view_proj: Mat4, levels: u32| CullParams {
             planes,
             hiz_view_proj: view_proj.to_cols_array_2d(),
             info: [n, phase as u32, levels, reverse],
             screen: [pw, ph, n.max(1), 0],
+            groups: [total.max(1), keep_empty, 0, 0],
+            group_start: layout.group_start,
+            group_count: layout.group_count,
         };
         let first = match self.culling {
             Culling::Hiz => params(
@@ -511,23 +602,32 @@ impl CullState {
             }
             _ => params(Phase::Frustum, m.view_projection, 0),
         };
-        self.write_params(ctx, slot, 0, &first)?;
-        self.write_params(
-            ctx,
-            slot,
-            1,
-            &params(Phase::Late, m.view_projection, levels),
-        )
+        let late = params(Phase::Late, m.view_projection, levels);
+        let (group_count, order, groups) = (layout.group_count, &layout.order, &layout.groups);
+        let inputs = self.slots.get_mut(slot).ok_or_else(|| VkError::Invalid {
+            what: "cull".into(),
+            reason: format!("no inputs for frame slot {slot}"),
+        })?;
+        ctx.write_mapped(&mut inputs.order, 0, bytemuck::cast_slice(order))?;
+        ctx.write_mapped(&mut inputs.groups, 0, bytemuck::cast_slice(groups))?;
+        let [early_params, late_params] = &mut inputs.params;
+        ctx.write_mapped(early_params, 0, bytemuck::bytes_of(&first))?;
+        ctx.write_mapped(late_params, 0, bytemuck::bytes_of(&late))?;
+        inputs.group_count = group_count;
+        inputs.group_total = total;
+        Ok(())
     }
 
-    /// Records the culling dispatch (the graph put the barriers around it).
-    pub fn record_dispatch(
+    /// Records dispatch `step` of phase `which` (0 early or only, 1 late); the graph put the
+    /// barriers around it.
+    fn record_dispatch(
         &self,
         ctx: &Context,
         cb: vk::CommandBuffer,
         scene_set: vk::DescriptorSet,
         slot: usize,
         which: usize,
+        step: Step,
     ) -> Result<(), VkError> {
         let set = *self
             .sets
@@ -536,11 +636,20 @@ impl CullState {
                 what: "cull".into(),
                 reason: format!("no set for slot {slot}"),
             })?;
-        let groups = self.instance_count.div_ceil(64).max(1);
+        let inputs = self.slot(slot)?;
+        let phases = which as u32 + 1; // the late phase compacts the early lists again
+        let (pipeline, groups) = match step {
+            Step::Mark => (self.pipelines[0], self.instance_count.div_ceil(64)),
+            Step::Compact => (self.pipelines[1], phases * inputs.group_total),
+            Step::Commands => (self.pipelines[2], phases * LISTS_PER_PHASE),
+        };
+        if groups == 0 {
+            return Ok(());
+        }
         // SAFETY: recording outside a render pass; pipeline, layout and sets are live.
         unsafe {
             ctx.device
-                .cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, self.pipeline);
+                .cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
             ctx.device.cmd_bind_descriptor_sets(
                 cb,
                 vk::PipelineBindPoint::COMPUTE,
@@ -554,22 +663,54 @@ impl CullState {
         Ok(())
     }
 
-    /// Records one `vkCmdDrawIndexedIndirectCount` per list.
-    pub fn record_draws(&self, ctx: &Context, cb: vk::CommandBuffer, list: u32) {
-        let stride = u64::from(self.instance_count.max(1));
-        // SAFETY: inside a render pass with a pipeline, vertex/index buffers and sets bound;
-        // commands hold `stride` entries per list; the count is at most `stride` (one per instance).
-        unsafe {
-            ctx.device.cmd_draw_indexed_indirect_count(
-                cb,
-                self.commands.raw,
-                u64::from(list) * stride * 20,
-                self.counts.raw,
-                u64::from(list) * 4,
-                self.instance_count.max(1),
-                20,
-            );
+    /// Records list `list`'s draws of frame slot `slot`: one `vkCmdDrawIndexedIndirectCount`,
+    /// or with a fixed count one command per draw group.
+    pub fn record_draws(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        slot: usize,
+        list: u32,
+    ) -> Result<(), VkError> {
+        let groups = self
+            .slot(slot)?
+            .group_count
+            .get((list % LISTS_PER_PHASE) as usize)
+            .copied()
+            .unwrap_or(0);
+        if groups == 0 {
+            return Ok(());
         }
+        let stride = u64::from(self.instance_count.max(1));
+        let offset = u64::from(list) * stride * 20;
+        let d = &ctx.device;
+        // SAFETY (all three): inside a render pass with a pipeline, vertex/index buffers and
+        // sets bound; list `list` holds `stride` >= `groups` commands of 20 bytes from `offset`,
+        // every one written by cull_commands.comp this frame.
+        match self.draw_count {
+            DrawCount::Gpu => unsafe {
+                d.cmd_draw_indexed_indirect_count(
+                    cb,
+                    self.commands.raw,
+                    offset,
+                    self.counts.raw,
+                    u64::from(list) * 4,
+                    groups,
+                    20,
+                );
+            },
+            DrawCount::Fixed { multi_draw: true } => unsafe {
+                d.cmd_draw_indexed_indirect(cb, self.commands.raw, offset, groups, 20);
+            },
+            DrawCount::Fixed { multi_draw: false } => {
+                for k in 0..u64::from(groups) {
+                    unsafe {
+                        d.cmd_draw_indexed_indirect(cb, self.commands.raw, offset + 20 * k, 1, 20)
+                    };
+                }
+            }
+        }
+        Ok(())
     }
 
     pub fn handle(b: &Buffer) -> BufferHandle {
@@ -579,9 +720,9 @@ impl CullState {
         }
     }
 
-    /// The instances drawn by the last frame: entries whose command has instanceCount 1 (reads
-    /// the counts, commands and draw ids back; waits).
-    pub fn drawn_instances(&self, ctx: &Context) -> Result<Vec<u32>, VkError> {
+    /// The last frame's lists as the GPU left them (reads the counts, commands and draw ids
+    /// back; waits).
+    pub fn read_lists(&self, ctx: &Context) -> Result<GpuLists, VkError> {
         let counts = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.counts))?;
         let commands = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.commands))?;
         let ids = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.draw_ids))?;
@@ -590,16 +731,41 @@ impl CullState {
                 .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
         };
         let stride = self.instance_count.max(1) as usize;
-        let mut out = Vec::new();
-        for list in 0..LIST_COUNT as usize {
-            let n = (word(&counts, list) as usize).min(stride);
-            out.extend(
+        let lists = (0..LIST_COUNT as usize)
+            .map(|list| {
+                let n = (word(&counts, list) as usize).min(stride);
                 (0..n)
-                    .map(|k| list * stride + k)
-                    .filter(|&at| word(&commands, 5 * at + 1) == 1)
-                    .map(|at| word(&ids, at)),
-            );
-        }
+                    .map(|k| {
+                        let at = list * stride + k;
+                        let (count, first) =
+                            (word(&commands, 5 * at + 1), word(&commands, 5 * at + 4));
+                        IndirectDraw {
+                            index_count: word(&commands, 5 * at),
+                            first_index: word(&commands, 5 * at + 2),
+                            instances: (first..first.saturating_add(count))
+                                .map(|i| word(&ids, i as usize))
+                                .collect(),
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        Ok(GpuLists {
+            draw_count: self.draw_count,
+            lists,
+            order: self.layout.order.clone(),
+        })
+    }
+
+    /// The instances drawn by the last frame: the ids each list's commands cover (waits).
+    pub fn drawn_instances(&self, ctx: &Context) -> Result<Vec<u32>, VkError> {
+        let lists = self.read_lists(ctx)?;
+        let mut out: Vec<u32> = lists
+            .lists
+            .iter()
+            .flatten()
+            .flat_map(|d| d.instances.iter().copied())
+            .collect();
         out.sort_unstable();
         out.dedup();
         Ok(out)
@@ -608,19 +774,74 @@ impl CullState {
     fn destroy_all(self, ctx: &Context) {
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
-            ctx.device.destroy_pipeline(self.pipeline, None);
+            for p in self.pipelines {
+                ctx.device.destroy_pipeline(p, None);
+            }
             ctx.device
                 .destroy_pipeline_layout(self.pipeline_layout, None);
             ctx.device.destroy_descriptor_pool(self.pool, None);
             ctx.device
                 .destroy_descriptor_set_layout(self.set_layout, None);
         }
-        for b in [self.commands, self.counts, self.draw_ids, self.visibility]
+        let buffers = [
+            self.commands,
+            self.counts,
+            self.draw_ids,
+            self.visibility,
+            self.entries,
+            self.survivors,
+            self.no_pyramid,
+        ];
+        for b in buffers
             .into_iter()
-            .chain(self.params)
-            .chain(self.order)
+            .chain(self.slots.into_iter().flat_map(|s| {
+                let [a, b] = s.params;
+                [a, b, s.order, s.groups]
+            }))
         {
             ctx.destroy_buffer(b);
+        }
+    }
+}
+
+impl SlotInputs {
+    /// Frame slot `slot`'s parameter blocks, order and groups for up to `n` instances.
+    fn new(ctx: &Context, slot: u32, n: u64) -> Result<Self, VkError> {
+        let uniform = vk::BufferUsageFlags::UNIFORM_BUFFER;
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let params_size = std::mem::size_of::<CullParams>() as u64;
+        let specs = [
+            (format!("cull params[{slot}].early"), params_size, uniform),
+            (format!("cull params[{slot}].late"), params_size, uniform),
+            (format!("cull order[{slot}]"), n * 4, storage),
+            // At most one group per instance.
+            (format!("cull groups[{slot}]"), n * 16, storage),
+        ];
+        let mut made = Vec::with_capacity(specs.len());
+        for (name, size, usage) in specs {
+            match ctx.create_buffer(&name, size, usage, MemoryUse::Streaming) {
+                Ok(b) => made.push(b),
+                Err(e) => {
+                    destroy_buffers(ctx, made);
+                    return Err(e);
+                }
+            }
+        }
+        match <[Buffer; 4]>::try_from(made) {
+            Ok([early, late, order, groups]) => Ok(SlotInputs {
+                params: [early, late],
+                order,
+                groups,
+                group_count: [0; 4],
+                group_total: 0,
+            }),
+            Err(made) => {
+                destroy_buffers(ctx, made);
+                Err(VkError::Invalid {
+                    what: "cull".into(),
+                    reason: "slot buffers missing".into(),
+                })
+            }
         }
     }
 }
@@ -661,33 +882,58 @@ pub fn cpu_frustum_mask_into(
     Ok(())
 }
 
-/// Each instance's entry in the GPU lists, in the order the CPU draw list draws it (single-sided
-/// draws of a class first, then double-sided, as [`crate::recording`] records them): `list *
-/// stride + position`, `u32::MAX` for blended instances (not culled on the GPU).
-pub fn gpu_order(draws: &crate::draws::DrawList, instance_count: usize) -> Vec<u32> {
-    let mut order = Vec::new();
-    gpu_order_into(draws, instance_count, &mut order);
-    order
+/// Where the CPU draw list's instances sit in the GPU lists, in the order the CPU list draws
+/// them (single-sided draws of a class first, then double-sided, as [`crate::recording`]
+/// records them). Refilled in place each frame: no allocation once it has the scene's size.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct GpuLayout {
+    /// Per instance: its entry, `list * stride + position` (phase 0 lists); `u32::MAX` for
+    /// blended instances (not culled on the GPU).
+    pub order: Vec<u32>,
+    /// The draw groups, list by list: `[position, len, mesh, list]` (`Group` of cull.glsl),
+    /// one per CPU instanced draw.
+    pub groups: Vec<[u32; 4]>,
+    /// Per list of a phase: its first group.
+    pub group_start: [u32; 4],
+    /// Per list of a phase: its number of groups.
+    pub group_count: [u32; 4],
 }
 
-/// [`gpu_order`] into `order` (refilled in place).
-pub fn gpu_order_into(draws: &crate::draws::DrawList, instance_count: usize, order: &mut Vec<u32>) {
-    let stride = instance_count.max(1) as u32;
-    order.clear();
-    order.resize(instance_count, u32::MAX);
-    for (class, list_draws) in [(0u32, &draws.opaque), (1, &draws.alpha_tested)] {
-        for sided in [false, true] {
-            let list = list_index(class, sided, 0);
-            let mut position = 0u32;
-            for d in list_draws.iter().filter(|d| d.double_sided == sided) {
-                for k in d.first_instance..d.first_instance + d.instance_count {
-                    if let Some(&id) = draws.instances.get(k as usize) {
-                        if let Some(o) = order.get_mut(id as usize) {
-                            *o = list * stride + position;
-                            position += 1;
+impl GpuLayout {
+    /// The layout of `draws` over `instance_count` instances.
+    pub fn of(draws: &DrawList, instance_count: usize) -> Self {
+        let mut layout = GpuLayout::default();
+        layout.fill(draws, instance_count);
+        layout
+    }
+
+    /// Refills the layout for `draws`.
+    pub fn fill(&mut self, draws: &DrawList, instance_count: usize) {
+        let stride = instance_count.max(1) as u32;
+        self.order.clear();
+        self.order.resize(instance_count, u32::MAX);
+        self.groups.clear();
+        for (class, list_draws) in [(0u32, &draws.opaque), (1, &draws.alpha_tested)] {
+            for sided in [false, true] {
+                let list = list_index(class, sided, 0);
+                self.group_start[list as usize] = self.groups.len() as u32;
+                let mut position = 0u32;
+                for d in list_draws.iter().filter(|d| d.double_sided == sided) {
+                    let start = position;
+                    for k in d.first_instance..d.first_instance + d.instance_count {
+                        if let Some(&id) = draws.instances.get(k as usize) {
+                            if let Some(o) = self.order.get_mut(id as usize) {
+                                *o = list * stride + position;
+                                position += 1;
+                            }
                         }
                     }
+                    if position > start {
+                        self.groups.push([start, position - start, d.mesh, list]);
+                    }
                 }
+                self.group_count[list as usize] =
+                    self.groups.len() as u32 - self.group_start[list as usize];
             }
         }
     }

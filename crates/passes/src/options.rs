@@ -156,9 +156,6 @@ impl RenderOptions {
             needs.push((Feature::GeometryShader, WantedBy::Technique(self.technique)));
         }
         let culling = WantedBy::Culling(self.culling);
-        if self.culling.uses_gpu_lists() {
-            needs.extend(CullState::required_features().map(|f| (f, culling)));
-        }
         if self.culling.uses_queries() {
             needs.extend(OqState::required_features().map(|f| (f, culling)));
         }
@@ -182,7 +179,12 @@ impl RenderOptions {
     /// its own device asks for this first (`tilegraph_vk::DeviceConfig::new` turns it into
     /// extensions and feature structs for the physical device).
     pub fn device_features(&self) -> FeatureRequest {
-        FeatureRequest::executor().require(self.needs().into_iter().map(|(f, _)| f))
+        let request = FeatureRequest::executor().require(self.needs().into_iter().map(|(f, _)| f));
+        if self.culling.uses_gpu_lists() {
+            request.want(CullState::wanted_features())
+        } else {
+            request
+        }
     }
 }
 

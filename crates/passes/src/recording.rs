@@ -206,7 +206,7 @@ fn record_conditional(
 }
 
 /// The culling shader's lists of one material class and phase (single- and double-sided, each
-/// with its pipeline) as indirect draws with a GPU count.
+/// with its pipeline) as compacted indirect draws.
 fn record_indirect(
     pc: &PassContext<'_>,
     res: &mut SceneResources,
@@ -228,7 +228,12 @@ fn record_indirect(
         let p = pipelines.scene(pc, variant, sided, colors, frame.depth)?;
         // SAFETY: inside the subpass; the pipeline is live.
         unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
-        culling.record_draws(pc.ctx, pc.cb, list_index(class.index(), sided, phase));
+        culling.record_draws(
+            pc.ctx,
+            pc.cb,
+            pc.frame_slot,
+            list_index(class.index(), sided, phase),
+        )?;
     }
     Ok(())
 }

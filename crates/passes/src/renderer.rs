@@ -24,7 +24,7 @@ use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::{Context, Image, VkError};
 
 use crate::compose::{declare_scene, kept_import, ColorTarget, DeclarationKey, SceneFrame};
-use crate::cull::{cpu_frustum_mask_into, CullState, Culling};
+use crate::cull::{cpu_frustum_mask_into, CullState, Culling, GpuLists};
 use crate::draws::DrawBuilder;
 use crate::frame::{FrameData, FrameGraph, Payload, SceneResources, States};
 use crate::gpu_scene::{FrameUniforms, GpuScene};
@@ -597,6 +597,16 @@ impl SceneRenderer {
         }
         match self.resources.states.get::<CullState>() {
             Some(c) => Ok(Some(c.drawn_instances(ctx)?)),
+            None => Ok(None),
+        }
+    }
+
+    /// The last frame's GPU culling lists as the GPU left them (waits), or `None` without
+    /// GPU lists.
+    pub fn gpu_lists(&mut self, ctx: &Context) -> Result<Option<GpuLists>, RenderError> {
+        self.executor.finish(ctx)?;
+        match self.resources.states.get::<CullState>() {
+            Some(c) => Ok(Some(c.read_lists(ctx)?)),
             None => Ok(None),
         }
     }

@@ -106,6 +106,22 @@ pub struct PassPolicy {
     /// comes later in this list is not scheduled while a pass of an earlier class can still run.
     pub order: Vec<PassClass>,
     pub occlusion_queries: OcclusionQueryPolicy,
+    /// How GPU culling's indirect draws are counted.
+    #[serde(default)]
+    pub indirect_count: IndirectCount,
+}
+
+/// How GPU culling's compacted indirect draws are counted.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IndirectCount {
+    /// `vkCmdDrawIndexedIndirectCount` where the device has `drawIndirectCount`: the GPU writes
+    /// how many commands survive, and the command processor walks only those.
+    #[default]
+    WhenSupported,
+    /// A fixed command count (one per draw group), culled groups as zero-instance commands:
+    /// for drivers without `drawIndirectCount`, or where it is slow.
+    Fixed,
 }
 
 impl PassPolicy {

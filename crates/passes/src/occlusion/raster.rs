@@ -75,9 +75,10 @@ pub fn add_raster_occlusion(
     } else {
         targets.depth
     };
+    // The fragment shader reads a flag before setting it (one store per visible box).
     g.raster_pass("raster-occlusion", PassClass::OcclusionQuery, boxes)
         .depth_stencil_read_only(tested_depth)
-        .storage_write(visibility);
+        .storage_read_write(visibility);
     add_cull(g, lists, Culling::RasterOcclusion);
 }
 

@@ -1,0 +1,33 @@
+// Shared declarations of the culling shaders (cull.comp, cull_compact.comp, cull_commands.comp):
+// one parameter block and one descriptor set layout for the three dispatches of a phase.
+//
+// The lists (docs/ARCHITECTURE.md, "ordered compaction"): 8 lists (opaque / alpha-tested, single- /
+// double-sided, early-or-only / late phase) of `stride` entries each. An instance has a fixed
+// entry per phase in the unculled draw order; the CPU draw list's instanced draws are the
+// groups (one mesh, a run of consecutive entries). cull.comp marks each entry, the compaction
+// packs each group's survivors in order, and the command pass writes one instanced indirect
+// command per group, in group order.
+#ifndef TILEGRAPH_CULL_GLSL
+#define TILEGRAPH_CULL_GLSL
+
+// tilegraph_passes::cull::CullParams (std140).
+layout(set = 1, binding = 0, std140) uniform CullParams {
+    vec4 planes[6];        // camera-relative frustum planes (xyz normal, w distance); (0,0,0,1) = absent
+    mat4 hiz_view_proj;    // camera-relative position -> clip space of the frame the pyramid was built in
+    uvec4 info;            // x: instances, y: phase, z: HiZ levels (0 = no pyramid), w: 1 reverse-Z
+    uvec4 screen;          // x, y: pyramid level-0 size (px), z: list stride (entries per list)
+    uvec4 groups;          // x: groups per phase, y: 1 = keep empty commands (fixed draw count)
+    uvec4 group_start;     // per list of a phase: its first group
+    uvec4 group_count;     // per list of a phase: its number of groups
+} cull;
+
+// A draw group: `len` consecutive entries of list `list` (of a phase) from `position`, all of
+// mesh `mesh` (the CPU draw list's instanced draw).
+struct Group {
+    uint position;
+    uint len;
+    uint mesh;
+    uint list;
+};
+
+#endif

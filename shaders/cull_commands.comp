@@ -1,0 +1,58 @@
+#version 450
+// Ordered compaction, second half: one workgroup per list writes one instanced
+// VkDrawIndexedIndirectCommand per group of the list that kept an instance, in group order,
+// and the list's draw count (vkCmdDrawIndexedIndirectCount). With a fixed draw count
+// (cull.groups.y = 1: the device or the profile does without drawIndirectCount), every group
+// keeps its command, empty ones with instanceCount 0, and the CPU draws the list's group count.
+// Workgroup w is list w: the early (or only) dispatch runs lists 0-3, the late one 0-7.
+#include "scene.glsl"
+#include "cull.glsl"
+
+layout(local_size_x = 64) in;
+
+layout(set = 1, binding = 1, std430) writeonly buffer Commands { uint commands[]; }; // 5 uints each
+layout(set = 1, binding = 2, std430) writeonly buffer Counts { uint counts[]; };     // per list
+layout(set = 1, binding = 9, std430) readonly buffer Groups { Group groups[]; };
+layout(set = 1, binding = 10, std430) readonly buffer Survivors { uint survivors[]; };
+
+shared uint scan[64];
+
+void main() {
+    uint list = gl_WorkGroupID.x;
+    uint local_list = list % 4u;
+    uint phase = list / 4u;
+    uint first = cull.group_start[local_list];
+    uint n = cull.group_count[local_list];
+    bool keep_empty = cull.groups.y == 1u;
+    uint t = gl_LocalInvocationID.x;
+    uint written = 0u;
+    for (uint chunk = 0u; chunk < n; chunk += 64u) {
+        uint j = chunk + t;
+        uint g = first + j;
+        uint count = j < n ? survivors[phase * cull.groups.x + g] : 0u;
+        uint keep = j < n && (count != 0u || keep_empty) ? 1u : 0u;
+        scan[t] = keep;
+        barrier();
+        for (uint d = 1u; d < 64u; d <<= 1u) {
+            uint add = t >= d ? scan[t - d] : 0u;
+            barrier();
+            scan[t] += add;
+            barrier();
+        }
+        if (keep != 0u) {
+            Group group = groups[g];
+            Mesh m = meshes[group.mesh];
+            uint at = list * cull.screen.z + written + scan[t] - 1u;
+            commands[5u * at + 0u] = m.index_count;
+            commands[5u * at + 1u] = count;
+            commands[5u * at + 2u] = m.first_index;
+            commands[5u * at + 3u] = uint(m.vertex_offset);
+            commands[5u * at + 4u] = list * cull.screen.z + group.position; // firstInstance
+        }
+        written += scan[63];
+        barrier();
+    }
+    if (t == 0u) {
+        counts[list] = written;
+    }
+}

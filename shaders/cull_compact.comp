@@ -1,0 +1,48 @@
+#version 450
+// Ordered compaction, first half: one workgroup per draw group (a mesh's run of consecutive
+// entries, common/cull.glsl) packs the ids of the group's surviving entries to the front of the
+// group's range of the draw list, in entry order, and writes how many survived. Workgroup w
+// handles group w % groups of phase w / groups: the early (or only) dispatch runs one phase,
+// the late dispatch both (the early lists again, now the union of both phases, then the late).
+#include "cull.glsl"
+
+layout(local_size_x = 64) in;
+
+layout(set = 1, binding = 3, std430) writeonly buffer DrawIds { uint draw_ids[]; };
+layout(set = 1, binding = 8, std430) readonly buffer Entries { uint entries[]; };
+layout(set = 1, binding = 9, std430) readonly buffer Groups { Group groups[]; };
+layout(set = 1, binding = 10, std430) writeonly buffer Survivors { uint survivors[]; };
+
+shared uint scan[64];
+
+void main() {
+    uint g = gl_WorkGroupID.x % cull.groups.x;
+    uint phase = gl_WorkGroupID.x / cull.groups.x;
+    Group group = groups[g];
+    uint base = (4u * phase + group.list) * cull.screen.z + group.position;
+    uint t = gl_LocalInvocationID.x;
+    uint packed = 0u;
+    for (uint chunk = 0u; chunk < group.len; chunk += 64u) {
+        uint i = chunk + t;
+        uint e = i < group.len ? entries[base + i] : 0u;
+        uint keep = e != 0u ? 1u : 0u;
+        // Inclusive scan of the chunk's survivors (Hillis-Steele in shared memory: portable,
+        // no subgroup size assumptions).
+        scan[t] = keep;
+        barrier();
+        for (uint d = 1u; d < 64u; d <<= 1u) {
+            uint add = t >= d ? scan[t - d] : 0u;
+            barrier();
+            scan[t] += add;
+            barrier();
+        }
+        if (keep != 0u) {
+            draw_ids[base + packed + scan[t] - 1u] = e - 1u;
+        }
+        packed += scan[63];
+        barrier(); // every thread read scan[63] before the next chunk overwrites it
+    }
+    if (t == 0u) {
+        survivors[gl_WorkGroupID.x] = packed;
+    }
+}
