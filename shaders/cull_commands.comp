@@ -15,23 +15,29 @@ layout(set = 1, binding = 2, std430) writeonly buffer Counts { uint counts[]; };
 layout(set = 1, binding = 9, std430) readonly buffer Groups { Group groups[]; };
 layout(set = 1, binding = 10, std430) readonly buffer Survivors { uint survivors[]; };
 
+// Each thread owns PER_THREAD consecutive groups of a chunk (as cull_compact.comp).
+const uint PER_THREAD = 8u;
+const uint CHUNK = 64u * PER_THREAD;
+
 shared uint scan[64];
 
 void main() {
     uint list = gl_WorkGroupID.x;
     uint local_list = list % 4u;
     uint phase = list / 4u;
-    uint first = cull.group_start[local_list];
+    uint start = cull.group_start[local_list];
     uint n = cull.group_count[local_list];
     bool keep_empty = cull.groups.y == 1u;
     uint t = gl_LocalInvocationID.x;
     uint written = 0u;
-    for (uint chunk = 0u; chunk < n; chunk += 64u) {
-        uint j = chunk + t;
-        uint g = first + j;
-        uint count = j < n ? survivors[phase * cull.groups.x + g] : 0u;
-        uint keep = j < n && (count != 0u || keep_empty) ? 1u : 0u;
-        scan[t] = keep;
+    for (uint chunk = 0u; chunk < n; chunk += CHUNK) {
+        uint first = chunk + t * PER_THREAD;
+        uint last = min(first + PER_THREAD, n);
+        uint kept = 0u;
+        for (uint j = first; j < last; ++j) {
+            kept += keep_empty || survivors[phase * cull.groups.x + start + j] != 0u ? 1u : 0u;
+        }
+        scan[t] = kept;
         barrier();
         for (uint d = 1u; d < 64u; d <<= 1u) {
             uint add = t >= d ? scan[t - d] : 0u;
@@ -39,20 +45,31 @@ void main() {
             scan[t] += add;
             barrier();
         }
-        if (keep != 0u) {
+        uint k = written + scan[t] - kept;
+        for (uint j = first; j < last; ++j) {
+            uint g = start + j;
+            uint count = survivors[phase * cull.groups.x + g];
+            if (count == 0u && !keep_empty) {
+                continue;
+            }
             Group group = groups[g];
             Mesh m = meshes[group.mesh];
-            uint at = list * cull.screen.z + written + scan[t] - 1u;
+            uint at = list * cull.screen.z + k;
             commands[5u * at + 0u] = m.index_count;
             commands[5u * at + 1u] = count;
             commands[5u * at + 2u] = m.first_index;
             commands[5u * at + 3u] = uint(m.vertex_offset);
             commands[5u * at + 4u] = list * cull.screen.z + group.position; // firstInstance
+            k += 1u;
         }
         written += scan[63];
         barrier();
     }
     if (t == 0u) {
         counts[list] = written;
+        if (gl_NumWorkGroups.x == 4u) {
+            // The early (or only) phase empties the late lists; a late phase refills them.
+            counts[list + 4u] = 0u;
+        }
     }
 }

@@ -13,6 +13,12 @@ layout(set = 1, binding = 8, std430) readonly buffer Entries { uint entries[]; }
 layout(set = 1, binding = 9, std430) readonly buffer Groups { Group groups[]; };
 layout(set = 1, binding = 10, std430) writeonly buffer Survivors { uint survivors[]; };
 
+// Each thread owns PER_THREAD consecutive entries of a chunk: a group of up to 1,024 entries is
+// one pass of loads, one 64-wide scan and one pass of stores (the scan's barriers are the
+// latency; few groups run at once when a scene has few meshes).
+const uint PER_THREAD = 16u;
+const uint CHUNK = 64u * PER_THREAD;
+
 shared uint scan[64];
 
 void main() {
@@ -22,13 +28,16 @@ void main() {
     uint base = (4u * phase + group.list) * cull.screen.z + group.position;
     uint t = gl_LocalInvocationID.x;
     uint packed = 0u;
-    for (uint chunk = 0u; chunk < group.len; chunk += 64u) {
-        uint i = chunk + t;
-        uint e = i < group.len ? entries[base + i] : 0u;
-        uint keep = e != 0u ? 1u : 0u;
-        // Inclusive scan of the chunk's survivors (Hillis-Steele in shared memory: portable,
-        // no subgroup size assumptions).
-        scan[t] = keep;
+    for (uint chunk = 0u; chunk < group.len; chunk += CHUNK) {
+        uint first = chunk + t * PER_THREAD;
+        uint last = min(first + PER_THREAD, group.len);
+        uint kept = 0u;
+        for (uint i = first; i < last; ++i) {
+            kept += entries[base + i] != 0u ? 1u : 0u;
+        }
+        // Inclusive scan of the threads' counts (Hillis-Steele in shared memory: portable, no
+        // subgroup size assumptions).
+        scan[t] = kept;
         barrier();
         for (uint d = 1u; d < 64u; d <<= 1u) {
             uint add = t >= d ? scan[t - d] : 0u;
@@ -36,8 +45,13 @@ void main() {
             scan[t] += add;
             barrier();
         }
-        if (keep != 0u) {
-            draw_ids[base + packed + scan[t] - 1u] = e - 1u;
+        uint at = base + packed + scan[t] - kept;
+        for (uint i = first; i < last; ++i) {
+            uint e = entries[base + i];
+            if (e != 0u) {
+                draw_ids[at] = e - 1u;
+                at += 1u;
+            }
         }
         packed += scan[63];
         barrier(); // every thread read scan[63] before the next chunk overwrites it

@@ -39,11 +39,27 @@ void main() {
     float near_depth = frame.depth_params.x;
     bool reverse = near_depth == 1.0;
     bool crosses = false;
+    // Outcodes: bit k set while every corner lies beyond side k of the clip volume (x < -w,
+    // x > w, y < -w, y > w) or behind the eye (w <= 0). The box is the hull of its corners and
+    // clip space is linear in them, so a bit still set after all 8 puts the whole box outside:
+    // it draws nothing. Without this, every box the eye's plane cuts — a row of buildings
+    // across the whole city — would become a screen-covering triangle below.
+    uint outside = 31u;
     for (uint i = 0u; i < 8u; ++i) {
         // The corners drawn below (grown toward the eye), not the box's own.
         vec3 corner = proxy_corner(inst.center, half_size, corner_sign(i));
         vec4 clip = frame.view_proj * vec4(corner, 1.0);
         crosses = crosses || clip.w <= 0.0 || (reverse ? clip.z > clip.w : clip.z < 0.0);
+        // A relative margin: rounding must never put a touching box outside.
+        float tol = 1e-5 * abs(clip.w) + 1e-6;
+        uint code = (clip.x < -clip.w - tol ? 1u : 0u) | (clip.x > clip.w + tol ? 2u : 0u)
+                  | (clip.y < -clip.w - tol ? 4u : 0u) | (clip.y > clip.w + tol ? 8u : 0u)
+                  | (clip.w < -tol ? 16u : 0u);
+        outside &= code;
+    }
+    if (outside != 0u) {
+        gl_Position = vec4(2.0, 2.0, 0.5, 1.0); // every vertex on one point off screen
+        return;
     }
     if (crosses) {
         uint v = uint(gl_VertexIndex);

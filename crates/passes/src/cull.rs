@@ -124,17 +124,12 @@ enum Step {
     Commands,
 }
 
-/// Declares the culling of the early (or only) phase of `culling`: the counts reset, then the
-/// dispatches that write the indirect lists. Frustum and HiZ test every instance (HiZ against
+/// Declares the culling of the early (or only) phase of `culling`: the dispatches that write the
+/// indirect lists (and empty the late lists, which a late phase fills). Frustum and HiZ test every instance (HiZ against
 /// last frame's pyramid); two-phase culling's early phase draws last frame's visible set;
 /// raster occlusion turns the flags its boxes wrote into lists.
 pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
     let two_phase = culling == Culling::HizTwoPhase;
-    let counts = lists.counts;
-    let reset: Payload = Box::new(move |pc, _| zero_fill(pc, counts));
-    // The late lists' counts of a single-phase frame stay zero (tools read all eight).
-    g.transfer_pass("cull-reset", PassClass::Compute, reset)
-        .transfer_dst(lists.counts);
     let name = if two_phase { "cull-early" } else { "cull" };
     let mut c = g.compute_pass(name, PassClass::Compute, dispatch(0, Step::Mark));
     c.storage_write(lists.entries);
@@ -387,7 +382,7 @@ impl CullState {
         let dst = vk::BufferUsageFlags::TRANSFER_DST;
         let specs = [
             ("cull commands", n * lists * 20, storage | indirect | src),
-            ("cull counts", lists * 4, storage | indirect | dst | src),
+            ("cull counts", lists * 4, storage | indirect | src),
             ("cull draw ids", n * lists * 4, storage | src),
             ("visibility", n * 4, storage | dst),
             ("cull entries", n * lists * 4, storage),

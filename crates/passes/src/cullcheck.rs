@@ -63,6 +63,15 @@ pub struct Totals {
     /// summed, and of the whole frame, from timestamps.
     pub cull_gpu_ms: f64,
     pub frame_gpu_ms: f64,
+    /// Median GPU milliseconds of each pass of the tested frame, in recording order.
+    pub passes: Vec<PassTime>,
+}
+
+/// One pass's median GPU time over the path.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PassTime {
+    pub name: String,
+    pub gpu_ms: f64,
 }
 
 /// The whole report (`tilegraph cull-check --json`).
@@ -337,6 +346,13 @@ impl Run<'_> {
                 .filter(|m| is_cull(&m.name))
                 .fold(0.0, |a, m| a + m.median_gpu_ms),
             frame_gpu_ms: medians.iter().fold(0.0, |a, m| a + m.median_gpu_ms),
+            passes: medians
+                .iter()
+                .map(|m| PassTime {
+                    name: m.name.clone(),
+                    gpu_ms: m.median_gpu_ms,
+                })
+                .collect(),
         };
         Ok(CullCheck {
             technique: culling.name().to_string(),

@@ -121,9 +121,9 @@ fn record_cpu(
     Ok(())
 }
 
-/// The CPU draw list one instance at a time, each predicated on its occlusion query's result
-/// (instances the frame did not query are drawn unconditionally). Same order as the instanced
-/// draws, so the image equals the unculled one.
+/// The CPU draw list predicated on the occlusion queries' results: each run of consecutive
+/// instances under one query is one instanced draw (instances the frame did not query are drawn
+/// unconditionally). Same order as the instanced draws, so the image equals the unculled one.
 fn record_conditional(
     pc: &PassContext<'_>,
     res: &mut SceneResources,
@@ -169,12 +169,24 @@ fn record_conditional(
                 unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
                 bound = true;
             }
-            for k in draw.first_instance..draw.first_instance + draw.instance_count {
-                let offset = frame
+            // Runs of consecutive instances under one query draw instanced, predicated once
+            // (query groups hold one mesh's instances, so a group's members often follow each
+            // other in the draw's distance order).
+            let condition = |k: u32| {
+                frame
                     .draws
                     .instances
                     .get(k as usize)
-                    .and_then(|&id| queries.condition_offset(id));
+                    .and_then(|&id| queries.condition_offset(id))
+            };
+            let end = draw.first_instance + draw.instance_count;
+            let mut k = draw.first_instance;
+            while k < end {
+                let offset = condition(k);
+                let mut run = 1;
+                while k + run < end && condition(k + run) == offset {
+                    run += 1;
+                }
                 if let Some(offset) = offset {
                     let begin = vk::ConditionalRenderingBeginInfoEXT::default()
                         .buffer(conditions)
@@ -184,12 +196,13 @@ fn record_conditional(
                     // visible to the conditional-rendering stage (the pass's predicate).
                     unsafe { (cond.fp().cmd_begin_conditional_rendering_ext)(pc.cb, &begin) };
                 }
-                // SAFETY: the draw's ranges lie inside the scene's buffers.
+                // SAFETY: the draw's ranges lie inside the scene's buffers; `k..k + run` lies
+                // inside the draw's instances.
                 unsafe {
                     d.cmd_draw_indexed(
                         pc.cb,
                         draw.index_count,
-                        1,
+                        run,
                         draw.first_index,
                         draw.vertex_offset,
                         k,
@@ -199,6 +212,7 @@ fn record_conditional(
                     // SAFETY: ends the conditional block begun above, in the same subpass.
                     unsafe { (cond.fp().cmd_end_conditional_rendering_ext)(pc.cb) };
                 }
+                k += run;
             }
         }
     }

@@ -46,8 +46,14 @@ pub struct QueryGroup {
 
 /// Groups of `group_size` consecutive instances in a spatial order (Morton code of the bounds
 /// centre on a 1024^3 grid over the scene), skipping the excluded (blended) ones. With
-/// `group_size` 1, one query per instance.
-pub fn build_groups(scene: &Scene, group_size: usize, excluded: &[bool]) -> Vec<QueryGroup> {
+/// `group_size` 1, one query per instance. `by_mesh`: a group holds instances of one mesh
+/// (conditional rendering then predicates one instanced draw per run of a group's instances).
+pub fn build_groups(
+    scene: &Scene,
+    group_size: usize,
+    excluded: &[bool],
+    by_mesh: bool,
+) -> Vec<QueryGroup> {
     let instances = scene.instances();
     let ids: Vec<u32> = (0..instances.len() as u32)
         .filter(|&i| !excluded.get(i as usize).copied().unwrap_or(false))
@@ -69,12 +75,19 @@ pub fn build_groups(scene: &Scene, group_size: usize, excluded: &[bool]) -> Vec<
             ((inst.bounds.center - lo) / extent * 1023.0).clamp(DVec3::ZERO, DVec3::splat(1023.0));
         morton3(q.x as u32, q.y as u32, q.z as u32)
     };
+    let mesh = |i: &u32| {
+        instances
+            .get(*i as usize)
+            .filter(|_| by_mesh)
+            .map_or(0, |inst| inst.mesh.0)
+    };
     let mut sorted = ids;
     if group_size > 1 {
-        sorted.sort_by_key(|&i| (key(i), i));
+        sorted.sort_by_key(|&i| (mesh(&i), key(i), i));
     }
     sorted
-        .chunks(group_size.max(1))
+        .chunk_by(|a, b| mesh(a) == mesh(b))
+        .flat_map(|run| run.chunks(group_size.max(1)))
         .map(|members| {
             let mut min = DVec3::splat(f64::INFINITY);
             let mut max = DVec3::splat(f64::NEG_INFINITY);
@@ -192,7 +205,7 @@ impl OqState {
         scene_set_layout: vk::DescriptorSetLayout,
         frames_in_flight: usize,
     ) -> Result<Self, VkError> {
-        let groups = build_groups(scene, group_size, excluded);
+        let groups = build_groups(scene, group_size, excluded, conditional);
         let mut group_of = vec![u32::MAX; scene.instances().len()];
         for (g, group) in groups.iter().enumerate() {
             for &i in &group.members {
@@ -597,8 +610,14 @@ mod tests {
         let scene = tilegraph_scene::load("city:300").unwrap();
         let n = scene.instances().len();
         let excluded: Vec<bool> = (0..n).map(|i| i % 7 == 0).collect();
-        for size in [1, 4, 16] {
-            let groups = build_groups(&scene, size, &excluded);
+        for (size, by_mesh) in [(1, false), (4, false), (16, false), (16, true)] {
+            let groups = build_groups(&scene, size, &excluded, by_mesh);
+            if by_mesh {
+                for g in &groups {
+                    let mesh = |i: &u32| scene.instances()[*i as usize].mesh;
+                    assert!(g.members.iter().all(|i| mesh(i) == mesh(&g.members[0])));
+                }
+            }
             let mut seen = vec![0; n];
             for g in &groups {
                 assert!(g.members.len() <= size);
