@@ -11,8 +11,9 @@ use std::mem::{offset_of, size_of};
 use tilegraph_cull::{dequantize_d16, DepthFormat, Extent2d, ExtentExt, HizPyramid};
 use tilegraph_e2e::gpu;
 use tilegraph_passes::hiz::{
-    DepthConvention, HizBuilder, HizLayout, HizPush, NpotMode, SampledDepth, HIZ_COPY_SPV,
-    HIZ_REDUCE_SPV, MAX_PYRAMID_BYTES, WORKGROUP_SIZE,
+    DepthConvention, HizBuilder, HizLayout, HizLevelsPush, HizPush, HizStep, NpotMode,
+    SampledDepth, HIZ_COPY_SPV, HIZ_REDUCE_LEVELS_SPV, HIZ_REDUCE_SPV, LEVELS_WORKGROUP_SIZE,
+    MAX_PYRAMID_BYTES, WORKGROUP_SIZE,
 };
 use tilegraph_profile::MemoryUse;
 use tilegraph_vk::ash::vk;
@@ -368,32 +369,36 @@ fn check_all_modes(
 ) {
     let image = DepthImage::upload(ctx, size, depth).unwrap();
     let expected_level0 = depth.format().store_buffer(&depth.floats());
-    for mode in MODES {
-        for conv in CONVENTIONS {
-            let what = format!(
-                "{label} {}x{} {} {mode:?} {conv:?}",
-                size.0,
-                size.1,
-                depth.name()
+    for (mode, conv, per) in MODES
+        .into_iter()
+        .flat_map(|m| CONVENTIONS.map(|c| (m, c)))
+        .flat_map(|(m, c)| [(m, c, 4), (m, c, 1)])
+    {
+        let what = format!(
+            "{label} {}x{} {} {mode:?} {conv:?} {per} levels per dispatch",
+            size.0,
+            size.1,
+            depth.name()
+        );
+        let layout = HizLayout::new(size, mode, conv, depth.format())
+            .unwrap()
+            .with_levels_per_dispatch(per);
+        let gpu = gpu_build(ctx, builder, &image, &layout).unwrap();
+        // Level 0 is exactly what the image holds, as the spec's conversion gives it.
+        let level0 = layout.level_texels(&gpu, 0).unwrap();
+        if let Some(i) = level0
+            .iter()
+            .zip(&expected_level0)
+            .position(|(g, e)| g.to_bits() != e.to_bits())
+        {
+            panic!(
+                "{what}: level 0 texel {i}: GPU read {:e}, the format stores {:e}",
+                level0[i], expected_level0[i]
             );
-            let layout = HizLayout::new(size, mode, conv, depth.format()).unwrap();
-            let gpu = gpu_build(ctx, builder, &image, &layout).unwrap();
-            // Level 0 is exactly what the image holds, as the spec's conversion gives it.
-            let level0 = layout.level_texels(&gpu, 0).unwrap();
-            if let Some(i) = level0
-                .iter()
-                .zip(&expected_level0)
-                .position(|(g, e)| g.to_bits() != e.to_bits())
-            {
-                panic!(
-                    "{what}: level 0 texel {i}: GPU read {:e}, the format stores {:e}",
-                    level0[i], expected_level0[i]
-                );
-            }
-            let cpu = HizPyramid::build(&expected_level0, extent(size), conv, depth.format(), mode)
-                .unwrap();
-            assert_same(&layout, &gpu, &cpu, &what);
         }
+        let cpu =
+            HizPyramid::build(&expected_level0, extent(size), conv, depth.format(), mode).unwrap();
+        assert_same(&layout, &gpu, &cpu, &what);
     }
     image.destroy(ctx);
 }
@@ -419,6 +424,42 @@ fn gpu_pyramid_equals_cpu_reference_d16() {
         let depth = Depth::random(DepthFormat::D16Unorm, n, 0xD16 + i as u64);
         check_all_modes(&g, &mut builder, size, &depth, "random");
     }
+    builder.destroy(&g);
+}
+
+/// Every size from 1x1 to 64x64, both modes and conventions: the fused dispatches' tiles meet
+/// every case there is (leftover rows and columns at each fused level, one axis reaching 1
+/// before the other, a single workgroup holding a whole level). One 64x64 image: a layout of
+/// w x h builds from its top-left corner.
+#[test]
+fn gpu_pyramid_equals_cpu_reference_at_every_size_to_64() {
+    let g = gpu(None).unwrap();
+    let mut builder = HizBuilder::new(&g, 1).unwrap();
+    let depth = Depth::random(D32, 64 * 64, 0x64);
+    let image = DepthImage::upload(&g, (64, 64), &depth).unwrap();
+    let all = depth.floats();
+    let mut fused = 0;
+    for w in 1..=64u32 {
+        for h in 1..=64u32 {
+            let corner: Vec<f32> = (0..h as usize)
+                .flat_map(|y| all[y * 64..y * 64 + w as usize].iter().copied())
+                .collect();
+            for mode in MODES {
+                for conv in CONVENTIONS {
+                    let layout = HizLayout::new((w, h), mode, conv, D32).unwrap();
+                    fused += (0..)
+                        .map_while(|i| layout.step(i))
+                        .filter(|s| matches!(s, Ok(HizStep::Fused { .. })))
+                        .count();
+                    let gpu = gpu_build(&g, &mut builder, &image, &layout).unwrap();
+                    let cpu = HizPyramid::build(&corner, extent((w, h)), conv, D32, mode).unwrap();
+                    assert_same(&layout, &gpu, &cpu, &format!("{w}x{h} {mode:?} {conv:?}"));
+                }
+            }
+        }
+    }
+    assert!(fused > 4096, "the sizes use fused dispatches ({fused})");
+    image.destroy(&g);
     builder.destroy(&g);
 }
 
@@ -800,6 +841,24 @@ fn push_constants_and_workgroup_match_the_shaders() {
             "{name}: local size"
         );
     }
+    let levels = vec![
+        offset_of!(HizLevelsPush, src_offset) as u32,
+        offset_of!(HizLevelsPush, levels) as u32,
+        offset_of!(HizLevelsPush, src_extent) as u32,
+        offset_of!(HizLevelsPush, rule) as u32,
+        offset_of!(HizLevelsPush, convention) as u32,
+        offset_of!(HizLevelsPush, groups) as u32,
+        offset_of!(HizLevelsPush, dst_offset) as u32,
+        offset_of!(HizLevelsPush, dst_extent) as u32,
+    ];
+    assert_eq!(size_of::<HizLevelsPush>(), 80);
+    let (offsets, local) = push_block_and_local_size(HIZ_REDUCE_LEVELS_SPV);
+    assert_eq!(offsets, levels, "hiz_reduce_levels: push-constant offsets");
+    assert_eq!(
+        local,
+        [LEVELS_WORKGROUP_SIZE, LEVELS_WORKGROUP_SIZE, 1],
+        "hiz_reduce_levels: local size"
+    );
 }
 
 // --- cost ---
@@ -879,7 +938,8 @@ fn median_build_ms(
 }
 
 /// Prints the GPU cost of each mode (run with `--nocapture`; lavapipe is a CPU rasterizer, so
-/// the figures say nothing about a mobile GPU). Asserts only that the timestamps are sane.
+/// the figures say nothing about a mobile GPU). Asserts only that the timestamps are sane. Per
+/// dispatch and against the copy bandwidth: the `hiz_cost` example.
 #[test]
 fn gpu_cost_per_mode() {
     let g = gpu(None).unwrap();

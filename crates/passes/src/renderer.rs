@@ -601,14 +601,11 @@ impl SceneRenderer {
         }
     }
 
-    /// The last frame's GPU culling lists as the GPU left them (waits), or `None` without
-    /// GPU lists.
+    /// The last frame's GPU culling lists (waits), or `None` without GPU lists.
     pub fn gpu_lists(&mut self, ctx: &Context) -> Result<Option<GpuLists>, RenderError> {
         self.executor.finish(ctx)?;
-        match self.resources.states.get::<CullState>() {
-            Some(c) => Ok(Some(c.read_lists(ctx)?)),
-            None => Ok(None),
-        }
+        let cull = self.resources.states.get::<CullState>();
+        Ok(cull.map(|c| c.read_lists(ctx)).transpose()?)
     }
 
     /// Waits for the frames in flight, collecting their GPU timings.

@@ -109,6 +109,14 @@ pub struct PassPolicy {
     /// How GPU culling's indirect draws are counted.
     #[serde(default)]
     pub indirect_count: IndirectCount,
+    /// HiZ pyramid levels one reduction dispatch writes through shared memory (1-4): fewer
+    /// dispatches and barriers where shared memory is fast, 1 where it is not.
+    #[serde(default = "four_levels")]
+    pub hiz_levels_per_dispatch: u32,
+}
+
+fn four_levels() -> u32 {
+    4
 }
 
 /// How GPU culling's compacted indirect draws are counted.

@@ -1,282 +1,23 @@
-//! GPU-driven culling: frustum, HiZ against last frame's pyramid, and two-phase occlusion
-//! culling (seeds 000, 002, 004), as compute passes that write compacted indirect draws.
-//!
-//! Each culling phase is three dispatches (docs/ARCHITECTURE.md, "ordered compaction"):
-//! `cull.comp` marks every instance's fixed entry in the unculled draw order,
-//! `cull_compact.comp` packs the survivors of each draw group (one mesh's run of entries, the
-//! CPU list's instanced draw) in that order, and `cull_commands.comp` writes one instanced
-//! command per group that kept an instance, in group order, with the draw count. The culled
-//! frame therefore draws its survivors in the unculled order (images stay bit-equal), and the
-//! command processor walks survivors only. Where the device or the profile does without
-//! `drawIndirectCount`, every group keeps its command (zero instances when culled) and the CPU
-//! draws the list's group count.
-//!
-//! The buffers live as long as the renderer (they carry visibility and the pyramid from frame to
-//! frame, and tools read the drawn set back); each frame imports them into its graph, so the
-//! graph orders the dispatches, the indirect draws and the pyramid build and puts the barriers
-//! between them.
+//! The persistent culling state: buffers, pipelines, per-slot inputs, recording and readback.
 
 use ash::vk;
-use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
-use tilegraph_cull::{AabbExt, Frustum};
-use tilegraph_graph::{
-    AccessFlags, BufferId, Import, InitialContent, PassClass, PipelineStages, ResourceState,
-};
-use tilegraph_profile::{IndirectCount, MemoryUse};
+use tilegraph_profile::MemoryUse;
 use tilegraph_scene::{CameraFrame, DepthConvention};
 use tilegraph_vk::ash;
-use tilegraph_vk::executor::{BufferHandle, PassContext};
+use tilegraph_vk::executor::BufferHandle;
 use tilegraph_vk::pipeline::{
     allocate_set, create_compute_pipeline, create_pipeline_layout, create_set_layout,
     write_buffer_set, Stage,
 };
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
 
-pub use crate::setup::Culling;
-
+use super::{
+    gpu_planes, CullParams, Culling, DrawCount, GpuLayout, Phase, Step, LISTS_PER_PHASE, LIST_COUNT,
+};
 use crate::draws::DrawList;
-use crate::frame::{scene_set, DrawSource, FrameGraph, PassState, Payload};
+use crate::frame::PassState;
 use crate::hiz::{HizState, PyramidInfo};
-
-/// The culling buffers in one frame's graph. They live as long as the renderer (visibility and
-/// the pyramid carry over from frame to frame, tools read the drawn set back), so each frame
-/// imports them; the graph then orders the culling dispatches, the indirect draws and the
-/// pyramid build, and puts the barriers between them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct CullLists {
-    pub commands: BufferId,
-    pub counts: BufferId,
-    pub draw_ids: BufferId,
-    pub visibility: BufferId,
-    /// Per list entry: 0 culled, instance id + 1 drawn (`cull.comp` → `cull_compact.comp`).
-    pub entries: BufferId,
-    /// Per draw group and phase: how many instances survived (→ `cull_commands.comp`).
-    pub survivors: BufferId,
-    pub pyramid: Option<BufferId>,
-}
-
-impl CullLists {
-    /// The draws of culling phase `phase` (0: early or only, 1: late).
-    pub fn source(self, phase: u32) -> DrawSource {
-        DrawSource::Gpu {
-            commands: self.commands,
-            counts: self.counts,
-            draw_ids: self.draw_ids,
-            phase,
-        }
-    }
-}
-
-/// Imports `state`'s buffers (and `hiz`'s pyramid) into the frame's graph.
-pub fn import_cull_buffers(
-    g: &mut FrameGraph,
-    state: &CullState,
-    hiz: Option<&HizState>,
-) -> CullLists {
-    // Conservative boundary states: whatever touched them last frame, this frame waits for.
-    let any = ResourceState::buffer(
-        PipelineStages::ALL_COMMANDS,
-        AccessFlags::MEMORY_READ.union(AccessFlags::MEMORY_WRITE),
-    );
-    let import = |content| Import {
-        initial: any,
-        content,
-        final_state: any,
-    };
-    let discard = import(InitialContent::Discard);
-    let keep = import(InitialContent::Preserve);
-    let commands = g.import_buffer("cull-commands", state.commands.size, discard);
-    let counts = g.import_buffer("cull-counts", state.counts.size, discard);
-    let draw_ids = g.import_buffer("cull-draw-ids", state.draw_ids.size, discard);
-    let visibility = g.import_buffer("visibility", state.visibility.size, keep);
-    let entries = g.import_buffer("cull-entries", state.entries.size, discard);
-    let survivors = g.import_buffer("cull-survivors", state.survivors.size, discard);
-    let pyramid = hiz.map(|h| g.import_buffer("hiz-pyramid", h.pyramid.size, keep));
-    // What the next frame reads survives this one.
-    g.export(visibility);
-    if let Some(p) = pyramid {
-        g.export(p);
-    }
-    // Tools read the drawn set back after the frame.
-    g.export(counts);
-    g.export(commands);
-    g.export(draw_ids);
-    CullLists {
-        commands,
-        counts,
-        draw_ids,
-        visibility,
-        entries,
-        survivors,
-        pyramid,
-    }
-}
-
-/// The three dispatches of a culling phase.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Step {
-    /// `cull.comp`: one thread per instance marks its entries.
-    Mark,
-    /// `cull_compact.comp`: one workgroup per draw group packs its survivors.
-    Compact,
-    /// `cull_commands.comp`: one workgroup per list writes its commands and count.
-    Commands,
-}
-
-/// Declares the culling of the early (or only) phase of `culling`: the dispatches that write the
-/// indirect lists (and empty the late lists, which a late phase fills). Frustum and HiZ test every instance (HiZ against
-/// last frame's pyramid); two-phase culling's early phase draws last frame's visible set;
-/// raster occlusion turns the flags its boxes wrote into lists.
-pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
-    let two_phase = culling == Culling::HizTwoPhase;
-    let name = if two_phase { "cull-early" } else { "cull" };
-    let mut c = g.compute_pass(name, PassClass::Compute, dispatch(0, Step::Mark));
-    c.storage_write(lists.entries);
-    if two_phase {
-        c.storage_read(lists.visibility);
-    }
-    if culling == Culling::RasterOcclusion {
-        // cull.comp's visibility binding is writable (the late phase writes it), so
-        // synchronization validation counts the dispatch as a writer.
-        c.storage_read_write(lists.visibility);
-    }
-    if let (Culling::Hiz, Some(p)) = (culling, lists.pyramid) {
-        c.storage_read(p);
-    }
-    let (compact, commands) = if two_phase {
-        ("cull-early-compact", "cull-early-commands")
-    } else {
-        ("cull-compact", "cull-commands")
-    };
-    add_compaction(g, lists, 0, [compact, commands]);
-}
-
-/// The compaction of phase `which` (0 early or only, 1 late): survivors packed per group, then
-/// the commands and counts.
-fn add_compaction(g: &mut FrameGraph, lists: CullLists, which: usize, names: [&'static str; 2]) {
-    g.compute_pass(names[0], PassClass::Compute, dispatch(which, Step::Compact))
-        .storage_read(lists.entries)
-        .storage_write(lists.draw_ids)
-        .storage_write(lists.survivors);
-    g.compute_pass(
-        names[1],
-        PassClass::Compute,
-        dispatch(which, Step::Commands),
-    )
-    .storage_read(lists.survivors)
-    .storage_write(lists.commands)
-    .storage_write(lists.counts);
-}
-
-/// Declares two-phase culling's late phase: the instances the early phase left out, tested
-/// against the pyramid of the early phase's depth; the newly visible ones get the late lists
-/// (the late depth pass) and join the early lists (the colour pass draws the union), and become
-/// next frame's early set.
-pub fn add_cull_late(g: &mut FrameGraph, lists: CullLists) {
-    let mut c = g.compute_pass("cull-late", PassClass::Compute, dispatch(1, Step::Mark));
-    c.storage_read_write(lists.entries)
-        .storage_read_write(lists.visibility);
-    if let Some(p) = lists.pyramid {
-        c.storage_read(p);
-    }
-    add_compaction(g, lists, 1, ["cull-late-compact", "cull-late-commands"]);
-}
-
-/// The culling dispatch `step` of phase `which` (0 early or only, 1 late).
-fn dispatch(which: usize, step: Step) -> Payload {
-    Box::new(move |pc, res| {
-        let set = scene_set(pc, res)?;
-        let culling = res.states.require::<CullState>(pc.pass_name)?;
-        culling.record_dispatch(pc.ctx, pc.cb, set, pc.frame_slot, which, step)
-    })
-}
-
-/// Zeroes a whole buffer (the graph put it in TRANSFER_DST use for the pass).
-pub fn zero_fill(pc: &PassContext<'_>, buffer: BufferId) -> Result<(), VkError> {
-    let b = pc.buffer(buffer)?;
-    // SAFETY: recording outside a render pass; the buffer is live and a transfer destination.
-    unsafe {
-        pc.ctx
-            .device
-            .cmd_fill_buffer(pc.cb, b.raw, 0, vk::WHOLE_SIZE, 0)
-    };
-    Ok(())
-}
-
-/// Draw lists the culling shader writes: opaque and alpha-tested, single- and double-sided,
-/// for the early (or only) phase and the late phase.
-pub const LISTS_PER_PHASE: u32 = 4;
-pub const LIST_COUNT: u32 = 2 * LISTS_PER_PHASE;
-
-/// List index of a class (0 opaque, 1 alpha-tested) and sidedness in a phase (0 early/only,
-/// 1 late).
-pub fn list_index(class: u32, double_sided: bool, phase: u32) -> u32 {
-    phase * LISTS_PER_PHASE + class * 2 + u32::from(double_sided)
-}
-
-/// `CullParams` of `shaders/common/cull.glsl` (std140).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct CullParams {
-    pub planes: [[f32; 4]; 6],
-    pub hiz_view_proj: [[f32; 4]; 4],
-    /// x instances, y phase, z HiZ levels (0 = none), w 1 for reverse-Z.
-    pub info: [u32; 4],
-    /// x, y pyramid level-0 size; z list stride.
-    pub screen: [u32; 4],
-    /// x draw groups per phase (at least 1), y 1 = keep empty commands (fixed draw count).
-    pub groups: [u32; 4],
-    /// Per list of a phase: its first draw group.
-    pub group_start: [u32; 4],
-    /// Per list of a phase: its number of draw groups.
-    pub group_count: [u32; 4],
-}
-
-/// The phase argument of `cull.comp`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Phase {
-    Frustum = 0,
-    HizPrevious = 1,
-    Early = 2,
-    Late = 3,
-}
-
-/// How the culled lists are drawn (chosen when the culling state is made, from the profile's
-/// `indirect_count` and the device's features).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DrawCount {
-    /// `vkCmdDrawIndexedIndirectCount`: the GPU's count covers the surviving groups only.
-    Gpu,
-    /// One command per draw group, culled groups with zero instances; `multi_draw`: in one
-    /// `vkCmdDrawIndexedIndirect` (else one call per command, without `multiDrawIndirect`).
-    Fixed { multi_draw: bool },
-}
-
-impl DrawCount {
-    /// The mode for `ctx`'s profile and device.
-    pub fn for_device(ctx: &Context) -> Self {
-        let wanted = ctx.profile().passes.indirect_count == IndirectCount::WhenSupported;
-        if wanted && ctx.has_feature(Feature::DrawIndirectCount) {
-            DrawCount::Gpu
-        } else {
-            DrawCount::Fixed {
-                multi_draw: ctx.has_feature(Feature::MultiDrawIndirect),
-            }
-        }
-    }
-}
-
-/// Frustum planes of a camera-relative view-projection, for the shader (absent far plane of an
-/// infinite projection becomes a plane every point passes).
-pub fn gpu_planes(view_proj: Mat4, convention: DepthConvention) -> Result<[[f32; 4]; 6], VkError> {
-    let f =
-        Frustum::from_clip_from_world(&view_proj, convention).map_err(|e| VkError::Invalid {
-            what: "frustum".into(),
-            reason: e.to_string(),
-        })?;
-    Ok(f.gpu_planes().map(|p| p.to_array()))
-}
 
 /// One indirect command of the culled lists, read back.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -337,9 +78,9 @@ pub struct CullState {
     sets: Vec<vk::DescriptorSet>,
 }
 
-const CULL_SPV: &[u8] = include_bytes!("../../../shaders/spv/cull.comp.spv");
-const COMPACT_SPV: &[u8] = include_bytes!("../../../shaders/spv/cull_compact.comp.spv");
-const COMMANDS_SPV: &[u8] = include_bytes!("../../../shaders/spv/cull_commands.comp.spv");
+const CULL_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cull.comp.spv");
+const COMPACT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cull_compact.comp.spv");
+const COMMANDS_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cull_commands.comp.spv");
 
 /// The culling descriptor set's storage buffers (bindings 1-10).
 const STORAGE_BINDINGS: u32 = 10;
@@ -615,7 +356,7 @@ impl CullState {
 
     /// Records dispatch `step` of phase `which` (0 early or only, 1 late); the graph put the
     /// barriers around it.
-    fn record_dispatch(
+    pub(super) fn record_dispatch(
         &self,
         ctx: &Context,
         cb: vk::CommandBuffer,
@@ -838,137 +579,5 @@ impl SlotInputs {
                 })
             }
         }
-    }
-}
-
-/// CPU plane-test frustum culling (the reference's conservative test) of every instance, in
-/// camera-relative f64 bounds: `mask[i]` = not rejected. Used for blended geometry, which the
-/// GPU lists leave to the CPU so it can be sorted back to front.
-pub fn cpu_frustum_mask(
-    scene: &tilegraph_scene::Scene,
-    m: &tilegraph_scene::FrameMatrices,
-) -> Result<Vec<bool>, VkError> {
-    let mut mask = Vec::new();
-    cpu_frustum_mask_into(scene, m, &mut mask)?;
-    Ok(mask)
-}
-
-/// [`cpu_frustum_mask`] into `mask` (cleared and refilled: no allocation once it has the
-/// scene's length).
-pub fn cpu_frustum_mask_into(
-    scene: &tilegraph_scene::Scene,
-    m: &tilegraph_scene::FrameMatrices,
-    mask: &mut Vec<bool>,
-) -> Result<(), VkError> {
-    let invalid = |e: tilegraph_cull::CullError| VkError::Invalid {
-        what: "frustum".into(),
-        reason: e.to_string(),
-    };
-    let frustum = Frustum::from_clip_from_world(&m.view_projection, m.depth).map_err(invalid)?;
-    mask.clear();
-    for inst in scene.instances() {
-        let b = inst.bounds.aabb();
-        let aabb = tilegraph_cull::Aabb::from_world_f64(b.min, b.max, m.eye).map_err(invalid)?;
-        mask.push(!matches!(
-            frustum.test_aabb(&aabb).map_err(invalid)?,
-            tilegraph_cull::PlaneTest::Outside(_)
-        ));
-    }
-    Ok(())
-}
-
-/// Where the CPU draw list's instances sit in the GPU lists, in the order the CPU list draws
-/// them (single-sided draws of a class first, then double-sided, as [`crate::recording`]
-/// records them). Refilled in place each frame: no allocation once it has the scene's size.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct GpuLayout {
-    /// Per instance: its entry, `list * stride + position` (phase 0 lists); `u32::MAX` for
-    /// blended instances (not culled on the GPU).
-    pub order: Vec<u32>,
-    /// The draw groups, list by list: `[position, len, mesh, list]` (`Group` of cull.glsl),
-    /// one per CPU instanced draw.
-    pub groups: Vec<[u32; 4]>,
-    /// Per list of a phase: its first group.
-    pub group_start: [u32; 4],
-    /// Per list of a phase: its number of groups.
-    pub group_count: [u32; 4],
-}
-
-impl GpuLayout {
-    /// The layout of `draws` over `instance_count` instances.
-    pub fn of(draws: &DrawList, instance_count: usize) -> Self {
-        let mut layout = GpuLayout::default();
-        layout.fill(draws, instance_count);
-        layout
-    }
-
-    /// Refills the layout for `draws`.
-    pub fn fill(&mut self, draws: &DrawList, instance_count: usize) {
-        let stride = instance_count.max(1) as u32;
-        self.order.clear();
-        self.order.resize(instance_count, u32::MAX);
-        self.groups.clear();
-        for (class, list_draws) in [(0u32, &draws.opaque), (1, &draws.alpha_tested)] {
-            for sided in [false, true] {
-                let list = list_index(class, sided, 0);
-                self.group_start[list as usize] = self.groups.len() as u32;
-                let mut position = 0u32;
-                for d in list_draws.iter().filter(|d| d.double_sided == sided) {
-                    let start = position;
-                    for k in d.first_instance..d.first_instance + d.instance_count {
-                        if let Some(&id) = draws.instances.get(k as usize) {
-                            if let Some(o) = self.order.get_mut(id as usize) {
-                                *o = list * stride + position;
-                                position += 1;
-                            }
-                        }
-                    }
-                    if position > start {
-                        self.groups.push([start, position - start, d.mesh, list]);
-                    }
-                }
-                self.group_count[list as usize] =
-                    self.groups.len() as u32 - self.group_start[list as usize];
-            }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cli_spellings_round_trip() {
-        for c in [
-            Culling::None,
-            Culling::Frustum,
-            Culling::Hiz,
-            Culling::HizTwoPhase,
-            Culling::Oq,
-            Culling::OqConditional,
-            Culling::RasterOcclusion,
-        ] {
-            assert_eq!(Culling::parse(c.name()), Some(c));
-        }
-        assert_eq!(
-            Culling::parse("oq-conditional"),
-            Some(Culling::OqConditional)
-        );
-        assert_eq!(
-            Culling::parse("raster-occlusion"),
-            Some(Culling::RasterOcclusion)
-        );
-        assert_eq!(Culling::parse("occlusion"), None);
-    }
-
-    #[test]
-    fn same_frame_occlusion_techniques_need_a_prepass_and_the_right_path() {
-        assert!(Culling::OqConditional.needs_prepass() && Culling::OqConditional.uses_queries());
-        assert!(!Culling::OqConditional.uses_gpu_lists());
-        assert!(
-            Culling::RasterOcclusion.needs_prepass() && Culling::RasterOcclusion.uses_gpu_lists()
-        );
-        assert!(!Culling::Oq.needs_prepass() && !Culling::Oq.uses_gpu_lists());
     }
 }
