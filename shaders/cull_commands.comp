@@ -11,7 +11,8 @@
 layout(local_size_x = 64) in;
 
 layout(set = 1, binding = 1, std430) writeonly buffer Commands { uint commands[]; }; // 5 uints each
-layout(set = 1, binding = 2, std430) writeonly buffer Counts { uint counts[]; };     // per list
+// Per list: the draw count (0-7), then the instances its commands draw (8-15).
+layout(set = 1, binding = 2, std430) writeonly buffer Counts { uint counts[]; };
 layout(set = 1, binding = 9, std430) readonly buffer Groups { Group groups[]; };
 layout(set = 1, binding = 10, std430) readonly buffer Survivors { uint survivors[]; };
 
@@ -20,6 +21,7 @@ const uint PER_THREAD = 8u;
 const uint CHUNK = 64u * PER_THREAD;
 
 shared uint scan[64];
+shared uint drawn_total;
 
 void main() {
     uint list = gl_WorkGroupID.x;
@@ -29,6 +31,10 @@ void main() {
     uint n = cull.group_count[local_list];
     bool keep_empty = cull.groups.y == 1u;
     uint t = gl_LocalInvocationID.x;
+    if (t == 0u) {
+        drawn_total = 0u;
+    }
+    barrier();
     uint written = 0u;
     for (uint chunk = 0u; chunk < n; chunk += CHUNK) {
         uint first = chunk + t * PER_THREAD;
@@ -46,9 +52,11 @@ void main() {
             barrier();
         }
         uint k = written + scan[t] - kept;
+        uint drawn = 0u;
         for (uint j = first; j < last; ++j) {
             uint g = start + j;
             uint count = survivors[phase * cull.groups.x + g];
+            drawn += count;
             if (count == 0u && !keep_empty) {
                 continue;
             }
@@ -62,14 +70,19 @@ void main() {
             commands[5u * at + 4u] = list * cull.screen.z + group.position; // firstInstance
             k += 1u;
         }
+        if (drawn != 0u) {
+            atomicAdd(drawn_total, drawn);
+        }
         written += scan[63];
         barrier();
     }
     if (t == 0u) {
         counts[list] = written;
+        counts[8u + list] = drawn_total;
         if (gl_NumWorkGroups.x == 4u) {
             // The early (or only) phase empties the late lists; a late phase refills them.
             counts[list + 4u] = 0u;
+            counts[8u + list + 4u] = 0u;
         }
     }
 }

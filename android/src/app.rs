@@ -119,7 +119,8 @@ impl Running {
                 self.swapchain.submit(&self.device, frame)?;
                 self.frame += 1;
                 self.frames_since_log += 1;
-                self.log_once_a_second(culling, report.draws);
+                let culled = report.gpu_culling.map(|c| c.culled);
+                self.log_once_a_second(culling, report.draws, culled);
                 Ok(())
             }
             Ok(None) => Ok(self.swapchain.submit_blank(&self.device, frame)?),
@@ -135,14 +136,14 @@ impl Running {
         }
     }
 
-    fn log_once_a_second(&mut self, culling: Culling, draws: usize) {
+    fn log_once_a_second(&mut self, culling: Culling, draws: usize, gpu_culled: Option<u32>) {
         let elapsed = self.since_log.elapsed();
         if elapsed < Duration::from_secs(1) {
             return;
         }
         let fps = f64::from(self.frames_since_log) / elapsed.as_secs_f64();
         let timings = self.renderer.executor().latest_timings();
-        log::info!("{}", stats_line(culling, fps, draws, None, timings));
+        log::info!("{}", stats_line(culling, fps, draws, gpu_culled, timings));
         self.since_log = Instant::now();
         self.frames_since_log = 0;
     }

@@ -114,6 +114,13 @@ int main(int argc, char **argv) {
                (unsigned long long)stats.frame, stats.render_passes, stats.barriers,
                stats.draws, (unsigned long long)stats.timed_frame, stats.timed_pass_count,
                stats.timed_gpu_ms);
+        /* Counts of frames in flight earlier: from the third frame on, a completed one. */
+        CHECK(i < SLOTS || stats.gpu_counted, "frame %u reports no GPU culling counts", i);
+        if (stats.gpu_counted) {
+            printf("  GPU culling of frame %llu: %u commands draw %u instances, %u culled\n",
+                   (unsigned long long)stats.gpu_counted_frame, stats.gpu_commands, stats.gpu_drawn,
+                   stats.gpu_culled);
+        }
         for (uint32_t p = 0; p < stats.timed_pass_count; p++) {
             TgPassTime time;
             TG_CHECK(tg_renderer_pass_time(renderer, p, &time));

@@ -418,3 +418,50 @@ fn compacted_lists_keep_the_unculled_order_with_either_draw_count() {
         "occlusion culls whole groups on the street path"
     );
 }
+
+/// Per-frame stats without a stall: a frame's report carries what the newest completed frame
+/// drew and culled on the GPU, read from a per-slot copy of the draw counts. With a still camera
+/// every frame draws the same set, so the lagged counts equal the last frame's read back.
+#[test]
+fn frame_reports_carry_the_gpu_culling_counts_without_waiting() {
+    let scene = tilegraph_scene::load("city:1500").unwrap();
+    let features =
+        FeatureRequest::default().want([Feature::DrawIndirectCount, Feature::MultiDrawIndirect]);
+    for (profile, culling) in [
+        (None, Culling::Frustum),
+        (None, Culling::HizTwoPhase),
+        (Some("mali-valhall"), Culling::HizTwoPhase),
+    ] {
+        let g = gpu_with(profile, features.clone()).unwrap();
+        let options = RenderOptions {
+            technique: Technique::Prepass,
+            culling,
+            width: SIZE.0,
+            height: SIZE.1,
+            ..Default::default()
+        };
+        let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+        let camera = scene.camera_path().camera(0).unwrap();
+        let mut reports = Vec::new();
+        for _ in 0..6 {
+            reports.push(r.render(&g, &scene, &camera).unwrap());
+        }
+        // The first frame has nothing completed to report.
+        assert_eq!(reports[0].gpu_culling, None);
+        let last = reports
+            .last()
+            .unwrap()
+            .gpu_culling
+            .expect("counts of a completed frame");
+        assert!(last.frame >= 3 && last.frame < 6, "frame {}", last.frame);
+        let drawn = r.drawn_instances(&g).unwrap().unwrap();
+        let lists = r.gpu_lists(&g).unwrap().unwrap();
+        let commands: usize = lists.lists[..4].iter().map(Vec::len).sum();
+        assert_eq!(last.instances as usize, drawn.len(), "{culling:?}");
+        assert_eq!(last.commands as usize, commands, "{culling:?}");
+        let gpu_instances = lists.order.iter().filter(|&&o| o != u32::MAX).count();
+        assert_eq!((last.instances + last.culled) as usize, gpu_instances);
+        assert!(last.culled > 0, "{culling:?} culls part of the city");
+        r.destroy(&g);
+    }
+}

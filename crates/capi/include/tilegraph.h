@@ -769,6 +769,18 @@ typedef struct {
    * The sum of that frame's passes' GPU time.
    */
   double timed_gpu_ms;
+  /**
+   * Non-zero when the GPU culling counts below exist (GPU culling, and a frame completed).
+   */
+  uint32_t gpu_counted;
+  /**
+   * The frame they describe (frames in flight earlier), the indirect commands its colour
+   * pass drew, the instances they drew and the instances culled on the GPU.
+   */
+  uint64_t gpu_counted_frame;
+  uint32_t gpu_commands;
+  uint32_t gpu_drawn;
+  uint32_t gpu_culled;
 } TgFrameStats;
 
 /**

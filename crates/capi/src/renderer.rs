@@ -100,6 +100,14 @@ pub struct TgFrameStats {
     pub timed_pass_count: u32,
     /// The sum of that frame's passes' GPU time.
     pub timed_gpu_ms: f64,
+    /// Non-zero when the GPU culling counts below exist (GPU culling, and a frame completed).
+    pub gpu_counted: u32,
+    /// The frame they describe (frames in flight earlier), the indirect commands its colour
+    /// pass drew, the instances they drew and the instances culled on the GPU.
+    pub gpu_counted_frame: u64,
+    pub gpu_commands: u32,
+    pub gpu_drawn: u32,
+    pub gpu_culled: u32,
 }
 
 /// One pass's GPU time in the newest timed frame.
@@ -321,6 +329,13 @@ pub unsafe extern "C" fn tg_renderer_stats(
                     s.device_allocations = st.allocations;
                     s.draws = report.draws as u32;
                     s.triangles = report.triangles;
+                    if let Some(c) = report.gpu_culling {
+                        s.gpu_counted = 1;
+                        s.gpu_counted_frame = c.frame;
+                        s.gpu_commands = c.commands;
+                        s.gpu_drawn = c.instances;
+                        s.gpu_culled = c.culled;
+                    }
                 }
                 if let Some(t) = r.renderer.executor().latest_timings() {
                     s.timed_frame = t.frame;

@@ -9,7 +9,7 @@ use tilegraph_scene::Scene;
 use tilegraph_vk::executor::FrameStats;
 use tilegraph_vk::{Context, Feature, FeatureRequest, VkError};
 
-use crate::cull::{CullState, Culling};
+use crate::cull::{CullState, Culling, GpuCullCounts};
 use crate::gpu_scene::{visbuf_instance_bits, Lighting};
 use crate::occlusion::OqState;
 use crate::setup::{FrameSetup, Technique};
@@ -120,6 +120,9 @@ pub struct FrameReport {
     /// Draws and triangles of the CPU draw lists.
     pub draws: usize,
     pub triangles: u64,
+    /// With GPU culling: what the newest completed frame drew and culled on the GPU (frames in
+    /// flight earlier than this one; read without waiting). `None` until a frame completed.
+    pub gpu_culling: Option<GpuCullCounts>,
 }
 
 /// What in [`RenderOptions`] wants a device feature (named in [`RenderError::MissingFeature`]).

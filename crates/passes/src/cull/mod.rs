@@ -22,6 +22,7 @@ use glam::Mat4;
 use tilegraph_cull::{AabbExt, Frustum};
 use tilegraph_graph::{
     AccessFlags, BufferId, Import, InitialContent, PassClass, PipelineStages, ResourceState,
+    Retention,
 };
 use tilegraph_profile::IndirectCount;
 use tilegraph_scene::DepthConvention;
@@ -38,7 +39,7 @@ mod layout;
 mod state;
 
 pub use layout::GpuLayout;
-pub use state::{CullState, GpuLists, IndirectDraw};
+pub use state::{CullState, GpuCullCounts, GpuLists, IndirectDraw};
 
 /// The culling buffers in one frame's graph. They live as long as the renderer (visibility and
 /// the pyramid carry over from frame to frame, tools read the drawn set back), so each frame
@@ -151,6 +152,22 @@ pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
         ("cull-compact", "cull-commands")
     };
     add_compaction(g, lists, 0, [compact, commands]);
+    if !two_phase {
+        add_cull_stats(g, lists);
+    }
+}
+
+/// Declares the copy of the frame's draw and instance counts to the slot's host-visible
+/// buffer, which the renderer reads when the slot comes round again (no stall). Kept: nothing in
+/// the graph reads what it writes.
+fn add_cull_stats(g: &mut FrameGraph, lists: CullLists) {
+    let copy: Payload = Box::new(|pc, res| {
+        let culling = res.states.require::<CullState>(pc.pass_name)?;
+        culling.record_stats_copy(pc.ctx, pc.cb, pc.frame_slot)
+    });
+    g.transfer_pass("cull-stats", PassClass::Transfer, copy)
+        .transfer_src(lists.counts)
+        .retention(Retention::Always);
 }
 
 /// The compaction of phase `which` (0 early or only, 1 late): survivors packed per group, then
@@ -182,6 +199,7 @@ pub fn add_cull_late(g: &mut FrameGraph, lists: CullLists) {
         c.storage_read(p);
     }
     add_compaction(g, lists, 1, ["cull-late-compact", "cull-late-commands"]);
+    add_cull_stats(g, lists);
 }
 
 /// The culling dispatch `step` of phase `which` (0 early or only, 1 late).

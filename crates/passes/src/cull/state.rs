@@ -39,6 +39,19 @@ pub struct GpuLists {
     pub order: Vec<u32>,
 }
 
+/// What a frame's GPU culling drew, read back without waiting once its slot completed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GpuCullCounts {
+    /// The frame (the renderer's frame count when it was recorded).
+    pub frame: u64,
+    /// Indirect commands the colour pass's lists hold (their draw counts).
+    pub commands: u32,
+    /// Instances they draw.
+    pub instances: u32,
+    /// Opaque and alpha-tested instances culled (the GPU lists' instances not drawn).
+    pub culled: u32,
+}
+
 /// Per frame slot: what the CPU wrote for the GPU lists of that slot's frame.
 struct SlotInputs {
     params: [Buffer; 2],
@@ -50,6 +63,10 @@ struct SlotInputs {
     group_count: [u32; 4],
     /// Groups per phase.
     group_total: u32,
+    /// The counts buffer as the slot's frame left it (`cull-stats` copies it; host-visible).
+    stats: Buffer,
+    /// The frame whose counts `stats` will hold, and the instances it culled on the GPU.
+    pending: Option<(u64, u32)>,
 }
 
 /// The persistent culling state of one renderer.
@@ -67,6 +84,8 @@ pub struct CullState {
     /// a buffer nothing writes keeps synchronization validation quiet about the binding).
     no_pyramid: Buffer,
     slots: Vec<SlotInputs>,
+    /// Frames written so far (numbers the frames [`CullState::collect`] reports).
+    frames_written: u64,
     /// The layout being written (kept: no allocation per frame).
     layout: GpuLayout,
     set_layout: vk::DescriptorSetLayout,
@@ -123,7 +142,8 @@ impl CullState {
         let dst = vk::BufferUsageFlags::TRANSFER_DST;
         let specs = [
             ("cull commands", n * lists * 20, storage | indirect | src),
-            ("cull counts", lists * 4, storage | indirect | src),
+            // Draw count, then instances drawn, per list.
+            ("cull counts", 2 * lists * 4, storage | indirect | src),
             ("cull draw ids", n * lists * 4, storage | src),
             ("visibility", n * 4, storage | dst),
             ("cull entries", n * lists * 4, storage),
@@ -169,6 +189,7 @@ impl CullState {
             survivors,
             no_pyramid,
             slots: Vec::new(),
+            frames_written: 0,
             layout: GpuLayout::default(),
             set_layout: vk::DescriptorSetLayout::null(),
             pipeline_layout: vk::PipelineLayout::null(),
@@ -351,6 +372,9 @@ impl CullState {
         ctx.write_mapped(late_params, 0, bytemuck::bytes_of(&late))?;
         inputs.group_count = group_count;
         inputs.group_total = total;
+        let candidates = order.iter().filter(|&&o| o != u32::MAX).count() as u32;
+        inputs.pending = Some((self.frames_written, candidates));
+        self.frames_written += 1;
         Ok(())
     }
 
@@ -456,6 +480,76 @@ impl CullState {
         }
     }
 
+    /// Records the copy of this frame's counts into frame slot `slot`'s host-visible stats
+    /// buffer (the graph made the counts readable by transfers), made visible to the host:
+    /// [`CullState::collect`] reads it once the slot's frame has completed.
+    pub fn record_stats_copy(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        slot: usize,
+    ) -> Result<(), VkError> {
+        let stats = &self.slot(slot)?.stats;
+        let region = [vk::BufferCopy {
+            src_offset: 0,
+            dst_offset: 0,
+            size: stats.size.min(self.counts.size),
+        }];
+        // SAFETY: recording outside a render pass; both buffers are live, the region fits both.
+        unsafe {
+            ctx.device
+                .cmd_copy_buffer(cb, self.counts.raw, stats.raw, &region)
+        };
+        let to_host = [vk::BufferMemoryBarrier2::default()
+            .src_stage_mask(vk::PipelineStageFlags2::COPY)
+            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
+            .dst_stage_mask(vk::PipelineStageFlags2::HOST)
+            .dst_access_mask(vk::AccessFlags2::HOST_READ)
+            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .buffer(stats.raw)
+            .offset(0)
+            .size(vk::WHOLE_SIZE)];
+        ctx.cmd_pipeline_barrier2(
+            cb,
+            &vk::DependencyInfo::default().buffer_memory_barriers(&to_host),
+        )
+    }
+
+    /// What the last frame recorded in `slot` drew, read without waiting: call it once the
+    /// slot's frame has completed (when the slot is acquired again). `None` before the slot's
+    /// first frame, and once read.
+    pub fn collect(
+        &mut self,
+        ctx: &Context,
+        slot: usize,
+    ) -> Result<Option<GpuCullCounts>, VkError> {
+        let Some(inputs) = self.slots.get_mut(slot) else {
+            return Ok(None);
+        };
+        let Some((frame, candidates)) = inputs.pending.take() else {
+            return Ok(None);
+        };
+        ctx.invalidate_mapped(&inputs.stats)?;
+        let word = |i: usize| {
+            inputs
+                .stats
+                .mapped()
+                .and_then(|b| b.get(4 * i..4 * i + 4))
+                .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+        };
+        // The colour pass draws the early (or only) phase's lists: 0-3.
+        let per_phase = LISTS_PER_PHASE as usize;
+        let commands = (0..per_phase).map(word).sum();
+        let instances: u32 = (0..per_phase).map(|l| word(LIST_COUNT as usize + l)).sum();
+        Ok(Some(GpuCullCounts {
+            frame,
+            commands,
+            instances,
+            culled: candidates.saturating_sub(instances),
+        }))
+    }
+
     /// The last frame's lists as the GPU left them (reads the counts, commands and draw ids
     /// back; waits).
     pub fn read_lists(&self, ctx: &Context) -> Result<GpuLists, VkError> {
@@ -532,7 +626,7 @@ impl CullState {
             .into_iter()
             .chain(self.slots.into_iter().flat_map(|s| {
                 let [a, b] = s.params;
-                [a, b, s.order, s.groups]
+                [a, b, s.order, s.groups, s.stats]
             }))
         {
             ctx.destroy_buffer(b);
@@ -552,10 +646,20 @@ impl SlotInputs {
             (format!("cull order[{slot}]"), n * 4, storage),
             // At most one group per instance.
             (format!("cull groups[{slot}]"), n * 16, storage),
+            (
+                format!("cull stats[{slot}]"),
+                2 * u64::from(LIST_COUNT) * 4,
+                vk::BufferUsageFlags::TRANSFER_DST,
+            ),
         ];
         let mut made = Vec::with_capacity(specs.len());
         for (name, size, usage) in specs {
-            match ctx.create_buffer(&name, size, usage, MemoryUse::Streaming) {
+            let memory = if usage == vk::BufferUsageFlags::TRANSFER_DST {
+                MemoryUse::Readback
+            } else {
+                MemoryUse::Streaming
+            };
+            match ctx.create_buffer(&name, size, usage, memory) {
                 Ok(b) => made.push(b),
                 Err(e) => {
                     destroy_buffers(ctx, made);
@@ -563,13 +667,15 @@ impl SlotInputs {
                 }
             }
         }
-        match <[Buffer; 4]>::try_from(made) {
-            Ok([early, late, order, groups]) => Ok(SlotInputs {
+        match <[Buffer; 5]>::try_from(made) {
+            Ok([early, late, order, groups, stats]) => Ok(SlotInputs {
                 params: [early, late],
                 order,
                 groups,
                 group_count: [0; 4],
                 group_total: 0,
+                stats,
+                pending: None,
             }),
             Err(made) => {
                 destroy_buffers(ctx, made);

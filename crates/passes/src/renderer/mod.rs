@@ -10,6 +10,8 @@
 //! declared payloads and the compiled plan; [`SceneRenderer::execute_graph`] records a graph the
 //! caller declared — an engine's frame, the shipped passes and its own on one graph.
 
+mod readback;
+
 use std::sync::Arc;
 
 use tilegraph_graph::{Format, ImageId, Import, Plan, PlanCache, ResourceState};
@@ -20,11 +22,10 @@ use tilegraph_vk::executor::{
 };
 use tilegraph_vk::frames::DEFAULT_FRAMES_IN_FLIGHT;
 use tilegraph_vk::queries::PassMedian;
-use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::{Context, Image, VkError};
 
 use crate::compose::{declare_scene, kept_import, ColorTarget, DeclarationKey, SceneFrame};
-use crate::cull::{cpu_frustum_mask_into, CullState, Culling, GpuLists};
+use crate::cull::{cpu_frustum_mask_into, CullState, Culling, GpuCullCounts};
 use crate::draws::DrawBuilder;
 use crate::frame::{FrameData, FrameGraph, Payload, SceneResources, States};
 use crate::gpu_scene::{FrameUniforms, GpuScene};
@@ -87,6 +88,8 @@ pub struct SceneRenderer {
     draw_builder: DrawBuilder,
     /// Occlusion queries: the opaque and alpha-tested instances the last frame drew.
     last_drawn: Option<Vec<u32>>,
+    /// The newest completed frame's GPU culling counts (read without waiting).
+    gpu_counts: Option<GpuCullCounts>,
     /// The camera of the last frame rendered.
     last_camera: Option<Camera>,
     declared: Option<DeclaredFrame>,
@@ -171,6 +174,7 @@ impl SceneRenderer {
             visible: Vec::new(),
             draw_builder: DrawBuilder::default(),
             last_drawn: None,
+            gpu_counts: None,
             last_camera: None,
             declared: None,
             plan_cache: PlanCache::new(),
@@ -433,6 +437,7 @@ impl SceneRenderer {
             declared,
             draws: draws.opaque.len() + draws.alpha_tested.len() + draws.blended.len(),
             triangles: draws.triangles(),
+            gpu_culling: self.gpu_counts,
         })
     }
 
@@ -498,6 +503,12 @@ impl SceneRenderer {
         };
         // Occlusion queries: the newest complete frame's results select what this frame draws
         // (read now, never waited for: the acquired slot's frame has completed).
+        if let Some(cull) = self.resources.states.get_mut::<CullState>() {
+            // The slot's frame has completed: its counts are there to read.
+            if let Some(counts) = cull.collect(ctx, slot)? {
+                self.gpu_counts = Some(counts);
+            }
+        }
         if let Some(oq) = self.resources.states.get_mut::<OqState>() {
             oq.collect(ctx, slot)?;
             let mask = masked.then_some(self.visible.as_slice());
@@ -557,57 +568,6 @@ impl SceneRenderer {
         Ok(())
     }
 
-    /// The instance owning each pixel of the last frame (`u32::MAX` for background), from the
-    /// captured visibility buffer (`capture_ids`); waits for the GPU.
-    pub fn read_instance_ids(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {
-        self.executor.finish(ctx)?;
-        let Some((_, h)) = &self.ids_target else {
-            return Ok(None);
-        };
-        let bytes =
-            tilegraph_vk::readback::read_image(ctx, h, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, 0)?;
-        let tri_bits = 32 - self.instance_bits.unwrap_or(32);
-        Ok(Some(
-            bytes
-                .chunks_exact(4)
-                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .map(|id| {
-                    if id == u32::MAX {
-                        u32::MAX
-                    } else if tri_bits >= 32 {
-                        0
-                    } else {
-                        id >> tri_bits
-                    }
-                })
-                .collect(),
-        ))
-    }
-
-    /// The instances the last frame drew through GPU culling (waits), or `None` without culling.
-    pub fn drawn_instances(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {
-        self.executor.finish(ctx)?;
-        if let Some(d) = &self.last_drawn {
-            return Ok(Some(d.clone()));
-        }
-        if let Some(oq) = self.resources.states.get::<OqState>() {
-            if oq.conditions.is_some() {
-                return Ok(Some(oq.conditional_drawn(ctx)?));
-            }
-        }
-        match self.resources.states.get::<CullState>() {
-            Some(c) => Ok(Some(c.drawn_instances(ctx)?)),
-            None => Ok(None),
-        }
-    }
-
-    /// The last frame's GPU culling lists (waits), or `None` without GPU lists.
-    pub fn gpu_lists(&mut self, ctx: &Context) -> Result<Option<GpuLists>, RenderError> {
-        self.executor.finish(ctx)?;
-        let cull = self.resources.states.get::<CullState>();
-        Ok(cull.map(|c| c.read_lists(ctx)).transpose()?)
-    }
-
     /// Waits for the frames in flight, collecting their GPU timings.
     pub fn finish(&mut self, ctx: &Context) -> Result<(), RenderError> {
         Ok(self.executor.finish(ctx)?)
@@ -618,13 +578,6 @@ impl SceneRenderer {
         self.executor.medians()
     }
 
-    /// Fragments shaded by the opaque, alpha-tested and blended colour passes of the last frame
-    /// (with `count_fragments`; waits for the GPU).
-    pub fn fragment_counts(&mut self, ctx: &Context) -> Result<[u32; 3], RenderError> {
-        self.executor.finish(ctx)?;
-        Ok(self.resources.scene.fragment_counts(ctx, self.last_slot)?)
-    }
-
     /// Graphics pipelines cached now (those of render passes the executor destroyed are
     /// dropped after the frame that rebuilt them).
     pub fn cached_pipelines(&self) -> usize {
@@ -633,26 +586,6 @@ impl SceneRenderer {
 
     pub fn executor(&self) -> &Executor {
         &self.executor
-    }
-
-    /// Reads the last frame's image (waits for the GPU); not for a renderer that draws into
-    /// an engine's target.
-    pub fn read_image(&mut self, ctx: &Context) -> Result<RgbaImage, RenderError> {
-        let Some((_, target)) = &self.target else {
-            return Err(RenderError::EngineSubmits);
-        };
-        self.executor.finish(ctx)?;
-        let pixels = tilegraph_vk::readback::read_image(
-            ctx,
-            target,
-            vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-            0,
-        )?;
-        Ok(RgbaImage {
-            width: self.options.width,
-            height: self.options.height,
-            pixels,
-        })
     }
 
     pub fn destroy(self, ctx: &Context) {

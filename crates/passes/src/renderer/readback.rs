@@ -1,0 +1,91 @@
+//! What a renderer reads back after a frame for tests and tools: the visibility buffer's ids,
+//! the drawn set, the GPU lists, fragment counts and the image. Each waits for the GPU.
+
+use tilegraph_vk::ash::vk;
+use tilegraph_vk::readback::RgbaImage;
+use tilegraph_vk::Context;
+
+use super::SceneRenderer;
+use crate::cull::{CullState, GpuLists};
+use crate::occlusion::OqState;
+use crate::options::RenderError;
+
+impl SceneRenderer {
+    /// The instance owning each pixel of the last frame (`u32::MAX` for background), from the
+    /// captured visibility buffer (`capture_ids`); waits for the GPU.
+    pub fn read_instance_ids(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {
+        self.executor.finish(ctx)?;
+        let Some((_, h)) = &self.ids_target else {
+            return Ok(None);
+        };
+        let bytes =
+            tilegraph_vk::readback::read_image(ctx, h, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, 0)?;
+        let tri_bits = 32 - self.instance_bits.unwrap_or(32);
+        Ok(Some(
+            bytes
+                .chunks_exact(4)
+                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .map(|id| {
+                    if id == u32::MAX {
+                        u32::MAX
+                    } else if tri_bits >= 32 {
+                        0
+                    } else {
+                        id >> tri_bits
+                    }
+                })
+                .collect(),
+        ))
+    }
+
+    /// The instances the last frame drew through GPU culling (waits), or `None` without culling.
+    pub fn drawn_instances(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {
+        self.executor.finish(ctx)?;
+        if let Some(d) = &self.last_drawn {
+            return Ok(Some(d.clone()));
+        }
+        if let Some(oq) = self.resources.states.get::<OqState>() {
+            if oq.conditions.is_some() {
+                return Ok(Some(oq.conditional_drawn(ctx)?));
+            }
+        }
+        match self.resources.states.get::<CullState>() {
+            Some(c) => Ok(Some(c.drawn_instances(ctx)?)),
+            None => Ok(None),
+        }
+    }
+
+    /// The last frame's GPU culling lists (waits), or `None` without GPU lists.
+    pub fn gpu_lists(&mut self, ctx: &Context) -> Result<Option<GpuLists>, RenderError> {
+        self.executor.finish(ctx)?;
+        let cull = self.resources.states.get::<CullState>();
+        Ok(cull.map(|c| c.read_lists(ctx)).transpose()?)
+    }
+
+    /// Fragments shaded by the opaque, alpha-tested and blended colour passes of the last frame
+    /// (with `count_fragments`; waits for the GPU).
+    pub fn fragment_counts(&mut self, ctx: &Context) -> Result<[u32; 3], RenderError> {
+        self.executor.finish(ctx)?;
+        Ok(self.resources.scene.fragment_counts(ctx, self.last_slot)?)
+    }
+
+    /// Reads the last frame's image (waits for the GPU); not for a renderer that draws into
+    /// an engine's target.
+    pub fn read_image(&mut self, ctx: &Context) -> Result<RgbaImage, RenderError> {
+        let Some((_, target)) = &self.target else {
+            return Err(RenderError::EngineSubmits);
+        };
+        self.executor.finish(ctx)?;
+        let pixels = tilegraph_vk::readback::read_image(
+            ctx,
+            target,
+            vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+            0,
+        )?;
+        Ok(RgbaImage {
+            width: self.options.width,
+            height: self.options.height,
+            pixels,
+        })
+    }
+}
