@@ -11,9 +11,10 @@
 use tilegraph_passes::hiz::{
     DepthConvention, DepthFormat, HizBuilder, HizLayout, HizStep, NpotMode, SampledDepth,
 };
+use tilegraph_passes::targets::{create_image_2d, destroy_target};
 use tilegraph_profile::MemoryUse;
 use tilegraph_vk::ash::vk;
-use tilegraph_vk::executor::BufferHandle;
+use tilegraph_vk::executor::{BufferHandle, ImageHandle};
 use tilegraph_vk::{Context, ContextOptions, Image, VkError};
 
 const READ_LAYOUT: vk::ImageLayout = vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL;
@@ -260,31 +261,23 @@ fn timestamp_pool(ctx: &Context, count: u32) -> Result<vk::QueryPool, VkError> {
 /// A D32 depth image cleared to 0.5, in `READ_LAYOUT`, with a DEPTH-aspect view (the build's
 /// time does not depend on the values).
 struct DepthImage {
-    image: Image,
+    target: (Image, ImageHandle),
     view: vk::ImageView,
 }
 
 impl DepthImage {
-    fn cleared(ctx: &Context, (w, h): (u32, u32)) -> Result<Self, VkError> {
-        let info = vk::ImageCreateInfo::default()
-            .image_type(vk::ImageType::TYPE_2D)
-            .format(vk::Format::D32_SFLOAT)
-            .extent(vk::Extent3D {
-                width: w,
-                height: h,
-                depth: 1,
-            })
-            .mip_levels(1)
-            .array_layers(1)
-            .samples(vk::SampleCountFlags::TYPE_1)
-            .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(
-                vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
-                    | vk::ImageUsageFlags::SAMPLED
-                    | vk::ImageUsageFlags::TRANSFER_DST,
-            )
-            .initial_layout(vk::ImageLayout::UNDEFINED);
-        let image = ctx.create_image("hiz cost depth", &info, MemoryUse::GpuOnly)?;
+    fn cleared(ctx: &Context, size: (u32, u32)) -> Result<Self, VkError> {
+        let usage = vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+            | vk::ImageUsageFlags::SAMPLED
+            | vk::ImageUsageFlags::TRANSFER_DST;
+        let target = create_image_2d(
+            ctx,
+            "hiz cost depth",
+            size,
+            vk::Format::D32_SFLOAT,
+            usage,
+            vk::ImageAspectFlags::DEPTH,
+        )?;
         let range = vk::ImageSubresourceRange {
             aspect_mask: vk::ImageAspectFlags::DEPTH,
             base_mip_level: 0,
@@ -292,21 +285,11 @@ impl DepthImage {
             base_array_layer: 0,
             layer_count: 1,
         };
-        let view_info = vk::ImageViewCreateInfo::default()
-            .image(image.raw)
-            .view_type(vk::ImageViewType::TYPE_2D)
-            .format(vk::Format::D32_SFLOAT)
-            .subresource_range(range);
-        // SAFETY: live image of this device; the view matches its format and only mip.
-        let view = match unsafe { ctx.device.create_image_view(&view_info, None) } {
-            Ok(v) => v,
-            Err(r) => {
-                ctx.destroy_image(image);
-                return Err(VkError::call("vkCreateImageView", r));
-            }
+        let raw = target.1.raw;
+        let this = DepthImage {
+            view: target.1.view,
+            target,
         };
-        let this = DepthImage { image, view };
-        let raw = this.image.raw;
         let cleared = ctx.submit_and_wait(|cb| {
             let to = |old,
                       new,
@@ -376,8 +359,7 @@ impl DepthImage {
     }
 
     fn destroy(self, ctx: &Context) {
-        // SAFETY: no pending work uses the view (every submission waited).
-        unsafe { ctx.device.destroy_image_view(self.view, None) };
-        ctx.destroy_image(self.image);
+        // Every submission using it was waited for.
+        destroy_target(ctx, self.target);
     }
 }

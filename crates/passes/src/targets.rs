@@ -95,7 +95,7 @@ impl SceneTargets {
 /// view: a colour attachment the caller can copy from.
 pub fn create_target(
     ctx: &Context,
-    (w, h): (u32, u32),
+    size: (u32, u32),
     format: vk::Format,
 ) -> Result<(Image, ImageHandle), VkError> {
     let extra = if format == vk::Format::R32_UINT {
@@ -103,6 +103,27 @@ pub fn create_target(
     } else {
         vk::ImageUsageFlags::empty()
     };
+    let usage = vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC | extra;
+    create_image_2d(
+        ctx,
+        "render target",
+        size,
+        format,
+        usage,
+        vk::ImageAspectFlags::COLOR,
+    )
+}
+
+/// A device-local 2D image of one mip and layer, with a view of `aspect` (a colour target, a
+/// depth image a tool fills); destroyed with [`destroy_target`].
+pub fn create_image_2d(
+    ctx: &Context,
+    name: &str,
+    (w, h): (u32, u32),
+    format: vk::Format,
+    usage: vk::ImageUsageFlags,
+    aspect: vk::ImageAspectFlags,
+) -> Result<(Image, ImageHandle), VkError> {
     let info = vk::ImageCreateInfo::default()
         .image_type(vk::ImageType::TYPE_2D)
         .format(format)
@@ -115,15 +136,15 @@ pub fn create_target(
         .array_layers(1)
         .samples(vk::SampleCountFlags::TYPE_1)
         .tiling(vk::ImageTiling::OPTIMAL)
-        .usage(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC | extra)
+        .usage(usage)
         .initial_layout(vk::ImageLayout::UNDEFINED);
-    let image = ctx.create_image("render target", &info, MemoryUse::GpuOnly)?;
+    let image = ctx.create_image(name, &info, MemoryUse::GpuOnly)?;
     let view_info = vk::ImageViewCreateInfo::default()
         .image(image.raw)
         .view_type(vk::ImageViewType::TYPE_2D)
         .format(format)
         .subresource_range(vk::ImageSubresourceRange {
-            aspect_mask: vk::ImageAspectFlags::COLOR,
+            aspect_mask: aspect,
             base_mip_level: 0,
             level_count: 1,
             base_array_layer: 0,
@@ -148,12 +169,13 @@ pub fn create_target(
             height: h,
         },
         mip_levels: 1,
-        aspect: vk::ImageAspectFlags::COLOR,
+        aspect,
     };
     Ok((image, handle))
 }
 
-/// Destroys a target made by [`create_target`]; the GPU must be done with it.
+/// Destroys an image made by [`create_target`] or [`create_image_2d`]; the GPU must be done
+/// with it.
 pub fn destroy_target(ctx: &Context, (image, handle): (Image, ImageHandle)) {
     // SAFETY: the GPU is done with the view (caller's guarantee).
     unsafe { ctx.device.destroy_image_view(handle.view, None) };
