@@ -15,7 +15,9 @@ layout(location = 0) flat out uint v_instance;
 // full-resolution one).
 layout(constant_id = 0) const uint SCALE = 1u;
 
-const uint QUAD[6] = uint[6](0u, 1u, 2u, 2u, 1u, 3u);
+// Two triangles front-facing on screen (the pipeline culls back faces): top-left, bottom-left,
+// top-right, then top-right, bottom-left, bottom-right (bit 0: right, bit 1: bottom).
+const uint QUAD[6] = uint[6](0u, 2u, 1u, 1u, 2u, 3u);
 
 const uint CORNERS[36] = uint[36](
     0u, 2u, 1u, 1u, 2u, 3u,  // -z
@@ -62,8 +64,9 @@ void main() {
         return;
     }
     if (crosses) {
+        // Top-left, bottom-left (far below), top-right (far right): front-facing on screen.
         uint v = uint(gl_VertexIndex);
-        vec2 p = v < 3u ? vec2(v == 1u ? 3.0 : -1.0, v == 2u ? 3.0 : -1.0) : vec2(0.0);
+        vec2 p = v < 3u ? vec2(v == 2u ? 3.0 : -1.0, v == 1u ? 3.0 : -1.0) : vec2(0.0);
         gl_Position = vec4(p, near_depth, 1.0);
         return;
     }

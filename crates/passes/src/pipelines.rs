@@ -220,9 +220,12 @@ impl Pipelines {
     }
 
     /// An occlusion proxy's pipeline (`layout`: the proxy's own) for the subpass `pc` records
-    /// into: depth tested against the frame's depth, nothing written, both faces (a box seen
-    /// from inside still counts). The box encloses its object, so where the object is in front
-    /// of the depth the box is too, or level with it: hence OR_EQUAL.
+    /// into: depth tested against the frame's depth, nothing written, front faces only. The box
+    /// encloses its object, so where the object is in front of the depth the box is too, or
+    /// level with it: hence OR_EQUAL; and seen from outside, a box's front face is nearer than
+    /// its back face at every pixel, so the back faces add fragments and no answer. A box the
+    /// camera is in or that reaches the near plane is not a box here: queries skip it, raster
+    /// occlusion draws a front-facing screen-covering triangle for it.
     pub fn proxy(
         &mut self,
         pc: &PassContext<'_>,
@@ -270,7 +273,8 @@ impl Pipelines {
                         },
                     },
                     blend: Blend::NoColorWrites,
-                    cull: vk::CullModeFlags::NONE,
+                    // The box triangles wind counter-clockwise seen from outside, as glTF's do.
+                    cull: vk::CullModeFlags::BACK,
                     samples: vk::SampleCountFlags::TYPE_1,
                 },
             )
