@@ -18,22 +18,18 @@ pub struct GpuLayout {
     pub group_start: [u32; 4],
     /// Per list of a phase: its number of groups.
     pub group_count: [u32; 4],
+    /// Entries of a phase's lists: the instances GPU culling decides for.
+    pub entries: u32,
 }
 
 impl GpuLayout {
-    /// The layout of `draws` over `instance_count` instances.
-    pub fn of(draws: &DrawList, instance_count: usize) -> Self {
-        let mut layout = GpuLayout::default();
-        layout.fill(draws, instance_count);
-        layout
-    }
-
     /// Refills the layout for `draws`.
     pub fn fill(&mut self, draws: &DrawList, instance_count: usize) {
         let stride = instance_count.max(1) as u32;
         self.order.clear();
         self.order.resize(instance_count, u32::MAX);
         self.groups.clear();
+        self.entries = 0;
         for (class, list_draws) in [(0u32, &draws.opaque), (1, &draws.alpha_tested)] {
             for sided in [false, true] {
                 let list = list_index(class, sided, 0);
@@ -55,6 +51,7 @@ impl GpuLayout {
                 }
                 self.group_count[list as usize] =
                     self.groups.len() as u32 - self.group_start[list as usize];
+                self.entries += position;
             }
         }
     }

@@ -361,6 +361,7 @@ impl CullState {
         };
         let late = params(Phase::Late, m.view_projection, levels);
         let (group_count, order, groups) = (layout.group_count, &layout.order, &layout.groups);
+        let entries = layout.entries;
         let inputs = self.slots.get_mut(slot).ok_or_else(|| VkError::Invalid {
             what: "cull".into(),
             reason: format!("no inputs for frame slot {slot}"),
@@ -372,8 +373,7 @@ impl CullState {
         ctx.write_mapped(late_params, 0, bytemuck::bytes_of(&late))?;
         inputs.group_count = group_count;
         inputs.group_total = total;
-        let candidates = order.iter().filter(|&&o| o != u32::MAX).count() as u32;
-        inputs.pending = Some((self.frames_written, candidates));
+        inputs.pending = Some((self.frames_written, entries));
         self.frames_written += 1;
         Ok(())
     }
@@ -640,25 +640,23 @@ impl SlotInputs {
         let uniform = vk::BufferUsageFlags::UNIFORM_BUFFER;
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let params_size = std::mem::size_of::<CullParams>() as u64;
+        let streaming = MemoryUse::Streaming;
         let specs = [
-            (format!("cull params[{slot}].early"), params_size, uniform),
-            (format!("cull params[{slot}].late"), params_size, uniform),
-            (format!("cull order[{slot}]"), n * 4, storage),
+            ("params.early", params_size, uniform, streaming),
+            ("params.late", params_size, uniform, streaming),
+            ("order", n * 4, storage, streaming),
             // At most one group per instance.
-            (format!("cull groups[{slot}]"), n * 16, storage),
+            ("groups", n * 16, storage, streaming),
             (
-                format!("cull stats[{slot}]"),
+                "stats",
                 2 * u64::from(LIST_COUNT) * 4,
                 vk::BufferUsageFlags::TRANSFER_DST,
+                MemoryUse::Readback,
             ),
         ];
         let mut made = Vec::with_capacity(specs.len());
-        for (name, size, usage) in specs {
-            let memory = if usage == vk::BufferUsageFlags::TRANSFER_DST {
-                MemoryUse::Readback
-            } else {
-                MemoryUse::Streaming
-            };
+        for (what, size, usage, memory) in specs {
+            let name = format!("cull {what}[{slot}]");
             match ctx.create_buffer(&name, size, usage, memory) {
                 Ok(b) => made.push(b),
                 Err(e) => {
