@@ -14,6 +14,7 @@ macro_rules! outln {
 mod cullcheck;
 mod devices;
 mod image_io;
+mod lint;
 mod render;
 
 use std::io::Write;
@@ -109,6 +110,26 @@ enum Command {
         /// Raster occlusion against a conservative 1/N-resolution depth (1, 2 or 4).
         #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=4))]
         raster_occlusion_scale: u32,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Record one frame of a scene under a profile and check every pipeline it binds against
+    /// the profile's state rules (what defeats LRZ, FPK, HSR, early-Z), with their sources.
+    Lint {
+        /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
+        scene: String,
+        /// none | frustum | hiz | hiz-2phase | oq | oq-conditional | raster-occlusion
+        #[arg(long, default_value = "none", value_parser = parse_culling)]
+        culling: Culling,
+        /// forward | prepass | visbuf
+        #[arg(long, default_value = "forward", value_parser = parse_technique)]
+        shading: Technique,
+        /// Force a profile (as TILEGRAPH_PROFILE does).
+        #[arg(long)]
+        profile: Option<String>,
+        #[arg(long, default_value = "160x90", value_parser = parse_size)]
+        size: (u32, u32),
+        /// `{"findings": [...], "render_passes": [...]}` instead of text.
         #[arg(long)]
         json: bool,
     },
@@ -220,6 +241,25 @@ fn main() -> ExitCode {
                 })
             }),
         Command::SceneInfo { scene, json } => scene_info(&scene, json),
+        Command::Lint {
+            scene,
+            culling,
+            shading,
+            profile,
+            size,
+            json,
+        } => tilegraph_scene::load(&scene)
+            .map_err(CliError::from)
+            .and_then(|s| {
+                lint::run(&lint::Args {
+                    scene: &s,
+                    culling,
+                    shading,
+                    profile: profile.as_deref(),
+                    size,
+                    json,
+                })
+            }),
         Command::CullCheck {
             scene,
             technique,

@@ -48,13 +48,17 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
     let mut renderer = SceneRenderer::new(&ctx, scene, ropts)?;
     let result = (|| {
         let mut last: Option<FrameReport> = None;
+        let mut lint = None;
+        renderer.lint_next_frame();
         for _ in 0..args.frames.max(1) {
-            last = Some(renderer.render(&ctx, scene, &camera)?);
+            let report = renderer.render(&ctx, scene, &camera)?;
+            lint = lint.or_else(|| report.lint.clone());
+            last = Some(report);
         }
         let image = renderer.read_image(&ctx)?;
-        Ok::<_, CliError>((last, image))
+        Ok::<_, CliError>((last, lint, image))
     })();
-    let (report, image) = match result {
+    let (report, lint, image) = match result {
         Ok(v) => v,
         Err(e) => {
             renderer.destroy(&ctx);
@@ -95,6 +99,9 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
                 r.draws,
                 r.triangles
             )?;
+        }
+        if let Some(l) = &lint {
+            outln!("{}", l.summary())?;
         }
         print_timings(&renderer, args.frames)?;
         outln!("wrote {}", args.out.display())?;

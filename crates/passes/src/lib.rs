@@ -12,7 +12,8 @@
 //!   (draw lists), [`recording`] (draw recording), [`pipelines`] (every graphics pipeline, in one
 //!   cache), [`gpu_scene`] (the scene's buffers);
 //! - the frame: [`setup`] (which passes, and why), [`renderer`] (the composition, frame after
-//!   frame), [`cullcheck`] (a culling technique against the exact oracle).
+//!   frame), [`cullcheck`] (a culling technique against the exact oracle), [`lint`] (the
+//!   profile's state rules over what a frame recorded).
 
 pub mod compose;
 pub mod cull;
@@ -22,6 +23,7 @@ pub mod forward;
 pub mod frame;
 pub mod gpu_scene;
 pub mod hiz;
+pub mod lint;
 pub mod occlusion;
 pub mod options;
 pub mod pipelines;

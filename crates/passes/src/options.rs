@@ -11,6 +11,7 @@ use tilegraph_vk::{Context, Feature, FeatureRequest, VkError};
 
 use crate::cull::{CullState, Culling, GpuCullCounts};
 use crate::gpu_scene::{visbuf_instance_bits, Lighting};
+use crate::lint::FrameLint;
 use crate::occlusion::OqState;
 use crate::setup::{FrameSetup, Technique};
 
@@ -123,6 +124,8 @@ pub struct FrameReport {
     /// With GPU culling: what the newest completed frame drew and culled on the GPU (frames in
     /// flight earlier than this one; read without waiting). `None` until a frame completed.
     pub gpu_culling: Option<GpuCullCounts>,
+    /// The state lint of this frame's draws, after [`SceneRenderer::lint_next_frame`](crate::SceneRenderer::lint_next_frame).
+    pub lint: Option<Arc<FrameLint>>,
 }
 
 /// What in [`RenderOptions`] wants a device feature (named in [`RenderError::MissingFeature`]).

@@ -12,13 +12,16 @@
 //! [`Pipelines::get_or_create`].
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
+use tilegraph_graph::PassId;
+use tilegraph_profile::lint::DrawState;
 use tilegraph_scene::DepthConvention;
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::{PassContext, RenderPassRef};
 use tilegraph_vk::pipeline::{
-    create_graphics_pipeline, create_pipeline_layout, create_set_layout, Blend, DepthState,
-    GraphicsDesc, RenderTarget, Stage, VertexLayout,
+    create_described_pipeline, create_pipeline_layout, create_set_layout, Blend, DepthState,
+    DescribedPipeline, GraphicsDesc, RenderTarget, Stage, VertexLayout,
 };
 use tilegraph_vk::{Context, VkError};
 
@@ -100,9 +103,20 @@ const NORMAL: (u32, vk::Format, u32) = (1, vk::Format::R32G32B32_SFLOAT, 12);
 const UV: (u32, vk::Format, u32) = (2, vk::Format::R32G32_SFLOAT, 24);
 const VERTEX_STRIDE: u32 = 32;
 
+/// One pipeline bound while tracing ([`Pipelines::start_trace`]): the draws after it, up to
+/// the next bind, record with its state.
+#[derive(Debug, Clone)]
+pub struct TracedBind {
+    pub pass: PassId,
+    pub pass_name: String,
+    pub state: Arc<DrawState>,
+}
+
 /// The graphics pipelines and the pipeline layouts of the scene's variants.
 pub struct Pipelines {
-    cache: HashMap<(u64, u32, PipelineKey), vk::Pipeline>,
+    cache: HashMap<(u64, u32, PipelineKey), (vk::Pipeline, Arc<DrawState>)>,
+    /// Every pipeline handed out for a bind, in recording order, while a lint traces a frame.
+    trace: Option<Vec<TracedBind>>,
     /// Pipelines of render passes with serials below this are destroyed.
     pruned_below: u64,
     /// Count fragments in the colour passes (`forward_count*.frag`).
@@ -125,6 +139,7 @@ impl Pipelines {
     ) -> Result<Self, VkError> {
         let mut p = Pipelines {
             cache: HashMap::new(),
+            trace: None,
             pruned_below: 0,
             count_fragments,
             scene_layout: vk::PipelineLayout::null(),
@@ -167,25 +182,50 @@ impl Pipelines {
     }
 
     /// The pipeline cached for the subpass `pc` records into under `key`, or the one
-    /// `describe` describes, created now.
+    /// `describe` describes, created now. Every call is a bind: the caller binds what it gets
+    /// and draws with it (recorded while tracing).
     pub fn get_or_create(
         &mut self,
         pc: &PassContext<'_>,
         key: PipelineKey,
-        describe: impl FnOnce(RenderTarget<'static>) -> Result<vk::Pipeline, VkError>,
+        describe: impl FnOnce(RenderTarget<'static>) -> Result<DescribedPipeline, VkError>,
     ) -> Result<vk::Pipeline, VkError> {
         let rp = render_pass_of(pc)?;
         let at = (rp.serial, rp.subpass, key);
-        if let Some(&p) = self.cache.get(&at) {
-            return Ok(p);
+        let (pipeline, state) = match self.cache.get(&at) {
+            Some((p, state)) => (*p, state),
+            None => {
+                let d = describe(RenderTarget::Subpass {
+                    render_pass: rp.handle,
+                    subpass: rp.subpass,
+                    color_count: 0,
+                })?;
+                let entry = self
+                    .cache
+                    .entry(at)
+                    .or_insert((d.pipeline, Arc::new(d.state)));
+                (entry.0, &entry.1)
+            }
+        };
+        if let Some(trace) = &mut self.trace {
+            trace.push(TracedBind {
+                pass: pc.pass,
+                pass_name: pc.pass_name.to_string(),
+                state: Arc::clone(state),
+            });
         }
-        let p = describe(RenderTarget::Subpass {
-            render_pass: rp.handle,
-            subpass: rp.subpass,
-            color_count: 0,
-        })?;
-        self.cache.insert(at, p);
-        Ok(p)
+        Ok(pipeline)
+    }
+
+    /// Records every bind from now on (the state lint's view of a frame), until
+    /// [`Self::take_trace`]. Off by default: a steady frame allocates nothing.
+    pub fn start_trace(&mut self) {
+        self.trace = Some(Vec::new());
+    }
+
+    /// The binds recorded since [`Self::start_trace`], in recording order; tracing stops.
+    pub fn take_trace(&mut self) -> Option<Vec<TracedBind>> {
+        self.trace.take()
     }
 
     /// A scene pipeline for the subpass `pc` records into: `color_count` colour attachments,
@@ -254,7 +294,7 @@ impl Pipelines {
                     )
                 }
             };
-            create_graphics_pipeline(
+            create_described_pipeline(
                 pc.ctx,
                 &GraphicsDesc {
                     name: pc.pass_name,
@@ -289,7 +329,7 @@ impl Pipelines {
             return;
         }
         self.pruned_below = floor;
-        self.cache.retain(|&(serial, _, _), p| {
+        self.cache.retain(|&(serial, _, _), (p, _)| {
             let keep = serial >= floor;
             if !keep {
                 // SAFETY: no frame in flight uses it (the executor waited before rebuilding).
@@ -312,7 +352,7 @@ impl Pipelines {
     pub fn destroy(self, ctx: &Context) {
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
-            for (_, p) in self.cache {
+            for (_, (p, _)) in self.cache {
                 ctx.device.destroy_pipeline(p, None);
             }
             ctx.device.destroy_pipeline_layout(self.scene_layout, None);
@@ -390,7 +430,7 @@ fn scene_pipeline(
     double_sided: bool,
     depth: DepthConvention,
     count_fragments: bool,
-) -> Result<vk::Pipeline, VkError> {
+) -> Result<DescribedPipeline, VkError> {
     let write = DepthState {
         test: true,
         write: true,
@@ -499,7 +539,7 @@ fn scene_pipeline(
         attributes: attrs,
     });
     let fullscreen = matches!(variant, Variant::ResolveInput | Variant::ResolveSampled);
-    create_graphics_pipeline(
+    create_described_pipeline(
         pc.ctx,
         &GraphicsDesc {
             name: pc.pass_name,

@@ -14,6 +14,8 @@ pub mod vendor {
     pub const NVIDIA: u32 = 0x10DE;
     pub const AMD: u32 = 0x1002;
     pub const INTEL: u32 = 0x8086;
+    /// Samsung's PCI id, reported by Xclipse GPUs (RDNA-based, but not AMD's 0x1002).
+    pub const SAMSUNG: u32 = 0x144D;
     /// `VK_VENDOR_ID_MESA`, used by lavapipe/llvmpipe.
     pub const MESA: u32 = 0x10005;
 }
@@ -33,6 +35,7 @@ pub mod driver {
     pub const MESA_LLVMPIPE: u32 = 13;
     pub const MESA_TURNIP: u32 = 18;
     pub const MESA_PANVK: u32 = 20;
+    pub const SAMSUNG_PROPRIETARY: u32 = 21;
     pub const MESA_NVK: u32 = 24;
     pub const MESA_HONEYKRISP: u32 = 26;
 }

@@ -12,6 +12,7 @@
 
 mod error;
 mod identity;
+pub mod lint;
 mod memory;
 mod select;
 
@@ -248,8 +249,11 @@ pub struct StateRule {
     pub effect: StateEffect,
     /// How far the damage reaches.
     pub scope: StateScope,
-    /// Short explanation shown by the lint; the source is in docs/PROFILES.md.
+    /// Short explanation shown by the lint.
     pub note: String,
+    /// Where the rule comes from: a key of docs/PROFILES.md's sources with the section
+    /// (`S001 1.1.4`), or `unsourced`. Printed with every finding.
+    pub source: String,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -261,17 +265,47 @@ pub enum PipelineState {
     ShaderDepthWrite,
     /// Blending enabled while depth writes are on.
     BlendWithDepthWrite,
-    /// A colour write mask that is neither all nor nothing.
+    /// A colour write mask that is neither all nor nothing, while depth writes are on.
     PartialColorMask,
-    /// Depth compare direction differs from earlier draws of the same pass (e.g. GREATER then LESS).
+    /// A depth-writing draw whose compare direction differs from earlier draws of the same
+    /// render pass (e.g. GREATER then LESS).
     DepthCompareDirectionChange,
     /// Stencil test whose outcome depends on the depth test (depth-fail ops).
     StencilDependsOnDepth,
     /// The fragment shader writes storage buffers or images (side effects forbid early kill
     /// unless early_fragment_tests is declared).
     FragmentSideEffects,
-    /// Colour attachments of one pass with differing write or blend state.
+    /// Colour attachments of one pass with differing write or blend state, while depth writes
+    /// are on.
     MrtStateMismatch,
+    /// An occluding draw (depth written, no blend, no discard) after a blended draw in the
+    /// same render pass: opaque work should come first.
+    OccluderAfterBlend,
+    /// An occluding draw after a draw that may discard (alpha test) in the same render pass.
+    OccluderAfterDiscard,
+    /// Alpha-to-coverage: coverage decided by the shader, like a discard.
+    AlphaToCoverage,
+    /// The draw is recorded in a secondary command buffer.
+    SecondaryCommandBuffer,
+}
+
+impl PipelineState {
+    pub const fn name(self) -> &'static str {
+        match self {
+            PipelineState::DiscardWithDepthWrite => "discard_with_depth_write",
+            PipelineState::ShaderDepthWrite => "shader_depth_write",
+            PipelineState::BlendWithDepthWrite => "blend_with_depth_write",
+            PipelineState::PartialColorMask => "partial_color_mask",
+            PipelineState::DepthCompareDirectionChange => "depth_compare_direction_change",
+            PipelineState::StencilDependsOnDepth => "stencil_depends_on_depth",
+            PipelineState::FragmentSideEffects => "fragment_side_effects",
+            PipelineState::MrtStateMismatch => "mrt_state_mismatch",
+            PipelineState::OccluderAfterBlend => "occluder_after_blend",
+            PipelineState::OccluderAfterDiscard => "occluder_after_discard",
+            PipelineState::AlphaToCoverage => "alpha_to_coverage",
+            PipelineState::SecondaryCommandBuffer => "secondary_command_buffer",
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -284,6 +318,21 @@ pub enum StateEffect {
     /// The draw does not update the low-resolution / hidden-surface structure (later draws are
     /// culled less), though it is itself still tested.
     SkipsHsrUpdate,
+    /// An occluder drawn after what it hides: the hidden fragments were already shaded.
+    LateOccluder,
+}
+
+impl StateEffect {
+    pub const fn name(self) -> &'static str {
+        match self {
+            StateEffect::DisablesLrz => "disables_lrz",
+            StateEffect::DisablesFpk => "disables_fpk",
+            StateEffect::DisablesHsr => "disables_hsr",
+            StateEffect::DisablesEarlyZ => "disables_early_z",
+            StateEffect::SkipsHsrUpdate => "skips_hsr_update",
+            StateEffect::LateOccluder => "late_occluder",
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]

@@ -392,6 +392,14 @@ fn validate(p: &Profile, file: &str) -> Result<(), ProfileError> {
             ));
         }
     }
+    for (i, rule) in p.state_rules.iter().enumerate() {
+        if rule.source.trim().is_empty() {
+            return Err(invalid(
+                &format!("state_rules[{i}].source"),
+                "name the rule's source (a key of docs/PROFILES.md) or say `unsourced`",
+            ));
+        }
+    }
     let m = &p.matching;
     if m.vendor_default && m.vendor_ids.is_empty() {
         return Err(invalid(

@@ -20,6 +20,7 @@ pub mod pipeline;
 pub mod queries;
 pub mod readback;
 pub mod shader;
+pub mod shader_facts;
 mod validation;
 
 pub use ash;

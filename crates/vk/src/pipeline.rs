@@ -3,8 +3,11 @@
 
 use ash::vk;
 
+use tilegraph_profile::lint::{ColorWrites, DepthCompare, DrawState, StencilUse};
+
 use crate::error::{VkError, VkResultExt};
 use crate::shader::create_shader_module;
+use crate::shader_facts::fragment_facts;
 use crate::Context;
 
 /// Where a graphics pipeline renders.
@@ -244,6 +247,78 @@ pub fn create_graphics_pipeline(
         unsafe { ctx.device.destroy_shader_module(m, None) };
     }
     result
+}
+
+/// A graphics pipeline and what the state lint knows of it.
+#[derive(Debug, Clone)]
+pub struct DescribedPipeline {
+    pub pipeline: vk::Pipeline,
+    pub state: DrawState,
+}
+
+/// Creates a graphics pipeline together with its [`DrawState`], both from `desc`: what the
+/// lint checks is what was created.
+pub fn create_described_pipeline(
+    ctx: &Context,
+    desc: &GraphicsDesc<'_>,
+) -> Result<DescribedPipeline, VkError> {
+    let state = draw_state(desc)?;
+    let pipeline = create_graphics_pipeline(ctx, desc)?;
+    Ok(DescribedPipeline { pipeline, state })
+}
+
+/// The state lint's view of a pipeline: its fixed-function state, and the facts of its
+/// fragment shader under its specialization. Named by the fragment shader (the vertex shader
+/// for a depth-only pipeline) and its specialization constants.
+pub fn draw_state(desc: &GraphicsDesc<'_>) -> Result<DrawState, VkError> {
+    let facts = match desc.fragment {
+        Some(f) => fragment_facts(f.name, f.spirv, f.specialization)?,
+        None => Default::default(),
+    };
+    let stage = desc.fragment.unwrap_or(desc.vertex);
+    let mut pipeline = stage.name.to_string();
+    for (id, value) in stage.specialization {
+        pipeline.push_str(&format!(" [{id}={value}]"));
+    }
+    let color_count = match desc.target {
+        RenderTarget::Dynamic { color, .. } => color.len() as u32,
+        RenderTarget::Subpass { color_count, .. } => color_count,
+    };
+    let writes_color = color_count > 0 && desc.blend != Blend::NoColorWrites;
+    Ok(DrawState {
+        pipeline,
+        depth_test: desc.depth.test,
+        depth_write: desc.depth.write,
+        depth_compare: compare(desc.depth.compare),
+        blend: desc.blend == Blend::Alpha && writes_color,
+        color_writes: if writes_color {
+            ColorWrites::All
+        } else {
+            ColorWrites::None
+        },
+        // Every attachment gets the same blend state (`create_graphics_pipeline`).
+        attachments_differ: false,
+        discard: facts.discard,
+        alpha_to_coverage: false,
+        shader_depth_write: facts.depth_write,
+        storage_writes: facts.storage_writes,
+        early_fragment_tests: facts.early_fragment_tests,
+        stencil: StencilUse::Off,
+        secondary_command_buffer: false,
+    })
+}
+
+fn compare(op: vk::CompareOp) -> DepthCompare {
+    match op {
+        vk::CompareOp::NEVER => DepthCompare::Never,
+        vk::CompareOp::LESS => DepthCompare::Less,
+        vk::CompareOp::EQUAL => DepthCompare::Equal,
+        vk::CompareOp::LESS_OR_EQUAL => DepthCompare::LessOrEqual,
+        vk::CompareOp::GREATER => DepthCompare::Greater,
+        vk::CompareOp::NOT_EQUAL => DepthCompare::NotEqual,
+        vk::CompareOp::GREATER_OR_EQUAL => DepthCompare::GreaterOrEqual,
+        _ => DepthCompare::Always,
+    }
 }
 
 /// Creates a compute pipeline.

@@ -10,7 +10,7 @@ use tilegraph_scene::DepthConvention;
 use tilegraph_vk::ash;
 use tilegraph_vk::executor::PassContext;
 use tilegraph_vk::pipeline::{
-    create_graphics_pipeline, create_pipeline_layout, Blend, DepthState, GraphicsDesc, Stage,
+    create_described_pipeline, create_pipeline_layout, Blend, DepthState, GraphicsDesc, Stage,
 };
 use tilegraph_vk::{Buffer, Context, VkError};
 
@@ -328,7 +328,7 @@ impl RasterOcclusion {
             pc,
             PipelineKey::Named("raster-occlusion-depth"),
             |target| {
-                create_graphics_pipeline(
+                create_described_pipeline(
                     pc.ctx,
                     &GraphicsDesc {
                         name: pc.pass_name,

@@ -30,6 +30,7 @@ use crate::draws::DrawBuilder;
 use crate::frame::{FrameData, FrameGraph, Payload, SceneResources, States};
 use crate::gpu_scene::{FrameUniforms, GpuScene};
 use crate::hiz::HizState;
+use crate::lint::lint_frame;
 use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
 use crate::pipelines::Pipelines;
@@ -193,6 +194,12 @@ impl SceneRenderer {
     /// Which passes this renderer's frames have.
     pub fn setup(&self) -> &FrameSetup {
         &self.setup
+    }
+
+    /// Lints the next frame: every pipeline it binds is traced and checked against the
+    /// profile's state rules ([`FrameReport::lint`]). The frames after it are not traced.
+    pub fn lint_next_frame(&mut self) {
+        self.resources.pipelines.start_trace();
     }
 
     /// The colour target every frame ends in (`TRANSFER_SRC_OPTIMAL` after a frame); `None`
@@ -429,8 +436,14 @@ impl SceneRenderer {
             .pipelines
             .prune(ctx, self.executor.render_pass_serial_floor());
         self.frames += 1;
+        let lint = self
+            .resources
+            .pipelines
+            .take_trace()
+            .map(|trace| Arc::new(lint_frame(ctx.profile(), &plan, &trace)));
         let draws = &self.resources.frame.draws;
         Ok(FrameReport {
+            lint,
             setup: Arc::clone(&self.setup),
             plan,
             stats,

@@ -1,0 +1,166 @@
+//! Profiles checked against the frames they shape (lavapipe, validation on): the state lint of
+//! the shipped passes under every profile, every technique, on a scene with opaque,
+//! alpha-tested and blended materials. A finding is either fixed or listed, with its reason, in
+//! docs/PROFILES.md's "Accepted lint findings" table — and a listed finding that no frame
+//! produces any more is an error too, so the table stays true.
+
+use std::collections::BTreeMap;
+
+use tilegraph_e2e::gpu_with;
+use tilegraph_passes::cull::Culling;
+use tilegraph_passes::lint::FrameLint;
+use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
+use tilegraph_profile::lint::Finding;
+use tilegraph_profile::{Profile, ProfileSet};
+
+/// The frames linted: every shading technique unculled, and every culling technique with the
+/// shading it is most often paired with (raster occlusion at full and half resolution).
+const FRAMES: &[(Technique, Culling, u32)] = &[
+    (Technique::Forward, Culling::None, 1),
+    (Technique::Prepass, Culling::None, 1),
+    (Technique::Visbuf, Culling::None, 1),
+    (Technique::Forward, Culling::Frustum, 1),
+    (Technique::Forward, Culling::Hiz, 1),
+    (Technique::Prepass, Culling::HizTwoPhase, 1),
+    (Technique::Visbuf, Culling::HizTwoPhase, 1),
+    (Technique::Forward, Culling::Oq, 1),
+    (Technique::Forward, Culling::OqConditional, 1),
+    (Technique::Prepass, Culling::RasterOcclusion, 1),
+    (Technique::Prepass, Culling::RasterOcclusion, 2),
+];
+
+/// One row of the accepted-findings table.
+#[derive(Debug)]
+struct Accepted {
+    rule: String,
+    /// A prefix of the pipeline's name.
+    pipeline: String,
+    /// Profile names, or `all`.
+    profiles: Vec<String>,
+}
+
+impl Accepted {
+    fn covers(&self, f: &Finding) -> bool {
+        self.rule == f.rule.name()
+            && f.pipeline.starts_with(&self.pipeline)
+            && (self.profiles.iter().any(|p| p == "all" || *p == f.profile))
+    }
+}
+
+/// The table under "## Accepted lint findings" in docs/PROFILES.md: `| rule | pipeline |
+/// profiles | reason |`, names in backticks.
+fn accepted() -> Vec<Accepted> {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/PROFILES.md");
+    let doc = std::fs::read_to_string(path).unwrap();
+    let section = doc
+        .split("## Accepted lint findings")
+        .nth(1)
+        .expect("docs/PROFILES.md has an \"Accepted lint findings\" section");
+    let section = section.split("\n## ").next().unwrap_or(section);
+    let unquote = |s: &str| s.trim().trim_matches('`').to_string();
+    section
+        .lines()
+        .filter(|l| l.starts_with("| `"))
+        .map(|l| {
+            let cells: Vec<&str> = l.trim_matches('|').split('|').collect();
+            assert!(cells.len() >= 4, "row {l:?}");
+            assert!(!cells[3].trim().is_empty(), "row without a reason: {l:?}");
+            Accepted {
+                rule: unquote(cells[0]),
+                pipeline: unquote(cells[1]),
+                profiles: cells[2].split(',').map(unquote).collect(),
+            }
+        })
+        .collect()
+}
+
+/// What shapes a frame's passes and render passes: profiles that agree on it record the same
+/// draws in the same render passes, so each shape is recorded once and linted under each of
+/// its profiles.
+fn shape(p: &Profile) -> String {
+    format!(
+        "{:?} {:?} {:?}",
+        p.passes, p.render_pass, p.gpu.architecture
+    )
+}
+
+#[test]
+fn shipped_passes_lint_clean_under_every_profile_but_the_accepted_findings() {
+    let accepted = accepted();
+    assert!(!accepted.is_empty());
+    let scene = tilegraph_scene::load("interior:100").unwrap();
+    let camera = scene.camera_path().camera(0).unwrap();
+    let set = ProfileSet::embedded().unwrap();
+    let mut shapes: BTreeMap<String, Vec<&Profile>> = BTreeMap::new();
+    for p in set.profiles() {
+        shapes.entry(shape(p)).or_default().push(p);
+    }
+    let mut used = vec![false; accepted.len()];
+    let mut unaccepted: Vec<String> = Vec::new();
+    let mut linted = 0;
+    for profiles in shapes.values() {
+        let recording = profiles[0];
+        let mut features = tilegraph_vk::FeatureRequest::default();
+        for &(technique, culling, _) in FRAMES {
+            let o = RenderOptions {
+                technique,
+                culling,
+                ..Default::default()
+            };
+            let f = o.device_features();
+            features.required.extend(f.required);
+            features.optional.extend(f.optional);
+        }
+        let g = gpu_with(Some(&recording.name), features).unwrap();
+        for &(technique, culling, scale) in FRAMES {
+            let options = RenderOptions {
+                technique,
+                culling,
+                raster_occlusion_scale: scale,
+                width: 64,
+                height: 36,
+                ..Default::default()
+            };
+            let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+            r.lint_next_frame();
+            let report = r.render(&g, &scene, &camera).unwrap();
+            r.finish(&g).unwrap();
+            r.destroy(&g);
+            let recorded: &FrameLint = report.lint.as_deref().expect("the frame was linted");
+            assert!(!recorded.render_passes.is_empty());
+            for p in profiles {
+                let findings = tilegraph_profile::lint::lint(p, &recorded.render_passes);
+                linted += 1;
+                for f in findings {
+                    match accepted.iter().position(|a| a.covers(&f)) {
+                        Some(i) => used[i] = true,
+                        None => unaccepted.push(format!(
+                            "{} / {} / {}: {f}",
+                            technique.name(),
+                            culling.name(),
+                            scale
+                        )),
+                    }
+                }
+            }
+        }
+    }
+    assert!(linted >= 18 * FRAMES.len(), "{linted} frames linted");
+    unaccepted.sort();
+    unaccepted.dedup();
+    assert!(
+        unaccepted.is_empty(),
+        "findings neither fixed nor accepted in docs/PROFILES.md:\n{}",
+        unaccepted.join("\n")
+    );
+    let stale: Vec<&Accepted> = accepted
+        .iter()
+        .zip(&used)
+        .filter(|(_, u)| !**u)
+        .map(|(a, _)| a)
+        .collect();
+    assert!(
+        stale.is_empty(),
+        "accepted findings no frame produces any more: {stale:#?}"
+    );
+}
