@@ -1,12 +1,19 @@
-//! Profiles checked against the frames they shape (lavapipe, validation on): the state lint of
-//! the shipped passes under every profile, every technique, on a scene with opaque,
-//! alpha-tested and blended materials. A finding is either fixed or listed, with its reason, in
-//! docs/PROFILES.md's "Accepted lint findings" table — and a listed finding that no frame
-//! produces any more is an error too, so the table stays true.
+//! Profiles checked against the frames they shape (lavapipe, validation on), for every profile
+//! and every technique on a scene with opaque, alpha-tested and blended materials:
+//!
+//! - the state lint of the shipped passes: a finding is either fixed or listed, with its
+//!   reason, in docs/PROFILES.md's "Accepted lint findings" table — and a listed finding that
+//!   no frame produces any more is an error too, so the table stays true;
+//! - the promises the profile makes about the compiled plan: occlusion queries in a render
+//!   pass of their own, after a flush, where it says so (and no flush where it does not) —
+//!   raster occlusion's boxes are of the same class and follow the same rule;
+//!   next-frame queries after all drawing; attachments whose whole life is one render pass
+//!   transient exactly where the profile keeps data on chip.
 
 use std::collections::BTreeMap;
 
 use tilegraph_e2e::gpu_with;
+use tilegraph_graph::{FlushReason, PassClass, Plan, Residency, Step};
 use tilegraph_passes::cull::Culling;
 use tilegraph_passes::lint::FrameLint;
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
@@ -85,7 +92,7 @@ fn shape(p: &Profile) -> String {
 }
 
 #[test]
-fn shipped_passes_lint_clean_under_every_profile_but_the_accepted_findings() {
+fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
     let accepted = accepted();
     assert!(!accepted.is_empty());
     let scene = tilegraph_scene::load("interior:100").unwrap();
@@ -126,6 +133,10 @@ fn shipped_passes_lint_clean_under_every_profile_but_the_accepted_findings() {
             let report = r.render(&g, &scene, &camera).unwrap();
             r.finish(&g).unwrap();
             r.destroy(&g);
+            let frame = format!("{} / {} / {}", technique.name(), culling.name(), scale);
+            for p in profiles {
+                check_promises(p, &report.plan, culling, &frame);
+            }
             let recorded: &FrameLint = report.lint.as_deref().expect("the frame was linted");
             assert!(!recorded.render_passes.is_empty());
             for p in profiles {
@@ -134,12 +145,7 @@ fn shipped_passes_lint_clean_under_every_profile_but_the_accepted_findings() {
                 for f in findings {
                     match accepted.iter().position(|a| a.covers(&f)) {
                         Some(i) => used[i] = true,
-                        None => unaccepted.push(format!(
-                            "{} / {} / {}: {f}",
-                            technique.name(),
-                            culling.name(),
-                            scale
-                        )),
+                        None => unaccepted.push(format!("{frame}: {f}")),
                     }
                 }
             }
@@ -163,4 +169,89 @@ fn shipped_passes_lint_clean_under_every_profile_but_the_accepted_findings() {
         stale.is_empty(),
         "accepted findings no frame produces any more: {stale:#?}"
     );
+}
+
+/// The profile's promises on one compiled frame (see the module doc).
+fn check_promises(p: &Profile, plan: &Plan, culling: Culling, frame: &str) {
+    let at = format!("{} {frame}\n{plan}", p.name);
+    let class_of = |pass| plan.pass(pass).map(|q| q.class);
+    let policy = p.passes.occlusion_queries;
+    let mut query_steps = Vec::new();
+    for (i, step) in plan.steps.iter().enumerate() {
+        let Step::RenderPass(rp) = step else { continue };
+        let queries = rp
+            .subpasses
+            .iter()
+            .filter(|s| class_of(s.pass) == Some(PassClass::OcclusionQuery))
+            .count();
+        if queries == 0 {
+            continue;
+        }
+        query_steps.push(i);
+        if policy.own_render_pass {
+            assert_eq!(
+                queries,
+                rp.subpasses.len(),
+                "queries share a render pass: {at}"
+            );
+        }
+        let before = plan.steps[..i]
+            .iter()
+            .rev()
+            .find(|s| !matches!(s, Step::Barriers(_)));
+        let flushed = matches!(
+            before,
+            Some(Step::Flush(FlushReason::BeforeOcclusionQueries))
+        );
+        assert_eq!(
+            flushed, policy.flush_before,
+            "flush before the queries: {at}"
+        );
+    }
+    assert_eq!(
+        !query_steps.is_empty(),
+        matches!(
+            culling,
+            Culling::Oq | Culling::OqConditional | Culling::RasterOcclusion
+        ),
+        "occlusion-query class passes (queries, raster occlusion boxes): {at}"
+    );
+    if !policy.flush_before {
+        assert!(
+            !plan.steps.iter().any(|s| matches!(s, Step::Flush(_))),
+            "a flush the profile does not ask for: {at}"
+        );
+    }
+    // Next-frame queries test this frame's finished depth: after every drawing pass.
+    if culling == Culling::Oq {
+        let last_query = query_steps.iter().max().copied().unwrap_or(0);
+        for q in &plan.passes {
+            if matches!(
+                q.class,
+                PassClass::Opaque | PassClass::AlphaTested | PassClass::Transparent
+            ) {
+                assert!(
+                    q.step.0 as usize <= last_query,
+                    "{} after the queries: {at}",
+                    q.name
+                );
+            }
+        }
+    }
+    // Attachments that live and die in one render pass stay on chip where the profile keeps
+    // data there, and nowhere else.
+    let on_chip = p.is_tiler() && p.render_pass.transient_attachments;
+    for r in &plan.resources {
+        if r.residency == Residency::Transient {
+            assert!(on_chip, "{} transient: {at}", r.name);
+        }
+    }
+    if on_chip && culling == Culling::None {
+        let depth = plan.resources.iter().find(|r| r.name == "depth");
+        assert_eq!(
+            depth.map(|r| r.residency),
+            Some(Residency::Transient),
+            "the depth of an unculled frame never leaves the tile: {at}"
+        );
+    }
 }
