@@ -445,3 +445,102 @@ pub fn write_buffer_set(
     // SAFETY: every buffer is live and the set idle (caller's guarantee).
     unsafe { ctx.device.update_descriptor_sets(&writes, &[]) };
 }
+
+#[cfg(test)]
+mod tests {
+    use tilegraph_profile::lint::{lint, LintDraw, LintRenderPass};
+    use tilegraph_profile::{PipelineState, ProfileSet};
+
+    use super::*;
+
+    const DEPTH_ALPHA_VS: &[u8] = include_bytes!("../../../shaders/spv/depth_alpha.vert.spv");
+    const DEPTH_ALPHA_FS: &[u8] = include_bytes!("../../../shaders/spv/depth_alpha.frag.spv");
+
+    /// A deliberately bad pipeline — the alpha test's discard, blended, writing depth — and
+    /// the opaque draw recorded after it: the state the lint sees comes from the description
+    /// and the shader, and each vendor's rules fire on it.
+    #[test]
+    fn a_bad_pipeline_described_is_what_the_lint_flags() {
+        let desc = |blend, fragment| GraphicsDesc {
+            name: "bad",
+            vertex: Stage {
+                name: "depth_alpha.vert",
+                spirv: DEPTH_ALPHA_VS,
+                specialization: &[],
+            },
+            fragment,
+            vertex_layout: None,
+            layout: vk::PipelineLayout::null(),
+            target: RenderTarget::Subpass {
+                render_pass: vk::RenderPass::null(),
+                subpass: 0,
+                color_count: 1,
+            },
+            depth: DepthState {
+                test: true,
+                write: true,
+                compare: vk::CompareOp::GREATER,
+            },
+            blend,
+            cull: vk::CullModeFlags::BACK,
+            samples: vk::SampleCountFlags::TYPE_1,
+        };
+        let fs = Stage {
+            name: "depth_alpha.frag",
+            spirv: DEPTH_ALPHA_FS,
+            specialization: &[],
+        };
+        let bad = draw_state(&desc(Blend::Alpha, Some(fs))).unwrap();
+        assert!(bad.discard && bad.blend && bad.depth_write && !bad.early_fragment_tests);
+        assert_eq!(bad.pipeline, "depth_alpha.frag");
+        let opaque = draw_state(&desc(Blend::Opaque, None)).unwrap();
+        assert!(opaque.occluder());
+        let rp = LintRenderPass {
+            index: 0,
+            draws: [bad, opaque]
+                .into_iter()
+                .map(|state| LintDraw {
+                    pass: "engine-bad".into(),
+                    state,
+                })
+                .collect(),
+        };
+        let set = ProfileSet::embedded().unwrap();
+        for (profile, expect) in [
+            (
+                "adreno-7xx",
+                &[
+                    PipelineState::DiscardWithDepthWrite,
+                    PipelineState::BlendWithDepthWrite,
+                    PipelineState::OccluderAfterBlend,
+                ][..],
+            ),
+            (
+                "mali-valhall",
+                &[
+                    PipelineState::DiscardWithDepthWrite,
+                    PipelineState::BlendWithDepthWrite,
+                    PipelineState::OccluderAfterBlend,
+                ],
+            ),
+            (
+                "powervr-b",
+                &[
+                    PipelineState::DiscardWithDepthWrite,
+                    PipelineState::BlendWithDepthWrite,
+                    PipelineState::OccluderAfterDiscard,
+                    PipelineState::OccluderAfterBlend,
+                ],
+            ),
+            ("lavapipe", &[PipelineState::DiscardWithDepthWrite]),
+        ] {
+            let findings = lint(set.get(profile).unwrap(), std::slice::from_ref(&rp));
+            let mut rules: Vec<&str> = findings.iter().map(|f| f.rule.name()).collect();
+            rules.sort_unstable();
+            rules.dedup();
+            let mut expect: Vec<&str> = expect.iter().map(|r| r.name()).collect();
+            expect.sort_unstable();
+            assert_eq!(rules, expect, "{profile}: {findings:#?}");
+        }
+    }
+}
