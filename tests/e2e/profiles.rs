@@ -255,3 +255,126 @@ fn check_promises(p: &Profile, plan: &Plan, culling: Culling, frame: &str) {
         );
     }
 }
+
+/// Best practices with the vendor checks of a profile's family. The instance always enables the
+/// generic checks; the vendor checks (Arm, IMG, NVIDIA) are switched on for a whole process by
+/// a `vk_layer_settings.txt`, so `cargo xtask test` runs this test once per vendor with
+/// `VK_LAYER_SETTINGS_PATH` and `TILEGRAPH_BEST_PRACTICES_PROFILE` naming the matching profile
+/// (`mali-valhall` with Arm, `powervr-b` with IMG, `desktop-nvidia` with NVIDIA). A plain run
+/// renders under lavapipe with the generic checks. Three frames per technique, each read back
+/// as a presented image would be, so the checks that look across frames (a store nobody reads
+/// before the next clear) see steady frames.
+#[test]
+fn every_technique_passes_best_practices_under_the_vendors_profile() {
+    let profile = std::env::var("TILEGRAPH_BEST_PRACTICES_PROFILE")
+        .unwrap_or_else(|_| "lavapipe".to_string());
+    let scene = tilegraph_scene::load("interior:100").unwrap();
+    let path = scene.camera_path();
+    let mut features = tilegraph_vk::FeatureRequest::default();
+    for &(technique, culling, _) in FRAMES {
+        let f = RenderOptions {
+            technique,
+            culling,
+            ..Default::default()
+        }
+        .device_features();
+        features.required.extend(f.required);
+        features.optional.extend(f.optional);
+    }
+    let g = gpu_with(Some(&profile), features).unwrap();
+    for &(technique, culling, scale) in FRAMES {
+        let options = RenderOptions {
+            technique,
+            culling,
+            raster_occlusion_scale: scale,
+            width: 64,
+            height: 36,
+            ..Default::default()
+        };
+        let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+        for i in 0..3 {
+            let camera = path.camera(i).unwrap();
+            r.render(&g, &scene, &camera).unwrap();
+            r.read_image(&g).unwrap();
+        }
+        r.finish(&g).unwrap();
+        r.destroy(&g);
+        let messages = g.take_validation_messages();
+        assert!(
+            messages.is_empty(),
+            "{profile}, {} / {} / {scale}: {messages:#?}",
+            technique.name(),
+            culling.name()
+        );
+    }
+    // The vendor's checks ran: one of its reviewed (silenced) messages was reported.
+    let vendor_only = match profile.as_str() {
+        "mali-valhall" => Some("vkCmdDrawIndexed-sparse-index-buffer"),
+        "powervr-b" => Some("vkCmdBeginRenderPass-attachment-needs-readback"),
+        "desktop-nvidia" => Some("CreateImage-Depth32Format"),
+        _ => None,
+    };
+    if let (Some(id), Ok(_)) = (vendor_only, std::env::var("VK_LAYER_SETTINGS_PATH")) {
+        let seen = g.silenced_validation_ids();
+        assert!(
+            seen.iter().any(|s| s.ends_with(id)),
+            "{profile}: the vendor checks did not run (no {id}; silenced seen: {seen:?})"
+        );
+    }
+}
+
+/// A best-practices warning fails a test like any validation message: a command pool whose
+/// command buffers are reset one by one (best practices ask to reset the pool).
+#[test]
+fn a_best_practices_warning_fails_the_test() {
+    tilegraph_e2e::init_logging();
+    let ctx = tilegraph_vk::Context::new(tilegraph_e2e::options(None, Default::default())).unwrap();
+    let info = tilegraph_vk::ash::vk::CommandPoolCreateInfo::default()
+        .queue_family_index(ctx.queue_family)
+        .flags(tilegraph_vk::ash::vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+    // SAFETY: valid device and queue family; the pool is destroyed unused.
+    unsafe {
+        let pool = ctx.device.create_command_pool(&info, None).unwrap();
+        ctx.device.destroy_command_pool(pool, None);
+    }
+    let e = ctx.destroy_checked().unwrap_err().to_string();
+    assert!(
+        e.contains("BestPractices-vkCreateCommandPool-command-buffer-reset"),
+        "{e}"
+    );
+}
+
+/// docs/PROFILES.md's "Silenced best-practices messages" table is `tilegraph_vk::SILENCED`,
+/// row for row, reasons included.
+#[test]
+fn the_silenced_messages_are_the_documented_ones() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/PROFILES.md");
+    let doc = std::fs::read_to_string(path).unwrap();
+    let section = doc
+        .split("## Silenced best-practices messages")
+        .nth(1)
+        .expect("docs/PROFILES.md has a \"Silenced best-practices messages\" section");
+    let section = section.split("\n## ").next().unwrap_or(section);
+    let rows: Vec<(String, String, String)> = section
+        .lines()
+        .filter(|l| l.starts_with("| `"))
+        .map(|l| {
+            let cells: Vec<&str> = l.trim_matches('|').split(" | ").collect();
+            assert_eq!(cells.len(), 3, "row {l:?}");
+            let contains = match cells[1].trim() {
+                "(every message)" => String::new(),
+                c => c.trim_matches('`').to_string(),
+            };
+            (
+                cells[0].trim().trim_matches('`').to_string(),
+                contains,
+                cells[2].trim().to_string(),
+            )
+        })
+        .collect();
+    let code: Vec<(String, String, String)> = tilegraph_vk::SILENCED
+        .iter()
+        .map(|s| (s.id.into(), s.contains.into(), s.reason.into()))
+        .collect();
+    assert_eq!(rows, code);
+}

@@ -1,5 +1,6 @@
 //! Harness for GPU end-to-end tests: every context runs with the Khronos validation layer and
-//! synchronization validation, and [`Gpu`] fails the test on any message the layer reported.
+//! synchronization validation and the best-practices checks, and [`Gpu`] fails the test on any
+//! message the layer reported (but the reviewed `tilegraph_vk::SILENCED` ones).
 
 use tilegraph_vk::{Context, ContextOptions, FeatureRequest, Validation, VkError};
 

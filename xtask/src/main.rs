@@ -206,7 +206,48 @@ fn test(rest: &[String]) -> Result<(), String> {
             .args(["test", "--workspace"])
             .args(rest)
             .env("TILEGRAPH_VALIDATION", "required"),
-    )
+    )?;
+    best_practices_per_vendor()
+}
+
+/// The vendor best-practices checks, each in a process of its own: on layer 1.3.239 they are
+/// switched on for a whole process by a `vk_layer_settings.txt` (`VK_LAYER_SETTINGS_PATH`).
+/// Every shipped technique is rendered under the vendor's profile (tests/e2e/profiles.rs); the
+/// reviewed exceptions are docs/PROFILES.md's "Silenced best-practices messages".
+fn best_practices_per_vendor() -> Result<(), String> {
+    for (vendor, profile) in [
+        ("ARM", "mali-valhall"),
+        ("IMG", "powervr-b"),
+        ("NVIDIA", "desktop-nvidia"),
+    ] {
+        let dir = root()
+            .join("target")
+            .join("best-practices")
+            .join(vendor.to_ascii_lowercase());
+        let settings = dir.join("vk_layer_settings.txt");
+        std::fs::create_dir_all(&dir)
+            .and_then(|()| {
+                std::fs::write(
+                    &settings,
+                    format!(
+                        "khronos_validation.enables = VK_VALIDATION_FEATURE_ENABLE_BEST_PRACTICES_EXT,\
+                         VALIDATION_CHECK_ENABLE_VENDOR_SPECIFIC_{vendor},\
+                         VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT\n"
+                    ),
+                )
+            })
+            .map_err(|e| format!("writing {}: {e}", settings.display()))?;
+        run(
+            &format!("best practices with the {vendor} checks, profile {profile}"),
+            cargo()
+                .args(["test", "-p", "tilegraph-e2e", "--test", "profiles"])
+                .args(["--", "best_practices"])
+                .env("VK_LAYER_SETTINGS_PATH", &settings)
+                .env("TILEGRAPH_BEST_PRACTICES_PROFILE", profile)
+                .env("TILEGRAPH_VALIDATION", "required"),
+        )?;
+    }
+    Ok(())
 }
 
 /// The Android target: the sample checked (with clippy) and the C ABI built as a static

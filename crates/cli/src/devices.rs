@@ -32,6 +32,11 @@ struct DeviceReport {
     matched_by: String,
     forced: bool,
     memory: BTreeMap<&'static str, MemoryEntry>,
+    /// The profile's pass and render-pass policies (their sources: docs/PROFILES.md).
+    passes: tilegraph_profile::PassPolicy,
+    render_pass: tilegraph_profile::RenderPassPolicy,
+    /// The state rules `tilegraph lint` applies, each with its source.
+    state_rules: Vec<tilegraph_profile::StateRule>,
 }
 
 pub fn run(json: bool) -> Result<(), CliError> {
@@ -77,6 +82,9 @@ pub fn run(json: bool) -> Result<(), CliError> {
             api_version: pd.identity.api_version_string(),
             forced: matches!(sel.matched_by, tilegraph_profile::MatchedBy::Forced { .. }),
             matched_by: sel.matched_by.to_string(),
+            passes: sel.profile.passes.clone(),
+            render_pass: sel.profile.render_pass,
+            state_rules: sel.profile.state_rules.clone(),
             profile: sel.profile.name,
             memory,
         });

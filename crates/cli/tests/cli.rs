@@ -165,9 +165,58 @@ fn render_writes_the_image_and_the_timing_table() {
         "alpha-tested",
         "GPU time per pass",
         "left out",
+        "lint (adreno-7xx): 1 findings",
     ] {
         assert!(stdout.contains(want), "missing {want:?} in {stdout}");
     }
     assert_eq!(&std::fs::read(&out).unwrap()[..4], b"\x89PNG");
     std::fs::remove_file(&out).ok();
+}
+
+#[test]
+fn devices_json_reports_the_state_rules_with_their_sources() {
+    let devices = devices_json(&[("TILEGRAPH_PROFILE", "mali-valhall")]);
+    let rules = devices[0]["state_rules"].as_array().expect("state_rules");
+    assert!(!rules.is_empty());
+    for r in rules {
+        assert!(r["source"].as_str().is_some_and(|s| !s.is_empty()), "{r}");
+    }
+    assert!(devices[0]["passes"]["order"].is_array());
+}
+
+#[test]
+fn lint_json_lists_findings_with_their_sources() {
+    let (ok, out, err) = tilegraph(
+        &[
+            "lint",
+            "forest:100",
+            "--culling",
+            "hiz-2phase",
+            "--shading",
+            "prepass",
+            "--profile",
+            "powervr-b",
+            "--size",
+            "64x36",
+            "--json",
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "{err}");
+    let v: serde_json::Value =
+        serde_json::from_str(&out).unwrap_or_else(|e| panic!("not JSON ({e}): {out}"));
+    assert_eq!(v["profile"], "powervr-b");
+    assert!(!v["render_passes"].as_array().unwrap().is_empty());
+    let findings = v["findings"].as_array().unwrap();
+    // PowerVR draws no pre-pass: the alpha-tested colour pass discards with depth writes.
+    assert!(
+        findings
+            .iter()
+            .any(|f| f["rule"] == "discard_with_depth_write"
+                && f["effect"] == "disables_hsr"
+                && f["source"]
+                    .as_str()
+                    .is_some_and(|s| s.contains("IMG-discard"))),
+        "{out}"
+    );
 }

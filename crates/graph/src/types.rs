@@ -495,6 +495,24 @@ vk_flags! {
     }
 }
 
+impl PipelineStages {
+    /// Every stage a graph's passes can run work in, spelled out: "whatever touched it last"
+    /// for a buffer kept across frames. `ALL_COMMANDS` means the same for what a graph
+    /// records, but validation's best-practices checks flag it as a stall of everything.
+    /// (Conditional rendering's stage is left out: its bit needs the device feature.)
+    pub const EVERY_GRAPH_STAGE: Self = Self(
+        Self::DRAW_INDIRECT.0
+            | Self::VERTEX_INPUT.0
+            | Self::PRE_RASTERIZATION_SHADERS.0
+            | Self::FRAGMENT_SHADER.0
+            | Self::EARLY_FRAGMENT_TESTS.0
+            | Self::LATE_FRAGMENT_TESTS.0
+            | Self::COLOR_ATTACHMENT_OUTPUT.0
+            | Self::COMPUTE_SHADER.0
+            | Self::ALL_TRANSFER.0,
+    );
+}
+
 vk_flags! {
     /// `VkAccessFlags2`, same bit values.
     AccessFlags(u64) {

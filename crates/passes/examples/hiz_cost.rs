@@ -205,7 +205,7 @@ fn copy_bandwidth_gbps(ctx: &Context, pool: vk::QueryPool, runs: usize) -> Resul
                     cb,
                     &vk::DependencyInfo::default().memory_barriers(&waw),
                 )?;
-                ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, pool, 0)?;
+                ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::BOTTOM_OF_PIPE, pool, 0)?;
                 let region = [vk::BufferCopy {
                     src_offset: 0,
                     dst_offset: 0,
@@ -213,7 +213,7 @@ fn copy_bandwidth_gbps(ctx: &Context, pool: vk::QueryPool, runs: usize) -> Resul
                 }];
                 // SAFETY: as above.
                 unsafe { ctx.device.cmd_copy_buffer(cb, src.raw, dst.raw, &region) };
-                ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::ALL_COMMANDS, pool, 1)
+                ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::BOTTOM_OF_PIPE, pool, 1)
             })?;
             let stamps = read_stamps(ctx, pool, 2)?;
             if run > 0 {

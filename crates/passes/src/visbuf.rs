@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use tilegraph_graph::{ClearColor, Format, ImageDesc, ImageId, PassClass, PassId};
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::PassContext;
-use tilegraph_vk::pipeline::allocate_set;
+use tilegraph_vk::pipeline::{allocate_set, create_nearest_sampler};
 use tilegraph_vk::{Context, VkError};
 
 use crate::draws::DrawClass;
@@ -95,20 +95,12 @@ impl ResolveSets {
         // SAFETY: valid create info.
         let pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
             .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
-        let sampler_info = vk::SamplerCreateInfo::default()
-            .mag_filter(vk::Filter::NEAREST)
-            .min_filter(vk::Filter::NEAREST)
-            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
-            .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-            .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-            .max_lod(0.0);
-        // SAFETY: valid create info.
-        let sampler = match unsafe { ctx.device.create_sampler(&sampler_info, None) } {
+        let sampler = match create_nearest_sampler(ctx) {
             Ok(s) => s,
-            Err(r) => {
+            Err(e) => {
                 // SAFETY: the pool is unused.
                 unsafe { ctx.device.destroy_descriptor_pool(pool, None) };
-                return Err(VkError::call("vkCreateSampler", r));
+                return Err(e);
             }
         };
         Ok(ResolveSets {

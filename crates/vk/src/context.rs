@@ -274,10 +274,8 @@ impl Context {
         };
         let pool_info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(queue_family)
-            .flags(
-                vk::CommandPoolCreateFlags::TRANSIENT
-                    | vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER,
-            );
+            // Each one-time submission allocates its command buffer and frees it: no reset.
+            .flags(vk::CommandPoolCreateFlags::TRANSIENT);
         // SAFETY: valid device and family.
         let upload_pool = match unsafe { device.create_command_pool(&pool_info, None) } {
             Ok(p) => p,
@@ -401,6 +399,12 @@ impl Context {
     /// [`Context::check_validation`] at its end.
     pub fn take_validation_messages(&self) -> Vec<String> {
         self.instance.validation().take()
+    }
+
+    /// The ids of the reviewed, silenced best-practices messages the layer reported
+    /// ([`crate::SILENCED`]): what shows that a vendor's checks ran.
+    pub fn silenced_validation_ids(&self) -> Vec<&'static str> {
+        self.instance.validation().silenced_ids()
     }
 
     /// `Err` with every validation message reported so far; clears them.

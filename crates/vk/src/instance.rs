@@ -76,7 +76,8 @@ impl PhysicalDevice {
 
 impl Instance {
     /// Creates the instance. With validation, `VK_LAYER_KHRONOS_validation` is loaded with
-    /// synchronization validation enabled and every message goes through `log` and the sink.
+    /// synchronization validation and the best-practices checks enabled, and every message goes
+    /// through `log` and the sink (but the reviewed [`crate::SILENCED`] ones).
     pub fn new(app_name: &str, validation: Validation) -> Result<Self, VkError> {
         // SAFETY: loading the system Vulkan loader; failure is reported, not assumed.
         let entry = unsafe { ash::Entry::load() }.map_err(|e| VkError::Loader(e.to_string()))?;
@@ -168,7 +169,12 @@ impl Instance {
             .message_type(kinds)
             .pfn_user_callback(Some(debug_callback))
             .user_data(sink_ptr);
-        let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+        // Best practices too: the vendor checks (Arm, IMG, NVIDIA) are switched on for a whole
+        // process by a `vk_layer_settings.txt` (`cargo xtask test` runs one process per vendor).
+        let enables = [
+            vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION,
+            vk::ValidationFeatureEnableEXT::BEST_PRACTICES,
+        ];
         let mut features =
             vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
         let flags = if has_ext(ash::khr::portability_enumeration::NAME) {
@@ -207,7 +213,7 @@ impl Instance {
         log::info!(
             "Vulkan instance created (validation {}, debug utils {})",
             if validation_enabled {
-                "on, synchronization validation on"
+                "on, synchronization validation and best practices on"
             } else {
                 "off"
             },

@@ -29,4 +29,4 @@ pub use error::VkError;
 pub use features::{Feature, FeatureRequest, FeatureTargets};
 pub use instance::{DeviceLimits, Instance, PhysicalDevice, MIN_API_VERSION};
 pub use memory::{Buffer, Image};
-pub use validation::{Validation, ValidationSink};
+pub use validation::{silenced, Silenced, Validation, ValidationSink, SILENCED};

@@ -321,6 +321,21 @@ fn compare(op: vk::CompareOp) -> DepthCompare {
     }
 }
 
+/// A nearest-filtering, clamp-to-edge sampler for single-level images read texel by texel
+/// (depth, ids). The same mode on every axis and no LOD clamp, as Arm's best practices ask.
+pub fn create_nearest_sampler(ctx: &Context) -> Result<vk::Sampler, VkError> {
+    let info = vk::SamplerCreateInfo::default()
+        .mag_filter(vk::Filter::NEAREST)
+        .min_filter(vk::Filter::NEAREST)
+        .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+        .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+        .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+        .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+        .max_lod(vk::LOD_CLAMP_NONE);
+    // SAFETY: valid create info.
+    unsafe { ctx.device.create_sampler(&info, None) }.vk("vkCreateSampler")
+}
+
 /// Creates a compute pipeline.
 pub fn create_compute_pipeline(
     ctx: &Context,

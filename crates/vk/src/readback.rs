@@ -4,6 +4,7 @@
 use ash::vk;
 use tilegraph_profile::MemoryUse;
 
+use crate::executor::sync::{accesses_in, earlier_work, writes_in};
 use crate::executor::{BufferHandle, ImageHandle};
 use crate::{Context, VkError};
 
@@ -41,7 +42,8 @@ pub fn texel_bytes(format: vk::Format) -> Option<u32> {
 
 /// Copies mip `level` of `image` (currently in `layout`, left in `layout`) to host memory, rows
 /// tightly packed, top row first. Waits for all earlier GPU work (the copy's barrier starts from
-/// ALL_COMMANDS), so call it after the frame that wrote the image was submitted.
+/// every stage a graph records in), so call it after the frame that wrote the image was
+/// submitted.
 pub fn read_image(
     ctx: &Context,
     image: &ImageHandle,
@@ -83,10 +85,17 @@ pub fn read_image(
         base_array_layer: 0,
         layer_count: 1,
     };
+    let earlier = earlier_work(ctx.has_feature(crate::Feature::ConditionalRendering));
+    // An image found undefined is left in GENERAL, which every later use may transition from.
+    let back_layout = if layout == vk::ImageLayout::UNDEFINED {
+        vk::ImageLayout::GENERAL
+    } else {
+        layout
+    };
     let copied = ctx.submit_and_wait(|cb| {
         let to_src = [vk::ImageMemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
-            .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
+            .src_stage_mask(earlier)
+            .src_access_mask(writes_in(layout))
             .dst_stage_mask(vk::PipelineStageFlags2::COPY)
             .dst_access_mask(vk::AccessFlags2::TRANSFER_READ)
             .old_layout(layout)
@@ -122,14 +131,10 @@ pub fn read_image(
         let back = [vk::ImageMemoryBarrier2::default()
             .src_stage_mask(vk::PipelineStageFlags2::COPY)
             .src_access_mask(vk::AccessFlags2::TRANSFER_READ)
-            .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
-            .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)
+            .dst_stage_mask(earlier)
+            .dst_access_mask(accesses_in(back_layout))
             .old_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL)
-            .new_layout(if layout == vk::ImageLayout::UNDEFINED {
-                vk::ImageLayout::GENERAL
-            } else {
-                layout
-            })
+            .new_layout(back_layout)
             .image(image.raw)
             .subresource_range(range)];
         let to_host = [vk::BufferMemoryBarrier2::default()
@@ -170,9 +175,10 @@ pub fn read_buffer(ctx: &Context, src: BufferHandle) -> Result<Vec<u8>, VkError>
         vk::BufferUsageFlags::TRANSFER_DST,
         MemoryUse::Readback,
     )?;
+    let earlier = earlier_work(ctx.has_feature(crate::Feature::ConditionalRendering));
     let copied = ctx.submit_and_wait(|cb| {
         let before = [vk::MemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+            .src_stage_mask(earlier)
             .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
             .dst_stage_mask(vk::PipelineStageFlags2::COPY)
             .dst_access_mask(vk::AccessFlags2::TRANSFER_READ)];

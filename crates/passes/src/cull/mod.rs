@@ -78,7 +78,7 @@ pub fn import_cull_buffers(
 ) -> CullLists {
     // Conservative boundary states: whatever touched them last frame, this frame waits for.
     let any = ResourceState::buffer(
-        PipelineStages::ALL_COMMANDS,
+        PipelineStages::EVERY_GRAPH_STAGE,
         AccessFlags::MEMORY_READ.union(AccessFlags::MEMORY_WRITE),
     );
     let import = |content| Import {

@@ -198,9 +198,11 @@ impl HizBuilder {
     ) -> Result<(), VkError> {
         let timestamps = self.timestamps;
         let stamp = |query: usize| match timestamps {
+            // BOTTOM_OF_PIPE: once everything recorded before has finished (ALL_COMMANDS says
+            // the same for a timestamp, and best practices flag it).
             Some((pool, first)) => ctx.cmd_write_timestamp2(
                 cb,
-                vk::PipelineStageFlags2::ALL_COMMANDS,
+                vk::PipelineStageFlags2::BOTTOM_OF_PIPE,
                 pool,
                 first + query as u32,
             ),

@@ -578,8 +578,9 @@ pub fn add_occlusion_queries(
         .retention(Retention::Always)
         .id();
     let size = conditions?;
+    // Last frame's conditional draws read it (the stage needs the feature these frames have).
     let any = ResourceState::buffer(
-        PipelineStages::ALL_COMMANDS,
+        PipelineStages::EVERY_GRAPH_STAGE.union(PipelineStages::CONDITIONAL_RENDERING),
         AccessFlags::MEMORY_READ.union(AccessFlags::MEMORY_WRITE),
     );
     let conditions = g.import_buffer(

@@ -10,7 +10,8 @@ use tilegraph_scene::DepthConvention;
 use tilegraph_vk::ash;
 use tilegraph_vk::executor::PassContext;
 use tilegraph_vk::pipeline::{
-    create_described_pipeline, create_pipeline_layout, Blend, DepthState, GraphicsDesc, Stage,
+    create_described_pipeline, create_nearest_sampler, create_pipeline_layout, Blend, DepthState,
+    GraphicsDesc, Stage,
 };
 use tilegraph_vk::{Buffer, Context, VkError};
 
@@ -164,16 +165,7 @@ impl Downsample {
                 self.set_layout,
             )?);
         }
-        let sampler_info = vk::SamplerCreateInfo::default()
-            .mag_filter(vk::Filter::NEAREST)
-            .min_filter(vk::Filter::NEAREST)
-            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
-            .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-            .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-            .max_lod(0.0);
-        // SAFETY: valid create info.
-        self.sampler = unsafe { ctx.device.create_sampler(&sampler_info, None) }
-            .map_err(|r| VkError::call("vkCreateSampler", r))?;
+        self.sampler = create_nearest_sampler(ctx)?;
         Ok(())
     }
 

@@ -12,7 +12,7 @@
 mod recorder;
 mod render_pass;
 mod resources;
-mod sync;
+pub(crate) mod sync;
 
 use std::sync::Arc;
 

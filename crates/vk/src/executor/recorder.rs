@@ -7,11 +7,13 @@
 //! nothing here.
 
 use ash::vk;
-use tilegraph_graph::{Attachment, BarrierBatch, PassId, Plan, RenderPass, ResourceId, Step};
+use tilegraph_graph::{
+    Attachment, BarrierBatch, LoadOp, PassId, Plan, RenderPass, ResourceId, Step,
+};
 
 use super::render_pass::{clear_value, RenderPassRef, RenderPasses};
 use super::resources::{BufferHandle, External, Externals, ImageHandle, Resources};
-use super::sync::{buffer_wait, FirstUses};
+use super::sync::{buffer_wait, earlier_work, writes_in, FirstUses};
 use super::FrameStats;
 use crate::error::VkError;
 use crate::frames::{FrameRing, FrameToken, Submission};
@@ -201,25 +203,34 @@ impl FrameRecorder<'_, '_> {
         Ok(())
     }
 
+    /// The stages of all earlier work, for the waits on earlier frames (`sync.rs`).
+    fn earlier_work(&self) -> vk::PipelineStageFlags2 {
+        earlier_work(self.ctx.has_feature(crate::Feature::ConditionalRendering))
+    }
+
     fn barriers(&mut self, batch: &BarrierBatch) -> Result<(), VkError> {
         let (plan, externals, resources) = (self.plan, self.externals, self.resources);
+        let earlier = self.earlier_work();
         let state = &mut *self.state;
         state.images.clear();
         state.buffers.clear();
         for b in &batch.images {
             let h = image_of(externals, resources, b.resource)
                 .ok_or_else(|| missing("barrier", b.resource))?;
-            let (src_s, src_a) =
-                state
-                    .first_uses
-                    .barrier_source(plan, b.resource, b.src_stages, b.src_access);
+            let old_layout = vk::ImageLayout::from_raw(b.old_layout.vk_raw());
+            let mut src_s = vk::PipelineStageFlags2::from_raw(b.src_stages.bits());
+            let mut src_a = vk::AccessFlags2::from_raw(b.src_access.bits());
+            if state.first_uses.widens(plan, b.resource) {
+                src_s |= earlier;
+                src_a |= writes_in(old_layout);
+            }
             state.images.push(
                 vk::ImageMemoryBarrier2::default()
-                    .src_stage_mask(vk::PipelineStageFlags2::from_raw(src_s.bits()))
-                    .src_access_mask(vk::AccessFlags2::from_raw(src_a.bits()))
+                    .src_stage_mask(src_s)
+                    .src_access_mask(src_a)
                     .dst_stage_mask(vk::PipelineStageFlags2::from_raw(b.dst_stages.bits()))
                     .dst_access_mask(vk::AccessFlags2::from_raw(b.dst_access.bits()))
-                    .old_layout(vk::ImageLayout::from_raw(b.old_layout.vk_raw()))
+                    .old_layout(old_layout)
                     .new_layout(vk::ImageLayout::from_raw(b.new_layout.vk_raw()))
                     .image(h.raw)
                     .subresource_range(vk::ImageSubresourceRange {
@@ -234,14 +245,16 @@ impl FrameRecorder<'_, '_> {
         for b in &batch.buffers {
             let h = buffer_of(externals, resources, b.resource)
                 .ok_or_else(|| missing("barrier", b.resource))?;
-            let (src_s, src_a) =
-                state
-                    .first_uses
-                    .barrier_source(plan, b.resource, b.src_stages, b.src_access);
+            let mut src_s = vk::PipelineStageFlags2::from_raw(b.src_stages.bits());
+            let mut src_a = vk::AccessFlags2::from_raw(b.src_access.bits());
+            if state.first_uses.widens(plan, b.resource) {
+                src_s |= earlier;
+                src_a |= vk::AccessFlags2::MEMORY_WRITE;
+            }
             state.buffers.push(
                 vk::BufferMemoryBarrier2::default()
-                    .src_stage_mask(vk::PipelineStageFlags2::from_raw(src_s.bits()))
-                    .src_access_mask(vk::AccessFlags2::from_raw(src_a.bits()))
+                    .src_stage_mask(src_s)
+                    .src_access_mask(src_a)
                     .dst_stage_mask(vk::PipelineStageFlags2::from_raw(b.dst_stages.bits()))
                     .dst_access_mask(vk::AccessFlags2::from_raw(b.dst_access.bits()))
                     .buffer(h.raw)
@@ -264,6 +277,7 @@ impl FrameRecorder<'_, '_> {
         passes: impl Iterator<Item = PassId>,
     ) -> Result<(), VkError> {
         let (plan, externals, resources) = (self.plan, self.externals, self.resources);
+        let earlier = self.earlier_work();
         let state = &mut *self.state;
         if !state.first_uses.reused() {
             return Ok(());
@@ -279,7 +293,7 @@ impl FrameRecorder<'_, '_> {
                 continue;
             };
             state.waited.push(id);
-            state.buffers.push(buffer_wait(h.raw));
+            state.buffers.push(buffer_wait(h.raw, earlier));
         }
         if state.buffers.is_empty() {
             return Ok(());
@@ -314,8 +328,17 @@ impl FrameRecorder<'_, '_> {
         let fb =
             self.render_passes
                 .framebuffer(self.ctx, step_index, raw_rp, &state.views, extent)?;
+        // Clear values up to the last attachment that clears, none when nothing does
+        // (best practices: ClearValueWithoutLoadOpClear).
+        let clearing = rp
+            .attachments
+            .iter()
+            .rposition(|a| a.load_op == LoadOp::Clear || a.stencil_load_op == LoadOp::Clear)
+            .map_or(0, |i| i + 1);
         state.clears.clear();
-        state.clears.extend(rp.attachments.iter().map(clear_value));
+        state
+            .clears
+            .extend(rp.attachments[..clearing].iter().map(clear_value));
         let begin = vk::RenderPassBeginInfo::default()
             .render_pass(raw_rp)
             .framebuffer(fb)

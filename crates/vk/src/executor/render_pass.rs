@@ -8,7 +8,7 @@ use ash::vk;
 use tilegraph_graph::{Attachment, ClearColor, ClearValue, RenderPass};
 
 use super::resources::aspect_of;
-use super::sync::{external_dependency, first_subpasses_of_undefined_attachments};
+use super::sync::{earlier_work, external_dependency, first_subpasses_of_undefined_attachments};
 use crate::error::{VkError, VkResultExt};
 use crate::Context;
 
@@ -212,9 +212,10 @@ pub(super) fn create_render_pass(
     // Attachments that start undefined were last written by an earlier frame (frames in flight
     // share the memory) or by the caller: see `sync.rs`.
     let external_into = first_subpasses_of_undefined_attachments(plan_rp);
+    let earlier = earlier_work(ctx.has_feature(crate::Feature::ConditionalRendering));
     let mut external_barriers: Vec<vk::MemoryBarrier2> = external_into
         .iter()
-        .map(|_| external_dependency())
+        .map(|_| external_dependency(earlier))
         .collect();
     let mut dependencies: Vec<vk::SubpassDependency2> = plan_rp
         .dependencies

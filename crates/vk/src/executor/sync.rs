@@ -3,7 +3,8 @@
 //! wherever it first touches what they may still use:
 //!
 //! - a graph-owned resource's first barrier in a frame also waits for all earlier work
-//!   (`ALL_COMMANDS` / `MEMORY_WRITE` added to its source scope);
+//!   ([`earlier_work`] stages, and the writes the resource's layout allows, added to its source
+//!   scope);
 //! - a graph-owned buffer whose first use has no barrier in the plan (nothing earlier in the
 //!   frame touched it) gets one before its step;
 //! - an attachment that starts `UNDEFINED` in a render pass gets an external subpass
@@ -13,9 +14,7 @@
 //! two.
 
 use ash::vk;
-use tilegraph_graph::{
-    AccessFlags, Layout, PassId, PipelineStages, Plan, RenderPass, Residency, ResourceId,
-};
+use tilegraph_graph::{Layout, PassId, Plan, RenderPass, Residency, ResourceId};
 
 /// Which graph-owned resources this frame has touched so far.
 #[derive(Debug, Default)]
@@ -38,29 +37,16 @@ impl FirstUses {
         self.reused
     }
 
-    /// The source scope of a plan barrier on `id`: widened to all earlier work when this is the
-    /// frame's first touch of a resource the graph owns and earlier frames used it.
-    pub fn barrier_source(
-        &mut self,
-        plan: &Plan,
-        id: ResourceId,
-        stages: PipelineStages,
-        access: AccessFlags,
-    ) -> (PipelineStages, AccessFlags) {
+    /// Whether the source scope of a plan barrier on `id` widens to all earlier work: the
+    /// frame's first touch of a resource the graph owns, when earlier frames used it.
+    pub fn widens(&mut self, plan: &Plan, id: ResourceId) -> bool {
         let owned = is_owned(plan, id);
         let Some(seen) = self.seen.get_mut(id.index()) else {
-            return (stages, access);
+            return false;
         };
         let first = owned && !*seen;
         *seen = true;
-        if self.reused && first {
-            (
-                stages.union(PipelineStages::ALL_COMMANDS),
-                access.union(AccessFlags::MEMORY_WRITE),
-            )
-        } else {
-            (stages, access)
-        }
+        self.reused && first
     }
 
     /// Whether `id` is a graph-owned resource this frame has not touched yet.
@@ -90,13 +76,71 @@ fn is_owned(plan: &Plan, id: ResourceId) -> bool {
     })
 }
 
+/// Every stage a graph can declare work in — what "all earlier work" of the frames in flight
+/// means here. Spelled out rather than `ALL_COMMANDS`, which the best-practices checks flag as
+/// a stall of everything; the same scope for what tilegraph records. `conditional`: the
+/// device has conditional rendering enabled (its stage bit needs the feature).
+pub fn earlier_work(conditional: bool) -> vk::PipelineStageFlags2 {
+    let all = vk::PipelineStageFlags2::DRAW_INDIRECT
+        | vk::PipelineStageFlags2::VERTEX_INPUT
+        | vk::PipelineStageFlags2::PRE_RASTERIZATION_SHADERS
+        | vk::PipelineStageFlags2::FRAGMENT_SHADER
+        | vk::PipelineStageFlags2::EARLY_FRAGMENT_TESTS
+        | vk::PipelineStageFlags2::LATE_FRAGMENT_TESTS
+        | vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT
+        | vk::PipelineStageFlags2::COMPUTE_SHADER
+        | vk::PipelineStageFlags2::ALL_TRANSFER;
+    if conditional {
+        all | vk::PipelineStageFlags2::CONDITIONAL_RENDERING_EXT
+    } else {
+        all
+    }
+}
+
+/// The writes an image left in `layout` may still have pending: those its layout allows.
+/// Writes made in an earlier layout were made available by the transition that left it, which
+/// the [`earlier_work`] stages chain with. (The best-practices table of accesses per layout
+/// flags `MEMORY_WRITE` on a read-only layout.)
+pub fn writes_in(layout: vk::ImageLayout) -> vk::AccessFlags2 {
+    match layout {
+        vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL => vk::AccessFlags2::COLOR_ATTACHMENT_WRITE,
+        vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL
+        | vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL => {
+            vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE
+        }
+        vk::ImageLayout::TRANSFER_DST_OPTIMAL => vk::AccessFlags2::TRANSFER_WRITE,
+        vk::ImageLayout::TRANSFER_SRC_OPTIMAL
+        | vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL
+        | vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL
+        | vk::ImageLayout::DEPTH_READ_ONLY_OPTIMAL
+        | vk::ImageLayout::PRESENT_SRC_KHR => vk::AccessFlags2::NONE,
+        _ => vk::AccessFlags2::MEMORY_WRITE,
+    }
+}
+
+/// The reads and writes an image in `layout` may be the target of (the best-practices table):
+/// the destination of a barrier that hands it back to work of unknown kind.
+pub fn accesses_in(layout: vk::ImageLayout) -> vk::AccessFlags2 {
+    match layout {
+        vk::ImageLayout::TRANSFER_SRC_OPTIMAL => vk::AccessFlags2::TRANSFER_READ,
+        vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL => {
+            vk::AccessFlags2::SHADER_READ | vk::AccessFlags2::INPUT_ATTACHMENT_READ
+        }
+        vk::ImageLayout::PRESENT_SRC_KHR => vk::AccessFlags2::NONE,
+        l => writes_in(l) | vk::AccessFlags2::MEMORY_READ,
+    }
+}
+
 /// The barrier a graph-owned buffer gets before the step that first uses it in a frame when
-/// the plan puts none there.
-pub(super) fn buffer_wait(buffer: vk::Buffer) -> vk::BufferMemoryBarrier2<'static> {
+/// the plan puts none there: after all earlier work (`stages`, [`earlier_work`]).
+pub(super) fn buffer_wait(
+    buffer: vk::Buffer,
+    stages: vk::PipelineStageFlags2,
+) -> vk::BufferMemoryBarrier2<'static> {
     vk::BufferMemoryBarrier2::default()
-        .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+        .src_stage_mask(stages)
         .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
-        .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+        .dst_stage_mask(stages)
         .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)
         .buffer(buffer)
         .size(vk::WHOLE_SIZE)
@@ -128,11 +172,11 @@ pub(super) fn first_subpasses_of_undefined_attachments(rp: &RenderPass) -> Vec<u
     into
 }
 
-/// The scopes of that external dependency: all earlier writes, before any attachment access
-/// of the subpass.
-pub(super) fn external_dependency() -> vk::MemoryBarrier2<'static> {
+/// The scopes of that external dependency: all earlier writes (`stages`, [`earlier_work`]),
+/// before any attachment access of the subpass.
+pub(super) fn external_dependency(stages: vk::PipelineStageFlags2) -> vk::MemoryBarrier2<'static> {
     vk::MemoryBarrier2::default()
-        .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+        .src_stage_mask(stages)
         .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
         .dst_stage_mask(
             vk::PipelineStageFlags2::EARLY_FRAGMENT_TESTS
