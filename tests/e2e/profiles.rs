@@ -1,5 +1,5 @@
 //! Profiles checked against the frames they shape (lavapipe, validation on), for every profile
-//! and every technique on a scene with opaque, alpha-tested and blended materials:
+//! and every technique on the shipped scenes:
 //!
 //! - the state lint of the shipped passes: a finding is either fixed or listed, with its
 //!   reason, in docs/PROFILES.md's "Accepted lint findings" table — and a listed finding that
@@ -35,6 +35,10 @@ const FRAMES: &[(Technique, Culling, u32)] = &[
     (Technique::Prepass, Culling::RasterOcclusion, 1),
     (Technique::Prepass, Culling::RasterOcclusion, 2),
 ];
+
+/// The shipped procedural scenes: opaque, alpha-tested (forest, field, interior) and blended
+/// (city, interior) materials.
+const SCENES: &[&str] = &["interior:100", "city:100", "forest:100", "field:100"];
 
 /// One row of the accepted-findings table.
 #[derive(Debug)]
@@ -95,8 +99,14 @@ fn shape(p: &Profile) -> String {
 fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
     let accepted = accepted();
     assert!(!accepted.is_empty());
-    let scene = tilegraph_scene::load("interior:100").unwrap();
-    let camera = scene.camera_path().camera(0).unwrap();
+    let scenes: Vec<_> = SCENES
+        .iter()
+        .map(|name| {
+            let scene = tilegraph_scene::load(name).unwrap();
+            let camera = scene.camera_path().camera(0).unwrap();
+            (*name, scene, camera)
+        })
+        .collect();
     let set = ProfileSet::embedded().unwrap();
     let mut shapes: BTreeMap<String, Vec<&Profile>> = BTreeMap::new();
     for p in set.profiles() {
@@ -119,7 +129,10 @@ fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
             features.optional.extend(f.optional);
         }
         let g = gpu_with(Some(&recording.name), features).unwrap();
-        for &(technique, culling, scale) in FRAMES {
+        for ((name, scene, camera), &(technique, culling, scale)) in scenes
+            .iter()
+            .flat_map(|s| FRAMES.iter().map(move |f| (s, f)))
+        {
             let options = RenderOptions {
                 technique,
                 culling,
@@ -128,12 +141,17 @@ fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
                 height: 36,
                 ..Default::default()
             };
-            let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+            let mut r = SceneRenderer::new(&g, scene, options).unwrap();
             r.lint_next_frame();
-            let report = r.render(&g, &scene, &camera).unwrap();
+            let report = r.render(&g, scene, camera).unwrap();
             r.finish(&g).unwrap();
             r.destroy(&g);
-            let frame = format!("{} / {} / {}", technique.name(), culling.name(), scale);
+            let frame = format!(
+                "{name} {} / {} / {}",
+                technique.name(),
+                culling.name(),
+                scale
+            );
             for p in profiles {
                 check_promises(p, &report.plan, culling, &frame);
             }
@@ -151,7 +169,10 @@ fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
             }
         }
     }
-    assert!(linted >= 18 * FRAMES.len(), "{linted} frames linted");
+    assert!(
+        linted >= 18 * FRAMES.len() * SCENES.len(),
+        "{linted} frames linted"
+    );
     unaccepted.sort();
     unaccepted.dedup();
     assert!(
