@@ -6,14 +6,15 @@
 //!   no frame produces any more is an error too, so the table stays true;
 //! - the promises the profile makes about the compiled plan: occlusion queries in a render
 //!   pass of their own, after a flush, where it says so (and no flush where it does not) —
-//!   raster occlusion's boxes are of the same class and follow the same rule;
+//!   raster occlusion's boxes are of the same class and follow the same rule; passes in the
+//!   profile's class order unless a dependency puts them otherwise;
 //!   next-frame queries after all drawing; attachments whose whole life is one render pass
 //!   transient exactly where the profile keeps data on chip.
 
 use std::collections::BTreeMap;
 
 use tilegraph_e2e::gpu_with;
-use tilegraph_graph::{FlushReason, PassClass, Plan, Residency, Step};
+use tilegraph_graph::{FlushReason, PassClass, Plan, Residency, Step, UseKind};
 use tilegraph_passes::cull::Culling;
 use tilegraph_passes::lint::FrameLint;
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
@@ -255,6 +256,53 @@ fn check_promises(p: &Profile, plan: &Plan, culling: Culling, frame: &str) {
                     q.step.0 as usize <= last_query,
                     "{} after the queries: {at}",
                     q.name
+                );
+            }
+        }
+    }
+    // Passes in the profile's class order: a pass of a later class runs before one of an
+    // earlier class only when the earlier-class pass depends on it (through a resource, as a
+    // same-frame query's results feed the colour passes).
+    let touches = |a: &tilegraph_graph::PlannedPass, b: &tilegraph_graph::PlannedPass| {
+        let shared = b.uses.iter().any(|ub| {
+            a.uses
+                .iter()
+                .any(|ua| ua.resource == ub.resource && (ua.kind.writes() || ub.kind.writes()))
+        });
+        // Same-frame query results reach the copy through the query pool, an explicit
+        // `after` edge the plan does not keep: what is predicated on them depends on the
+        // queries.
+        let predicated = a.class == PassClass::OcclusionQuery
+            && b.uses
+                .iter()
+                .any(|u| u.kind == UseKind::ConditionalPredicate);
+        shared || predicated
+    };
+    // depends[j][k]: pass j (transitively) depends on the earlier pass k.
+    let mut depends: Vec<Vec<bool>> = Vec::with_capacity(plan.passes.len());
+    for (j, b) in plan.passes.iter().enumerate() {
+        let mut row = vec![false; plan.passes.len()];
+        for (k, a) in plan.passes[..j].iter().enumerate() {
+            if touches(a, b) {
+                row[k] = true;
+                for (m, d) in depends[k].iter().enumerate() {
+                    row[m] |= *d;
+                }
+            }
+        }
+        depends.push(row);
+    }
+    for (b, row) in plan.passes.iter().zip(&depends) {
+        for (a, depends_on_a) in plan.passes.iter().zip(row) {
+            let out_of_order = p.passes.class_rank(a.class) > p.passes.class_rank(b.class);
+            if a.step.0 < b.step.0 || (a.step == b.step && a.subpass < b.subpass) {
+                assert!(
+                    !out_of_order || *depends_on_a,
+                    "{} ({}) runs before {} ({}) without feeding it: {at}",
+                    a.name,
+                    a.class.name(),
+                    b.name,
+                    b.class.name()
                 );
             }
         }

@@ -252,7 +252,9 @@ pub struct StateRule {
     /// Short explanation shown by the lint.
     pub note: String,
     /// Where the rule comes from: a key of docs/PROFILES.md's sources with the section
-    /// (`S001 1.1.4`), or `unsourced`. Printed with every finding.
+    /// (`S001 1.1.4`), or `unsourced`. Printed with every finding; loading rejects a rule
+    /// without one.
+    #[serde(default)]
     pub source: String,
 }
 

@@ -144,8 +144,10 @@ impl DrawState {
                 let (true, Some(dir)) = (self.depth_write, self.direction()) else {
                     return false;
                 };
+                // Only depth-writing draws set the direction (turnip's `prev_direction`).
                 earlier
                     .iter()
+                    .filter(|d| d.depth_write)
                     .filter_map(|d| d.direction())
                     .any(|d| d != dir)
             }
@@ -231,12 +233,17 @@ impl fmt::Display for Finding {
 /// Applies `profile`'s state rules to a frame's render passes. A rule whose damage lasts for
 /// the rest of the render pass is reported once per render pass, at the draw that triggers
 /// it, with the count of later draws it reaches; a per-draw rule at every draw it fires on.
+///
+/// Each render pass is linted on its own. On Adreno, turnip keeps LRZ invalid until the depth
+/// is cleared, so damage done in a render pass whose depth a later one loads (two-phase
+/// culling's second depth pass) reaches further than reported; the shipped frames clear depth
+/// in their first render pass and trigger no such rule.
 pub fn lint(profile: &Profile, render_passes: &[LintRenderPass]) -> Vec<Finding> {
     let mut findings = Vec::new();
     let mut earlier: Vec<&DrawState> = Vec::new();
     for rp in render_passes {
         earlier.clear();
-        let mut reported: Vec<PipelineState> = Vec::new();
+        let mut reported: Vec<(PipelineState, StateEffect)> = Vec::new();
         for (i, draw) in rp.draws.iter().enumerate() {
             for rule in &profile.state_rules {
                 if !draw.state.has(rule.state, &earlier) {
@@ -244,9 +251,13 @@ pub fn lint(profile: &Profile, render_passes: &[LintRenderPass]) -> Vec<Finding>
                 }
                 let later_draws = match rule.scope {
                     StateScope::Draw => 0,
-                    StateScope::RestOfRenderPass if reported.contains(&rule.state) => continue,
+                    StateScope::RestOfRenderPass
+                        if reported.contains(&(rule.state, rule.effect)) =>
+                    {
+                        continue
+                    }
                     StateScope::RestOfRenderPass => {
-                        reported.push(rule.state);
+                        reported.push((rule.state, rule.effect));
                         rp.draws.len() - i - 1
                     }
                 };

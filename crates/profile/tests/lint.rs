@@ -177,6 +177,18 @@ fn lrz_off_for_the_rest_of_the_pass_is_reported_once_with_the_draws_it_reaches()
 }
 
 #[test]
+fn only_depth_writing_draws_set_the_direction() {
+    // A depth-tested box that writes nothing (an occlusion query) in the other direction:
+    // turnip keeps the direction of the draws that write depth.
+    let p = profile("adreno-6xx");
+    let mut query = opaque("oq_box");
+    query.depth_compare = DepthCompare::LessOrEqual;
+    query.depth_write = false;
+    query.color_writes = ColorWrites::None;
+    assert!(lint(&p, &[pass(vec![query, opaque("a")])]).is_empty());
+}
+
+#[test]
 fn the_rule_is_per_render_pass() {
     let p = profile("adreno-6xx");
     let mut less = opaque("less");

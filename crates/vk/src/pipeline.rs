@@ -288,7 +288,8 @@ pub fn draw_state(desc: &GraphicsDesc<'_>) -> Result<DrawState, VkError> {
     Ok(DrawState {
         pipeline,
         depth_test: desc.depth.test,
-        depth_write: desc.depth.write,
+        // Vulkan writes no depth when the test is off.
+        depth_write: desc.depth.test && desc.depth.write,
         depth_compare: compare(desc.depth.compare),
         blend: desc.blend == Blend::Alpha && writes_color,
         color_writes: if writes_color {

@@ -41,9 +41,10 @@ pub fn texel_bytes(format: vk::Format) -> Option<u32> {
 }
 
 /// Copies mip `level` of `image` (currently in `layout`, left in `layout`) to host memory, rows
-/// tightly packed, top row first. Waits for all earlier GPU work (the copy's barrier starts from
-/// every stage a graph records in), so call it after the frame that wrote the image was
-/// submitted.
+/// tightly packed, top row first. Waits for the earlier GPU work of every stage a graph can
+/// declare ([`crate::executor::sync::earlier_work`]; an engine image last touched by other
+/// stages — ray tracing, say — needs the engine's own barrier first), so call it after the
+/// frame that wrote the image was submitted.
 pub fn read_image(
     ctx: &Context,
     image: &ImageHandle,

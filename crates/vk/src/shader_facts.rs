@@ -8,8 +8,12 @@
 //! once branches on specialization constants are folded (`OpSpecConstantOp` comparisons and
 //! logic, `OpBranchConditional` and `OpSwitch` on a known value); a branch on anything else
 //! keeps both sides. Pure: no Vulkan calls, tested without a device.
+//!
+//! Limits, on the safe side for shaders glslc writes: 64-bit constants are read by their low
+//! word, and a store through a pointer passed as a function parameter or copied with
+//! `OpCopyObject` is not followed to its storage class.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use crate::error::VkError;
 use crate::shader::spirv_words;
@@ -70,12 +74,16 @@ mod op {
     pub const TERMINATE_INVOCATION: u16 = 4416;
     pub const DEMOTE_TO_HELPER_INVOCATION: u16 = 5380;
     pub const ENTRY_POINT: u16 = 15;
+    pub const COPY_MEMORY: u16 = 63;
+    pub const ATOMIC_F_MIN: u16 = 5614;
+    pub const ATOMIC_F_MAX: u16 = 5615;
 }
 
 const DECORATION_SPEC_ID: u32 = 1;
 const DECORATION_BUILT_IN: u32 = 11;
 const BUILT_IN_FRAG_DEPTH: u32 = 22;
 const MODE_EARLY_FRAGMENT_TESTS: u32 = 9;
+const EXECUTION_MODEL_FRAGMENT: u32 = 4;
 /// Storage classes a fragment shader can write memory through: Uniform (a `BufferBlock`,
 /// SPIR-V 1.0's storage buffer), Image, StorageBuffer, PhysicalStorageBuffer.
 const WRITABLE_CLASSES: [u32; 4] = [2, 11, 12, 5349];
@@ -106,6 +114,8 @@ pub fn fragment_facts(
         reason: format!("malformed instruction at word {at}"),
     };
     let mut facts = FragmentFacts::default();
+    // (function, early fragment tests declared for it)
+    let mut early_tests_for: Vec<u32> = Vec::new();
     let mut spec_ids: HashMap<u32, u32> = HashMap::new();
     let mut frag_depth: Vec<u32> = Vec::new();
     let mut values: HashMap<u32, u32> = HashMap::new();
@@ -125,9 +135,12 @@ pub fn fragment_facts(
         };
         let w = |i: usize| ins.get(i).copied().ok_or_else(|| malformed(at));
         match opcode {
-            op::ENTRY_POINT => entry_function = Some(w(2)?),
+            // The fragment entry point (a module may hold several stages).
+            op::ENTRY_POINT if w(1)? == EXECUTION_MODEL_FRAGMENT => {
+                entry_function = Some(w(2)?);
+            }
             op::EXECUTION_MODE if w(2)? == MODE_EARLY_FRAGMENT_TESTS => {
-                facts.early_fragment_tests = true;
+                early_tests_for.push(w(1)?);
             }
             op::DECORATE => match (w(2)?, ins.get(3)) {
                 (DECORATION_SPEC_ID, Some(&id)) => {
@@ -209,10 +222,19 @@ pub fn fragment_facts(
                         block.storage_writes = true;
                     }
                 }
+                op::COPY_MEMORY
+                    if classes
+                        .get(&w(1)?)
+                        .is_some_and(|c| WRITABLE_CLASSES.contains(c)) =>
+                {
+                    block.storage_writes = true;
+                }
                 op::IMAGE_WRITE
                 | op::ATOMIC_FLAG_TEST_AND_SET
                 | op::ATOMIC_FLAG_CLEAR
-                | op::ATOMIC_F_ADD => block.storage_writes = true,
+                | op::ATOMIC_F_ADD
+                | op::ATOMIC_F_MIN
+                | op::ATOMIC_F_MAX => block.storage_writes = true,
                 o if (op::ATOMIC_STORE..=op::ATOMIC_XOR).contains(&o) => {
                     // Every atomic but OpAtomicLoad writes; a fragment shader's atomics are on
                     // storage buffers or images.
@@ -252,17 +274,17 @@ pub fn fragment_facts(
     }
     let _ = op::ATOMIC_LOAD; // the one atomic that does not write (excluded by the range)
 
+    facts.early_fragment_tests = entry_function.is_some_and(|f| early_tests_for.contains(&f));
     // Reachability from the entry point's first block, into called functions.
-    let mut seen: Vec<u32> = Vec::new();
+    let mut seen: HashSet<u32> = HashSet::new();
     let mut work: Vec<u32> = entry_function
         .and_then(|f| function_entry.get(&f).copied())
         .into_iter()
         .collect();
     while let Some(label) = work.pop() {
-        if seen.contains(&label) {
+        if !seen.insert(label) {
             continue;
         }
-        seen.push(label);
         let Some(b) = blocks.get(&label) else {
             continue;
         };

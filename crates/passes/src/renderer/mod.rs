@@ -96,6 +96,8 @@ pub struct SceneRenderer {
     declared: Option<DeclaredFrame>,
     /// Plans of graphs declared by the caller ([`Self::execute_graph`]).
     plan_cache: PlanCache,
+    /// The next frame recorded is traced for the state lint.
+    lint_armed: bool,
 }
 
 impl SceneRenderer {
@@ -179,6 +181,7 @@ impl SceneRenderer {
             last_camera: None,
             declared: None,
             plan_cache: PlanCache::new(),
+            lint_armed: false,
         })
     }
 
@@ -199,7 +202,17 @@ impl SceneRenderer {
     /// Lints the next frame: every pipeline it binds is traced and checked against the
     /// profile's state rules ([`FrameReport::lint`]). The frames after it are not traced.
     pub fn lint_next_frame(&mut self) {
-        self.resources.pipelines.start_trace();
+        self.lint_armed = true;
+    }
+
+    /// Starts the lint's trace for the frame about to record when one was asked for; drops
+    /// what a failed frame left (a frame that fails is not linted).
+    fn arm_trace(&mut self) {
+        let pipelines = &mut self.resources.pipelines;
+        pipelines.take_trace();
+        if std::mem::take(&mut self.lint_armed) {
+            pipelines.start_trace();
+        }
     }
 
     /// The colour target every frame ends in (`TRANSFER_SRC_OPTIMAL` after a frame); `None`
@@ -303,6 +316,7 @@ impl SceneRenderer {
         image: &ImageHandle,
         engine: Option<EngineFrame>,
     ) -> Result<FrameReport, RenderError> {
+        self.arm_trace();
         let key = DeclarationKey {
             depth,
             // Only the id target the renderer keeps is imported differently on the first
@@ -402,6 +416,7 @@ impl SceneRenderer {
         externals: &Externals,
         engine: Option<EngineFrame>,
     ) -> Result<FrameReport, RenderError> {
+        self.arm_trace();
         let mut frame = self.plan_cache.compile(graph, ctx.profile())?;
         let resources = &mut self.resources;
         let mut record = |id: tilegraph_graph::PassId, pc: &mut PassContext<'_>| match frame

@@ -3,8 +3,8 @@
 //! wherever it first touches what they may still use:
 //!
 //! - a graph-owned resource's first barrier in a frame also waits for all earlier work
-//!   ([`earlier_work`] stages, and the writes the resource's layout allows, added to its source
-//!   scope);
+//!   ([`earlier_work`] stages and `MEMORY_WRITE` added to its source scope: a graph-owned image
+//!   starts each frame `UNDEFINED`, where the layout table allows any access);
 //! - a graph-owned buffer whose first use has no barrier in the plan (nothing earlier in the
 //!   frame touched it) gets one before its step;
 //! - an attachment that starts `UNDEFINED` in a render pass gets an external subpass
@@ -97,23 +97,27 @@ pub fn earlier_work(conditional: bool) -> vk::PipelineStageFlags2 {
     }
 }
 
-/// The writes an image left in `layout` may still have pending: those its layout allows.
-/// Writes made in an earlier layout were made available by the transition that left it, which
-/// the [`earlier_work`] stages chain with. (The best-practices table of accesses per layout
-/// flags `MEMORY_WRITE` on a read-only layout.)
+/// The writes an image found in `layout` may still have pending, named by the kind of work
+/// that leaves an image there rather than as `MEMORY_WRITE` (which the best-practices table of
+/// accesses per layout flags). A render pass that leaves an attachment read-only still stored
+/// it, and render passes have no outgoing external dependency to make that store available:
+/// read-only attachment layouts name the attachment write. Transfer-source and present layouts
+/// are left by reads (a copy, presentation), whose own barriers made earlier writes available.
 pub fn writes_in(layout: vk::ImageLayout) -> vk::AccessFlags2 {
     match layout {
-        vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL => vk::AccessFlags2::COLOR_ATTACHMENT_WRITE,
+        vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL | vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL => {
+            vk::AccessFlags2::COLOR_ATTACHMENT_WRITE
+        }
         vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL
-        | vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL => {
+        | vk::ImageLayout::DEPTH_ATTACHMENT_OPTIMAL
+        | vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL
+        | vk::ImageLayout::DEPTH_READ_ONLY_OPTIMAL => {
             vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE
         }
         vk::ImageLayout::TRANSFER_DST_OPTIMAL => vk::AccessFlags2::TRANSFER_WRITE,
-        vk::ImageLayout::TRANSFER_SRC_OPTIMAL
-        | vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL
-        | vk::ImageLayout::DEPTH_STENCIL_READ_ONLY_OPTIMAL
-        | vk::ImageLayout::DEPTH_READ_ONLY_OPTIMAL
-        | vk::ImageLayout::PRESENT_SRC_KHR => vk::AccessFlags2::NONE,
+        vk::ImageLayout::TRANSFER_SRC_OPTIMAL | vk::ImageLayout::PRESENT_SRC_KHR => {
+            vk::AccessFlags2::NONE
+        }
         _ => vk::AccessFlags2::MEMORY_WRITE,
     }
 }
