@@ -14,6 +14,7 @@ use tilegraph_graph::{
 };
 use tilegraph_passes::draws::DrawClass;
 use tilegraph_passes::forward::{add_forward, add_transparent};
+use tilegraph_passes::pipelines::ColourDepth;
 use tilegraph_passes::prepass::add_depth_prepass;
 use tilegraph_passes::{
     DrawSource, FrameGraph, Payload, RenderOptions, SceneRenderer, SceneTargets, Technique,
@@ -70,7 +71,7 @@ fn engine_frame(
         &mut g,
         &mut t,
         DrawClass::Opaque,
-        true,
+        ColourDepth::Equal,
         DrawSource::Cpu,
         None,
         "opaque",

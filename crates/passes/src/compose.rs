@@ -10,16 +10,18 @@ use tilegraph_graph::{
 use tilegraph_profile::Profile;
 use tilegraph_scene::DepthConvention;
 use tilegraph_vk::executor::{External, Externals, ImageHandle};
-use tilegraph_vk::Buffer;
 
 use crate::cull::{add_cull, add_cull_late, import_cull_buffers, CullLists, CullState, Culling};
 use crate::draws::DrawClass;
 use crate::forward::{add_clear, add_forward, add_transparent};
 use crate::frame::{DrawSource, FrameGraph, States};
 use crate::hiz::{add_hiz_build, HizState};
-use crate::occlusion::{add_occlusion_queries, add_raster_occlusion, OqState};
+use crate::occlusion::{
+    add_occlusion_queries, add_raster_occlusion, import_query_results, OqState,
+};
 use crate::options::RenderOptions;
-use crate::prepass::add_depth_prepass;
+use crate::pipelines::ColourDepth;
+use crate::prepass::{add_depth_prepass, add_depth_prepass_of_last_visible};
 use crate::setup::{FrameSetup, PassKind};
 use crate::targets::SceneTargets;
 use crate::visbuf::{add_visbuf_resolve, add_visbuf_write};
@@ -82,12 +84,14 @@ pub(crate) struct SceneFrame<'a> {
 }
 
 /// One geometry pass to declare: which, in which culling phase (0: early or only), drawing
-/// from where, predicated on which query results, under which name.
+/// from where, predicated on which query results (a depth pre-pass: last frame's; colour:
+/// this frame's), whether a pre-pass wrote only part of the depth, under which name.
 struct Geometry<'n> {
     pass: PassKind,
     phase: u32,
     source: DrawSource,
     predicate: Option<BufferId>,
+    partial_prepass: bool,
     name: &'n str,
 }
 
@@ -129,7 +133,10 @@ struct Composition<'a> {
     t: SceneTargets,
     /// The culling buffers, with GPU culling.
     lists: Option<CullLists>,
-    /// Same-frame occlusion queries: their results on the GPU, once declared.
+    /// Same-frame occlusion queries: the buffer of their results on the GPU, which holds the
+    /// previous frame's until this frame's copy (imported up front: the pre-pass reads them).
+    results: Option<BufferId>,
+    /// This frame's results, once the queries and their copy are declared.
     conditions: Option<BufferId>,
     /// Raster occlusion: its flags and culling are declared.
     flags_declared: bool,
@@ -186,12 +193,21 @@ impl<'a> Composition<'a> {
             }
             lists
         });
+        let results = match (options.culling, states.get::<OqState>()) {
+            (Culling::OqConditional, Some(q)) => q.conditions.as_ref().map(|buffer| {
+                let id = import_query_results(&mut g, buffer.size);
+                externals.insert(id, External::Buffer(CullState::handle(buffer)));
+                id
+            }),
+            _ => None,
+        };
         Composition {
             spec,
             g,
             externals,
             t,
             lists,
+            results,
             conditions: None,
             flags_declared: false,
         }
@@ -249,11 +265,19 @@ impl<'a> Composition<'a> {
                 (Some(lists), _, _) => lists.source(phase),
             };
             let name = format!("{}{suffix}", pass.name());
+            // Same-frame queries test boxes against last frame's visible set, drawn in depth
+            // under last frame's results; colour, predicated on this frame's, writes the rest.
+            let predicate = if depth_only {
+                self.results
+            } else {
+                self.conditions
+            };
             self.geometry(Geometry {
                 pass,
                 phase,
                 source,
-                predicate: self.conditions,
+                predicate,
+                partial_prepass: self.results.is_some(),
                 name: &name,
             });
         }
@@ -265,13 +289,7 @@ impl<'a> Composition<'a> {
     fn before_colour(&mut self) {
         let culling = self.culling();
         if culling.conditional() && self.conditions.is_none() && self.t.depth_written() {
-            let results = self
-                .spec
-                .states
-                .get::<OqState>()
-                .and_then(|q| q.conditions.as_ref());
-            self.conditions =
-                declare_queries(&mut self.g, &mut self.externals, self.t.depth, results);
+            self.conditions = add_occlusion_queries(&mut self.g, self.t.depth, self.results);
         }
         if culling == Culling::RasterOcclusion && !self.flags_declared {
             match (self.lists, self.t.depth_written()) {
@@ -303,6 +321,7 @@ impl<'a> Composition<'a> {
                 phase: 0,
                 source: self.lists.map_or(DrawSource::Cpu, |l| l.source(0)),
                 predicate: self.conditions,
+                partial_prepass: false,
                 name: pass.name(),
             });
         }
@@ -326,7 +345,7 @@ impl<'a> Composition<'a> {
             add_hiz_build(g, t.depth, pyramid);
         }
         if culling.uses_queries() && !culling.conditional() && t.depth_written() {
-            declare_queries(g, &mut self.externals, t.depth, None);
+            add_occlusion_queries(g, t.depth, None);
         }
         if !t.color_written() {
             add_clear(g, t);
@@ -348,21 +367,6 @@ impl<'a> Composition<'a> {
     }
 }
 
-/// The occlusion queries; with `conditions` (their results on the GPU, for conditional
-/// rendering), the copy of the results too, its buffer among the externals.
-fn declare_queries(
-    g: &mut FrameGraph,
-    externals: &mut Externals,
-    depth: ImageId,
-    conditions: Option<&Buffer>,
-) -> Option<BufferId> {
-    let id = add_occlusion_queries(g, depth, conditions.map(|b| b.size))?;
-    if let Some(buffer) = conditions {
-        externals.insert(id, External::Buffer(CullState::handle(buffer)));
-    }
-    Some(id)
-}
-
 /// One geometry pass of the frame setup.
 fn declare_geometry(
     g: &mut FrameGraph,
@@ -375,30 +379,32 @@ fn declare_geometry(
         phase,
         source,
         predicate,
+        partial_prepass,
         name,
     } = geometry;
+    let depth = |class: u32| match (setup.prepassed(class), partial_prepass) {
+        (false, _) => ColourDepth::Write,
+        (true, false) => ColourDepth::Equal,
+        (true, true) => ColourDepth::WriteOrEqual,
+    };
     match pass {
-        PassKind::DepthPrepassOpaque => {
-            add_depth_prepass(g, t, DrawClass::Opaque, source, name);
-        }
-        PassKind::DepthPrepassAlpha => {
-            add_depth_prepass(g, t, DrawClass::AlphaTested, source, name);
+        PassKind::DepthPrepassOpaque | PassKind::DepthPrepassAlpha => {
+            let class = if pass == PassKind::DepthPrepassAlpha {
+                DrawClass::AlphaTested
+            } else {
+                DrawClass::Opaque
+            };
+            match predicate {
+                Some(last) => add_depth_prepass_of_last_visible(g, t, class, last, name),
+                None => add_depth_prepass(g, t, class, source, name),
+            };
         }
         PassKind::Opaque => {
-            let prepassed = setup.prepassed(0);
-            add_forward(g, t, DrawClass::Opaque, prepassed, source, predicate, name);
+            add_forward(g, t, DrawClass::Opaque, depth(0), source, predicate, name);
         }
         PassKind::AlphaTested => {
-            let prepassed = setup.prepassed(1);
-            add_forward(
-                g,
-                t,
-                DrawClass::AlphaTested,
-                prepassed,
-                source,
-                predicate,
-                name,
-            );
+            let d = depth(1);
+            add_forward(g, t, DrawClass::AlphaTested, d, source, predicate, name);
         }
         PassKind::VisbufWrite => {
             add_visbuf_write(g, t, phase, source, name);

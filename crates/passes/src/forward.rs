@@ -7,30 +7,32 @@ use tilegraph_graph::{BufferId, Coverage, PassClass, PassId};
 
 use crate::draws::DrawClass;
 use crate::frame::{DrawSource, FrameGraph, Payload};
-use crate::pipelines::Variant;
-use crate::recording::record_class;
+use crate::pipelines::{ColourDepth, Variant};
+use crate::recording::{record_class, Predicate};
 use crate::targets::SceneTargets;
 
 /// Declares the colour pass of `class` (opaque or alpha-tested) named `name`, drawing from
-/// `source`. `prepassed`: a depth pre-pass wrote this class's depth (test EQUAL, no writes).
-/// `predicate`: occlusion-query results on the GPU that each instance's draw is predicated on
-/// (conditional rendering; the graph makes them visible to that stage).
+/// `source`. `depth`: what a depth pre-pass wrote of this class (all of it: test EQUAL, no
+/// writes). `predicate`: this frame's occlusion-query results on the GPU that each instance's
+/// draw is predicated on (conditional rendering; the graph makes them visible to that stage).
 pub fn add_forward(
     g: &mut FrameGraph,
     targets: &mut SceneTargets,
     class: DrawClass,
-    prepassed: bool,
+    depth: ColourDepth,
     source: DrawSource,
     predicate: Option<BufferId>,
     name: &str,
 ) -> PassId {
-    let variant = Variant::Forward {
-        class,
-        equal: prepassed,
+    let variant = Variant::Forward { class, depth };
+    let predicate_results = if predicate.is_some() {
+        Predicate::ThisFrame
+    } else {
+        Predicate::None
     };
-    let predicated = predicate.is_some();
-    let record: Payload =
-        Box::new(move |pc, res| record_class(pc, res, variant, class, source, 1, predicated));
+    let record: Payload = Box::new(move |pc, res| {
+        record_class(pc, res, variant, class, source, 1, predicate_results)
+    });
     let pass_class = if class == DrawClass::AlphaTested {
         PassClass::AlphaTested
     } else {
@@ -38,7 +40,7 @@ pub fn add_forward(
     };
     let mut p = g.raster_pass(name, pass_class, record);
     targets.attach_color(&mut p);
-    targets.attach_depth(&mut p, prepassed);
+    targets.attach_depth(&mut p, depth == ColourDepth::Equal);
     source.declare_reads(&mut p);
     if let Some(c) = predicate {
         p.predicate(c);
@@ -52,10 +54,11 @@ pub fn add_transparent(g: &mut FrameGraph, targets: &mut SceneTargets) -> PassId
     let class = DrawClass::Blended;
     let variant = Variant::Forward {
         class,
-        equal: false,
+        depth: ColourDepth::Write,
     };
-    let record: Payload =
-        Box::new(move |pc, res| record_class(pc, res, variant, class, DrawSource::Cpu, 1, false));
+    let record: Payload = Box::new(move |pc, res| {
+        record_class(pc, res, variant, class, DrawSource::Cpu, 1, Predicate::None)
+    });
     let mut p = g.raster_pass("transparent", PassClass::Transparent, record);
     targets.attach_color(&mut p);
     targets.attach_depth(&mut p, true);

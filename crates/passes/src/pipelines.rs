@@ -61,8 +61,11 @@ pub enum Variant {
     DepthOpaque,
     /// Depth pre-pass of alpha-tested geometry, with its discard.
     DepthAlpha,
-    /// Forward colour of a material class; `equal` tests depth EQUAL after a pre-pass.
-    Forward { class: DrawClass, equal: bool },
+    /// Forward colour of a material class, testing (and writing) depth as `depth` says.
+    Forward {
+        class: DrawClass,
+        depth: ColourDepth,
+    },
     /// Visibility-buffer ids of opaque or alpha-tested geometry.
     Visbuf { alpha: bool },
     /// The resolve reading the ids as an input attachment (tilers) ...
@@ -399,6 +402,27 @@ fn with_colors(target: RenderTarget<'static>, color_count: u32) -> RenderTarget<
     }
 }
 
+/// How a colour pass uses depth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ColourDepth {
+    /// No pre-pass wrote this class: test nearer, write.
+    Write,
+    /// A pre-pass wrote the depth of every instance drawn here: test EQUAL, no writes.
+    Equal,
+    /// A pre-pass wrote part of it (last frame's visible set): test nearer-or-equal, write.
+    /// The colour of each pixel is that of the last fragment drawn at its nearest depth, as
+    /// with `Equal` after a full pre-pass — so the image is the same.
+    WriteOrEqual,
+}
+
+/// The depth compare that lets a nearer fragment through, or one level with it.
+pub fn nearer_or_equal(depth: DepthConvention) -> vk::CompareOp {
+    match depth {
+        DepthConvention::Reverse => vk::CompareOp::GREATER_OR_EQUAL,
+        DepthConvention::Standard => vk::CompareOp::LESS_OR_EQUAL,
+    }
+}
+
 /// The depth compare that lets a nearer fragment through.
 pub fn nearer(depth: DepthConvention) -> vk::CompareOp {
     match depth {
@@ -457,20 +481,28 @@ fn scene_pipeline(
             Blend::NoColorWrites,
             scene_layout,
         ),
-        Variant::Forward { class, equal } => {
+        Variant::Forward {
+            class,
+            depth: colour_depth,
+        } => {
             class_spec = [(0, class.index())];
-            let depth_state = match (class, equal) {
+            let depth_state = match (class, colour_depth) {
                 (DrawClass::Blended, _) => DepthState {
                     test: true,
                     write: false,
                     compare: nearer(depth),
                 },
-                (_, true) => DepthState {
+                (_, ColourDepth::Equal) => DepthState {
                     test: true,
                     write: false,
                     compare: vk::CompareOp::EQUAL,
                 },
-                _ => write,
+                (_, ColourDepth::WriteOrEqual) => DepthState {
+                    test: true,
+                    write: true,
+                    compare: nearer_or_equal(depth),
+                },
+                (_, ColourDepth::Write) => write,
             };
             let blend = if class == DrawClass::Blended {
                 Blend::Alpha
@@ -479,7 +511,7 @@ fn scene_pipeline(
             };
             // Early fragment tests unless a discard decides what depth is written (alpha
             // tested without a pre-pass): seed 003, discard disables early-Z.
-            let late = class == DrawClass::AlphaTested && !equal;
+            let late = class == DrawClass::AlphaTested && colour_depth != ColourDepth::Equal;
             let (fs_name, fs) = match (late, count_fragments) {
                 (true, true) => ("forward_count_late.frag", spv::FORWARD_COUNT_LATE_FS),
                 (true, false) => ("forward.frag", spv::FORWARD_FS),

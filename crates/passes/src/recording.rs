@@ -52,8 +52,20 @@ pub fn bind_geometry(
     Ok(())
 }
 
+/// Which occlusion-query results a pass's CPU draws are predicated on (conditional rendering).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Predicate {
+    /// Drawn unconditionally.
+    None,
+    /// This frame's results, copied after the queries (the colour passes).
+    ThisFrame,
+    /// The previous frame's, still in the buffer before this frame's copy (the depth
+    /// pre-pass: last frame's visible set).
+    LastFrame,
+}
+
 /// Records the draws of material `class` from `source` with `variant` into a subpass with
-/// `colors` colour attachments; `predicated`: each instance is drawn under conditional
+/// `colors` colour attachments; with a `predicate`, each instance is drawn under conditional
 /// rendering on its occlusion query's result.
 pub fn record_class(
     pc: &PassContext<'_>,
@@ -62,10 +74,12 @@ pub fn record_class(
     class: DrawClass,
     source: DrawSource,
     colors: u32,
-    predicated: bool,
+    predicate: Predicate,
 ) -> Result<(), VkError> {
     match source {
-        DrawSource::Cpu if predicated => record_conditional(pc, res, variant, class, colors),
+        DrawSource::Cpu if predicate != Predicate::None => {
+            record_conditional(pc, res, variant, class, colors, predicate)
+        }
         DrawSource::Cpu => record_cpu(pc, res, variant, class, colors),
         DrawSource::Gpu { phase, .. } => record_indirect(pc, res, variant, class, phase, colors),
     }
@@ -130,6 +144,7 @@ fn record_conditional(
     variant: Variant,
     class: DrawClass,
     colors: u32,
+    predicate: Predicate,
 ) -> Result<(), VkError> {
     if res.frame.draws.of(class).is_empty() {
         return Ok(());
@@ -177,7 +192,10 @@ fn record_conditional(
                     .draws
                     .instances
                     .get(k as usize)
-                    .and_then(|&id| queries.condition_offset(id))
+                    .and_then(|&id| match predicate {
+                        Predicate::LastFrame => queries.previous_condition_offset(id),
+                        _ => queries.condition_offset(id),
+                    })
             };
             let end = draw.first_instance + draw.instance_count;
             let mut k = draw.first_instance;

@@ -218,7 +218,7 @@ impl FrameSetup {
             if wanted && !d.included {
                 d.included = true;
                 d.reason = match culling {
-                    Culling::OqConditional => "conditional occlusion queries: boxes tested against the pre-pass depth, colour predicated on their results",
+                    Culling::OqConditional => "conditional occlusion queries: depth of last frame's visible set (predicated on last frame's results), boxes tested against it, colour predicated on this frame's results",
                     Culling::RasterOcclusion => "raster occlusion: boxes rasterized against the pre-pass depth flag the instances the colour passes draw",
                     _ => "two-phase occlusion culling: depth of last frame's visible set, the pyramid, then the newly visible; colour once",
                 }
@@ -228,7 +228,6 @@ impl FrameSetup {
         self
     }
 
-    /// Whether the colour pass tests depth EQUAL against a pre-pass (no depth writes).
     /// Whether a depth pre-pass writes the depth of instances of material `class` (0 opaque,
     /// 1 alpha-tested): their colour pass then tests EQUAL without writing depth. Per class: a
     /// profile may pre-pass opaque geometry and leave alpha-tested geometry to its colour pass.

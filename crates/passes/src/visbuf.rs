@@ -15,7 +15,7 @@ use tilegraph_vk::{Context, VkError};
 use crate::draws::DrawClass;
 use crate::frame::{scene_set, DrawSource, FrameGraph, PassState, Payload, SceneResources};
 use crate::pipelines::Variant;
-use crate::recording::record_class;
+use crate::recording::{record_class, Predicate};
 use crate::targets::SceneTargets;
 
 /// Declares an id pass named `name` of phase `phase` (0 clears the ids; two-phase culling's
@@ -35,7 +35,15 @@ pub fn add_visbuf_write(
     });
     let record: Payload = Box::new(move |pc, res| {
         for (class, alpha) in [(DrawClass::Opaque, false), (DrawClass::AlphaTested, true)] {
-            record_class(pc, res, Variant::Visbuf { alpha }, class, source, 1, false)?;
+            record_class(
+                pc,
+                res,
+                Variant::Visbuf { alpha },
+                class,
+                source,
+                1,
+                Predicate::None,
+            )?;
         }
         Ok(())
     });

@@ -5,5 +5,8 @@
 pub mod queries;
 pub mod raster;
 
-pub use queries::{add_occlusion_queries, build_groups, crosses_near_plane, proxy_corner, OqState};
+pub use queries::{
+    add_occlusion_queries, build_groups, crosses_near_plane, import_query_results, proxy_corner,
+    OqState,
+};
 pub use raster::{add_raster_occlusion, RasterOcclusion};

@@ -179,6 +179,9 @@ pub struct OqState {
     pub conditions: Option<Buffer>,
     /// Per query: whether this frame issued it (the others draw unconditionally).
     current_issued: Vec<bool>,
+    /// The groups the previous frame queried: whose results [`Self::conditions`] holds when
+    /// this frame's depth pre-pass reads them (oq-conditional).
+    previous_issued: Vec<bool>,
     /// Per instance: whether this frame's CPU lists hold it (frustum).
     current_drawable: Vec<bool>,
 }
@@ -232,6 +235,7 @@ impl OqState {
             pipeline_layout,
             conditions: None,
             current_issued: Vec::new(),
+            previous_issued: Vec::new(),
             current_drawable: Vec::new(),
         };
         let count = state.query_count();
@@ -386,6 +390,7 @@ impl OqState {
             ));
         }
         self.frames += 1;
+        std::mem::swap(&mut self.previous_issued, &mut self.current_issued);
         self.current_issued.clone_from(&issued);
         if let Some(p) = self.pending.get_mut(slot) {
             *p = Some(Pending {
@@ -454,6 +459,17 @@ impl OqState {
     pub fn condition_offset(&self, instance: u32) -> Option<u64> {
         let g = *self.group_of.get(instance as usize)?;
         self.current_issued
+            .get(g as usize)
+            .copied()
+            .unwrap_or(false)
+            .then_some(4 * u64::from(g))
+    }
+
+    /// [`Self::condition_offset`] in the results the previous frame left in
+    /// [`Self::conditions`]: what this frame's depth pre-pass is predicated on.
+    pub fn previous_condition_offset(&self, instance: u32) -> Option<u64> {
+        let g = *self.group_of.get(instance as usize)?;
+        self.previous_issued
             .get(g as usize)
             .copied()
             .unwrap_or(false)
@@ -550,15 +566,38 @@ impl OqState {
     }
 }
 
+/// Imports the buffer the occlusion queries' results are copied to (`size` bytes, one `u32`
+/// per query group), for conditional rendering: it keeps the last frame's results, which the
+/// next frame's depth pre-pass is predicated on, until this frame's copy replaces them.
+pub fn import_query_results(g: &mut FrameGraph, size: u64) -> BufferId {
+    // Last frame's conditional draws read it (the stage needs the feature these frames have).
+    let any = ResourceState::buffer(
+        PipelineStages::EVERY_GRAPH_STAGE.union(PipelineStages::CONDITIONAL_RENDERING),
+        AccessFlags::MEMORY_READ.union(AccessFlags::MEMORY_WRITE),
+    );
+    let conditions = g.import_buffer(
+        "oq-conditions",
+        size,
+        Import {
+            initial: any,
+            content: InitialContent::Preserve,
+            final_state: any,
+        },
+    );
+    // Tools read the drawn set back after the frame.
+    g.export(conditions);
+    conditions
+}
+
 /// Declares the occlusion queries: every queried box drawn against `depth` (tested, not
 /// written), in a pass kept without an export (its results leave the graph through the query
-/// pool). With `conditions` (the size of the buffer the results are copied to, for conditional
-/// rendering in the same frame), a copy of the results follows, and the buffer is returned for
-/// the colour passes to declare as their predicate.
+/// pool). With `conditions` ([`import_query_results`], for conditional rendering in the same
+/// frame), a copy of the results into it follows, and it is returned for the colour passes to
+/// declare as their predicate.
 pub fn add_occlusion_queries(
     g: &mut FrameGraph,
     depth: ImageId,
-    conditions: Option<u64>,
+    conditions: Option<BufferId>,
 ) -> Option<BufferId> {
     let queries: Payload = Box::new(|pc, res| {
         let set = scene_set(pc, res)?;
@@ -577,23 +616,7 @@ pub fn add_occlusion_queries(
         .depth_stencil_read_only(depth)
         .retention(Retention::Always)
         .id();
-    let size = conditions?;
-    // Last frame's conditional draws read it (the stage needs the feature these frames have).
-    let any = ResourceState::buffer(
-        PipelineStages::EVERY_GRAPH_STAGE.union(PipelineStages::CONDITIONAL_RENDERING),
-        AccessFlags::MEMORY_READ.union(AccessFlags::MEMORY_WRITE),
-    );
-    let conditions = g.import_buffer(
-        "oq-conditions",
-        size,
-        Import {
-            initial: any,
-            content: InitialContent::Discard,
-            final_state: any,
-        },
-    );
-    // Tools read the drawn set back after the frame.
-    g.export(conditions);
+    let conditions = conditions?;
     let copy: Payload =
         Box::new(|pc, res| res.states.require::<OqState>(pc.pass_name)?.record_copy(pc));
     g.transfer_pass("oq-copy-results", PassClass::Transfer, copy)
