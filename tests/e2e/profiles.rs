@@ -41,6 +41,22 @@ const FRAMES: &[(Technique, Culling, u32)] = &[
 /// (city, interior) materials.
 const SCENES: &[&str] = &["interior:100", "city:100", "forest:100", "field:100"];
 
+/// The device features every frame of [`FRAMES`] needs.
+fn frame_features() -> tilegraph_vk::FeatureRequest {
+    let mut features = tilegraph_vk::FeatureRequest::default();
+    for &(technique, culling, _) in FRAMES {
+        let f = RenderOptions {
+            technique,
+            culling,
+            ..Default::default()
+        }
+        .device_features();
+        features.required.extend(f.required);
+        features.optional.extend(f.optional);
+    }
+    features
+}
+
 /// One row of the accepted-findings table.
 #[derive(Debug)]
 struct Accepted {
@@ -59,20 +75,28 @@ impl Accepted {
     }
 }
 
+/// The rows of the table under `## {section}` in docs/PROFILES.md that start with a name in
+/// backticks.
+fn table_rows(section: &str) -> Vec<String> {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/PROFILES.md");
+    let doc = std::fs::read_to_string(path).unwrap();
+    let body = doc
+        .split(&format!("## {section}"))
+        .nth(1)
+        .unwrap_or_else(|| panic!("docs/PROFILES.md has a {section:?} section"));
+    let body = body.split("\n## ").next().unwrap_or(body);
+    body.lines()
+        .filter(|l| l.starts_with("| `"))
+        .map(str::to_string)
+        .collect()
+}
+
 /// The table under "## Accepted lint findings" in docs/PROFILES.md: `| rule | pipeline |
 /// profiles | reason |`, names in backticks.
 fn accepted() -> Vec<Accepted> {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/PROFILES.md");
-    let doc = std::fs::read_to_string(path).unwrap();
-    let section = doc
-        .split("## Accepted lint findings")
-        .nth(1)
-        .expect("docs/PROFILES.md has an \"Accepted lint findings\" section");
-    let section = section.split("\n## ").next().unwrap_or(section);
     let unquote = |s: &str| s.trim().trim_matches('`').to_string();
-    section
-        .lines()
-        .filter(|l| l.starts_with("| `"))
+    table_rows("Accepted lint findings")
+        .iter()
         .map(|l| {
             let cells: Vec<&str> = l.trim_matches('|').split('|').collect();
             assert!(cells.len() >= 4, "row {l:?}");
@@ -118,18 +142,7 @@ fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
     let mut linted = 0;
     for profiles in shapes.values() {
         let recording = profiles[0];
-        let mut features = tilegraph_vk::FeatureRequest::default();
-        for &(technique, culling, _) in FRAMES {
-            let o = RenderOptions {
-                technique,
-                culling,
-                ..Default::default()
-            };
-            let f = o.device_features();
-            features.required.extend(f.required);
-            features.optional.extend(f.optional);
-        }
-        let g = gpu_with(Some(&recording.name), features).unwrap();
+        let g = gpu_with(Some(&recording.name), frame_features()).unwrap();
         for ((name, scene, camera), &(technique, culling, scale)) in scenes
             .iter()
             .flat_map(|s| FRAMES.iter().map(move |f| (s, f)))
@@ -339,18 +352,7 @@ fn every_technique_passes_best_practices_under_the_vendors_profile() {
         .unwrap_or_else(|_| "lavapipe".to_string());
     let scene = tilegraph_scene::load("interior:100").unwrap();
     let path = scene.camera_path();
-    let mut features = tilegraph_vk::FeatureRequest::default();
-    for &(technique, culling, _) in FRAMES {
-        let f = RenderOptions {
-            technique,
-            culling,
-            ..Default::default()
-        }
-        .device_features();
-        features.required.extend(f.required);
-        features.optional.extend(f.optional);
-    }
-    let g = gpu_with(Some(&profile), features).unwrap();
+    let g = gpu_with(Some(&profile), frame_features()).unwrap();
     for &(technique, culling, scale) in FRAMES {
         let options = RenderOptions {
             technique,
@@ -417,16 +419,8 @@ fn a_best_practices_warning_fails_the_test() {
 /// row for row, reasons included.
 #[test]
 fn the_silenced_messages_are_the_documented_ones() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/PROFILES.md");
-    let doc = std::fs::read_to_string(path).unwrap();
-    let section = doc
-        .split("## Silenced best-practices messages")
-        .nth(1)
-        .expect("docs/PROFILES.md has a \"Silenced best-practices messages\" section");
-    let section = section.split("\n## ").next().unwrap_or(section);
-    let rows: Vec<(String, String, String)> = section
-        .lines()
-        .filter(|l| l.starts_with("| `"))
+    let rows: Vec<(String, String, String)> = table_rows("Silenced best-practices messages")
+        .iter()
         .map(|l| {
             let cells: Vec<&str> = l.trim_matches('|').split(" | ").collect();
             assert_eq!(cells.len(), 3, "row {l:?}");

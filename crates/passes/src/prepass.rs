@@ -20,11 +20,7 @@ pub fn add_depth_prepass(
     source: DrawSource,
     name: &str,
 ) -> PassId {
-    let variant = if class == DrawClass::AlphaTested {
-        Variant::DepthAlpha
-    } else {
-        Variant::DepthOpaque
-    };
+    let variant = depth_variant(class);
     let record: Payload =
         Box::new(move |pc, res| record_class(pc, res, variant, class, source, 0, Predicate::None));
     let mut p = g.raster_pass(name, PassClass::DepthPrepass, record);
@@ -49,11 +45,7 @@ pub fn add_depth_prepass_of_last_visible(
     last_results: BufferId,
     name: &str,
 ) -> PassId {
-    let variant = if class == DrawClass::AlphaTested {
-        Variant::DepthAlpha
-    } else {
-        Variant::DepthOpaque
-    };
+    let variant = depth_variant(class);
     let record: Payload = Box::new(move |pc, res| {
         record_class(
             pc,
@@ -69,4 +61,13 @@ pub fn add_depth_prepass_of_last_visible(
     targets.attach_depth(&mut p, false);
     p.predicate(last_results);
     p.id()
+}
+
+/// The depth-only pipeline of a material class: alpha-tested geometry runs its discard.
+fn depth_variant(class: DrawClass) -> Variant {
+    if class == DrawClass::AlphaTested {
+        Variant::DepthAlpha
+    } else {
+        Variant::DepthOpaque
+    }
 }

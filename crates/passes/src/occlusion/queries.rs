@@ -457,19 +457,19 @@ impl OqState {
     /// Conditional rendering: the byte offset of `instance`'s result in [`Self::conditions`],
     /// or `None` when this frame did not query it (it is drawn unconditionally).
     pub fn condition_offset(&self, instance: u32) -> Option<u64> {
-        let g = *self.group_of.get(instance as usize)?;
-        self.current_issued
-            .get(g as usize)
-            .copied()
-            .unwrap_or(false)
-            .then_some(4 * u64::from(g))
+        self.offset_in(&self.current_issued, instance)
     }
 
     /// [`Self::condition_offset`] in the results the previous frame left in
     /// [`Self::conditions`]: what this frame's depth pre-pass is predicated on.
     pub fn previous_condition_offset(&self, instance: u32) -> Option<u64> {
+        self.offset_in(&self.previous_issued, instance)
+    }
+
+    /// The result offset of `instance`'s group when `issued` says its query ran.
+    fn offset_in(&self, issued: &[bool], instance: u32) -> Option<u64> {
         let g = *self.group_of.get(instance as usize)?;
-        self.previous_issued
+        issued
             .get(g as usize)
             .copied()
             .unwrap_or(false)
