@@ -154,12 +154,16 @@ pub fn crosses_near_plane(
     })
 }
 
-/// Per frame slot: the frame whose queries the pool holds, and which queries it issued.
+/// Per frame slot: the frame whose queries the pool holds, and the group of each query it
+/// issued (query `k` tested `groups[k]`).
 #[derive(Debug, Default, Clone)]
 struct Pending {
     frame: u64,
-    issued: Vec<bool>,
+    groups: Vec<u32>,
 }
+
+/// Marks a group that a frame did not query in [`OqState`]'s per-group query indices.
+const NOT_QUERIED: u32 = u32::MAX;
 
 /// The persistent occlusion-query state of one renderer.
 pub struct OqState {
@@ -170,18 +174,20 @@ pub struct OqState {
     passed: Vec<bool>,
     pools: Vec<vk::QueryPool>,
     pending: Vec<Option<Pending>>,
-    /// This frame's boxes: (query index, push constants).
-    frame_boxes: Vec<(u32, BoxPush)>,
+    /// This frame's boxes, one query each: query `k` draws `frame_boxes[k]`. Queries are
+    /// numbered densely in issue order, so one copy moves every result of a frame.
+    frame_boxes: Vec<BoxPush>,
     frame_slot: usize,
     frames: u64,
     pub pipeline_layout: vk::PipelineLayout,
     /// Conditional rendering: this frame's results on the GPU, one u32 per query.
     pub conditions: Option<Buffer>,
-    /// Per query: whether this frame issued it (the others draw unconditionally).
-    current_issued: Vec<bool>,
-    /// The groups the previous frame queried: whose results [`Self::conditions`] holds when
-    /// this frame's depth pre-pass reads them (oq-conditional).
-    previous_issued: Vec<bool>,
+    /// Per group: this frame's query index, [`NOT_QUERIED`] when it issued none (its members
+    /// draw unconditionally).
+    current_query: Vec<u32>,
+    /// Per group: the previous frame's query index, whose result [`Self::conditions`] holds
+    /// when this frame's depth pre-pass reads it (oq-conditional).
+    previous_query: Vec<u32>,
     /// Per instance: whether this frame's CPU lists hold it (frustum).
     current_drawable: Vec<bool>,
 }
@@ -234,8 +240,8 @@ impl OqState {
             frames: 0,
             pipeline_layout,
             conditions: None,
-            current_issued: Vec::new(),
-            previous_issued: Vec::new(),
+            current_query: Vec::new(),
+            previous_query: Vec::new(),
             current_drawable: Vec::new(),
         };
         let count = state.query_count();
@@ -297,34 +303,35 @@ impl OqState {
             else {
                 continue;
             };
-            // [result, availability] per query.
-            let mut results = vec![[0u32; 2]; count as usize];
-            // SAFETY: the pool has `count` queries; no WAIT flag, so this never stalls.
-            let r = unsafe {
-                ctx.device.get_query_pool_results(
-                    pool,
-                    0,
-                    &mut results,
-                    vk::QueryResultFlags::WITH_AVAILABILITY,
-                )
-            };
-            match r {
-                Ok(()) | Err(vk::Result::NOT_READY) => {}
-                Err(e) => return Err(VkError::call("vkGetQueryPoolResults", e)),
+            // [result, availability] per query issued.
+            let mut results = vec![[0u32; 2]; p.groups.len()];
+            if !results.is_empty() {
+                // SAFETY: the frame issued queries 0..groups.len() of the pool's `count`; no WAIT
+                // flag, so this never stalls.
+                let r = unsafe {
+                    ctx.device.get_query_pool_results(
+                        pool,
+                        0,
+                        &mut results,
+                        vk::QueryResultFlags::WITH_AVAILABILITY,
+                    )
+                };
+                match r {
+                    Ok(()) | Err(vk::Result::NOT_READY) => {}
+                    Err(e) => return Err(VkError::call("vkGetQueryPoolResults", e)),
+                }
             }
-            let complete = p
-                .issued
-                .iter()
-                .zip(&results)
-                .all(|(issued, [_, avail])| !issued || *avail != 0);
+            let complete = results.iter().all(|[_, avail]| *avail != 0);
             if !complete && s != slot {
                 // Still in flight; frames complete in order, so later ones are too.
                 break;
             }
-            for ((passed, issued), [value, avail]) in
-                self.passed.iter_mut().zip(&p.issued).zip(&results)
-            {
-                *passed = !issued || *avail == 0 || *value != 0;
+            // Groups the frame did not query pass; a query without its result passes too.
+            self.passed.fill(true);
+            for (&g, [value, avail]) in p.groups.iter().zip(&results) {
+                if let Some(passed) = self.passed.get_mut(g as usize) {
+                    *passed = *avail == 0 || *value != 0;
+                }
             }
             if s != slot {
                 // Newer results, read early; the pool is recycled when its slot comes round.
@@ -360,7 +367,8 @@ impl OqState {
         drawable: Option<&[bool]>,
     ) {
         self.frame_boxes.clear();
-        let mut issued = vec![false; self.groups.len()];
+        let mut queried = Vec::new();
+        let mut query_of = vec![NOT_QUERIED; self.groups.len()];
         let in_view = |i: u32| drawable.is_none_or(|d| d.get(i as usize).copied().unwrap_or(true));
         self.current_drawable = self
             .group_of
@@ -378,24 +386,21 @@ impl OqState {
             if crosses_near_plane(m.view_projection, m.depth, center, half, viewport_height_px) {
                 continue;
             }
-            if let Some(i) = issued.get_mut(q) {
-                *i = true;
+            if let Some(k) = query_of.get_mut(q) {
+                *k = queried.len() as u32;
             }
-            self.frame_boxes.push((
-                q as u32,
-                BoxPush {
-                    center: Vec4::from((center, 0.0)).to_array(),
-                    half_extents: Vec4::from((half, 0.0)).to_array(),
-                },
-            ));
+            queried.push(q as u32);
+            self.frame_boxes.push(BoxPush {
+                center: Vec4::from((center, 0.0)).to_array(),
+                half_extents: Vec4::from((half, 0.0)).to_array(),
+            });
         }
         self.frames += 1;
-        std::mem::swap(&mut self.previous_issued, &mut self.current_issued);
-        self.current_issued.clone_from(&issued);
+        self.previous_query = std::mem::replace(&mut self.current_query, query_of);
         if let Some(p) = self.pending.get_mut(slot) {
             *p = Some(Pending {
                 frame: self.frames,
-                issued,
+                groups: queried,
             });
         }
         self.frame_slot = slot;
@@ -438,8 +443,8 @@ impl OqState {
                 &[scene_set],
                 &[],
             );
-            for (q, push) in &self.frame_boxes {
-                d.cmd_begin_query(pc.cb, pool, *q, vk::QueryControlFlags::empty());
+            for (q, push) in (0u32..).zip(&self.frame_boxes) {
+                d.cmd_begin_query(pc.cb, pool, q, vk::QueryControlFlags::empty());
                 d.cmd_push_constants(
                     pc.cb,
                     self.pipeline_layout,
@@ -448,7 +453,7 @@ impl OqState {
                     bytemuck::bytes_of(push),
                 );
                 d.cmd_draw(pc.cb, 36, 1, 0, 0);
-                d.cmd_end_query(pc.cb, pool, *q);
+                d.cmd_end_query(pc.cb, pool, q);
             }
         }
         Ok(())
@@ -457,23 +462,20 @@ impl OqState {
     /// Conditional rendering: the byte offset of `instance`'s result in [`Self::conditions`],
     /// or `None` when this frame did not query it (it is drawn unconditionally).
     pub fn condition_offset(&self, instance: u32) -> Option<u64> {
-        self.offset_in(&self.current_issued, instance)
+        self.offset_in(&self.current_query, instance)
     }
 
     /// [`Self::condition_offset`] in the results the previous frame left in
     /// [`Self::conditions`]: what this frame's depth pre-pass is predicated on.
     pub fn previous_condition_offset(&self, instance: u32) -> Option<u64> {
-        self.offset_in(&self.previous_issued, instance)
+        self.offset_in(&self.previous_query, instance)
     }
 
-    /// The result offset of `instance`'s group when `issued` says its query ran.
-    fn offset_in(&self, issued: &[bool], instance: u32) -> Option<u64> {
+    /// The result offset of `instance`'s group's query in `query_of` (per group), if it ran.
+    fn offset_in(&self, query_of: &[u32], instance: u32) -> Option<u64> {
         let g = *self.group_of.get(instance as usize)?;
-        issued
-            .get(g as usize)
-            .copied()
-            .unwrap_or(false)
-            .then_some(4 * u64::from(g))
+        let q = *query_of.get(g as usize)?;
+        (q != NOT_QUERIED).then_some(4 * u64::from(q))
     }
 
     /// Conditional rendering: copies this frame's results into [`Self::conditions`] (waiting on
@@ -484,32 +486,24 @@ impl OqState {
         else {
             return Ok(());
         };
-        let d = &pc.ctx.device;
-        let mut q = 0usize;
-        while q < self.current_issued.len() {
-            if !self.current_issued[q] {
-                q += 1;
-                continue;
-            }
-            let end = (q..self.current_issued.len())
-                .find(|&k| !self.current_issued[k])
-                .unwrap_or(self.current_issued.len());
-            // SAFETY: outside a render pass; queries q..end were issued in this frame's command
-            // buffers before this pass (the graph orders it after the query pass); the buffer
-            // holds a u32 per query and is in TRANSFER_DST use for this pass.
-            unsafe {
-                d.cmd_copy_query_pool_results(
-                    pc.cb,
-                    pool,
-                    q as u32,
-                    (end - q) as u32,
-                    conditions.raw,
-                    4 * q as u64,
-                    4,
-                    vk::QueryResultFlags::WAIT,
-                );
-            }
-            q = end;
+        let issued = self.frame_boxes.len() as u32;
+        if issued == 0 {
+            return Ok(());
+        }
+        // SAFETY: outside a render pass; queries 0..issued were issued in this frame's command
+        // buffers before this pass (the graph orders it after the query pass); the buffer holds
+        // a u32 per group, at least as many as queries, and is in TRANSFER_DST use for this pass.
+        unsafe {
+            pc.ctx.device.cmd_copy_query_pool_results(
+                pc.cb,
+                pool,
+                0,
+                issued,
+                conditions.raw,
+                0,
+                4,
+                vk::QueryResultFlags::WAIT,
+            );
         }
         Ok(())
     }
@@ -539,13 +533,9 @@ impl OqState {
             .enumerate()
             .filter(|(_, &g)| g != u32::MAX)
             .filter(|(i, _)| self.current_drawable.get(*i).copied().unwrap_or(true))
-            .filter(|(_, &g)| {
-                !self
-                    .current_issued
-                    .get(g as usize)
-                    .copied()
-                    .unwrap_or(false)
-                    || result(g) != 0
+            .filter(|(_, &g)| match self.current_query.get(g as usize) {
+                Some(&q) if q != NOT_QUERIED => result(q) != 0,
+                _ => true,
             })
             .map(|(i, _)| i as u32)
             .collect())
