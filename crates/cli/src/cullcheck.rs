@@ -1,75 +1,81 @@
 //! `tilegraph cull-check`: a culling technique against the exact oracle along a camera path.
 
-use std::path::Path;
+use tilegraph_passes::cullcheck::{cull_check_with, CheckOptions, CullCheck};
+use tilegraph_passes::{RenderOptions, Technique};
+use tilegraph_profile::knobs::KnobSettings;
+use tilegraph_vk::{Context, Feature, FeatureRequest};
 
-use tilegraph_passes::cull::Culling;
-use tilegraph_passes::cullcheck::{cull_check_with, CheckOptions};
-use tilegraph_scene::CameraPath;
-use tilegraph_vk::{Context, ContextOptions, Feature};
-
+use crate::run::{RunArgs, TechniqueMeant};
 use crate::CliError;
 
-pub struct Args<'a> {
-    pub scene: &'a str,
-    pub culling: Culling,
-    pub camera_path: Option<&'a Path>,
-    pub size: (u32, u32),
-    pub profile: Option<&'a str>,
-    pub frames: Option<usize>,
-    pub hiz_npot: tilegraph_cull::NpotMode,
-    pub oq_group: usize,
-    pub raster_occlusion_scale: u32,
-    pub json: bool,
-}
-
-pub fn run(a: &Args<'_>) -> Result<(), CliError> {
-    let scene = tilegraph_scene::load(a.scene)?;
-    let path = match a.camera_path {
-        Some(p) => CameraPath::load_json(p)?,
-        None => scene.camera_path().clone(),
-    };
-    let mut options = ContextOptions::from_env();
-    if let Some(p) = a.profile {
-        options.profile = Some(p.to_string());
-    }
-    // The oracle's visibility buffer and the GPU culling lists.
-    options.features.required.extend([
+/// The device features the oracle and the GPU culling lists need (the visibility buffer's ids,
+/// indirect counts); the culling's own are optional until the renderer checks them.
+pub fn oracle_features() -> FeatureRequest {
+    FeatureRequest::executor().require([
         Feature::GeometryShader,
         Feature::DrawIndirectCount,
         Feature::MultiDrawIndirect,
         Feature::HostQueryReset,
-    ]);
-    if a.culling.conditional() {
-        // Asked for only when used: without it, the renderer's typed error names the extension.
-        options
-            .features
-            .optional
-            .insert(Feature::ConditionalRendering);
+    ])
+}
+
+/// Runs the check on a context of its own.
+pub fn run(a: &RunArgs) -> Result<(), CliError> {
+    if a.shading.is_some() {
+        return Err(CliError::Usage(
+            "cull-check renders forward shading against the visibility-buffer oracle: --shading is not used".into(),
+        ));
     }
-    if a.culling == Culling::RasterOcclusion {
-        options
-            .features
-            .optional
-            .insert(Feature::FragmentStoresAndAtomics);
-    }
-    let ctx = Context::new(options)?;
-    let report = cull_check_with(
-        &ctx,
-        &scene,
-        a.culling,
-        &path,
-        a.size,
-        a.frames,
-        &CheckOptions {
-            hiz_mode: a.hiz_npot,
-            oq_group: a.oq_group,
-            raster_occlusion_scale: a.raster_occlusion_scale,
-        },
-    )?;
+    let knobs = a.knob_settings(TechniqueMeant::Culling)?;
+    let scene = tilegraph_scene::load(&a.scene)?;
+    let ctx = Context::new(a.context_options(oracle_features()))?;
+    let result = check(&ctx, a, &knobs, &scene);
+    let caveat = crate::device_caveat(&ctx);
     // Validation through the teardown: objects left alive are reported there.
-    ctx.destroy_checked()?;
+    let destroyed = ctx.destroy_checked();
+    let report = result?;
+    destroyed?;
+    print(a, &report, caveat)
+}
+
+/// The check on `ctx` with `a`'s knobs.
+pub fn check(
+    ctx: &Context,
+    a: &RunArgs,
+    knobs: &KnobSettings,
+    scene: &tilegraph_scene::Scene,
+) -> Result<CullCheck, CliError> {
+    let path = a.camera_path(scene)?;
+    let mut o = RenderOptions::default();
+    let resolved = RunArgs::resolve(ctx, scene, knobs, &mut o)?;
+    if o.technique != Technique::Forward {
+        log::info!(
+            "cull-check draws forward shading; the profile's shading {} is not used",
+            o.technique.name()
+        );
+    }
+    for line in resolved.describe() {
+        log::info!("{line}");
+    }
+    let size = a.size.unwrap_or((320, 180));
+    Ok(cull_check_with(
+        ctx,
+        scene,
+        o.culling,
+        &path,
+        size,
+        a.frames.map(|f| f as usize),
+        &CheckOptions {
+            hiz_mode: o.hiz_mode,
+            oq_group: o.oq_group,
+            raster_occlusion_scale: o.raster_occlusion_scale,
+        },
+    )?)
+}
+
+fn print(a: &RunArgs, report: &CullCheck, caveat: Option<&str>) -> Result<(), CliError> {
     if a.json {
-        outln!("{}", serde_json::to_string(&report)?)?;
+        outln!("{}", serde_json::to_string(report)?)?;
         return Ok(());
     }
     outln!(
@@ -78,8 +84,8 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
         report.scene,
         report.totals.instances,
         report.profile,
-        a.size.0,
-        a.size.1,
+        report.size[0],
+        report.size[1],
         report.totals.frames
     )?;
     outln!(
@@ -109,5 +115,8 @@ pub fn run(a: &Args<'_>) -> Result<(), CliError> {
         "totals: visible {} drawn {} FN {} (in {} frames) FP {} (rate {:.3}); images equal {}/{}; triangles drawn {}; culling GPU {:.3} ms of {:.3} ms per frame (medians)",
         t.visible, t.drawn, t.false_negatives, t.frames_with_false_negatives, t.false_positives, t.false_positive_rate, t.frames_image_equal, t.frames, t.triangles_drawn, t.cull_gpu_ms, t.frame_gpu_ms
     )?;
+    if let Some(c) = caveat {
+        outln!("{c}")?;
+    }
     Ok(())
 }

@@ -6,6 +6,21 @@ use tilegraph_vk::readback::RgbaImage;
 
 use crate::CliError;
 
+/// `path` must name a PNG (`.png`): the bytes written are PNG, whatever the name says.
+pub fn check_png_path(path: &Path) -> Result<(), CliError> {
+    let png = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if png {
+        Ok(())
+    } else {
+        Err(CliError::Usage(format!(
+            "--out {}: tilegraph writes PNG images; name the file .png",
+            path.display()
+        )))
+    }
+}
+
 pub fn write_png(path: &Path, img: &RgbaImage) -> Result<(), CliError> {
     let err = |reason: String| CliError::Write {
         path: path.to_path_buf(),

@@ -2,41 +2,32 @@
 //! checked against the profile's state rules (LRZ, FPK, HSR, early-Z), each finding with its
 //! source.
 
-use tilegraph_passes::cull::Culling;
 use tilegraph_passes::lint::FrameLint;
-use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
+use tilegraph_passes::{RenderOptions, SceneRenderer};
 use tilegraph_scene::Scene;
-use tilegraph_vk::{Context, ContextOptions};
+use tilegraph_vk::{Context, FeatureRequest};
 
+use crate::run::{RunArgs, TechniqueMeant};
 use crate::CliError;
 
-pub struct Args<'a> {
-    pub scene: &'a Scene,
-    pub culling: Culling,
-    pub shading: Technique,
-    pub profile: Option<&'a str>,
-    pub size: (u32, u32),
-    pub json: bool,
-}
-
-pub fn run(args: &Args<'_>) -> Result<(), CliError> {
-    let mut options = ContextOptions::from_env();
-    if let Some(p) = args.profile {
-        options.profile = Some(p.to_string());
-    }
-    let ropts = RenderOptions {
-        technique: args.shading,
-        culling: args.culling,
-        width: args.size.0,
-        height: args.size.1,
-        ..Default::default()
-    };
-    options.features = ropts.device_features();
-    let ctx = Context::new(options)?;
-    let result = lint_scene(&ctx, args.scene, ropts);
-    let printed = result.and_then(|lint| print(args, &ctx, &lint));
-    ctx.destroy_checked()?;
-    printed
+pub fn run(args: &RunArgs) -> Result<(), CliError> {
+    let knobs = args.knob_settings(TechniqueMeant::Shading)?;
+    let scene = tilegraph_scene::load(&args.scene)?;
+    let (w, h) = args.size.unwrap_or((160, 90));
+    let ctx = Context::new(args.context_options(FeatureRequest::executor()))?;
+    let result = (|| {
+        let mut ropts = RenderOptions {
+            width: w,
+            height: h,
+            ..Default::default()
+        };
+        RunArgs::resolve(&ctx, &scene, &knobs, &mut ropts)?;
+        let lint = lint_scene(&ctx, &scene, ropts.clone())?;
+        print(args, &scene, &ropts, &ctx, &lint)
+    })();
+    let destroyed = ctx.destroy_checked();
+    result?;
+    Ok(destroyed?)
 }
 
 /// The lint of the first frame of the scene's camera path.
@@ -55,14 +46,20 @@ fn lint_scene(ctx: &Context, scene: &Scene, options: RenderOptions) -> Result<Fr
     Ok(report.lint.map(|l| (*l).clone()).unwrap_or_default())
 }
 
-fn print(args: &Args<'_>, ctx: &Context, lint: &FrameLint) -> Result<(), CliError> {
+fn print(
+    args: &RunArgs,
+    scene: &Scene,
+    o: &RenderOptions,
+    ctx: &Context,
+    lint: &FrameLint,
+) -> Result<(), CliError> {
     if args.json {
         let value = serde_json::json!({
-            "scene": args.scene.name(),
+            "scene": scene.name(),
             "profile": lint.profile,
             "device": ctx.physical.identity.device_name,
-            "culling": args.culling.name(),
-            "shading": args.shading.name(),
+            "culling": o.culling.name(),
+            "shading": o.technique.name(),
             "render_passes": lint.render_passes,
             "findings": lint.findings,
         });
@@ -71,12 +68,12 @@ fn print(args: &Args<'_>, ctx: &Context, lint: &FrameLint) -> Result<(), CliErro
     }
     outln!(
         "lint of {:?} under {} (culling {}, shading {}, {}x{}), recorded on {:?}",
-        args.scene.name(),
+        scene.name(),
         lint.profile,
-        args.culling.name(),
-        args.shading.name(),
-        args.size.0,
-        args.size.1,
+        o.culling.name(),
+        o.technique.name(),
+        o.width,
+        o.height,
         ctx.physical.identity.device_name
     )?;
     for rp in &lint.render_passes {

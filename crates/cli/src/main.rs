@@ -14,16 +14,18 @@ macro_rules! outln {
 mod cullcheck;
 mod devices;
 mod image_io;
+mod knobs;
 mod lint;
 mod render;
+mod run;
 
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use tilegraph_passes::cull::Culling;
-use tilegraph_passes::Technique;
+
+use crate::run::RunArgs;
 
 #[derive(Parser)]
 #[command(
@@ -55,81 +57,45 @@ enum Command {
         #[arg(long, default_value = "320x180", value_parser = parse_size)]
         size: (u32, u32),
         /// Frames to render (timings are medians over them).
-        #[arg(long, default_value_t = 16)]
+        #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
         frames: u32,
     },
-    /// Render a scene with a technique and profile; print the passes chosen and the per-pass
-    /// GPU time table; write the image.
+    /// Render a scene under a profile with its culling and shading; print the knobs, the passes
+    /// chosen and the per-pass GPU time table; write the image.
     Render {
-        /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
-        scene: String,
-        #[arg(long, default_value = "forward", value_parser = parse_technique)]
-        technique: Technique,
-        /// Force a profile (as TILEGRAPH_PROFILE does).
-        #[arg(long)]
-        profile: Option<String>,
-        #[arg(long, default_value = "320x180", value_parser = parse_size)]
-        size: (u32, u32),
+        #[command(flatten)]
+        run: RunArgs,
+        /// Where to write the frame (PNG).
         #[arg(long, default_value = "frame.png")]
         out: PathBuf,
-        /// Frames to render (timings are medians over them).
-        #[arg(long, default_value_t = 16)]
-        frames: u32,
         /// ALU iterations of the heavy material (0 = plain Lambert).
         #[arg(long, default_value_t = 0)]
         heavy: u32,
-        /// Which frame of the scene's camera path to look from.
+        /// Which frame of the camera path to look from.
         #[arg(long, default_value_t = 0)]
         camera_frame: usize,
     },
     /// Render every frame of a camera path with a culling technique and with the exact oracle;
     /// report visible, drawn, false negatives and positives, and image equality per frame.
     CullCheck {
-        /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
-        scene: String,
-        /// none | frustum | hiz | hiz-2phase | oq | oq-conditional | raster-occlusion
-        #[arg(long, value_parser = parse_culling)]
-        technique: Culling,
-        /// Camera path JSON (docs/SCENES.md); the scene's own test path when absent.
-        #[arg(long)]
-        camera_path: Option<PathBuf>,
-        #[arg(long, default_value = "320x180", value_parser = parse_size)]
-        size: (u32, u32),
-        /// Force a profile (as TILEGRAPH_PROFILE does).
-        #[arg(long)]
-        profile: Option<String>,
-        /// Only the first N frames of the path.
-        #[arg(long)]
-        frames: Option<usize>,
-        /// HiZ pyramid for non-power-of-two sizes: edge-aware | pad-to-pow2.
-        #[arg(long, default_value = "edge-aware", value_parser = parse_npot)]
-        hiz_npot: tilegraph_cull::NpotMode,
-        /// Occlusion queries: one query per group of N nearby instances (union box).
-        #[arg(long, default_value_t = 1)]
-        oq_group: usize,
-        /// Raster occlusion against a conservative 1/N-resolution depth (1, 2 or 4).
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=4))]
-        raster_occlusion_scale: u32,
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        run: RunArgs,
     },
     /// Record one frame of a scene under a profile and check every pipeline it binds against
     /// the profile's state rules (what defeats LRZ, FPK, HSR, early-Z), with their sources.
     Lint {
-        /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
-        scene: String,
-        /// none | frustum | hiz | hiz-2phase | oq | oq-conditional | raster-occlusion
-        #[arg(long, default_value = "none", value_parser = parse_culling)]
-        culling: Culling,
-        /// forward | prepass | visbuf
-        #[arg(long, default_value = "forward", value_parser = parse_technique)]
-        shading: Technique,
-        /// Force a profile (as TILEGRAPH_PROFILE does).
+        #[command(flatten)]
+        run: RunArgs,
+    },
+    /// The knobs (choices that trade speed for accuracy or memory): domain, default, the
+    /// profile's value, and whether a scene can use each.
+    Knobs {
+        /// Show this profile's values (no device needed).
         #[arg(long)]
         profile: Option<String>,
-        #[arg(long, default_value = "160x90", value_parser = parse_size)]
-        size: (u32, u32),
-        /// `{"findings": [...], "render_passes": [...]}` instead of text.
+        /// Show which knobs this scene is offered.
+        #[arg(long)]
+        scene: Option<String>,
         #[arg(long)]
         json: bool,
     },
@@ -141,26 +107,6 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-}
-
-fn parse_culling(s: &str) -> Result<Culling, String> {
-    Culling::parse(s).ok_or_else(|| {
-        format!(
-            "unknown culling technique {s:?} (none, frustum, hiz, hiz-2phase, oq, oq-conditional, raster-occlusion)"
-        )
-    })
-}
-
-fn parse_npot(s: &str) -> Result<tilegraph_cull::NpotMode, String> {
-    match s {
-        "edge-aware" => Ok(tilegraph_cull::NpotMode::EdgeAware),
-        "pad-to-pow2" => Ok(tilegraph_cull::NpotMode::PadToPow2),
-        _ => Err(format!("unknown HiZ mode {s:?} (edge-aware, pad-to-pow2)")),
-    }
-}
-
-fn parse_technique(s: &str) -> Result<Technique, String> {
-    Technique::parse(s).ok_or_else(|| format!("unknown technique {s:?} (forward, prepass, visbuf)"))
 }
 
 /// Errors of the CLI: each names what failed.
@@ -180,6 +126,10 @@ pub enum CliError {
     Render(#[from] tilegraph_passes::RenderError),
     #[error("{0}")]
     Usage(String),
+    #[error(transparent)]
+    Knob(#[from] tilegraph_profile::knobs::KnobError),
+    #[error(transparent)]
+    KnobUse(#[from] tilegraph_passes::knobs::KnobUseError),
     /// Whoever read standard output stopped reading (`| head`): not a failure.
     #[error("standard output closed")]
     OutputClosed,
@@ -218,71 +168,31 @@ fn main() -> ExitCode {
         Command::Devices { json } => devices::run(json),
         Command::Demo { out, size, frames } => demo(&out, size, frames),
         Command::Render {
-            scene,
-            technique,
-            profile,
-            size,
+            run,
             out,
-            frames,
             heavy,
             camera_frame,
-        } => tilegraph_scene::load(&scene)
-            .map_err(CliError::from)
-            .and_then(|s| {
+        } => run
+            .knob_settings(run::TechniqueMeant::Shading)
+            .and_then(|knobs| Ok((knobs, tilegraph_scene::load(&run.scene)?)))
+            .and_then(|(knobs, s)| {
                 render::run(&render::RenderArgs {
+                    run: &run,
+                    knobs: &knobs,
                     scene: &s,
-                    technique,
-                    profile: profile.as_deref(),
-                    size,
-                    frames,
                     heavy,
                     camera_frame,
                     out: &out,
                 })
             }),
         Command::SceneInfo { scene, json } => scene_info(&scene, json),
-        Command::Lint {
-            scene,
-            culling,
-            shading,
+        Command::Lint { run } => lint::run(&run),
+        Command::CullCheck { run } => cullcheck::run(&run),
+        Command::Knobs {
             profile,
-            size,
-            json,
-        } => tilegraph_scene::load(&scene)
-            .map_err(CliError::from)
-            .and_then(|s| {
-                lint::run(&lint::Args {
-                    scene: &s,
-                    culling,
-                    shading,
-                    profile: profile.as_deref(),
-                    size,
-                    json,
-                })
-            }),
-        Command::CullCheck {
             scene,
-            technique,
-            camera_path,
-            size,
-            profile,
-            frames,
-            hiz_npot,
-            oq_group,
-            raster_occlusion_scale,
             json,
-        } => cullcheck::run(&cullcheck::Args {
-            scene: &scene,
-            culling: technique,
-            camera_path: camera_path.as_deref(),
-            size,
-            profile: profile.as_deref(),
-            frames,
-            hiz_npot,
-            oq_group,
-            raster_occlusion_scale,
-            json,
-        }),
+        } => knobs::run(profile.as_deref(), scene.as_deref(), json),
     };
     match result {
         Ok(()) | Err(CliError::OutputClosed) => ExitCode::SUCCESS,
@@ -297,16 +207,38 @@ fn demo(out: &std::path::Path, size: (u32, u32), frames: u32) -> Result<(), CliE
     devices::run(false)?;
     outln!()?;
     let scene = tilegraph_scene::default_scene()?;
-    render::run(&render::RenderArgs {
-        scene: &scene,
-        technique: Technique::Forward,
+    let run = RunArgs {
+        scene: "default".into(),
         profile: None,
-        size,
-        frames,
+        culling: None,
+        shading: None,
+        set: Vec::new(),
+        size: Some(size),
+        camera_path: None,
+        frames: Some(frames),
+        json: false,
+        technique: None,
+        oq_group: None,
+        raster_occlusion_scale: None,
+        hiz_npot: None,
+    };
+    render::run(&render::RenderArgs {
+        run: &run,
+        knobs: &tilegraph_profile::knobs::KnobSettings::default(),
+        scene: &scene,
         heavy: 0,
         camera_frame: 0,
         out,
     })
+}
+
+/// What the device's figures cannot say: on a CPU rasterizer (lavapipe) pipeline statistics
+/// count fragments before the depth test, and timestamps between passes of one render pass
+/// land where the rasterizer happens to flush.
+pub fn device_caveat(ctx: &tilegraph_vk::Context) -> Option<&'static str> {
+    (ctx.physical.identity.device_type == tilegraph_profile::DeviceType::Cpu).then_some(
+        "note: a CPU rasterizer: fragment counts are before the depth test, and per-pass times inside one render pass are where it flushed; compare frame totals",
+    )
 }
 
 fn scene_info(spec: &str, json: bool) -> Result<(), CliError> {

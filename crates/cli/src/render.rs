@@ -1,67 +1,122 @@
-//! `tilegraph render` and the demo frame: a scene drawn with the profile's passes, the per-pass
-//! GPU time table (medians over frames, from timestamps), and a PNG.
+//! `tilegraph render` and the demo frame: a scene drawn with the profile's passes (and the
+//! knobs' culling), the per-pass GPU time table (medians over frames, from timestamps), and a PNG.
 
 use std::path::Path;
 
-use tilegraph_passes::{FrameReport, RenderOptions, SceneRenderer, Technique};
+use serde::Serialize;
+use tilegraph_passes::knobs::Resolved;
+use tilegraph_passes::{FrameReport, RenderOptions, SceneRenderer};
 use tilegraph_scene::Scene;
-use tilegraph_vk::{Context, ContextOptions};
+use tilegraph_vk::{Context, FeatureRequest};
 
+use tilegraph_profile::knobs::KnobSettings;
+
+use crate::run::RunArgs;
 use crate::{image_io, CliError};
 
 pub struct RenderArgs<'a> {
+    pub run: &'a RunArgs,
+    /// The knobs the run sets (`RunArgs::knob_settings`).
+    pub knobs: &'a KnobSettings,
     pub scene: &'a Scene,
-    pub technique: Technique,
-    pub profile: Option<&'a str>,
-    pub size: (u32, u32),
-    pub frames: u32,
     pub heavy: u32,
     pub camera_frame: usize,
     pub out: &'a Path,
 }
 
+/// `render --json`: what was drawn, how, and what it cost.
+#[derive(Serialize)]
+struct RenderJson<'a> {
+    scene: &'a str,
+    instances: usize,
+    device: &'a str,
+    profile: &'a str,
+    profile_matched_by: String,
+    culling: &'static str,
+    shading: &'static str,
+    #[serde(flatten)]
+    knobs: &'a Resolved,
+    size: [u32; 2],
+    frames: u32,
+    passes: Vec<PassJson<'a>>,
+    render_passes: usize,
+    barriers: usize,
+    traffic_bytes: u64,
+    naive_traffic_bytes: u64,
+    draws: usize,
+    triangles: u64,
+    lint_findings: usize,
+    gpu_ms: Vec<TimingJson>,
+    frame_gpu_ms: f64,
+    out: String,
+}
+
+#[derive(Serialize)]
+struct PassJson<'a> {
+    pass: &'static str,
+    included: bool,
+    reason: &'a str,
+}
+
+#[derive(Serialize)]
+struct TimingJson {
+    pass: String,
+    median_gpu_ms: f64,
+}
+
 pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
-    let mut options = ContextOptions::from_env();
-    if let Some(p) = args.profile {
-        options.profile = Some(p.to_string());
-    }
+    image_io::check_png_path(args.out)?;
+    let run = args.run;
+    let (w, h) = run.size.unwrap_or((320, 180));
+    let frames = run.frames.unwrap_or(16);
+    let ctx = Context::new(run.context_options(FeatureRequest::executor()))?;
+    let result = render_with(&ctx, args, (w, h), frames);
+    // Validation through the teardown: objects left alive are reported there.
+    let destroyed = ctx.destroy_checked();
+    result?;
+    Ok(destroyed?)
+}
+
+fn render_with(
+    ctx: &Context,
+    args: &RenderArgs<'_>,
+    (w, h): (u32, u32),
+    frames: u32,
+) -> Result<(), CliError> {
+    let run = args.run;
+    let scene = args.scene;
     let mut ropts = RenderOptions {
-        technique: args.technique,
-        width: args.size.0,
-        height: args.size.1,
+        width: w,
+        height: h,
         ..Default::default()
     };
+    let resolved = RunArgs::resolve(ctx, scene, args.knobs, &mut ropts)?;
     ropts.lighting.heavy_iterations = args.heavy;
-    options.features = ropts.device_features();
-    let ctx = Context::new(options)?;
-    let scene = args.scene;
-    let camera = scene
-        .camera_path()
-        .camera(args.camera_frame)
-        .ok_or_else(|| {
-            CliError::Usage(format!(
-                "camera frame {} is outside the scene's path of {} frames",
-                args.camera_frame,
-                scene.camera_path().len()
-            ))
-        })?;
-    let mut renderer = SceneRenderer::new(&ctx, scene, ropts)?;
+    let path = run.camera_path(scene)?;
+    let camera = path.camera(args.camera_frame).ok_or_else(|| {
+        CliError::Usage(format!(
+            "camera frame {} is outside the camera path of {} frames",
+            args.camera_frame,
+            path.len()
+        ))
+    })?;
+    let mut renderer = SceneRenderer::new(ctx, scene, ropts.clone())?;
     let result = (|| {
         let mut last: Option<FrameReport> = None;
         let mut lint = None;
         renderer.lint_next_frame();
-        for _ in 0..args.frames.max(1) {
-            let report = renderer.render(&ctx, scene, &camera)?;
+        for _ in 0..frames {
+            let report = renderer.render(ctx, scene, &camera)?;
             lint = lint.or_else(|| report.lint.clone());
             last = Some(report);
         }
-        let image = renderer.read_image(&ctx)?;
+        let image = renderer.read_image(ctx)?;
         Ok::<_, CliError>((last, lint, image))
     })();
     let (report, lint, image) = match result {
         Ok(v) => v,
         Err(e) => {
-            renderer.destroy(&ctx);
+            renderer.destroy(ctx);
             return Err(e);
         }
     };
@@ -69,17 +124,70 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
     // whatever writing or printing did (a full disk, a closed pipe).
     let printed = (|| -> Result<(), CliError> {
         image_io::write_png(args.out, &image)?;
+        if run.json {
+            let medians = renderer.medians();
+            let json = RenderJson {
+                scene: scene.name(),
+                instances: scene.instances().len(),
+                device: &ctx.physical.identity.device_name,
+                profile: &ctx.profile().name,
+                profile_matched_by: ctx.selection.matched_by.to_string(),
+                culling: ropts.culling.name(),
+                shading: ropts.technique.name(),
+                knobs: &resolved,
+                size: [w, h],
+                frames,
+                passes: report
+                    .iter()
+                    .flat_map(|r| r.setup.decisions.iter())
+                    .map(|d| PassJson {
+                        pass: d.pass.name(),
+                        included: d.included,
+                        reason: &d.reason,
+                    })
+                    .collect(),
+                render_passes: report
+                    .as_ref()
+                    .map_or(0, |r| r.plan.render_passes().count()),
+                barriers: report.as_ref().map_or(0, |r| r.plan.barrier_count()),
+                traffic_bytes: report
+                    .as_ref()
+                    .map_or(0, |r| r.plan.traffic.planned.total_bytes()),
+                naive_traffic_bytes: report
+                    .as_ref()
+                    .map_or(0, |r| r.plan.traffic.naive.total_bytes()),
+                draws: report.as_ref().map_or(0, |r| r.draws),
+                triangles: report.as_ref().map_or(0, |r| r.triangles),
+                lint_findings: lint.as_ref().map_or(0, |l| l.findings.len()),
+                frame_gpu_ms: medians.iter().map(|m| m.median_gpu_ms).sum(),
+                gpu_ms: medians
+                    .into_iter()
+                    .map(|m| TimingJson {
+                        pass: m.name.to_string(),
+                        median_gpu_ms: m.median_gpu_ms,
+                    })
+                    .collect(),
+                out: args.out.display().to_string(),
+            };
+            outln!("{}", serde_json::to_string(&json)?)?;
+            return Ok(());
+        }
         outln!(
-            "scene {:?}: {} instances; device {:?}; profile {} ({}); technique {}; {}x{}",
+            "scene {:?}: {} instances; device {:?}; profile {} ({}); culling {}; shading {}; {}x{}",
             scene.name(),
             scene.instances().len(),
             ctx.physical.identity.device_name,
             ctx.profile().name,
             ctx.selection.matched_by,
-            args.technique.name(),
-            args.size.0,
-            args.size.1
+            ropts.culling.name(),
+            ropts.technique.name(),
+            w,
+            h
         )?;
+        outln!("\nknobs:")?;
+        for line in resolved.describe() {
+            outln!("  {line}")?;
+        }
         if let Some(r) = &report {
             outln!("\npasses chosen by the frame setup:")?;
             for d in &r.setup.decisions {
@@ -103,19 +211,17 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
         if let Some(l) = &lint {
             outln!("{}", l.summary())?;
         }
-        print_timings(&renderer, args.frames)?;
+        print_timings(ctx, &renderer, frames)?;
         outln!("wrote {}", args.out.display())?;
         Ok(())
     })();
-    renderer.destroy(&ctx);
-    // Validation through the teardown: objects left alive are reported there.
-    ctx.destroy_checked()?;
+    renderer.destroy(ctx);
     printed
 }
 
 /// The per-pass GPU time table: medians over the frames rendered, with the last frame's
 /// shader invocation counts where the device has pipeline statistics.
-pub fn print_timings(renderer: &SceneRenderer, frames: u32) -> Result<(), CliError> {
+pub fn print_timings(ctx: &Context, renderer: &SceneRenderer, frames: u32) -> Result<(), CliError> {
     let medians = renderer.medians();
     let latest = renderer.executor().latest_timings();
     outln!(
@@ -146,7 +252,11 @@ pub fn print_timings(renderer: &SceneRenderer, frames: u32) -> Result<(), CliErr
         )?;
         total += m.median_gpu_ms;
     }
-    outln!("  {:<22} {:>10.3}", "total", total)
+    outln!("  {:<22} {:>10.3}", "total", total)?;
+    if let Some(caveat) = crate::device_caveat(ctx) {
+        outln!("  {caveat}")?;
+    }
+    Ok(())
 }
 
 fn bytes(b: u64) -> String {

@@ -146,7 +146,7 @@ fn render_writes_the_image_and_the_timing_table() {
         &[
             "render",
             "forest:200",
-            "--technique",
+            "--shading",
             "prepass",
             "--profile",
             "adreno-7xx",
@@ -219,4 +219,191 @@ fn lint_json_lists_findings_with_their_sources() {
                     .is_some_and(|s| s.contains("IMG-discard"))),
         "{out}"
     );
+}
+
+#[test]
+fn bad_input_is_a_clear_error_naming_it() {
+    let dir = std::env::temp_dir().join(format!("tilegraph-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("level.gltf"), b"{}").unwrap();
+    let bare = dir.join("bare.json");
+    std::fs::write(&bare, br#"[{"eye": [0,0,0], "target": [0,0,-1]}]"#).unwrap();
+    let png = dir.join("e.jpg");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["render", "city", "--frames", "0"], "0 is not in 1.."),
+        (vec!["render", "city:0"], "needs at least one instance"),
+        (
+            vec!["render", "city", "--out", png.to_str().unwrap()],
+            "name the file .png",
+        ),
+        (
+            vec!["render", dir.to_str().unwrap()],
+            "is a directory; the glTF files in it: level.gltf",
+        ),
+        (
+            vec!["render", "city", "--set", "oq_group=0"],
+            "knob oq_group: \"0\" is outside its domain",
+        ),
+        (
+            vec!["cull-check", "city", "--set", "raster_occlusion_scale=3"],
+            "knob raster_occlusion_scale: \"3\" is outside its domain (1, 2, 4)",
+        ),
+        (
+            vec!["lint", "city", "--set", "oq_groop=2"],
+            "unknown knob \"oq_groop\"",
+        ),
+        (
+            vec!["render", "city", "--set", "oq_group"],
+            "not of the form knob=value",
+        ),
+        (
+            vec!["render", "city", "--culling", "hiz-3phase"],
+            "knob culling: \"hiz-3phase\" is outside its domain",
+        ),
+        (
+            vec![
+                "cull-check",
+                "city",
+                "--camera-path",
+                bare.to_str().unwrap(),
+            ],
+            "a bare array: a camera path is an object",
+        ),
+    ];
+    for (args, want) in cases {
+        let (ok, out, err) = tilegraph(&args, &[("TILEGRAPH_VALIDATION", "required")]);
+        assert!(!ok, "{args:?} succeeded: {out}");
+        assert!(err.contains(want), "{args:?}: missing {want:?} in {err}");
+    }
+    assert!(!png.exists(), "nothing is written under a refused name");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn knobs_the_run_cannot_use_are_errors_and_the_flag_is_credited() {
+    let out = std::env::temp_dir().join(format!("tilegraph-knobs-{}.png", std::process::id()));
+    let o = out.to_str().unwrap();
+    let env = [("TILEGRAPH_VALIDATION", "required")];
+    let small = ["--size", "32x18", "--frames", "1", "--out", o];
+    let run = |extra: &[&str], env: &[(&str, &str)]| {
+        let args: Vec<&str> = extra.iter().chain(small.iter()).copied().collect();
+        tilegraph(&args, env)
+    };
+    let (ok, _, err) = run(
+        &[
+            "render",
+            "city:300",
+            "--culling",
+            "hiz",
+            "--set",
+            "oq_group=4",
+        ],
+        &env,
+    );
+    assert!(!ok);
+    assert!(
+        err.contains(
+            "knob oq_group applies to culling oq, oq-conditional, and this run culls with hiz"
+        ),
+        "{err}"
+    );
+    let (ok, _, err) = run(&["render", "city:300", "--set", "alpha_prepass=off"], &env);
+    assert!(!ok);
+    assert!(err.contains("has no alpha-tested geometry"), "{err}");
+    let (ok, _, err) = run(
+        &[
+            "render",
+            "forest:300",
+            "--culling",
+            "hiz-2phase",
+            "--set",
+            "alpha_prepass=off",
+        ],
+        &env,
+    );
+    assert!(!ok);
+    assert!(
+        err.contains("culling hiz-2phase draws alpha-tested depth in its own pre-pass"),
+        "{err}"
+    );
+    let (ok, _, err) = run(
+        &[
+            "render",
+            "forest:300",
+            "--culling",
+            "none",
+            "--set",
+            "alpha_prepass=off",
+        ],
+        &env,
+    );
+    assert!(ok, "{err}");
+    // The flag wins over the variable, and says so.
+    let (ok, stdout, err) = run(
+        &["render", "city:100", "--profile", "mali-valhall"],
+        &[
+            ("TILEGRAPH_VALIDATION", "required"),
+            ("TILEGRAPH_PROFILE", "adreno-7xx"),
+        ],
+    );
+    assert!(ok, "{err}");
+    assert!(
+        stdout.contains("profile mali-valhall (forced by --profile mali-valhall)"),
+        "{stdout}"
+    );
+    // The old spelling still works, and says what replaces it.
+    let (ok, _, err) = run(&["render", "city:100", "--technique", "prepass"], &env);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("--technique is deprecated: use --shading prepass"),
+        "{err}"
+    );
+    // `render` culls, and `--json` says with what and why.
+    let (ok, stdout, err) = run(
+        &[
+            "render",
+            "forest:300",
+            "--culling",
+            "hiz-2phase",
+            "--set",
+            "hiz_npot=pad-to-pow2",
+            "--json",
+        ],
+        &env,
+    );
+    assert!(ok, "{err}");
+    let v: serde_json::Value =
+        serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {stdout}"));
+    assert_eq!(v["culling"], "hiz-2phase");
+    let knobs = v["knobs"].as_array().unwrap();
+    let knob = |n: &str| knobs.iter().find(|k| k["name"] == n).cloned();
+    assert_eq!(knob("hiz_npot").unwrap()["value"], "pad-to-pow2");
+    assert_eq!(knob("hiz_npot").unwrap()["origin"], "run");
+    assert!(
+        knob("oq_group").is_none(),
+        "not offered to hiz-2phase: {stdout}"
+    );
+    assert!(
+        knob("alpha_prepass").is_none(),
+        "hiz-2phase pre-passes alpha itself: {stdout}"
+    );
+    assert!(v["frame_gpu_ms"].as_f64().unwrap() > 0.0);
+    assert!(v["gpu_ms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|p| p["pass"] == "hiz-build"));
+    // auto says why it chose.
+    let (ok, stdout, err) = run(&["render", "city:100", "--culling", "auto", "--json"], &env);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["culling"], "none");
+    assert!(
+        v["auto_reason"]
+            .as_str()
+            .unwrap()
+            .contains("fewer than 256"),
+        "{stdout}"
+    );
+    std::fs::remove_file(&out).ok();
 }

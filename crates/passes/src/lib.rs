@@ -23,6 +23,7 @@ pub mod forward;
 pub mod frame;
 pub mod gpu_scene;
 pub mod hiz;
+pub mod knobs;
 pub mod lint;
 pub mod occlusion;
 pub mod options;

@@ -73,6 +73,8 @@ pub struct RenderOptions {
     /// Overrides the profile's opaque draw order (measurements: `BackToFront` is the worst
     /// case for early depth rejection).
     pub opaque_order: Option<tilegraph_profile::SortOrder>,
+    /// Overrides the profile's `alpha_tested_prepass` (knob `alpha_prepass`).
+    pub alpha_prepass: Option<bool>,
     /// GPU culling before drawing (opaque and alpha-tested instances; blended ones are frustum
     /// culled on the CPU and sorted back to front).
     pub culling: Culling,
@@ -98,6 +100,7 @@ impl Default for RenderOptions {
             clear_color: [0.55, 0.65, 0.78, 1.0],
             count_fragments: false,
             opaque_order: None,
+            alpha_prepass: None,
             culling: Culling::None,
             hiz_mode: NpotMode::EdgeAware,
             capture_ids: false,

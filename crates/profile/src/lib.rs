@@ -12,6 +12,7 @@
 
 mod error;
 mod identity;
+pub mod knobs;
 pub mod lint;
 mod memory;
 mod select;
@@ -46,6 +47,10 @@ pub struct Profile {
     /// Pipeline states that defeat the GPU's hidden-surface removal (LRZ, FPK, HSR, early-Z).
     #[serde(default)]
     pub state_rules: Vec<StateRule>,
+    /// What this family ships with for the choices that trade speed for accuracy or memory
+    /// ([`knobs::KNOBS`]); a knob not set here takes its built-in default.
+    #[serde(default)]
+    pub knobs: knobs::KnobSettings,
 }
 
 impl Profile {

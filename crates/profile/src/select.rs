@@ -38,8 +38,10 @@ pub struct MatchRule {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum MatchedBy {
-    /// `TILEGRAPH_PROFILE` (or an explicit request) named it.
-    Forced { name: String },
+    /// Named by `by`: `TILEGRAPH_PROFILE` (what [`ProfileSet::select`] assumes), or what the
+    /// caller says forced it (`--profile`). A caller's request takes precedence over the
+    /// variable.
+    Forced { name: String, by: String },
     /// The device name matched one of the profile's patterns (and the vendor, if listed).
     DeviceName { pattern: String },
     /// Vendor and driver ID matched a vendor-default profile.
@@ -53,7 +55,10 @@ pub enum MatchedBy {
 impl std::fmt::Display for MatchedBy {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            MatchedBy::Forced { name } => write!(f, "forced by {PROFILE_ENV}={name}"),
+            MatchedBy::Forced { name, by } if by == PROFILE_ENV => {
+                write!(f, "forced by {PROFILE_ENV}={name}")
+            }
+            MatchedBy::Forced { name, by } => write!(f, "forced by {by} {name}"),
             MatchedBy::DeviceName { pattern } => write!(f, "device name matches {pattern:?}"),
             MatchedBy::VendorAndDriver {
                 vendor_id,
@@ -210,6 +215,7 @@ impl ProfileSet {
                 profile: profile.clone(),
                 matched_by: MatchedBy::Forced {
                     name: name.to_string(),
+                    by: PROFILE_ENV.to_string(),
                 },
                 source: source.clone(),
             });

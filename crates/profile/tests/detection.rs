@@ -440,10 +440,19 @@ fn forcing_by_name_wins_and_says_so() {
     assert_eq!(
         s.matched_by,
         MatchedBy::Forced {
-            name: "adreno-7xx".into()
+            name: "adreno-7xx".into(),
+            by: "TILEGRAPH_PROFILE".into()
         }
     );
-    assert!(s.matched_by.to_string().contains("forced"));
+    assert_eq!(
+        s.matched_by.to_string(),
+        "forced by TILEGRAPH_PROFILE=adreno-7xx"
+    );
+    let by_flag = MatchedBy::Forced {
+        name: "adreno-7xx".into(),
+        by: "--profile".into(),
+    };
+    assert_eq!(by_flag.to_string(), "forced by --profile adreno-7xx");
     match set.select(&lavapipe(), Some("adreno-9000")) {
         Err(ProfileError::UnknownProfile { name, available }) => {
             assert_eq!(name, "adreno-9000");

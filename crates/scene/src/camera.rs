@@ -476,12 +476,31 @@ impl CameraPath {
 
     /// Parses the JSON format documented in docs/SCENES.md; `source` names the file in errors.
     pub fn from_json_str(text: &str, source: &str) -> Result<Self, SceneError> {
-        let doc: JsonPath = serde_json::from_str(text).map_err(|e| {
+        if text.trim_start().starts_with('[') {
+            return Err(path_error(
+                source,
+                None,
+                "<root>",
+                "a bare array: a camera path is an object, {\"frames\": [{\"eye\": …, \"target\": …}, …]} (docs/SCENES.md)".into(),
+            ));
+        }
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let doc: JsonPath = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.into_inner();
+            let (line, column) = (inner.line(), inner.column());
+            // serde_json appends the location to its message; say it once.
+            let message = inner.to_string();
+            let message = message
+                .rsplit_once(" at line ")
+                .map_or(message.as_str(), |(m, _)| m)
+                .to_string();
+            let field = if key == "." { "json".to_string() } else { key };
             path_error(
                 source,
                 None,
-                "json",
-                format!("line {}, column {}: {e}", e.line(), e.column()),
+                &field,
+                format!("line {line}, column {column}: {message}"),
             )
         })?;
         if doc.frames.is_empty() {
@@ -876,5 +895,24 @@ mod tests {
                 "{text}"
             );
         }
+        // The key is named and the location said once; a bare array says what is expected.
+        let e = CameraPath::from_json_str(
+            r#"{"frames": [{"eye": [0, 0], "target": [0,0,-1]}]}"#,
+            "bad.json",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("bad.json: camera path: frames[0].eye: line 1"),
+            "{e}"
+        );
+        assert_eq!(e.matches("line").count(), 1, "{e}");
+        let e = CameraPath::from_json_str(r#"[{"eye": [0,0,0], "target": [0,0,-1]}]"#, "bare.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("a bare array: a camera path is an object"),
+            "{e}"
+        );
     }
 }

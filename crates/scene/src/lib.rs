@@ -139,6 +139,26 @@ fn parse_spec<'a>(spec: &'a str, options: &LoadOptions) -> Result<Spec<'a>, Scen
     if spec == "default" {
         return Ok(Spec::Procedural(ProceduralKind::City, DEFAULT_SCENE));
     }
+    if Path::new(spec).is_dir() {
+        let mut found: Vec<String> = std::fs::read_dir(spec)
+            .map(|entries| {
+                entries
+                    .filter_map(Result::ok)
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| {
+                        let n = n.to_ascii_lowercase();
+                        n.ends_with(".gltf") || n.ends_with(".glb")
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        found.sort();
+        return Err(bad(if found.is_empty() {
+            "is a directory, and holds no .gltf or .glb file".into()
+        } else {
+            format!("is a directory; the glTF files in it: {}", found.join(", "))
+        }));
+    }
     let mut parts = spec.split(':');
     let name = parts.next().unwrap_or_default();
     let Ok(kind) = name.parse::<ProceduralKind>() else {
@@ -152,6 +172,11 @@ fn parse_spec<'a>(spec: &'a str, options: &LoadOptions) -> Result<Spec<'a>, Scen
     if let Some(size) = parts.next() {
         let n = parse_count(size)
             .ok_or_else(|| bad(format!("size `{size}` is not a count (e.g. 5000, 50k, 1M)")))?;
+        if n == 0 {
+            return Err(bad(format!(
+                "size `{size}`: a scene needs at least one instance"
+            )));
+        }
         params.size = usize::try_from(n).map_err(|_| bad(format!("size {n} is too large")))?;
     }
     if let Some(seed) = parts.next() {
@@ -203,6 +228,7 @@ mod tests {
             "city:10:x",
             "city:10:1:2",
             "city:99999999999999999999M",
+            "city:0",
             "",
         ] {
             assert!(
@@ -210,6 +236,23 @@ mod tests {
                 "{bad}"
             );
         }
+    }
+
+    #[test]
+    fn a_directory_names_the_gltf_files_inside() {
+        let dir = std::env::temp_dir().join(format!("tilegraph-spec-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("b.glb"), b"").unwrap();
+        std::fs::write(dir.join("a.gltf"), b"").unwrap();
+        std::fs::write(dir.join("notes.txt"), b"").unwrap();
+        let spec = dir.to_string_lossy().into_owned();
+        let e = parse_spec(&spec, &LoadOptions::default()).unwrap_err();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(
+            e.to_string()
+                .ends_with("is a directory; the glTF files in it: a.gltf, b.glb"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -26,6 +26,9 @@ pub struct ContextOptions {
     pub device: Option<String>,
     /// Profile forced by name (`TILEGRAPH_PROFILE`).
     pub profile: Option<String>,
+    /// Who forced [`Self::profile`], as the selection reports it: `TILEGRAPH_PROFILE` unless
+    /// the caller says otherwise ([`Self::force_profile`]).
+    pub profile_forced_by: String,
     pub features: FeatureRequest,
 }
 
@@ -38,8 +41,16 @@ impl ContextOptions {
             validation: Validation::from_env(),
             device: std::env::var("TILEGRAPH_DEVICE").ok(),
             profile: std::env::var(tilegraph_profile::PROFILE_ENV).ok(),
+            profile_forced_by: tilegraph_profile::PROFILE_ENV.to_string(),
             features: FeatureRequest::executor(),
         }
+    }
+
+    /// Forces profile `name`, credited to `by` (`--profile`): it takes precedence over
+    /// `TILEGRAPH_PROFILE`.
+    pub fn force_profile(&mut self, name: &str, by: &str) {
+        self.profile = Some(name.to_string());
+        self.profile_forced_by = by.to_string();
     }
 }
 
@@ -95,7 +106,10 @@ impl Context {
     pub fn new(options: ContextOptions) -> Result<Self, VkError> {
         let instance = Instance::new(&options.app_name, options.validation)?;
         let physical = instance.choose_device(options.device.as_deref())?;
-        let selection = select_profile(&physical, options.profile.as_deref())?;
+        let mut selection = select_profile(&physical, options.profile.as_deref())?;
+        if let tilegraph_profile::MatchedBy::Forced { by, .. } = &mut selection.matched_by {
+            by.clone_from(&options.profile_forced_by);
+        }
         Self::with_instance(instance, physical, selection, &options.features)
     }
 

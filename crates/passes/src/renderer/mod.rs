@@ -161,8 +161,15 @@ impl SceneRenderer {
                 return Err(e);
             }
         };
-        let setup = decide(SceneContent::of(scene), ctx.profile(), options.technique)
-            .with_culling(options.culling);
+        let setup = match options.alpha_prepass {
+            Some(a) if a != ctx.profile().passes.alpha_tested_prepass => {
+                let mut profile = ctx.profile().clone();
+                profile.passes.alpha_tested_prepass = a;
+                decide(SceneContent::of(scene), &profile, options.technique)
+            }
+            _ => decide(SceneContent::of(scene), ctx.profile(), options.technique),
+        }
+        .with_culling(options.culling);
         Ok(SceneRenderer {
             options,
             setup: Arc::new(setup),

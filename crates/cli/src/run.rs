@@ -1,0 +1,176 @@
+//! The options every rendering command shares (`render`, `cull-check`, `lint`, `bench`): one
+//! vocabulary — `--culling`, `--shading`, `--set knob=value`, `--profile`, `--size`,
+//! `--camera-path`, `--frames`, `--json` — and what they become: a context whose profile says
+//! who forced it, and [`RenderOptions`] from the knobs (run over profile over defaults).
+
+use std::path::PathBuf;
+
+use tilegraph_passes::cull::Culling;
+use tilegraph_passes::knobs::{self, AutoInputs, Resolved};
+use tilegraph_passes::{RenderOptions, Technique};
+use tilegraph_profile::knobs::{KnobSettings, KnobValue};
+use tilegraph_scene::{CameraPath, Scene};
+use tilegraph_vk::{Context, ContextOptions, Feature, FeatureRequest};
+
+use crate::{parse_size, CliError};
+
+/// What the deprecated `--technique` meant in a command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TechniqueMeant {
+    Shading,
+    Culling,
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct RunArgs {
+    /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
+    pub scene: String,
+    /// Force a profile by name; takes precedence over TILEGRAPH_PROFILE.
+    #[arg(long)]
+    pub profile: Option<String>,
+    /// auto | none | frustum | hiz | hiz-2phase | oq | oq-conditional | raster-occlusion
+    /// (default: the profile's `culling` knob; `auto` picks from what the scene holds).
+    #[arg(long)]
+    pub culling: Option<String>,
+    /// forward | prepass | visbuf (default: the profile's `shading` knob).
+    #[arg(long)]
+    pub shading: Option<String>,
+    /// Set a knob for this run, e.g. `--set oq_group=16` (`tilegraph knobs` lists them).
+    #[arg(long = "set", value_name = "KNOB=VALUE")]
+    pub set: Vec<String>,
+    /// Frame size, WxH.
+    #[arg(long, value_parser = parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Camera path JSON (docs/SCENES.md); the scene's own path when absent.
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
+    /// Frames to render (at least 1).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub frames: Option<u32>,
+    /// Machine-readable output on standard output.
+    #[arg(long)]
+    pub json: bool,
+    /// Deprecated: `--shading` in `render`, `--culling` in `cull-check`.
+    #[arg(long, hide = true)]
+    pub technique: Option<String>,
+    /// Deprecated: `--set oq_group=N`.
+    #[arg(long, hide = true)]
+    pub oq_group: Option<String>,
+    /// Deprecated: `--set raster_occlusion_scale=N`.
+    #[arg(long, hide = true)]
+    pub raster_occlusion_scale: Option<String>,
+    /// Deprecated: `--set hiz_npot=MODE`.
+    #[arg(long, hide = true)]
+    pub hiz_npot: Option<String>,
+}
+
+impl RunArgs {
+    /// The knobs this run sets: `--set`, then `--culling` / `--shading` and the deprecated
+    /// spellings (each with a message saying what replaces it).
+    pub fn knob_settings(&self, technique_means: TechniqueMeant) -> Result<KnobSettings, CliError> {
+        let mut s = KnobSettings::default();
+        for a in &self.set {
+            s.set_assignment(a)?;
+        }
+        let mut flag = |knob: &str, value: &Option<String>, deprecated: Option<&str>| {
+            let Some(v) = value else { return Ok(()) };
+            if let Some(old) = deprecated {
+                eprintln!("tilegraph: {old} is deprecated: use --set {knob}={v}");
+            }
+            s.set(knob, KnobValue::Name(v.clone()))
+        };
+        flag("oq_group", &self.oq_group, Some("--oq-group"))?;
+        flag(
+            "raster_occlusion_scale",
+            &self.raster_occlusion_scale,
+            Some("--raster-occlusion-scale"),
+        )?;
+        flag("hiz_npot", &self.hiz_npot, Some("--hiz-npot"))?;
+        if let Some(t) = &self.technique {
+            let (knob, replacement) = match technique_means {
+                TechniqueMeant::Shading => ("shading", "--shading"),
+                TechniqueMeant::Culling => ("culling", "--culling"),
+            };
+            eprintln!("tilegraph: --technique is deprecated: use {replacement} {t}");
+            s.set(knob, KnobValue::Name(t.clone()))?;
+        }
+        let mut flag = |knob: &str, value: &Option<String>| match value {
+            Some(v) => s.set(knob, KnobValue::Name(v.clone())),
+            None => Ok(()),
+        };
+        flag("culling", &self.culling)?;
+        flag("shading", &self.shading)?;
+        Ok(s)
+    }
+
+    /// Context options: the environment's, the profile flag credited to `--profile`, and
+    /// `features` plus every feature any culling could use, optional (whether the chosen one
+    /// has them is checked when the renderer is created, with a typed error naming them).
+    pub fn context_options(&self, features: FeatureRequest) -> ContextOptions {
+        let mut o = ContextOptions::from_env();
+        if let Some(p) = &self.profile {
+            o.force_profile(p, "--profile");
+        }
+        o.features = features;
+        for c in ALL_CULLINGS {
+            let r = RenderOptions {
+                culling: c,
+                ..Default::default()
+            }
+            .device_features();
+            o.features.optional.extend(r.required);
+            o.features.optional.extend(r.optional);
+        }
+        for t in [Technique::Forward, Technique::Visbuf] {
+            let r = RenderOptions {
+                technique: t,
+                ..Default::default()
+            }
+            .device_features();
+            o.features.optional.extend(r.required);
+        }
+        o.features.optional.insert(Feature::ConditionalRendering);
+        let required = o.features.required.clone();
+        o.features.optional.retain(|f| !required.contains(f));
+        o
+    }
+
+    /// The knobs `run` sets (from [`Self::knob_settings`], read before the device is created)
+    /// resolved for `scene` on `ctx`, and written into `options`.
+    pub fn resolve(
+        ctx: &Context,
+        scene: &Scene,
+        run: &KnobSettings,
+        options: &mut RenderOptions,
+    ) -> Result<Resolved, CliError> {
+        let resolved = knobs::resolve(
+            ctx.profile(),
+            run,
+            scene,
+            AutoInputs {
+                conditional_rendering: ctx.has_feature(Feature::ConditionalRendering),
+            },
+        )?;
+        resolved.apply(options);
+        Ok(resolved)
+    }
+
+    /// The camera path: `--camera-path`, else the scene's own.
+    pub fn camera_path(&self, scene: &Scene) -> Result<CameraPath, CliError> {
+        Ok(match &self.camera_path {
+            Some(p) => CameraPath::load_json(p)?,
+            None => scene.camera_path().clone(),
+        })
+    }
+}
+
+/// Every culling technique, in the order the docs list them.
+pub const ALL_CULLINGS: [Culling; 7] = [
+    Culling::None,
+    Culling::Frustum,
+    Culling::Hiz,
+    Culling::HizTwoPhase,
+    Culling::Oq,
+    Culling::OqConditional,
+    Culling::RasterOcclusion,
+];

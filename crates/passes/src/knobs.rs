@@ -1,0 +1,385 @@
+//! What the knobs (`tilegraph_profile::knobs`) mean for a renderer: a run's settings over the
+//! profile's over the built-in defaults, checked against the scene and the culling they are for,
+//! turned into [`RenderOptions`]; and `culling = auto`, which picks the culling from what the
+//! scene holds and says why.
+
+use std::fmt;
+
+use serde::Serialize;
+use tilegraph_cull::NpotMode;
+use tilegraph_profile::knobs::{
+    spec, Applies, KnobError, KnobSettings, KnobSpec, KnobValue, KNOBS,
+};
+use tilegraph_profile::{Profile, SortOrder};
+use tilegraph_scene::Scene;
+
+use crate::cull::Culling;
+use crate::options::RenderOptions;
+use crate::setup::{SceneContent, Technique};
+
+/// Below this many instances `auto` draws everything: culling has a fixed cost (six dispatches
+/// and a pyramid, 0.1 ms on the H100 at 1080p) that a small level's whole frame does not reach
+/// (60 instances, 30 k triangles: 0.026 ms unculled, 0.13 ms with two-phase HiZ on the H100).
+pub const AUTO_MIN_INSTANCES: usize = 256;
+
+/// From this many triangles per opaque instance `auto` prefers same-frame occlusion queries
+/// (where the device has conditional rendering): a box per instance costs less than the
+/// triangles of instances whose box passes a HiZ test (Godot rooms, 3,748 triangles per
+/// instance: 6.45 ms against two-phase HiZ's 19.4 ms on the H100, docs/ACCURACY.md).
+pub const AUTO_QUERY_TRIANGLES_PER_INSTANCE: u64 = 1000;
+
+/// Where a knob's value came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Origin {
+    /// The built-in default ([`tilegraph_profile::knobs::KNOBS`]).
+    Default,
+    /// The profile's `[knobs]` table.
+    Profile,
+    /// This run (`--set`, `--culling`, `--shading`).
+    Run,
+}
+
+impl fmt::Display for Origin {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Origin::Default => "default",
+            Origin::Profile => "profile",
+            Origin::Run => "this run",
+        })
+    }
+}
+
+/// One knob as a run uses it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct KnobChoice {
+    pub name: &'static str,
+    pub value: KnobValue,
+    pub origin: Origin,
+}
+
+/// A run's knob settings that cannot apply.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum KnobUseError {
+    #[error(transparent)]
+    Knob(#[from] KnobError),
+    #[error("knob {name}: {why}")]
+    NotForScene { name: &'static str, why: String },
+    #[error("knob {name} applies to culling {applies_to}, and this run culls with {culling}")]
+    IgnoredByCulling {
+        name: &'static str,
+        applies_to: String,
+        culling: &'static str,
+    },
+}
+
+/// What the device offers that `auto` chooses between.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AutoInputs {
+    /// `VK_EXT_conditional_rendering` (same-frame occlusion queries).
+    pub conditional_rendering: bool,
+}
+
+/// The knobs of one run, resolved.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Resolved {
+    #[serde(skip)]
+    pub culling: Culling,
+    #[serde(skip)]
+    pub technique: Technique,
+    /// Why `auto` chose [`Self::culling`] (`None` when a value was given).
+    pub auto_reason: Option<String>,
+    /// Every knob offered to this scene, with its value and origin.
+    pub knobs: Vec<KnobChoice>,
+}
+
+/// The knobs a scene can use: `alpha_prepass` only where there is alpha-tested geometry.
+pub fn offered(content: SceneContent) -> impl Iterator<Item = &'static KnobSpec> {
+    KNOBS
+        .iter()
+        .filter(move |k| k.applies != Applies::AlphaTestedScene || content.alpha_tested > 0)
+}
+
+/// Picks the culling for a scene (`culling = auto`), with the reason.
+pub fn auto_culling(scene: &Scene, inputs: AutoInputs) -> (Culling, String) {
+    let content = SceneContent::of(scene);
+    let drawn = content.opaque + content.alpha_tested;
+    let triangles: u64 = scene
+        .instances()
+        .iter()
+        .filter_map(|i| scene.mesh(i.mesh))
+        .map(|m| u64::from(m.triangle_count()))
+        .sum();
+    let per_instance = triangles / (scene.instances().len().max(1) as u64);
+    if drawn < AUTO_MIN_INSTANCES {
+        return (
+            Culling::None,
+            format!(
+                "auto: {drawn} opaque and alpha-tested instances, fewer than {AUTO_MIN_INSTANCES}: culling's fixed cost would exceed what it saves"
+            ),
+        );
+    }
+    if per_instance >= AUTO_QUERY_TRIANGLES_PER_INSTANCE && inputs.conditional_rendering {
+        return (
+            Culling::OqConditional,
+            format!(
+                "auto: {drawn} instances of {per_instance} triangles on average (at least {AUTO_QUERY_TRIANGLES_PER_INSTANCE}): a query box per instance costs less than the triangles a HiZ test lets through"
+            ),
+        );
+    }
+    (
+        Culling::HizTwoPhase,
+        format!(
+            "auto: {drawn} instances of {per_instance} triangles on average: two-phase HiZ, the cheapest conservative culling{}",
+            if per_instance >= AUTO_QUERY_TRIANGLES_PER_INSTANCE {
+                " (same-frame queries would suit heavy instances, but the device lacks conditional rendering)"
+            } else {
+                ""
+            }
+        ),
+    )
+}
+
+/// Resolves a run's knobs: `run` over `profile.knobs` over the defaults. A knob the run sets
+/// that the scene cannot use, or that the chosen culling ignores, is an error; the profile's
+/// settings of such knobs are simply not used.
+pub fn resolve(
+    profile: &Profile,
+    run: &KnobSettings,
+    scene: &Scene,
+    inputs: AutoInputs,
+) -> Result<Resolved, KnobUseError> {
+    let content = SceneContent::of(scene);
+    for (name, _) in run.iter() {
+        let Some(k) = spec(name) else { continue };
+        if !offered(content).any(|o| o.name == k.name) {
+            return Err(KnobUseError::NotForScene {
+                name: k.name,
+                why: format!("scene {:?} has no alpha-tested geometry", scene.name()),
+            });
+        }
+    }
+    let merged = profile.knobs.overridden_by(run);
+    let value = |k: &KnobSpec| -> (KnobValue, Origin) {
+        match (run.get(k.name), profile.knobs.get(k.name)) {
+            (Some(v), _) => (v.clone(), Origin::Run),
+            (None, Some(v)) => (v.clone(), Origin::Profile),
+            (None, None) => (k.default.into(), Origin::Default),
+        }
+    };
+    let name_of = |knob: &str| -> String {
+        merged
+            .get(knob)
+            .cloned()
+            .or_else(|| spec(knob).map(|k| k.default.into()))
+            .map(|v| v.to_string())
+            .unwrap_or_default()
+    };
+    let (culling, auto_reason) = match Culling::parse(&name_of("culling")) {
+        Some(c) => (c, None),
+        None => {
+            let (c, why) = auto_culling(scene, inputs);
+            (c, Some(why))
+        }
+    };
+    let technique = Technique::parse(&name_of("shading")).unwrap_or(Technique::Forward);
+    let mut knobs = Vec::new();
+    for k in offered(content) {
+        let (v, origin) = value(k);
+        if let Applies::WithCulling(techniques) = k.applies {
+            if !techniques.contains(&culling.name()) {
+                if origin == Origin::Run {
+                    return Err(KnobUseError::IgnoredByCulling {
+                        name: k.name,
+                        applies_to: techniques.join(", "),
+                        culling: culling.name(),
+                    });
+                }
+                continue;
+            }
+        }
+        if k.name == "alpha_prepass" {
+            let inert = if technique == Technique::Visbuf {
+                Some("the visibility buffer has no depth pre-pass".to_string())
+            } else if culling.needs_prepass() {
+                Some(format!(
+                    "culling {} draws alpha-tested depth in its own pre-pass",
+                    culling.name()
+                ))
+            } else {
+                None
+            };
+            match (inert, origin) {
+                (Some(why), Origin::Run) => {
+                    return Err(KnobUseError::NotForScene { name: k.name, why })
+                }
+                (Some(_), _) => continue,
+                (None, _) => {}
+            }
+        }
+        knobs.push(KnobChoice {
+            name: k.name,
+            value: v,
+            origin,
+        });
+    }
+    Ok(Resolved {
+        culling,
+        technique,
+        auto_reason,
+        knobs,
+    })
+}
+
+impl Resolved {
+    fn get(&self, name: &str) -> Option<&KnobValue> {
+        self.knobs.iter().find(|k| k.name == name).map(|k| &k.value)
+    }
+
+    /// Writes the resolved knobs into `options` (culling, shading, and every other knob offered).
+    pub fn apply(&self, options: &mut RenderOptions) {
+        options.culling = self.culling;
+        options.technique = self.technique;
+        let name = |k: &str| self.get(k).and_then(KnobValue::as_name).unwrap_or("");
+        options.opaque_order = match name("opaque_sort") {
+            "front-to-back" => Some(SortOrder::FrontToBack),
+            "back-to-front" => Some(SortOrder::BackToFront),
+            "by-state" => Some(SortOrder::ByState),
+            "none" => Some(SortOrder::None),
+            _ => None,
+        };
+        options.alpha_prepass = match name("alpha_prepass") {
+            "on" => Some(true),
+            "off" => Some(false),
+            _ => None,
+        };
+        if name("hiz_npot") == "pad-to-pow2" {
+            options.hiz_mode = NpotMode::PadToPow2;
+        }
+        if let Some(g) = self.get("oq_group").and_then(KnobValue::as_integer) {
+            options.oq_group = g as usize;
+        }
+        if let Some(s) = self
+            .get("raster_occlusion_scale")
+            .and_then(KnobValue::as_integer)
+        {
+            options.raster_occlusion_scale = s;
+        }
+    }
+
+    /// One line per knob: `name = value (origin)`, and `auto`'s reason.
+    pub fn describe(&self) -> Vec<String> {
+        let mut lines: Vec<String> = self
+            .knobs
+            .iter()
+            .map(|k| format!("{} = {} ({})", k.name, k.value, k.origin))
+            .collect();
+        if let Some(why) = &self.auto_reason {
+            lines.push(format!("culling {}: {why}", self.culling.name()));
+        }
+        lines
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tilegraph_profile::knobs::Domain;
+
+    fn profile(name: &str) -> Profile {
+        tilegraph_profile::ProfileSet::embedded()
+            .unwrap()
+            .get(name)
+            .unwrap()
+            .clone()
+    }
+
+    #[test]
+    fn every_domain_value_means_something_here() {
+        for k in KNOBS {
+            for v in k.domain.values() {
+                let s = v.to_string();
+                let understood = match k.name {
+                    "culling" => s == "auto" || Culling::parse(&s).is_some(),
+                    "shading" => Technique::parse(&s).is_some(),
+                    "opaque_sort" => [
+                        "profile",
+                        "front-to-back",
+                        "back-to-front",
+                        "by-state",
+                        "none",
+                    ]
+                    .contains(&s.as_str()),
+                    "alpha_prepass" => ["profile", "on", "off"].contains(&s.as_str()),
+                    "hiz_npot" => ["edge-aware", "pad-to-pow2"].contains(&s.as_str()),
+                    "oq_group" | "raster_occlusion_scale" => {
+                        matches!(k.domain, Domain::Integers(_))
+                    }
+                    other => panic!("knob {other} has no meaning in tilegraph-passes"),
+                };
+                assert!(understood, "{}={s}", k.name);
+            }
+        }
+    }
+
+    #[test]
+    fn run_over_profile_over_default_and_knobs_that_cannot_apply_are_errors() {
+        let city = tilegraph_scene::load("city:400").unwrap();
+        let mut p = profile("lavapipe");
+        p.knobs.set("oq_group", KnobValue::Integer(8)).unwrap();
+        let inputs = AutoInputs {
+            conditional_rendering: true,
+        };
+        let mut run = KnobSettings::default();
+        run.set_assignment("culling=oq-conditional").unwrap();
+        let r = resolve(&p, &run, &city, inputs).unwrap();
+        let mut o = RenderOptions::default();
+        r.apply(&mut o);
+        assert_eq!((o.culling, o.oq_group), (Culling::OqConditional, 8));
+        assert!(r.describe().contains(&"oq_group = 8 (profile)".to_string()));
+        run.set_assignment("oq_group=2").unwrap();
+        let r = resolve(&p, &run, &city, inputs).unwrap();
+        r.apply(&mut o);
+        assert_eq!(o.oq_group, 2);
+        // The profile's oq_group is not used by HiZ culling; the run's is an error.
+        let mut hiz = KnobSettings::default();
+        hiz.set_assignment("culling=hiz-2phase").unwrap();
+        assert!(resolve(&p, &hiz, &city, inputs).is_ok());
+        hiz.set_assignment("oq_group=2").unwrap();
+        let e = resolve(&p, &hiz, &city, inputs).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "knob oq_group applies to culling oq, oq-conditional, and this run culls with hiz-2phase"
+        );
+        // The city has no alpha-tested geometry: no alpha_prepass knob.
+        assert!(!offered(SceneContent::of(&city)).any(|k| k.name == "alpha_prepass"));
+        let mut alpha = KnobSettings::default();
+        alpha.set_assignment("alpha_prepass=off").unwrap();
+        assert!(matches!(
+            resolve(&p, &alpha, &city, inputs),
+            Err(KnobUseError::NotForScene {
+                name: "alpha_prepass",
+                ..
+            })
+        ));
+        let forest = tilegraph_scene::load("forest:300").unwrap();
+        alpha.set_assignment("culling=none").unwrap();
+        let r = resolve(&p, &alpha, &forest, inputs).unwrap();
+        r.apply(&mut o);
+        assert_eq!(o.alpha_prepass, Some(false));
+    }
+
+    #[test]
+    fn auto_draws_small_scenes_whole_and_culls_big_ones() {
+        let inputs = AutoInputs {
+            conditional_rendering: true,
+        };
+        let small = tilegraph_scene::load("city:100").unwrap();
+        let (c, why) = auto_culling(&small, inputs);
+        assert_eq!(c, Culling::None, "{why}");
+        let big = tilegraph_scene::load("city:2000").unwrap();
+        let (c, why) = auto_culling(&big, inputs);
+        assert_eq!(c, Culling::HizTwoPhase, "{why}");
+        assert!(why.contains("instances"), "{why}");
+    }
+}

@@ -1,0 +1,365 @@
+//! Knobs: every choice that trades speed for accuracy or memory, by name, with its domain.
+//!
+//! A profile's `[knobs]` table sets what that GPU family ships with; a run overrides any of them
+//! (`tilegraph … --set oq_group=16`), and `tilegraph tune` writes the winners back as a profile.
+//! This module is the registry — names, domains, defaults, which runs a knob means something to —
+//! and validation. What a value *does* is `tilegraph-passes`' business (`knobs::Resolved`); a test
+//! there parses every value of every domain, so the two cannot drift apart.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+/// What a knob may be set to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Domain {
+    /// One of these names.
+    Choice(&'static [&'static str]),
+    /// One of these integers.
+    Integers(&'static [u32]),
+}
+
+impl Domain {
+    /// Whether `value` (as written on the command line or in TOML) is in the domain; the value
+    /// normalized (`"16"` and `16` are the same integer).
+    pub fn check(&self, value: &KnobValue) -> Option<KnobValue> {
+        match (self, value) {
+            (Domain::Choice(names), KnobValue::Name(n)) => names
+                .contains(&n.as_str())
+                .then(|| KnobValue::Name(n.clone())),
+            (Domain::Integers(ints), KnobValue::Integer(i)) => {
+                ints.contains(i).then_some(KnobValue::Integer(*i))
+            }
+            (Domain::Integers(ints), KnobValue::Name(n)) => n
+                .parse::<u32>()
+                .ok()
+                .filter(|i| ints.contains(i))
+                .map(KnobValue::Integer),
+            (Domain::Choice(_), KnobValue::Integer(_)) => None,
+        }
+    }
+
+    /// Every value of the domain, in order.
+    pub fn values(&self) -> Vec<KnobValue> {
+        match self {
+            Domain::Choice(names) => names
+                .iter()
+                .map(|n| KnobValue::Name(n.to_string()))
+                .collect(),
+            Domain::Integers(ints) => ints.iter().map(|&i| KnobValue::Integer(i)).collect(),
+        }
+    }
+}
+
+impl fmt::Display for Domain {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Domain::Choice(names) => f.write_str(&names.join(", ")),
+            Domain::Integers(ints) => {
+                let v: Vec<String> = ints.iter().map(u32::to_string).collect();
+                f.write_str(&v.join(", "))
+            }
+        }
+    }
+}
+
+/// When a knob means something; elsewhere setting it is an error, not silently ignored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Applies {
+    Always,
+    /// Only with these culling techniques.
+    WithCulling(&'static [&'static str]),
+    /// Only for scenes with alpha-tested geometry.
+    AlphaTestedScene,
+}
+
+/// One knob.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct KnobSpec {
+    pub name: &'static str,
+    pub domain: Domain,
+    /// The value when neither the profile nor the run sets it.
+    pub default: DefaultValue,
+    pub applies: Applies,
+    /// What it trades, in one line.
+    pub help: &'static str,
+}
+
+/// A knob's built-in default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DefaultValue {
+    Name(&'static str),
+    Integer(u32),
+}
+
+impl From<DefaultValue> for KnobValue {
+    fn from(d: DefaultValue) -> Self {
+        match d {
+            DefaultValue::Name(n) => KnobValue::Name(n.to_string()),
+            DefaultValue::Integer(i) => KnobValue::Integer(i),
+        }
+    }
+}
+
+/// The culling techniques, as the `culling` knob names them (`auto` picks one per scene).
+pub const CULLING_NAMES: &[&str] = &[
+    "auto",
+    "none",
+    "frustum",
+    "hiz",
+    "hiz-2phase",
+    "oq",
+    "oq-conditional",
+    "raster-occlusion",
+];
+
+/// Every knob. Order is the order `tilegraph` prints and `tune` sweeps them.
+pub const KNOBS: &[KnobSpec] = &[
+    KnobSpec {
+        name: "culling",
+        domain: Domain::Choice(CULLING_NAMES),
+        default: DefaultValue::Name("auto"),
+        applies: Applies::Always,
+        help: "what decides which instances are drawn: auto picks from what the scene holds",
+    },
+    KnobSpec {
+        name: "shading",
+        domain: Domain::Choice(&["forward", "prepass", "visbuf"]),
+        default: DefaultValue::Name("forward"),
+        applies: Applies::Always,
+        help: "forward (pre-pass as the profile says), forward with a forced depth pre-pass, or visibility buffer",
+    },
+    KnobSpec {
+        name: "opaque_sort",
+        domain: Domain::Choice(&["profile", "front-to-back", "back-to-front", "by-state", "none"]),
+        default: DefaultValue::Name("profile"),
+        applies: Applies::Always,
+        help: "opaque draw order: front to back helps early-Z and LRZ, by state helps HSR GPUs",
+    },
+    KnobSpec {
+        name: "alpha_prepass",
+        domain: Domain::Choice(&["profile", "on", "off"]),
+        default: DefaultValue::Name("profile"),
+        applies: Applies::AlphaTestedScene,
+        help: "alpha-tested geometry's own depth pre-pass: discard once, colour tests EQUAL",
+    },
+    KnobSpec {
+        name: "hiz_npot",
+        domain: Domain::Choice(&["edge-aware", "pad-to-pow2"]),
+        default: DefaultValue::Name("edge-aware"),
+        applies: Applies::WithCulling(&["hiz", "hiz-2phase"]),
+        help: "HiZ pyramid of a non-power-of-two target: edge-aware reduction or a padded pyramid",
+    },
+    KnobSpec {
+        name: "oq_group",
+        domain: Domain::Integers(&[1, 2, 4, 8, 16, 32, 64]),
+        default: DefaultValue::Integer(1),
+        applies: Applies::WithCulling(&["oq", "oq-conditional"]),
+        help: "instances per occlusion query (a union box): fewer queries, more drawn",
+    },
+    KnobSpec {
+        name: "raster_occlusion_scale",
+        domain: Domain::Integers(&[1, 2, 4]),
+        default: DefaultValue::Integer(1),
+        applies: Applies::WithCulling(&["raster-occlusion"]),
+        help: "raster occlusion against a conservative 1/N-resolution depth: cheaper, more drawn",
+    },
+];
+
+/// The knob named `name`.
+pub fn spec(name: &str) -> Option<&'static KnobSpec> {
+    KNOBS.iter().find(|k| k.name == name)
+}
+
+/// A knob's value: a name or an integer (TOML writes `oq_group = 16`, the command line `16`).
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum KnobValue {
+    Integer(u32),
+    Name(String),
+}
+
+impl KnobValue {
+    pub fn as_name(&self) -> Option<&str> {
+        match self {
+            KnobValue::Name(n) => Some(n),
+            KnobValue::Integer(_) => None,
+        }
+    }
+
+    pub fn as_integer(&self) -> Option<u32> {
+        match self {
+            KnobValue::Integer(i) => Some(*i),
+            KnobValue::Name(_) => None,
+        }
+    }
+}
+
+impl fmt::Display for KnobValue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            KnobValue::Integer(i) => write!(f, "{i}"),
+            KnobValue::Name(n) => f.write_str(n),
+        }
+    }
+}
+
+/// Why a knob setting was refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum KnobError {
+    #[error("unknown knob {name:?} (knobs: {known})")]
+    Unknown { name: String, known: String },
+    #[error("knob {name}: {value:?} is outside its domain ({domain})")]
+    OutOfDomain {
+        name: String,
+        value: String,
+        domain: String,
+    },
+    #[error("`--set {0}` is not of the form knob=value")]
+    Syntax(String),
+}
+
+/// Knob values by name, each checked against its domain: a profile's `[knobs]` table, or a
+/// run's `--set` overrides.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(
+    try_from = "BTreeMap<String, KnobValue>",
+    into = "BTreeMap<String, KnobValue>"
+)]
+pub struct KnobSettings(BTreeMap<String, KnobValue>);
+
+impl KnobSettings {
+    /// Sets `name` to `value` after checking both.
+    pub fn set(&mut self, name: &str, value: KnobValue) -> Result<(), KnobError> {
+        let spec = spec(name).ok_or_else(|| KnobError::Unknown {
+            name: name.to_string(),
+            known: KNOBS.iter().map(|k| k.name).collect::<Vec<_>>().join(", "),
+        })?;
+        let v = spec
+            .domain
+            .check(&value)
+            .ok_or_else(|| KnobError::OutOfDomain {
+                name: name.to_string(),
+                value: value.to_string(),
+                domain: spec.domain.to_string(),
+            })?;
+        self.0.insert(name.to_string(), v);
+        Ok(())
+    }
+
+    /// Parses `knob=value` (as `--set` takes it) and sets it.
+    pub fn set_assignment(&mut self, assignment: &str) -> Result<(), KnobError> {
+        let (name, value) = assignment
+            .split_once('=')
+            .filter(|(n, v)| !n.trim().is_empty() && !v.trim().is_empty())
+            .ok_or_else(|| KnobError::Syntax(assignment.to_string()))?;
+        self.set(name.trim(), KnobValue::Name(value.trim().to_string()))
+    }
+
+    pub fn get(&self, name: &str) -> Option<&KnobValue> {
+        self.0.get(name)
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &KnobValue)> {
+        self.0.iter().map(|(k, v)| (k.as_str(), v))
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// `self` with `over`'s values taking precedence.
+    pub fn overridden_by(&self, over: &KnobSettings) -> KnobSettings {
+        let mut out = self.clone();
+        out.0
+            .extend(over.0.iter().map(|(k, v)| (k.clone(), v.clone())));
+        out
+    }
+}
+
+impl TryFrom<BTreeMap<String, KnobValue>> for KnobSettings {
+    type Error = KnobError;
+
+    fn try_from(map: BTreeMap<String, KnobValue>) -> Result<Self, KnobError> {
+        let mut s = KnobSettings::default();
+        for (k, v) in map {
+            s.set(&k, v)?;
+        }
+        Ok(s)
+    }
+}
+
+impl From<KnobSettings> for BTreeMap<String, KnobValue> {
+    fn from(s: KnobSettings) -> Self {
+        s.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_default_is_in_its_domain_and_names_are_unique() {
+        for k in KNOBS {
+            assert!(
+                k.domain.check(&k.default.into()).is_some(),
+                "{}: default outside domain",
+                k.name
+            );
+            assert_eq!(KNOBS.iter().filter(|o| o.name == k.name).count(), 1);
+        }
+    }
+
+    #[test]
+    fn settings_refuse_unknown_knobs_and_values_outside_the_domain() {
+        let mut s = KnobSettings::default();
+        assert!(matches!(
+            s.set_assignment("oq_groop=4"),
+            Err(KnobError::Unknown { name, .. }) if name == "oq_groop"
+        ));
+        let e = s.set_assignment("raster_occlusion_scale=3").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "knob raster_occlusion_scale: \"3\" is outside its domain (1, 2, 4)"
+        );
+        assert!(matches!(
+            s.set_assignment("oq_group"),
+            Err(KnobError::Syntax(_))
+        ));
+        assert!(matches!(
+            s.set_assignment("culling=hiz-3phase"),
+            Err(KnobError::OutOfDomain { .. })
+        ));
+        s.set_assignment("oq_group=16").unwrap();
+        assert_eq!(s.get("oq_group"), Some(&KnobValue::Integer(16)));
+        s.set_assignment(" culling = hiz-2phase ").unwrap();
+        assert_eq!(
+            s.get("culling"),
+            Some(&KnobValue::Name("hiz-2phase".into()))
+        );
+    }
+
+    #[test]
+    fn toml_tables_load_through_the_same_checks() {
+        let ok: KnobSettings =
+            toml::from_str("oq_group = 16\nculling = \"oq-conditional\"").unwrap();
+        assert_eq!(ok.get("oq_group"), Some(&KnobValue::Integer(16)));
+        let bad = toml::from_str::<KnobSettings>("oq_group = 3").unwrap_err();
+        assert!(bad.to_string().contains("outside its domain"), "{bad}");
+        let over = KnobSettings::try_from(BTreeMap::from([(
+            "oq_group".to_string(),
+            KnobValue::Integer(4),
+        )]))
+        .unwrap();
+        assert_eq!(
+            ok.overridden_by(&over).get("oq_group"),
+            Some(&KnobValue::Integer(4))
+        );
+        assert_eq!(
+            ok.overridden_by(&over).get("culling"),
+            Some(&KnobValue::Name("oq-conditional".into()))
+        );
+    }
+}
