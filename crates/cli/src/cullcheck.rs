@@ -1,7 +1,7 @@
 //! `tilegraph cull-check`: a culling technique against the exact oracle along a camera path.
 
-use tilegraph_passes::cullcheck::{cull_check_with, CheckOptions, CullCheck};
-use tilegraph_passes::{RenderOptions, Technique};
+use tilegraph_passes::cullcheck::{cull_check_options, CullCheck};
+use tilegraph_passes::RenderOptions;
 use tilegraph_profile::knobs::KnobSettings;
 use tilegraph_vk::{Context, Feature, FeatureRequest};
 
@@ -21,11 +21,6 @@ pub fn oracle_features() -> FeatureRequest {
 
 /// Runs the check on a context of its own.
 pub fn run(a: &RunArgs) -> Result<(), CliError> {
-    if a.shading.is_some() {
-        return Err(CliError::Usage(
-            "cull-check renders forward shading against the visibility-buffer oracle: --shading is not used".into(),
-        ));
-    }
     let knobs = a.knob_settings(TechniqueMeant::Culling)?;
     let scene = tilegraph_scene::load(&a.scene)?;
     let ctx = Context::new(a.context_options(oracle_features()))?;
@@ -46,30 +41,22 @@ pub fn check(
     scene: &tilegraph_scene::Scene,
 ) -> Result<CullCheck, CliError> {
     let path = a.camera_path(scene)?;
-    let mut o = RenderOptions::default();
+    let (w, h) = a.size.unwrap_or((320, 180));
+    let mut o = RenderOptions {
+        width: w,
+        height: h,
+        ..Default::default()
+    };
     let resolved = RunArgs::resolve(ctx, scene, knobs, &mut o)?;
-    if o.technique != Technique::Forward {
-        log::info!(
-            "cull-check draws forward shading; the profile's shading {} is not used",
-            o.technique.name()
-        );
-    }
     for line in resolved.describe() {
         log::info!("{line}");
     }
-    let size = a.size.unwrap_or((320, 180));
-    Ok(cull_check_with(
+    Ok(cull_check_options(
         ctx,
         scene,
-        o.culling,
+        o,
         &path,
-        size,
         a.frames.map(|f| f as usize),
-        &CheckOptions {
-            hiz_mode: o.hiz_mode,
-            oq_group: o.oq_group,
-            raster_occlusion_scale: o.raster_occlusion_scale,
-        },
     )?)
 }
 

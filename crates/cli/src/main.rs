@@ -11,6 +11,7 @@ macro_rules! outln {
     };
 }
 
+mod bench;
 mod cullcheck;
 mod devices;
 mod image_io;
@@ -87,6 +88,10 @@ enum Command {
         #[command(flatten)]
         run: RunArgs,
     },
+    /// Sweep a matrix of scenes, profiles, sizes, camera paths, shading, culling and knob values
+    /// against the exact oracle; write results.json, report.md and SVG plots (Pareto fronts,
+    /// GPU time per pass) to --out, resuming where an earlier run stopped.
+    Bench(bench::BenchArgs),
     /// The knobs (choices that trade speed for accuracy or memory): domain, default, the
     /// profile's value, and whether a scene can use each.
     Knobs {
@@ -188,6 +193,7 @@ fn main() -> ExitCode {
         Command::SceneInfo { scene, json } => scene_info(&scene, json),
         Command::Lint { run } => lint::run(&run),
         Command::CullCheck { run } => cullcheck::run(&run),
+        Command::Bench(args) => bench::run(&args),
         Command::Knobs {
             profile,
             scene,

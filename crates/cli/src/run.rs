@@ -112,27 +112,7 @@ impl RunArgs {
             o.force_profile(p, "--profile");
         }
         o.features = features;
-        for c in ALL_CULLINGS {
-            let r = RenderOptions {
-                culling: c,
-                ..Default::default()
-            }
-            .device_features();
-            o.features.optional.extend(r.required);
-            o.features.optional.extend(r.optional);
-        }
-        for t in [Technique::Forward, Technique::Visbuf] {
-            let r = RenderOptions {
-                technique: t,
-                ..Default::default()
-            }
-            .device_features();
-            o.features.optional.extend(r.required);
-        }
-        o.features.optional.insert(Feature::ConditionalRendering);
-        let required = o.features.required.clone();
-        o.features.optional.retain(|f| !required.contains(f));
-        o
+        with_every_culling_feature(o)
     }
 
     /// The knobs `run` sets (from [`Self::knob_settings`], read before the device is created)
@@ -162,6 +142,32 @@ impl RunArgs {
             None => scene.camera_path().clone(),
         })
     }
+}
+
+/// `o` with every feature a culling or shading technique could use added as optional (whether
+/// the chosen one has them is checked when the renderer is created, with a typed error).
+pub fn with_every_culling_feature(mut o: ContextOptions) -> ContextOptions {
+    for c in ALL_CULLINGS {
+        let r = RenderOptions {
+            culling: c,
+            ..Default::default()
+        }
+        .device_features();
+        o.features.optional.extend(r.required);
+        o.features.optional.extend(r.optional);
+    }
+    for t in [Technique::Forward, Technique::Visbuf] {
+        let r = RenderOptions {
+            technique: t,
+            ..Default::default()
+        }
+        .device_features();
+        o.features.optional.extend(r.required);
+    }
+    o.features.optional.insert(Feature::ConditionalRendering);
+    let required = o.features.required.clone();
+    o.features.optional.retain(|f| !required.contains(f));
+    o
 }
 
 /// Every culling technique, in the order the docs list them.

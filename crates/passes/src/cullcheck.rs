@@ -63,15 +63,19 @@ pub struct Totals {
     /// summed, and of the whole frame, from timestamps.
     pub cull_gpu_ms: f64,
     pub frame_gpu_ms: f64,
+    /// Median CPU milliseconds the tested renderer's frame took to record and submit (with
+    /// what waiting for a free frame slot cost).
+    pub cpu_ms: f64,
     /// Median GPU milliseconds of each pass of the tested frame, in recording order.
     pub passes: Vec<PassTime>,
 }
 
-/// One pass's median GPU time over the path.
+/// One pass's GPU time over the path: median and 95th percentile.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PassTime {
     pub name: String,
     pub gpu_ms: f64,
+    pub p95_gpu_ms: f64,
 }
 
 /// The whole report (`tilegraph cull-check --json`).
@@ -113,7 +117,7 @@ pub fn cull_check(
     cull_check_with(ctx, scene, culling, path, size, max_frames, &options)
 }
 
-/// [`cull_check`] with every knob.
+/// [`cull_check`] with the technique knobs of [`CheckOptions`].
 pub fn cull_check_with(
     ctx: &Context,
     scene: &Scene,
@@ -123,26 +127,44 @@ pub fn cull_check_with(
     max_frames: Option<usize>,
     options: &CheckOptions,
 ) -> Result<CullCheck, RenderError> {
-    let base = RenderOptions {
+    let tested = RenderOptions {
         width: size.0,
         height: size.1,
         hiz_mode: options.hiz_mode,
         oq_group: options.oq_group,
         raster_occlusion_scale: options.raster_occlusion_scale,
+        culling,
         ..Default::default()
     };
+    cull_check_options(ctx, scene, tested, path, max_frames)
+}
+
+/// The check of `tested` (any shading, culling and knobs) along `path`: the reference is the
+/// same options without culling, the oracle the visibility buffer of everything.
+pub fn cull_check_options(
+    ctx: &Context,
+    scene: &Scene,
+    tested: RenderOptions,
+    path: &CameraPath,
+    max_frames: Option<usize>,
+) -> Result<CullCheck, RenderError> {
+    let culling = tested.culling;
+    let size = (tested.width, tested.height);
     let oracle = SceneRenderer::new(
         ctx,
         scene,
         RenderOptions {
             technique: Technique::Visbuf,
             capture_ids: true,
-            ..base.clone()
+            culling: Culling::None,
+            opaque_order: None,
+            alpha_prepass: None,
+            ..tested.clone()
         },
     )?;
     let reference = RenderOptions {
-        technique: Technique::Forward,
-        ..base.clone()
+        culling: Culling::None,
+        ..tested.clone()
     };
     let reference = match SceneRenderer::new(ctx, scene, reference) {
         Ok(r) => r,
@@ -150,11 +172,6 @@ pub fn cull_check_with(
             oracle.destroy(ctx);
             return Err(e);
         }
-    };
-    let tested = RenderOptions {
-        technique: Technique::Forward,
-        culling,
-        ..base
     };
     let tested = match SceneRenderer::new(ctx, scene, tested) {
         Ok(r) => r,
@@ -241,6 +258,7 @@ impl Run<'_> {
         };
         let count = max_frames.map_or(path.len(), |m| m.min(path.len()));
         let mut frames = Vec::with_capacity(count);
+        let mut cpu_ms = Vec::with_capacity(count);
         for index in 0..count {
             let Some(frame) = path.frame(index, aspect) else {
                 break;
@@ -255,7 +273,9 @@ impl Run<'_> {
             }
             reference.render_frame(ctx, scene, &frame)?;
             let want = reference.read_image(ctx)?;
+            let started = std::time::Instant::now();
             tested.render_frame(ctx, scene, &frame)?;
+            cpu_ms.push(started.elapsed().as_secs_f64() * 1e3);
             let got = tested.read_image(ctx)?;
             let mut drawn = vec![false; n];
             match tested.drawn_instances(ctx)? {
@@ -346,11 +366,13 @@ impl Run<'_> {
                 .filter(|m| is_cull(&m.name))
                 .fold(0.0, |a, m| a + m.median_gpu_ms),
             frame_gpu_ms: medians.iter().fold(0.0, |a, m| a + m.median_gpu_ms),
+            cpu_ms: tilegraph_vk::queries::median(&cpu_ms).unwrap_or(0.0),
             passes: medians
                 .iter()
                 .map(|m| PassTime {
                     name: m.name.clone(),
                     gpu_ms: m.median_gpu_ms,
+                    p95_gpu_ms: m.p95_gpu_ms,
                 })
                 .collect(),
         };

@@ -436,6 +436,8 @@ struct PassSamples {
 pub struct PassMedian {
     pub name: String,
     pub median_gpu_ms: f64,
+    /// 95th percentile (nearest rank) of the same samples.
+    pub p95_gpu_ms: f64,
     pub samples: usize,
 }
 
@@ -494,11 +496,23 @@ impl TimingHistory {
                 Some(PassMedian {
                     name: name.clone(),
                     median_gpu_ms: median(v)?,
+                    p95_gpu_ms: percentile(v, 95.0)?,
                     samples: v.len(),
                 })
             })
             .collect()
     }
+}
+
+/// The `p`th percentile (0-100) of a sample by nearest rank; `None` when empty (NaNs ignored).
+pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| !x.is_nan()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let rank = ((p.clamp(0.0, 100.0) / 100.0) * v.len() as f64).ceil() as usize;
+    v.get(rank.clamp(1, v.len()) - 1).copied()
 }
 
 /// Median of a sample (mean of the middle two for even sizes); `None` when empty.
@@ -522,6 +536,16 @@ pub fn median(values: &[f64]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn percentile_by_nearest_rank() {
+        let v: Vec<f64> = (1..=20).map(f64::from).collect();
+        assert_eq!(percentile(&v, 95.0), Some(19.0));
+        assert_eq!(percentile(&v, 100.0), Some(20.0));
+        assert_eq!(percentile(&v, 0.0), Some(1.0));
+        assert_eq!(percentile(&[3.0], 95.0), Some(3.0));
+        assert_eq!(percentile(&[], 95.0), None);
+    }
 
     #[test]
     fn median_of_odd_even_and_empty() {

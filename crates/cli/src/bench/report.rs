@@ -1,0 +1,158 @@
+//! report.md: per scene and size, every setting's accuracy and cost, the Pareto front marked.
+
+use std::fmt::Write;
+
+use super::matrix::Labels;
+use super::RunRecord;
+
+/// The runs of one scene at one size: one Pareto plot, one table.
+pub struct Group<'a> {
+    pub scene: String,
+    pub size: [u32; 2],
+    pub runs: Vec<&'a RunRecord>,
+}
+
+impl Group<'_> {
+    /// A file-name stem: `city-300-320x180`.
+    pub fn stem(&self) -> String {
+        let scene: String = self
+            .scene
+            .rsplit(['/', '\\'])
+            .next()
+            .unwrap_or(&self.scene)
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect();
+        format!("{scene}-{}x{}", self.size[0], self.size[1])
+    }
+
+    /// The runs that measured something, each with whether it is on the Pareto front of
+    /// (frame GPU ms, FN rate): no other run is at least as fast and at least as accurate and
+    /// better in one.
+    pub fn measured(&self) -> Vec<(&RunRecord, bool)> {
+        let ok: Vec<&RunRecord> = self
+            .runs
+            .iter()
+            .copied()
+            .filter(|r| r.totals.is_some())
+            .collect();
+        let point = |r: &RunRecord| {
+            r.totals
+                .as_ref()
+                .map_or((0.0, 0.0), |t| (t.frame_gpu_ms, t.fn_rate))
+        };
+        ok.iter()
+            .map(|r| {
+                let (ms, fnr) = point(r);
+                let dominated = ok.iter().any(|o| {
+                    let (oms, ofn) = point(o);
+                    oms <= ms && ofn <= fnr && (oms < ms || ofn < fnr)
+                });
+                (*r, !dominated)
+            })
+            .collect()
+    }
+}
+
+/// Runs grouped by scene and size, in first-seen order.
+pub fn groups<'a>(runs: &[&'a RunRecord]) -> Vec<Group<'a>> {
+    let mut out: Vec<Group<'a>> = Vec::new();
+    for r in runs {
+        let s = &r.settings;
+        match out
+            .iter_mut()
+            .find(|g| g.scene == s.scene && g.size == s.size)
+        {
+            Some(g) => g.runs.push(r),
+            None => out.push(Group {
+                scene: s.scene.clone(),
+                size: s.size,
+                runs: vec![r],
+            }),
+        }
+    }
+    out
+}
+
+pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
+    let mut md = String::from("# tilegraph bench\n\n");
+    let mut devices: Vec<String> = runs
+        .iter()
+        .map(|r| {
+            format!(
+                "{} ({} {}, Vulkan {})",
+                r.device.name, r.device.driver, r.device.driver_version, r.device.api
+            )
+        })
+        .collect();
+    devices.sort();
+    devices.dedup();
+    let _ = writeln!(
+        md,
+        "tilegraph {}; device: {}. Every run renders its camera path three times — the exact \
+         oracle, the unculled reference and the setting — and counts false negatives (visible but \
+         culled; FN rate = FN / visible) and false positives (FP rate = FP / drawn) per frame; GPU \
+         times are medians (and 95th percentiles) of per-pass timestamps. Conservative settings \
+         sit on FN rate 0; **bold** rows are the Pareto front of (frame GPU ms, FN rate).\n",
+        env!("CARGO_PKG_VERSION"),
+        devices.join("; ")
+    );
+    if runs.iter().any(|r| r.device.name.contains("llvmpipe")) {
+        md.push_str(
+            "On llvmpipe (a CPU rasterizer) per-pass times inside one render pass land where it \
+             flushed and fragment counts are before the depth test: compare frame totals.\n\n",
+        );
+    }
+    for g in groups(runs) {
+        let _ = writeln!(
+            md,
+            "## {} at {}x{}\n\n![Pareto](pareto-{stem}.svg)\n![GPU time per pass](passes-{stem}.svg)\n",
+            g.scene,
+            g.size[0],
+            g.size[1],
+            stem = g.stem()
+        );
+        md.push_str("| setting | profile | frames | FN (frames) | FN rate | FP rate | images equal | culling ms | frame ms | p95 ms | CPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+        let mut measured = g.measured();
+        measured.sort_by(|a, b| {
+            let ms = |r: &RunRecord| r.totals.as_ref().map_or(f64::MAX, |t| t.frame_gpu_ms);
+            ms(a.0).total_cmp(&ms(b.0))
+        });
+        for (r, front) in measured {
+            let Some(t) = &r.totals else { continue };
+            let mut label = labels.label(&r.settings);
+            if r.settings.culling == "auto" {
+                label = format!("{label} → {}", r.culling);
+            }
+            if front {
+                label = format!("**{label}**");
+            }
+            let _ = writeln!(
+                md,
+                "| {label} | {} | {} | {} ({}) | {:.4} | {:.3} | {}/{} | {:.3} | {:.3} | {:.3} | {:.2} |",
+                r.device.profile,
+                t.frames,
+                t.false_negatives,
+                t.frames_with_false_negatives,
+                t.fn_rate,
+                t.fp_rate,
+                t.frames_image_equal,
+                t.frames,
+                t.cull_gpu_ms,
+                t.frame_gpu_ms,
+                t.frame_gpu_ms_p95,
+                t.cpu_ms
+            );
+        }
+        for r in g.runs.iter().filter(|r| r.error.is_some()) {
+            let _ = writeln!(
+                md,
+                "\nFailed: {} — {}",
+                labels.label(&r.settings),
+                r.error.as_deref().unwrap_or_default()
+            );
+        }
+        md.push('\n');
+    }
+    md
+}

@@ -1,0 +1,260 @@
+//! results.json: every run of a bench, written after each run (to a temporary file, then renamed,
+//! so an interrupted bench never leaves a half-written file that looks complete).
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use tilegraph_passes::cullcheck::CullCheck;
+use tilegraph_passes::knobs::Resolved;
+use tilegraph_vk::Context;
+
+use super::Setting;
+use crate::CliError;
+
+/// Format version of results.json; a file of another version is not resumed from.
+pub const RESULTS_VERSION: u32 = 1;
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Results {
+    pub version: u32,
+    pub runs: Vec<RunRecord>,
+}
+
+/// Where a run ran.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DeviceRecord {
+    pub name: String,
+    pub driver: String,
+    pub driver_version: String,
+    pub api: String,
+    pub profile: String,
+    pub profile_matched_by: String,
+}
+
+/// One frame of a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrameRecord {
+    pub frame: usize,
+    pub visible: usize,
+    pub drawn: usize,
+    pub false_negatives: usize,
+    pub false_positives: usize,
+    pub triangles_drawn: u64,
+    pub image_equal: bool,
+}
+
+/// One pass's GPU time over a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PassRecord {
+    pub name: String,
+    pub median_gpu_ms: f64,
+    pub p95_gpu_ms: f64,
+}
+
+/// A run's totals.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TotalsRecord {
+    pub frames: usize,
+    pub visible: usize,
+    pub drawn: usize,
+    pub false_negatives: usize,
+    pub false_positives: usize,
+    /// FN / visible over the path.
+    pub fn_rate: f64,
+    /// FP / drawn over the path.
+    pub fp_rate: f64,
+    pub frames_with_false_negatives: usize,
+    pub frames_image_equal: usize,
+    pub triangles_drawn: u64,
+    /// Sum of the passes' medians.
+    pub frame_gpu_ms: f64,
+    /// Sum of the passes' 95th percentiles (an upper bound of the frame's).
+    pub frame_gpu_ms_p95: f64,
+    pub cull_gpu_ms: f64,
+    pub cpu_ms: f64,
+}
+
+/// One run: its setting, where it ran, what it measured — or why it failed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunRecord {
+    pub key: String,
+    pub settings: Setting,
+    pub device: DeviceRecord,
+    /// The culling that ran (`auto` resolved) and every knob with its origin.
+    pub culling: String,
+    pub auto_reason: Option<String>,
+    pub knobs: Vec<serde_json::Value>,
+    pub error: Option<String>,
+    pub wall_s: f64,
+    pub totals: Option<TotalsRecord>,
+    pub passes: Vec<PassRecord>,
+    pub frames: Vec<FrameRecord>,
+}
+
+fn device(ctx: &Context) -> DeviceRecord {
+    DeviceRecord {
+        name: ctx.physical.identity.device_name.clone(),
+        driver: ctx.physical.driver_name.clone(),
+        driver_version: ctx.physical.driver_info.clone(),
+        api: ctx.physical.identity.api_version_string(),
+        profile: ctx.profile().name.clone(),
+        profile_matched_by: ctx.selection.matched_by.to_string(),
+    }
+}
+
+impl RunRecord {
+    pub fn from_check(
+        s: &Setting,
+        ctx: &Context,
+        resolved: &Resolved,
+        check: CullCheck,
+        wall_s: f64,
+    ) -> RunRecord {
+        let t = &check.totals;
+        let totals = TotalsRecord {
+            frames: t.frames,
+            visible: t.visible,
+            drawn: t.drawn,
+            false_negatives: t.false_negatives,
+            false_positives: t.false_positives,
+            fn_rate: if t.visible == 0 {
+                0.0
+            } else {
+                t.false_negatives as f64 / t.visible as f64
+            },
+            fp_rate: t.false_positive_rate,
+            frames_with_false_negatives: t.frames_with_false_negatives,
+            frames_image_equal: t.frames_image_equal,
+            triangles_drawn: t.triangles_drawn,
+            frame_gpu_ms: t.frame_gpu_ms,
+            frame_gpu_ms_p95: t.passes.iter().map(|p| p.p95_gpu_ms).sum(),
+            cull_gpu_ms: t.cull_gpu_ms,
+            cpu_ms: t.cpu_ms,
+        };
+        RunRecord {
+            key: s.key(),
+            settings: s.clone(),
+            device: device(ctx),
+            culling: check.technique.clone(),
+            auto_reason: resolved.auto_reason.clone(),
+            knobs: resolved
+                .knobs
+                .iter()
+                .filter_map(|k| serde_json::to_value(k).ok())
+                .collect(),
+            error: None,
+            wall_s,
+            passes: t
+                .passes
+                .iter()
+                .map(|p| PassRecord {
+                    name: p.name.clone(),
+                    median_gpu_ms: p.gpu_ms,
+                    p95_gpu_ms: p.p95_gpu_ms,
+                })
+                .collect(),
+            frames: check
+                .frames
+                .iter()
+                .map(|f| FrameRecord {
+                    frame: f.frame,
+                    visible: f.visible,
+                    drawn: f.drawn,
+                    false_negatives: f.false_negatives,
+                    false_positives: f.false_positives,
+                    triangles_drawn: f.triangles_drawn,
+                    image_equal: f.image_equal,
+                })
+                .collect(),
+            totals: Some(totals),
+        }
+    }
+
+    /// A run the device could not do (a missing feature, say): recorded, and run again when
+    /// the bench resumes.
+    pub fn failed(s: &Setting, ctx: &Context, error: String) -> RunRecord {
+        RunRecord {
+            key: s.key(),
+            settings: s.clone(),
+            device: device(ctx),
+            culling: s.culling.clone(),
+            auto_reason: None,
+            knobs: Vec::new(),
+            error: Some(error),
+            wall_s: 0.0,
+            totals: None,
+            passes: Vec::new(),
+            frames: Vec::new(),
+        }
+    }
+}
+
+impl Results {
+    /// The runs in `path`, or none when it does not exist. A file that does not parse, or of
+    /// another version, is an error naming it (delete it to start over): a bench never
+    /// overwrites results it cannot read.
+    pub fn load_or_new(path: &Path) -> Result<Results, CliError> {
+        let text = match std::fs::read_to_string(path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Ok(Results {
+                    version: RESULTS_VERSION,
+                    runs: Vec::new(),
+                })
+            }
+            Err(e) => {
+                return Err(CliError::Usage(format!(
+                    "bench: reading {}: {e}",
+                    path.display()
+                )))
+            }
+        };
+        let r: Results = serde_json::from_str(&text).map_err(|e| {
+            CliError::Usage(format!(
+                "bench: {} is not a results file this tilegraph can resume from ({e}); move it away to start over",
+                path.display()
+            ))
+        })?;
+        if r.version != RESULTS_VERSION {
+            return Err(CliError::Usage(format!(
+                "bench: {} is results format {}, this tilegraph writes {RESULTS_VERSION}; move it away to start over",
+                path.display(),
+                r.version
+            )));
+        }
+        Ok(r)
+    }
+
+    /// A finished run (failed ones run again).
+    pub fn is_done(&self, key: &str) -> bool {
+        self.get(key).is_some_and(|r| r.error.is_none())
+    }
+
+    pub fn get(&self, key: &str) -> Option<&RunRecord> {
+        self.runs.iter().find(|r| r.key == key)
+    }
+
+    pub fn insert(&mut self, record: RunRecord) {
+        match self.runs.iter_mut().find(|r| r.key == record.key) {
+            Some(slot) => *slot = record,
+            None => self.runs.push(record),
+        }
+    }
+
+    pub fn save(&self, path: &Path) -> Result<(), CliError> {
+        write_atomically(path, serde_json::to_string_pretty(self)?.as_bytes())
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a rename.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
+    let err = |e: std::io::Error| CliError::Write {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    };
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".partial");
+    let tmp = std::path::PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes).map_err(err)?;
+    std::fs::rename(&tmp, path).map_err(err)
+}

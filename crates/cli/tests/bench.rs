@@ -1,0 +1,220 @@
+//! `tilegraph bench` as a user runs it: a smoke matrix on the default device (lavapipe in CI)
+//! writes results, a report and SVG plots with one series per setting, and resumes.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn tilegraph(args: &[String]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_tilegraph"))
+        .args(args)
+        .env_remove("TILEGRAPH_PROFILE")
+        .env("TILEGRAPH_VALIDATION", "required")
+        .output()
+        .expect("run tilegraph");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// `$TILEGRAPH_TEST_DATA` or `../shared/data` beside the repository.
+fn test_data(relative: &str) -> Option<PathBuf> {
+    let dir = std::env::var_os("TILEGRAPH_TEST_DATA").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+        PathBuf::from,
+    );
+    let p = dir.join(relative);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!(
+            "skipping {relative} in the smoke bench: {} not found",
+            p.display()
+        );
+        None
+    }
+}
+
+const CULLINGS: [&str; 7] = [
+    "none",
+    "frustum",
+    "hiz",
+    "hiz-2phase",
+    "oq",
+    "oq-conditional",
+    "raster-occlusion",
+];
+const CONSERVATIVE: [&str; 5] = [
+    "none",
+    "frustum",
+    "hiz-2phase",
+    "oq-conditional",
+    "raster-occlusion",
+];
+
+#[test]
+fn smoke_bench_writes_results_report_and_one_series_per_setting_and_resumes() {
+    let out = std::env::temp_dir().join(format!("tilegraph-bench-{}", std::process::id()));
+    std::fs::remove_dir_all(&out).ok();
+    let mut scenes = vec![
+        "city:400".to_string(),
+        "forest:300".to_string(),
+        "interior:300".to_string(),
+    ];
+    for f in [
+        "scenes/FlightHelmet/FlightHelmet.gltf",
+        "bench/GodotRooms/room.gltf",
+    ] {
+        if let Some(p) = test_data(f) {
+            scenes.push(p.to_string_lossy().into_owned());
+        }
+    }
+    let args: Vec<String> = [
+        "bench",
+        "--scenes",
+        &scenes.join(","),
+        "--culling",
+        &CULLINGS.join(","),
+        "--set",
+        "opaque_sort=front-to-back,back-to-front",
+        "--sizes",
+        "160x90",
+        "--frames",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let (ok, stdout, err) = tilegraph(&args);
+    assert!(ok, "{err}");
+    let expected = scenes.len() * CULLINGS.len() * 2;
+    assert!(
+        stdout.contains(&format!(
+            "bench: {expected} runs ({expected} new, 0 failed)"
+        )),
+        "{stdout}"
+    );
+
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let runs = results["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), expected);
+    for r in runs {
+        let t = &r["totals"];
+        assert_eq!(t["frames"], 2, "{r}");
+        assert_eq!(r["frames"].as_array().unwrap().len(), 2);
+        assert!(t["frame_gpu_ms"].as_f64().unwrap() > 0.0, "{r}");
+        assert!(r["device"]["driver"].is_string());
+        assert!(!r["passes"].as_array().unwrap().is_empty());
+        let culling = r["settings"]["culling"].as_str().unwrap();
+        if CONSERVATIVE.contains(&culling) {
+            assert_eq!(
+                t["false_negatives"], 0,
+                "{} {culling}",
+                r["settings"]["scene"]
+            );
+            assert_eq!(
+                t["frames_image_equal"], 2,
+                "{} {culling}",
+                r["settings"]["scene"]
+            );
+        }
+    }
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for s in &scenes {
+        assert!(
+            report.contains(&format!("## {s} at 160x90")),
+            "{s} missing from the report"
+        );
+    }
+
+    // Every SVG parses; each Pareto plot has one series (legend entry) per setting.
+    let mut pareto = 0;
+    for entry in std::fs::read_dir(&out).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "svg") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        let doc =
+            roxmltree::Document::parse(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let texts: Vec<String> = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("text"))
+            .filter_map(|n| n.text())
+            .map(|t| t.trim().trim_end_matches(" (front)").to_string())
+            .collect();
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        if name.starts_with("pareto-") {
+            pareto += 1;
+            for culling in CULLINGS {
+                for order in ["front-to-back", "back-to-front"] {
+                    let label = format!("{culling} opaque_sort={order}");
+                    assert_eq!(
+                        texts.iter().filter(|t| **t == label).count(),
+                        1,
+                        "{name}: series {label:?} in {texts:?}"
+                    );
+                }
+            }
+        } else {
+            assert!(name.starts_with("passes-"), "{name}");
+            assert!(
+                texts.iter().any(|t| t == "opaque"),
+                "{name}: no opaque pass in {texts:?}"
+            );
+        }
+    }
+    assert_eq!(pareto, scenes.len());
+
+    // Interrupted after all but one run: the rerun does that one only.
+    let mut partial = results.clone();
+    partial["runs"].as_array_mut().unwrap().pop();
+    std::fs::write(out.join("results.json"), partial.to_string()).unwrap();
+    let (ok, stdout, err) = tilegraph(&args);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains(&format!("{} of {expected} runs already in", expected - 1)),
+        "{err}"
+    );
+    assert!(
+        stdout.contains(&format!("bench: {expected} runs (1 new, 0 failed)")),
+        "{stdout}"
+    );
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn a_results_file_it_cannot_read_is_not_overwritten() {
+    let out = std::env::temp_dir().join(format!("tilegraph-bench-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("results.json"), b"{ not json").unwrap();
+    let args: Vec<String> = [
+        "bench",
+        "--scenes",
+        "city:100",
+        "--culling",
+        "none",
+        "--frames",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let (ok, _, err) = tilegraph(&args);
+    assert!(!ok);
+    assert!(
+        err.contains("is not a results file this tilegraph can resume from"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(out.join("results.json")).unwrap(),
+        b"{ not json"
+    );
+    std::fs::remove_dir_all(&out).ok();
+}
