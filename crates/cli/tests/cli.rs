@@ -407,3 +407,28 @@ fn knobs_the_run_cannot_use_are_errors_and_the_flag_is_credited() {
     );
     std::fs::remove_file(&out).ok();
 }
+
+/// Next-frame queries inside the visibility buffer's render pass: the depth they test is not
+/// kept (DONT_CARE), and that store must wait for every earlier subpass's depth test (a
+/// synchronization-validation hazard found by `tilegraph tune`). Four frames reach it.
+#[test]
+fn visbuf_with_occlusion_queries_is_clean_under_synchronization_validation() {
+    let (ok, out, err) = tilegraph(
+        &[
+            "cull-check",
+            "city:400",
+            "--culling",
+            "oq",
+            "--shading",
+            "visbuf",
+            "--size",
+            "160x90",
+            "--frames",
+            "4",
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "{err}");
+    assert!(out.contains("images equal"), "{out}");
+    assert!(!err.contains("SYNC-HAZARD"), "{err}");
+}

@@ -315,6 +315,37 @@ fn build_render_pass(
             // seed 001: depth and stencil of D24S8 are invalidated together or not at all.
             att.stencil_store_op = att.store_op;
         }
+        // STORE and DONT_CARE write the attachment at the end of its last subpass: reads in
+        // earlier subpasses since its last write must come before that write (a pass that
+        // only tests depth after one that also tested it, and a depth nobody keeps).
+        if att.store_op != StoreOp::None {
+            if let Some(last) = track.map(|t| t.last_subpass).filter(|&l| l != NONE) {
+                let (stages, access) = if att.format.is_depth_stencil() {
+                    (
+                        PipelineStages::LATE_FRAGMENT_TESTS,
+                        AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                    )
+                } else {
+                    (
+                        PipelineStages::COLOR_ATTACHMENT_OUTPUT,
+                        AccessFlags::COLOR_ATTACHMENT_WRITE,
+                    )
+                };
+                for &(att_index, rs, read_stages) in tables.readers.iter() {
+                    if att_index == i as u32 && rs != last {
+                        add_dependency(
+                            deps,
+                            rs,
+                            last,
+                            read_stages,
+                            AccessFlags::NONE,
+                            stages,
+                            access,
+                        );
+                    }
+                }
+            }
+        }
         // Kept after the render pass: every subpass after its last use preserves it. A
         // subpass that neither uses nor preserves an attachment, and depends on one that used
         // it, leaves its content undefined (VkSubpassDescription): the store would write back
@@ -687,7 +718,16 @@ mod tests {
             .iter()
             .map(|d| (d.src_subpass.0, d.dst_subpass.0))
             .collect();
-        assert_eq!(deps, [(0, 1), (0, 3), (1, 2), (2, 3)]);
+        // (1, 3): depth is not kept (DONT_CARE), and that store is a write at the end of
+        // subpass 3 that must come after subpass 1's depth test.
+        assert_eq!(deps, [(0, 1), (0, 3), (1, 2), (1, 3), (2, 3)]);
+        let store_dep = rp.dependencies[3];
+        assert_eq!(store_dep.dst_stages, PipelineStages::LATE_FRAGMENT_TESTS);
+        assert_eq!(
+            store_dep.dst_access,
+            AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE
+        );
+        assert_eq!(store_dep.src_access, AccessFlags::NONE);
         let input_dep = rp.dependencies[2];
         assert_eq!(
             input_dep.src_stages,
