@@ -19,6 +19,7 @@ mod knobs;
 mod lint;
 mod render;
 mod run;
+mod tune;
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -92,6 +93,10 @@ enum Command {
     /// against the exact oracle; write results.json, report.md and SVG plots (Pareto fronts,
     /// GPU time per pass) to --out, resuming where an earlier run stopped.
     Bench(bench::BenchArgs),
+    /// Sweep the knobs the profile exposes for one scene on this device, pick the fastest
+    /// setting that meets the accuracy constraint, check it on a path it did not see, and write
+    /// the profile with the pick as its knobs (load it with TILEGRAPH_PROFILE_DIR).
+    Tune(tune::TuneArgs),
     /// The knobs (choices that trade speed for accuracy or memory): domain, default, the
     /// profile's value, and whether a scene can use each.
     Knobs {
@@ -194,6 +199,7 @@ fn main() -> ExitCode {
         Command::Lint { run } => lint::run(&run),
         Command::CullCheck { run } => cullcheck::run(&run),
         Command::Bench(args) => bench::run(&args),
+        Command::Tune(args) => tune::run(&args),
         Command::Knobs {
             profile,
             scene,

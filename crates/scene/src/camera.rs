@@ -429,6 +429,40 @@ impl CameraPath {
         }
     }
 
+    /// A path no test or tuning run uses by default, from the bounds alone: half a low orbit
+    /// close around the scene (1.1x the bounds' radius, a quarter of it above the centre,
+    /// looking a little below the centre), starting at an angle no other path starts at. What
+    /// `tilegraph tune` checks its pick on, to catch a setting that only suits its own path.
+    pub fn held_out(bounds: &DAabb, frames: usize) -> Self {
+        let center = bounds.center();
+        let r = bounds.half_extents().length().max(1e-3);
+        let projection = Projection::Perspective {
+            fov_y_rad: 60f32.to_radians(),
+            near: (r * 1e-3) as f32,
+            far: None,
+            depth: DepthConvention::Reverse,
+        };
+        let target = center - DVec3::new(0.0, 0.2 * r, 0.0);
+        let keys = (0..frames.max(1))
+            .map(|i| {
+                let a = 0.4 + std::f64::consts::PI * i as f64 / frames.max(1) as f64;
+                PathKey {
+                    camera: Camera {
+                        eye: center + DVec3::new(1.1 * r * a.cos(), 0.25 * r, 1.1 * r * a.sin()),
+                        target,
+                        up: Vec3::Y,
+                        projection,
+                    },
+                    cut: false,
+                }
+            })
+            .collect();
+        CameraPath {
+            name: "held-out".into(),
+            keys,
+        }
+    }
+
     /// This path followed by `next`, with a cut at the join.
     #[must_use]
     pub fn then_cut(mut self, next: CameraPath) -> Self {

@@ -64,6 +64,16 @@ pub const SILENCED: &[Silenced] = &[
         reason: "an input attachment a render pass loads and stores: its store is a colour-attachment write, which the barrier into the pass names whatever layout the subpass reads it in",
     },
     Silenced {
+        id: "UNASSIGNED-BestPractices-ImageBarrierAccessLayout",
+        contains: "VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT: accessMask is vkCmdPipelineBarrier2, but for layout VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL",
+        reason: "a colour attachment written in one subpass and read as an input attachment in a later one (the visibility buffer's ids kept for the oracle, under merging profiles): the barrier after the render pass must name that write, whatever layout the pass left",
+    },
+    Silenced {
+        id: "UNASSIGNED-BestPractices-ImageBarrierAccessLayout",
+        contains: "VK_ACCESS_2_INPUT_ATTACHMENT_READ_BIT|VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT: accessMask is vkCmdPipelineBarrier2, but for layout VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL",
+        reason: "the barrier into a render pass names every access the pass makes to the image (written as a colour attachment, then read as an input attachment), in the layout of its first use",
+    },
+    Silenced {
         id: "UNASSIGNED-BestPractices-SpirvDeprecated_WorkgroupSize",
         contains: "",
         reason: "the compute shaders are SPIR-V 1.0-1.3 for Vulkan 1.1-1.3 drivers; LocalSizeId needs VK_KHR_maintenance4, which the mobile families' drivers may lack",

@@ -13,6 +13,10 @@ use tilegraph_scene::Scene;
 use super::BenchArgs;
 use crate::CliError;
 
+/// `--culling profile` / `--shading profile`: whatever the profile's knob says (how a tuned
+/// profile is re-measured).
+pub const PROFILE_CHOICE: &str = "profile";
+
 /// The matrix as a TOML file writes it.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -118,14 +122,14 @@ impl Matrix {
                 .map(|c| c.name().to_string())
                 .collect();
         }
-        for c in &culling {
+        for c in culling.iter().filter(|c| *c != PROFILE_CHOICE) {
             check.set("culling", KnobValue::Name(c.clone()))?;
         }
         let mut shading = pick(&args.shading, file.shading);
         if shading.is_empty() {
             shading = vec!["forward".into()];
         }
-        for s in &shading {
+        for s in shading.iter().filter(|s| *s != PROFILE_CHOICE) {
             check.set("shading", KnobValue::Name(s.clone()))?;
         }
         let profiles = pick(&args.profiles, file.profiles);
@@ -264,7 +268,9 @@ fn applies(k: &str, culling: &str, shading: &str, content: SceneContent) -> bool
         // `auto` decides on the device: its knobs are the profile's.
         Applies::WithCulling(list) => list.contains(&culling),
         Applies::AlphaTestedScene => {
-            content.alpha_tested > 0
+            culling != PROFILE_CHOICE
+                && shading != PROFILE_CHOICE
+                && content.alpha_tested > 0
                 && Technique::parse(shading) != Some(Technique::Visbuf)
                 && !Culling::parse(culling).is_some_and(Culling::needs_prepass)
         }

@@ -4,10 +4,10 @@
 //! per scene and size, GPU time per pass). An interrupted bench resumes: finished runs are kept
 //! and not run again.
 
-mod matrix;
+pub(crate) mod matrix;
 mod plot;
 mod report;
-mod results;
+pub(crate) mod results;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -35,10 +35,10 @@ pub struct BenchArgs {
     /// Scenes (comma-separated specs: city, forest:800, path/to/level.gltf).
     #[arg(long, value_delimiter = ',')]
     pub scenes: Vec<String>,
-    /// Culling techniques (default: every one).
+    /// Culling techniques (default: every one; `profile`: the profile's choice).
     #[arg(long, value_delimiter = ',')]
     pub culling: Vec<String>,
-    /// Shading techniques (default: forward).
+    /// Shading techniques (default: forward; `profile`: the profile's choice).
     #[arg(long, value_delimiter = ',')]
     pub shading: Vec<String>,
     /// Profiles to force, one after the other (default: the device's own).
@@ -156,7 +156,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-fn load_scenes(matrix: &Matrix) -> Result<HashMap<String, Scene>, CliError> {
+pub(crate) fn load_scenes(matrix: &Matrix) -> Result<HashMap<String, Scene>, CliError> {
     let mut scenes = HashMap::new();
     for spec in &matrix.scenes {
         if !scenes.contains_key(spec) {
@@ -167,7 +167,7 @@ fn load_scenes(matrix: &Matrix) -> Result<HashMap<String, Scene>, CliError> {
 }
 
 /// One setting against the oracle.
-fn run_one(
+pub(crate) fn run_one(
     ctx: &Context,
     scene: &Scene,
     s: &Setting,
@@ -186,8 +186,12 @@ fn run_one(
         }
     };
     let mut knobs = KnobSettings::default();
-    knobs.set("culling", KnobValue::Name(s.culling.clone()))?;
-    knobs.set("shading", KnobValue::Name(s.shading.clone()))?;
+    if s.culling != matrix::PROFILE_CHOICE {
+        knobs.set("culling", KnobValue::Name(s.culling.clone()))?;
+    }
+    if s.shading != matrix::PROFILE_CHOICE {
+        knobs.set("shading", KnobValue::Name(s.shading.clone()))?;
+    }
     for (k, v) in &s.knobs {
         knobs.set(k, v.clone())?;
     }
@@ -209,7 +213,7 @@ fn run_one(
 }
 
 /// report.md and the plots, from every run the matrix names (old and new).
-fn write_outputs(
+pub(crate) fn write_outputs(
     out: &Path,
     results: &Results,
     settings: &[Setting],

@@ -121,7 +121,7 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
         for (r, front) in measured {
             let Some(t) = &r.totals else { continue };
             let mut label = labels.label(&r.settings);
-            if r.settings.culling == "auto" {
+            if r.settings.culling != r.culling {
                 label = format!("{label} → {}", r.culling);
             }
             if front {

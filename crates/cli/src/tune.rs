@@ -1,0 +1,501 @@
+//! `tilegraph tune`: on the device at hand (or a forced profile), sweep the knobs the profile
+//! exposes for one scene, pick the fastest setting that meets the accuracy constraint, check it
+//! on a camera path it did not see, and write the profile back with the pick as its `[knobs]`,
+//! the evidence in its comments.
+//!
+//! The sweep is in two stages (coordinate descent): every culling with its own knobs
+//! (`hiz_npot`, `oq_group`, `raster_occlusion_scale`) under the profile's shading and draw
+//! order; then, with the best of those fixed, every shading × draw order (× alpha pre-pass where
+//! the scene has alpha-tested geometry). Both stages' runs are kept in `results.json`, so an
+//! interrupted tune resumes, and `report.md` and the plots are written as `bench` writes them.
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use tilegraph_profile::knobs::{KnobSettings, KnobValue, KNOBS};
+use tilegraph_profile::{ProfileSet, PROFILE_DIR_ENV};
+use tilegraph_scene::CameraPath;
+use tilegraph_vk::{Context, ContextOptions};
+
+use crate::bench::matrix::{Labels, Matrix, Setting};
+use crate::bench::results::{write_atomically, Results, RunRecord};
+use crate::CliError;
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct TuneArgs {
+    /// The scene to tune for (a spec, as every command takes).
+    #[arg(long)]
+    pub scene: String,
+    /// The camera path to tune on (JSON); the scene's own when absent.
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
+    /// Accept settings whose FN / visible over the path is at most this (default: no false
+    /// negative on any frame).
+    #[arg(long)]
+    pub max_fn_rate: Option<f64>,
+    #[arg(long, value_parser = crate::parse_size)]
+    pub size: Option<(u32, u32)>,
+    /// Tune this profile (forced) instead of the device's own.
+    #[arg(long)]
+    pub profile: Option<String>,
+    /// Only these culling techniques (comma-separated; default: every one).
+    #[arg(long, value_delimiter = ',')]
+    pub culling: Vec<String>,
+    /// Frames of each path (default 24).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub frames: Option<u32>,
+    /// Where results, report, plots and the tuned profile go.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// One measured setting, as the selection sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    pub key: String,
+    pub label: String,
+    pub frame_gpu_ms: f64,
+    pub false_negatives: usize,
+    pub fn_rate: f64,
+    pub fp_rate: f64,
+    /// Knobs set differently from the profile's values (fewer wins a tie: the simpler change).
+    pub changes: usize,
+}
+
+/// Why no setting could be picked.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TuneError {
+    #[error("no setting met the accuracy constraint ({constraint}); the best FN reached was {best_fn} (FN rate {best_rate:.4}) by {best}")]
+    Infeasible {
+        constraint: String,
+        best_fn: usize,
+        best_rate: f64,
+        best: String,
+    },
+    #[error("nothing was measured (every run failed)")]
+    Nothing,
+}
+
+/// The constraint in words.
+pub fn constraint_text(max_fn_rate: Option<f64>) -> String {
+    match max_fn_rate {
+        Some(r) => format!("FN rate at most {r}"),
+        None => "no false negative on any frame".into(),
+    }
+}
+
+fn feasible(c: &Candidate, max_fn_rate: Option<f64>) -> bool {
+    match max_fn_rate {
+        Some(r) => c.fn_rate <= r,
+        None => c.false_negatives == 0,
+    }
+}
+
+/// The selection rule: among the settings that meet the constraint, the fastest; a tie (equal
+/// frame time) goes to the lower FP rate, then to fewer changes from the profile, then to the
+/// key (so the pick is deterministic). Returns the candidates in that order, pick first.
+pub fn select(
+    candidates: &[Candidate],
+    max_fn_rate: Option<f64>,
+) -> Result<Vec<Candidate>, TuneError> {
+    if candidates.is_empty() {
+        return Err(TuneError::Nothing);
+    }
+    let mut ok: Vec<Candidate> = candidates
+        .iter()
+        .filter(|c| feasible(c, max_fn_rate))
+        .cloned()
+        .collect();
+    if ok.is_empty() {
+        let best = candidates
+            .iter()
+            .min_by(|a, b| {
+                a.fn_rate
+                    .total_cmp(&b.fn_rate)
+                    .then(a.frame_gpu_ms.total_cmp(&b.frame_gpu_ms))
+            })
+            .ok_or(TuneError::Nothing)?;
+        return Err(TuneError::Infeasible {
+            constraint: constraint_text(max_fn_rate),
+            best_fn: best.false_negatives,
+            best_rate: best.fn_rate,
+            best: best.label.clone(),
+        });
+    }
+    ok.sort_by(|a, b| {
+        a.frame_gpu_ms
+            .total_cmp(&b.frame_gpu_ms)
+            .then(a.fp_rate.total_cmp(&b.fp_rate))
+            .then(a.changes.cmp(&b.changes))
+            .then(a.key.cmp(&b.key))
+    });
+    Ok(ok)
+}
+
+pub fn run(a: &TuneArgs) -> Result<(), CliError> {
+    let mut check = KnobSettings::default();
+    for c in &a.culling {
+        check.set("culling", KnobValue::Name(c.clone()))?;
+    }
+    if let Some(r) = a.max_fn_rate.filter(|r| !(0.0..=1.0).contains(r)) {
+        return Err(CliError::Usage(format!(
+            "tune: --max-fn-rate {r} is outside 0..=1"
+        )));
+    }
+    let scene = tilegraph_scene::load(&a.scene)?;
+    let size = a.size.unwrap_or((320, 180));
+    let frames = a.frames.unwrap_or(24);
+    let tune_path = match &a.camera_path {
+        Some(p) => CameraPath::load_json(p)?,
+        None => scene.camera_path().clone(),
+    };
+    let held_out = CameraPath::held_out(&scene.bounds(), frames as usize);
+    std::fs::create_dir_all(&a.out).map_err(|e| CliError::Write {
+        path: a.out.clone(),
+        reason: e.to_string(),
+    })?;
+    let mut options = ContextOptions::from_env();
+    if let Some(p) = &a.profile {
+        options.force_profile(p, "--profile");
+    }
+    options.features = crate::cullcheck::oracle_features();
+    let ctx = Context::new(crate::run::with_every_culling_feature(options))?;
+    let result = tune_on(&ctx, a, &scene, size, frames, tune_path, held_out);
+    let destroyed = ctx.destroy_checked();
+    result?;
+    Ok(destroyed?)
+}
+
+fn tune_on(
+    ctx: &Context,
+    a: &TuneArgs,
+    scene: &tilegraph_scene::Scene,
+    size: (u32, u32),
+    frames: u32,
+    tune_path: CameraPath,
+    held_out: CameraPath,
+) -> Result<(), CliError> {
+    let profile = ctx.profile().clone();
+    let path_name = a.camera_path.as_ref().map(|p| p.display().to_string());
+    let mut paths = HashMap::new();
+    let path_key = |p: &str| format!("{}|{p}", a.scene);
+    paths.insert(
+        path_key(path_name.as_deref().unwrap_or("own")),
+        tune_path.clone(),
+    );
+    paths.insert(path_key("held-out"), held_out.clone());
+    let results_path = a.out.join("results.json");
+    let mut results = Results::load_or_new(&results_path)?;
+    let profile_value = |k: &str| {
+        profile
+            .knobs
+            .get(k)
+            .cloned()
+            .or_else(|| tilegraph_profile::knobs::spec(k).map(|s| s.default.into()))
+    };
+    let name_of = |k: &str| profile_value(k).map(|v| v.to_string()).unwrap_or_default();
+    let base = Matrix {
+        scenes: vec![a.scene.clone()],
+        culling: if a.culling.is_empty() {
+            crate::run::ALL_CULLINGS
+                .iter()
+                .map(|c| c.name().to_string())
+                .collect()
+        } else {
+            a.culling.clone()
+        },
+        shading: vec![name_of("shading")],
+        profiles: vec![a.profile.clone()],
+        sizes: vec![[size.0, size.1]],
+        camera_paths: vec![path_name.clone()],
+        axes: ["hiz_npot", "oq_group", "raster_occlusion_scale"]
+            .iter()
+            .filter_map(|k| tilegraph_profile::knobs::spec(k))
+            .map(|k| (k.name.to_string(), k.domain.values()))
+            .collect(),
+        frames,
+    };
+    let lookup = |s: &str| (s == a.scene).then_some(scene);
+    let stage1 = base.expand(lookup)?;
+    let mut measure = |settings: &[Setting], results: &mut Results| -> Result<(), CliError> {
+        let bar = indicatif::ProgressBar::new(settings.len() as u64);
+        for s in settings {
+            bar.set_message(s.key());
+            if !results.is_done(&s.key()) {
+                let record = match crate::bench::run_one(ctx, scene, s, frames, &mut paths) {
+                    Ok(r) => r,
+                    Err(CliError::Render(e)) if !e.is_device_lost() => {
+                        RunRecord::failed(s, ctx, e.to_string())
+                    }
+                    Err(CliError::KnobUse(e)) => RunRecord::failed(s, ctx, e.to_string()),
+                    Err(e) => return Err(e),
+                };
+                results.insert(record);
+                results.save(&results_path)?;
+            }
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        Ok(())
+    };
+    measure(&stage1, &mut results)?;
+    let candidates = |settings: &[Setting], results: &Results, labels: &Labels| -> Vec<Candidate> {
+        settings
+            .iter()
+            .filter_map(|s| {
+                let r = results.get(&s.key())?;
+                let t = r.totals.as_ref()?;
+                let changes = s
+                    .knobs
+                    .iter()
+                    .filter(|(k, v)| profile_value(k).as_ref() != Some(*v))
+                    .count()
+                    + usize::from(s.culling != name_of("culling"))
+                    + usize::from(s.shading != name_of("shading"));
+                Some(Candidate {
+                    key: s.key(),
+                    label: labels.label(s),
+                    frame_gpu_ms: t.frame_gpu_ms,
+                    false_negatives: t.false_negatives,
+                    fn_rate: t.fn_rate,
+                    fp_rate: t.fp_rate,
+                    changes,
+                })
+            })
+            .collect()
+    };
+    let labels1 = Labels::new(&stage1);
+    let first = select(&candidates(&stage1, &results, &labels1), a.max_fn_rate)
+        .map_err(|e| CliError::Usage(format!("tune: {e}")))?;
+    let best1 = stage1
+        .iter()
+        .find(|s| first.first().is_some_and(|c| c.key == s.key()))
+        .cloned()
+        .ok_or_else(|| CliError::Usage("tune: the stage-1 pick was not measured".into()))?;
+    // Stage 2: shading × draw order (× alpha pre-pass), the culling and its knobs fixed.
+    let mut stage2 = Vec::new();
+    let mut axes: Vec<(String, Vec<KnobValue>)> = vec![(
+        "opaque_sort".into(),
+        tilegraph_profile::knobs::spec("opaque_sort").map_or(Vec::new(), |k| k.domain.values()),
+    )];
+    if let Some(k) = tilegraph_profile::knobs::spec("alpha_prepass") {
+        axes.push((k.name.into(), k.domain.values()));
+    }
+    let m2 = Matrix {
+        culling: vec![best1.culling.clone()],
+        shading: vec!["forward".into(), "prepass".into(), "visbuf".into()],
+        axes,
+        ..base.clone()
+    };
+    for mut s in m2.expand(lookup)? {
+        s.knobs.extend(best1.knobs.clone());
+        if !stage2.iter().any(|o: &Setting| o.key() == s.key()) {
+            stage2.push(s);
+        }
+    }
+    measure(&stage2, &mut results)?;
+    let all: Vec<Setting> = stage1.iter().chain(&stage2).cloned().collect();
+    let labels = Labels::new(&all);
+    let ranked = select(&candidates(&all, &results, &labels), a.max_fn_rate)
+        .map_err(|e| CliError::Usage(format!("tune: {e}")))?;
+    let pick_c = ranked
+        .first()
+        .ok_or_else(|| CliError::Usage("tune: nothing to pick".into()))?;
+    let pick = all
+        .iter()
+        .find(|s| s.key() == pick_c.key)
+        .cloned()
+        .ok_or_else(|| CliError::Usage("tune: the pick was not measured".into()))?;
+    // The pick's spread: two more runs of it (the first is in results.json).
+    let mut times = vec![pick_c.frame_gpu_ms];
+    for _ in 0..2 {
+        let r = crate::bench::run_one(ctx, scene, &pick, frames, &mut paths)?;
+        if let Some(t) = r.totals {
+            times.push(t.frame_gpu_ms);
+        }
+    }
+    let spread = (
+        times.iter().copied().fold(f64::INFINITY, f64::min),
+        times.iter().copied().fold(0.0f64, f64::max),
+    );
+    // The held-out path.
+    let held = Setting {
+        camera_path: Some("held-out".into()),
+        ..pick.clone()
+    };
+    let held_run = crate::bench::run_one(ctx, scene, &held, frames, &mut paths)?;
+    let held_totals = held_run
+        .totals
+        .clone()
+        .ok_or_else(|| CliError::Usage("tune: the held-out run measured nothing".into()))?;
+    let overfit = !match a.max_fn_rate {
+        Some(r) => held_totals.fn_rate <= r,
+        None => held_totals.false_negatives == 0,
+    };
+    crate::bench::write_outputs(&a.out, &results, &all)?;
+
+    // The tuned profile: the profile as loaded, its [knobs] the pick.
+    let mut tuned = profile.clone();
+    let mut knobs = KnobSettings::default();
+    knobs.set("culling", KnobValue::Name(pick.culling.clone()))?;
+    knobs.set("shading", KnobValue::Name(pick.shading.clone()))?;
+    for (k, v) in &pick.knobs {
+        if KNOBS.iter().any(|s| s.name == k) {
+            knobs.set(k, v.clone())?;
+        }
+    }
+    tuned.knobs = knobs;
+    let body = toml::to_string(&tuned)
+        .map_err(|e| CliError::Usage(format!("tune: writing the profile: {e}")))?;
+    let device = &ctx.physical;
+    let mut header = String::new();
+    let _ = writeln!(
+        header,
+        "# Tuned by `tilegraph tune` ({}) for scene {:?} at {}x{}, {} frames of camera path {}.",
+        env!("CARGO_PKG_VERSION"),
+        a.scene,
+        size.0,
+        size.1,
+        frames,
+        path_name.as_deref().unwrap_or("(the scene's own)")
+    );
+    let _ = writeln!(
+        header,
+        "# Device: {} ({} {}, Vulkan {}); base profile {} ({}).",
+        device.identity.device_name,
+        device.driver_name,
+        device.driver_info,
+        device.identity.api_version_string(),
+        profile.name,
+        ctx.selection.matched_by
+    );
+    let _ = writeln!(
+        header,
+        "# Constraint: {}. {} settings measured (results.json, report.md beside this directory).",
+        constraint_text(a.max_fn_rate),
+        all.len()
+    );
+    let _ = writeln!(
+        header,
+        "# Pick: {} — frame {:.3} ms (spread {:.3}..{:.3} over {} runs), FN {}, FP rate {:.3}.",
+        pick_c.label,
+        pick_c.frame_gpu_ms,
+        spread.0,
+        spread.1,
+        times.len(),
+        pick_c.false_negatives,
+        pick_c.fp_rate
+    );
+    for c in ranked.iter().skip(1).take(3) {
+        let _ = writeln!(
+            header,
+            "# Runner-up: {} — frame {:.3} ms, FN {}, FP rate {:.3}.",
+            c.label, c.frame_gpu_ms, c.false_negatives, c.fp_rate
+        );
+    }
+    let _ = writeln!(
+        header,
+        "# Held-out path (generated from the scene's bounds, not tuned on): FN {} ({} frames), FP rate {:.3}{}.",
+        held_totals.false_negatives,
+        held_totals.frames_with_false_negatives,
+        held_totals.fp_rate,
+        if overfit { " — OVERFIT: the pick fails the constraint there" } else { "" }
+    );
+    let dir = a.out.join("profiles");
+    std::fs::create_dir_all(&dir).map_err(|e| CliError::Write {
+        path: dir.clone(),
+        reason: e.to_string(),
+    })?;
+    let file = dir.join(format!("{}.toml", tuned.name));
+    write_atomically(&file, format!("{header}\n{body}").as_bytes())?;
+    // It must load as the profile it replaces.
+    let loaded = ProfileSet::embedded()?.with_dir(&dir)?;
+    if loaded.get(&tuned.name)?.knobs != tuned.knobs {
+        return Err(CliError::Usage(format!(
+            "tune: {} does not load back with its knobs",
+            file.display()
+        )));
+    }
+    outln!("{}", header.trim_end())?;
+    outln!(
+        "wrote {}: use it with {PROFILE_DIR_ENV}={}",
+        file.display(),
+        dir.display()
+    )?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn c(key: &str, ms: f64, fneg: usize, visible: usize, fp: f64, changes: usize) -> Candidate {
+        Candidate {
+            key: key.into(),
+            label: key.into(),
+            frame_gpu_ms: ms,
+            false_negatives: fneg,
+            fn_rate: fneg as f64 / visible as f64,
+            fp_rate: fp,
+            changes,
+        }
+    }
+
+    #[test]
+    fn the_fastest_conservative_setting_wins() {
+        let runs = [
+            c("none", 1.0, 0, 100, 0.9, 0),
+            c("hiz", 0.4, 3, 100, 0.5, 1),
+            c("hiz-2phase", 0.5, 0, 100, 0.6, 1),
+            c("oq", 0.3, 9, 100, 0.4, 1),
+        ];
+        let r = select(&runs, None).unwrap();
+        assert_eq!(r[0].key, "hiz-2phase");
+        assert_eq!(r.len(), 2, "only the conservative ones rank");
+        // With an FN budget, single-phase HiZ qualifies and is faster.
+        assert_eq!(select(&runs, Some(0.05)).unwrap()[0].key, "hiz");
+        assert_eq!(select(&runs, Some(0.1)).unwrap()[0].key, "oq");
+    }
+
+    #[test]
+    fn ties_go_to_fewer_false_positives_then_fewer_changes_then_the_key() {
+        let r = select(
+            &[
+                c("b", 0.5, 0, 10, 0.6, 1),
+                c("a", 0.5, 0, 10, 0.7, 0),
+                c("c", 0.5, 0, 10, 0.6, 0),
+            ],
+            None,
+        )
+        .unwrap();
+        let keys: Vec<&str> = r.iter().map(|c| c.key.as_str()).collect();
+        assert_eq!(keys, ["c", "b", "a"]);
+        let r = select(
+            &[c("y", 0.5, 0, 10, 0.6, 0), c("x", 0.5, 0, 10, 0.6, 0)],
+            None,
+        )
+        .unwrap();
+        assert_eq!(r[0].key, "x");
+    }
+
+    #[test]
+    fn an_infeasible_constraint_names_the_best_fn_reached() {
+        let e = select(
+            &[c("hiz", 0.4, 3, 100, 0.5, 1), c("oq", 0.3, 9, 100, 0.4, 1)],
+            None,
+        )
+        .unwrap_err();
+        assert_eq!(
+            e,
+            TuneError::Infeasible {
+                constraint: "no false negative on any frame".into(),
+                best_fn: 3,
+                best_rate: 0.03,
+                best: "hiz".into()
+            }
+        );
+        assert!(e.to_string().contains("the best FN reached was 3"), "{e}");
+        assert_eq!(select(&[], None).unwrap_err(), TuneError::Nothing);
+    }
+}
