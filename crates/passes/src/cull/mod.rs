@@ -135,11 +135,9 @@ pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
     let name = if two_phase { "cull-early" } else { "cull" };
     let mut c = g.compute_pass(name, PassClass::Compute, dispatch(0, Step::Mark));
     c.storage_write(lists.entries);
-    if two_phase {
-        c.storage_read(lists.visibility);
-    }
-    if culling == Culling::RasterOcclusion {
-        // cull.comp's visibility binding is writable (the late phase writes it), so
+    if two_phase || culling == Culling::RasterOcclusion {
+        // The early phase reads last frame's visibility (raster occlusion: this frame's
+        // flags); cull.comp's visibility binding is writable (the late phase writes it), so
         // synchronization validation counts the dispatch as a writer.
         c.storage_read_write(lists.visibility);
     }

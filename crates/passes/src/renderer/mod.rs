@@ -327,8 +327,10 @@ impl SceneRenderer {
         let key = DeclarationKey {
             depth,
             // Only the id target the renderer keeps is imported differently on the first
-            // frame (the colour target's import is in `color`).
-            first_frame: self.frames == 0 && self.ids_target.is_some(),
+            // frame (the colour target's import is in `color`), and two-phase culling clears
+            // its visibility then.
+            first_frame: self.frames == 0
+                && (self.ids_target.is_some() || self.options.culling == Culling::HizTwoPhase),
             color,
         };
         let declare = self.declared.as_ref().is_none_or(|d| d.key != key);
@@ -617,6 +619,13 @@ impl SceneRenderer {
     /// dropped after the frame that rebuilt them).
     pub fn cached_pipelines(&self) -> usize {
         self.resources.pipelines.len()
+    }
+
+    /// Forgets the GPU timings of the frames so far: [`Self::medians`] then covers the frames
+    /// rendered after this (call [`Self::finish`] first, so no earlier frame is still to be
+    /// collected).
+    pub fn clear_timings(&mut self) {
+        self.executor.clear_timings();
     }
 
     pub fn executor(&self) -> &Executor {

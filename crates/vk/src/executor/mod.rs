@@ -189,6 +189,11 @@ impl Executor {
         &self.history
     }
 
+    /// Forgets the timings recorded so far (a measurement that starts now).
+    pub fn clear_timings(&mut self) {
+        self.history = TimingHistory::default();
+    }
+
     /// Physical resources of the current plan (e.g. to read back an exported image).
     pub fn resources(&self) -> Option<&Resources> {
         self.resources.as_ref()
