@@ -1,6 +1,7 @@
 //! `tilegraph cull-check`: a culling technique against the exact oracle along a camera path.
 
 use tilegraph_passes::cullcheck::{cull_check_options, CullCheck};
+use tilegraph_passes::knobs::Resolved;
 use tilegraph_passes::RenderOptions;
 use tilegraph_profile::knobs::KnobSettings;
 use tilegraph_vk::{Context, Feature, FeatureRequest};
@@ -28,9 +29,9 @@ pub fn run(a: &RunArgs) -> Result<(), CliError> {
     let caveat = crate::device_caveat(&ctx);
     // Validation through the teardown: objects left alive are reported there.
     let destroyed = ctx.destroy_checked();
-    let report = result?;
+    let (report, resolved) = result?;
     destroyed?;
-    print(a, &report, caveat)
+    print(a, &report, &resolved, caveat)
 }
 
 /// The check on `ctx` with `a`'s knobs.
@@ -39,7 +40,7 @@ pub fn check(
     a: &RunArgs,
     knobs: &KnobSettings,
     scene: &tilegraph_scene::Scene,
-) -> Result<CullCheck, CliError> {
+) -> Result<(CullCheck, Resolved), CliError> {
     let path = a.camera_path(scene)?;
     let (w, h) = a.size.unwrap_or((320, 180));
     let mut o = RenderOptions {
@@ -48,19 +49,17 @@ pub fn check(
         ..Default::default()
     };
     let resolved = RunArgs::resolve(ctx, scene, knobs, &mut o)?;
-    for line in resolved.describe() {
-        log::info!("{line}");
-    }
-    Ok(cull_check_options(
-        ctx,
-        scene,
-        o,
-        &path,
-        a.frames.map(|f| f as usize),
-    )?)
+    let trial = resolved.auto_trial(crate::run::auto_inputs(ctx));
+    let check = cull_check_options(ctx, scene, o, &path, a.frames.map(|f| f as usize), trial)?;
+    Ok((check, resolved))
 }
 
-fn print(a: &RunArgs, report: &CullCheck, caveat: Option<&str>) -> Result<(), CliError> {
+fn print(
+    a: &RunArgs,
+    report: &CullCheck,
+    resolved: &Resolved,
+    caveat: Option<&str>,
+) -> Result<(), CliError> {
     if a.json {
         outln!("{}", serde_json::to_string(report)?)?;
         return Ok(());
@@ -75,6 +74,12 @@ fn print(a: &RunArgs, report: &CullCheck, caveat: Option<&str>) -> Result<(), Cl
         report.size[1],
         report.totals.frames
     )?;
+    for line in resolved.describe() {
+        outln!("  {line}")?;
+    }
+    if let Some(why) = &report.auto_review {
+        outln!("  then {why}")?;
+    }
     outln!(
         "{:>6} {:>4} {:>8} {:>8} {:>6} {:>8} {:>12}",
         "frame",

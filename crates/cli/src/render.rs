@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use serde::Serialize;
-use tilegraph_passes::knobs::Resolved;
+use tilegraph_passes::knobs::{Resolved, TrialStep};
 use tilegraph_passes::{FrameReport, RenderOptions, SceneRenderer};
 use tilegraph_scene::Scene;
 use tilegraph_vk::{Context, FeatureRequest};
@@ -36,6 +36,7 @@ struct RenderJson<'a> {
     shading: &'static str,
     #[serde(flatten)]
     knobs: &'a Resolved,
+    auto_trial: Option<&'a str>,
     size: [u32; 2],
     frames: u32,
     passes: Vec<PassJson<'a>>,
@@ -101,7 +102,42 @@ fn render_with(
         ))
     })?;
     let mut renderer = SceneRenderer::new(ctx, scene, ropts.clone())?;
+    let mut trial_reason = None;
     let result = (|| {
+        // `auto`: time every candidate on this device first, keep the fastest.
+        if let Some(mut trial) = resolved.auto_trial(crate::run::auto_inputs(ctx)) {
+            loop {
+                renderer.render(ctx, scene, &camera)?;
+                match trial.after_frame() {
+                    TrialStep::Continue => {}
+                    TrialStep::StartTiming => {
+                        renderer.finish(ctx)?;
+                        renderer.clear_timings();
+                    }
+                    TrialStep::Measure => {
+                        renderer.finish(ctx)?;
+                        let ms = renderer.medians().iter().map(|m| m.median_gpu_ms).sum();
+                        let (next, done) = match trial.record(ms) {
+                            Ok(next) => (next, false),
+                            Err((best, why)) => {
+                                trial_reason = Some(why);
+                                (best, true)
+                            }
+                        };
+                        if next != ropts.culling {
+                            ropts.culling = next;
+                            let fresh = SceneRenderer::new(ctx, scene, ropts.clone())?;
+                            std::mem::replace(&mut renderer, fresh).destroy(ctx);
+                        }
+                        if done {
+                            break;
+                        }
+                    }
+                }
+            }
+            renderer.finish(ctx)?;
+            renderer.clear_timings();
+        }
         let mut last: Option<FrameReport> = None;
         let mut lint = None;
         renderer.lint_next_frame();
@@ -135,6 +171,7 @@ fn render_with(
                 culling: ropts.culling.name(),
                 shading: ropts.technique.name(),
                 knobs: &resolved,
+                auto_trial: trial_reason.as_deref(),
                 size: [w, h],
                 frames,
                 passes: report
@@ -187,6 +224,9 @@ fn render_with(
         outln!("\nknobs:")?;
         for line in resolved.describe() {
             outln!("  {line}")?;
+        }
+        if let Some(why) = &trial_reason {
+            outln!("  then {why}")?;
         }
         if let Some(r) = &report {
             outln!("\npasses chosen by the frame setup:")?;

@@ -123,14 +123,7 @@ impl RunArgs {
         run: &KnobSettings,
         options: &mut RenderOptions,
     ) -> Result<Resolved, CliError> {
-        let resolved = knobs::resolve(
-            ctx.profile(),
-            run,
-            scene,
-            AutoInputs {
-                conditional_rendering: ctx.has_feature(Feature::ConditionalRendering),
-            },
-        )?;
+        let resolved = knobs::resolve(ctx.profile(), run, scene, auto_inputs(ctx))?;
         resolved.apply(options);
         Ok(resolved)
     }
@@ -141,6 +134,13 @@ impl RunArgs {
             Some(p) => CameraPath::load_json(p)?,
             None => scene.camera_path().clone(),
         })
+    }
+}
+
+/// What `auto` may choose between on `ctx`'s device.
+pub fn auto_inputs(ctx: &Context) -> AutoInputs {
+    AutoInputs {
+        conditional_rendering: ctx.has_feature(Feature::ConditionalRendering),
     }
 }
 

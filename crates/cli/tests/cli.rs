@@ -148,6 +148,8 @@ fn render_writes_the_image_and_the_timing_table() {
             "forest:200",
             "--shading",
             "prepass",
+            "--culling",
+            "none",
             "--profile",
             "adreno-7xx",
             "--size",
@@ -397,7 +399,13 @@ fn knobs_the_run_cannot_use_are_errors_and_the_flag_is_credited() {
     let (ok, stdout, err) = run(&["render", "city:100", "--culling", "auto", "--json"], &env);
     assert!(ok, "{err}");
     let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
-    assert_eq!(v["culling"], "none");
+    // Then it timed the candidates on this device and kept the fastest.
+    let trial = v["auto_trial"].as_str().unwrap();
+    let kept = v["culling"].as_str().unwrap();
+    assert!(trial.contains(&format!("— {kept} is fastest")), "{trial}");
+    for candidate in ["none", "frustum", "hiz-2phase"] {
+        assert!(trial.contains(&format!("{candidate} ")), "{trial}");
+    }
     assert!(
         v["auto_reason"]
             .as_str()

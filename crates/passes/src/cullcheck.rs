@@ -15,6 +15,7 @@ use tilegraph_scene::{CameraPath, Scene};
 use tilegraph_vk::Context;
 
 use crate::cull::Culling;
+use crate::knobs::{AutoTrial, TrialStep};
 use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
 use crate::setup::Technique;
@@ -82,7 +83,10 @@ pub struct PassTime {
 /// The whole report (`tilegraph cull-check --json`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CullCheck {
+    /// The culling that ran (after `auto`'s review, the one it switched to).
     pub technique: String,
+    /// `auto`'s trial: what it timed and what it kept (`None` when the culling was given).
+    pub auto_review: Option<String>,
     pub scene: String,
     pub profile: String,
     pub size: [u32; 2],
@@ -137,17 +141,22 @@ pub fn cull_check_with(
         culling,
         ..Default::default()
     };
-    cull_check_options(ctx, scene, tested, path, max_frames)
+    cull_check_options(ctx, scene, tested, path, max_frames, None)
 }
 
 /// The check of `tested` (any shading, culling and knobs) along `path`: the reference is the
 /// same options without culling, the oracle the visibility buffer of everything.
+///
+/// `auto` (`culling = auto`): the check runs its trial ([`AutoTrial`]) on the first frames —
+/// each candidate checked like any culling — and the fastest for the rest; the timing pass
+/// times what it kept.
 pub fn cull_check_options(
     ctx: &Context,
     scene: &Scene,
     tested: RenderOptions,
     path: &CameraPath,
     max_frames: Option<usize>,
+    auto: Option<AutoTrial>,
 ) -> Result<CullCheck, RenderError> {
     let culling = tested.culling;
     let size = (tested.width, tested.height);
@@ -174,6 +183,7 @@ pub fn cull_check_options(
             return Err(e);
         }
     };
+    let tested_options = tested.clone();
     let tested = match SceneRenderer::new(ctx, scene, tested) {
         Ok(r) => r,
         Err(e) => {
@@ -193,6 +203,8 @@ pub fn cull_check_options(
         path,
         size,
         max_frames,
+        auto,
+        tested_options,
     };
     let result = run.check(ctx, &mut renderers);
     let Renderers {
@@ -223,17 +235,22 @@ struct Run<'a> {
     path: &'a CameraPath,
     size: (u32, u32),
     max_frames: Option<usize>,
+    auto: Option<AutoTrial>,
+    tested_options: RenderOptions,
 }
 
 impl Run<'_> {
     fn check(&self, ctx: &Context, r: &mut Renderers) -> Result<CullCheck, RenderError> {
         let Run {
             scene,
-            culling,
+            mut culling,
             path,
             size,
             max_frames,
+            ..
         } = *self;
+        let mut trial = self.auto.clone();
+        let mut auto_switch = None;
         let Renderers {
             oracle,
             reference,
@@ -287,6 +304,36 @@ impl Run<'_> {
                 }
                 None => drawn.iter_mut().for_each(|d| *d = true),
             }
+            if let Some(t) = trial.as_mut() {
+                match t.after_frame() {
+                    TrialStep::Continue => {}
+                    TrialStep::StartTiming => {
+                        tested.finish(ctx)?;
+                        tested.clear_timings();
+                    }
+                    TrialStep::Measure => {
+                        tested.finish(ctx)?;
+                        let ms = tested.medians().iter().map(|m| m.median_gpu_ms).sum();
+                        let next = match t.record(ms) {
+                            Ok(next) => next,
+                            Err((best, why)) => {
+                                auto_switch = Some(why);
+                                trial = None;
+                                best
+                            }
+                        };
+                        if next != culling {
+                            let options = RenderOptions {
+                                culling: next,
+                                ..self.tested_options.clone()
+                            };
+                            let fresh = SceneRenderer::new(ctx, scene, options)?;
+                            std::mem::replace(tested, fresh).destroy(ctx);
+                            culling = next;
+                        }
+                    }
+                }
+            }
             let mut check = FrameCheck {
                 frame: index,
                 cut: frame.cut,
@@ -336,6 +383,13 @@ impl Run<'_> {
         // Times come from a second pass along the path, frames back to back: the checked
         // pass waits for three readbacks between frames, long enough for a GPU to lower its
         // clocks, and its timings measured that (up to 2.8x on an H200 at 1080p).
+        if let Some(t) = &trial {
+            auto_switch = Some(format!(
+                "auto: the path ended before the trial did ({} frames); ran {}",
+                t.frames(),
+                culling.name()
+            ));
+        }
         tested.finish(ctx)?;
         tested.clear_timings();
         for index in 0..frames.len() {
@@ -390,6 +444,7 @@ impl Run<'_> {
         };
         Ok(CullCheck {
             technique: culling.name().to_string(),
+            auto_review: auto_switch,
             scene: scene.name().to_string(),
             profile: ctx.profile().name.clone(),
             size: [size.0, size.1],

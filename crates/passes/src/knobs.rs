@@ -28,6 +28,120 @@ pub const AUTO_MIN_INSTANCES: usize = 256;
 /// instance: 6.45 ms against two-phase HiZ's 19.4 ms on the H100, docs/ACCURACY.md).
 pub const AUTO_QUERY_TRIANGLES_PER_INSTANCE: u64 = 1000;
 
+/// Frames each candidate of `auto`'s trial runs before it is timed (two-phase culling's first
+/// frame starts from an empty visibility and draws everything in the frustum).
+pub const AUTO_WARMUP_FRAMES: usize = 2;
+/// Frames each candidate is timed over (the median of their GPU frame times counts).
+pub const AUTO_TIMED_FRAMES: usize = 3;
+
+/// `auto`'s trial: what the scene holds gives a first pick ([`auto_culling`]), but what pays
+/// depends on the device as much as on the scene (the FlightHelmet at 320x180 on lavapipe is
+/// fastest frustum-culled, at 1080p on an H200 unculled; a single Godot room on both with
+/// same-frame queries). So `auto` times every conservative candidate the device can run on the
+/// first frames — the first pick, then none, frustum, two-phase HiZ and same-frame queries —
+/// and keeps the fastest. Every candidate is conservative: no frame of the trial loses an
+/// instance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AutoTrial {
+    candidates: Vec<Culling>,
+    current: usize,
+    frames: usize,
+    /// (candidate, median GPU frame ms).
+    timed: Vec<(Culling, f64)>,
+}
+
+/// What the caller does after a frame of the trial.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TrialStep {
+    /// Render the next frame with the same candidate.
+    Continue,
+    /// The candidate is warm: forget its timings so far (`finish`, `clear_timings`).
+    StartTiming,
+    /// The candidate's timed frames are done: give [`AutoTrial::record`] their median frame ms.
+    Measure,
+}
+
+impl AutoTrial {
+    pub fn new(first: Culling, inputs: AutoInputs) -> AutoTrial {
+        let mut candidates = vec![first];
+        for c in [
+            Culling::None,
+            Culling::Frustum,
+            Culling::HizTwoPhase,
+            Culling::OqConditional,
+        ] {
+            if candidates.contains(&c)
+                || (c == Culling::OqConditional && !inputs.conditional_rendering)
+            {
+                continue;
+            }
+            candidates.push(c);
+        }
+        AutoTrial {
+            candidates,
+            current: 0,
+            frames: 0,
+            timed: Vec::new(),
+        }
+    }
+
+    /// The candidate to render with now.
+    pub fn current(&self) -> Culling {
+        self.candidates
+            .get(self.current)
+            .copied()
+            .unwrap_or(Culling::None)
+    }
+
+    /// Frames the whole trial takes.
+    pub fn frames(&self) -> usize {
+        self.candidates.len() * (AUTO_WARMUP_FRAMES + AUTO_TIMED_FRAMES)
+    }
+
+    /// After a frame rendered with [`Self::current`].
+    pub fn after_frame(&mut self) -> TrialStep {
+        self.frames += 1;
+        if self.frames == AUTO_WARMUP_FRAMES {
+            TrialStep::StartTiming
+        } else if self.frames == AUTO_WARMUP_FRAMES + AUTO_TIMED_FRAMES {
+            TrialStep::Measure
+        } else {
+            TrialStep::Continue
+        }
+    }
+
+    /// The current candidate's median GPU frame time. Returns the culling to render with
+    /// next: the next candidate, or — when every candidate is timed — the fastest, with the
+    /// reason (`Err` carries the decision).
+    pub fn record(&mut self, frame_ms: f64) -> Result<Culling, (Culling, String)> {
+        self.timed.push((self.current(), frame_ms));
+        self.current += 1;
+        self.frames = 0;
+        if self.current < self.candidates.len() {
+            return Ok(self.current());
+        }
+        let (best, best_ms) = self
+            .timed
+            .iter()
+            .copied()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or((Culling::None, 0.0));
+        let tried: Vec<String> = self
+            .timed
+            .iter()
+            .map(|(c, ms)| format!("{} {ms:.3} ms", c.name()))
+            .collect();
+        Err((
+            best,
+            format!(
+                "auto timed on this device over {AUTO_TIMED_FRAMES} frames each: {} — {} is fastest ({best_ms:.3} ms)",
+                tried.join(", "),
+                best.name()
+            ),
+        ))
+    }
+}
+
 /// Where a knob's value came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -91,6 +205,16 @@ pub struct Resolved {
     pub auto_reason: Option<String>,
     /// Every knob offered to this scene, with its value and origin.
     pub knobs: Vec<KnobChoice>,
+}
+
+impl Resolved {
+    /// `auto`'s trial, when `culling = auto` chose [`Self::culling`] (`None` when the culling
+    /// was given).
+    pub fn auto_trial(&self, inputs: AutoInputs) -> Option<AutoTrial> {
+        self.auto_reason
+            .as_ref()
+            .map(|_| AutoTrial::new(self.culling, inputs))
+    }
 }
 
 /// The knobs a scene can use: `alpha_prepass` only where there is alpha-tested geometry.
@@ -187,7 +311,8 @@ pub fn resolve(
     for k in offered(content) {
         let (v, origin) = value(k);
         if let Applies::WithCulling(techniques) = k.applies {
-            if !techniques.contains(&culling.name()) {
+            let requested = name_of("culling");
+            if !techniques.contains(&culling.name()) && !techniques.contains(&requested.as_str()) {
                 if origin == Origin::Run {
                     return Err(KnobUseError::IgnoredByCulling {
                         name: k.name,
@@ -367,6 +492,42 @@ mod tests {
         let r = resolve(&p, &alpha, &forest, inputs).unwrap();
         r.apply(&mut o);
         assert_eq!(o.alpha_prepass, Some(false));
+    }
+
+    #[test]
+    fn auto_times_every_candidate_and_keeps_the_fastest() {
+        let inputs = AutoInputs {
+            conditional_rendering: false,
+        };
+        let mut t = AutoTrial::new(Culling::HizTwoPhase, inputs);
+        assert_eq!(t.frames(), 3 * (AUTO_WARMUP_FRAMES + AUTO_TIMED_FRAMES));
+        let times = [0.5, 1.1, 0.7];
+        let mut decided = None;
+        for (i, ms) in times.iter().enumerate() {
+            let expected = [Culling::HizTwoPhase, Culling::None, Culling::Frustum][i];
+            assert_eq!(t.current(), expected);
+            assert_eq!(t.after_frame(), TrialStep::Continue);
+            assert_eq!(t.after_frame(), TrialStep::StartTiming);
+            assert_eq!(t.after_frame(), TrialStep::Continue);
+            assert_eq!(t.after_frame(), TrialStep::Continue);
+            assert_eq!(t.after_frame(), TrialStep::Measure);
+            match t.record(*ms) {
+                Ok(next) => assert_eq!(next, t.current()),
+                Err(d) => decided = Some(d),
+            }
+        }
+        let (c, why) = decided.unwrap();
+        assert_eq!(c, Culling::HizTwoPhase);
+        assert!(why.starts_with("auto timed on this device"), "{why}");
+        assert!(why.contains("none 1.100 ms"), "{why}");
+        // Same-frame queries are a candidate only where the device has conditional rendering.
+        let with = AutoTrial::new(
+            Culling::None,
+            AutoInputs {
+                conditional_rendering: true,
+            },
+        );
+        assert_eq!(with.candidates.len(), 4);
     }
 
     #[test]

@@ -202,7 +202,14 @@ pub(crate) fn run_one(
     };
     let resolved = crate::run::RunArgs::resolve(ctx, scene, &knobs, &mut options)?;
     let started = Instant::now();
-    let check = cull_check_options(ctx, scene, options, &path, Some(frames as usize))?;
+    let check = cull_check_options(
+        ctx,
+        scene,
+        options,
+        &path,
+        Some(frames as usize),
+        resolved.auto_trial(crate::run::auto_inputs(ctx)),
+    )?;
     Ok(RunRecord::from_check(
         s,
         ctx,

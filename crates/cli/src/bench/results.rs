@@ -136,7 +136,10 @@ impl RunRecord {
             settings: s.clone(),
             device: device(ctx),
             culling: check.technique.clone(),
-            auto_reason: resolved.auto_reason.clone(),
+            auto_reason: match (&resolved.auto_reason, &check.auto_review) {
+                (Some(first), Some(then)) => Some(format!("{first}; then {then}")),
+                (first, _) => first.clone(),
+            },
             knobs: resolved
                 .knobs
                 .iter()
