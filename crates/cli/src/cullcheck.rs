@@ -1,6 +1,10 @@
 //! `tilegraph cull-check`: a culling technique against the exact oracle along a camera path.
 
-use tilegraph_passes::cullcheck::{cull_check_options, CullCheck};
+use std::path::Path;
+
+use tilegraph_passes::cullcheck::{
+    cull_check_options, CheckExtras, CullCheck, FailedFrame, OnFailure,
+};
 use tilegraph_passes::knobs::Resolved;
 use tilegraph_passes::RenderOptions;
 use tilegraph_profile::knobs::KnobSettings;
@@ -21,11 +25,17 @@ pub fn oracle_features() -> FeatureRequest {
 }
 
 /// Runs the check on a context of its own.
-pub fn run(a: &RunArgs) -> Result<(), CliError> {
+pub fn run(a: &RunArgs, save_frames: Option<&Path>) -> Result<(), CliError> {
     let knobs = a.knob_settings(TechniqueMeant::Culling)?;
     let scene = tilegraph_scene::load(&a.scene)?;
     let ctx = Context::new(a.context_options(oracle_features()))?;
-    let result = check(&ctx, a, &knobs, &scene);
+    if let Some(dir) = save_frames {
+        std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
+            path: dir.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+    }
+    let result = check(&ctx, a, &knobs, &scene, save_frames);
     let caveat = crate::device_caveat(&ctx);
     // Validation through the teardown: objects left alive are reported there.
     let destroyed = ctx.destroy_checked();
@@ -40,6 +50,7 @@ pub fn check(
     a: &RunArgs,
     knobs: &KnobSettings,
     scene: &tilegraph_scene::Scene,
+    save_frames: Option<&Path>,
 ) -> Result<(CullCheck, Resolved), CliError> {
     let path = a.camera_path(scene)?;
     let (w, h) = a.size.unwrap_or((320, 180));
@@ -49,8 +60,26 @@ pub fn check(
         ..Default::default()
     };
     let resolved = RunArgs::resolve(ctx, scene, knobs, &mut o)?;
-    let trial = resolved.auto_trial(crate::run::auto_inputs(ctx));
-    let check = cull_check_options(ctx, scene, o, &path, a.frames.map(|f| f as usize), trial)?;
+    let mut save = |f: &FailedFrame<'_>| -> Result<(), String> {
+        let Some(dir) = save_frames else {
+            return Ok(());
+        };
+        let n = f.check.frame;
+        for (what, image) in [
+            ("technique", f.technique),
+            ("reference", f.reference),
+            ("diff", &f.diff),
+        ] {
+            crate::image_io::write_png(&dir.join(format!("frame-{n:04}-{what}.png")), image)
+                .map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    };
+    let extras = CheckExtras {
+        auto: resolved.auto_trial(crate::run::auto_inputs(ctx)),
+        on_failure: save_frames.map(|_| &mut save as OnFailure<'_>),
+    };
+    let check = cull_check_options(ctx, scene, o, &path, a.frames.map(|f| f as usize), extras)?;
     Ok((check, resolved))
 }
 

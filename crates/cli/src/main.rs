@@ -82,6 +82,11 @@ enum Command {
     CullCheck {
         #[command(flatten)]
         run: RunArgs,
+        /// For each frame with false negatives or an image unlike the reference, write
+        /// `frame-NNNN-technique.png`, `-reference.png` and `-diff.png` (differing pixels red,
+        /// the pixels of culled visible instances magenta) here.
+        #[arg(long)]
+        save_frames: Option<PathBuf>,
     },
     /// Record one frame of a scene under a profile and check every pipeline it binds against
     /// the profile's state rules (what defeats LRZ, FPK, HSR, early-Z), with their sources.
@@ -93,6 +98,9 @@ enum Command {
     /// against the exact oracle; write results.json, report.md and SVG plots (Pareto fronts,
     /// GPU time per pass) to --out, resuming where an earlier run stopped.
     Bench(bench::BenchArgs),
+    /// Rewrite a marked section of a doc (docs/ACCURACY.md, docs/BENCHMARKS.md) with the tables
+    /// of bench results, naming the machine, driver and build that measured them.
+    BenchDoc(bench::doc::DocArgs),
     /// Sweep the knobs the profile exposes for one scene on this device, pick the fastest
     /// setting that meets the accuracy constraint, check it on a path it did not see, and write
     /// the profile with the pick as its knobs (load it with TILEGRAPH_PROFILE_DIR).
@@ -197,8 +205,9 @@ fn main() -> ExitCode {
             }),
         Command::SceneInfo { scene, json } => scene_info(&scene, json),
         Command::Lint { run } => lint::run(&run),
-        Command::CullCheck { run } => cullcheck::run(&run),
+        Command::CullCheck { run, save_frames } => cullcheck::run(&run, save_frames.as_deref()),
         Command::Bench(args) => bench::run(&args),
+        Command::BenchDoc(args) => bench::doc::run(&args),
         Command::Tune(args) => tune::run(&args),
         Command::Knobs {
             profile,

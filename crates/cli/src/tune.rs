@@ -299,13 +299,39 @@ fn tune_on(
     let labels = Labels::new(&all);
     let ranked = select(&candidates(&all, &results, &labels), a.max_fn_rate)
         .map_err(|e| CliError::Usage(format!("tune: {e}")))?;
-    // The held-out path: the first of the ranked settings (at most four) that still meets
-    // the constraint there is the pick; the faster ones that fail are reported overfit.
+    // The held-out path: the first of the ranked settings that still meets the constraint
+    // there is the pick; faster ones that fail are reported overfit. Which instances a setting
+    // draws depends on its culling and the culling's own knobs, not on shading or draw order:
+    // a setting culled like one that failed is overfit without another run. At most four
+    // distinct cullings are tried.
+    let culled_like = |s: &Setting| {
+        let own: Vec<String> = s
+            .knobs
+            .iter()
+            .filter(|(k, _)| {
+                matches!(
+                    tilegraph_profile::knobs::spec(k).map(|k| k.applies),
+                    Some(tilegraph_profile::knobs::Applies::WithCulling(_))
+                )
+            })
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        format!("{} {}", s.culling, own.join(","))
+    };
     let setting_of = |c: &Candidate| all.iter().find(|s| s.key() == c.key).cloned();
     let mut overfit: Vec<(Candidate, usize)> = Vec::new();
+    let mut failed: Vec<(String, usize)> = Vec::new();
     let mut chosen = None;
-    for c in ranked.iter().take(4) {
+    for c in &ranked {
         let Some(s) = setting_of(c) else { continue };
+        let like = culled_like(&s);
+        if let Some((_, fneg)) = failed.iter().find(|(l, _)| *l == like) {
+            overfit.push((c.clone(), *fneg));
+            continue;
+        }
+        if failed.len() == 4 {
+            break;
+        }
         let held = Setting {
             camera_path: Some("held-out".into()),
             ..s.clone()
@@ -320,11 +346,12 @@ fn tune_on(
             chosen = Some((c.clone(), s, t));
             break;
         }
+        failed.push((like, t.false_negatives));
         overfit.push((c.clone(), t.false_negatives));
     }
     let Some((pick_c, pick, held_totals)) = chosen else {
         return Err(CliError::Usage(format!(
-            "tune: none of the {} fastest settings meeting the constraint on the tuning path meets it on the held-out path: {}",
+            "tune: none of the {} settings meeting the constraint on the tuning path that were tried meets it on the held-out path: {}",
             overfit.len(),
             overfit
                 .iter()
@@ -411,7 +438,14 @@ fn tune_on(
             c.label, c.frame_gpu_ms, c.false_negatives, c.fp_rate
         );
     }
-    for (c, fneg) in &overfit {
+    if overfit.len() > 6 {
+        let _ = writeln!(
+            header,
+            "# Overfit: {} settings, the fastest six below (the rest culled like one of them).",
+            overfit.len()
+        );
+    }
+    for (c, fneg) in overfit.iter().take(6) {
         let _ = writeln!(
             header,
             "# Overfit: {} — frame {:.3} ms, FN 0 on the tuning path but {fneg} on the held-out path; not picked.",

@@ -440,3 +440,54 @@ fn visbuf_with_occlusion_queries_is_clean_under_synchronization_validation() {
     assert!(out.contains("images equal"), "{out}");
     assert!(!err.contains("SYNC-HAZARD"), "{err}");
 }
+
+/// `--save-frames` writes the technique's image, the reference and a diff for exactly the
+/// frames that went wrong. Next-frame queries lose instances as they come into view.
+#[test]
+fn cull_check_saves_the_frames_that_went_wrong() {
+    let dir = std::env::temp_dir().join(format!("tilegraph-saved-{}", std::process::id()));
+    std::fs::remove_dir_all(&dir).ok();
+    let (ok, out, err) = tilegraph(
+        &[
+            "cull-check",
+            "city:1500",
+            "--culling",
+            "oq",
+            "--size",
+            "160x90",
+            "--frames",
+            "12",
+            "--json",
+            "--save-frames",
+            dir.to_str().unwrap(),
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let wrong: Vec<u64> = v["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["false_negatives"].as_u64().unwrap() > 0 || f["image_equal"] == false)
+        .map(|f| f["frame"].as_u64().unwrap())
+        .collect();
+    assert!(!wrong.is_empty(), "next-frame queries lost nothing: {out}");
+    let mut saved: Vec<String> = std::fs::read_dir(&dir)
+        .map(|d| {
+            d.map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    saved.sort();
+    let mut expected: Vec<String> = wrong
+        .iter()
+        .flat_map(|n| ["diff", "reference", "technique"].map(|w| format!("frame-{n:04}-{w}.png")))
+        .collect();
+    expected.sort();
+    assert_eq!(saved, expected);
+    for f in &saved {
+        assert_eq!(&std::fs::read(dir.join(f)).unwrap()[..4], b"\x89PNG");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

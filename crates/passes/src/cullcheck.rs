@@ -12,6 +12,7 @@
 
 use serde::Serialize;
 use tilegraph_scene::{CameraPath, Scene};
+use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::Context;
 
 use crate::cull::Culling;
@@ -94,6 +95,31 @@ pub struct CullCheck {
     pub totals: Totals,
 }
 
+/// A frame the check found wrong (false negatives or an image unlike the reference), for
+/// [`CheckExtras::on_failure`].
+pub struct FailedFrame<'a> {
+    pub check: &'a FrameCheck,
+    /// The technique's image and the unculled reference.
+    pub technique: &'a RgbaImage,
+    pub reference: &'a RgbaImage,
+    /// The reference dimmed to grey, pixels that differ in red, and the pixels of visible
+    /// instances the technique culled (false negatives) in magenta.
+    pub diff: RgbaImage,
+}
+
+/// A callback for each failed frame ([`CheckExtras::on_failure`]).
+pub type OnFailure<'a> = &'a mut dyn FnMut(&FailedFrame<'_>) -> Result<(), String>;
+
+/// What a check does besides counting.
+#[derive(Default)]
+pub struct CheckExtras<'a> {
+    /// `culling = auto`: the trial to run on the first frames ([`AutoTrial`]).
+    pub auto: Option<AutoTrial>,
+    /// Called for every frame with false negatives or an unequal image (`cull-check
+    /// --save-frames`); an error stops the check.
+    pub on_failure: Option<OnFailure<'a>>,
+}
+
 /// Technique knobs of a check.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CheckOptions {
@@ -141,7 +167,7 @@ pub fn cull_check_with(
         culling,
         ..Default::default()
     };
-    cull_check_options(ctx, scene, tested, path, max_frames, None)
+    cull_check_options(ctx, scene, tested, path, max_frames, CheckExtras::default())
 }
 
 /// The check of `tested` (any shading, culling and knobs) along `path`: the reference is the
@@ -156,8 +182,12 @@ pub fn cull_check_options(
     tested: RenderOptions,
     path: &CameraPath,
     max_frames: Option<usize>,
-    auto: Option<AutoTrial>,
+    extras: CheckExtras<'_>,
 ) -> Result<CullCheck, RenderError> {
+    let CheckExtras {
+        auto,
+        mut on_failure,
+    } = extras;
     let culling = tested.culling;
     let size = (tested.width, tested.height);
     let oracle = SceneRenderer::new(
@@ -206,7 +236,7 @@ pub fn cull_check_options(
         auto,
         tested_options,
     };
-    let result = run.check(ctx, &mut renderers);
+    let result = run.check(ctx, &mut renderers, &mut on_failure);
     let Renderers {
         oracle,
         reference,
@@ -240,7 +270,12 @@ struct Run<'a> {
 }
 
 impl Run<'_> {
-    fn check(&self, ctx: &Context, r: &mut Renderers) -> Result<CullCheck, RenderError> {
+    fn check(
+        &self,
+        ctx: &Context,
+        r: &mut Renderers,
+        on_failure: &mut Option<OnFailure<'_>>,
+    ) -> Result<CullCheck, RenderError> {
         let Run {
             scene,
             mut culling,
@@ -378,6 +413,17 @@ impl Run<'_> {
                     _ => {}
                 }
             }
+            if let Some(save) = on_failure.as_mut() {
+                if check.false_negatives > 0 || !check.image_equal {
+                    let failed = FailedFrame {
+                        check: &check,
+                        technique: &got,
+                        reference: &want,
+                        diff: diff_image(&got, &want, &ids, &visible, &drawn),
+                    };
+                    save(&failed).map_err(RenderError::Save)?;
+                }
+            }
             frames.push(check);
         }
         // Times come from a second pass along the path, frames back to back: the checked
@@ -451,5 +497,42 @@ impl Run<'_> {
             frames,
             totals,
         })
+    }
+}
+
+/// The diff image of a failed frame: the reference in dim grey, differing pixels red, pixels
+/// owned (in the oracle) by a visible instance the technique did not draw magenta.
+fn diff_image(
+    got: &RgbaImage,
+    want: &RgbaImage,
+    ids: &[u32],
+    visible: &[bool],
+    drawn: &[bool],
+) -> RgbaImage {
+    let mut pixels = Vec::with_capacity(want.pixels.len());
+    for (p, (a, b)) in got
+        .pixels
+        .chunks_exact(4)
+        .zip(want.pixels.chunks_exact(4))
+        .enumerate()
+    {
+        let owner = ids.get(p).map(|&id| id as usize);
+        let culled = owner.is_some_and(|o| {
+            visible.get(o).copied().unwrap_or(false) && !drawn.get(o).copied().unwrap_or(true)
+        });
+        let rgba = if culled {
+            [255, 0, 255, 255]
+        } else if a != b {
+            [255, 0, 0, 255]
+        } else {
+            let grey = ((u32::from(b[0]) + u32::from(b[1]) + u32::from(b[2])) / 6) as u8;
+            [grey, grey, grey, 255]
+        };
+        pixels.extend_from_slice(&rgba);
+    }
+    RgbaImage {
+        width: want.width,
+        height: want.height,
+        pixels,
     }
 }

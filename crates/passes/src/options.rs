@@ -44,6 +44,9 @@ pub enum RenderError {
     EngineSubmits,
     #[error("invalid render size {width}x{height}")]
     Size { width: u32, height: u32 },
+    /// A check's `on_failure` callback failed (writing a failed frame's images).
+    #[error("saving a failed frame: {0}")]
+    Save(String),
 }
 
 impl RenderError {

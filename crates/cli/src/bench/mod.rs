@@ -4,6 +4,7 @@
 //! per scene and size, GPU time per pass). An interrupted bench resumes: finished runs are kept
 //! and not run again.
 
+pub mod doc;
 pub(crate) mod matrix;
 mod plot;
 mod report;
@@ -208,7 +209,10 @@ pub(crate) fn run_one(
         options,
         &path,
         Some(frames as usize),
-        resolved.auto_trial(crate::run::auto_inputs(ctx)),
+        tilegraph_passes::cullcheck::CheckExtras {
+            auto: resolved.auto_trial(crate::run::auto_inputs(ctx)),
+            on_failure: None,
+        },
     )?;
     Ok(RunRecord::from_check(
         s,

@@ -112,22 +112,32 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
             g.size[1],
             stem = g.stem()
         );
-        md.push_str("| setting | profile | frames | FN (frames) | FN rate | FP rate | images equal | culling ms | frame ms | p95 ms | CPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
-        let mut measured = g.measured();
-        measured.sort_by(|a, b| {
-            let ms = |r: &RunRecord| r.totals.as_ref().map_or(f64::MAX, |t| t.frame_gpu_ms);
-            ms(a.0).total_cmp(&ms(b.0))
-        });
-        for (r, front) in measured {
-            let Some(t) = &r.totals else { continue };
-            let mut label = labels.label(&r.settings);
-            if r.settings.culling != r.culling {
-                label = format!("{label} → {}", r.culling);
-            }
-            if front {
-                label = format!("**{label}**");
-            }
-            let _ = writeln!(
+        md.push_str(&table(&g, labels));
+        md.push('\n');
+    }
+    md
+}
+
+/// One group's table: every measured setting, fastest first, the Pareto front in bold, then the
+/// settings that failed.
+pub fn table(g: &Group<'_>, labels: &Labels) -> String {
+    let mut md = String::new();
+    md.push_str("| setting | profile | frames | FN (frames) | FN rate | FP rate | images equal | culling ms | frame ms | p95 ms | CPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    let mut measured = g.measured();
+    measured.sort_by(|a, b| {
+        let ms = |r: &RunRecord| r.totals.as_ref().map_or(f64::MAX, |t| t.frame_gpu_ms);
+        ms(a.0).total_cmp(&ms(b.0))
+    });
+    for (r, front) in measured {
+        let Some(t) = &r.totals else { continue };
+        let mut label = labels.label(&r.settings);
+        if r.settings.culling != r.culling {
+            label = format!("{label} → {}", r.culling);
+        }
+        if front {
+            label = format!("**{label}**");
+        }
+        let _ = writeln!(
                 md,
                 "| {label} | {} | {} | {} ({}) | {:.4} | {:.3} | {}/{} | {:.3} | {:.3} | {:.3} | {:.2} |",
                 r.device.profile,
@@ -143,16 +153,14 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
                 t.frame_gpu_ms_p95,
                 t.cpu_ms
             );
-        }
-        for r in g.runs.iter().filter(|r| r.error.is_some()) {
-            let _ = writeln!(
-                md,
-                "\nFailed: {} — {}",
-                labels.label(&r.settings),
-                r.error.as_deref().unwrap_or_default()
-            );
-        }
-        md.push('\n');
+    }
+    for r in g.runs.iter().filter(|r| r.error.is_some()) {
+        let _ = writeln!(
+            md,
+            "\nFailed: {} — {}",
+            labels.label(&r.settings),
+            r.error.as_deref().unwrap_or_default()
+        );
     }
     md
 }

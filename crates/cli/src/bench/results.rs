@@ -23,6 +23,9 @@ pub struct Results {
 /// Where a run ran.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeviceRecord {
+    /// The tilegraph that measured: version and commit (`0.1.0 7021862`).
+    #[serde(default)]
+    pub build: String,
     pub name: String,
     pub driver: String,
     pub driver_version: String,
@@ -91,8 +94,14 @@ pub struct RunRecord {
     pub frames: Vec<FrameRecord>,
 }
 
+/// This binary's version and the commit it was built from.
+pub fn build() -> String {
+    format!("{} {}", env!("CARGO_PKG_VERSION"), env!("TILEGRAPH_COMMIT"))
+}
+
 fn device(ctx: &Context) -> DeviceRecord {
     DeviceRecord {
+        build: build(),
         name: ctx.physical.identity.device_name.clone(),
         driver: ctx.physical.driver_name.clone(),
         driver_version: ctx.physical.driver_info.clone(),
