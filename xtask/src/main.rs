@@ -53,6 +53,11 @@ const REQUIREMENTS: &[Requirement] = &[
         package: "spirv-tools",
         present: || on_path("spirv-val"),
     },
+    Requirement {
+        what: "Graphviz dot (a test renders the plan's DOT)",
+        package: "graphviz",
+        present: || on_path("dot"),
+    },
 ];
 
 fn main() -> ExitCode {

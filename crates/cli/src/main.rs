@@ -14,6 +14,7 @@ macro_rules! outln {
 mod bench;
 mod cullcheck;
 mod devices;
+mod graph;
 mod image_io;
 mod knobs;
 mod lint;
@@ -105,6 +106,15 @@ enum Command {
     /// setting that meets the accuracy constraint, check it on a path it did not see, and write
     /// the profile with the pick as its knobs (load it with TILEGRAPH_PROFILE_DIR).
     Tune(tune::TuneArgs),
+    /// The compiled plan of one frame of a scene (steps, or DOT with --dot) and the reason for
+    /// every merge, load and store op, barrier and attachment's traffic.
+    Graph {
+        #[command(flatten)]
+        run: RunArgs,
+        /// The plan as Graphviz DOT instead.
+        #[arg(long)]
+        dot: bool,
+    },
     /// The knobs (choices that trade speed for accuracy or memory): domain, default, the
     /// profile's value, and whether a scene can use each.
     Knobs {
@@ -207,6 +217,7 @@ fn main() -> ExitCode {
         Command::Lint { run } => lint::run(&run),
         Command::CullCheck { run, save_frames } => cullcheck::run(&run, save_frames.as_deref()),
         Command::Bench(args) => bench::run(&args),
+        Command::Graph { run, dot } => graph::run(&run, dot),
         Command::BenchDoc(args) => bench::doc::run(&args),
         Command::Tune(args) => tune::run(&args),
         Command::Knobs {

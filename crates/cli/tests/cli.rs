@@ -491,3 +491,50 @@ fn cull_check_saves_the_frames_that_went_wrong() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `tilegraph graph`: the plan with a reason for every decision, as text, JSON and DOT.
+#[test]
+fn graph_explains_the_plan_of_a_scene_frame() {
+    let env = [("TILEGRAPH_VALIDATION", "required")];
+    let base = [
+        "graph",
+        "forest:300",
+        "--profile",
+        "mali-valhall",
+        "--culling",
+        "hiz-2phase",
+        "--size",
+        "64x36",
+    ];
+    let (ok, out, err) = tilegraph(&[&base[..], &["--json"]].concat(), &env);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["profile"], "mali-valhall");
+    let reasons = v["reasons"].as_array().unwrap();
+    for topic in ["merge", "load", "store", "barrier", "traffic"] {
+        assert!(
+            reasons
+                .iter()
+                .any(|r| r["topic"] == topic && !r["why"].as_str().unwrap().is_empty()),
+            "no {topic} reason in {out}"
+        );
+    }
+    // Two-phase culling splits depth around the pyramid build: the late depth pass says so.
+    assert!(
+        reasons.iter().any(|r| r["subject"] == "depth-prepass-late"
+            && r["why"]
+                .as_str()
+                .unwrap()
+                .contains("compute or transfer step")),
+        "{out}"
+    );
+    let (ok, dot, err) = tilegraph(&[&base[..], &["--dot"]].concat(), &env);
+    assert!(ok, "{err}");
+    assert!(dot.trim_start().starts_with("digraph"), "{dot}");
+    let (ok, text, err) = tilegraph(&base, &env);
+    assert!(ok, "{err}");
+    assert!(
+        text.contains("why:") && text.contains("render pass"),
+        "{text}"
+    );
+}

@@ -47,13 +47,13 @@ fn row<const N: usize>(cells: [String; N]) -> Vec<String> {
 }
 
 impl Plan {
-    fn resource_name(&self, id: crate::declare::ResourceId) -> &str {
+    pub(crate) fn resource_name(&self, id: crate::declare::ResourceId) -> &str {
         self.resources
             .get(id.index())
             .map_or("?", |r| r.name.as_str())
     }
 
-    fn pass_name(&self, id: crate::declare::PassId) -> &str {
+    pub(crate) fn pass_name(&self, id: crate::declare::PassId) -> &str {
         self.passes
             .iter()
             .find(|p| p.id == id)

@@ -22,6 +22,7 @@ mod declare;
 mod display;
 mod dot;
 mod error;
+mod explain;
 mod plan;
 #[cfg(test)]
 mod testing;
@@ -35,13 +36,14 @@ pub use declare::{
     ResourceState, Retention, TransferPassBuilder, UseKind,
 };
 pub use error::GraphError;
+pub use explain::{Reason, Topic};
 pub use plan::{
     AliasAssignment, AliasHandoff, AliasLifetime, Attachment, AttachmentIndex, AttachmentRef,
     BarrierBatch, BlockIndex, BufferBarrier, FlushReason, Hazard, ImageBarrier, InlineVec,
-    MemoryBlock, MemoryClass, MemoryNeed, MemoryRequirements, MemorySlot, Plan, PlanResource,
-    PlannedPass, PruneReason, PrunedPass, RenderPass, Residency, Step, StepIndex, StepRange,
-    Subpass, SubpassDependency, SubpassIndex, TrafficBreakdown, TrafficEstimate, TrafficModel,
-    Usage, ESTIMATED_ALIGNMENT_BYTES,
+    MemoryBlock, MemoryClass, MemoryNeed, MemoryRequirements, MemorySlot, MergeNote, MergeReason,
+    Plan, PlanResource, PlannedPass, PruneReason, PrunedPass, RenderPass, Residency, Step,
+    StepIndex, StepRange, Subpass, SubpassDependency, SubpassIndex, TrafficBreakdown,
+    TrafficEstimate, TrafficModel, Usage, ESTIMATED_ALIGNMENT_BYTES,
 };
 pub use tilegraph_profile::PassClass;
 pub use types::{

@@ -5,6 +5,7 @@ mod common;
 
 use common::*;
 use tilegraph_graph::*;
+use tilegraph_profile::{Profile, ProfileSet};
 
 fn bytes(format: Format) -> u64 {
     EXTENT.pixel_count() * u64::from(format.bytes_per_pixel())
@@ -108,9 +109,9 @@ fn classic_frame_on_desktop_merges_the_same_way_without_transient_memory() {
     assert!(plan.traffic.planned.total_bytes() > bytes(Format::B8G8R8A8_SRGB));
 }
 
-#[test]
-fn visibility_buffer_ids_never_leave_tile_memory() {
-    let mut g: GraphBuilder<&str> = GraphBuilder::new();
+/// A visibility-buffer frame: ids and depth, then a resolve into the swapchain.
+fn visbuf_frame() -> (GraphBuilder<&'static str>, ImageId) {
+    let mut g: GraphBuilder<&'static str> = GraphBuilder::new();
     let static_data = Import {
         initial: ResourceState::UNDEFINED,
         content: InitialContent::Preserve,
@@ -141,6 +142,12 @@ fn visibility_buffer_ids_never_leave_tile_memory() {
         .storage_read(materials)
         .color(swapchain)
         .coverage(Coverage::Full);
+    (g, ids)
+}
+
+#[test]
+fn visibility_buffer_ids_never_leave_tile_memory() {
+    let (g, ids) = visbuf_frame();
     let compiled = g.compile(&profile("adreno-7xx")).unwrap();
     let plan = &compiled.plan;
     let rps: Vec<&RenderPass> = plan.render_passes().map(|(_, rp)| rp).collect();
@@ -205,4 +212,109 @@ fn classic_frame_dot_adreno_7xx() {
         .unwrap()
         .plan;
     insta::assert_snapshot!("classic_frame_neighbours_dot_adreno_7xx", plan.to_dot());
+}
+
+/// `tilegraph graph`'s reasons: every raster pass after the first says whether it joined the
+/// render pass before it and why, every attachment its load op, store op and traffic, every
+/// barrier its hazard — for the classic and the visibility-buffer frame under every tiler
+/// profile. The text is a snapshot.
+#[test]
+fn every_decision_of_the_classic_and_visbuf_frames_has_a_reason_on_every_tiler() {
+    let set = ProfileSet::embedded().unwrap();
+    let mut tilers: Vec<&Profile> = set.profiles().filter(|p| p.is_tiler()).collect();
+    tilers.sort_by(|a, b| a.name.cmp(&b.name));
+    assert!(tilers.len() >= 8);
+    for (frame, build) in [
+        (
+            "classic",
+            (|| classic_frame(PostRead::SamePixel).graph) as fn() -> GraphBuilder<_>,
+        ),
+        ("visbuf", || visbuf_frame().0),
+    ] {
+        let mut text = String::new();
+        for p in &tilers {
+            let plan = build().compile(p).unwrap().plan;
+            let reasons = plan.explain();
+            let of = |t: Topic| reasons.iter().filter(move |r| r.topic == t);
+            let raster = plan
+                .passes
+                .iter()
+                .filter(|x| x.kind == PassKind::Raster)
+                .count();
+            assert_eq!(
+                of(Topic::Merge).count(),
+                raster - 1,
+                "{frame} {}: merges",
+                p.name
+            );
+            let attachments: usize = plan
+                .render_passes()
+                .map(|(_, rp)| rp.attachments.len())
+                .sum();
+            for t in [Topic::Load, Topic::Store, Topic::Traffic] {
+                assert_eq!(of(t).count(), attachments, "{frame} {}: {t:?}", p.name);
+            }
+            let barriers: usize = plan
+                .steps
+                .iter()
+                .map(|s| match s {
+                    Step::Barriers(b) => b.images.len() + b.buffers.len(),
+                    _ => 0,
+                })
+                .sum();
+            assert_eq!(
+                of(Topic::Barrier).count(),
+                barriers,
+                "{frame} {}: barriers",
+                p.name
+            );
+            assert!(
+                reasons.iter().all(|r| !r.why.is_empty()),
+                "{frame} {}",
+                p.name
+            );
+            text.push_str(&format!("== {}\n", p.name));
+            for r in &reasons {
+                text.push_str(&format!("{r}\n"));
+            }
+        }
+        insta::assert_snapshot!(format!("{frame}_frame_explained_on_tilers"), text);
+    }
+}
+
+/// The plan's DOT is valid Graphviz: `dot` renders it (installed by `cargo xtask deps`).
+#[test]
+fn the_plan_dot_renders_with_graphviz() {
+    let plan = classic_frame(PostRead::Neighbours)
+        .graph
+        .compile(&profile("adreno-7xx"))
+        .unwrap()
+        .plan;
+    let spawned = std::process::Command::new("dot")
+        .arg("-Tsvg")
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn();
+    let Ok(mut child) = spawned else {
+        eprintln!("skipping: Graphviz `dot` is not installed (cargo xtask deps installs it)");
+        return;
+    };
+    {
+        use std::io::Write;
+        let mut stdin = child.stdin.take().unwrap();
+        stdin.write_all(plan.to_dot().as_bytes()).unwrap();
+    }
+    let out = child.wait_with_output().unwrap();
+    let svg = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(svg.contains("<svg"), "{svg}");
+    assert!(
+        svg.contains("gbuffer") || svg.contains("opaque"),
+        "the passes are drawn"
+    );
 }

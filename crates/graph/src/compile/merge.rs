@@ -17,7 +17,8 @@
 
 use tilegraph_profile::{MergePolicy, PassClass, Profile};
 
-use crate::declare::{PassDecl, PassId, PassKind};
+use crate::declare::{PassDecl, PassId, PassKind, ResourceId};
+use crate::plan::{MergeNote, MergeReason};
 use crate::types::{Extent2d, Layout};
 
 use super::validate::Validated;
@@ -64,7 +65,7 @@ pub(crate) fn merge_render_passes(
     passes: &[PassDecl],
     n_resources: usize,
     profile: &Profile,
-) -> Vec<Group> {
+) -> (Vec<Group>, Vec<MergeNote>) {
     let policy = &profile.render_pass;
     let queries_alone = profile.passes.occlusion_queries.own_render_pass;
     let mut touch = vec![
@@ -78,46 +79,77 @@ pub(crate) fn merge_render_passes(
         n_resources
     ];
     let mut groups: Vec<Group> = Vec::with_capacity(order.len());
+    let mut notes: Vec<MergeNote> = Vec::new();
+    // The last raster pass so far.
+    let mut last_raster: Option<PassId> = None;
     for (i, &id) in order.iter().enumerate() {
         let p = id.index();
         let pass = &passes[p];
         let area = validated.render_areas[p];
-        let joins = match groups.last() {
-            Some(g)
-                if g.kind == GroupKind::Render
-                    && pass.kind == PassKind::Raster
-                    && policy.merge_subpasses != MergePolicy::Never
-                    && g.render_area == area
-                    && !(queries_alone && g.queries_only != is_query(pass)) =>
-            {
-                let g_index = (groups.len() - 1) as u32;
-                let mut connected = false;
-                let compatible = validated.accesses.of(id).iter().all(|a| {
-                    let t = &touch[a.resource.index()];
-                    if t.group != g_index {
-                        return true;
+        let verdict: Option<Result<ResourceId, MergeReason>> = match groups.last() {
+            _ if pass.kind != PassKind::Raster => None,
+            Some(g) if g.kind == GroupKind::Render => {
+                Some(if policy.merge_subpasses == MergePolicy::Never {
+                    Err(MergeReason::MergingOff)
+                } else if g.render_area != area {
+                    Err(MergeReason::RenderArea)
+                } else if queries_alone && g.queries_only != is_query(pass) {
+                    Err(MergeReason::QueriesApart)
+                } else {
+                    let g_index = (groups.len() - 1) as u32;
+                    let mut shared = None;
+                    let mut refusal = None;
+                    for a in validated.accesses.of(id) {
+                        let t = &touch[a.resource.index()];
+                        if t.group != g_index {
+                            continue;
+                        }
+                        if a.clears() {
+                            refusal = Some(MergeReason::Clears(a.resource));
+                            break;
+                        }
+                        let same_pixel = !a.non_attachment() && !t.non_attachment;
+                        // Otherwise both only read it through descriptors, in one layout. A
+                        // descriptor read in one subpass of what is an attachment in another would
+                        // be outside the attachment's subpass dependencies and its store op.
+                        let shared_reads = !a.writes()
+                            && !t.written
+                            && a.layout == t.layout
+                            && !a.attachment()
+                            && !t.attachment;
+                        if same_pixel {
+                            shared.get_or_insert(a.resource);
+                        } else if !shared_reads {
+                            refusal = Some(MergeReason::DescriptorAccess(a.resource));
+                            break;
+                        }
                     }
-                    if a.clears() {
-                        return false;
+                    match (refusal, shared) {
+                        (Some(r), _) => Err(r),
+                        // A pass that shares no attachment with the render pass gains nothing from
+                        // joining it and would only add to its tile-memory footprint.
+                        (None, None) => Err(MergeReason::NothingShared),
+                        (None, Some(r)) => Ok(r),
                     }
-                    let same_pixel = !a.non_attachment() && !t.non_attachment;
-                    connected |= same_pixel;
-                    // Otherwise both only read it through descriptors, in one layout. A
-                    // descriptor read in one subpass of what is an attachment in another would
-                    // be outside the attachment's subpass dependencies and its store op.
-                    let shared_reads = !a.writes()
-                        && !t.written
-                        && a.layout == t.layout
-                        && !a.attachment()
-                        && !t.attachment;
-                    same_pixel || shared_reads
-                });
-                // A pass that shares no attachment with the render pass gains nothing from
-                // joining it and would only add to its tile-memory footprint.
-                compatible && connected
+                })
             }
-            _ => false,
+            _ => Some(Err(MergeReason::NotAdjacent)),
         };
+        if let (Some(v), Some(after)) = (verdict, last_raster) {
+            notes.push(MergeNote {
+                pass: id,
+                after,
+                joined: v.is_ok(),
+                reason: match v {
+                    Ok(r) => MergeReason::SharesAttachment(r),
+                    Err(reason) => reason,
+                },
+            });
+        }
+        if pass.kind == PassKind::Raster {
+            last_raster = Some(id);
+        }
+        let joins = matches!(verdict, Some(Ok(_)));
         if joins {
             if let Some(g) = groups.last_mut() {
                 g.end = i + 1;
@@ -170,7 +202,7 @@ pub(crate) fn merge_render_passes(
             }
         }
     }
-    groups
+    (groups, notes)
 }
 
 #[cfg(test)]

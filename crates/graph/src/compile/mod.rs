@@ -140,7 +140,8 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         &dependencies,
         profile,
     )?;
-    let groups = merge::merge_render_passes(&order, &validated, &passes, n_resources, profile);
+    let (groups, merges) =
+        merge::merge_render_passes(&order, &validated, &passes, n_resources, profile);
     let kept_at_end =
         content_kept_at_end(&resources, &exported, &dataflow, &pruning.alive, accesses);
     let uses = resource_lifetimes(&groups, &order, accesses, n_resources, &kept_at_end);
@@ -206,6 +207,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             steps,
             aliasing,
             traffic,
+            merges,
         },
         payloads,
     })

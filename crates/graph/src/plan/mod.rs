@@ -78,6 +78,42 @@ pub struct Plan {
     pub steps: Vec<Step>,
     pub aliasing: AliasAssignment,
     pub traffic: TrafficEstimate,
+    /// Per raster pass after the first of a run: whether it joined the render pass before it,
+    /// and why (or why not).
+    pub merges: Vec<MergeNote>,
+}
+
+/// Whether a raster pass joined the render pass of the raster pass before it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MergeNote {
+    pub pass: PassId,
+    /// The raster pass before it in execution order (its render pass is the candidate).
+    pub after: PassId,
+    pub joined: bool,
+    pub reason: MergeReason,
+}
+
+/// Why a raster pass did or did not join the render pass before it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MergeReason {
+    /// Joined: both use this resource as an attachment at the same pixel.
+    SharesAttachment(ResourceId),
+    /// A compute or transfer step lies between them.
+    NotAdjacent,
+    /// The profile's `merge_subpasses = "never"`.
+    MergingOff,
+    /// The render areas differ.
+    RenderArea,
+    /// The profile keeps occlusion-query passes in a render pass of their own.
+    QueriesApart,
+    /// It clears this resource, which the render pass already uses: a clear can only be a
+    /// render pass's load op.
+    Clears(ResourceId),
+    /// One of them reads this resource through a descriptor while the other uses it as an
+    /// attachment (or writes it): outside the attachment's subpass dependencies.
+    DescriptorAccess(ResourceId),
+    /// They share no attachment: merging would only grow the tile footprint.
+    NothingShared,
 }
 
 /// A pass that survived pruning.
