@@ -11,12 +11,10 @@ use tilegraph_profile::Profile;
 use tilegraph_scene::DepthConvention;
 use tilegraph_vk::executor::{External, Externals, ImageHandle};
 
-use crate::cull::{
-    add_cull, add_cull_late, import_cull_buffers, zero_fill, CullLists, CullState, Culling,
-};
+use crate::cull::{add_cull, add_cull_late, import_cull_buffers, CullLists, CullState, Culling};
 use crate::draws::DrawClass;
 use crate::forward::{add_clear, add_forward, add_transparent};
-use crate::frame::{DrawSource, FrameGraph, Payload, States};
+use crate::frame::{DrawSource, FrameGraph, States};
 use crate::hiz::{add_hiz_build, HizState};
 use crate::occlusion::{
     add_occlusion_queries, add_raster_occlusion, import_query_results, OqState,
@@ -34,9 +32,8 @@ use crate::visbuf::{add_visbuf_resolve, add_visbuf_write};
 pub(crate) struct DeclarationKey {
     /// The clear value of depth, and the compare of every pipeline.
     pub depth: DepthConvention,
-    /// The first frame imports the targets the renderer keeps `UNDEFINED`, later ones in the
-    /// layout the last frame left them in; two-phase culling's first frame clears the
-    /// visibility it carries.
+    /// The first frame imports the targets the renderer keeps `UNDEFINED`; later ones in the
+    /// layout the last frame left them in.
     pub first_frame: bool,
     /// The colour target: its format, the state it starts the frame in and the state the
     /// frame leaves it in (an engine's target says; the renderer's own follows `first_frame`).
@@ -112,19 +109,6 @@ pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
     let mut c = Composition::import(spec);
     let culling = c.culling();
     let two_phase = culling == Culling::HizTwoPhase;
-    // A new renderer's visibility starts empty, not as whatever the memory held (another
-    // renderer's last frame, say): the first frame's early phase draws nothing, its late
-    // phase everything the frustum keeps, on every run alike.
-    if let (Some(lists), true) = (c.lists, two_phase && spec.key.first_frame) {
-        let visibility = lists.visibility;
-        let clear: Payload = Box::new(move |pc, _| zero_fill(pc, visibility));
-        c.g.transfer_pass(
-            "visibility-reset",
-            tilegraph_profile::PassClass::Compute,
-            clear,
-        )
-        .transfer_dst(visibility);
-    }
     // GPU culling of the early (or only) phase; raster occlusion culls after its boxes.
     if let (Some(lists), false) = (c.lists, culling == Culling::RasterOcclusion) {
         add_cull(&mut c.g, lists, culling);

@@ -197,7 +197,25 @@ impl CullState {
             pool: vk::DescriptorPool::null(),
             sets: Vec::new(),
         };
-        match state.init(ctx, scene_set_layout, frames_in_flight, hiz) {
+        // A new renderer's visibility starts empty, not as whatever the memory held (another
+        // renderer's last frame, say): two-phase culling's first early phase draws nothing and
+        // its late phase everything the frustum keeps, on every run alike. Once, at creation,
+        // so that no frame's declaration differs.
+        let zeroed = state
+            .init(ctx, scene_set_layout, frames_in_flight, hiz)
+            .and_then(|()| {
+                let visibility = state.visibility.raw;
+                ctx.submit_and_wait(|cb| {
+                    // SAFETY: outside a render pass; the buffer is new, unused by the GPU, and a
+                    // transfer destination.
+                    unsafe {
+                        ctx.device
+                            .cmd_fill_buffer(cb, visibility, 0, vk::WHOLE_SIZE, 0)
+                    };
+                    Ok(())
+                })
+            });
+        match zeroed {
             Ok(()) => Ok(state),
             Err(e) => {
                 state.destroy_all(ctx);

@@ -327,10 +327,8 @@ impl SceneRenderer {
         let key = DeclarationKey {
             depth,
             // Only the id target the renderer keeps is imported differently on the first
-            // frame (the colour target's import is in `color`), and two-phase culling clears
-            // its visibility then.
-            first_frame: self.frames == 0
-                && (self.ids_target.is_some() || self.options.culling == Culling::HizTwoPhase),
+            // frame (the colour target's import is in `color`).
+            first_frame: self.frames == 0 && self.ids_target.is_some(),
             color,
         };
         let declare = self.declared.as_ref().is_none_or(|d| d.key != key);
