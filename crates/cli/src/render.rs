@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use serde::Serialize;
-use tilegraph_passes::knobs::{Resolved, TrialStep};
+use tilegraph_passes::knobs::Resolved;
 use tilegraph_passes::{FrameReport, RenderOptions, SceneRenderer};
 use tilegraph_scene::Scene;
 use tilegraph_vk::{Context, FeatureRequest};
@@ -106,34 +106,9 @@ fn render_with(
     let result = (|| {
         // `auto`: time every candidate on this device first, keep the fastest.
         if let Some(mut trial) = resolved.auto_trial(crate::run::auto_inputs(ctx)) {
-            loop {
+            while trial_reason.is_none() {
                 renderer.render(ctx, scene, &camera)?;
-                match trial.after_frame() {
-                    TrialStep::Continue => {}
-                    TrialStep::StartTiming => {
-                        renderer.finish(ctx)?;
-                        renderer.clear_timings();
-                    }
-                    TrialStep::Measure => {
-                        renderer.finish(ctx)?;
-                        let ms = renderer.medians().iter().map(|m| m.median_gpu_ms).sum();
-                        let (next, done) = match trial.record(ms) {
-                            Ok(next) => (next, false),
-                            Err((best, why)) => {
-                                trial_reason = Some(why);
-                                (best, true)
-                            }
-                        };
-                        if next != ropts.culling {
-                            ropts.culling = next;
-                            let fresh = SceneRenderer::new(ctx, scene, ropts.clone())?;
-                            std::mem::replace(&mut renderer, fresh).destroy(ctx);
-                        }
-                        if done {
-                            break;
-                        }
-                    }
-                }
+                trial_reason = trial.after_render(ctx, scene, &mut renderer, &mut ropts)?;
             }
             renderer.finish(ctx)?;
             renderer.clear_timings();

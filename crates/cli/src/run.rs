@@ -171,12 +171,4 @@ pub fn with_every_culling_feature(mut o: ContextOptions) -> ContextOptions {
 }
 
 /// Every culling technique, in the order the docs list them.
-pub const ALL_CULLINGS: [Culling; 7] = [
-    Culling::None,
-    Culling::Frustum,
-    Culling::Hiz,
-    Culling::HizTwoPhase,
-    Culling::Oq,
-    Culling::OqConditional,
-    Culling::RasterOcclusion,
-];
+pub const ALL_CULLINGS: [Culling; 7] = Culling::ALL;

@@ -279,8 +279,10 @@ fn tune_on(
         "opaque_sort".into(),
         tilegraph_profile::knobs::spec("opaque_sort").map_or(Vec::new(), |k| k.domain.values()),
     )];
-    if let Some(k) = tilegraph_profile::knobs::spec("alpha_prepass") {
-        axes.push((k.name.into(), k.domain.values()));
+    for name in ["depth_prepass", "alpha_prepass"] {
+        if let Some(k) = tilegraph_profile::knobs::spec(name) {
+            axes.push((k.name.into(), k.domain.values()));
+        }
     }
     let m2 = Matrix {
         culling: vec![best1.culling.clone()],

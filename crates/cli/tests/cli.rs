@@ -340,6 +340,42 @@ fn knobs_the_run_cannot_use_are_errors_and_the_flag_is_credited() {
         &env,
     );
     assert!(ok, "{err}");
+    // A depth pre-pass the profile wants can be turned off, and the frame setup says by what;
+    // two-phase culling draws its own.
+    let (ok, stdout, err) = run(
+        &[
+            "render",
+            "city:300",
+            "--profile",
+            "mali-valhall",
+            "--culling",
+            "none",
+            "--set",
+            "depth_prepass=off",
+        ],
+        &env,
+    );
+    assert!(ok, "{err}");
+    assert!(
+        stdout.contains("left out knob depth_prepass = off, over profile mali-valhall's choice"),
+        "{stdout}"
+    );
+    let (ok, _, err) = run(
+        &[
+            "render",
+            "city:300",
+            "--culling",
+            "hiz-2phase",
+            "--set",
+            "depth_prepass=off",
+        ],
+        &env,
+    );
+    assert!(!ok);
+    assert!(
+        err.contains("culling hiz-2phase draws its own depth pre-pass"),
+        "{err}"
+    );
     // The flag wins over the variable, and says so.
     let (ok, stdout, err) = run(
         &["render", "city:100", "--profile", "mali-valhall"],

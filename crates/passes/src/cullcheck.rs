@@ -16,7 +16,7 @@ use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::Context;
 
 use crate::cull::Culling;
-use crate::knobs::{AutoTrial, TrialStep};
+use crate::knobs::AutoTrial;
 use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
 use crate::setup::Technique;
@@ -199,6 +199,7 @@ pub fn cull_check_options(
             culling: Culling::None,
             opaque_order: None,
             alpha_prepass: None,
+            depth_prepass: None,
             ..tested.clone()
         },
     )?;
@@ -285,6 +286,7 @@ impl Run<'_> {
             ..
         } = *self;
         let mut trial = self.auto.clone();
+        let mut tested_options = self.tested_options.clone();
         let mut auto_switch = None;
         let Renderers {
             oracle,
@@ -340,34 +342,11 @@ impl Run<'_> {
                 None => drawn.iter_mut().for_each(|d| *d = true),
             }
             if let Some(t) = trial.as_mut() {
-                match t.after_frame() {
-                    TrialStep::Continue => {}
-                    TrialStep::StartTiming => {
-                        tested.finish(ctx)?;
-                        tested.clear_timings();
-                    }
-                    TrialStep::Measure => {
-                        tested.finish(ctx)?;
-                        let ms = tested.medians().iter().map(|m| m.median_gpu_ms).sum();
-                        let next = match t.record(ms) {
-                            Ok(next) => next,
-                            Err((best, why)) => {
-                                auto_switch = Some(why);
-                                trial = None;
-                                best
-                            }
-                        };
-                        if next != culling {
-                            let options = RenderOptions {
-                                culling: next,
-                                ..self.tested_options.clone()
-                            };
-                            let fresh = SceneRenderer::new(ctx, scene, options)?;
-                            std::mem::replace(tested, fresh).destroy(ctx);
-                            culling = next;
-                        }
-                    }
+                if let Some(why) = t.after_render(ctx, scene, tested, &mut tested_options)? {
+                    auto_switch = Some(why);
+                    trial = None;
                 }
+                culling = tested_options.culling;
             }
             let mut check = FrameCheck {
                 frame: index,

@@ -13,8 +13,11 @@ use tilegraph_profile::knobs::{
 use tilegraph_profile::{Profile, SortOrder};
 use tilegraph_scene::Scene;
 
+use tilegraph_vk::Context;
+
 use crate::cull::Culling;
-use crate::options::RenderOptions;
+use crate::options::{RenderError, RenderOptions};
+use crate::renderer::SceneRenderer;
 use crate::setup::{SceneContent, Technique};
 
 /// Below this many instances `auto` draws everything: culling has a fixed cost (six dispatches
@@ -108,6 +111,40 @@ impl AutoTrial {
         } else {
             TrialStep::Continue
         }
+    }
+
+    /// Call after `renderer` rendered a frame with [`Self::current`] (`options` made it): times
+    /// the candidate, and after its last timed frame replaces `renderer` with one of the next
+    /// candidate (`options.culling` follows). Returns the decision, with what was timed, when
+    /// the trial ends; `renderer` then renders with the fastest.
+    pub fn after_render(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        renderer: &mut SceneRenderer,
+        options: &mut RenderOptions,
+    ) -> Result<Option<String>, RenderError> {
+        match self.after_frame() {
+            TrialStep::Continue => return Ok(None),
+            TrialStep::StartTiming => {
+                renderer.finish(ctx)?;
+                renderer.clear_timings();
+                return Ok(None);
+            }
+            TrialStep::Measure => {}
+        }
+        renderer.finish(ctx)?;
+        let ms = renderer.medians().iter().map(|m| m.median_gpu_ms).sum();
+        let (next, decided) = match self.record(ms) {
+            Ok(next) => (next, None),
+            Err((best, why)) => (best, Some(why)),
+        };
+        if next != options.culling {
+            options.culling = next;
+            let fresh = SceneRenderer::new(ctx, scene, options.clone())?;
+            std::mem::replace(renderer, fresh).destroy(ctx);
+        }
+        Ok(decided)
     }
 
     /// The current candidate's median GPU frame time. Returns the culling to render with
@@ -323,6 +360,26 @@ pub fn resolve(
                 continue;
             }
         }
+        if k.name == "depth_prepass" {
+            let inert = match technique {
+                Technique::Visbuf => {
+                    Some("the visibility buffer has no depth pre-pass".to_string())
+                }
+                Technique::Prepass => Some("shading prepass always draws one".to_string()),
+                Technique::Forward if culling.needs_prepass() => Some(format!(
+                    "culling {} draws its own depth pre-pass",
+                    culling.name()
+                )),
+                Technique::Forward => None,
+            };
+            match (inert, origin) {
+                (Some(why), Origin::Run) => {
+                    return Err(KnobUseError::NotForScene { name: k.name, why })
+                }
+                (Some(_), _) => continue,
+                (None, _) => {}
+            }
+        }
         if k.name == "alpha_prepass" {
             let inert = if technique == Technique::Visbuf {
                 Some("the visibility buffer has no depth pre-pass".to_string())
@@ -371,6 +428,11 @@ impl Resolved {
             "back-to-front" => Some(SortOrder::BackToFront),
             "by-state" => Some(SortOrder::ByState),
             "none" => Some(SortOrder::None),
+            _ => None,
+        };
+        options.depth_prepass = match name("depth_prepass") {
+            "on" => Some(true),
+            "off" => Some(false),
             _ => None,
         };
         options.alpha_prepass = match name("alpha_prepass") {
@@ -435,7 +497,9 @@ mod tests {
                         "none",
                     ]
                     .contains(&s.as_str()),
-                    "alpha_prepass" => ["profile", "on", "off"].contains(&s.as_str()),
+                    "alpha_prepass" | "depth_prepass" => {
+                        ["profile", "on", "off"].contains(&s.as_str())
+                    }
                     "hiz_npot" => ["edge-aware", "pad-to-pow2"].contains(&s.as_str()),
                     "oq_group" | "raster_occlusion_scale" => {
                         matches!(k.domain, Domain::Integers(_))

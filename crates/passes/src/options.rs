@@ -78,6 +78,8 @@ pub struct RenderOptions {
     pub opaque_order: Option<tilegraph_profile::SortOrder>,
     /// Overrides the profile's `alpha_tested_prepass` (knob `alpha_prepass`).
     pub alpha_prepass: Option<bool>,
+    /// Overrides the profile's `depth_prepass` for forward shading (knob `depth_prepass`).
+    pub depth_prepass: Option<bool>,
     /// GPU culling before drawing (opaque and alpha-tested instances; blended ones are frustum
     /// culled on the CPU and sorted back to front).
     pub culling: Culling,
@@ -104,6 +106,7 @@ impl Default for RenderOptions {
             count_fragments: false,
             opaque_order: None,
             alpha_prepass: None,
+            depth_prepass: None,
             culling: Culling::None,
             hiz_mode: NpotMode::EdgeAware,
             capture_ids: false,

@@ -66,6 +66,17 @@ pub enum Culling {
 }
 
 impl Culling {
+    /// Every culling technique, in the order the docs list them.
+    pub const ALL: [Culling; 7] = [
+        Culling::None,
+        Culling::Frustum,
+        Culling::Hiz,
+        Culling::HizTwoPhase,
+        Culling::Oq,
+        Culling::OqConditional,
+        Culling::RasterOcclusion,
+    ];
+
     pub fn parse(s: &str) -> Option<Culling> {
         match s {
             "none" => Some(Culling::None),

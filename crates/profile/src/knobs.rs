@@ -138,6 +138,13 @@ pub const KNOBS: &[KnobSpec] = &[
         help: "opaque draw order: front to back helps early-Z and LRZ, by state helps HSR GPUs",
     },
     KnobSpec {
+        name: "depth_prepass",
+        domain: Domain::Choice(&["profile", "on", "off"]),
+        default: DefaultValue::Name("profile"),
+        applies: Applies::Always,
+        help: "a depth pre-pass before forward shading: fewer shaded fragments for a second vertex pass (off on HSR GPUs)",
+    },
+    KnobSpec {
         name: "alpha_prepass",
         domain: Domain::Choice(&["profile", "on", "off"]),
         default: DefaultValue::Name("profile"),

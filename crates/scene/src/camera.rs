@@ -239,6 +239,19 @@ impl Waypoint {
     }
 }
 
+/// The centre and radius of `bounds`, and a 60-degree reverse-Z projection whose near plane is
+/// a thousandth of that radius: the view of a path made from the bounds alone.
+fn bounds_view(bounds: &DAabb) -> (DVec3, f64, Projection) {
+    let r = bounds.half_extents().length().max(1e-3);
+    let projection = Projection::Perspective {
+        fov_y_rad: 60f32.to_radians(),
+        near: (r * 1e-3) as f32,
+        far: None,
+        depth: DepthConvention::Reverse,
+    };
+    (bounds.center(), r, projection)
+}
+
 fn path_error(file: &str, frame: Option<usize>, field: &str, reason: String) -> SceneError {
     SceneError::CameraPath {
         file: file.to_string(),
@@ -400,14 +413,7 @@ impl CameraPath {
     /// The default path of a scene without a designed one (glTF files): one orbit that keeps
     /// the whole bounds in view.
     pub(crate) fn orbit_bounds(bounds: &DAabb) -> Self {
-        let center = bounds.center();
-        let r = bounds.half_extents().length().max(1e-3);
-        let projection = Projection::Perspective {
-            fov_y_rad: 60f32.to_radians(),
-            near: (r * 1e-3) as f32,
-            far: None,
-            depth: DepthConvention::Reverse,
-        };
+        let (center, r, projection) = bounds_view(bounds);
         let frames = 240;
         let keys = (0..frames)
             .map(|i| {
@@ -434,14 +440,7 @@ impl CameraPath {
     /// looking a little below the centre), starting at an angle no other path starts at. What
     /// `tilegraph tune` checks its pick on, to catch a setting that only suits its own path.
     pub fn held_out(bounds: &DAabb, frames: usize) -> Self {
-        let center = bounds.center();
-        let r = bounds.half_extents().length().max(1e-3);
-        let projection = Projection::Perspective {
-            fov_y_rad: 60f32.to_radians(),
-            near: (r * 1e-3) as f32,
-            far: None,
-            depth: DepthConvention::Reverse,
-        };
+        let (center, r, projection) = bounds_view(bounds);
         let target = center - DVec3::new(0.0, 0.2 * r, 0.0);
         let keys = (0..frames.max(1))
             .map(|i| {

@@ -264,6 +264,12 @@ fn read_file(path: &Path) -> Result<MatrixFile, CliError> {
 fn applies(k: &str, culling: &str, shading: &str, content: SceneContent) -> bool {
     let Some(spec) = spec(k) else { return false };
     match spec.applies {
+        // A pre-pass knob means nothing where the shading or the culling decides it.
+        Applies::Always if k == "depth_prepass" => {
+            shading == "forward"
+                && culling != PROFILE_CHOICE
+                && !Culling::parse(culling).is_some_and(Culling::needs_prepass)
+        }
         Applies::Always => true,
         // `auto` decides on the device: its knobs are the profile's.
         Applies::WithCulling(list) => list.contains(&culling),

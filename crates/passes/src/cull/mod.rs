@@ -337,15 +337,7 @@ mod tests {
 
     #[test]
     fn cli_spellings_round_trip() {
-        for c in [
-            Culling::None,
-            Culling::Frustum,
-            Culling::Hiz,
-            Culling::HizTwoPhase,
-            Culling::Oq,
-            Culling::OqConditional,
-            Culling::RasterOcclusion,
-        ] {
+        for c in Culling::ALL {
             assert_eq!(Culling::parse(c.name()), Some(c));
         }
         assert_eq!(

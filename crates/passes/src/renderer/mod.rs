@@ -34,7 +34,7 @@ use crate::lint::lint_frame;
 use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
 use crate::pipelines::Pipelines;
-use crate::setup::{decide, FrameSetup, SceneContent, Technique};
+use crate::setup::{decide, FrameSetup, PassKind, SceneContent, Technique};
 use crate::targets::{create_target, destroy_target};
 use crate::visbuf::ResolveSets;
 
@@ -161,15 +161,52 @@ impl SceneRenderer {
                 return Err(e);
             }
         };
-        let setup = match options.alpha_prepass {
-            Some(a) if a != ctx.profile().passes.alpha_tested_prepass => {
-                let mut profile = ctx.profile().clone();
-                profile.passes.alpha_tested_prepass = a;
-                decide(SceneContent::of(scene), &profile, options.technique)
-            }
-            _ => decide(SceneContent::of(scene), ctx.profile(), options.technique),
+        // The pre-pass knobs: the profile's choices, overridden for this renderer.
+        let mut profile = std::borrow::Cow::Borrowed(ctx.profile());
+        if let Some(a) = options.alpha_prepass {
+            profile.to_mut().passes.alpha_tested_prepass = a;
         }
-        .with_culling(options.culling);
+        if let Some(d) = options.depth_prepass {
+            profile.to_mut().passes.depth_prepass = if d {
+                tilegraph_profile::DepthPrepass::Recommended
+            } else {
+                tilegraph_profile::DepthPrepass::NotNeeded
+            };
+        }
+        let mut setup = decide(SceneContent::of(scene), &profile, options.technique);
+        // Say when a knob, not the profile, decided the pre-pass.
+        let own = &ctx.profile().passes;
+        for (knob, value, profile_says, pass) in [
+            (
+                "depth_prepass",
+                options.depth_prepass,
+                own.depth_prepass == tilegraph_profile::DepthPrepass::Recommended,
+                PassKind::DepthPrepassOpaque,
+            ),
+            (
+                "alpha_prepass",
+                options.alpha_prepass,
+                own.alpha_tested_prepass,
+                PassKind::DepthPrepassAlpha,
+            ),
+        ] {
+            let Some(v) = value.filter(|v| *v != profile_says) else {
+                continue;
+            };
+            // Where the scene has nothing for the pass, that stays the reason.
+            for d in setup
+                .decisions
+                .iter_mut()
+                .filter(|d| d.pass == pass && d.included == v)
+            {
+                d.reason = format!(
+                    "knob {knob} = {}, over profile {}'s choice",
+                    if v { "on" } else { "off" },
+                    ctx.profile().name
+                );
+            }
+        }
+        let setup = setup.with_culling(options.culling);
         Ok(SceneRenderer {
             options,
             setup: Arc::new(setup),
