@@ -75,11 +75,19 @@ pub fn check(
         }
         Ok(())
     };
+    let bar = indicatif::ProgressBar::new(0);
+    let mut progress = |done: usize, all: usize| {
+        bar.set_length(all as u64);
+        bar.set_position(done as u64);
+    };
     let extras = CheckExtras {
         auto: resolved.auto_trial(crate::run::auto_inputs(ctx)),
         on_failure: save_frames.map(|_| &mut save as OnFailure<'_>),
+        on_frame: Some(&mut progress),
     };
-    let check = cull_check_options(ctx, scene, o, &path, a.frames.map(|f| f as usize), extras)?;
+    let check = cull_check_options(ctx, scene, o, &path, a.frames.map(|f| f as usize), extras);
+    bar.finish_and_clear();
+    let check = check?;
     Ok((check, resolved))
 }
 

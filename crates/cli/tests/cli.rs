@@ -574,3 +574,46 @@ fn graph_explains_the_plan_of_a_scene_frame() {
         "{text}"
     );
 }
+
+/// D16 depth end to end (knob `depth_format`): the conservative techniques stay exact — FN 0 and
+/// the unculled image on every frame — with the pyramid built from the 16-bit depth.
+#[test]
+fn d16_depth_keeps_conservative_culling_exact() {
+    for culling in ["hiz-2phase", "oq-conditional", "raster-occlusion"] {
+        let (ok, out, err) = tilegraph(
+            &[
+                "cull-check",
+                "city:1500",
+                "--culling",
+                culling,
+                "--set",
+                "depth_format=d16",
+                "--size",
+                "160x90",
+                "--frames",
+                "8",
+                "--json",
+            ],
+            &[("TILEGRAPH_VALIDATION", "required")],
+        );
+        assert!(ok, "{culling}: {err}");
+        let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+        assert_eq!(v["totals"]["false_negatives"], 0, "{culling}");
+        assert_eq!(v["totals"]["frames_image_equal"], 8, "{culling}");
+    }
+    let (ok, plan, err) = tilegraph(
+        &[
+            "graph",
+            "city:300",
+            "--culling",
+            "none",
+            "--set",
+            "depth_format=d16",
+            "--size",
+            "64x36",
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "{err}");
+    assert!(plan.contains("D16_UNORM"), "{plan}");
+}

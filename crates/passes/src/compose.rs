@@ -163,7 +163,11 @@ impl<'a> Composition<'a> {
             key.color.import,
         );
         externals.insert(color, External::Image(target.clone()));
-        let depth = g.create_image("depth", ImageDesc::new(extent, Format::D32_SFLOAT));
+        let depth_format = match options.depth_format {
+            tilegraph_cull::DepthFormat::D16Unorm => Format::D16_UNORM,
+            tilegraph_cull::DepthFormat::D32Float => Format::D32_SFLOAT,
+        };
+        let depth = g.create_image("depth", ImageDesc::new(extent, depth_format));
         let mut t = SceneTargets::new(color, depth, extent, options.clear_color, key.depth);
         if let Some(handle) = ids_target {
             let ids = g.import_image(

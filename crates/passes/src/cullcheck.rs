@@ -118,6 +118,8 @@ pub struct CheckExtras<'a> {
     /// Called for every frame with false negatives or an unequal image (`cull-check
     /// --save-frames`); an error stops the check.
     pub on_failure: Option<OnFailure<'a>>,
+    /// Called after each checked frame with (frames done, frames in all): a progress bar.
+    pub on_frame: Option<&'a mut dyn FnMut(usize, usize)>,
 }
 
 /// Technique knobs of a check.
@@ -187,6 +189,7 @@ pub fn cull_check_options(
     let CheckExtras {
         auto,
         mut on_failure,
+        mut on_frame,
     } = extras;
     let culling = tested.culling;
     let size = (tested.width, tested.height);
@@ -237,7 +240,7 @@ pub fn cull_check_options(
         auto,
         tested_options,
     };
-    let result = run.check(ctx, &mut renderers, &mut on_failure);
+    let result = run.check(ctx, &mut renderers, &mut on_failure, &mut on_frame);
     let Renderers {
         oracle,
         reference,
@@ -276,6 +279,7 @@ impl Run<'_> {
         ctx: &Context,
         r: &mut Renderers,
         on_failure: &mut Option<OnFailure<'_>>,
+        on_frame: &mut Option<&mut dyn FnMut(usize, usize)>,
     ) -> Result<CullCheck, RenderError> {
         let Run {
             scene,
@@ -404,6 +408,9 @@ impl Run<'_> {
                 }
             }
             frames.push(check);
+            if let Some(progress) = on_frame.as_mut() {
+                progress(frames.len(), count);
+            }
         }
         // Times come from a second pass along the path, frames back to back: the checked
         // pass waits for three readbacks between frames, long enough for a GPU to lower its

@@ -440,6 +440,9 @@ impl Resolved {
             "off" => Some(false),
             _ => None,
         };
+        if name("depth_format") == "d16" {
+            options.depth_format = tilegraph_cull::DepthFormat::D16Unorm;
+        }
         if name("hiz_npot") == "pad-to-pow2" {
             options.hiz_mode = NpotMode::PadToPow2;
         }
@@ -497,6 +500,7 @@ mod tests {
                         "none",
                     ]
                     .contains(&s.as_str()),
+                    "depth_format" => ["d32", "d16"].contains(&s.as_str()),
                     "alpha_prepass" | "depth_prepass" => {
                         ["profile", "on", "off"].contains(&s.as_str())
                     }

@@ -80,6 +80,8 @@ pub struct RenderOptions {
     pub alpha_prepass: Option<bool>,
     /// Overrides the profile's `depth_prepass` for forward shading (knob `depth_prepass`).
     pub depth_prepass: Option<bool>,
+    /// The depth buffer's format (knob `depth_format`); the HiZ pyramid follows it.
+    pub depth_format: tilegraph_cull::DepthFormat,
     /// GPU culling before drawing (opaque and alpha-tested instances; blended ones are frustum
     /// culled on the CPU and sorted back to front).
     pub culling: Culling,
@@ -107,6 +109,7 @@ impl Default for RenderOptions {
             opaque_order: None,
             alpha_prepass: None,
             depth_prepass: None,
+            depth_format: tilegraph_cull::DepthFormat::D32Float,
             culling: Culling::None,
             hiz_mode: NpotMode::EdgeAware,
             capture_ids: false,

@@ -255,6 +255,71 @@ impl FrameSetup {
     }
 }
 
+/// The pre-pass knobs of a renderer (`depth_prepass`, `alpha_prepass`): `None` follows the
+/// profile.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PrepassKnobs {
+    pub depth: Option<bool>,
+    pub alpha: Option<bool>,
+}
+
+/// [`decide`] for a renderer: the pre-pass knobs over the profile's choices — the frame setup
+/// saying when a knob, not the profile, decided — then the culling's own needs
+/// ([`FrameSetup::with_culling`]).
+pub fn decide_for(
+    content: SceneContent,
+    base: &Profile,
+    technique: Technique,
+    culling: Culling,
+    knobs: PrepassKnobs,
+) -> FrameSetup {
+    let mut profile = std::borrow::Cow::Borrowed(base);
+    if let Some(a) = knobs.alpha {
+        profile.to_mut().passes.alpha_tested_prepass = a;
+    }
+    if let Some(d) = knobs.depth {
+        profile.to_mut().passes.depth_prepass = if d {
+            tilegraph_profile::DepthPrepass::Recommended
+        } else {
+            tilegraph_profile::DepthPrepass::NotNeeded
+        };
+    }
+    let mut setup = decide(content, &profile, technique);
+    // Say when a knob, not the profile, decided the pre-pass.
+    let own = &base.passes;
+    for (knob, value, profile_says, pass) in [
+        (
+            "depth_prepass",
+            knobs.depth,
+            own.depth_prepass == tilegraph_profile::DepthPrepass::Recommended,
+            PassKind::DepthPrepassOpaque,
+        ),
+        (
+            "alpha_prepass",
+            knobs.alpha,
+            own.alpha_tested_prepass,
+            PassKind::DepthPrepassAlpha,
+        ),
+    ] {
+        let Some(v) = value.filter(|v| *v != profile_says) else {
+            continue;
+        };
+        // Where the scene has nothing for the pass, that stays the reason.
+        for d in setup
+            .decisions
+            .iter_mut()
+            .filter(|d| d.pass == pass && d.included == v)
+        {
+            d.reason = format!(
+                "knob {knob} = {}, over profile {}'s choice",
+                if v { "on" } else { "off" },
+                base.name
+            );
+        }
+    }
+    setup.with_culling(culling)
+}
+
 /// Decides the passes of a frame. Pure: the same scene content, profile and technique give the
 /// same setup.
 pub fn decide(content: SceneContent, profile: &Profile, technique: Technique) -> FrameSetup {

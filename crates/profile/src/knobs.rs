@@ -138,6 +138,13 @@ pub const KNOBS: &[KnobSpec] = &[
         help: "opaque draw order: front to back helps early-Z and LRZ, by state helps HSR GPUs",
     },
     KnobSpec {
+        name: "depth_format",
+        domain: Domain::Choice(&["d32", "d16"]),
+        default: DefaultValue::Name("d32"),
+        applies: Applies::Always,
+        help: "depth buffer format: D16 halves depth bandwidth (Adreno's guide prefers it where precision allows), D32 keeps float precision",
+    },
+    KnobSpec {
         name: "depth_prepass",
         domain: Domain::Choice(&["profile", "on", "off"]),
         default: DefaultValue::Name("profile"),

@@ -211,7 +211,7 @@ pub(crate) fn run_one(
         Some(frames as usize),
         tilegraph_passes::cullcheck::CheckExtras {
             auto: resolved.auto_trial(crate::run::auto_inputs(ctx)),
-            on_failure: None,
+            ..Default::default()
         },
     )?;
     Ok(RunRecord::from_check(

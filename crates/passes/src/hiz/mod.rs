@@ -88,17 +88,18 @@ pub struct HizState {
 }
 
 impl HizState {
-    /// The pyramid of a D32 depth buffer of `extent_px`, built with `mode`.
+    /// The pyramid of a `format` depth buffer of `extent_px`, built with `mode`.
     pub fn new(
         ctx: &Context,
         extent_px: (u32, u32),
         mode: NpotMode,
         depth: DepthConvention,
+        format: DepthFormat,
         frames_in_flight: usize,
     ) -> Result<Self, VkError> {
         let per_dispatch = ctx.profile().passes.hiz_levels_per_dispatch as usize;
-        let layout = HizLayout::new(extent_px, mode, depth, DepthFormat::D32Float)?
-            .with_levels_per_dispatch(per_dispatch);
+        let layout =
+            HizLayout::new(extent_px, mode, depth, format)?.with_levels_per_dispatch(per_dispatch);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let pyramid = ctx.create_buffer(
             "hiz pyramid",

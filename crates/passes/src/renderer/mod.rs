@@ -34,7 +34,7 @@ use crate::lint::lint_frame;
 use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
 use crate::pipelines::Pipelines;
-use crate::setup::{decide, FrameSetup, PassKind, SceneContent, Technique};
+use crate::setup::{FrameSetup, SceneContent, Technique};
 use crate::targets::{create_target, destroy_target};
 use crate::visbuf::ResolveSets;
 
@@ -161,52 +161,16 @@ impl SceneRenderer {
                 return Err(e);
             }
         };
-        // The pre-pass knobs: the profile's choices, overridden for this renderer.
-        let mut profile = std::borrow::Cow::Borrowed(ctx.profile());
-        if let Some(a) = options.alpha_prepass {
-            profile.to_mut().passes.alpha_tested_prepass = a;
-        }
-        if let Some(d) = options.depth_prepass {
-            profile.to_mut().passes.depth_prepass = if d {
-                tilegraph_profile::DepthPrepass::Recommended
-            } else {
-                tilegraph_profile::DepthPrepass::NotNeeded
-            };
-        }
-        let mut setup = decide(SceneContent::of(scene), &profile, options.technique);
-        // Say when a knob, not the profile, decided the pre-pass.
-        let own = &ctx.profile().passes;
-        for (knob, value, profile_says, pass) in [
-            (
-                "depth_prepass",
-                options.depth_prepass,
-                own.depth_prepass == tilegraph_profile::DepthPrepass::Recommended,
-                PassKind::DepthPrepassOpaque,
-            ),
-            (
-                "alpha_prepass",
-                options.alpha_prepass,
-                own.alpha_tested_prepass,
-                PassKind::DepthPrepassAlpha,
-            ),
-        ] {
-            let Some(v) = value.filter(|v| *v != profile_says) else {
-                continue;
-            };
-            // Where the scene has nothing for the pass, that stays the reason.
-            for d in setup
-                .decisions
-                .iter_mut()
-                .filter(|d| d.pass == pass && d.included == v)
-            {
-                d.reason = format!(
-                    "knob {knob} = {}, over profile {}'s choice",
-                    if v { "on" } else { "off" },
-                    ctx.profile().name
-                );
-            }
-        }
-        let setup = setup.with_culling(options.culling);
+        let setup = crate::setup::decide_for(
+            SceneContent::of(scene),
+            ctx.profile(),
+            options.technique,
+            options.culling,
+            crate::setup::PrepassKnobs {
+                depth: options.depth_prepass,
+                alpha: options.alpha_prepass,
+            },
+        );
         Ok(SceneRenderer {
             options,
             setup: Arc::new(setup),
@@ -742,7 +706,14 @@ fn add_states(
                 c.projection.depth_convention()
             });
         let size = (options.width, options.height);
-        let hiz = HizState::new(ctx, size, options.hiz_mode, depth, frames_in_flight)?;
+        let hiz = HizState::new(
+            ctx,
+            size,
+            options.hiz_mode,
+            depth,
+            options.depth_format,
+            frames_in_flight,
+        )?;
         res.states.insert(hiz);
     }
     if culling.uses_gpu_lists() {
