@@ -429,9 +429,17 @@ fn tune_on(
         pick_c.false_negatives,
         pick_c.fp_rate
     );
+    // Runners-up: settings that cull like none that failed held out.
+    let held_up = |c: &&Candidate| {
+        setting_of(c).is_some_and(|s| {
+            let like = culled_like(&s);
+            !failed.iter().any(|(l, _)| *l == like)
+        })
+    };
     for c in ranked
         .iter()
-        .filter(|c| c.key != pick_c.key && !overfit.iter().any(|(o, _)| o.key == c.key))
+        .filter(|c| c.key != pick_c.key)
+        .filter(held_up)
         .take(3)
     {
         let _ = writeln!(
