@@ -28,19 +28,17 @@ pub fn oracle_features() -> FeatureRequest {
 pub fn run(a: &RunArgs, save_frames: Option<&Path>) -> Result<(), CliError> {
     let knobs = a.knob_settings(TechniqueMeant::Culling)?;
     let scene = tilegraph_scene::load(&a.scene)?;
-    let ctx = Context::new(a.context_options(oracle_features()))?;
     if let Some(dir) = save_frames {
         std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
             path: dir.to_path_buf(),
             reason: e.to_string(),
         })?;
     }
-    let result = check(&ctx, a, &knobs, &scene, save_frames);
-    let caveat = crate::device_caveat(&ctx);
-    // Validation through the teardown: objects left alive are reported there.
-    let destroyed = ctx.destroy_checked();
-    let (report, resolved) = result?;
-    destroyed?;
+    let (report, resolved, caveat) =
+        crate::run::on_context(a.context_options(oracle_features()), |ctx| {
+            let (report, resolved) = check(ctx, a, &knobs, &scene, save_frames)?;
+            Ok((report, resolved, crate::device_caveat(ctx)))
+        })?;
     print(a, &report, &resolved, caveat)
 }
 

@@ -15,20 +15,16 @@ pub fn run(a: &RunArgs, dot: bool) -> Result<(), CliError> {
     let knobs = a.knob_settings(TechniqueMeant::Shading)?;
     let scene = tilegraph_scene::load(&a.scene)?;
     let (w, h) = a.size.unwrap_or((320, 180));
-    let ctx = Context::new(a.context_options(FeatureRequest::executor()))?;
-    let result = (|| {
+    crate::run::on_context(a.context_options(FeatureRequest::executor()), |ctx| {
         let mut o = RenderOptions {
             width: w,
             height: h,
             ..Default::default()
         };
-        let resolved = RunArgs::resolve(&ctx, &scene, &knobs, &mut o)?;
-        let plan = plan_of(&ctx, &scene, o.clone(), a)?;
+        let resolved = RunArgs::resolve(ctx, &scene, &knobs, &mut o)?;
+        let plan = plan_of(ctx, &scene, o.clone(), a)?;
         print(a, dot, &plan, &o, &resolved)
-    })();
-    let destroyed = ctx.destroy_checked();
-    result?;
-    Ok(destroyed?)
+    })
 }
 
 /// The plan of the first frame of the camera path.

@@ -14,20 +14,16 @@ pub fn run(args: &RunArgs) -> Result<(), CliError> {
     let knobs = args.knob_settings(TechniqueMeant::Shading)?;
     let scene = tilegraph_scene::load(&args.scene)?;
     let (w, h) = args.size.unwrap_or((160, 90));
-    let ctx = Context::new(args.context_options(FeatureRequest::executor()))?;
-    let result = (|| {
+    crate::run::on_context(args.context_options(FeatureRequest::executor()), |ctx| {
         let mut ropts = RenderOptions {
             width: w,
             height: h,
             ..Default::default()
         };
-        RunArgs::resolve(&ctx, &scene, &knobs, &mut ropts)?;
-        let lint = lint_scene(&ctx, &scene, ropts.clone())?;
-        print(args, &scene, &ropts, &ctx, &lint)
-    })();
-    let destroyed = ctx.destroy_checked();
-    result?;
-    Ok(destroyed?)
+        RunArgs::resolve(ctx, &scene, &knobs, &mut ropts)?;
+        let lint = lint_scene(ctx, &scene, ropts.clone())?;
+        print(args, &scene, &ropts, ctx, &lint)
+    })
 }
 
 /// The lint of the first frame of the scene's camera path.

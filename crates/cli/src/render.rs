@@ -70,12 +70,9 @@ pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
     let run = args.run;
     let (w, h) = run.size.unwrap_or((320, 180));
     let frames = run.frames.unwrap_or(16);
-    let ctx = Context::new(run.context_options(FeatureRequest::executor()))?;
-    let result = render_with(&ctx, args, (w, h), frames);
-    // Validation through the teardown: objects left alive are reported there.
-    let destroyed = ctx.destroy_checked();
-    result?;
-    Ok(destroyed?)
+    crate::run::on_context(run.context_options(FeatureRequest::executor()), |ctx| {
+        render_with(ctx, args, (w, h), frames)
+    })
 }
 
 fn render_with(

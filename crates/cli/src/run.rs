@@ -137,6 +137,20 @@ impl RunArgs {
     }
 }
 
+/// Runs `work` on a context made from `options`, then destroys it with validation checked
+/// (objects left alive are reported at teardown); the work's error comes first.
+pub fn on_context<R>(
+    options: ContextOptions,
+    work: impl FnOnce(&Context) -> Result<R, CliError>,
+) -> Result<R, CliError> {
+    let ctx = Context::new(options)?;
+    let result = work(&ctx);
+    let destroyed = ctx.destroy_checked();
+    let r = result?;
+    destroyed?;
+    Ok(r)
+}
+
 /// What `auto` may choose between on `ctx`'s device.
 pub fn auto_inputs(ctx: &Context) -> AutoInputs {
     AutoInputs {

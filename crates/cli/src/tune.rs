@@ -19,7 +19,7 @@ use tilegraph_scene::CameraPath;
 use tilegraph_vk::{Context, ContextOptions};
 
 use crate::bench::matrix::{Labels, Matrix, Setting};
-use crate::bench::results::{write_atomically, Results, RunRecord};
+use crate::bench::results::{write_atomically, Results};
 use crate::CliError;
 
 #[derive(clap::Args, Debug, Clone)]
@@ -160,11 +160,9 @@ pub fn run(a: &TuneArgs) -> Result<(), CliError> {
         options.force_profile(p, "--profile");
     }
     options.features = crate::cullcheck::oracle_features();
-    let ctx = Context::new(crate::run::with_every_culling_feature(options))?;
-    let result = tune_on(&ctx, a, &scene, size, frames, tune_path, held_out);
-    let destroyed = ctx.destroy_checked();
-    result?;
-    Ok(destroyed?)
+    crate::run::on_context(crate::run::with_every_culling_feature(options), |ctx| {
+        tune_on(ctx, a, &scene, size, frames, tune_path, held_out)
+    })
 }
 
 fn tune_on(
@@ -223,15 +221,9 @@ fn tune_on(
         for s in settings {
             bar.set_message(s.key());
             if !results.is_done(&s.key()) {
-                let record = match crate::bench::run_one(ctx, scene, s, frames, &mut paths) {
-                    Ok(r) => r,
-                    Err(CliError::Render(e)) if !e.is_device_lost() => {
-                        RunRecord::failed(s, ctx, e.to_string())
-                    }
-                    Err(CliError::KnobUse(e)) => RunRecord::failed(s, ctx, e.to_string()),
-                    Err(e) => return Err(e),
-                };
-                results.insert(record);
+                results.insert(crate::bench::run_or_record_failure(
+                    ctx, scene, s, frames, &mut paths,
+                )?);
                 results.save(&results_path)?;
             }
             bar.inc(1);

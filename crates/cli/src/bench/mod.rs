@@ -105,34 +105,25 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         }
         options.features = crate::cullcheck::oracle_features();
         let options = crate::run::with_every_culling_feature(options);
-        let ctx = Context::new(options)?;
         let mut paths: HashMap<String, CameraPath> = HashMap::new();
-        let outcome = (|| -> Result<(), CliError> {
+        crate::run::on_context(options, |ctx| {
             for s in todo.iter().filter(|s| s.profile.as_deref() == profile) {
                 bar.set_message(s.key());
                 let scene = scenes
                     .get(&s.scene)
                     .ok_or_else(|| CliError::Usage(format!("scene {} was not loaded", s.scene)))?;
-                let record = run_one(&ctx, scene, s, matrix.frames, &mut paths);
-                let record = match record {
-                    Ok(r) => r,
-                    // A setting the device cannot run is recorded and the bench goes on; a lost
-                    // device ends it.
-                    Err(CliError::Render(e)) if !e.is_device_lost() => {
-                        RunRecord::failed(s, &ctx, e.to_string())
-                    }
-                    Err(CliError::KnobUse(e)) => RunRecord::failed(s, &ctx, e.to_string()),
-                    Err(e) => return Err(e),
-                };
-                results.insert(record);
+                results.insert(run_or_record_failure(
+                    ctx,
+                    scene,
+                    s,
+                    matrix.frames,
+                    &mut paths,
+                )?);
                 results.save(&results_path)?;
                 bar.inc(1);
             }
             Ok(())
-        })();
-        let destroyed = ctx.destroy_checked();
-        outcome?;
-        destroyed?;
+        })?;
     }
     bar.finish_and_clear();
     let written = write_outputs(&args.out, &results, &settings)?;
@@ -165,6 +156,25 @@ pub(crate) fn load_scenes(matrix: &Matrix) -> Result<HashMap<String, Scene>, Cli
         }
     }
     Ok(scenes)
+}
+
+/// [`run_one`], a setting the device cannot run (a missing feature, a knob it cannot use)
+/// recorded as failed so that the sweep goes on; a lost device ends it.
+pub(crate) fn run_or_record_failure(
+    ctx: &Context,
+    scene: &Scene,
+    s: &Setting,
+    frames: u32,
+    paths: &mut HashMap<String, CameraPath>,
+) -> Result<RunRecord, CliError> {
+    match run_one(ctx, scene, s, frames, paths) {
+        Ok(r) => Ok(r),
+        Err(CliError::Render(e)) if !e.is_device_lost() => {
+            Ok(RunRecord::failed(s, ctx, e.to_string()))
+        }
+        Err(CliError::KnobUse(e)) => Ok(RunRecord::failed(s, ctx, e.to_string())),
+        Err(e) => Err(e),
+    }
 }
 
 /// One setting against the oracle.
