@@ -23,15 +23,16 @@ layout(local_size_x = 64) in;
 layout(set = 1, binding = 8, std430) writeonly buffer Entries { uint entries[]; };
 layout(set = 1, binding = 4, std430) buffer Visibility { uint visible_last[]; };     // 0 / 1 per instance
 layout(set = 1, binding = 5, std430) readonly buffer Pyramid { float pyramid[]; };
-// Per level: (offset, width, height, 0), then (texels_x, pixels_x, texels_y, pixels_y): level-0
-// pixel p maps to texel min(p * texels / pixels, size - 1) (docs/CULLING.md).
+// Per stored level (the finest may be level 1 or 2: knob hiz_resolution): (offset, width, height,
+// 0), then (texels_x, pixels_x, texels_y, pixels_y): depth pixel p maps to texel
+// min(p * texels / pixels, size - 1) (docs/CULLING.md).
 layout(set = 1, binding = 6, std430) readonly buffer Levels { uvec4 levels[]; };
 // Per instance: its entry in its list, list * stride + position, in the CPU draw order (the
 // order an unculled frame draws in), so the culled frame draws the survivors in the same order
 // and ties between coplanar surfaces resolve the same way. ~0u for blended instances.
 layout(set = 1, binding = 7, std430) readonly buffer Order { uint order[]; };
 
-bool frustum_visible(Instance inst) {
+bool frustum_visible_box(Instance inst) {
     for (int i = 0; i < 6; ++i) {
         vec4 pl = cull.planes[i];
         float s = dot(pl.xyz, inst.center) + dot(abs(pl.xyz), inst.half_extents) + pl.w;
@@ -44,44 +45,136 @@ bool frustum_visible(Instance inst) {
     return true;
 }
 
+bool frustum_visible_sphere(Instance inst) {
+    for (int i = 0; i < 6; ++i) {
+        vec4 pl = cull.planes[i];
+        float reach = inst.radius * length(pl.xyz);
+        float s = dot(pl.xyz, inst.center) + reach + pl.w;
+        float slack = 1e-5 * (abs(dot(pl.xyz, inst.center)) + reach + abs(pl.w));
+        if (s < -slack) {
+            return false;
+        }
+    }
+    return true;
+}
+
+bool spheres() { return cull.screen.w == 1u; }
+
+bool frustum_visible(Instance inst) {
+    return spheres() ? frustum_visible_sphere(inst) : frustum_visible_box(inst);
+}
+
 bool farther(float a, float b) { return cull.info.w == 1u ? a < b : a > b; }
 
-// Conservative HiZ test of the instance's AABB (8 corners) against the pyramid.
+// What a bounding volume projects to: an NDC rect and the depth of its nearest point; false
+// when it has no rect (it touches or crosses the near plane, or contains the eye): visible.
+struct Projected {
+    vec2 lo;
+    vec2 hi;
+    float nearest;
+};
+
+// The hull of the AABB's 8 projected corners.
+bool project_box(Instance inst, out Projected p) {
+    bool reverse = cull.info.w == 1u;
+    p.lo = vec2(1e30);
+    p.hi = vec2(-1e30);
+    p.nearest = reverse ? 0.0 : 1.0;
+    for (uint i = 0u; i < 8u; ++i) {
+        vec3 s = vec3((i & 1u) != 0u ? 1.0 : -1.0, (i & 2u) != 0u ? 1.0 : -1.0, (i & 4u) != 0u ? 1.0 : -1.0);
+        vec4 clip = cull.hiz_view_proj * vec4(inst.center + s * inst.half_extents, 1.0);
+        if (clip.w <= 1e-6) {
+            return false; // touches or crosses the near plane, or the camera is inside: visible
+        }
+        vec3 ndc = clip.xyz / clip.w;
+        if (reverse ? ndc.z >= 1.0 : ndc.z <= 0.0) {
+            return false; // at or in front of the near plane
+        }
+        p.lo = min(p.lo, ndc.xy);
+        p.hi = max(p.hi, ndc.xy);
+        p.nearest = reverse ? max(p.nearest, ndc.z) : min(p.nearest, ndc.z);
+    }
+    return true;
+}
+
+// NDC range of a sphere along one axis (tilegraph_cull::project_sphere_view): `a` the centre's
+// coordinate, `z` its view z (the sphere beyond the near plane, so |z| > r and the denominators
+// are positive), `s` the NDC scale. The extremes are the two planes through the eye tangent to
+// the sphere (Mara & McGuire 2013).
+vec2 tangent_range(float a, float z, float r, float s) {
+    float t = sqrt(max(a * a + z * z - r * r, 0.0));
+    float p = s * (t * a - r * z) / -(r * a + t * z);
+    float q = s * (t * a + r * z) / -(t * z - r * a);
+    return vec2(min(p, q), max(p, q));
+}
+
+// The tight rect of the bounding sphere's silhouette, in the pyramid frame's view.
+bool project_sphere(Instance inst, out Projected p) {
+    bool reverse = cull.info.w == 1u;
+    vec3 c = (cull.hiz_view * vec4(inst.center, 1.0)).xyz;
+    // The f32 view transform is off by a few ulps of the distances involved: grow the radius by
+    // more than that.
+    float r = inst.radius + 1e-6 * (length(inst.center) + length(c));
+    bool perspective = cull.hiz_proj.z > 0.5;
+    if (perspective && dot(c, c) <= r * r) {
+        return false; // the eye is inside
+    }
+    // The nearest point along the view axis (the view looks down -z); depth depends on the view
+    // z alone for every projection tilegraph makes.
+    float zn = c.z + r;
+    float w = cull.hiz_depth.z * zn + cull.hiz_depth.w;
+    if (w <= 1e-6) {
+        return false;
+    }
+    p.nearest = (cull.hiz_depth.x * zn + cull.hiz_depth.y) / w;
+    if (reverse ? p.nearest >= 1.0 : p.nearest <= 0.0) {
+        return false; // touches or crosses the near plane
+    }
+    vec2 x, y;
+    if (perspective) {
+        x = tangent_range(c.x, c.z, r, cull.hiz_proj.x);
+        y = tangent_range(c.y, c.z, r, cull.hiz_proj.y);
+    } else {
+        vec2 a = cull.hiz_proj.xy * (c.xy - r);
+        vec2 b = cull.hiz_proj.xy * (c.xy + r);
+        x = vec2(min(a.x, b.x), max(a.x, b.x));
+        y = vec2(min(a.y, b.y), max(a.y, b.y));
+    }
+    // Rounding margin of the f32 tangents: a hundred-thousandth of the scale, far below a pixel.
+    vec2 margin = 1e-5 * (abs(cull.hiz_proj.xy) + vec2(max(abs(x.x), abs(x.y)), max(abs(y.x), abs(y.y))));
+    p.lo = vec2(x.x, y.x) - margin;
+    p.hi = vec2(x.y, y.y) + margin;
+    return true;
+}
+
+// Conservative HiZ test of the instance's bounds (box, or sphere where the parameters say so)
+// against the pyramid.
 bool hiz_visible(Instance inst) {
     if (cull.info.z == 0u) {
         return true;
     }
     bool reverse = cull.info.w == 1u;
-    vec2 lo = vec2(1e30), hi = vec2(-1e30);
-    float nearest = reverse ? 0.0 : 1.0;
-    for (uint i = 0u; i < 8u; ++i) {
-        vec3 s = vec3((i & 1u) != 0u ? 1.0 : -1.0, (i & 2u) != 0u ? 1.0 : -1.0, (i & 4u) != 0u ? 1.0 : -1.0);
-        vec4 clip = cull.hiz_view_proj * vec4(inst.center + s * inst.half_extents, 1.0);
-        if (clip.w <= 1e-6) {
-            return true; // touches or crosses the near plane, or the camera is inside: visible
-        }
-        vec3 ndc = clip.xyz / clip.w;
-        if (reverse ? ndc.z >= 1.0 : ndc.z <= 0.0) {
-            return true; // at or in front of the near plane
-        }
-        lo = min(lo, ndc.xy);
-        hi = max(hi, ndc.xy);
-        nearest = reverse ? max(nearest, ndc.z) : min(nearest, ndc.z);
+    Projected p;
+    bool projected = spheres() && cull.hiz_proj.z > -0.5 ? project_sphere(inst, p) : project_box(inst, p);
+    if (!projected) {
+        return true;
     }
     vec2 size = vec2(cull.screen.xy);
     // Clamped to [-1, size] before the conversion: a corner just past the near plane can land
     // billions of pixels away, beyond what an int holds (the conversion is then undefined).
     // -1 and size keep "off screen" off screen.
-    ivec2 pmin = ivec2(clamp(floor((lo * 0.5 + 0.5) * size), vec2(-1.0), size));
-    ivec2 pmax = ivec2(clamp(floor((hi * 0.5 + 0.5) * size), vec2(-1.0), size));
+    ivec2 pmin = ivec2(clamp(floor((p.lo * 0.5 + 0.5) * size), vec2(-1.0), size));
+    ivec2 pmax = ivec2(clamp(floor((p.hi * 0.5 + 0.5) * size), vec2(-1.0), size));
     ivec2 smax = ivec2(cull.screen.xy) - 1;
     if (any(lessThan(pmax, ivec2(0))) || any(greaterThan(pmin, smax))) {
         return true; // off screen: the frustum test's business
     }
     uvec2 a = uvec2(clamp(pmin, ivec2(0), smax));
     uvec2 b = uvec2(clamp(pmax, ivec2(0), smax));
-    // Rounding margin: move the nearest depth 4 ulps towards the camera.
-    nearest = uintBitsToFloat(reverse ? floatBitsToUint(nearest) + 4u : max(floatBitsToUint(nearest), 4u) - 4u);
+    // Rounding margin: move the nearest depth 4 ulps towards the camera (8 for a sphere, whose
+    // depth comes from one more product).
+    uint ulps = spheres() ? 8u : 4u;
+    float nearest = uintBitsToFloat(reverse ? floatBitsToUint(p.nearest) + ulps : max(floatBitsToUint(p.nearest), ulps) - ulps);
     for (uint k = 0u; k < cull.info.z; ++k) {
         uvec4 l = levels[2u * k];
         uvec4 sc = levels[2u * k + 1u];

@@ -15,10 +15,14 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
     vec4 planes[6];        // camera-relative frustum planes (xyz normal, w distance); (0,0,0,1) = absent
     mat4 hiz_view_proj;    // camera-relative position -> clip space of the frame the pyramid was built in
     uvec4 info;            // x: instances, y: phase, z: HiZ levels (0 = no pyramid), w: 1 reverse-Z
-    uvec4 screen;          // x, y: pyramid level-0 size (px), z: list stride (entries per list)
+    uvec4 screen;          // x, y: depth size (px) the pyramid maps from, z: list stride, w: 1 = sphere bounds
     uvec4 groups;          // x: groups per phase, y: 1 = keep empty commands (fixed draw count)
     uvec4 group_start;     // per list of a phase: its first group
     uvec4 group_count;     // per list of a phase: its number of groups
+    // Sphere bounds only:
+    mat4 hiz_view;         // camera-relative position -> view space of the frame the pyramid was built in
+    vec4 hiz_proj;         // x, y: NDC per view unit (P00, P11); z: 1 perspective, 0 orthographic, -1 neither (test the box)
+    vec4 hiz_depth;        // clip z = x * view z + y, clip w = z * view z + w
 } cull;
 
 // A draw group: `len` consecutive entries of list `list` (of a phase) from `position`, all of

@@ -1,7 +1,7 @@
 // Shared declarations of the HiZ pyramid (docs/CULLING.md, "GPU pyramid build"). Helpers and
 // constants for every shader that reads the pyramid; the build shaders (hiz_copy.comp,
 // hiz_reduce.comp) define HIZ_BUILD first to also get their push constants and binding. The push
-// constants mirror tilegraph_passes::hiz::HizPush (32 bytes; tests/e2e/hiz.rs checks the size and
+// constants mirror tilegraph_passes::hiz::HizPush (48 bytes; tests/e2e/hiz.rs checks the size and
 // offsets against the SPIR-V).
 #ifndef TILEGRAPH_HIZ_GLSL
 #define TILEGRAPH_HIZ_GLSL
@@ -19,6 +19,10 @@ const uint HIZ_RULE_PAD_FIRST = 2u;
 const uint HIZ_COPY_D32 = 0u;
 const uint HIZ_COPY_D16 = 1u;
 
+// NpotMode, for the base level's footprint (hiz_copy.comp at a base level above 0).
+const uint HIZ_NPOT_EDGE_AWARE = 0u;
+const uint HIZ_NPOT_PAD = 1u;
+
 // DepthConvention: which depth is the farther one the pyramid keeps.
 const uint HIZ_STANDARD_MAX = 0u;
 const uint HIZ_REVERSE_MIN = 1u;
@@ -31,6 +35,9 @@ layout(push_constant) uniform HizPush {
     uvec2 dst_extent;  // size of the level this dispatch writes
     uint rule;         // HIZ_RULE_* (reduce) or HIZ_COPY_* (copy)
     uint convention;   // HIZ_STANDARD_MAX / HIZ_REVERSE_MIN
+    uint base_level;   // copy: the level written (0 = a copy; b > 0 reduces each footprint)
+    uint npot;         // copy: HIZ_NPOT_* (the footprint rule)
+    uvec2 pow2_extent; // copy: PadToPow2's level-1 extent P (base level >= 1)
 } pc;
 
 // Every level packed, level 0 first, each row-major with row 0 at the top.

@@ -4,8 +4,8 @@
 //! measured, not hidden.
 
 use tilegraph_e2e::gpu_with;
-use tilegraph_passes::cull::{Culling, DrawCount, GpuLists, IndirectDraw};
-use tilegraph_passes::cullcheck::{cull_check, CullCheck};
+use tilegraph_passes::cull::{CullBounds, Culling, DrawCount, GpuLists, IndirectDraw};
+use tilegraph_passes::cullcheck::{cull_check, cull_check_options, CheckExtras, CullCheck};
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
 use tilegraph_scene::{CameraPath, PathKey, Scene};
 use tilegraph_vk::{Feature, FeatureRequest};
@@ -201,6 +201,108 @@ fn extremes_keep_two_phase_culling_conservative() {
                 );
             }
         }
+    }
+    println!("{}", lines.join("\n"));
+}
+
+/// The knobs of what culling builds: the pyramid at half and quarter resolution (its finest
+/// level reduced straight from the depth) and sphere bounds (tangent rects in the shader) stay
+/// conservative — FN 0 and images equal — on the test scenes, and at the extremes (10^6 m
+/// from the origin, odd and 1x1 viewports, both NPOT modes).
+#[test]
+fn pyramid_resolution_and_sphere_bounds_stay_conservative() {
+    let features = FeatureRequest::default().require([
+        Feature::GeometryShader,
+        Feature::DrawIndirectCount,
+        Feature::MultiDrawIndirect,
+    ]);
+    let run = |scene: &Scene,
+               culling: Culling,
+               base: u32,
+               bounds: CullBounds,
+               size: (u32, u32),
+               mode: tilegraph_cull::NpotMode,
+               frames: usize| {
+        let g = gpu_with(None, features.clone()).unwrap();
+        let options = RenderOptions {
+            width: size.0,
+            height: size.1,
+            culling,
+            hiz_mode: mode,
+            hiz_base_level: base,
+            cull_bounds: bounds,
+            ..Default::default()
+        };
+        let path = test_path(scene, frames);
+        let r =
+            cull_check_options(&g, scene, options, &path, None, CheckExtras::default()).unwrap();
+        let what = format!(
+            "{} {} base level {base} {} {}x{} {mode:?}",
+            r.scene,
+            r.technique,
+            bounds.name(),
+            size.0,
+            size.1
+        );
+        for f in &r.frames {
+            assert_eq!(
+                f.false_negatives, 0,
+                "{what}: frame {} culled {:?}",
+                f.frame, f.false_negative_ids
+            );
+            assert_eq!(
+                f.image_diff_pixels, f.image_diff_pixels_owner_drawn,
+                "{what}: frame {} has a hole",
+                f.frame
+            );
+        }
+        (r.totals.drawn, format!("{what}: {}", summary(&r)))
+    };
+    let edge = tilegraph_cull::NpotMode::EdgeAware;
+    let mut lines = Vec::new();
+    let mut frustum_drawn = Vec::new();
+    for spec in ["city:1500", "forest:800"] {
+        let scene = tilegraph_scene::load(spec).unwrap();
+        for bounds in [CullBounds::Aabb, CullBounds::Sphere] {
+            let (drawn, line) = run(&scene, Culling::Frustum, 0, bounds, SIZE, edge, 8);
+            frustum_drawn.push(drawn);
+            lines.push(line);
+        }
+        for (culling, base, bounds) in [
+            (Culling::HizTwoPhase, 0, CullBounds::Sphere),
+            (Culling::HizTwoPhase, 1, CullBounds::Aabb),
+            (Culling::HizTwoPhase, 2, CullBounds::Sphere),
+        ] {
+            lines.push(run(&scene, culling, base, bounds, SIZE, edge, 8).1);
+        }
+    }
+    // The city's buildings are axis-aligned boxes: their spheres are looser, and the knob shows.
+    assert!(
+        frustum_drawn[1] > frustum_drawn[0],
+        "city frustum: sphere drew {}, box {}",
+        frustum_drawn[1],
+        frustum_drawn[0]
+    );
+    let mut far = tilegraph_scene::load("city:800").unwrap();
+    far.translate(glam::DVec3::new(1.0e6, 0.0, -1.0e6));
+    for (size, mode, base) in [
+        ((27, 13), edge, 1),
+        ((27, 13), tilegraph_cull::NpotMode::PadToPow2, 2),
+        ((1, 1), edge, 2),
+        ((3, 3), tilegraph_cull::NpotMode::PadToPow2, 1),
+    ] {
+        lines.push(
+            run(
+                &far,
+                Culling::HizTwoPhase,
+                base,
+                CullBounds::Sphere,
+                size,
+                mode,
+                6,
+            )
+            .1,
+        );
     }
     println!("{}", lines.join("\n"));
 }

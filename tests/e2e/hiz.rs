@@ -11,7 +11,7 @@ use std::mem::{offset_of, size_of};
 use tilegraph_cull::{dequantize_d16, DepthFormat, Extent2d, ExtentExt, HizPyramid};
 use tilegraph_e2e::gpu;
 use tilegraph_passes::hiz::{
-    DepthConvention, HizBuilder, HizLayout, HizLevelsPush, HizPush, HizStep, NpotMode,
+    DepthConvention, HizBuilder, HizLayout, HizLevelsPush, HizPush, HizStep, NpotMode, ReduceRule,
     SampledDepth, HIZ_COPY_SPV, HIZ_REDUCE_LEVELS_SPV, HIZ_REDUCE_SPV, LEVELS_WORKGROUP_SIZE,
     MAX_PYRAMID_BYTES, WORKGROUP_SIZE,
 };
@@ -307,10 +307,12 @@ fn gpu_build(
     result
 }
 
-/// Every level of the GPU pyramid equals the CPU one bit for bit; extents and scales agree.
+/// Every stored level of the GPU pyramid equals the CPU level of the same index in the chain bit
+/// for bit (from the layout's base level on); extents and scales agree.
 fn assert_same(layout: &HizLayout, gpu: &[f32], cpu: &HizPyramid, what: &str) {
+    let base = layout.base_level as usize;
     assert_eq!(
-        layout.levels.len(),
+        layout.levels.len() + base,
         cpu.levels().len(),
         "{what}: level count"
     );
@@ -319,7 +321,8 @@ fn assert_same(layout: &HizLayout, gpu: &[f32], cpu: &HizPyramid, what: &str) {
         layout.total_texels,
         "{what}: buffer length"
     );
-    for (k, (info, level)) in layout.levels.iter().zip(cpu.levels()).enumerate() {
+    for (k, (info, level)) in layout.levels.iter().zip(&cpu.levels()[base..]).enumerate() {
+        assert_eq!(info.level as usize, base + k, "{what}: level index");
         let e = level.extent();
         assert_eq!(
             (info.width, info.height),
@@ -358,8 +361,9 @@ fn extent((w, h): (u32, u32)) -> Extent2d {
     Extent2d::try_new(w, h).unwrap()
 }
 
-/// Uploads `depth`, then for every mode and convention builds on the GPU and compares with the
-/// CPU reference built from `cpu_level0(gpu level 0)`.
+/// Uploads `depth`, then for every mode, convention and base level (knob `hiz_resolution`:
+/// full, half, quarter) builds on the GPU and compares with the CPU reference built from what
+/// the image holds.
 fn check_all_modes(
     ctx: &Context,
     builder: &mut HizBuilder,
@@ -369,26 +373,29 @@ fn check_all_modes(
 ) {
     let image = DepthImage::upload(ctx, size, depth).unwrap();
     let expected_level0 = depth.format().store_buffer(&depth.floats());
-    for (mode, conv, per) in MODES
+    for (mode, conv, per, base) in MODES
         .into_iter()
         .flat_map(|m| CONVENTIONS.map(|c| (m, c)))
         .flat_map(|(m, c)| [(m, c, 4), (m, c, 1)])
+        .flat_map(|(m, c, per)| [0, 1, 2].map(|base| (m, c, per, base)))
     {
         let what = format!(
-            "{label} {}x{} {} {mode:?} {conv:?} {per} levels per dispatch",
+            "{label} {}x{} {} {mode:?} {conv:?} {per} levels per dispatch, base level {base}",
             size.0,
             size.1,
             depth.name()
         );
         let layout = HizLayout::new(size, mode, conv, depth.format())
             .unwrap()
+            .with_base_level(base)
             .with_levels_per_dispatch(per);
         let gpu = gpu_build(ctx, builder, &image, &layout).unwrap();
         // Level 0 is exactly what the image holds, as the spec's conversion gives it.
         let level0 = layout.level_texels(&gpu, 0).unwrap();
-        if let Some(i) = level0
-            .iter()
-            .zip(&expected_level0)
+        if let Some(i) = (layout.base_level == 0)
+            .then_some(level0)
+            .into_iter()
+            .flat_map(|l| l.iter().zip(&expected_level0))
             .position(|(g, e)| g.to_bits() != e.to_bits())
         {
             panic!(
@@ -430,7 +437,8 @@ fn gpu_pyramid_equals_cpu_reference_d16() {
 /// Every size from 1x1 to 64x64, both modes and conventions: the fused dispatches' tiles meet
 /// every case there is (leftover rows and columns at each fused level, one axis reaching 1
 /// before the other, a single workgroup holding a whole level). One 64x64 image: a layout of
-/// w x h builds from its top-left corner.
+/// w x h builds from its top-left corner. The base level (full, half, quarter) rotates with the
+/// size, so each base meets a third of the sizes (every parity of both axes).
 #[test]
 fn gpu_pyramid_equals_cpu_reference_at_every_size_to_64() {
     let g = gpu(None).unwrap();
@@ -446,14 +454,18 @@ fn gpu_pyramid_equals_cpu_reference_at_every_size_to_64() {
                 .collect();
             for mode in MODES {
                 for conv in CONVENTIONS {
-                    let layout = HizLayout::new((w, h), mode, conv, D32).unwrap();
+                    let base = (w + 2 * h) % 3;
+                    let layout = HizLayout::new((w, h), mode, conv, D32)
+                        .unwrap()
+                        .with_base_level(base);
                     fused += (0..)
                         .map_while(|i| layout.step(i))
                         .filter(|s| matches!(s, Ok(HizStep::Fused { .. })))
                         .count();
                     let gpu = gpu_build(&g, &mut builder, &image, &layout).unwrap();
                     let cpu = HizPyramid::build(&corner, extent((w, h)), conv, D32, mode).unwrap();
-                    assert_same(&layout, &gpu, &cpu, &format!("{w}x{h} {mode:?} {conv:?}"));
+                    let what = format!("{w}x{h} {mode:?} {conv:?} base level {base}");
+                    assert_same(&layout, &gpu, &cpu, &what);
                 }
             }
         }
@@ -688,6 +700,9 @@ fn layouts_reject_bad_input_and_match_the_reference_chain() {
             dst_extent: [16, 8],
             rule: 2,
             convention: 0,
+            base_level: 1,
+            npot: 1,
+            pow2_extent: [16, 8],
         }
     );
     assert_eq!((push[2].rule, push[2].src_offset), (1, 351));
@@ -702,6 +717,34 @@ fn layouts_reject_bad_input_and_match_the_reference_chain() {
     assert_eq!(one.level_texels(&[0.5], 0), Some(&[0.5f32][..]));
     assert_eq!(one.level_texels(&[0.5], 1), None);
     assert_eq!(one.level_texels(&[], 0), None);
+    // A coarser base level (knob hiz_resolution): the finer levels are gone, offsets packed from
+    // 0, the base built from the depth image (27x13 pixels), the level table's scales those of
+    // the whole chain; a base past the chain's end is its 1x1 level.
+    let half = e.clone().with_base_level(1);
+    let sizes: Vec<(u32, u32)> = half.levels.iter().map(|l| (l.width, l.height)).collect();
+    assert_eq!(sizes, [(13, 6), (6, 3), (3, 1), (1, 1)]);
+    let offsets: Vec<u64> = half.levels.iter().map(|l| l.offset_texels).collect();
+    assert_eq!(offsets, [0, 78, 96, 99]);
+    assert_eq!((half.total_texels, half.extent_px()), (100, (27, 13)));
+    let push = half.push_constants().unwrap();
+    assert_eq!(
+        (push[0].src_extent, push[0].dst_extent, push[0].base_level),
+        ([27, 13], [13, 6], 1)
+    );
+    assert_eq!(half.levels[1].scale_x, e.levels[2].scale_x);
+    // Reads the depth once (4 bytes a pixel), writes 78 texels, then the fused rest.
+    assert_eq!(half.step_bytes(0), Some(27 * 13 * 4 + 78 * 4));
+    let padded = l.clone().with_base_level(2);
+    assert_eq!(padded.levels[0].rule, ReduceRule::FromDepth);
+    assert_eq!(padded.push_constants().unwrap()[0].pow2_extent, [16, 8]);
+    assert!(padded.levels[1..]
+        .iter()
+        .all(|l| l.rule == ReduceRule::Halve));
+    let top = e.clone().with_base_level(9);
+    assert_eq!(
+        (top.levels.len(), top.base_level, top.total_texels),
+        (1, 4, 1)
+    );
 }
 
 #[test]
@@ -830,8 +873,11 @@ fn push_constants_and_workgroup_match_the_shaders() {
         offset_of!(HizPush, dst_extent) as u32,
         offset_of!(HizPush, rule) as u32,
         offset_of!(HizPush, convention) as u32,
+        offset_of!(HizPush, base_level) as u32,
+        offset_of!(HizPush, npot) as u32,
+        offset_of!(HizPush, pow2_extent) as u32,
     ];
-    assert_eq!(size_of::<HizPush>(), 32);
+    assert_eq!(size_of::<HizPush>(), 48);
     for (name, spv) in [("hiz_copy", HIZ_COPY_SPV), ("hiz_reduce", HIZ_REDUCE_SPV)] {
         let (offsets, local) = push_block_and_local_size(spv);
         assert_eq!(offsets, rust, "{name}: push-constant offsets");

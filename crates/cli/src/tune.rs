@@ -4,9 +4,9 @@
 //! the evidence in its comments.
 //!
 //! The sweep is in two stages (coordinate descent): every culling with its own knobs
-//! (`hiz_npot`, `oq_group`, `raster_occlusion_scale`) under the profile's shading and draw
-//! order; then, with the best of those fixed, every shading × draw order (× alpha pre-pass where
-//! the scene has alpha-tested geometry). Both stages' runs are kept in `results.json`, so an
+//! (`hiz_npot`, `hiz_resolution`, `cull_bounds`, `oq_group`, `raster_occlusion_scale`) under
+//! the profile's shading and draw order; then, with the best of those fixed, every shading ×
+//! draw order (× alpha pre-pass where the scene has alpha-tested geometry). Both stages' runs are kept in `results.json`, so an
 //! interrupted tune resumes, and `report.md` and the plots are written as `bench` writes them.
 
 use std::collections::HashMap;
@@ -207,11 +207,17 @@ fn tune_on(
         profiles: vec![a.profile.clone()],
         sizes: vec![[size.0, size.1]],
         camera_paths: vec![path_name.clone()],
-        axes: ["hiz_npot", "oq_group", "raster_occlusion_scale"]
-            .iter()
-            .filter_map(|k| tilegraph_profile::knobs::spec(k))
-            .map(|k| (k.name.to_string(), k.domain.values()))
-            .collect(),
+        axes: [
+            "hiz_npot",
+            "hiz_resolution",
+            "cull_bounds",
+            "oq_group",
+            "raster_occlusion_scale",
+        ]
+        .iter()
+        .filter_map(|k| tilegraph_profile::knobs::spec(k))
+        .map(|k| (k.name.to_string(), k.domain.values()))
+        .collect(),
         frames,
     };
     let lookup = |s: &str| (s == a.scene).then_some(scene);

@@ -15,7 +15,7 @@ use tilegraph_scene::Scene;
 
 use tilegraph_vk::Context;
 
-use crate::cull::Culling;
+use crate::cull::{CullBounds, Culling};
 use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
 use crate::setup::{SceneContent, Technique};
@@ -446,6 +446,15 @@ impl Resolved {
         if name("hiz_npot") == "pad-to-pow2" {
             options.hiz_mode = NpotMode::PadToPow2;
         }
+        options.hiz_base_level = match name("hiz_resolution") {
+            "half" => 1,
+            "quarter" => 2,
+            _ => 0,
+        };
+        options.cull_bounds = match name("cull_bounds") {
+            "sphere" => CullBounds::Sphere,
+            _ => CullBounds::Aabb,
+        };
         if let Some(g) = self.get("oq_group").and_then(KnobValue::as_integer) {
             options.oq_group = g as usize;
         }
@@ -505,6 +514,8 @@ mod tests {
                         ["profile", "on", "off"].contains(&s.as_str())
                     }
                     "hiz_npot" => ["edge-aware", "pad-to-pow2"].contains(&s.as_str()),
+                    "hiz_resolution" => ["full", "half", "quarter"].contains(&s.as_str()),
+                    "cull_bounds" => ["aabb", "sphere"].contains(&s.as_str()),
                     "oq_group" | "raster_occlusion_scale" => {
                         matches!(k.domain, Domain::Integers(_))
                     }

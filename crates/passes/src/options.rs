@@ -9,7 +9,7 @@ use tilegraph_scene::Scene;
 use tilegraph_vk::executor::FrameStats;
 use tilegraph_vk::{Context, Feature, FeatureRequest, VkError};
 
-use crate::cull::{CullState, Culling, GpuCullCounts};
+use crate::cull::{CullBounds, CullState, Culling, GpuCullCounts};
 use crate::gpu_scene::{visbuf_instance_bits, Lighting};
 use crate::lint::FrameLint;
 use crate::occlusion::OqState;
@@ -87,6 +87,11 @@ pub struct RenderOptions {
     pub culling: Culling,
     /// How the HiZ pyramid handles non-power-of-two sizes (seed 000's two fixes).
     pub hiz_mode: NpotMode,
+    /// The HiZ pyramid's finest stored level (knob `hiz_resolution`): 0 the depth's resolution,
+    /// 1 half, 2 quarter — less memory and build traffic, coarser tests of small objects.
+    pub hiz_base_level: u32,
+    /// The bounds GPU culling tests (knob `cull_bounds`).
+    pub cull_bounds: CullBounds,
     /// Keep the visibility buffer's ids after the frame (the oracle reads them back):
     /// the id attachment becomes an imported image, so it is stored.
     pub capture_ids: bool,
@@ -112,6 +117,8 @@ impl Default for RenderOptions {
             depth_format: tilegraph_cull::DepthFormat::D32Float,
             culling: Culling::None,
             hiz_mode: NpotMode::EdgeAware,
+            hiz_base_level: 0,
+            cull_bounds: CullBounds::Aabb,
             capture_ids: false,
             oq_group: 1,
             raster_occlusion_scale: 1,

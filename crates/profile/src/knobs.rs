@@ -166,6 +166,20 @@ pub const KNOBS: &[KnobSpec] = &[
         help: "HiZ pyramid of a non-power-of-two target: edge-aware reduction or a padded pyramid",
     },
     KnobSpec {
+        name: "hiz_resolution",
+        domain: Domain::Choice(&["full", "half", "quarter"]),
+        default: DefaultValue::Name("full"),
+        applies: Applies::WithCulling(&["hiz", "hiz-2phase"]),
+        help: "finest HiZ level at the depth's full, half or quarter resolution: 1/4 or 1/16 of level 0's memory and build writes, small objects tested against coarser texels (more drawn)",
+    },
+    KnobSpec {
+        name: "cull_bounds",
+        domain: Domain::Choice(&["aabb", "sphere"]),
+        default: DefaultValue::Name("aabb"),
+        applies: Applies::WithCulling(&["frustum", "hiz", "hiz-2phase"]),
+        help: "what GPU culling tests: the world AABB (8 projected corners) or the bounding sphere (fewer instructions; looser for boxes, tighter for rotated thin objects)",
+    },
+    KnobSpec {
         name: "oq_group",
         domain: Domain::Integers(&[1, 2, 4, 8, 16, 32, 64]),
         default: DefaultValue::Integer(1),

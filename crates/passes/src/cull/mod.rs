@@ -248,6 +248,64 @@ pub struct CullParams {
     pub group_start: [u32; 4],
     /// Per list of a phase: its number of draw groups.
     pub group_count: [u32; 4],
+    /// Sphere bounds: camera-relative position -> view space of the pyramid's frame.
+    pub hiz_view: [[f32; 4]; 4],
+    /// Sphere bounds: x, y NDC per view unit; z 1 perspective, 0 orthographic, -1 a matrix
+    /// the sphere test does not model (the box is tested).
+    pub hiz_proj: [f32; 4],
+    /// Sphere bounds: clip z = x * view z + y, clip w = z * view z + w.
+    pub hiz_depth: [f32; 4],
+}
+
+/// The bounding volume culling tests an instance by (knob `cull_bounds`). Both are conservative
+/// and come from the same transformed local box (`tilegraph_scene`'s instance bounds).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CullBounds {
+    /// The world-space AABB: six plane tests, eight projected corners.
+    #[default]
+    Aabb,
+    /// The sphere around the transformed local box: one plane test per plane and the tight
+    /// rect of its silhouette (Mara & McGuire 2013). Fewer instructions; looser than the box
+    /// for boxy, axis-aligned objects, tighter for rotated thin ones.
+    Sphere,
+}
+
+impl CullBounds {
+    pub fn name(self) -> &'static str {
+        match self {
+            CullBounds::Aabb => "aabb",
+            CullBounds::Sphere => "sphere",
+        }
+    }
+}
+
+/// What the sphere test needs of a projection matrix: (P00, P11, kind, 0) and the depth row
+/// (m22, m32, m23, m33). Kind 1 perspective, 0 orthographic, -1 anything with off-centre or
+/// shear terms, for which the shader tests the box instead.
+pub fn sphere_projection(projection: Mat4) -> ([f32; 4], [f32; 4]) {
+    let (x, y, z, w) = (
+        projection.x_axis,
+        projection.y_axis,
+        projection.z_axis,
+        projection.w_axis,
+    );
+    let plain = x.y == 0.0
+        && x.z == 0.0
+        && x.w == 0.0
+        && y.x == 0.0
+        && y.z == 0.0
+        && y.w == 0.0
+        && z.x == 0.0
+        && z.y == 0.0
+        && w.x == 0.0
+        && w.y == 0.0;
+    let kind = match (plain, z.w != 0.0) {
+        (false, _) => -1.0,
+        (true, true) if w.w == 0.0 => 1.0,
+        (true, true) => -1.0,
+        (true, false) => 0.0,
+    };
+    ([x.x, y.y, kind, 0.0], [z.z, w.z, z.w, w.w])
 }
 
 /// The phase argument of `cull.comp`.
@@ -359,5 +417,33 @@ mod tests {
             Culling::RasterOcclusion.needs_prepass() && Culling::RasterOcclusion.uses_gpu_lists()
         );
         assert!(!Culling::Oq.needs_prepass() && !Culling::Oq.uses_gpu_lists());
+    }
+
+    #[test]
+    fn sphere_projection_reads_the_matrices_tilegraph_makes_and_flags_others() {
+        use tilegraph_scene::Projection;
+        let perspective = Projection::Perspective {
+            fov_y_rad: 1.0,
+            near: 0.1,
+            far: None,
+            depth: DepthConvention::Reverse,
+        };
+        let (proj, depth) = sphere_projection(perspective.matrix(2.0));
+        let (sx, sy) = perspective.ndc_scale(2.0);
+        assert_eq!(proj[2], 1.0);
+        assert!((f64::from(proj[0]) - sx).abs() < 1e-6 && (f64::from(proj[1]) - sy).abs() < 1e-6);
+        // Reverse infinite: clip z = near, clip w = -z.
+        assert_eq!(depth, [0.0, 0.1, -1.0, 0.0]);
+        let ortho = Projection::Orthographic {
+            half_height: 5.0,
+            near: 0.5,
+            far: 50.0,
+            depth: DepthConvention::Standard,
+        };
+        assert_eq!(sphere_projection(ortho.matrix(1.0)).0[2], 0.0);
+        // An off-centre (jittered) projection is not modelled: the shader tests the box.
+        let mut jittered = perspective.matrix(2.0);
+        jittered.z_axis.x = 0.001;
+        assert_eq!(sphere_projection(jittered).0[2], -1.0);
     }
 }

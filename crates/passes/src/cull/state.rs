@@ -13,7 +13,8 @@ use tilegraph_vk::pipeline::{
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
 
 use super::{
-    gpu_planes, CullParams, Culling, DrawCount, GpuLayout, Phase, Step, LISTS_PER_PHASE, LIST_COUNT,
+    gpu_planes, sphere_projection, CullBounds, CullParams, Culling, DrawCount, GpuLayout, Phase,
+    Step, LISTS_PER_PHASE, LIST_COUNT,
 };
 use crate::draws::DrawList;
 use crate::frame::PassState;
@@ -72,6 +73,8 @@ struct SlotInputs {
 /// The persistent culling state of one renderer.
 pub struct CullState {
     pub culling: Culling,
+    /// What `cull.comp` tests: the box or the sphere (knob `cull_bounds`).
+    pub bounds: CullBounds,
     pub instance_count: u32,
     pub draw_count: DrawCount,
     pub commands: Buffer,
@@ -133,6 +136,7 @@ impl CullState {
         scene_set_layout: vk::DescriptorSetLayout,
         frames_in_flight: usize,
         hiz: Option<&HizState>,
+        bounds: CullBounds,
     ) -> Result<Self, VkError> {
         let n = u64::from(instance_count.max(1));
         let lists = u64::from(LIST_COUNT);
@@ -179,6 +183,7 @@ impl CullState {
         // (destroying VK_NULL_HANDLE is a no-op).
         let mut state = CullState {
             culling,
+            bounds,
             instance_count,
             draw_count,
             commands,
@@ -352,14 +357,30 @@ impl CullState {
         let layout = &self.layout;
         let total = layout.groups.len() as u32;
         let keep_empty = u32::from(matches!(self.draw_count, DrawCount::Fixed { .. }));
-        let params = |phase: Phase, view_proj: Mat4, levels: u32| CullParams {
-            planes,
-            hiz_view_proj: view_proj.to_cols_array_2d(),
-            info: [n, phase as u32, levels, reverse],
-            screen: [pw, ph, n.max(1), 0],
-            groups: [total.max(1), keep_empty, 0, 0],
-            group_start: layout.group_start,
-            group_count: layout.group_count,
+        let spheres = u32::from(self.bounds == CullBounds::Sphere);
+        // The pyramid's frame as the sphere test sees it: last frame's view (moved to the
+        // current eye, as `reproject` is) for single-phase HiZ, this frame's for the late phase.
+        let previous_view = frame.previous.view
+            * Mat4::from_translation((frame.current.eye - frame.previous.eye).as_vec3());
+        let params = |phase: Phase, view_proj: Mat4, levels: u32, previous: bool| {
+            let (view, projection) = if previous {
+                (previous_view, frame.previous.projection)
+            } else {
+                (m.view, m.projection)
+            };
+            let (hiz_proj, hiz_depth) = sphere_projection(projection);
+            CullParams {
+                planes,
+                hiz_view_proj: view_proj.to_cols_array_2d(),
+                info: [n, phase as u32, levels, reverse],
+                screen: [pw, ph, n.max(1), spheres],
+                groups: [total.max(1), keep_empty, 0, 0],
+                group_start: layout.group_start,
+                group_count: layout.group_count,
+                hiz_view: view.to_cols_array_2d(),
+                hiz_proj,
+                hiz_depth,
+            }
         };
         let first = match self.culling {
             Culling::Hiz => params(
@@ -370,14 +391,15 @@ impl CullState {
                 } else {
                     0
                 },
+                true,
             ),
             // Raster occlusion: the early phase reads this frame's flags.
             Culling::HizTwoPhase | Culling::RasterOcclusion => {
-                params(Phase::Early, m.view_projection, 0)
+                params(Phase::Early, m.view_projection, 0, false)
             }
-            _ => params(Phase::Frustum, m.view_projection, 0),
+            _ => params(Phase::Frustum, m.view_projection, 0, false),
         };
-        let late = params(Phase::Late, m.view_projection, levels);
+        let late = params(Phase::Late, m.view_projection, levels, false);
         let (group_count, order, groups) = (layout.group_count, &layout.order, &layout.groups);
         let entries = layout.entries;
         let inputs = self.slots.get_mut(slot).ok_or_else(|| VkError::Invalid {

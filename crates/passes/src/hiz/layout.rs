@@ -19,8 +19,10 @@ pub const MAX_PYRAMID_BYTES: u64 = 1 << 27;
 /// How a level's texel picks its source range, per axis (`shaders/common/hiz.glsl`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ReduceRule {
-    /// Level 0: a copy of the depth image (D16: snapped to the exact `k / 65535`).
-    Copy,
+    /// The base level, from the depth image: at level 0 a copy (D16: snapped to the exact
+    /// `k / 65535`); at level `b > 0` each texel is the farthest of its level-0 footprint
+    /// ([`HizLayout::with_base_level`]), the value the chain of reductions would give.
+    FromDepth,
     /// `2t ..= (t == dst - 1 ? src - 1 : 2t + 1)`: EdgeAware, every level >= 1.
     EdgeAware,
     /// `2t ..= min(2t + 1, src - 1)`: PadToPow2, levels >= 2.
@@ -34,7 +36,7 @@ impl ReduceRule {
     /// for the copy.
     fn gpu_code(self, format: DepthFormat) -> u32 {
         match self {
-            ReduceRule::Copy => match format {
+            ReduceRule::FromDepth => match format {
                 DepthFormat::D32Float => 0,
                 DepthFormat::D16Unorm => 1,
             },
@@ -45,7 +47,7 @@ impl ReduceRule {
     }
 }
 
-/// Push constants of both shaders; mirrors `HizPush` in `shaders/common/hiz.glsl` (32 bytes;
+/// Push constants of both shaders; mirrors `HizPush` in `shaders/common/hiz.glsl` (48 bytes;
 /// tests/e2e/hiz.rs checks the offsets against the SPIR-V).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Pod, Zeroable)]
@@ -62,6 +64,13 @@ pub struct HizPush {
     pub rule: u32,
     /// 0: Standard (max), 1: Reverse (min).
     pub convention: u32,
+    /// The base level's index in the whole chain (copy only): 0 copies, `b` reduces each
+    /// texel's level-0 footprint.
+    pub base_level: u32,
+    /// The footprint rule (copy only): 0 EdgeAware, 1 PadToPow2.
+    pub npot: u32,
+    /// PadToPow2's level-1 extent `P` per axis (copy only, base level >= 1).
+    pub pow2_extent: [u32; 2],
 }
 
 /// Push constants of `hiz_reduce_levels.comp` (80 bytes; tests/e2e/hiz.rs checks the offsets
@@ -98,6 +107,10 @@ pub enum HizStep {
 /// Where one level lives in the pyramid buffer, and how level-0 pixels map to its texels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct HizLevelInfo {
+    /// The level's index in the whole chain (level 0 = the depth buffer's extent), which the
+    /// CPU reference's `HizPyramid::level` takes; it differs from its index in
+    /// [`HizLayout::levels`] when the layout starts at a base level.
+    pub level: u32,
     /// First texel (f32 element) of the level in the buffer.
     pub offset_texels: u64,
     pub width: u32,
@@ -118,15 +131,22 @@ impl HizLevelInfo {
 
 /// The packed layout of a pyramid for one depth extent, mode, convention and depth format: plain
 /// data, no Vulkan handles. Computed from `tilegraph_cull::level_extents`, so it always has the
-/// CPU reference's levels.
+/// CPU reference's levels (from its base level on).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct HizLayout {
     pub mode: NpotMode,
     pub convention: DepthConvention,
-    /// The format of the depth image level 0 is read from. It must be right: a D32 depth read
-    /// as D16 would be snapped to the nearest code, which is not conservative.
+    /// The format of the depth image the base level is read from. It must be right: a D32 depth
+    /// read as D16 would be snapped to the nearest code, which is not conservative.
     pub format: DepthFormat,
-    /// Level 0 (the depth buffer's extent) first; the last level is 1x1.
+    /// The depth buffer's extent (level 0's, stored or not).
+    pub depth_extent: (u32, u32),
+    /// The first level stored ([`HizLayout::with_base_level`]; 0 unless it says otherwise).
+    pub base_level: u32,
+    /// Level 1's extent in the whole chain (PadToPow2's `P`), which a base level >= 1 needs to
+    /// find its footprints.
+    pub pad_extent: [u32; 2],
+    /// The stored levels, the base level first; the last level is 1x1.
     pub levels: Vec<HizLevelInfo>,
     pub total_texels: u64,
     /// Levels one reduction dispatch writes (1..=[`FUSED_LEVELS`]; [`FUSED_LEVELS`] unless
@@ -165,17 +185,13 @@ impl HizLayout {
         for (k, e) in extents.iter().enumerate() {
             let k = k as u32;
             let info = HizLevelInfo {
+                level: k,
                 offset_texels: offset,
                 width: e.width_px,
                 height: e.height_px,
                 scale_x: axis_scale(mode, k, w, pw),
                 scale_y: axis_scale(mode, k, h, ph),
-                rule: match (mode, k) {
-                    (_, 0) => ReduceRule::Copy,
-                    (NpotMode::PadToPow2, 1) => ReduceRule::PadFirst,
-                    (NpotMode::PadToPow2, _) => ReduceRule::Halve,
-                    _ => ReduceRule::EdgeAware,
-                },
+                rule: rule_of(mode, k, 0),
             };
             offset += info.texel_count();
             levels.push(info);
@@ -184,6 +200,9 @@ impl HizLayout {
             mode,
             convention,
             format,
+            depth_extent: extent_px,
+            base_level: 0,
+            pad_extent: [pw, ph],
             levels,
             total_texels: offset,
             levels_per_dispatch: FUSED_LEVELS,
@@ -198,9 +217,36 @@ impl HizLayout {
         Ok(layout)
     }
 
-    /// Level 0's extent: the depth buffer's.
+    /// The depth buffer's extent: the pixels the level table's scales map from.
     pub fn extent_px(&self) -> (u32, u32) {
-        self.levels.first().map_or((0, 0), |l| (l.width, l.height))
+        self.depth_extent
+    }
+
+    /// The same pyramid without the levels finer than `base` (clamped to the 1x1 level): the
+    /// knob `hiz_resolution` (full 0, half 1, quarter 2). The base level is built straight from
+    /// the depth image, each texel the farthest of its level-0 footprint, so every stored level
+    /// keeps the CPU reference's values and the test stays conservative; a small object is then
+    /// tested against coarser texels (more drawn), for 1/4 or 1/16 of level 0's memory and
+    /// writes. Offsets are packed again from 0.
+    pub fn with_base_level(mut self, base: u32) -> Self {
+        let keep_from = (base as usize).min(self.levels.len().saturating_sub(1));
+        let mut offset = 0u64;
+        let levels: Vec<HizLevelInfo> = self.levels[keep_from..]
+            .iter()
+            .map(|l| {
+                let info = HizLevelInfo {
+                    offset_texels: offset,
+                    rule: rule_of(self.mode, l.level, keep_from as u32),
+                    ..*l
+                };
+                offset += info.texel_count();
+                info
+            })
+            .collect();
+        self.base_level = keep_from as u32;
+        self.levels = levels;
+        self.total_texels = offset;
+        self
     }
 
     /// Bytes the pyramid buffer needs (at least).
@@ -246,7 +292,10 @@ impl HizLayout {
             DepthFormat::D32Float => 4,
         };
         Some(match self.step(i)? {
-            Ok(HizStep::Single { level: 0, .. }) => texels(0) * (depth_bytes + 4),
+            Ok(HizStep::Single { level: 0, .. }) => {
+                let (w, h) = self.depth_extent;
+                u64::from(w) * u64::from(h) * depth_bytes + 4 * texels(0)
+            }
             Ok(HizStep::Single { level, .. }) => 4 * (texels(level - 1) + texels(level)),
             Ok(HizStep::Fused { first, push }) => {
                 let written: u64 = (first..first + push.levels as usize).map(texels).sum();
@@ -256,8 +305,8 @@ impl HizLayout {
         })
     }
 
-    /// The build's dispatches in order: the copy, PadToPow2's level 1 alone, then the rest
-    /// [`FUSED_LEVELS`] at a time. `i` past the last is `None` (no list is built: recording
+    /// The build's dispatches in order: the base level from the depth image, PadToPow2's level 1
+    /// alone (when it is not the base), then the rest [`FUSED_LEVELS`] at a time. `i` past the last is `None` (no list is built: recording
     /// allocates nothing).
     pub fn step(&self, i: usize) -> Option<Result<HizStep, VkError>> {
         let single = |level: usize| {
@@ -273,7 +322,10 @@ impl HizLayout {
             return (i < self.levels.len()).then(|| single(i)).flatten();
         }
         // PadToPow2's level 1 (a box rule of its own) is a single dispatch.
-        let pad_first = self.mode == NpotMode::PadToPow2 && self.levels.len() > 1;
+        let pad_first = self
+            .levels
+            .get(1)
+            .is_some_and(|l| l.rule == ReduceRule::PadFirst);
         if pad_first && i == 1 {
             return single(1);
         }
@@ -308,7 +360,7 @@ impl HizLayout {
         let src = level(
             first
                 .checked_sub(1)
-                .ok_or_else(|| invalid("level 0 is a copy".into()))?,
+                .ok_or_else(|| invalid("the base level is read from the depth image".into()))?,
         )?;
         let rule = level(first)?.rule;
         if !(1..=FUSED_LEVELS).contains(&n)
@@ -347,11 +399,11 @@ impl HizLayout {
             what: "hiz layout".into(),
             reason: format!("no level {k}"),
         })?;
-        // Level 0 "reads" the depth image, which has its own extent.
-        let src = k
-            .checked_sub(1)
-            .and_then(|s| self.levels.get(s))
-            .unwrap_or(dst);
+        // The base level reads the depth image, which has its own extent.
+        let (src_offset, src_extent) = match k.checked_sub(1).and_then(|s| self.levels.get(s)) {
+            Some(src) => (src.offset_texels, [src.width, src.height]),
+            None => (0, [self.depth_extent.0, self.depth_extent.1]),
+        };
         let offset = |texels: u64| {
             u32::try_from(texels).map_err(|_| VkError::Invalid {
                 what: "hiz layout".into(),
@@ -359,16 +411,29 @@ impl HizLayout {
             })
         };
         Ok(HizPush {
-            src_offset: offset(src.offset_texels)?,
+            src_offset: offset(src_offset)?,
             dst_offset: offset(dst.offset_texels)?,
-            src_extent: [src.width, src.height],
+            src_extent,
             dst_extent: [dst.width, dst.height],
             rule: dst.rule.gpu_code(self.format),
             convention: match self.convention {
                 DepthConvention::Standard => 0,
                 DepthConvention::Reverse => 1,
             },
+            base_level: dst.level,
+            npot: u32::from(self.mode == NpotMode::PadToPow2),
+            pow2_extent: self.pad_extent,
         })
+    }
+}
+
+/// How level `k` of the whole chain is built when the layout stores levels from `base` on.
+fn rule_of(mode: NpotMode, k: u32, base: u32) -> ReduceRule {
+    match (mode, k) {
+        _ if k == base => ReduceRule::FromDepth,
+        (NpotMode::PadToPow2, 1) => ReduceRule::PadFirst,
+        (NpotMode::PadToPow2, _) => ReduceRule::Halve,
+        _ => ReduceRule::EdgeAware,
     }
 }
 

@@ -1,15 +1,17 @@
 //! GPU hierarchical-Z pyramid build (see docs/CULLING.md for the algorithm it must match):
 //! [`add_hiz_build`] declares it on a frame's graph, [`HizBuilder`] records it.
 //!
-//! The pyramid is one storage buffer of `f32` holding every level packed (level 0 first, each
+//! The pyramid is one storage buffer of `f32` holding every stored level packed (the base first, each
 //! row-major with row 0 at the top); [`HizLayout`] says where each level lives. It is a buffer
 //! and not a mip-mapped image because `NpotMode::PadToPow2`'s level 1 (27x13 -> 16x8) is not a
 //! Vulkan mip size of the depth buffer, and because plain loads and stores make the result
 //! bit-identical to the CPU reference `tilegraph_cull::HizPyramid::build` by construction.
 //!
-//! [`HizBuilder::record`] records level 0 as a copy of the depth image (`texelFetch`, no
+//! [`HizBuilder::record`] records the base level from the depth image (`texelFetch`, no
 //! sampler; D16 values are re-derived as the correctly rounded `k / 65535`, which the UNORM
-//! conversion does not promise); every further level reduces the one before it with pure
+//! conversion does not promise): level 0 as a copy, or level 1 or 2 (knob `hiz_resolution`,
+//! [`HizLayout::with_base_level`]) as the farthest depth of each texel's footprint; every
+//! further level reduces the one before it with pure
 //! min/max (max for `DepthConvention::Standard`, min for `Reverse`), reading the source range
 //! the mode's rule picks ([`ReduceRule`]), up to [`FUSED_LEVELS`] levels per dispatch through
 //! shared memory (`hiz_reduce_levels.comp`; PadToPow2's level 1 has a dispatch of its own). A
@@ -88,18 +90,21 @@ pub struct HizState {
 }
 
 impl HizState {
-    /// The pyramid of a `format` depth buffer of `extent_px`, built with `mode`.
+    /// The pyramid of a `format` depth buffer of `extent_px`, built with `mode`, its finest
+    /// stored level `base_level` (0 full resolution, 1 half, 2 quarter: knob `hiz_resolution`).
     pub fn new(
         ctx: &Context,
         extent_px: (u32, u32),
         mode: NpotMode,
         depth: DepthConvention,
         format: DepthFormat,
+        base_level: u32,
         frames_in_flight: usize,
     ) -> Result<Self, VkError> {
         let per_dispatch = ctx.profile().passes.hiz_levels_per_dispatch as usize;
-        let layout =
-            HizLayout::new(extent_px, mode, depth, format)?.with_levels_per_dispatch(per_dispatch);
+        let layout = HizLayout::new(extent_px, mode, depth, format)?
+            .with_base_level(base_level)
+            .with_levels_per_dispatch(per_dispatch);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let pyramid = ctx.create_buffer(
             "hiz pyramid",
@@ -136,7 +141,7 @@ impl HizState {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PyramidInfo {
     pub levels: u32,
-    /// Level 0's size.
+    /// The depth buffer's size (pixels the level table maps from).
     pub extent_px: (u32, u32),
     /// The convention of the depth it was last built from.
     pub built_from: Option<DepthConvention>,
@@ -160,25 +165,22 @@ impl PassState for HizState {
     }
 }
 
-/// `Levels` of `cull.comp`: per level (offset, width, height, 0) and the pixel -> texel scale.
+/// `Levels` of `cull.comp`: per stored level (offset, width, height, 0) and the depth-pixel ->
+/// texel scale.
 pub fn level_table(layout: &HizLayout) -> Vec<[u32; 4]> {
-    let mut out = Vec::with_capacity(2 * layout.levels.len());
-    let (w0, h0) = layout
+    layout
         .levels
-        .first()
-        .map_or((1, 1), |l| (l.width, l.height));
-    let (p_w, p_h) = layout.levels.get(1).map_or((1, 1), |l| (l.width, l.height));
-    for (k, l) in layout.levels.iter().enumerate() {
-        out.push([l.offset_texels as u32, l.width, l.height, 0]);
-        let scale = match (layout.mode, k) {
-            (_, 0) => [1, 1, 1, 1],
-            (NpotMode::PadToPow2, k) => {
-                let f = 1u32 << (k - 1);
-                [p_w, w0 * f, p_h, h0 * f]
-            }
-            (_, k) => [1, 1 << k, 1, 1 << k],
-        };
-        out.push(scale);
-    }
-    out
+        .iter()
+        .flat_map(|l| {
+            [
+                [l.offset_texels as u32, l.width, l.height, 0],
+                [
+                    l.scale_x.texels,
+                    l.scale_x.pixels,
+                    l.scale_y.texels,
+                    l.scale_y.pixels,
+                ],
+            ]
+        })
+        .collect()
 }

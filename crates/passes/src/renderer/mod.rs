@@ -712,13 +712,22 @@ fn add_states(
             options.hiz_mode,
             depth,
             options.depth_format,
+            options.hiz_base_level,
             frames_in_flight,
         )?;
         res.states.insert(hiz);
     }
     if culling.uses_gpu_lists() {
         let hiz = res.states.get::<HizState>();
-        let c = CullState::new(ctx, culling, instances, set_layout, frames_in_flight, hiz)?;
+        let c = CullState::new(
+            ctx,
+            culling,
+            instances,
+            set_layout,
+            frames_in_flight,
+            hiz,
+            options.cull_bounds,
+        )?;
         let draw_ids = c.draw_ids.raw;
         res.states.insert(c);
         res.scene.add_culled_sets(ctx, draw_ids)?;
