@@ -1,7 +1,8 @@
 //! The HiZ build against its bandwidth limit (docs/BENCHMARKS.md, "HiZ pyramid build"): on the
 //! default device, the GPU time of each dispatch of the build (timestamps, median of RUNS
 //! submissions) for a D32 reverse-Z depth of each size and both NPOT modes, fused (4 levels
-//! per dispatch) and not, the bytes each
+//! per dispatch) and not, and at the coarser base levels of knob `hiz_resolution` (half,
+//! quarter; EdgeAware, fused), the bytes each
 //! dispatch reads and writes, and the device's buffer-copy bandwidth; the ratio is the build's
 //! time over the time its bytes take at copy bandwidth. Validation follows
 //! `TILEGRAPH_VALIDATION` (off in release builds).
@@ -59,15 +60,23 @@ fn run(
     let mut totals = Vec::new();
     for &size in sizes {
         let depth = DepthImage::cleared(ctx, size)?;
-        for (mode, per) in [
-            (NpotMode::EdgeAware, 4),
-            (NpotMode::EdgeAware, 1),
-            (NpotMode::PadToPow2, 4),
-            (NpotMode::PadToPow2, 1),
+        for (mode, per, base) in [
+            // (NPOT mode, levels per dispatch, base level)
+            (NpotMode::EdgeAware, 4, 0usize),
+            (NpotMode::EdgeAware, 1, 0),
+            (NpotMode::PadToPow2, 4, 0),
+            (NpotMode::PadToPow2, 1, 0),
+            (NpotMode::EdgeAware, 4, 1),
+            (NpotMode::EdgeAware, 4, 2),
         ] {
             let layout =
                 HizLayout::new(size, mode, DepthConvention::Reverse, DepthFormat::D32Float)?
+                    .with_base_level(base as u32)
                     .with_levels_per_dispatch(per);
+            let variant = match base {
+                0 => format!("{mode:?}, {per} per dispatch"),
+                b => format!("{mode:?}, {per} per dispatch, from level {b}"),
+            };
             let measured = time_steps(ctx, &mut builder, pool, &depth, &layout, runs);
             let steps = match measured {
                 Ok(s) => s,
@@ -80,15 +89,19 @@ fn run(
             for (i, ms) in steps.iter().enumerate() {
                 let bytes = layout.step_bytes(i).unwrap_or(0);
                 let what = match layout.step(i) {
-                    Some(Ok(HizStep::Single { level: 0, .. })) => "copy (level 0)".to_string(),
-                    Some(Ok(HizStep::Single { level, .. })) => format!("level {level}"),
-                    Some(Ok(HizStep::Fused { first, push })) => {
-                        format!("levels {first}-{}", first + push.levels as usize - 1)
+                    Some(Ok(HizStep::Single { level: 0, .. })) => {
+                        format!("from depth (level {base})")
                     }
+                    Some(Ok(HizStep::Single { level, .. })) => format!("level {}", level + base),
+                    Some(Ok(HizStep::Fused { first, push })) => format!(
+                        "levels {}-{}",
+                        first + base,
+                        first + base + push.levels as usize - 1
+                    ),
                     _ => "?".to_string(),
                 };
                 println!(
-                    "| {}x{} | {mode:?}, {per} per dispatch | {what} | {:.2} | {ms:.4} | {:.0} |",
+                    "| {}x{} | {variant} | {what} | {:.2} | {ms:.4} | {:.0} |",
                     size.0,
                     size.1,
                     bytes as f64 / 1e6,
@@ -98,11 +111,12 @@ fn run(
             let total: f64 = steps.iter().sum();
             let floor = layout.traffic_bytes() as f64 / (copy_gbps * 1e6);
             totals.push(format!(
-                "{}x{} {mode:?}, {per} levels per dispatch: {} dispatches, {:.1} MB, {total:.4} ms; at copy bandwidth {floor:.4} ms; ratio {:.2}",
+                "{}x{} {variant}: {} dispatches, {:.1} MB ({:.1} MB pyramid), {total:.4} ms; at copy bandwidth {floor:.4} ms; ratio {:.2}",
                 size.0,
                 size.1,
                 steps.len(),
                 layout.traffic_bytes() as f64 / 1e6,
+                layout.size_bytes() as f64 / 1e6,
                 total / floor
             ));
         }
