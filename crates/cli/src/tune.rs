@@ -19,7 +19,7 @@ use tilegraph_scene::CameraPath;
 use tilegraph_vk::{Context, ContextOptions};
 
 use crate::bench::matrix::{Labels, Matrix, Setting};
-use crate::bench::results::{write_atomically, Results};
+use crate::bench::results::{write_atomically, Results, RunRecord, TotalsRecord};
 use crate::CliError;
 
 #[derive(clap::Args, Debug, Clone)]
@@ -222,13 +222,16 @@ fn tune_on(
     };
     let lookup = |s: &str| (s == a.scene).then_some(scene);
     let stage1 = base.expand(lookup)?;
-    let mut measure = |settings: &[Setting], results: &mut Results| -> Result<(), CliError> {
+    let measure = |settings: &[Setting],
+                   results: &mut Results,
+                   paths: &mut HashMap<String, CameraPath>|
+     -> Result<(), CliError> {
         let bar = indicatif::ProgressBar::new(settings.len() as u64);
         for s in settings {
             bar.set_message(s.key());
             if !results.is_done(&s.key()) {
                 results.insert(crate::bench::run_or_record_failure(
-                    ctx, scene, s, frames, &mut paths,
+                    ctx, scene, s, frames, paths,
                 )?);
                 results.save(&results_path)?;
             }
@@ -237,7 +240,7 @@ fn tune_on(
         bar.finish_and_clear();
         Ok(())
     };
-    measure(&stage1, &mut results)?;
+    measure(&stage1, &mut results, &mut paths)?;
     let candidates = |settings: &[Setting], results: &Results, labels: &Labels| -> Vec<Candidate> {
         settings
             .iter()
@@ -266,11 +269,23 @@ fn tune_on(
     let labels1 = Labels::new(&stage1);
     let first = select(&candidates(&stage1, &results, &labels1), a.max_fn_rate)
         .map_err(|e| CliError::Usage(format!("tune: {e}")))?;
-    let best1 = stage1
-        .iter()
-        .find(|s| first.first().is_some_and(|c| c.key == s.key()))
-        .cloned()
-        .ok_or_else(|| CliError::Usage("tune: the stage-1 pick was not measured".into()))?;
+    // The held-out path: a setting that meets the constraint on the tuning path but not there
+    // is overfit. Stage 2 starts from the fastest stage-1 setting that holds there, so that it
+    // does not tune shading for a culling that is then thrown out.
+    let mut held_out = HeldOut::new(a.max_fn_rate);
+    let mut best1 = None;
+    for c in &first {
+        let Some(s) = stage1.iter().find(|s| s.key() == c.key) else {
+            continue;
+        };
+        if held_out.check(c, s, |h| {
+            crate::bench::run_one(ctx, scene, h, frames, &mut paths)
+        })? {
+            best1 = Some(s.clone());
+            break;
+        }
+    }
+    let best1 = best1.ok_or_else(|| held_out.nothing_holds())?;
     // Stage 2: shading × draw order (× alpha pre-pass), the culling and its knobs fixed.
     let mut stage2 = Vec::new();
     let mut axes: Vec<(String, Vec<KnobValue>)> = vec![(
@@ -294,72 +309,29 @@ fn tune_on(
             stage2.push(s);
         }
     }
-    measure(&stage2, &mut results)?;
+    measure(&stage2, &mut results, &mut paths)?;
     let all: Vec<Setting> = stage1.iter().chain(&stage2).cloned().collect();
     let labels = Labels::new(&all);
     let ranked = select(&candidates(&all, &results, &labels), a.max_fn_rate)
         .map_err(|e| CliError::Usage(format!("tune: {e}")))?;
-    // The held-out path: the first of the ranked settings that still meets the constraint
-    // there is the pick; faster ones that fail are reported overfit. Which instances a setting
-    // draws depends on its culling and the culling's own knobs, not on shading or draw order:
-    // a setting culled like one that failed is overfit without another run. At most four
-    // distinct cullings are tried.
-    let culled_like = |s: &Setting| {
-        let own: Vec<String> = s
-            .knobs
-            .iter()
-            .filter(|(k, _)| {
-                matches!(
-                    tilegraph_profile::knobs::spec(k).map(|k| k.applies),
-                    Some(tilegraph_profile::knobs::Applies::WithCulling(_))
-                )
-            })
-            .map(|(k, v)| format!("{k}={v}"))
-            .collect();
-        format!("{} {}", s.culling, own.join(","))
-    };
+    // The pick: the first of the ranked settings that still meets the constraint on the
+    // held-out path (those culled like an earlier one are not run again).
     let setting_of = |c: &Candidate| all.iter().find(|s| s.key() == c.key).cloned();
-    let mut overfit: Vec<(Candidate, usize)> = Vec::new();
-    let mut failed: Vec<(String, usize)> = Vec::new();
     let mut chosen = None;
     for c in &ranked {
         let Some(s) = setting_of(c) else { continue };
-        let like = culled_like(&s);
-        if let Some((_, fneg)) = failed.iter().find(|(l, _)| *l == like) {
-            overfit.push((c.clone(), *fneg));
-            continue;
-        }
-        if failed.len() == 4 {
+        if held_out.check(c, &s, |h| {
+            crate::bench::run_one(ctx, scene, h, frames, &mut paths)
+        })? {
+            let totals = held_out.totals_of(&s);
+            chosen = totals.map(|t| (c.clone(), s, t));
             break;
         }
-        let held = Setting {
-            camera_path: Some("held-out".into()),
-            ..s.clone()
-        };
-        let run = crate::bench::run_one(ctx, scene, &held, frames, &mut paths)?;
-        let Some(t) = run.totals else { continue };
-        let holds = match a.max_fn_rate {
-            Some(r) => t.fn_rate <= r,
-            None => t.false_negatives == 0,
-        };
-        if holds {
-            chosen = Some((c.clone(), s, t));
-            break;
-        }
-        failed.push((like, t.false_negatives));
-        overfit.push((c.clone(), t.false_negatives));
     }
     let Some((pick_c, pick, held_totals)) = chosen else {
-        return Err(CliError::Usage(format!(
-            "tune: none of the {} settings meeting the constraint on the tuning path that were tried meets it on the held-out path: {}",
-            overfit.len(),
-            overfit
-                .iter()
-                .map(|(c, fneg)| format!("{} (FN {fneg})", c.label))
-                .collect::<Vec<_>>()
-                .join(", ")
-        )));
+        return Err(held_out.nothing_holds());
     };
+    let overfit = held_out.overfit.clone();
     let pick_c = &pick_c;
     // The pick's spread: two more runs of it (the first is in results.json).
     let mut times = vec![pick_c.frame_gpu_ms];
@@ -428,12 +400,7 @@ fn tune_on(
         pick_c.fp_rate
     );
     // Runners-up: settings that cull like none that failed held out.
-    let held_up = |c: &&Candidate| {
-        setting_of(c).is_some_and(|s| {
-            let like = culled_like(&s);
-            !failed.iter().any(|(l, _)| *l == like)
-        })
-    };
+    let held_up = |c: &&Candidate| setting_of(c).is_some_and(|s| !held_out.failed(&s));
     for c in ranked
         .iter()
         .filter(|c| c.key != pick_c.key)
@@ -487,6 +454,108 @@ fn tune_on(
         dir.display()
     )?;
     Ok(())
+}
+
+/// The held-out check of `tune`: runs a setting on the path it was not tuned on and remembers
+/// the result per way of culling. Which instances a setting draws depends on its culling and
+/// the culling's own knobs, not on shading or draw order, so a setting culled like one already
+/// run takes that run's verdict. At most [`HeldOut::MAX_RUNS`] ways of culling are run.
+struct HeldOut {
+    max_fn_rate: Option<f64>,
+    /// Per way of culling: its held-out totals and whether they meet the constraint.
+    runs: Vec<(String, TotalsRecord, bool)>,
+    /// Settings that met the constraint on the tuning path but not here, with their FN.
+    overfit: Vec<(Candidate, usize)>,
+}
+
+impl HeldOut {
+    const MAX_RUNS: usize = 12;
+
+    fn new(max_fn_rate: Option<f64>) -> Self {
+        HeldOut {
+            max_fn_rate,
+            runs: Vec::new(),
+            overfit: Vec::new(),
+        }
+    }
+
+    fn culled_like(s: &Setting) -> String {
+        let own: Vec<String> = s
+            .knobs
+            .iter()
+            .filter(|(k, _)| {
+                matches!(
+                    tilegraph_profile::knobs::spec(k).map(|k| k.applies),
+                    Some(tilegraph_profile::knobs::Applies::WithCulling(_))
+                )
+            })
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        format!("{} {}", s.culling, own.join(","))
+    }
+
+    /// Whether `s` (ranked as `c`) meets the constraint on the held-out path, running it with
+    /// `run` unless a setting culled like it ran already. `Ok(false)` also once
+    /// [`HeldOut::MAX_RUNS`] ways of culling have run.
+    fn check(
+        &mut self,
+        c: &Candidate,
+        s: &Setting,
+        run: impl FnOnce(&Setting) -> Result<RunRecord, CliError>,
+    ) -> Result<bool, CliError> {
+        let like = Self::culled_like(s);
+        let holds = match self.runs.iter().find(|(l, _, _)| *l == like) {
+            Some((_, _, holds)) => *holds,
+            None if self.runs.len() >= Self::MAX_RUNS => return Ok(false),
+            None => {
+                let held = Setting {
+                    camera_path: Some("held-out".into()),
+                    ..s.clone()
+                };
+                let Some(t) = run(&held)?.totals else {
+                    return Ok(false);
+                };
+                let holds = match self.max_fn_rate {
+                    Some(r) => t.fn_rate <= r,
+                    None => t.false_negatives == 0,
+                };
+                self.runs.push((like.clone(), t, holds));
+                holds
+            }
+        };
+        if !holds && !self.overfit.iter().any(|(o, _)| o.key == c.key) {
+            let fneg = self.totals_of(s).map_or(0, |t| t.false_negatives);
+            self.overfit.push((c.clone(), fneg));
+        }
+        Ok(holds)
+    }
+
+    /// Whether the way `s` culls ran on the held-out path and missed the constraint.
+    fn failed(&self, s: &Setting) -> bool {
+        let like = Self::culled_like(s);
+        self.runs.iter().any(|(l, _, holds)| *l == like && !holds)
+    }
+
+    /// The held-out totals of the way `s` culls, once it ran.
+    fn totals_of(&self, s: &Setting) -> Option<TotalsRecord> {
+        let like = Self::culled_like(s);
+        self.runs
+            .iter()
+            .find(|(l, _, _)| *l == like)
+            .map(|(_, t, _)| t.clone())
+    }
+
+    fn nothing_holds(&self) -> CliError {
+        CliError::Usage(format!(
+            "tune: none of the {} settings meeting the constraint on the tuning path that were tried meets it on the held-out path: {}",
+            self.overfit.len(),
+            self.overfit
+                .iter()
+                .map(|(c, fneg)| format!("{} (FN {fneg})", c.label))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ))
+    }
 }
 
 #[cfg(test)]

@@ -120,6 +120,11 @@ pub struct CheckExtras<'a> {
     pub on_failure: Option<OnFailure<'a>>,
     /// Called after each checked frame with (frames done, frames in all): a progress bar.
     pub on_frame: Option<&'a mut dyn FnMut(usize, usize)>,
+    /// How long to render the path (from its start, again and again) before the timed pass:
+    /// a GPU whose clocks dropped during the checked pass's readbacks brings them back to
+    /// what the workload holds them at, so settings timed one after the other compare alike.
+    /// Zero (the default) times at once.
+    pub timing_warmup: std::time::Duration,
 }
 
 /// Technique knobs of a check.
@@ -190,6 +195,7 @@ pub fn cull_check_options(
         auto,
         mut on_failure,
         mut on_frame,
+        timing_warmup,
     } = extras;
     let culling = tested.culling;
     let size = (tested.width, tested.height);
@@ -239,6 +245,7 @@ pub fn cull_check_options(
         max_frames,
         auto,
         tested_options,
+        timing_warmup,
     };
     let result = run.check(ctx, &mut renderers, &mut on_failure, &mut on_frame);
     let Renderers {
@@ -271,6 +278,7 @@ struct Run<'a> {
     max_frames: Option<usize>,
     auto: Option<AutoTrial>,
     tested_options: RenderOptions,
+    timing_warmup: std::time::Duration,
 }
 
 impl Run<'_> {
@@ -421,6 +429,15 @@ impl Run<'_> {
                 t.frames(),
                 culling.name()
             ));
+        }
+        let warm_until = std::time::Instant::now() + self.timing_warmup;
+        let mut index = 0;
+        while !frames.is_empty() && std::time::Instant::now() < warm_until {
+            let Some(frame) = path.frame(index % frames.len(), aspect) else {
+                break;
+            };
+            tested.render_frame(ctx, scene, &frame)?;
+            index += 1;
         }
         tested.finish(ctx)?;
         tested.clear_timings();
