@@ -113,7 +113,7 @@ pub type OnFailure<'a> = &'a mut dyn FnMut(&FailedFrame<'_>) -> Result<(), Strin
 /// What a check does besides counting.
 #[derive(Default)]
 pub struct CheckExtras<'a> {
-    /// `culling = auto`: the trial to run on the first frames ([`AutoTrial`]).
+    /// `culling = auto`: the trial to run before the check ([`AutoTrial`]).
     pub auto: Option<AutoTrial>,
     /// Called for every frame with false negatives or an unequal image (`cull-check
     /// --save-frames`); an error stops the check.
@@ -180,9 +180,12 @@ pub fn cull_check_with(
 /// The check of `tested` (any shading, culling and knobs) along `path`: the reference is the
 /// same options without culling, the oracle the visibility buffer of everything.
 ///
-/// `auto` (`culling = auto`): the check runs its trial ([`AutoTrial`]) on the first frames —
-/// each candidate checked like any culling — and the fastest for the rest; the timing pass
-/// times what it kept.
+/// `auto` (`culling = auto`): the trial ([`AutoTrial`]) runs first, as an engine runs it — the
+/// tested renderer alone, frames back to back along the path (from its start again where the
+/// path is shorter than the trial), after the timing warm-up — and the check and the timing
+/// pass then run what it kept. (Timed between the oracle's and the reference's frames, the
+/// candidates measured those frames' effects too: on lavapipe a candidate's trial time differed
+/// from its own timed run by up to 20 %.)
 pub fn cull_check_options(
     ctx: &Context,
     scene: &Scene,
@@ -282,6 +285,27 @@ struct Run<'a> {
 }
 
 impl Run<'_> {
+    /// Renders the path's first `count` frames with `tested`, again and again, for
+    /// [`CheckExtras::timing_warmup`].
+    fn warm_up(
+        &self,
+        ctx: &Context,
+        tested: &mut SceneRenderer,
+        count: usize,
+        aspect: f32,
+    ) -> Result<(), RenderError> {
+        let warm_until = std::time::Instant::now() + self.timing_warmup;
+        let mut index = 0;
+        while count > 0 && std::time::Instant::now() < warm_until {
+            let Some(frame) = self.path.frame(index % count, aspect) else {
+                break;
+            };
+            tested.render_frame(ctx, self.scene, &frame)?;
+            index += 1;
+        }
+        Ok(())
+    }
+
     fn check(
         &self,
         ctx: &Context,
@@ -324,6 +348,20 @@ impl Run<'_> {
                 .map_or(0, |m| u64::from(m.triangle_count()))
         };
         let count = max_frames.map_or(path.len(), |m| m.min(path.len()));
+        if let Some(mut t) = trial.take() {
+            self.warm_up(ctx, tested, count, aspect)?;
+            for index in 0..=t.frames() {
+                let Some(frame) = path.frame(index % count.max(1), aspect) else {
+                    break;
+                };
+                tested.render_frame(ctx, scene, &frame)?;
+                if let Some(why) = t.after_render(ctx, scene, tested, &mut tested_options)? {
+                    auto_switch = Some(why);
+                    break;
+                }
+            }
+            culling = tested_options.culling;
+        }
         let mut frames = Vec::with_capacity(count);
         let mut cpu_ms = Vec::with_capacity(count);
         for index in 0..count {
@@ -352,13 +390,6 @@ impl Run<'_> {
                     }
                 }
                 None => drawn.iter_mut().for_each(|d| *d = true),
-            }
-            if let Some(t) = trial.as_mut() {
-                if let Some(why) = t.after_render(ctx, scene, tested, &mut tested_options)? {
-                    auto_switch = Some(why);
-                    trial = None;
-                }
-                culling = tested_options.culling;
             }
             let mut check = FrameCheck {
                 frame: index,
@@ -423,22 +454,7 @@ impl Run<'_> {
         // Times come from a second pass along the path, frames back to back: the checked
         // pass waits for three readbacks between frames, long enough for a GPU to lower its
         // clocks, and its timings measured that (up to 2.8x on an H200 at 1080p).
-        if let Some(t) = &trial {
-            auto_switch = Some(format!(
-                "auto: the path ended before the trial did ({} frames); ran {}",
-                t.frames(),
-                culling.name()
-            ));
-        }
-        let warm_until = std::time::Instant::now() + self.timing_warmup;
-        let mut index = 0;
-        while !frames.is_empty() && std::time::Instant::now() < warm_until {
-            let Some(frame) = path.frame(index % frames.len(), aspect) else {
-                break;
-            };
-            tested.render_frame(ctx, scene, &frame)?;
-            index += 1;
-        }
+        self.warm_up(ctx, tested, frames.len(), aspect)?;
         tested.finish(ctx)?;
         tested.clear_timings();
         for index in 0..frames.len() {
