@@ -100,16 +100,22 @@ fn render_with(
     })?;
     let mut renderer = SceneRenderer::new(ctx, scene, ropts.clone())?;
     let mut trial_reason = None;
-    let result = (|| {
-        // `auto`: time every candidate on this device first, keep the fastest.
-        if let Some(mut trial) = resolved.auto_trial(crate::run::auto_inputs(ctx)) {
-            while trial_reason.is_none() {
-                renderer.render(ctx, scene, &camera)?;
-                trial_reason = trial.after_render(ctx, scene, &mut renderer, &mut ropts)?;
+    // `auto`: time every candidate on this device first, keep the fastest.
+    if let Some(mut trial) = resolved.auto_trial(crate::run::auto_inputs(ctx)) {
+        while trial_reason.is_none() {
+            if let Err(e) = renderer.render(ctx, scene, &camera) {
+                renderer.destroy(ctx);
+                return Err(e.into());
             }
-            renderer.finish(ctx)?;
-            renderer.clear_timings();
+            // On an error the trial has destroyed the renderer.
+            let (next, why) = trial.after_render(ctx, scene, renderer, &mut ropts)?;
+            renderer = next;
+            trial_reason = why;
         }
+    }
+    let result = (|| {
+        renderer.finish(ctx)?;
+        renderer.clear_timings();
         let mut last: Option<FrameReport> = None;
         let mut lint = None;
         renderer.lint_next_frame();

@@ -180,12 +180,12 @@ pub fn cull_check_with(
 /// The check of `tested` (any shading, culling and knobs) along `path`: the reference is the
 /// same options without culling, the oracle the visibility buffer of everything.
 ///
-/// `auto` (`culling = auto`): the trial ([`AutoTrial`]) runs first, as an engine runs it — the
-/// tested renderer alone, frames back to back along the path (from its start again where the
-/// path is shorter than the trial), after the timing warm-up — and the check and the timing
-/// pass then run what it kept. (Timed between the oracle's and the reference's frames, the
-/// candidates measured those frames' effects too: on lavapipe a candidate's trial time differed
-/// from its own timed run by up to 20 %.)
+/// `auto` (`culling = auto`): the trial ([`AutoTrial`]) runs first, as an engine runs it — a
+/// renderer of its own, frames back to back along the path, after the timing warm-up — and the
+/// check and the timing pass then run what it kept in a renderer made like any other check's.
+/// (Timed between the oracle's and the reference's frames, the candidates measured those
+/// frames' effects too: on lavapipe a candidate's trial time differed from its own timed run by
+/// up to 20 %.)
 pub fn cull_check_options(
     ctx: &Context,
     scene: &Scene,
@@ -200,7 +200,6 @@ pub fn cull_check_options(
         mut on_frame,
         timing_warmup,
     } = extras;
-    let culling = tested.culling;
     let size = (tested.width, tested.height);
     let oracle = SceneRenderer::new(
         ctx,
@@ -226,7 +225,29 @@ pub fn cull_check_options(
             return Err(e);
         }
     };
-    let tested_options = tested.clone();
+    let count = max_frames.map_or(path.len(), |m| m.min(path.len()));
+    let aspect = size.0 as f32 / size.1 as f32;
+    let (tested, auto_review) = match auto {
+        Some(trial) => {
+            let timing = Timing {
+                scene,
+                path,
+                count,
+                aspect,
+                warmup: timing_warmup,
+            };
+            match run_trial(ctx, &timing, tested, trial) {
+                Ok((kept, why)) => (kept, Some(why)),
+                Err(e) => {
+                    oracle.destroy(ctx);
+                    reference.destroy(ctx);
+                    return Err(e);
+                }
+            }
+        }
+        None => (tested, None),
+    };
+    let culling = tested.culling;
     let tested = match SceneRenderer::new(ctx, scene, tested) {
         Ok(r) => r,
         Err(e) => {
@@ -246,8 +267,7 @@ pub fn cull_check_options(
         path,
         size,
         max_frames,
-        auto,
-        tested_options,
+        auto_review,
         timing_warmup,
     };
     let result = run.check(ctx, &mut renderers, &mut on_failure, &mut on_frame);
@@ -279,33 +299,85 @@ struct Run<'a> {
     path: &'a CameraPath,
     size: (u32, u32),
     max_frames: Option<usize>,
-    auto: Option<AutoTrial>,
-    tested_options: RenderOptions,
+    /// What `auto`'s trial timed and kept (`None`: the culling was given).
+    auto_review: Option<String>,
     timing_warmup: std::time::Duration,
 }
 
-impl Run<'_> {
-    /// Renders the path's first `count` frames with `tested`, again and again, for
-    /// [`CheckExtras::timing_warmup`].
-    fn warm_up(
-        &self,
-        ctx: &Context,
-        tested: &mut SceneRenderer,
-        count: usize,
-        aspect: f32,
-    ) -> Result<(), RenderError> {
-        let warm_until = std::time::Instant::now() + self.timing_warmup;
+/// What the warm-up and the trial render: the path's first `count` frames, again and again.
+struct Timing<'a> {
+    scene: &'a Scene,
+    path: &'a CameraPath,
+    count: usize,
+    aspect: f32,
+    warmup: std::time::Duration,
+}
+
+impl Timing<'_> {
+    /// Renders with `renderer` for [`CheckExtras::timing_warmup`].
+    fn warm_up(&self, ctx: &Context, renderer: &mut SceneRenderer) -> Result<(), RenderError> {
+        let warm_until = std::time::Instant::now() + self.warmup;
         let mut index = 0;
-        while count > 0 && std::time::Instant::now() < warm_until {
-            let Some(frame) = self.path.frame(index % count, aspect) else {
+        while self.count > 0 && std::time::Instant::now() < warm_until {
+            let Some(frame) = self.path.frame(index % self.count, self.aspect) else {
                 break;
             };
-            tested.render_frame(ctx, self.scene, &frame)?;
+            renderer.render_frame(ctx, self.scene, &frame)?;
             index += 1;
         }
         Ok(())
     }
+}
 
+/// `auto`'s trial, as an engine runs it: a renderer of its own rendering frames back to back
+/// along the path (from its start again where the path is shorter than the trial), after the
+/// warm-up. Returns `options` with the culling it kept and what it timed. Its renderer is gone
+/// before the check makes the one it checks and times, which is then made like any other
+/// check's: a renderer made while another still held its memory timed every pass 3–17 %
+/// slower on an H100 than one of the same options made fresh.
+fn run_trial(
+    ctx: &Context,
+    timing: &Timing<'_>,
+    mut options: RenderOptions,
+    mut trial: AutoTrial,
+) -> Result<(RenderOptions, String), RenderError> {
+    options.culling = trial.current();
+    let mut renderer = SceneRenderer::new(ctx, timing.scene, options.clone())?;
+    if let Err(e) = timing.warm_up(ctx, &mut renderer) {
+        renderer.destroy(ctx);
+        return Err(e);
+    }
+    for index in 0..=trial.frames() {
+        let Some(frame) = timing
+            .path
+            .frame(index % timing.count.max(1), timing.aspect)
+        else {
+            break;
+        };
+        if let Err(e) = renderer.render_frame(ctx, timing.scene, &frame) {
+            renderer.destroy(ctx);
+            return Err(e);
+        }
+        // On an error the trial has destroyed the renderer.
+        let (next, decided) = trial.after_render(ctx, timing.scene, renderer, &mut options)?;
+        renderer = next;
+        if let Some(why) = decided {
+            renderer.destroy(ctx);
+            return Ok((options, why));
+        }
+    }
+    renderer.destroy(ctx);
+    Ok((
+        options,
+        format!(
+            "auto: the trial did not finish in {} frames; ran {}",
+            trial.frames() + 1,
+            trial.current().name()
+        ),
+    ))
+}
+
+impl Run<'_> {
     fn check(
         &self,
         ctx: &Context,
@@ -315,15 +387,13 @@ impl Run<'_> {
     ) -> Result<CullCheck, RenderError> {
         let Run {
             scene,
-            mut culling,
+            culling,
             path,
             size,
             max_frames,
             ..
         } = *self;
-        let mut trial = self.auto.clone();
-        let mut tested_options = self.tested_options.clone();
-        let mut auto_switch = None;
+        let auto_switch = self.auto_review.clone();
         let Renderers {
             oracle,
             reference,
@@ -348,20 +418,6 @@ impl Run<'_> {
                 .map_or(0, |m| u64::from(m.triangle_count()))
         };
         let count = max_frames.map_or(path.len(), |m| m.min(path.len()));
-        if let Some(mut t) = trial.take() {
-            self.warm_up(ctx, tested, count, aspect)?;
-            for index in 0..=t.frames() {
-                let Some(frame) = path.frame(index % count.max(1), aspect) else {
-                    break;
-                };
-                tested.render_frame(ctx, scene, &frame)?;
-                if let Some(why) = t.after_render(ctx, scene, tested, &mut tested_options)? {
-                    auto_switch = Some(why);
-                    break;
-                }
-            }
-            culling = tested_options.culling;
-        }
         let mut frames = Vec::with_capacity(count);
         let mut cpu_ms = Vec::with_capacity(count);
         for index in 0..count {
@@ -454,7 +510,14 @@ impl Run<'_> {
         // Times come from a second pass along the path, frames back to back: the checked
         // pass waits for three readbacks between frames, long enough for a GPU to lower its
         // clocks, and its timings measured that (up to 2.8x on an H200 at 1080p).
-        self.warm_up(ctx, tested, frames.len(), aspect)?;
+        Timing {
+            scene,
+            path,
+            count: frames.len(),
+            aspect,
+            warmup: self.timing_warmup,
+        }
+        .warm_up(ctx, tested)?;
         tested.finish(ctx)?;
         tested.clear_timings();
         for index in 0..frames.len() {
