@@ -15,14 +15,7 @@ use tilegraph_vk::{Feature, FeatureRequest};
 const SIZE: (u32, u32) = (160, 90);
 
 fn features() -> FeatureRequest {
-    FeatureRequest::default().require([
-        Feature::GeometryShader,
-        Feature::DrawIndirectCount,
-        Feature::MultiDrawIndirect,
-        Feature::HostQueryReset,
-        Feature::ConditionalRendering,
-        Feature::FragmentStoresAndAtomics,
-    ])
+    tilegraph_e2e::culling_features()
 }
 
 /// The scene's first `frames` path keys (a moving camera).

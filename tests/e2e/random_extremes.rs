@@ -22,7 +22,6 @@ use tilegraph_passes::cull::{CullBounds, Culling};
 use tilegraph_passes::cullcheck::{cull_check_options, CheckExtras};
 use tilegraph_passes::RenderOptions;
 use tilegraph_scene::{Camera, CameraPath, DepthConvention, PathKey, Projection, Scene};
-use tilegraph_vk::{Feature, FeatureRequest};
 
 /// Where a camera stands relative to instance `instance`'s bounding box.
 #[derive(Debug, Clone, Copy)]
@@ -224,14 +223,7 @@ fn cases() -> u32 {
 
 #[test]
 fn conservative_culling_holds_at_random_extremes() {
-    let features = FeatureRequest::default().require([
-        Feature::GeometryShader,
-        Feature::DrawIndirectCount,
-        Feature::MultiDrawIndirect,
-        Feature::HostQueryReset,
-        Feature::ConditionalRendering,
-        Feature::FragmentStoresAndAtomics,
-    ]);
+    let features = tilegraph_e2e::culling_features();
     let g = gpu_with(None, features).unwrap();
     let city = tilegraph_scene::load(&format!("city:{INSTANCES}")).unwrap();
     let config = Config {

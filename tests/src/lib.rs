@@ -67,6 +67,19 @@ pub fn gpu(profile: Option<&str>) -> Result<Gpu, VkError> {
     ))?))
 }
 
+/// Every device feature the culling techniques use (two-phase HiZ's visibility buffer oracle,
+/// GPU draw counts, occlusion queries, conditional rendering, raster occlusion's flags).
+pub fn culling_features() -> FeatureRequest {
+    FeatureRequest::default().require([
+        tilegraph_vk::Feature::GeometryShader,
+        tilegraph_vk::Feature::DrawIndirectCount,
+        tilegraph_vk::Feature::MultiDrawIndirect,
+        tilegraph_vk::Feature::HostQueryReset,
+        tilegraph_vk::Feature::ConditionalRendering,
+        tilegraph_vk::Feature::FragmentStoresAndAtomics,
+    ])
+}
+
 /// Same as [`gpu`] with extra features.
 pub fn gpu_with(profile: Option<&str>, features: FeatureRequest) -> Result<Gpu, VkError> {
     init_logging();
