@@ -23,6 +23,10 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
     mat4 hiz_view;         // camera-relative position -> view space of the frame the pyramid was built in
     vec4 hiz_proj;         // x, y: NDC per view unit (P00, P11); z: 1 perspective, 0 orthographic, -1 neither (test the box)
     vec4 hiz_depth;        // clip z = x * view z + y, clip w = z * view z + w
+    // Cluster culling only (common/cluster.glsl):
+    uvec4 clusters;        // x: draw id of cluster command 0, y: 1 = back-facing cone test, z: cluster instances
+    uvec4 list_len;        // per list of a phase: its entries
+    uvec4 cmd_base[2];     // per list (0-7): its first cluster command
 } cull;
 
 // A draw group: `len` consecutive entries of list `list` (of a phase) from `position`, all of

@@ -104,3 +104,116 @@ pub fn test_data(relative: &str) -> Option<std::path::PathBuf> {
     p.exists().then_some(p)
 }
 pub mod golden;
+
+/// A scene of closed meshes for cluster and cone culling: rows of UV spheres (1,280 triangles,
+/// about a dozen clusters each) on a ground slab, so that spheres hide spheres and every sphere
+/// shows its back half's clusters facing away. Some spheres are rotated and stretched; with
+/// `exempt`, some are mirrored (a negative scale: the cone test must leave them alone) and every
+/// fifth one is double-sided (no cone test either). The clusters are built and attached.
+pub fn closed_spheres(rows: u32, columns: u32, exempt: bool) -> tilegraph_scene::Scene {
+    use glam::{DVec3, Mat3, Vec3};
+    use tilegraph_scene::{Material, SceneBuilder, Transform, Vertex};
+    let (lat, lon) = (20u32, 32u32);
+    let mut vertices = Vec::new();
+    for i in 0..=lat {
+        let theta = std::f32::consts::PI * i as f32 / lat as f32;
+        for j in 0..=lon {
+            let phi = std::f32::consts::TAU * j as f32 / lon as f32;
+            let n = Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            );
+            vertices.push(Vertex {
+                position: n.to_array(),
+                normal: n.to_array(),
+                uv: [j as f32 / lon as f32, i as f32 / lat as f32],
+            });
+        }
+    }
+    let at = |i: u32, j: u32| i * (lon + 1) + j;
+    let mut indices = Vec::new();
+    let mut push = |a: u32, b: u32, c: u32| {
+        let p = |k: u32| Vec3::from(vertices[k as usize].position);
+        let (pa, pb, pc) = (p(a), p(b), p(c));
+        let normal = (pb - pa).cross(pc - pa);
+        if normal.length_squared() < 1e-12 {
+            return; // the poles' degenerate triangles
+        }
+        // Counter-clockwise seen from outside (glTF's front face).
+        if normal.dot(pa + pb + pc) > 0.0 {
+            indices.extend([a, b, c]);
+        } else {
+            indices.extend([a, c, b]);
+        }
+    };
+    for i in 0..lat {
+        for j in 0..lon {
+            push(at(i, j), at(i + 1, j), at(i + 1, j + 1));
+            push(at(i, j), at(i + 1, j + 1), at(i, j + 1));
+        }
+    }
+    let mut b = SceneBuilder::new(format!("closed spheres {rows}x{columns}"));
+    let one = b.add_material(Material::opaque([0.8, 0.3, 0.2, 1.0]));
+    let mut two = Material::opaque([0.2, 0.6, 0.8, 1.0]);
+    two.double_sided = true;
+    let two = b.add_material(two);
+    let ground_material = b.add_material(Material::opaque([0.4, 0.4, 0.4, 1.0]));
+    let sphere = b
+        .add_mesh(&vertices, &indices, one)
+        .expect("a valid sphere");
+    let sphere_two = b
+        .add_mesh(&vertices, &indices, two)
+        .expect("a valid sphere");
+    let ground = {
+        let c = |x: f32, z: f32| Vertex {
+            position: [x, 0.0, z],
+            normal: [0.0, 1.0, 0.0],
+            uv: [0.0, 0.0],
+        };
+        let v = [c(-1.0, -1.0), c(-1.0, 1.0), c(1.0, 1.0), c(1.0, -1.0)];
+        b.add_mesh(&v, &[0, 1, 2, 0, 2, 3], ground_material)
+            .expect("a valid quad")
+    };
+    let extent = 4.0 * f64::from(rows.max(columns));
+    b.add_instance(
+        Transform::new(
+            Mat3::from_diagonal(Vec3::new(extent as f32, 1.0, extent as f32)),
+            DVec3::new(0.0, -1.0, 0.0),
+        ),
+        ground,
+    )
+    .expect("a valid instance");
+    for r in 0..rows {
+        for c in 0..columns {
+            let k = r * columns + c;
+            let radius = 0.6 + 0.15 * (k % 4) as f32;
+            let linear = match k % 6 {
+                1 => {
+                    Mat3::from_rotation_y(0.7)
+                        * Mat3::from_diagonal(Vec3::new(radius * 1.6, radius, radius))
+                }
+                3 if exempt => Mat3::from_diagonal(Vec3::new(-radius, radius, radius)), // mirrored
+                _ => Mat3::from_diagonal(Vec3::splat(radius)),
+            };
+            let mesh = if exempt && k % 5 == 4 {
+                sphere_two
+            } else {
+                sphere
+            };
+            let position = DVec3::new(
+                (f64::from(c) - f64::from(columns) / 2.0) * 2.5,
+                0.0,
+                (f64::from(r) - f64::from(rows) / 2.0) * 2.5,
+            );
+            b.add_instance(Transform::new(linear, position), mesh)
+                .expect("a valid instance");
+        }
+    }
+    let mut scene = b.build(None).expect("a valid scene");
+    let (clusters, _) = tilegraph_scene::clusters::build(&scene).expect("clusters build");
+    scene
+        .attach_clusters(clusters)
+        .expect("clusters of this scene");
+    scene
+}

@@ -27,7 +27,7 @@ pub fn oracle_features() -> FeatureRequest {
 /// Runs the check on a context of its own.
 pub fn run(a: &RunArgs, save_frames: Option<&Path>) -> Result<(), CliError> {
     let knobs = a.knob_settings(TechniqueMeant::Culling)?;
-    let scene = tilegraph_scene::load(&a.scene)?;
+    let scene = crate::run::load_scene(&a.scene, crate::run::wants_clusters(&knobs))?;
     if let Some(dir) = save_frames {
         std::fs::create_dir_all(dir).map_err(|e| CliError::Write {
             path: dir.to_path_buf(),

@@ -134,6 +134,14 @@ enum Command {
         /// One JSON object instead of a table.
         #[arg(long)]
         json: bool,
+        /// Also build the scene's clusters (meshoptimizer) and report their count, build time
+        /// and memory.
+        #[arg(long)]
+        clusters: bool,
+        /// Write the clusters to FILE (prebuilt data for builds without meshoptimizer, such as
+        /// Android's); implies --clusters.
+        #[arg(long, value_name = "FILE")]
+        write_clusters: Option<std::path::PathBuf>,
     },
 }
 
@@ -202,7 +210,10 @@ fn main() -> ExitCode {
             camera_frame,
         } => run
             .knob_settings(run::TechniqueMeant::Shading)
-            .and_then(|knobs| Ok((knobs, tilegraph_scene::load(&run.scene)?)))
+            .and_then(|knobs| {
+                let clusters = run::wants_clusters(&knobs);
+                Ok((knobs, run::load_scene(&run.scene, clusters)?))
+            })
             .and_then(|(knobs, s)| {
                 render::run(&render::RenderArgs {
                     run: &run,
@@ -213,7 +224,12 @@ fn main() -> ExitCode {
                     out: &out,
                 })
             }),
-        Command::SceneInfo { scene, json } => scene_info(&scene, json),
+        Command::SceneInfo {
+            scene,
+            json,
+            clusters,
+            write_clusters,
+        } => scene_info(&scene, json, clusters, write_clusters.as_deref()),
         Command::Lint { run } => lint::run(&run),
         Command::CullCheck { run, save_frames } => cullcheck::run(&run, save_frames.as_deref()),
         Command::Bench(args) => bench::run(&args),
@@ -273,13 +289,77 @@ pub fn device_caveat(ctx: &tilegraph_vk::Context) -> Option<&'static str> {
     )
 }
 
-fn scene_info(spec: &str, json: bool) -> Result<(), CliError> {
+fn scene_info(
+    spec: &str,
+    json: bool,
+    clusters: bool,
+    write_clusters: Option<&std::path::Path>,
+) -> Result<(), CliError> {
     let scene = tilegraph_scene::load(spec)?;
     let info = scene.info();
+    let clusters = if clusters || write_clusters.is_some() {
+        let (data, stats) = tilegraph_scene::clusters::build(&scene)?;
+        if let Some(path) = write_clusters {
+            data.write(path)?;
+        }
+        Some(ClusterInfo::new(&data, stats))
+    } else {
+        None
+    };
     if json {
-        outln!("{}", serde_json::to_string(&info)?)?;
+        let mut v = serde_json::to_value(&info)?;
+        if let (Some(c), Some(o)) = (&clusters, v.as_object_mut()) {
+            o.insert("clusters".into(), serde_json::to_value(c)?);
+        }
+        outln!("{v}")?;
     } else {
         outln!("{info}")?;
+        if let Some(c) = clusters {
+            outln!(
+                "clusters           {} ({:.1} triangles each, {:.1} % with a back-facing cone), built in {:.1} ms, {:.2} MiB",
+                c.clusters,
+                c.triangles_per_cluster,
+                100.0 * c.cone_fraction,
+                c.build_ms,
+                c.bytes as f64 / (1024.0 * 1024.0)
+            )?;
+        }
     }
     Ok(())
+}
+
+/// What `scene-info --clusters` adds.
+#[derive(serde::Serialize)]
+struct ClusterInfo {
+    clusters: u64,
+    triangles_per_cluster: f64,
+    /// Clusters whose normal cone can reject them (cutoff below 1).
+    cone_fraction: f64,
+    build_ms: f64,
+    /// Cluster records and mesh ranges (the index buffer is reordered, not grown).
+    bytes: u64,
+}
+
+impl ClusterInfo {
+    fn new(
+        data: &tilegraph_scene::clusters::ClusterData,
+        stats: tilegraph_scene::clusters::BuildStats,
+    ) -> Self {
+        let n = data.clusters.len().max(1) as f64;
+        let triangles: u64 = data
+            .clusters
+            .iter()
+            .map(|c| u64::from(c.index_count / 3))
+            .sum();
+        let coned = data.clusters.iter().filter(|c| c.cone_cutoff < 1.0).count();
+        ClusterInfo {
+            clusters: stats.clusters,
+            triangles_per_cluster: triangles as f64 / n,
+            cone_fraction: coned as f64 / n,
+            build_ms: stats.milliseconds,
+            bytes: (data.clusters.len()
+                * std::mem::size_of::<tilegraph_scene::clusters::GpuCluster>()
+                + data.mesh_clusters.len() * 8) as u64,
+        }
+    }
 }

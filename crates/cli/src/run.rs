@@ -137,6 +137,35 @@ impl RunArgs {
     }
 }
 
+/// Whether the culling `knobs` name culls clusters (the scene then needs them).
+pub fn wants_clusters(knobs: &KnobSettings) -> bool {
+    knobs
+        .get("culling")
+        .and_then(|v| Culling::parse(&v.to_string()))
+        .is_some_and(Culling::clusters)
+}
+
+/// Loads the scene `spec`; with `clusters`, attaches its clusters: from the cache
+/// (`tilegraph_scene::clusters::cache_dir`), else built with meshoptimizer and cached.
+pub fn load_scene(spec: &str, clusters: bool) -> Result<Scene, CliError> {
+    let mut scene = tilegraph_scene::load(spec)?;
+    if clusters {
+        let (data, how) = tilegraph_scene::clusters::cached(&scene)?;
+        match how {
+            tilegraph_scene::clusters::Provenance::Cache(path) => {
+                log::info!("{spec}: clusters from {}", path.display())
+            }
+            tilegraph_scene::clusters::Provenance::Built(stats) => log::info!(
+                "{spec}: {} clusters built in {:.1} ms",
+                stats.clusters,
+                stats.milliseconds
+            ),
+        }
+        scene.attach_clusters(data)?;
+    }
+    Ok(scene)
+}
+
 /// Runs `work` on a context made from `options`, then destroys it with validation checked
 /// (objects left alive are reported at teardown); the work's error comes first.
 pub fn on_context<R>(
@@ -184,8 +213,9 @@ pub fn with_every_culling_feature(mut o: ContextOptions) -> ContextOptions {
     o
 }
 
-/// Every culling technique, in the order the docs list them.
-pub const ALL_CULLINGS: [Culling; 7] = Culling::ALL;
+/// The techniques `cull-check`, `bench` and `tune` run when none are named: the
+/// instance-level ones (the cluster techniques, which build the scene's clusters, by name).
+pub const ALL_CULLINGS: [Culling; 7] = Culling::INSTANCE_LEVEL;
 
 /// How long `cull-check`, `bench` and `tune` render the path before they time it
 /// (`CheckExtras::timing_warmup`): long enough for a desktop GPU's clocks to settle after the

@@ -13,6 +13,7 @@ use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+use tilegraph_passes::cull::Culling;
 use tilegraph_profile::knobs::{KnobSettings, KnobValue, KNOBS};
 use tilegraph_profile::{ProfileSet, PROFILE_DIR_ENV};
 use tilegraph_scene::CameraPath;
@@ -143,7 +144,11 @@ pub fn run(a: &TuneArgs) -> Result<(), CliError> {
             "tune: --max-fn-rate {r} is outside 0..=1"
         )));
     }
-    let scene = tilegraph_scene::load(&a.scene)?;
+    let clusters = a
+        .culling
+        .iter()
+        .any(|c| Culling::parse(c).is_some_and(Culling::clusters));
+    let scene = crate::run::load_scene(&a.scene, clusters)?;
     let size = a.size.unwrap_or((320, 180));
     let frames = a.frames.unwrap_or(24);
     let tune_path = match &a.camera_path {

@@ -507,7 +507,7 @@ fn valid_kind(kind: PassKind, k: u8, clear: bool) -> Option<UseKind> {
             _ => UseKind::ConditionalPredicate,
         },
         PassKind::Transfer => {
-            if k % 2 == 0 {
+            if k.is_multiple_of(2) {
                 UseKind::TransferSrc
             } else {
                 UseKind::TransferDst

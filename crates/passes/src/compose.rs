@@ -108,7 +108,7 @@ pub(crate) struct DeclaredScene {
 pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
     let mut c = Composition::import(spec);
     let culling = c.culling();
-    let two_phase = culling == Culling::HizTwoPhase;
+    let two_phase = culling.base() == Culling::HizTwoPhase;
     // GPU culling of the early (or only) phase; raster occlusion culls after its boxes.
     if let (Some(lists), false) = (c.lists, culling == Culling::RasterOcclusion) {
         add_cull(&mut c.g, lists, culling);
@@ -192,6 +192,18 @@ impl<'a> Composition<'a> {
             ] {
                 externals.insert(id, External::Buffer(CullState::handle(buffer)));
             }
+            if let (Some(l), Some(s)) = (lists.clusters, c.clusters.as_ref()) {
+                for (id, buffer) in [
+                    (l.commands, &s.commands),
+                    (l.counts, &s.counts),
+                    (l.flags, &s.flags),
+                    (l.visibility, &s.visibility),
+                    (l.runs, &s.runs),
+                    (l.offsets, &s.offsets),
+                ] {
+                    externals.insert(id, External::Buffer(CullState::handle(buffer)));
+                }
+            }
             if let (Some(id), Some(h)) = (lists.pyramid, hiz) {
                 externals.insert(id, External::Buffer(CullState::handle(&h.pyramid)));
             }
@@ -226,7 +238,7 @@ impl<'a> Composition<'a> {
     /// late dispatch completes) in the unculled order. The visibility buffer draws ids in both
     /// phases instead.
     fn split_depth(&self) -> bool {
-        self.culling() == Culling::HizTwoPhase && self.spec.setup.has_prepass()
+        self.culling().base() == Culling::HizTwoPhase && self.spec.setup.has_prepass()
     }
 
     /// Between two-phase culling's phases: the pyramid of the early phase's depth, and the

@@ -436,6 +436,11 @@ impl Run<'_> {
             let want = reference.read_image(ctx)?;
             tested.render_frame(ctx, scene, &frame)?;
             let got = tested.read_image(ctx)?;
+            // Cluster techniques draw index ranges: their triangles are the colour lists'.
+            let cluster_triangles = match tested.gpu_lists(ctx)? {
+                Some(l) if tested.options().culling.clusters() => Some(l.colour_triangles()),
+                _ => None,
+            };
             let mut drawn = vec![false; n];
             match tested.drawn_instances(ctx)? {
                 Some(list) => {
@@ -490,6 +495,9 @@ impl Run<'_> {
                     (false, true) => check.false_positives += 1,
                     _ => {}
                 }
+            }
+            if let Some(t) = cluster_triangles {
+                check.triangles_drawn = t;
             }
             if let Some(save) = on_failure.as_mut() {
                 if check.false_negatives > 0 || !check.image_equal {

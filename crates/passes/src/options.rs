@@ -33,10 +33,16 @@ pub enum RenderError {
         wanted_by: WantedBy,
         device: String,
     },
-    #[error("culling {culling} does not support the {technique} technique (it needs a depth pre-pass before colour)")]
+    #[error("culling {culling} does not support the {technique} technique ({reason})")]
     UnsupportedCulling {
         culling: &'static str,
         technique: &'static str,
+        reason: &'static str,
+    },
+    #[error("culling {culling} culls clusters, and scene {scene:?} has none attached (build them with tilegraph_scene::clusters::cached or read prebuilt ones, then Scene::attach_clusters)")]
+    NoClusters {
+        culling: &'static str,
+        scene: String,
     },
     #[error("the engine's colour target: {0}")]
     Target(String),
@@ -254,6 +260,21 @@ pub(crate) fn check_device(
         return Err(RenderError::UnsupportedCulling {
             culling: options.culling.name(),
             technique: options.technique.name(),
+            reason: "it needs a depth pre-pass before colour",
+        });
+    }
+    if options.culling.clusters() && scene.clusters().is_none() {
+        return Err(RenderError::NoClusters {
+            culling: options.culling.name(),
+            scene: scene.name().to_string(),
+        });
+    }
+    if options.technique == Technique::Visbuf && options.culling.clusters() {
+        // The ids pass stores gl_PrimitiveID, which a cluster command restarts at its range.
+        return Err(RenderError::UnsupportedCulling {
+            culling: options.culling.name(),
+            technique: options.technique.name(),
+            reason: "its ids hold primitive ids, which restart at each cluster range",
         });
     }
     if let Some((feature, wanted_by)) = options

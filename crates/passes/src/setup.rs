@@ -63,11 +63,33 @@ pub enum Culling {
     /// surviving fragment flags its instance, the culling shader turns flags into indirect
     /// draws. Conservative: no false negatives, the unculled image.
     RasterOcclusion,
+    /// Frustum culling of instances, then of their clusters (box against the frustum,
+    /// back-facing normal cone): one indirect command per run of surviving clusters. Needs the
+    /// scene's clusters (`Scene::attach_clusters`).
+    FrustumClusters,
+    /// Two-phase occlusion culling of instances and of their clusters: last frame's visible
+    /// clusters first, then every cluster of a visible instance against the pyramid of that
+    /// depth. Needs the scene's clusters.
+    HizTwoPhaseClusters,
 }
 
 impl Culling {
     /// Every culling technique, in the order the docs list them.
-    pub const ALL: [Culling; 7] = [
+    pub const ALL: [Culling; 9] = [
+        Culling::None,
+        Culling::Frustum,
+        Culling::Hiz,
+        Culling::HizTwoPhase,
+        Culling::Oq,
+        Culling::OqConditional,
+        Culling::RasterOcclusion,
+        Culling::FrustumClusters,
+        Culling::HizTwoPhaseClusters,
+    ];
+
+    /// The techniques that cull whole instances (every scene can use them; the cluster
+    /// techniques need the scene's clusters).
+    pub const INSTANCE_LEVEL: [Culling; 7] = [
         Culling::None,
         Culling::Frustum,
         Culling::Hiz,
@@ -76,6 +98,21 @@ impl Culling {
         Culling::OqConditional,
         Culling::RasterOcclusion,
     ];
+
+    /// The instance-level technique a cluster technique starts from (itself for the others):
+    /// its passes, phases and buffers are that technique's, plus the cluster stage.
+    pub fn base(self) -> Culling {
+        match self {
+            Culling::FrustumClusters => Culling::Frustum,
+            Culling::HizTwoPhaseClusters => Culling::HizTwoPhase,
+            c => c,
+        }
+    }
+
+    /// Whether the technique culls clusters after instances.
+    pub fn clusters(self) -> bool {
+        self != self.base()
+    }
 
     pub fn parse(s: &str) -> Option<Culling> {
         match s {
@@ -86,6 +123,8 @@ impl Culling {
             "oq" => Some(Culling::Oq),
             "oq-conditional" => Some(Culling::OqConditional),
             "raster-occlusion" => Some(Culling::RasterOcclusion),
+            "frustum-clusters" => Some(Culling::FrustumClusters),
+            "hiz-2phase-clusters" => Some(Culling::HizTwoPhaseClusters),
             _ => None,
         }
     }
@@ -99,6 +138,8 @@ impl Culling {
             Culling::Oq => "oq",
             Culling::OqConditional => "oq-conditional",
             Culling::RasterOcclusion => "raster-occlusion",
+            Culling::FrustumClusters => "frustum-clusters",
+            Culling::HizTwoPhaseClusters => "hiz-2phase-clusters",
         }
     }
 
@@ -106,7 +147,7 @@ impl Culling {
     /// shader's indirect lists (the others select the CPU draw lists).
     pub fn uses_gpu_lists(self) -> bool {
         matches!(
-            self,
+            self.base(),
             Culling::Frustum | Culling::Hiz | Culling::HizTwoPhase | Culling::RasterOcclusion
         )
     }
@@ -124,13 +165,13 @@ impl Culling {
     /// Whether the technique needs a depth pre-pass whatever the profile says.
     pub fn needs_prepass(self) -> bool {
         matches!(
-            self,
+            self.base(),
             Culling::HizTwoPhase | Culling::OqConditional | Culling::RasterOcclusion
         )
     }
 
     pub fn uses_pyramid(self) -> bool {
-        matches!(self, Culling::Hiz | Culling::HizTwoPhase)
+        matches!(self.base(), Culling::Hiz | Culling::HizTwoPhase)
     }
 }
 

@@ -112,6 +112,8 @@ pub const CULLING_NAMES: &[&str] = &[
     "oq",
     "oq-conditional",
     "raster-occlusion",
+    "frustum-clusters",
+    "hiz-2phase-clusters",
 ];
 
 /// Every knob. Order is the order `tilegraph` prints and `tune` sweeps them.
@@ -162,21 +164,27 @@ pub const KNOBS: &[KnobSpec] = &[
         name: "hiz_npot",
         domain: Domain::Choice(&["edge-aware", "pad-to-pow2"]),
         default: DefaultValue::Name("edge-aware"),
-        applies: Applies::WithCulling(&["hiz", "hiz-2phase"]),
+        applies: Applies::WithCulling(&["hiz", "hiz-2phase", "hiz-2phase-clusters"]),
         help: "HiZ pyramid of a non-power-of-two target: edge-aware reduction or a padded pyramid",
     },
     KnobSpec {
         name: "hiz_resolution",
         domain: Domain::Choice(&["full", "half", "quarter"]),
         default: DefaultValue::Name("full"),
-        applies: Applies::WithCulling(&["hiz", "hiz-2phase"]),
+        applies: Applies::WithCulling(&["hiz", "hiz-2phase", "hiz-2phase-clusters"]),
         help: "finest HiZ level at the depth's full, half or quarter resolution: 1/4 or 1/16 of level 0's memory and build writes, small objects tested against coarser texels (more drawn)",
     },
     KnobSpec {
         name: "cull_bounds",
         domain: Domain::Choice(&["aabb", "sphere"]),
         default: DefaultValue::Name("aabb"),
-        applies: Applies::WithCulling(&["frustum", "hiz", "hiz-2phase"]),
+        applies: Applies::WithCulling(&[
+            "frustum",
+            "hiz",
+            "hiz-2phase",
+            "frustum-clusters",
+            "hiz-2phase-clusters",
+        ]),
         help: "what GPU culling tests: the world AABB (8 projected corners) or the bounding sphere (fewer instructions; looser for boxes, tighter for rotated thin objects)",
     },
     KnobSpec {

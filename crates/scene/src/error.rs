@@ -137,6 +137,10 @@ pub enum SceneError {
         field: String,
         reason: String,
     },
+
+    /// Cluster data that does not fit its scene, or a cluster file that does not parse.
+    #[error("clusters of {what}: {reason}")]
+    Clusters { what: String, reason: String },
 }
 
 impl SceneError {
@@ -160,7 +164,8 @@ impl SceneError {
             SceneError::Io { .. }
             | SceneError::EmptyScene { .. }
             | SceneError::BadSpec { .. }
-            | SceneError::CameraPath { .. } => None,
+            | SceneError::CameraPath { .. }
+            | SceneError::Clusters { .. } => None,
         }
     }
 
@@ -183,6 +188,7 @@ impl SceneError {
             SceneError::EmptyScene { .. } => "empty-scene",
             SceneError::BadSpec { .. } => "bad-spec",
             SceneError::CameraPath { .. } => "camera-path",
+            SceneError::Clusters { .. } => "clusters",
         }
     }
 }

@@ -34,6 +34,7 @@
 
 mod bounds;
 mod camera;
+pub mod clusters;
 mod error;
 pub mod export;
 mod gltf_load;

@@ -64,11 +64,11 @@ fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
     doc["buffers"][0].as_object_mut().unwrap().remove("uri");
     let json = doc.to_string();
     let mut json = json.into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let mut bin = bin.to_vec();
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();

@@ -12,7 +12,7 @@ pub fn spirv_words(name: &str, bytes: &[u8]) -> Result<Vec<u32>, VkError> {
         name: name.to_string(),
         reason: reason.to_string(),
     };
-    if bytes.len() % 4 != 0 || bytes.len() < 20 {
+    if !bytes.len().is_multiple_of(4) || bytes.len() < 20 {
         return Err(bad(
             "length is not a multiple of 4 or shorter than a header",
         ));

@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
+use tilegraph_passes::cull::Culling;
 use tilegraph_passes::cullcheck::cull_check_options;
 use tilegraph_passes::RenderOptions;
 use tilegraph_profile::knobs::{KnobSettings, KnobValue};
@@ -150,9 +151,14 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
 
 pub(crate) fn load_scenes(matrix: &Matrix) -> Result<HashMap<String, Scene>, CliError> {
     let mut scenes = HashMap::new();
+    // Clusters change the index order: every technique of the sweep draws the same one.
+    let clusters = matrix
+        .culling
+        .iter()
+        .any(|c| Culling::parse(c).is_some_and(Culling::clusters));
     for spec in &matrix.scenes {
         if !scenes.contains_key(spec) {
-            scenes.insert(spec.clone(), tilegraph_scene::load(spec)?);
+            scenes.insert(spec.clone(), crate::run::load_scene(spec, clusters)?);
         }
     }
     Ok(scenes)

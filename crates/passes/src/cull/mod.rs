@@ -35,6 +35,7 @@ pub use crate::setup::Culling;
 use crate::frame::{scene_set, DrawSource, FrameGraph, Payload};
 use crate::hiz::HizState;
 
+pub mod clusters;
 mod layout;
 mod state;
 
@@ -56,14 +57,35 @@ pub struct CullLists {
     /// Per draw group and phase: how many instances survived (→ `cull_commands.comp`).
     pub survivors: BufferId,
     pub pyramid: Option<BufferId>,
+    /// The cluster stage's buffers (cluster techniques).
+    pub clusters: Option<ClusterLists>,
+}
+
+/// The cluster stage's buffers in one frame's graph.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClusterLists {
+    pub commands: BufferId,
+    pub counts: BufferId,
+    pub flags: BufferId,
+    /// Per cluster instance: visible last frame (kept from frame to frame).
+    pub visibility: BufferId,
+    pub runs: BufferId,
+    pub offsets: BufferId,
+    /// A fixed draw count draws every list's whole capacity: the commands past this frame's
+    /// count must be empty, so each emit is preceded by a clear.
+    pub clear: bool,
 }
 
 impl CullLists {
-    /// The draws of culling phase `phase` (0: early or only, 1: late).
+    /// The draws of culling phase `phase` (0: early or only, 1: late): the cluster commands
+    /// where the technique culls clusters.
     pub fn source(self, phase: u32) -> DrawSource {
+        let (commands, counts) = self
+            .clusters
+            .map_or((self.commands, self.counts), |c| (c.commands, c.counts));
         DrawSource::Gpu {
-            commands: self.commands,
-            counts: self.counts,
+            commands,
+            counts,
             draw_ids: self.draw_ids,
             phase,
         }
@@ -95,6 +117,21 @@ pub fn import_cull_buffers(
     let entries = g.import_buffer("cull-entries", state.entries.size, discard);
     let survivors = g.import_buffer("cull-survivors", state.survivors.size, discard);
     let pyramid = hiz.map(|h| g.import_buffer("hiz-pyramid", h.pyramid.size, keep));
+    let clusters = state.clusters.as_ref().map(|c| {
+        let lists = ClusterLists {
+            commands: g.import_buffer("cluster-commands", c.commands.size, discard),
+            counts: g.import_buffer("cluster-counts", c.counts.size, discard),
+            flags: g.import_buffer("cluster-flags", c.flags.size, discard),
+            visibility: g.import_buffer("cluster-visibility", c.visibility.size, keep),
+            runs: g.import_buffer("cluster-runs", c.runs.size, discard),
+            offsets: g.import_buffer("cluster-offsets", c.offsets.size, discard),
+            clear: matches!(state.draw_count, DrawCount::Fixed { .. }),
+        };
+        g.export(lists.visibility);
+        g.export(lists.commands);
+        g.export(lists.counts);
+        lists
+    });
     // What the next frame reads survives this one.
     g.export(visibility);
     if let Some(p) = pyramid {
@@ -112,6 +149,7 @@ pub fn import_cull_buffers(
         entries,
         survivors,
         pyramid,
+        clusters,
     }
 }
 
@@ -124,6 +162,8 @@ enum Step {
     Compact,
     /// `cull_commands.comp`: one workgroup per list writes its commands and count.
     Commands,
+    /// The cluster stage's dispatches (cluster techniques).
+    Cluster(clusters::ClusterStep),
 }
 
 /// Declares the culling of the early (or only) phase of `culling`: the dispatches that write the
@@ -131,7 +171,7 @@ enum Step {
 /// last frame's pyramid); two-phase culling's early phase draws last frame's visible set;
 /// raster occlusion turns the flags its boxes wrote into lists.
 pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
-    let two_phase = culling == Culling::HizTwoPhase;
+    let two_phase = culling.base() == Culling::HizTwoPhase;
     let name = if two_phase { "cull-early" } else { "cull" };
     let mut c = g.compute_pass(name, PassClass::Compute, dispatch(0, Step::Mark));
     c.storage_write(lists.entries);
@@ -150,9 +190,71 @@ pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
         ("cull-compact", "cull-commands")
     };
     add_compaction(g, lists, 0, [compact, commands]);
+    add_cluster_stage(g, lists, 0);
     if !two_phase {
         add_cull_stats(g, lists);
     }
+}
+
+/// The cluster stage of phase `which` (0 early or only, 1 late), after the phase's instance
+/// culling: cluster flags and runs, their places, then the commands (docs/CULLING.md).
+fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
+    let Some(c) = lists.clusters else {
+        return;
+    };
+    let names = if which == 0 {
+        [
+            "cluster-cull",
+            "cluster-scan",
+            "cluster-clear",
+            "cluster-emit",
+        ]
+    } else {
+        [
+            "cluster-cull-late",
+            "cluster-scan-late",
+            "cluster-clear-late",
+            "cluster-emit-late",
+        ]
+    };
+    let mut cull = g.compute_pass(
+        names[0],
+        PassClass::Compute,
+        dispatch(which, Step::Cluster(clusters::ClusterStep::Cull)),
+    );
+    cull.storage_read(lists.entries)
+        .storage_read(lists.visibility)
+        .storage_read_write(c.flags)
+        .storage_read_write(c.runs)
+        .storage_read_write(c.visibility);
+    // The shader reads the pyramid in the late phase only, but binds it in both.
+    if let Some(p) = lists.pyramid {
+        cull.storage_read(p);
+    }
+    g.compute_pass(
+        names[1],
+        PassClass::Compute,
+        dispatch(which, Step::Cluster(clusters::ClusterStep::Scan)),
+    )
+    .storage_read(c.runs)
+    .storage_write(c.offsets)
+    .storage_write(c.counts);
+    if c.clear {
+        let commands = c.commands;
+        let clear: Payload = Box::new(move |pc, _| zero_fill(pc, commands));
+        g.transfer_pass(names[2], PassClass::Transfer, clear)
+            .transfer_dst(c.commands);
+    }
+    g.compute_pass(
+        names[3],
+        PassClass::Compute,
+        dispatch(which, Step::Cluster(clusters::ClusterStep::Emit)),
+    )
+    .storage_read(c.runs)
+    .storage_read(c.offsets)
+    .storage_read(c.flags)
+    .storage_read_write(c.commands)
+    .storage_write(lists.draw_ids);
 }
 
 /// Declares the copy of the frame's draw and instance counts to the slot's host-visible
@@ -197,6 +299,7 @@ pub fn add_cull_late(g: &mut FrameGraph, lists: CullLists) {
         c.storage_read(p);
     }
     add_compaction(g, lists, 1, ["cull-late-compact", "cull-late-commands"]);
+    add_cluster_stage(g, lists, 1);
     add_cull_stats(g, lists);
 }
 
@@ -255,6 +358,12 @@ pub struct CullParams {
     pub hiz_proj: [f32; 4],
     /// Sphere bounds: clip z = x * view z + y, clip w = z * view z + w.
     pub hiz_depth: [f32; 4],
+    /// Cluster culling: x draw id of cluster command 0, y 1 = cone test, z cluster instances.
+    pub clusters: [u32; 4],
+    /// Cluster culling: per list of a phase, its entries.
+    pub list_len: [u32; 4],
+    /// Cluster culling: per list 0-7, its first command.
+    pub cmd_base: [[u32; 4]; 2],
 }
 
 /// The bounding volume culling tests an instance by (knob `cull_bounds`). Both are conservative

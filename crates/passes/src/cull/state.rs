@@ -12,6 +12,7 @@ use tilegraph_vk::pipeline::{
 };
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
 
+use super::clusters::{ClusterStage, Shared};
 use super::{
     gpu_planes, sphere_projection, CullBounds, CullParams, Culling, DrawCount, GpuLayout, Phase,
     Step, LISTS_PER_PHASE, LIST_COUNT,
@@ -38,6 +39,19 @@ pub struct GpuLists {
     /// Per instance, its entry in the unculled order of the last frame written
     /// ([`GpuLayout::order`]).
     pub order: Vec<u32>,
+}
+
+impl GpuLists {
+    /// Triangles the colour pass draws: the early-or-only phase's lists (after a late phase,
+    /// the union of both).
+    pub fn colour_triangles(&self) -> u64 {
+        self.lists
+            .iter()
+            .take(LISTS_PER_PHASE as usize)
+            .flatten()
+            .map(|d| u64::from(d.index_count / 3) * d.instances.len() as u64)
+            .sum()
+    }
 }
 
 /// What a frame's GPU culling drew, read back without waiting once its slot completed.
@@ -98,6 +112,8 @@ pub struct CullState {
     pool: vk::DescriptorPool,
     /// Two per slot: the early (or only) and the late phase.
     sets: Vec<vk::DescriptorSet>,
+    /// The cluster stage of the cluster techniques.
+    pub clusters: Option<ClusterStage>,
 }
 
 const CULL_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cull.comp.spv");
@@ -127,18 +143,34 @@ impl CullState {
         [Feature::DrawIndirectCount, Feature::MultiDrawIndirect]
     }
 
-    /// The buffers, pipelines and descriptor sets of `culling` for `instance_count` instances;
-    /// `hiz`: the pyramid the HiZ techniques test against (bound for the shader).
+    /// The buffers, pipelines and descriptor sets of `culling` for `scene`'s instances;
+    /// `hiz`: the pyramid the HiZ techniques test against (bound for the shader). A cluster
+    /// technique needs the scene's clusters attached.
     pub fn new(
         ctx: &Context,
         culling: Culling,
-        instance_count: u32,
+        scene: &tilegraph_scene::Scene,
         scene_set_layout: vk::DescriptorSetLayout,
         frames_in_flight: usize,
         hiz: Option<&HizState>,
         bounds: CullBounds,
     ) -> Result<Self, VkError> {
+        let instance_count = scene.instances().len() as u32;
         let n = u64::from(instance_count.max(1));
+        // The cluster commands' draw ids follow the instance lists'.
+        let cluster_commands = if culling.clusters() {
+            let layout =
+                super::clusters::ClusterLayout::of(scene).ok_or_else(|| VkError::Invalid {
+                    what: format!("culling {}", culling.name()),
+                    reason: format!(
+                        "scene {} has no clusters (attach them: tilegraph_scene::clusters)",
+                        scene.name()
+                    ),
+                })?;
+            u64::from(layout.commands())
+        } else {
+            0
+        };
         let lists = u64::from(LIST_COUNT);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let indirect = vk::BufferUsageFlags::INDIRECT_BUFFER;
@@ -148,7 +180,11 @@ impl CullState {
             ("cull commands", n * lists * 20, storage | indirect | src),
             // Draw count, then instances drawn, per list.
             ("cull counts", 2 * lists * 4, storage | indirect | src),
-            ("cull draw ids", n * lists * 4, storage | src),
+            (
+                "cull draw ids",
+                (n * lists + cluster_commands) * 4,
+                storage | src,
+            ),
             ("visibility", n * 4, storage | dst),
             ("cull entries", n * lists * 4, storage),
             // At most one group per instance and phase.
@@ -201,6 +237,7 @@ impl CullState {
             pipelines: [vk::Pipeline::null(); 3],
             pool: vk::DescriptorPool::null(),
             sets: Vec::new(),
+            clusters: None,
         };
         // A new renderer's visibility starts empty, not as whatever the memory held (another
         // renderer's last frame, say): two-phase culling's first early phase draws nothing and
@@ -208,6 +245,26 @@ impl CullState {
         // so that no frame's declaration differs.
         let zeroed = state
             .init(ctx, scene_set_layout, frames_in_flight, hiz)
+            .and_then(|()| {
+                if !culling.clusters() {
+                    return Ok(());
+                }
+                let shared = Shared {
+                    slots: state
+                        .slots
+                        .iter()
+                        .map(|s| ([s.params[0].raw, s.params[1].raw], s.order.raw))
+                        .collect(),
+                    draw_ids: state.draw_ids.raw,
+                    visibility: state.visibility.raw,
+                    entries: state.entries.raw,
+                    pyramid: hiz.map_or(state.no_pyramid.raw, |h| h.pyramid.raw),
+                    levels: hiz.map_or(state.no_pyramid.raw, |h| h.levels.raw),
+                    scene,
+                };
+                state.clusters = ClusterStage::new(ctx, &shared, instance_count, scene_set_layout)?;
+                Ok(())
+            })
             .and_then(|()| {
                 let visibility = state.visibility.raw;
                 ctx.submit_and_wait(|cb| {
@@ -358,6 +415,26 @@ impl CullState {
         let total = layout.groups.len() as u32;
         let keep_empty = u32::from(matches!(self.draw_count, DrawCount::Fixed { .. }));
         let spheres = u32::from(self.bounds == CullBounds::Sphere);
+        // Cluster culling: where its commands and draw ids go, entries per list, and the cone
+        // test (perspective views only: an orthographic view's direction is not modelled).
+        let (cluster_info, list_len, cmd_base) = match &self.clusters {
+            Some(c) => {
+                let mut len = [0u32; 4];
+                for g in &layout.groups {
+                    if let Some(l) = len.get_mut(g[3] as usize % 4) {
+                        *l += g[1];
+                    }
+                }
+                let cone = u32::from(sphere_projection(m.projection).0[2] == 1.0);
+                let b = c.layout.cmd_base;
+                (
+                    [n.max(1) * LIST_COUNT, cone, c.layout.total, 0],
+                    len,
+                    [[b[0], b[1], b[2], b[3]], [b[4], b[5], b[6], b[7]]],
+                )
+            }
+            None => ([0; 4], [0; 4], [[0; 4]; 2]),
+        };
         // The pyramid's frame as the sphere test sees it: last frame's view (moved to the
         // current eye, as `reproject` is) for single-phase HiZ, this frame's for the late phase.
         let previous_view = frame.previous.view
@@ -380,9 +457,12 @@ impl CullState {
                 hiz_view: view.to_cols_array_2d(),
                 hiz_proj,
                 hiz_depth,
+                clusters: cluster_info,
+                list_len,
+                cmd_base,
             }
         };
-        let first = match self.culling {
+        let first = match self.culling.base() {
             Culling::Hiz => params(
                 Phase::HizPrevious,
                 frame.reproject,
@@ -442,6 +522,15 @@ impl CullState {
             Step::Mark => (self.pipelines[0], self.instance_count.div_ceil(64)),
             Step::Compact => (self.pipelines[1], phases * inputs.group_total),
             Step::Commands => (self.pipelines[2], phases * LISTS_PER_PHASE),
+            Step::Cluster(step) => {
+                let Some(c) = &self.clusters else {
+                    return Err(VkError::Invalid {
+                        what: "cluster culling".into(),
+                        reason: "the culling state has no cluster stage".into(),
+                    });
+                };
+                return c.record_dispatch(ctx, cb, scene_set, slot, which, step);
+            }
         };
         if groups == 0 {
             return Ok(());
@@ -482,7 +571,24 @@ impl CullState {
             return Ok(());
         }
         let stride = u64::from(self.instance_count.max(1));
-        let offset = u64::from(list) * stride * 20;
+        let (commands, counts, offset, groups) = match &self.clusters {
+            // Cluster lists: the list's commands from its base, up to its capacity.
+            Some(c) => {
+                let local = (list % LISTS_PER_PHASE) as usize;
+                let capacity = c.layout.capacity.get(local).copied().unwrap_or(0);
+                let base = c.layout.cmd_base.get(list as usize).copied().unwrap_or(0);
+                if capacity == 0 {
+                    return Ok(());
+                }
+                (&c.commands, &c.counts, u64::from(base) * 20, capacity)
+            }
+            None => (
+                &self.commands,
+                &self.counts,
+                u64::from(list) * stride * 20,
+                groups,
+            ),
+        };
         let d = &ctx.device;
         // SAFETY (all three): inside a render pass with a pipeline, vertex/index buffers and
         // sets bound; list `list` holds `stride` >= `groups` commands of 20 bytes from `offset`,
@@ -491,21 +597,21 @@ impl CullState {
             DrawCount::Gpu => unsafe {
                 d.cmd_draw_indexed_indirect_count(
                     cb,
-                    self.commands.raw,
+                    commands.raw,
                     offset,
-                    self.counts.raw,
+                    counts.raw,
                     u64::from(list) * 4,
                     groups,
                     20,
                 );
             },
             DrawCount::Fixed { multi_draw: true } => unsafe {
-                d.cmd_draw_indexed_indirect(cb, self.commands.raw, offset, groups, 20);
+                d.cmd_draw_indexed_indirect(cb, commands.raw, offset, groups, 20);
             },
             DrawCount::Fixed { multi_draw: false } => {
                 for k in 0..u64::from(groups) {
                     unsafe {
-                        d.cmd_draw_indexed_indirect(cb, self.commands.raw, offset + 20 * k, 1, 20)
+                        d.cmd_draw_indexed_indirect(cb, commands.raw, offset + 20 * k, 1, 20)
                     };
                 }
             }
@@ -592,21 +698,35 @@ impl CullState {
 
     /// The last frame's lists as the GPU left them (reads the counts, commands and draw ids
     /// back; waits).
+    /// With cluster culling, the cluster commands: each draws one instance's index range.
     pub fn read_lists(&self, ctx: &Context) -> Result<GpuLists, VkError> {
-        let counts = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.counts))?;
-        let commands = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.commands))?;
+        let (counts, commands) = match &self.clusters {
+            Some(c) => (&c.counts, &c.commands),
+            None => (&self.counts, &self.commands),
+        };
+        let counts = tilegraph_vk::readback::read_buffer(ctx, Self::handle(counts))?;
+        let commands = tilegraph_vk::readback::read_buffer(ctx, Self::handle(commands))?;
         let ids = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.draw_ids))?;
         let word = |b: &[u8], i: usize| {
             b.get(4 * i..4 * i + 4)
                 .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
         };
         let stride = self.instance_count.max(1) as usize;
+        // Per list: where its commands start and how many it can hold.
+        let place = |list: usize| match &self.clusters {
+            Some(c) => (
+                c.layout.cmd_base.get(list).copied().unwrap_or(0) as usize,
+                c.layout.capacity.get(list % 4).copied().unwrap_or(0) as usize,
+            ),
+            None => (list * stride, stride),
+        };
         let lists = (0..LIST_COUNT as usize)
             .map(|list| {
-                let n = (word(&counts, list) as usize).min(stride);
+                let (base, capacity) = place(list);
+                let n = (word(&counts, list) as usize).min(capacity);
                 (0..n)
                     .map(|k| {
-                        let at = list * stride + k;
+                        let at = base + k;
                         let (count, first) =
                             (word(&commands, 5 * at + 1), word(&commands, 5 * at + 4));
                         IndirectDraw {
@@ -642,6 +762,9 @@ impl CullState {
     }
 
     fn destroy_all(self, ctx: &Context) {
+        if let Some(c) = self.clusters {
+            c.destroy(ctx);
+        }
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
             for p in self.pipelines {

@@ -722,7 +722,7 @@ fn add_states(
         let c = CullState::new(
             ctx,
             culling,
-            instances,
+            scene,
             set_layout,
             frames_in_flight,
             hiz,

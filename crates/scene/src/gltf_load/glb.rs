@@ -91,7 +91,7 @@ pub(crate) fn parse<'a>(bytes: &'a [u8], file: &str) -> Result<Glb<'a>, SceneErr
             return Err(err(offset, "unexpected end of chunk header".into()));
         };
         let len = len as usize;
-        if len % 4 != 0 {
+        if !len.is_multiple_of(4) {
             return Err(err(
                 offset,
                 format!("chunk length {len} is not a multiple of 4"),

@@ -8,6 +8,7 @@ use serde::Serialize;
 
 use crate::bounds::{transformed_bounds, Aabb, DAabb};
 use crate::camera::CameraPath;
+use crate::clusters::{ClusterData, Clusters};
 use crate::error::SceneError;
 
 mod elements;
@@ -63,6 +64,8 @@ pub struct Scene {
     bounds: DAabb,
     gltf_counts: Option<GltfCounts>,
     camera_path: CameraPath,
+    /// Attached clusters (the index buffer is then in cluster order).
+    clusters: Option<Clusters>,
 }
 
 impl Scene {
@@ -113,6 +116,30 @@ impl Scene {
     }
     pub fn set_camera_path(&mut self, path: CameraPath) {
         self.camera_path = path;
+    }
+
+    /// The clusters, once attached ([`Scene::attach_clusters`]).
+    pub fn clusters(&self) -> Option<&Clusters> {
+        self.clusters.as_ref()
+    }
+
+    /// Attaches clusters built from this scene's geometry: checks them (same geometry
+    /// fingerprint, each mesh's index range tiled in order), then takes their index buffer,
+    /// which holds the same triangles in cluster order.
+    pub fn attach_clusters(&mut self, data: ClusterData) -> Result<(), SceneError> {
+        if data.fingerprint != self.geometry_fingerprint() {
+            return Err(SceneError::Clusters {
+                what: self.name.clone(),
+                reason: "built from other geometry (fingerprint differs)".into(),
+            });
+        }
+        crate::clusters::validate(self, &data)?;
+        self.indices = data.indices;
+        self.clusters = Some(Clusters {
+            clusters: data.clusters,
+            mesh_clusters: data.mesh_clusters,
+        });
+        Ok(())
     }
 
     /// Triangles drawn when every instance is drawn once.
@@ -432,7 +459,7 @@ impl SceneBuilder {
         if material.index() >= self.materials.len() {
             return Err(self.error(pointer, format!("material {} does not exist", material.0)));
         }
-        if indices.len() % 3 != 0 || indices.is_empty() {
+        if !indices.len().is_multiple_of(3) || indices.is_empty() {
             return Err(self.error(
                 pointer,
                 format!("{} indices is not a positive multiple of 3", indices.len()),
@@ -647,6 +674,7 @@ impl SceneBuilder {
             bounds,
             gltf_counts: self.gltf_counts,
             camera_path,
+            clusters: None,
         })
     }
 }

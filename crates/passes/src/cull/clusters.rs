@@ -1,0 +1,404 @@
+//! Cluster culling (techniques `frustum-clusters`, `hiz-2phase-clusters`): a second stage after
+//! each phase's instance culling that tests the clusters of every drawn instance — box against
+//! the frustum, back-facing normal cone, and in the late phase the pyramid — and writes one
+//! indexed indirect command per run of consecutive surviving clusters, in the unculled order.
+//!
+//! Three dispatches per phase (shaders `cluster_cull.comp`, `cluster_scan.comp`,
+//! `cluster_emit.comp`): flags and runs per instance, the runs placed per list (a prefix sum in
+//! entry order), then the commands. The scene's index buffer is in cluster order
+//! (`tilegraph_scene::Scene::attach_clusters`), so a run is one index range and the frame draws
+//! the surviving triangles in the unculled order: images stay bit-equal.
+
+use ash::vk;
+use tilegraph_profile::MemoryUse;
+use tilegraph_scene::{MaterialClass, Scene};
+use tilegraph_vk::ash;
+use tilegraph_vk::pipeline::{
+    allocate_set, create_compute_pipeline, create_pipeline_layout, create_set_layout,
+    write_buffer_set, Stage,
+};
+use tilegraph_vk::{Buffer, Context, VkError};
+
+use super::{list_index, LISTS_PER_PHASE, LIST_COUNT};
+use crate::gpu_scene::upload;
+
+const CULL_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_cull.comp.spv");
+const SCAN_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_scan.comp.spv");
+const EMIT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_emit.comp.spv");
+
+/// The cluster set's storage buffers: bindings 1-15 (common/cluster.glsl).
+const STORAGE_BINDINGS: u32 = 15;
+
+/// Where each instance's clusters sit and how many commands each list can hold.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ClusterLayout {
+    /// Per instance: its first cluster instance.
+    pub base: Vec<u32>,
+    /// Cluster instances of the scene (blended ones included: they keep their place).
+    pub total: u32,
+    /// Per list of a phase: the cluster instances of its instances (its most commands).
+    pub capacity: [u32; 4],
+    /// Per list 0-7: its first command.
+    pub cmd_base: [u32; 8],
+}
+
+impl ClusterLayout {
+    /// The layout of `scene`'s clusters, or `None` when it has none attached.
+    pub fn of(scene: &Scene) -> Option<Self> {
+        let clusters = scene.clusters()?;
+        let mut base = Vec::with_capacity(scene.instances().len());
+        let mut total = 0u32;
+        let mut capacity = [0u32; 4];
+        for inst in scene.instances() {
+            base.push(total);
+            let count = clusters.of_mesh(inst.mesh.0).len() as u32;
+            total += count;
+            let material = scene.instance_material(inst);
+            let class = match material.map(|m| m.class) {
+                Some(MaterialClass::Blended) => continue,
+                Some(MaterialClass::AlphaTested { .. }) => 1,
+                Some(MaterialClass::Opaque) | None => 0,
+            };
+            let sided = material.is_some_and(|m| m.double_sided);
+            if let Some(c) = capacity.get_mut(list_index(class, sided, 0) as usize) {
+                *c += count;
+            }
+        }
+        let mut cmd_base = [0u32; 8];
+        let mut at = 0;
+        for (list, b) in cmd_base.iter_mut().enumerate() {
+            *b = at;
+            at += capacity[list % LISTS_PER_PHASE as usize];
+        }
+        Some(ClusterLayout {
+            base,
+            total,
+            capacity,
+            cmd_base,
+        })
+    }
+
+    /// Commands of both phases' lists.
+    pub fn commands(&self) -> u32 {
+        2 * self.capacity.iter().sum::<u32>()
+    }
+}
+
+/// The buffers the cluster stage binds that the instance culling owns.
+pub(super) struct Shared<'a> {
+    /// Per frame slot: the early and late parameter blocks and the order.
+    pub slots: Vec<([vk::Buffer; 2], vk::Buffer)>,
+    pub draw_ids: vk::Buffer,
+    pub visibility: vk::Buffer,
+    pub entries: vk::Buffer,
+    pub pyramid: vk::Buffer,
+    pub levels: vk::Buffer,
+    pub scene: &'a Scene,
+}
+
+/// The cluster stage's buffers, pipelines and descriptor sets.
+pub struct ClusterStage {
+    pub layout: ClusterLayout,
+    pub clusters: Buffer,
+    pub mesh_clusters: Buffer,
+    pub base: Buffer,
+    /// Per region (early-or-union, late) and cluster instance: drawn or not.
+    pub flags: Buffer,
+    /// Per cluster instance: visible last frame (two-phase).
+    pub visibility: Buffer,
+    pub runs: Buffer,
+    pub offsets: Buffer,
+    pub commands: Buffer,
+    /// Per list: the draw count (0-7); 8-15 unused.
+    pub counts: Buffer,
+    set_layout: vk::DescriptorSetLayout,
+    pipeline_layout: vk::PipelineLayout,
+    /// `cluster_cull.comp`, `cluster_scan.comp`, `cluster_emit.comp`.
+    pipelines: [vk::Pipeline; 3],
+    pool: vk::DescriptorPool,
+    /// Two per slot: the early (or only) and the late phase.
+    sets: Vec<vk::DescriptorSet>,
+}
+
+/// A buffer of the stage: uploaded from the scene, or made empty.
+enum Spec<'a> {
+    Upload(&'static str, &'a [u8]),
+    Empty(&'static str, u64, vk::BufferUsageFlags),
+}
+
+/// The stage's buffers: clusters, mesh ranges, bases, flags, visibility, runs, offsets,
+/// commands, counts (all destroyed again on an error).
+fn make_buffers(
+    ctx: &Context,
+    layout: &ClusterLayout,
+    clusters: &tilegraph_scene::clusters::Clusters,
+    stride: u32,
+) -> Result<[Buffer; 9], VkError> {
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let total = u64::from(layout.total.max(1));
+    let entries = u64::from(stride.max(1)) * u64::from(LIST_COUNT);
+    let src = vk::BufferUsageFlags::TRANSFER_SRC;
+    let dst = vk::BufferUsageFlags::TRANSFER_DST;
+    let indirect = vk::BufferUsageFlags::INDIRECT_BUFFER;
+    let commands = u64::from(layout.commands().max(1));
+    let specs = [
+        Spec::Upload("clusters", bytemuck::cast_slice(&clusters.clusters)),
+        Spec::Upload(
+            "mesh clusters",
+            bytemuck::cast_slice(&clusters.mesh_clusters),
+        ),
+        Spec::Upload("cluster base", bytemuck::cast_slice(&layout.base)),
+        Spec::Empty("cluster flags", 2 * total * 4, storage),
+        Spec::Empty("cluster visibility", total * 4, storage | dst),
+        Spec::Empty("cluster runs", entries * 4, storage),
+        Spec::Empty("cluster offsets", entries * 4, storage),
+        Spec::Empty(
+            "cluster commands",
+            commands * 20,
+            storage | indirect | src | dst,
+        ),
+        Spec::Empty(
+            "cluster counts",
+            2 * u64::from(LIST_COUNT) * 4,
+            storage | indirect | src,
+        ),
+    ];
+    let mut made = Vec::with_capacity(specs.len());
+    for spec in specs {
+        let buffer = match spec {
+            Spec::Upload(name, bytes) => upload(ctx, name, bytes, storage),
+            Spec::Empty(name, size, usage) => {
+                ctx.create_buffer(name, size, usage, MemoryUse::GpuOnly)
+            }
+        };
+        match buffer {
+            Ok(b) => made.push(b),
+            Err(e) => {
+                for b in made {
+                    ctx.destroy_buffer(b);
+                }
+                return Err(e);
+            }
+        }
+    }
+    <[Buffer; 9]>::try_from(made).map_err(|made| {
+        for b in made {
+            ctx.destroy_buffer(b);
+        }
+        VkError::Invalid {
+            what: "cluster culling".into(),
+            reason: "buffers missing".into(),
+        }
+    })
+}
+
+/// One of the three cluster dispatches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ClusterStep {
+    Cull,
+    Scan,
+    Emit,
+}
+
+impl ClusterStage {
+    /// The stage for `shared.scene`'s clusters (`None` without them) and `stride` entries per
+    /// list.
+    pub(super) fn new(
+        ctx: &Context,
+        shared: &Shared<'_>,
+        stride: u32,
+        scene_set_layout: vk::DescriptorSetLayout,
+    ) -> Result<Option<Self>, VkError> {
+        let (Some(layout), Some(clusters)) =
+            (ClusterLayout::of(shared.scene), shared.scene.clusters())
+        else {
+            return Ok(None);
+        };
+        let [clusters, mesh_clusters, base, flags, visibility, runs, offsets, commands, counts] =
+            make_buffers(ctx, &layout, clusters, stride)?;
+        let mut stage = ClusterStage {
+            layout,
+            clusters,
+            mesh_clusters,
+            base,
+            flags,
+            visibility,
+            runs,
+            offsets,
+            commands,
+            counts,
+            set_layout: vk::DescriptorSetLayout::null(),
+            pipeline_layout: vk::PipelineLayout::null(),
+            pipelines: [vk::Pipeline::null(); 3],
+            pool: vk::DescriptorPool::null(),
+            sets: Vec::new(),
+        };
+        match stage.init(ctx, shared, scene_set_layout) {
+            Ok(()) => Ok(Some(stage)),
+            Err(e) => {
+                stage.destroy(ctx);
+                Err(e)
+            }
+        }
+    }
+
+    fn init(
+        &mut self,
+        ctx: &Context,
+        shared: &Shared<'_>,
+        scene_set_layout: vk::DescriptorSetLayout,
+    ) -> Result<(), VkError> {
+        // Nothing was visible before the first frame (as the instances' visibility).
+        let visibility = self.visibility.raw;
+        ctx.submit_and_wait(|cb| {
+            // SAFETY: outside a render pass; the buffer is new and a transfer destination.
+            unsafe {
+                ctx.device
+                    .cmd_fill_buffer(cb, visibility, 0, vk::WHOLE_SIZE, 0)
+            };
+            Ok(())
+        })?;
+        let c = vk::ShaderStageFlags::COMPUTE;
+        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
+        let mut bindings = vec![(0, vk::DescriptorType::UNIFORM_BUFFER, c)];
+        bindings.extend((1..=STORAGE_BINDINGS).map(|b| (b, ssbo, c)));
+        self.set_layout = create_set_layout(ctx, &bindings)?;
+        self.pipeline_layout =
+            create_pipeline_layout(ctx, &[scene_set_layout, self.set_layout], None)?;
+        let stages = [
+            ("cluster_cull.comp", CULL_SPV),
+            ("cluster_scan.comp", SCAN_SPV),
+            ("cluster_emit.comp", EMIT_SPV),
+        ];
+        for (pipeline, (name, spirv)) in self.pipelines.iter_mut().zip(stages) {
+            *pipeline = create_compute_pipeline(
+                ctx,
+                &Stage {
+                    name,
+                    spirv,
+                    specialization: &[],
+                },
+                self.pipeline_layout,
+            )?;
+        }
+        let sets = 2 * shared.slots.len() as u32;
+        let sizes = [
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::UNIFORM_BUFFER,
+                descriptor_count: sets,
+            },
+            vk::DescriptorPoolSize {
+                ty: ssbo,
+                descriptor_count: STORAGE_BINDINGS * sets,
+            },
+        ];
+        let pool_info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(sets)
+            .pool_sizes(&sizes);
+        // SAFETY: valid create info.
+        self.pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
+            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
+        for (params, order) in &shared.slots {
+            for p in params {
+                let set = allocate_set(ctx, self.pool, self.set_layout)?;
+                write_buffer_set(
+                    ctx,
+                    set,
+                    &[
+                        (0, vk::DescriptorType::UNIFORM_BUFFER, *p),
+                        (1, ssbo, self.commands.raw),
+                        (2, ssbo, self.counts.raw),
+                        (3, ssbo, shared.draw_ids),
+                        (4, ssbo, shared.visibility),
+                        (5, ssbo, shared.pyramid),
+                        (6, ssbo, shared.levels),
+                        (7, ssbo, *order),
+                        (8, ssbo, shared.entries),
+                        (9, ssbo, self.clusters.raw),
+                        (10, ssbo, self.mesh_clusters.raw),
+                        (11, ssbo, self.base.raw),
+                        (12, ssbo, self.flags.raw),
+                        (13, ssbo, self.visibility.raw),
+                        (14, ssbo, self.runs.raw),
+                        (15, ssbo, self.offsets.raw),
+                    ],
+                );
+                self.sets.push(set);
+            }
+        }
+        Ok(())
+    }
+
+    /// Records dispatch `step` of phase `which` (0 early or only, 1 late); the graph put the
+    /// barriers around it.
+    pub(super) fn record_dispatch(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        scene_set: vk::DescriptorSet,
+        slot: usize,
+        which: usize,
+        step: ClusterStep,
+    ) -> Result<(), VkError> {
+        let instances = self.layout.base.len() as u32;
+        let set = *self
+            .sets
+            .get(2 * slot + which)
+            .ok_or_else(|| VkError::Invalid {
+                what: "cluster culling".into(),
+                reason: format!("no set for slot {slot}"),
+            })?;
+        // One workgroup per instance, in rows of 65,535 (the least maxComputeWorkGroupCount).
+        let rows = (instances.min(65_535), instances.div_ceil(65_535));
+        let (pipeline, (x, y)) = match step {
+            ClusterStep::Cull => (self.pipelines[0], rows),
+            ClusterStep::Scan => (self.pipelines[1], ((which as u32 + 1) * LISTS_PER_PHASE, 1)),
+            ClusterStep::Emit => (self.pipelines[2], rows),
+        };
+        if x == 0 {
+            return Ok(());
+        }
+        // SAFETY: recording outside a render pass; pipeline, layout and sets are live.
+        unsafe {
+            ctx.device
+                .cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
+            ctx.device.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::COMPUTE,
+                self.pipeline_layout,
+                0,
+                &[scene_set, set],
+                &[],
+            );
+            ctx.device.cmd_dispatch(cb, x, y, 1);
+        }
+        Ok(())
+    }
+
+    pub(super) fn destroy(self, ctx: &Context) {
+        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
+        unsafe {
+            for p in self.pipelines {
+                ctx.device.destroy_pipeline(p, None);
+            }
+            ctx.device
+                .destroy_pipeline_layout(self.pipeline_layout, None);
+            ctx.device.destroy_descriptor_pool(self.pool, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+        for b in [
+            self.clusters,
+            self.mesh_clusters,
+            self.base,
+            self.flags,
+            self.visibility,
+            self.runs,
+            self.offsets,
+            self.commands,
+            self.counts,
+        ] {
+            ctx.destroy_buffer(b);
+        }
+    }
+}

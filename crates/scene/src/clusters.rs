@@ -1,0 +1,500 @@
+//! Clusters (meshlets): each mesh split into runs of at most [`MAX_TRIANGLES`] triangles with a
+//! local bounding box and a back-facing normal cone, for culling below the instance (issue 22,
+//! seed 000's cone/cluster culling).
+//!
+//! A cluster is a contiguous range of its mesh's indices: attaching clusters to a scene
+//! ([`Scene::attach_clusters`]) rewrites its index buffer into cluster order, so that every
+//! technique, the unculled reference included, draws the same triangles in the same order and a
+//! culled frame that draws the surviving ranges in order stays bit-equal to the reference.
+//!
+//! Building clusters is an asset step ([`build`], behind the `meshopt` feature: meshoptimizer is
+//! C++, and the Android builds compile without it). The runtime only consumes [`ClusterData`]:
+//! built here, read from a file written on the desktop ([`ClusterData::write`],
+//! [`ClusterData::read`]), or handed over by an engine's own pipeline.
+
+use std::path::Path;
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::error::SceneError;
+use crate::scene::Scene;
+
+/// Most triangles in a cluster (meshoptimizer's limit is 512; 124 is niagara's and NVIDIA's
+/// mesh-shader choice, and a multiple of 4 as meshoptimizer asks).
+pub const MAX_TRIANGLES: usize = 124;
+/// Most distinct vertices in a cluster.
+pub const MAX_VERTICES: usize = 64;
+
+/// One cluster as the culling shader reads it (`Cluster` of shaders/common/cluster.glsl; 64
+/// bytes). Bounds and cone are in the mesh's local space.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuCluster {
+    /// Centre of the local bounding box of the cluster's vertices.
+    pub center: [f32; 3],
+    /// Its first index in the scene's (cluster-ordered) index buffer.
+    pub first_index: u32,
+    pub half_extents: [f32; 3],
+    pub index_count: u32,
+    /// Back-facing cone (meshoptimizer): the cluster faces away from every camera position `p`
+    /// with `dot(normalize(apex - p), axis) >= cutoff`. A cutoff of 1 or more never rejects.
+    pub cone_apex: [f32; 3],
+    pub cone_cutoff: f32,
+    pub cone_axis: [f32; 3],
+    pub _pad: u32,
+}
+
+/// A scene's clusters: the index buffer in cluster order, the clusters, and each mesh's range
+/// of them. `fingerprint` is [`Scene::geometry_fingerprint`] of the scene they were built from.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ClusterData {
+    pub fingerprint: u64,
+    pub indices: Vec<u32>,
+    pub clusters: Vec<GpuCluster>,
+    /// Per mesh: first cluster, cluster count.
+    pub mesh_clusters: Vec<[u32; 2]>,
+}
+
+/// The clusters a scene carries once attached (its index buffer is then in cluster order).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Clusters {
+    pub clusters: Vec<GpuCluster>,
+    pub mesh_clusters: Vec<[u32; 2]>,
+}
+
+impl Clusters {
+    /// Bytes the cluster records and mesh ranges take (GPU and CPU alike).
+    pub fn bytes(&self) -> u64 {
+        (self.clusters.len() * std::mem::size_of::<GpuCluster>() + self.mesh_clusters.len() * 8)
+            as u64
+    }
+
+    /// Clusters of mesh `mesh` (empty for an unknown mesh).
+    pub fn of_mesh(&self, mesh: u32) -> &[GpuCluster] {
+        self.mesh_clusters
+            .get(mesh as usize)
+            .and_then(|&[first, count]| {
+                self.clusters
+                    .get(first as usize..first as usize + count as usize)
+            })
+            .unwrap_or(&[])
+    }
+}
+
+const MAGIC: &[u8; 8] = b"TGCLUST1";
+
+impl ClusterData {
+    /// Writes the data to `path` (little-endian: magic, fingerprint, counts, then the arrays).
+    pub fn write(&self, path: &Path) -> Result<(), SceneError> {
+        let mut out = Vec::with_capacity(
+            40 + self.indices.len() * 4 + self.clusters.len() * 64 + self.mesh_clusters.len() * 8,
+        );
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&self.fingerprint.to_le_bytes());
+        for n in [
+            self.indices.len(),
+            self.clusters.len(),
+            self.mesh_clusters.len(),
+        ] {
+            out.extend_from_slice(&(n as u64).to_le_bytes());
+        }
+        out.extend_from_slice(bytemuck::cast_slice(&self.indices));
+        out.extend_from_slice(bytemuck::cast_slice(&self.clusters));
+        out.extend_from_slice(bytemuck::cast_slice(&self.mesh_clusters));
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|source| io(path, source))?;
+        }
+        std::fs::write(path, out).map_err(|source| io(path, source))
+    }
+
+    /// Reads data [`ClusterData::write`] wrote; a wrong magic or a short file is an error naming
+    /// the file. (Whether it fits a scene is [`Scene::attach_clusters`]'s check.)
+    pub fn read(path: &Path) -> Result<ClusterData, SceneError> {
+        let bytes = std::fs::read(path).map_err(|source| io(path, source))?;
+        let bad = |reason: String| SceneError::Clusters {
+            what: path.display().to_string(),
+            reason,
+        };
+        if bytes.get(..8) != Some(MAGIC.as_slice()) {
+            return Err(bad("not a tilegraph cluster file (magic)".into()));
+        }
+        let word = |i: usize| {
+            bytes
+                .get(8 + 8 * i..16 + 8 * i)
+                .and_then(|b| b.try_into().ok())
+                .map(u64::from_le_bytes)
+        };
+        let header = (word(0), word(1), word(2), word(3));
+        let (Some(fingerprint), Some(ni), Some(nc), Some(nm)) = header else {
+            return Err(bad("header cut short".into()));
+        };
+        let sizes = [ni.checked_mul(4), nc.checked_mul(64), nm.checked_mul(8)];
+        let [Some(si), Some(sc), Some(sm)] = sizes.map(|s| s.and_then(|s| usize::try_from(s).ok()))
+        else {
+            return Err(bad("counts overflow".into()));
+        };
+        let start = 40usize;
+        let expected = start
+            .checked_add(si)
+            .and_then(|n| n.checked_add(sc))
+            .and_then(|n| n.checked_add(sm));
+        if expected != Some(bytes.len()) {
+            return Err(bad(format!(
+                "{} bytes, the header's counts need {}",
+                bytes.len(),
+                expected.map_or("more than memory holds".into(), |n| n.to_string())
+            )));
+        }
+        let (a, rest) = bytes[start..].split_at(si);
+        let (b, c) = rest.split_at(sc);
+        Ok(ClusterData {
+            fingerprint,
+            indices: read_pods(a),
+            clusters: read_pods(b),
+            mesh_clusters: read_pods(c),
+        })
+    }
+}
+
+/// `bytes` (a multiple of `T`'s size) as `T`s, whatever their alignment.
+fn read_pods<T: Pod>(bytes: &[u8]) -> Vec<T> {
+    bytes
+        .chunks_exact(std::mem::size_of::<T>())
+        .map(bytemuck::pod_read_unaligned)
+        .collect()
+}
+
+fn io(path: &Path, source: std::io::Error) -> SceneError {
+    SceneError::Io {
+        file: path.display().to_string(),
+        source,
+    }
+}
+
+/// 64-bit FNV-1a: stable across builds and platforms (the cluster cache's key).
+pub(crate) fn fnv1a(hash: u64, bytes: &[u8]) -> u64 {
+    bytes.iter().fold(hash, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
+
+pub(crate) const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// What [`build`] took: time and how many clusters.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BuildStats {
+    pub milliseconds: f64,
+    pub clusters: u64,
+}
+
+/// Splits every mesh of `scene` into clusters with meshoptimizer (`meshopt_buildMeshlets`, cone
+/// weight 0.25) and computes each cluster's box and normal cone. Each mesh is built once,
+/// whatever number of instances draw it.
+#[cfg(feature = "meshopt")]
+pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
+    let start = std::time::Instant::now();
+    let vertices = scene.vertices();
+    let mut data = ClusterData {
+        fingerprint: scene.geometry_fingerprint(),
+        indices: scene.indices().to_vec(),
+        clusters: Vec::new(),
+        mesh_clusters: Vec::with_capacity(scene.meshes().len()),
+    };
+    for (m, mesh) in scene.meshes().iter().enumerate() {
+        let bad = |reason: String| SceneError::Clusters {
+            what: format!("{} mesh {m}", scene.name()),
+            reason,
+        };
+        let first = mesh.first_index as usize;
+        let range = first..first + mesh.index_count as usize;
+        let vrange = mesh.vertex_offset.max(0) as usize
+            ..mesh.vertex_offset.max(0) as usize + mesh.vertex_count as usize;
+        let (Some(indices), Some(verts)) =
+            (scene.indices().get(range.clone()), vertices.get(vrange))
+        else {
+            return Err(bad(
+                "index or vertex range outside the scene's buffers".into()
+            ));
+        };
+        let first_cluster = data.clusters.len() as u32;
+        if indices.len() >= 3 {
+            let adapter = meshopt::VertexDataAdapter::new(
+                bytemuck::cast_slice(verts),
+                std::mem::size_of::<crate::Vertex>(),
+                0,
+            )
+            .map_err(|e| bad(e.to_string()))?;
+            let meshlets =
+                meshopt::build_meshlets(indices, &adapter, MAX_VERTICES, MAX_TRIANGLES, 0.25);
+            let mut at = first;
+            for meshlet in meshlets.iter() {
+                let bounds = meshopt::compute_meshlet_bounds(meshlet, &adapter);
+                let begin = at;
+                let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+                for &local in meshlet.triangles {
+                    let Some(&v) = meshlet.vertices.get(usize::from(local)) else {
+                        return Err(bad("meshlet refers past its vertices".into()));
+                    };
+                    let Some(p) = verts.get(v as usize).map(|v| v.position) else {
+                        return Err(bad(format!("vertex {v} past the mesh's")));
+                    };
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(p[a]);
+                        hi[a] = hi[a].max(p[a]);
+                    }
+                    if let Some(slot) = data.indices.get_mut(at) {
+                        *slot = v;
+                    }
+                    at += 1;
+                }
+                let center = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
+                let half = std::array::from_fn(|a| 0.5 * (hi[a] - lo[a]));
+                data.clusters.push(GpuCluster {
+                    center,
+                    first_index: begin as u32,
+                    half_extents: half,
+                    index_count: (at - begin) as u32,
+                    cone_apex: bounds.cone_apex,
+                    cone_cutoff: bounds.cone_cutoff,
+                    cone_axis: bounds.cone_axis,
+                    _pad: 0,
+                });
+            }
+            if at != range.end {
+                return Err(bad(format!(
+                    "meshlets hold {} indices of {}",
+                    at - first,
+                    indices.len()
+                )));
+            }
+        }
+        data.mesh_clusters
+            .push([first_cluster, data.clusters.len() as u32 - first_cluster]);
+    }
+    let stats = BuildStats {
+        milliseconds: start.elapsed().as_secs_f64() * 1e3,
+        clusters: data.clusters.len() as u64,
+    };
+    Ok((data, stats))
+}
+
+/// Where [`cached`] keeps built clusters: `$TILEGRAPH_CACHE_DIR`, else
+/// `$XDG_CACHE_HOME/tilegraph`, else `$HOME/.cache/tilegraph`.
+pub fn cache_dir() -> Option<std::path::PathBuf> {
+    let var = |k: &str| std::env::var_os(k).filter(|v| !v.is_empty());
+    var("TILEGRAPH_CACHE_DIR")
+        .map(std::path::PathBuf::from)
+        .or_else(|| var("XDG_CACHE_HOME").map(|d| Path::new(&d).join("tilegraph")))
+        .or_else(|| var("HOME").map(|h| Path::new(&h).join(".cache/tilegraph")))
+}
+
+/// How [`cached`] got the clusters.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Provenance {
+    /// Read from this cache file.
+    Cache(std::path::PathBuf),
+    /// Built now (and written to the cache file when there is one).
+    Built(BuildStats),
+}
+
+/// The scene's clusters from the cache (keyed by [`Scene::geometry_fingerprint`]), else built
+/// and written there. A cache that cannot be read or written is logged and skipped.
+#[cfg(feature = "meshopt")]
+pub fn cached(scene: &Scene) -> Result<(ClusterData, Provenance), SceneError> {
+    let fingerprint = scene.geometry_fingerprint();
+    let file = cache_dir().map(|d| d.join(format!("{fingerprint:016x}.tgclusters")));
+    if let Some(path) = file.as_deref().filter(|p| p.is_file()) {
+        match ClusterData::read(path) {
+            Ok(d) if d.fingerprint == fingerprint => {
+                return Ok((d, Provenance::Cache(path.to_path_buf())))
+            }
+            Ok(_) => log::warn!("{}: another scene's clusters; rebuilding", path.display()),
+            Err(e) => log::warn!("{e}; rebuilding"),
+        }
+    }
+    let (data, stats) = build(scene)?;
+    if let Some(path) = &file {
+        if let Err(e) = data.write(path) {
+            log::warn!("cluster cache not written: {e}");
+        }
+    }
+    Ok((data, Provenance::Built(stats)))
+}
+
+impl Scene {
+    /// A hash of what clusters are built from: positions, indices and the mesh table.
+    pub fn geometry_fingerprint(&self) -> u64 {
+        let mut h = FNV_OFFSET;
+        for v in self.vertices() {
+            h = fnv1a(h, bytemuck::cast_slice(&v.position));
+        }
+        h = fnv1a(h, bytemuck::cast_slice(self.indices()));
+        for m in self.meshes() {
+            for w in [
+                m.first_index,
+                m.index_count,
+                m.vertex_offset as u32,
+                m.vertex_count,
+            ] {
+                h = fnv1a(h, &w.to_le_bytes());
+            }
+        }
+        h
+    }
+}
+
+/// Checks `data` against `scene` (each mesh's clusters tile its index range in order, every
+/// index stays inside the mesh's vertices) before [`Scene::attach_clusters`] swaps it in.
+pub(crate) fn validate(scene: &Scene, data: &ClusterData) -> Result<(), SceneError> {
+    let bad = |reason: String| SceneError::Clusters {
+        what: scene.name().to_string(),
+        reason,
+    };
+    if data.indices.len() != scene.indices().len() {
+        return Err(bad(format!(
+            "{} indices for a scene of {}",
+            data.indices.len(),
+            scene.indices().len()
+        )));
+    }
+    if data.mesh_clusters.len() != scene.meshes().len() {
+        return Err(bad(format!(
+            "cluster ranges for {} meshes, the scene has {}",
+            data.mesh_clusters.len(),
+            scene.meshes().len()
+        )));
+    }
+    for (m, (mesh, &[first, count])) in scene.meshes().iter().zip(&data.mesh_clusters).enumerate() {
+        let Some(clusters) = data
+            .clusters
+            .get(first as usize..first as usize + count as usize)
+        else {
+            return Err(bad(format!(
+                "mesh {m}: clusters {first}+{count} past the end"
+            )));
+        };
+        let mut at = mesh.first_index;
+        for (k, c) in clusters.iter().enumerate() {
+            if c.first_index != at || c.index_count % 3 != 0 {
+                return Err(bad(format!(
+                    "mesh {m} cluster {k}: indices {}+{} do not follow on from {at}",
+                    c.first_index, c.index_count
+                )));
+            }
+            at += c.index_count;
+        }
+        if at != mesh.first_index + mesh.index_count {
+            return Err(bad(format!(
+                "mesh {m}: clusters cover {} of its {} indices",
+                at - mesh.first_index,
+                mesh.index_count
+            )));
+        }
+        let range = mesh.first_index as usize..(mesh.first_index + mesh.index_count) as usize;
+        if let Some(i) = data
+            .indices
+            .get(range)
+            .and_then(|ix| ix.iter().find(|&&i| i >= mesh.vertex_count))
+        {
+            return Err(bad(format!(
+                "mesh {m}: index {i} past its {} vertices",
+                mesh.vertex_count
+            )));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(all(test, feature = "meshopt"))]
+mod tests {
+    use super::*;
+    use crate::{generate, ProceduralKind, ProceduralParams};
+
+    fn triangles(indices: &[u32]) -> Vec<[u32; 3]> {
+        let mut t: Vec<[u32; 3]> = indices
+            .chunks_exact(3)
+            .map(|c| {
+                // Rotate so the smallest comes first: same triangle, same winding.
+                let k = (0..3).min_by_key(|&k| c[k]).unwrap_or(0);
+                [c[k], c[(k + 1) % 3], c[(k + 2) % 3]]
+            })
+            .collect();
+        t.sort_unstable();
+        t
+    }
+
+    #[test]
+    fn clusters_tile_each_mesh_with_the_same_triangles_and_windings() {
+        let scene = generate(
+            ProceduralKind::Interior,
+            ProceduralParams { size: 200, seed: 3 },
+        )
+        .unwrap();
+        let (data, stats) = build(&scene).unwrap();
+        assert_eq!(stats.clusters, data.clusters.len() as u64);
+        assert!(data.clusters.len() >= scene.meshes().len());
+        validate(&scene, &data).unwrap();
+        for mesh in scene.meshes() {
+            let r = mesh.first_index as usize..(mesh.first_index + mesh.index_count) as usize;
+            assert_eq!(
+                triangles(&scene.indices()[r.clone()]),
+                triangles(&data.indices[r])
+            );
+        }
+        for c in &data.clusters {
+            assert!(c.index_count as usize <= 3 * MAX_TRIANGLES && c.index_count > 0);
+            // Every vertex of the cluster lies in its box.
+            let mesh = scene
+                .meshes()
+                .iter()
+                .find(|m| {
+                    c.first_index >= m.first_index && c.first_index < m.first_index + m.index_count
+                })
+                .unwrap();
+            for &i in &data.indices[c.first_index as usize..][..c.index_count as usize] {
+                let p = scene.vertices()[(mesh.vertex_offset as u32 + i) as usize].position;
+                for (a, x) in p.into_iter().enumerate() {
+                    assert!((x - c.center[a]).abs() <= c.half_extents[a] * (1.0 + 1e-6) + 1e-6);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn cluster_files_round_trip_and_bad_ones_are_named() {
+        let mut scene =
+            generate(ProceduralKind::City, ProceduralParams { size: 30, seed: 1 }).unwrap();
+        let (data, _) = build(&scene).unwrap();
+        let dir = std::env::temp_dir().join(format!("tilegraph-clusters-{}", std::process::id()));
+        let path = dir.join("city.tgclusters");
+        data.write(&path).unwrap();
+        assert_eq!(ClusterData::read(&path).unwrap(), data);
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() - 4]).unwrap();
+        let e = ClusterData::read(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("city.tgclusters") && e.contains("header's counts"),
+            "{e}"
+        );
+        std::fs::write(&path, b"GLTF....").unwrap();
+        assert!(ClusterData::read(&path)
+            .unwrap_err()
+            .to_string()
+            .contains("magic"));
+        std::fs::remove_dir_all(&dir).unwrap();
+        // Another scene's data does not attach.
+        let other = generate(
+            ProceduralKind::Forest,
+            ProceduralParams { size: 30, seed: 1 },
+        )
+        .unwrap();
+        let (wrong, _) = build(&other).unwrap();
+        assert!(scene.attach_clusters(wrong).is_err());
+        scene.attach_clusters(data.clone()).unwrap();
+        assert_eq!(
+            scene.clusters().map(|c| c.clusters.len()),
+            Some(data.clusters.len())
+        );
+        assert_eq!(scene.indices(), &data.indices[..]);
+    }
+}

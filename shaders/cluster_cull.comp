@@ -1,0 +1,148 @@
+#version 450
+// Cluster culling (seed 000's cluster and cone culling): one workgroup per instance, run after
+// the instance culling of a phase. For every cluster of a drawn instance: the frustum test of
+// its box, the back-facing cone test, and in two-phase culling's late phase the HiZ test
+// against the pyramid of the early depth. Writes each cluster's flags and the entry's number
+// of runs of consecutive drawn clusters (cluster_scan.comp places them, cluster_emit.comp
+// writes one command per run).
+//
+// Phases (cull.info.y, as cull.comp): 0 frustum; 2 early: clusters visible last frame (and in
+// the frustum, not back-facing) of the instances the early phase draws; 3 late: every cluster
+// of an instance visible now, tested against the pyramid: what the early phase did not draw
+// goes to region 1 (the late depth pass), region 0 becomes the union (the colour pass), and
+// the result is next frame's cluster visibility.
+#include "scene.glsl"
+#include "cull.glsl"
+#include "cull_tests.glsl"
+#include "cluster.glsl"
+
+layout(local_size_x = 64) in;
+
+layout(set = 1, binding = 4, std430) readonly buffer Visibility { uint visible_last[]; };
+layout(set = 1, binding = 7, std430) readonly buffer Order { uint order[]; };
+layout(set = 1, binding = 8, std430) readonly buffer Entries { uint entries[]; };
+layout(set = 1, binding = 13, std430) buffer ClusterVisibility { uint cluster_visible[]; };
+
+// How far inside the cone the camera must be: the cone comes from f32 normals and the camera's
+// local position from an f32 inverse; a triangle seen almost edge-on is never rejected.
+const float CONE_MARGIN = 1e-3;
+
+// Previous flag of each region (index 0: the last of the previous chunk) for counting runs.
+shared uint prev0[65];
+shared uint prev1[65];
+shared uint starts0;
+shared uint starts1;
+
+// The cluster's box in the instance's camera-relative frame (as cull.comp's instance bounds),
+// grown by the f32 transform's rounding.
+Instance cluster_bounds(Instance inst, Cluster cl) {
+    Instance b = inst;
+    b.center = instance_transform(inst, cl.center);
+    vec3 h = cl.half_extents;
+    b.half_extents = vec3(dot(abs(inst.model_rows[0].xyz), h), dot(abs(inst.model_rows[1].xyz), h),
+                          dot(abs(inst.model_rows[2].xyz), h));
+    b.half_extents += 1e-6 * (length(b.center) + length(b.half_extents));
+    b.radius = length(b.half_extents);
+    return b;
+}
+
+// Whether every triangle of the cluster faces away from the camera (at the origin of the
+// camera-relative frame), tested in the mesh's local space.
+bool back_facing(Instance inst, Cluster cl, mat3 linear_inverse) {
+    vec3 t = vec3(inst.model_rows[0].w, inst.model_rows[1].w, inst.model_rows[2].w);
+    vec3 eye = linear_inverse * -t;
+    vec3 d = cl.cone_apex - eye;
+    float len = length(d);
+    return len > 0.0 && dot(d, cl.cone_axis) >= (cl.cone_cutoff + CONE_MARGIN) * len;
+}
+
+void main() {
+    uint id = workgroup_instance();
+    uint t = gl_LocalInvocationID.x;
+    if (id >= cull.info.x || order[id] == 0xFFFFFFFFu) {
+        return;
+    }
+    uint stride = cull.screen.z;
+    uint e = order[id];
+    uint phase = cull.info.y;
+    bool late = phase == 3u;
+    uint region1 = cull.clusters.z;
+    // Late: how many runs the early phase drew (0: none of its clusters, whatever its flags
+    // hold from older frames). Read by every thread before thread 0 rewrites it below.
+    uint early_runs = late ? runs[e] : 0u;
+    bool drawn = late ? visible_last[id] != 0u : entries[e] != 0u;
+    Instance inst = instances[id];
+    uvec2 range = mesh_clusters[inst.mesh];
+    if (!drawn || range.y == 0u) {
+        barrier();
+        if (t == 0u) {
+            if (late) {
+                runs[4u * stride + e] = 0u; // the union keeps what the early phase drew
+            } else {
+                runs[e] = 0u;
+            }
+        }
+        return;
+    }
+    // The cone test: single-sided materials, perspective views, transforms that keep the
+    // winding (a mirrored instance's front faces are the other side).
+    mat3 linear = transpose(mat3(inst.model_rows[0].xyz, inst.model_rows[1].xyz, inst.model_rows[2].xyz));
+    bool cone = cull.clusters.y == 1u && materials[meshes[inst.mesh].material].double_sided == 0u
+        && determinant(linear) > 0.0;
+    mat3 linear_inverse = cone ? inverse(linear) : mat3(1.0);
+    uint base = cluster_base[id];
+    if (t == 0u) {
+        prev0[0] = 0u;
+        prev1[0] = 0u;
+        starts0 = 0u;
+        starts1 = 0u;
+    }
+    barrier();
+    for (uint chunk = 0u; chunk < range.y; chunk += 64u) {
+        uint c = chunk + t;
+        uint f0 = 0u;
+        uint f1 = 0u;
+        if (c < range.y) {
+            uint k = base + c;
+            Cluster cl = clusters[range.x + c];
+            Instance b = cluster_bounds(inst, cl);
+            bool visible = frustum_visible_box(b) && !(cone && back_facing(inst, cl, linear_inverse));
+            if (phase == 0u) {
+                f0 = visible ? 1u : 0u;
+            } else if (phase == 2u) {
+                f0 = visible && cluster_visible[k] != 0u ? 1u : 0u;
+            } else if (phase == 1u) {
+                f0 = visible && hiz_visible_bounds(b, false) ? 1u : 0u;
+            } else {
+                bool now = visible && hiz_visible_bounds(b, false);
+                bool early = early_runs != 0u && flags[k] != 0u;
+                f1 = now && !early ? 1u : 0u;
+                f0 = early || now ? 1u : 0u;
+                cluster_visible[k] = now ? 1u : 0u;
+                flags[region1 + k] = f1;
+            }
+            flags[k] = f0;
+        }
+        prev0[t + 1u] = f0;
+        prev1[t + 1u] = f1;
+        barrier();
+        if (f0 == 1u && prev0[t] == 0u) {
+            atomicAdd(starts0, 1u);
+        }
+        if (f1 == 1u && prev1[t] == 0u) {
+            atomicAdd(starts1, 1u);
+        }
+        barrier();
+        if (t == 0u) {
+            prev0[0] = prev0[64];
+            prev1[0] = prev1[64];
+        }
+        barrier();
+    }
+    if (t == 0u) {
+        runs[e] = starts0;
+        if (late) {
+            runs[4u * stride + e] = starts1;
+        }
+    }
+}

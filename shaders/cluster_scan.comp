@@ -1,0 +1,55 @@
+#version 450
+// Cluster culling, second step: one workgroup per list places each entry's runs among the
+// list's commands (an exclusive prefix sum over the entries in list order: the unculled draw
+// order) and writes the list's draw count. Workgroup w is list w: the early (or only) dispatch
+// runs lists 0-3 and empties the late lists' counts, the late one 0-7.
+#include "cull.glsl"
+#include "cluster.glsl"
+
+layout(local_size_x = 64) in;
+
+// Per list: the draw count (0-7), then the cluster instances its commands draw (8-15, unused
+// here: triangles are counted on readback).
+layout(set = 1, binding = 2, std430) writeonly buffer Counts { uint counts[]; };
+
+const uint PER_THREAD = 16u;
+const uint CHUNK = 64u * PER_THREAD;
+
+shared uint scan[64];
+
+void main() {
+    uint list = gl_WorkGroupID.x;
+    uint n = cull.list_len[list % 4u];
+    uint base = list * cull.screen.z;
+    uint t = gl_LocalInvocationID.x;
+    uint placed = 0u;
+    for (uint chunk = 0u; chunk < n; chunk += CHUNK) {
+        uint first = chunk + t * PER_THREAD;
+        uint last = min(first + PER_THREAD, n);
+        uint mine = 0u;
+        for (uint i = first; i < last; ++i) {
+            mine += runs[base + i];
+        }
+        scan[t] = mine;
+        barrier();
+        for (uint d = 1u; d < 64u; d <<= 1u) {
+            uint add = t >= d ? scan[t - d] : 0u;
+            barrier();
+            scan[t] += add;
+            barrier();
+        }
+        uint at = placed + scan[t] - mine;
+        for (uint i = first; i < last; ++i) {
+            offsets[base + i] = at;
+            at += runs[base + i];
+        }
+        placed += scan[63];
+        barrier();
+    }
+    if (t == 0u) {
+        counts[list] = placed;
+        if (gl_NumWorkGroups.x == 4u) {
+            counts[list + 4u] = 0u;
+        }
+    }
+}

@@ -1,0 +1,41 @@
+// Shared declarations of the cluster culling shaders (cluster_cull.comp, cluster_scan.comp,
+// cluster_emit.comp): a second stage after instance culling that tests the clusters of every
+// drawn instance and writes one indirect command per run of consecutive surviving clusters
+// (docs/CULLING.md, "Clusters"). Needs scene.glsl and cull.glsl first.
+//
+// A cluster instance k = base[instance] + c (cluster c of the instance's mesh) has one flag
+// per region: region 0 the early (or only) phase's draws, which the late phase turns into the
+// union of both phases; region 1 the late phase's. Per list entry e (cull.glsl's entries), the
+// runs of its flags and their place among the list's commands.
+#ifndef TILEGRAPH_CLUSTER_GLSL
+#define TILEGRAPH_CLUSTER_GLSL
+
+// tilegraph_scene::clusters::GpuCluster (64 bytes): local-space box, index range, normal cone.
+struct Cluster {
+    vec3 center;
+    uint first_index;
+    vec3 half_extents;
+    uint index_count;
+    vec3 cone_apex;
+    float cone_cutoff;
+    vec3 cone_axis;
+    uint pad;
+};
+
+layout(set = 1, binding = 9, std430) readonly buffer Clusters { Cluster clusters[]; };
+// Per mesh: first cluster, cluster count.
+layout(set = 1, binding = 10, std430) readonly buffer MeshClusters { uvec2 mesh_clusters[]; };
+// Per instance: its first cluster instance.
+layout(set = 1, binding = 11, std430) readonly buffer ClusterBase { uint cluster_base[]; };
+// Per region and cluster instance: 1 drawn (region r at r * cull.clusters.z).
+layout(set = 1, binding = 12, std430) buffer Flags { uint flags[]; };
+// Per list entry (0-7 lists of `stride`): runs of drawn clusters, and the first command's place.
+layout(set = 1, binding = 14, std430) buffer Runs { uint runs[]; };
+layout(set = 1, binding = 15, std430) buffer Offsets { uint offsets[]; };
+
+// The instance a workgroup handles: dispatches are (min(n, 65535), ceil(n / 65535)).
+uint workgroup_instance() {
+    return gl_WorkGroupID.x + gl_WorkGroupID.y * 65535u;
+}
+
+#endif
