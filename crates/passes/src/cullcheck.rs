@@ -539,9 +539,16 @@ impl Run<'_> {
         tested.finish(ctx)?;
         let medians = tested.medians();
         let is_cull = |name: &str| {
-            ["cull", "hiz", "occlusion", "oq-", "raster-occlusion"]
-                .iter()
-                .any(|p| name.starts_with(p))
+            [
+                "cull",
+                "cluster",
+                "hiz",
+                "occlusion",
+                "oq-",
+                "raster-occlusion",
+            ]
+            .iter()
+            .any(|p| name.starts_with(p))
         };
         let totals = Totals {
             frames: frames.len(),

@@ -14,72 +14,11 @@
 
 use std::path::Path;
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Pod;
 
 use crate::error::SceneError;
 use crate::scene::Scene;
-
-/// Most triangles in a cluster (meshoptimizer's limit is 512; 124 is niagara's and NVIDIA's
-/// mesh-shader choice, and a multiple of 4 as meshoptimizer asks).
-pub const MAX_TRIANGLES: usize = 124;
-/// Most distinct vertices in a cluster.
-pub const MAX_VERTICES: usize = 64;
-
-/// One cluster as the culling shader reads it (`Cluster` of shaders/common/cluster.glsl; 64
-/// bytes). Bounds and cone are in the mesh's local space.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuCluster {
-    /// Centre of the local bounding box of the cluster's vertices.
-    pub center: [f32; 3],
-    /// Its first index in the scene's (cluster-ordered) index buffer.
-    pub first_index: u32,
-    pub half_extents: [f32; 3],
-    pub index_count: u32,
-    /// Back-facing cone (meshoptimizer): the cluster faces away from every camera position `p`
-    /// with `dot(normalize(apex - p), axis) >= cutoff`. A cutoff of 1 or more never rejects.
-    pub cone_apex: [f32; 3],
-    pub cone_cutoff: f32,
-    pub cone_axis: [f32; 3],
-    pub _pad: u32,
-}
-
-/// A scene's clusters: the index buffer in cluster order, the clusters, and each mesh's range
-/// of them. `fingerprint` is [`Scene::geometry_fingerprint`] of the scene they were built from.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ClusterData {
-    pub fingerprint: u64,
-    pub indices: Vec<u32>,
-    pub clusters: Vec<GpuCluster>,
-    /// Per mesh: first cluster, cluster count.
-    pub mesh_clusters: Vec<[u32; 2]>,
-}
-
-/// The clusters a scene carries once attached (its index buffer is then in cluster order).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Clusters {
-    pub clusters: Vec<GpuCluster>,
-    pub mesh_clusters: Vec<[u32; 2]>,
-}
-
-impl Clusters {
-    /// Bytes the cluster records and mesh ranges take (GPU and CPU alike).
-    pub fn bytes(&self) -> u64 {
-        (self.clusters.len() * std::mem::size_of::<GpuCluster>() + self.mesh_clusters.len() * 8)
-            as u64
-    }
-
-    /// Clusters of mesh `mesh` (empty for an unknown mesh).
-    pub fn of_mesh(&self, mesh: u32) -> &[GpuCluster] {
-        self.mesh_clusters
-            .get(mesh as usize)
-            .and_then(|&[first, count]| {
-                self.clusters
-                    .get(first as usize..first as usize + count as usize)
-            })
-            .unwrap_or(&[])
-    }
-}
+pub use crate::scene::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VERTICES};
 
 const MAGIC: &[u8; 8] = b"TGCLUST1";
 
@@ -170,15 +109,6 @@ fn io(path: &Path, source: std::io::Error) -> SceneError {
         source,
     }
 }
-
-/// 64-bit FNV-1a: stable across builds and platforms (the cluster cache's key).
-pub(crate) fn fnv1a(hash: u64, bytes: &[u8]) -> u64 {
-    bytes.iter().fold(hash, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
-pub(crate) const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
 /// What [`build`] took: time and how many clusters.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -321,90 +251,6 @@ pub fn cached(scene: &Scene) -> Result<(ClusterData, Provenance), SceneError> {
     Ok((data, Provenance::Built(stats)))
 }
 
-impl Scene {
-    /// A hash of what clusters are built from: positions, indices and the mesh table.
-    pub fn geometry_fingerprint(&self) -> u64 {
-        let mut h = FNV_OFFSET;
-        for v in self.vertices() {
-            h = fnv1a(h, bytemuck::cast_slice(&v.position));
-        }
-        h = fnv1a(h, bytemuck::cast_slice(self.indices()));
-        for m in self.meshes() {
-            for w in [
-                m.first_index,
-                m.index_count,
-                m.vertex_offset as u32,
-                m.vertex_count,
-            ] {
-                h = fnv1a(h, &w.to_le_bytes());
-            }
-        }
-        h
-    }
-}
-
-/// Checks `data` against `scene` (each mesh's clusters tile its index range in order, every
-/// index stays inside the mesh's vertices) before [`Scene::attach_clusters`] swaps it in.
-pub(crate) fn validate(scene: &Scene, data: &ClusterData) -> Result<(), SceneError> {
-    let bad = |reason: String| SceneError::Clusters {
-        what: scene.name().to_string(),
-        reason,
-    };
-    if data.indices.len() != scene.indices().len() {
-        return Err(bad(format!(
-            "{} indices for a scene of {}",
-            data.indices.len(),
-            scene.indices().len()
-        )));
-    }
-    if data.mesh_clusters.len() != scene.meshes().len() {
-        return Err(bad(format!(
-            "cluster ranges for {} meshes, the scene has {}",
-            data.mesh_clusters.len(),
-            scene.meshes().len()
-        )));
-    }
-    for (m, (mesh, &[first, count])) in scene.meshes().iter().zip(&data.mesh_clusters).enumerate() {
-        let Some(clusters) = data
-            .clusters
-            .get(first as usize..first as usize + count as usize)
-        else {
-            return Err(bad(format!(
-                "mesh {m}: clusters {first}+{count} past the end"
-            )));
-        };
-        let mut at = mesh.first_index;
-        for (k, c) in clusters.iter().enumerate() {
-            if c.first_index != at || c.index_count % 3 != 0 {
-                return Err(bad(format!(
-                    "mesh {m} cluster {k}: indices {}+{} do not follow on from {at}",
-                    c.first_index, c.index_count
-                )));
-            }
-            at += c.index_count;
-        }
-        if at != mesh.first_index + mesh.index_count {
-            return Err(bad(format!(
-                "mesh {m}: clusters cover {} of its {} indices",
-                at - mesh.first_index,
-                mesh.index_count
-            )));
-        }
-        let range = mesh.first_index as usize..(mesh.first_index + mesh.index_count) as usize;
-        if let Some(i) = data
-            .indices
-            .get(range)
-            .and_then(|ix| ix.iter().find(|&&i| i >= mesh.vertex_count))
-        {
-            return Err(bad(format!(
-                "mesh {m}: index {i} past its {} vertices",
-                mesh.vertex_count
-            )));
-        }
-    }
-    Ok(())
-}
-
 #[cfg(all(test, feature = "meshopt"))]
 mod tests {
     use super::*;
@@ -433,7 +279,7 @@ mod tests {
         let (data, stats) = build(&scene).unwrap();
         assert_eq!(stats.clusters, data.clusters.len() as u64);
         assert!(data.clusters.len() >= scene.meshes().len());
-        validate(&scene, &data).unwrap();
+        scene.clone().attach_clusters(data.clone()).unwrap();
         for mesh in scene.meshes() {
             let r = mesh.first_index as usize..(mesh.first_index + mesh.index_count) as usize;
             assert_eq!(

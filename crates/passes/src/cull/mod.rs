@@ -37,10 +37,12 @@ use crate::hiz::HizState;
 
 pub mod clusters;
 mod layout;
+mod readback;
 mod state;
 
 pub use layout::GpuLayout;
-pub use state::{CullState, GpuCullCounts, GpuLists, IndirectDraw};
+pub use readback::{GpuLists, IndirectDraw};
+pub use state::{CullState, GpuCullCounts};
 
 /// The culling buffers in one frame's graph. They live as long as the renderer (visibility and
 /// the pyramid carry over from frame to frame, tools read the drawn set back), so each frame

@@ -8,12 +8,13 @@ use serde::Serialize;
 
 use crate::bounds::{transformed_bounds, Aabb, DAabb};
 use crate::camera::CameraPath;
-use crate::clusters::{ClusterData, Clusters};
 use crate::error::SceneError;
 
+mod clusters;
 mod elements;
 mod gpu;
 
+pub use clusters::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VERTICES};
 pub use elements::{
     Instance, InstanceBounds, InstanceId, Material, MaterialClass, MaterialId, Mesh, MeshId,
     Transform, Vertex,
@@ -118,6 +119,26 @@ impl Scene {
         self.camera_path = path;
     }
 
+    /// A hash of what clusters are built from: positions, indices and the mesh table.
+    pub fn geometry_fingerprint(&self) -> u64 {
+        let mut h = clusters::FNV_OFFSET;
+        for v in self.vertices() {
+            h = clusters::fnv1a(h, bytemuck::cast_slice(&v.position));
+        }
+        h = clusters::fnv1a(h, bytemuck::cast_slice(self.indices()));
+        for m in self.meshes() {
+            for w in [
+                m.first_index,
+                m.index_count,
+                m.vertex_offset as u32,
+                m.vertex_count,
+            ] {
+                h = clusters::fnv1a(h, &w.to_le_bytes());
+            }
+        }
+        h
+    }
+
     /// The clusters, once attached ([`Scene::attach_clusters`]).
     pub fn clusters(&self) -> Option<&Clusters> {
         self.clusters.as_ref()
@@ -133,7 +154,7 @@ impl Scene {
                 reason: "built from other geometry (fingerprint differs)".into(),
             });
         }
-        crate::clusters::validate(self, &data)?;
+        validate_clusters(self, &data)?;
         self.indices = data.indices;
         self.clusters = Some(Clusters {
             clusters: data.clusters,
@@ -292,6 +313,68 @@ impl Scene {
             camera_path_frames: self.camera_path.len() as u64,
         }
     }
+}
+
+/// Checks `data` against `scene` (each mesh's clusters tile its index range in order, every
+/// index stays inside the mesh's vertices) before [`Scene::attach_clusters`] swaps it in.
+fn validate_clusters(scene: &Scene, data: &ClusterData) -> Result<(), SceneError> {
+    let bad = |reason: String| SceneError::Clusters {
+        what: scene.name().to_string(),
+        reason,
+    };
+    if data.indices.len() != scene.indices().len() {
+        return Err(bad(format!(
+            "{} indices for a scene of {}",
+            data.indices.len(),
+            scene.indices().len()
+        )));
+    }
+    if data.mesh_clusters.len() != scene.meshes().len() {
+        return Err(bad(format!(
+            "cluster ranges for {} meshes, the scene has {}",
+            data.mesh_clusters.len(),
+            scene.meshes().len()
+        )));
+    }
+    for (m, (mesh, &[first, count])) in scene.meshes().iter().zip(&data.mesh_clusters).enumerate() {
+        let Some(clusters) = data
+            .clusters
+            .get(first as usize..first as usize + count as usize)
+        else {
+            return Err(bad(format!(
+                "mesh {m}: clusters {first}+{count} past the end"
+            )));
+        };
+        let mut at = mesh.first_index;
+        for (k, c) in clusters.iter().enumerate() {
+            if c.first_index != at || c.index_count % 3 != 0 {
+                return Err(bad(format!(
+                    "mesh {m} cluster {k}: indices {}+{} do not follow on from {at}",
+                    c.first_index, c.index_count
+                )));
+            }
+            at += c.index_count;
+        }
+        if at != mesh.first_index + mesh.index_count {
+            return Err(bad(format!(
+                "mesh {m}: clusters cover {} of its {} indices",
+                at - mesh.first_index,
+                mesh.index_count
+            )));
+        }
+        let range = mesh.first_index as usize..(mesh.first_index + mesh.index_count) as usize;
+        if let Some(i) = data
+            .indices
+            .get(range)
+            .and_then(|ix| ix.iter().find(|&&i| i >= mesh.vertex_count))
+        {
+            return Err(bad(format!(
+                "mesh {m}: index {i} past its {} vertices",
+                mesh.vertex_count
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Counts per material class.

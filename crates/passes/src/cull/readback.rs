@@ -1,0 +1,105 @@
+//! Reading the culled lists back (tests and tools; waits for the GPU).
+
+use tilegraph_vk::{Context, VkError};
+
+use super::{CullState, DrawCount, LISTS_PER_PHASE, LIST_COUNT};
+
+/// One indirect command of the culled lists, read back.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IndirectDraw {
+    pub index_count: u32,
+    pub first_index: u32,
+    /// The instance ids it draws, in draw order (empty: a culled group of a fixed count).
+    pub instances: Vec<u32>,
+}
+
+/// The GPU lists of the last frame, read back for tests and tools.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GpuLists {
+    pub draw_count: DrawCount,
+    /// Per list ([`list_index`]), the commands its draw count covers.
+    pub lists: Vec<Vec<IndirectDraw>>,
+    /// Per instance, its entry in the unculled order of the last frame written
+    /// ([`GpuLayout::order`]).
+    pub order: Vec<u32>,
+}
+
+impl GpuLists {
+    /// Triangles the colour pass draws: the early-or-only phase's lists (after a late phase,
+    /// the union of both).
+    pub fn colour_triangles(&self) -> u64 {
+        self.lists
+            .iter()
+            .take(LISTS_PER_PHASE as usize)
+            .flatten()
+            .map(|d| u64::from(d.index_count / 3) * d.instances.len() as u64)
+            .sum()
+    }
+}
+
+impl CullState {
+    /// The last frame's lists as the GPU left them (reads the counts, commands and draw ids
+    /// back; waits).
+    /// With cluster culling, the cluster commands: each draws one instance's index range.
+    pub fn read_lists(&self, ctx: &Context) -> Result<GpuLists, VkError> {
+        let (counts, commands) = match &self.clusters {
+            Some(c) => (&c.counts, &c.commands),
+            None => (&self.counts, &self.commands),
+        };
+        let counts = tilegraph_vk::readback::read_buffer(ctx, Self::handle(counts))?;
+        let commands = tilegraph_vk::readback::read_buffer(ctx, Self::handle(commands))?;
+        let ids = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&self.draw_ids))?;
+        let word = |b: &[u8], i: usize| {
+            b.get(4 * i..4 * i + 4)
+                .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+        };
+        let stride = self.instance_count.max(1) as usize;
+        // Per list: where its commands start and how many it can hold.
+        let place = |list: usize| match &self.clusters {
+            Some(c) => (
+                c.layout.cmd_base.get(list).copied().unwrap_or(0) as usize,
+                c.layout.capacity.get(list % 4).copied().unwrap_or(0) as usize,
+            ),
+            None => (list * stride, stride),
+        };
+        let lists = (0..LIST_COUNT as usize)
+            .map(|list| {
+                let (base, capacity) = place(list);
+                let n = (word(&counts, list) as usize).min(capacity);
+                (0..n)
+                    .map(|k| {
+                        let at = base + k;
+                        let (count, first) =
+                            (word(&commands, 5 * at + 1), word(&commands, 5 * at + 4));
+                        IndirectDraw {
+                            index_count: word(&commands, 5 * at),
+                            first_index: word(&commands, 5 * at + 2),
+                            instances: (first..first.saturating_add(count))
+                                .map(|i| word(&ids, i as usize))
+                                .collect(),
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        Ok(GpuLists {
+            draw_count: self.draw_count,
+            lists,
+            order: self.layout.order.clone(),
+        })
+    }
+
+    /// The instances drawn by the last frame: the ids each list's commands cover (waits).
+    pub fn drawn_instances(&self, ctx: &Context) -> Result<Vec<u32>, VkError> {
+        let lists = self.read_lists(ctx)?;
+        let mut out: Vec<u32> = lists
+            .lists
+            .iter()
+            .flatten()
+            .flat_map(|d| d.instances.iter().copied())
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        Ok(out)
+    }
+}
