@@ -128,6 +128,39 @@ fn occlusion_culling_draws_less_than_frustum_culling_in_the_city() {
     assert!(late(&single) * 2 < late(&frustum));
 }
 
+/// Depth reprojection (not conservative, measured): last frame's depth moved into this frame's
+/// view culls about as much as single-phase HiZ; its misses are counted per frame, and a frame
+/// without a miss draws the unculled image. The first frame (no depth yet) and the frame after
+/// a cut are frustum-culled only.
+#[test]
+fn reprojected_depth_culls_and_its_misses_are_counted() {
+    let scene = tilegraph_scene::load("city:1500").unwrap();
+    let frustum = check(&scene, Culling::Frustum, 8);
+    let reproject = check(&scene, Culling::Reproject, 8);
+    println!("{}\n{}", summary(&frustum), summary(&reproject));
+    let late = |r: &CullCheck| r.frames.iter().skip(2).map(|f| f.drawn).sum::<usize>();
+    assert!(
+        late(&reproject) * 2 < late(&frustum),
+        "reproject {} vs frustum {}",
+        late(&reproject),
+        late(&frustum)
+    );
+    for f in &reproject.frames {
+        if f.cut || f.frame == 0 {
+            assert_eq!(f.false_negatives, 0, "frame {} (cut {})", f.frame, f.cut);
+        }
+        if f.false_negatives == 0 {
+            assert!(
+                f.image_equal,
+                "frame {}: no miss, yet the image differs",
+                f.frame
+            );
+        }
+    }
+    let fn_total: usize = reproject.frames.iter().map(|f| f.false_negatives).sum();
+    assert_eq!(fn_total, reproject.totals.false_negatives);
+}
+
 /// Extremes on the GPU path: a world 10^6 m from the origin (camera-relative transforms), odd
 /// and tiny viewports (non-power-of-two pyramids down to 1x1) — no visible instance culled.
 #[test]

@@ -15,7 +15,9 @@ use crate::cull::{add_cull, add_cull_late, import_cull_buffers, CullLists, CullS
 use crate::draws::DrawClass;
 use crate::forward::{add_clear, add_forward, add_transparent};
 use crate::frame::{DrawSource, FrameGraph, States};
-use crate::hiz::{add_hiz_build, HizState};
+use crate::hiz::{
+    add_hiz_build, add_reprojection, import_reprojection, HizState, ReprojectState, Reprojected,
+};
 use crate::occlusion::{
     add_occlusion_queries, add_raster_occlusion, import_query_results, OqState,
 };
@@ -109,6 +111,11 @@ pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
     let mut c = Composition::import(spec);
     let culling = c.culling();
     let two_phase = culling.base() == Culling::HizTwoPhase;
+    // Reprojection: last frame's depth moved into this frame's view, before the culling that
+    // tests against it.
+    if let (Some(r), Some(previous)) = (c.reprojected, c.lists.and_then(|l| l.pyramid)) {
+        add_reprojection(&mut c.g, previous, r);
+    }
     // GPU culling of the early (or only) phase; raster occlusion culls after its boxes.
     if let (Some(lists), false) = (c.lists, culling == Culling::RasterOcclusion) {
         add_cull(&mut c.g, lists, culling);
@@ -133,6 +140,8 @@ struct Composition<'a> {
     t: SceneTargets,
     /// The culling buffers, with GPU culling.
     lists: Option<CullLists>,
+    /// Depth reprojection's buffers (`reproject`).
+    reprojected: Option<Reprojected>,
     /// Same-frame occlusion queries: the buffer of their results on the GPU, which holds the
     /// previous frame's until this frame's copy (imported up front: the pre-pass reads them).
     results: Option<BufferId>,
@@ -180,8 +189,14 @@ impl<'a> Composition<'a> {
             t.ids = Some(ids);
         }
         let hiz = states.get::<HizState>();
+        let reprojected = states.get::<ReprojectState>().map(|r| {
+            let ids = import_reprojection(&mut g, r);
+            externals.insert(ids.keys, External::Buffer(r.keys_handle()));
+            externals.insert(ids.pyramid, External::Buffer(r.handle()));
+            ids
+        });
         let lists = states.get::<CullState>().map(|c| {
-            let lists = import_cull_buffers(&mut g, c, hiz);
+            let lists = import_cull_buffers(&mut g, c, hiz, reprojected.map(|r| r.pyramid));
             for (id, buffer) in [
                 (lists.commands, &c.commands),
                 (lists.counts, &c.counts),
@@ -223,6 +238,7 @@ impl<'a> Composition<'a> {
             externals,
             t,
             lists,
+            reprojected,
             results,
             conditions: None,
             flags_declared: false,
@@ -357,7 +373,9 @@ impl<'a> Composition<'a> {
         if setup.includes(PassKind::Transparent) {
             add_transparent(g, t);
         }
-        if let (Culling::Hiz, Some(pyramid)) = (culling, self.lists.and_then(|l| l.pyramid)) {
+        if let (Culling::Hiz | Culling::Reproject, Some(pyramid)) =
+            (culling, self.lists.and_then(|l| l.pyramid))
+        {
             add_hiz_build(g, t.depth, pyramid);
         }
         if culling.uses_queries() && !culling.conditional() && t.depth_written() {

@@ -543,6 +543,7 @@ impl Run<'_> {
                 "cull",
                 "cluster",
                 "hiz",
+                "reproject",
                 "occlusion",
                 "oq-",
                 "raster-occlusion",

@@ -67,6 +67,10 @@ pub enum Culling {
     /// back-facing normal cone): one indirect command per run of surviving clusters. Needs the
     /// scene's clusters (`Scene::attach_clusters`).
     FrustumClusters,
+    /// Frustum + HiZ against last frame's depth reprojected into this frame's view (seed 000):
+    /// one phase, this frame's matrices; not conservative (point samples, disocclusion),
+    /// measured.
+    Reproject,
     /// Two-phase occlusion culling of instances and of their clusters: last frame's visible
     /// clusters first, then every cluster of a visible instance against the pyramid of that
     /// depth. Needs the scene's clusters.
@@ -75,7 +79,7 @@ pub enum Culling {
 
 impl Culling {
     /// Every culling technique, in the order the docs list them.
-    pub const ALL: [Culling; 9] = [
+    pub const ALL: [Culling; 10] = [
         Culling::None,
         Culling::Frustum,
         Culling::Hiz,
@@ -83,13 +87,15 @@ impl Culling {
         Culling::Oq,
         Culling::OqConditional,
         Culling::RasterOcclusion,
+        Culling::Reproject,
         Culling::FrustumClusters,
         Culling::HizTwoPhaseClusters,
     ];
 
-    /// The techniques that cull whole instances (every scene can use them; the cluster
-    /// techniques need the scene's clusters).
-    pub const INSTANCE_LEVEL: [Culling; 7] = [
+    /// What the tools run when no technique is named, and the Android sample cycles through:
+    /// [`Culling::ALL`] but the cluster techniques (which need the scene's clusters) and
+    /// `reproject` (a measurement of seed 000's idea, run by name).
+    pub const STANDARD: [Culling; 7] = [
         Culling::None,
         Culling::Frustum,
         Culling::Hiz,
@@ -120,6 +126,7 @@ impl Culling {
             "frustum" => Some(Culling::Frustum),
             "hiz" => Some(Culling::Hiz),
             "hiz-2phase" => Some(Culling::HizTwoPhase),
+            "reproject" => Some(Culling::Reproject),
             "oq" => Some(Culling::Oq),
             "oq-conditional" => Some(Culling::OqConditional),
             "raster-occlusion" => Some(Culling::RasterOcclusion),
@@ -135,6 +142,7 @@ impl Culling {
             Culling::Frustum => "frustum",
             Culling::Hiz => "hiz",
             Culling::HizTwoPhase => "hiz-2phase",
+            Culling::Reproject => "reproject",
             Culling::Oq => "oq",
             Culling::OqConditional => "oq-conditional",
             Culling::RasterOcclusion => "raster-occlusion",
@@ -148,7 +156,11 @@ impl Culling {
     pub fn uses_gpu_lists(self) -> bool {
         matches!(
             self.base(),
-            Culling::Frustum | Culling::Hiz | Culling::HizTwoPhase | Culling::RasterOcclusion
+            Culling::Frustum
+                | Culling::Hiz
+                | Culling::HizTwoPhase
+                | Culling::RasterOcclusion
+                | Culling::Reproject
         )
     }
 
@@ -171,7 +183,10 @@ impl Culling {
     }
 
     pub fn uses_pyramid(self) -> bool {
-        matches!(self.base(), Culling::Hiz | Culling::HizTwoPhase)
+        matches!(
+            self.base(),
+            Culling::Hiz | Culling::HizTwoPhase | Culling::Reproject
+        )
     }
 }
 

@@ -112,6 +112,7 @@ pub const CULLING_NAMES: &[&str] = &[
     "oq",
     "oq-conditional",
     "raster-occlusion",
+    "reproject",
     "frustum-clusters",
     "hiz-2phase-clusters",
 ];
@@ -164,7 +165,7 @@ pub const KNOBS: &[KnobSpec] = &[
         name: "hiz_npot",
         domain: Domain::Choice(&["edge-aware", "pad-to-pow2"]),
         default: DefaultValue::Name("edge-aware"),
-        applies: Applies::WithCulling(&["hiz", "hiz-2phase", "hiz-2phase-clusters"]),
+        applies: Applies::WithCulling(&["hiz", "hiz-2phase", "hiz-2phase-clusters", "reproject"]),
         help: "HiZ pyramid of a non-power-of-two target: edge-aware reduction or a padded pyramid",
     },
     KnobSpec {
@@ -182,6 +183,7 @@ pub const KNOBS: &[KnobSpec] = &[
             "frustum",
             "hiz",
             "hiz-2phase",
+            "reproject",
             "frustum-clusters",
             "hiz-2phase-clusters",
         ]),

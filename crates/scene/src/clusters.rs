@@ -17,6 +17,7 @@ use std::path::Path;
 use bytemuck::Pod;
 
 use crate::error::SceneError;
+#[cfg(feature = "meshopt")]
 use crate::scene::Scene;
 pub use crate::scene::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VERTICES};
 

@@ -42,7 +42,7 @@ mod state;
 
 pub use layout::GpuLayout;
 pub use readback::{GpuLists, IndirectDraw};
-pub use state::{CullState, GpuCullCounts};
+pub use state::{CullState, GpuCullCounts, Occluder};
 
 /// The culling buffers in one frame's graph. They live as long as the renderer (visibility and
 /// the pyramid carry over from frame to frame, tools read the drawn set back), so each frame
@@ -59,6 +59,9 @@ pub struct CullLists {
     /// Per draw group and phase: how many instances survived (→ `cull_commands.comp`).
     pub survivors: BufferId,
     pub pyramid: Option<BufferId>,
+    /// What single-phase culling tests against: the pyramid (`hiz`), or the reprojected one
+    /// (`reproject`).
+    pub occluder: Option<BufferId>,
     /// The cluster stage's buffers (cluster techniques).
     pub clusters: Option<ClusterLists>,
 }
@@ -99,6 +102,7 @@ pub fn import_cull_buffers(
     g: &mut FrameGraph,
     state: &CullState,
     hiz: Option<&HizState>,
+    reprojected: Option<BufferId>,
 ) -> CullLists {
     // Conservative boundary states: whatever touched them last frame, this frame waits for.
     let any = ResourceState::buffer(
@@ -151,6 +155,7 @@ pub fn import_cull_buffers(
         entries,
         survivors,
         pyramid,
+        occluder: reprojected.or(pyramid),
         clusters,
     }
 }
@@ -183,7 +188,7 @@ pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
         // synchronization validation counts the dispatch as a writer.
         c.storage_read_write(lists.visibility);
     }
-    if let (Culling::Hiz, Some(p)) = (culling, lists.pyramid) {
+    if let (Culling::Hiz | Culling::Reproject, Some(p)) = (culling, lists.occluder) {
         c.storage_read(p);
     }
     let (compact, commands) = if two_phase {

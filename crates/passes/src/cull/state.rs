@@ -51,6 +51,23 @@ struct SlotInputs {
     pending: Option<(u64, u32)>,
 }
 
+/// The pyramid the culling shaders test against: its buffer and its level table (a
+/// [`HizState`]'s, or for `reproject` the reprojected pyramid with the same table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Occluder {
+    pub pyramid: vk::Buffer,
+    pub levels: vk::Buffer,
+}
+
+impl Occluder {
+    pub fn of(hiz: &HizState) -> Self {
+        Occluder {
+            pyramid: hiz.pyramid.raw,
+            levels: hiz.levels.raw,
+        }
+    }
+}
+
 /// The persistent culling state of one renderer.
 pub struct CullState {
     pub culling: Culling,
@@ -111,7 +128,7 @@ impl CullState {
     }
 
     /// The buffers, pipelines and descriptor sets of `culling` for `scene`'s instances;
-    /// `hiz`: the pyramid the HiZ techniques test against (bound for the shader). A cluster
+    /// `occluder`: the pyramid the HiZ techniques test against (bound for the shader). A cluster
     /// technique needs the scene's clusters attached.
     pub fn new(
         ctx: &Context,
@@ -119,7 +136,7 @@ impl CullState {
         scene: &tilegraph_scene::Scene,
         scene_set_layout: vk::DescriptorSetLayout,
         frames_in_flight: usize,
-        hiz: Option<&HizState>,
+        occluder: Option<Occluder>,
         bounds: CullBounds,
     ) -> Result<Self, VkError> {
         let instance_count = scene.instances().len() as u32;
@@ -211,7 +228,7 @@ impl CullState {
         // its late phase everything the frustum keeps, on every run alike. Once, at creation,
         // so that no frame's declaration differs.
         let zeroed = state
-            .init(ctx, scene_set_layout, frames_in_flight, hiz)
+            .init(ctx, scene_set_layout, frames_in_flight, occluder)
             .and_then(|()| {
                 if !culling.clusters() {
                     return Ok(());
@@ -225,8 +242,8 @@ impl CullState {
                     draw_ids: state.draw_ids.raw,
                     visibility: state.visibility.raw,
                     entries: state.entries.raw,
-                    pyramid: hiz.map_or(state.no_pyramid.raw, |h| h.pyramid.raw),
-                    levels: hiz.map_or(state.no_pyramid.raw, |h| h.levels.raw),
+                    pyramid: occluder.map_or(state.no_pyramid.raw, |o| o.pyramid),
+                    levels: occluder.map_or(state.no_pyramid.raw, |o| o.levels),
                     scene,
                 };
                 state.clusters = ClusterStage::new(ctx, &shared, instance_count, scene_set_layout)?;
@@ -258,7 +275,7 @@ impl CullState {
         ctx: &Context,
         scene_set_layout: vk::DescriptorSetLayout,
         frames_in_flight: usize,
-        hiz: Option<&HizState>,
+        occluder: Option<Occluder>,
     ) -> Result<(), VkError> {
         let n = u64::from(self.instance_count.max(1));
         let c = vk::ShaderStageFlags::COMPUTE;
@@ -306,8 +323,8 @@ impl CullState {
             self.slots.push(inputs);
         }
         // Without a pyramid the shader never reads bindings 5 and 6.
-        let pyramid = hiz.map_or(self.no_pyramid.raw, |h| h.pyramid.raw);
-        let levels = hiz.map_or(self.no_pyramid.raw, |h| h.levels.raw);
+        let pyramid = occluder.map_or(self.no_pyramid.raw, |o| o.pyramid);
+        let levels = occluder.map_or(self.no_pyramid.raw, |o| o.levels);
         for i in 0..2 * slots as usize {
             let set = self.write_set(ctx, i, pyramid, levels)?;
             self.sets.push(set);
@@ -430,6 +447,18 @@ impl CullState {
             }
         };
         let first = match self.culling.base() {
+            // This frame's matrices against last frame's depth moved into this frame's view
+            // (ReprojectState, written under the same conditions).
+            Culling::Reproject => params(
+                Phase::HizPrevious,
+                m.view_projection,
+                if pyramid.is_some_and(|p| p.built_from == Some(m.depth)) && !frame.cut {
+                    levels
+                } else {
+                    0
+                },
+                false,
+            ),
             Culling::Hiz => params(
                 Phase::HizPrevious,
                 frame.reproject,

@@ -196,18 +196,6 @@ impl HizBuilder {
         pyramid: BufferHandle,
         layout: &HizLayout,
     ) -> Result<(), VkError> {
-        let timestamps = self.timestamps;
-        let stamp = |query: usize| match timestamps {
-            // BOTTOM_OF_PIPE: once everything recorded before has finished (ALL_COMMANDS says
-            // the same for a timestamp, and best practices flag it).
-            Some((pool, first)) => ctx.cmd_write_timestamp2(
-                cb,
-                vk::PipelineStageFlags2::BOTTOM_OF_PIPE,
-                pool,
-                first + query as u32,
-            ),
-            None => Ok(()),
-        };
         let SampledDepth {
             view: depth_view,
             layout: depth_layout,
@@ -272,6 +260,81 @@ impl HizBuilder {
         // view and buffer are live; the range fits the buffer (checked above) and is below the
         // guaranteed maxStorageBufferRange (HizLayout::new).
         unsafe { d.update_descriptor_sets(&writes, &[]) };
+        self.record_steps(ctx, cb, set, pyramid, layout, 0..steps)
+    }
+
+    /// The pyramid's levels after its base, reduced from the base level already in `pyramid`
+    /// (written by another pass, such as depth reprojection's resolve; the graph made it
+    /// visible). Same contract as [`Self::record`] otherwise; the slot's set gets `pyramid`
+    /// only (the reductions do not read the depth image).
+    pub fn record_reductions(
+        &mut self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        frame_slot: usize,
+        pyramid: BufferHandle,
+        layout: &HizLayout,
+    ) -> Result<(), VkError> {
+        let invalid = |reason: String| VkError::Invalid {
+            what: "hiz reductions".into(),
+            reason,
+        };
+        let set = *self.sets.get(frame_slot).ok_or_else(|| {
+            invalid(format!(
+                "frame slot {frame_slot} out of range ({} slots)",
+                self.sets.len()
+            ))
+        })?;
+        if pyramid.raw == vk::Buffer::null() || pyramid.size < layout.size_bytes() {
+            return Err(invalid(format!(
+                "pyramid buffer of {} bytes, the layout needs {}",
+                pyramid.size,
+                layout.size_bytes()
+            )));
+        }
+        let mut steps = 0;
+        while let Some(step) = layout.step(steps) {
+            step?;
+            steps += 1;
+        }
+        let buffer_info = [vk::DescriptorBufferInfo {
+            buffer: pyramid.raw,
+            offset: 0,
+            range: layout.size_bytes(),
+        }];
+        let writes = [vk::WriteDescriptorSet::default()
+            .dst_set(set)
+            .dst_binding(BINDING_PYRAMID)
+            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+            .buffer_info(&buffer_info)];
+        // SAFETY: as in `record`: the set is not in use by pending work, the buffer is live and
+        // the range fits it.
+        unsafe { ctx.device.update_descriptor_sets(&writes, &[]) };
+        self.record_steps(ctx, cb, set, pyramid, layout, 1..steps)
+    }
+
+    /// Binds `set` and records steps `first..steps` of `layout` with barriers between them.
+    fn record_steps(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        set: vk::DescriptorSet,
+        pyramid: BufferHandle,
+        layout: &HizLayout,
+        steps: std::ops::Range<usize>,
+    ) -> Result<(), VkError> {
+        let (first, steps) = (steps.start, steps.end);
+        let timestamps = self.timestamps;
+        let stamp = |query: usize| match timestamps {
+            Some((pool, base)) => ctx.cmd_write_timestamp2(
+                cb,
+                vk::PipelineStageFlags2::BOTTOM_OF_PIPE,
+                pool,
+                base + query as u32,
+            ),
+            None => Ok(()),
+        };
+        let d = &ctx.device;
         // SAFETY: `cb` is recording outside a render pass (the caller's contract for a compute
         // pass); the set matches the pipeline layout.
         unsafe {
@@ -300,11 +363,11 @@ impl HizBuilder {
             .offset(0)
             .size(layout.size_bytes())];
         stamp(0)?;
-        for i in 0..steps {
+        for i in first..steps {
             let Some(step) = layout.step(i) else {
                 break;
             };
-            if i > 0 {
+            if i > first {
                 ctx.cmd_pipeline_barrier2(
                     cb,
                     &vk::DependencyInfo::default().buffer_memory_barriers(&between),

@@ -19,6 +19,7 @@
 
 mod builder;
 mod layout;
+mod reproject;
 
 pub use builder::{
     HizBuilder, SampledDepth, HIZ_COPY_SPV, HIZ_REDUCE_LEVELS_SPV, HIZ_REDUCE_SPV,
@@ -37,6 +38,9 @@ use tilegraph_vk::{Buffer, Context, VkError};
 use crate::frame::{FrameGraph, PassState, Payload};
 use crate::gpu_scene::upload;
 
+pub use reproject::{
+    add_reprojection, import_reprojection, ReprojectPush, ReprojectState, Reprojected,
+};
 pub use tilegraph_cull::{AxisScale, DepthConvention, DepthFormat, NpotMode};
 
 /// The pyramid a build wrote: read by culling passes after it (this frame's late phase, or the

@@ -11,6 +11,7 @@
 //! caller declared — an engine's frame, the shipped passes and its own on one graph.
 
 mod readback;
+mod resources;
 
 use std::sync::Arc;
 
@@ -27,16 +28,15 @@ use tilegraph_vk::{Context, Image, VkError};
 use crate::compose::{declare_scene, kept_import, ColorTarget, DeclarationKey, SceneFrame};
 use crate::cull::{cpu_frustum_mask_into, CullState, Culling, GpuCullCounts};
 use crate::draws::DrawBuilder;
-use crate::frame::{FrameData, FrameGraph, Payload, SceneResources, States};
-use crate::gpu_scene::{FrameUniforms, GpuScene};
-use crate::hiz::HizState;
+use crate::frame::{FrameGraph, Payload, SceneResources};
+use crate::gpu_scene::FrameUniforms;
+use crate::hiz::{HizState, ReprojectState};
 use crate::lint::lint_frame;
-use crate::occlusion::{OqState, RasterOcclusion};
+use crate::occlusion::OqState;
 use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
-use crate::pipelines::Pipelines;
 use crate::setup::{FrameSetup, SceneContent, Technique};
 use crate::targets::{create_target, destroy_target};
-use crate::visbuf::ResolveSets;
+use resources::create_resources;
 
 /// An image the renderer keeps across frames, with its view.
 type Target = (Image, ImageHandle);
@@ -601,6 +601,9 @@ impl SceneRenderer {
         if let Some(cull) = res.states.get_mut::<CullState>() {
             cull.write_frame(ctx, slot, frame, &res.frame.draws, (w, h), pyramid)?;
         }
+        if let Some(r) = res.states.get_mut::<ReprojectState>() {
+            r.write_frame(frame, pyramid.and_then(|p| p.built_from));
+        }
         Ok(())
     }
 
@@ -651,119 +654,6 @@ impl SceneRenderer {
             destroy_target(ctx, ids);
         }
     }
-}
-
-/// The GPU side of a renderer: the scene uploaded, the pipelines' layouts, and the state of the
-/// culling technique (`blended`: per instance, whether its material is blended). Whatever was
-/// created is destroyed again when a later step fails.
-fn create_resources(
-    ctx: &Context,
-    scene: &Scene,
-    options: &RenderOptions,
-    blended: &[bool],
-    frames_in_flight: usize,
-) -> Result<SceneResources, RenderError> {
-    let gpu = GpuScene::new(ctx, scene, frames_in_flight)?;
-    let pipelines = match Pipelines::new(ctx, gpu.set_layout, options.count_fragments) {
-        Ok(p) => p,
-        Err(e) => {
-            gpu.destroy(ctx);
-            return Err(e.into());
-        }
-    };
-    let mut res = SceneResources {
-        scene: gpu,
-        pipelines,
-        frame: FrameData::default(),
-        states: States::default(),
-    };
-    match add_states(ctx, scene, options, blended, frames_in_flight, &mut res) {
-        Ok(()) => Ok(res),
-        Err(e) => {
-            res.destroy(ctx);
-            Err(e.into())
-        }
-    }
-}
-
-/// The states of `options`' techniques.
-fn add_states(
-    ctx: &Context,
-    scene: &Scene,
-    options: &RenderOptions,
-    blended: &[bool],
-    frames_in_flight: usize,
-    res: &mut SceneResources,
-) -> Result<(), VkError> {
-    let culling = options.culling;
-    let instances = scene.instances().len() as u32;
-    let set_layout = res.scene.set_layout;
-    if culling.uses_pyramid() {
-        let depth = scene
-            .camera_path()
-            .camera(0)
-            .map_or(DepthConvention::Reverse, |c| {
-                c.projection.depth_convention()
-            });
-        let size = (options.width, options.height);
-        let hiz = HizState::new(
-            ctx,
-            size,
-            options.hiz_mode,
-            depth,
-            options.depth_format,
-            options.hiz_base_level,
-            frames_in_flight,
-        )?;
-        res.states.insert(hiz);
-    }
-    if culling.uses_gpu_lists() {
-        let hiz = res.states.get::<HizState>();
-        let c = CullState::new(
-            ctx,
-            culling,
-            scene,
-            set_layout,
-            frames_in_flight,
-            hiz,
-            options.cull_bounds,
-        )?;
-        let draw_ids = c.draw_ids.raw;
-        res.states.insert(c);
-        res.scene.add_culled_sets(ctx, draw_ids)?;
-        if culling == Culling::RasterOcclusion {
-            let visibility = res.states.get::<CullState>().map(|c| &c.visibility);
-            if let Some(visibility) = visibility {
-                let scale = options.raster_occlusion_scale;
-                let raster = RasterOcclusion::new(
-                    ctx,
-                    set_layout,
-                    visibility,
-                    instances,
-                    scale,
-                    frames_in_flight,
-                )?;
-                res.states.insert(raster);
-            }
-        }
-    }
-    if culling.uses_queries() {
-        let conditional = culling.conditional();
-        let oq = OqState::new(
-            ctx,
-            scene,
-            options.oq_group,
-            conditional,
-            blended,
-            set_layout,
-            frames_in_flight,
-        )?;
-        res.states.insert(oq);
-    }
-    if options.technique == Technique::Visbuf {
-        res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);
-    }
-    Ok(())
 }
 
 /// The colour target, and the id target when the ids are captured.

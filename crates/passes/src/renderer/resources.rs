@@ -1,0 +1,153 @@
+//! What a renderer creates on the GPU before its first frame: the scene uploaded, the
+//! pipelines' layouts, and the states of its techniques.
+
+use tilegraph_scene::{DepthConvention, Scene};
+use tilegraph_vk::{Context, VkError};
+
+use crate::cull::{CullState, Culling, Occluder};
+use crate::frame::{FrameData, SceneResources, States};
+use crate::gpu_scene::GpuScene;
+use crate::hiz::{HizState, ReprojectState};
+use crate::occlusion::{OqState, RasterOcclusion};
+use crate::options::{RenderError, RenderOptions};
+use crate::pipelines::Pipelines;
+use crate::setup::Technique;
+use crate::visbuf::ResolveSets;
+
+/// The GPU side of a renderer: the scene uploaded, the pipelines' layouts, and the state of the
+/// culling technique (`blended`: per instance, whether its material is blended). Whatever was
+/// created is destroyed again when a later step fails.
+pub(super) fn create_resources(
+    ctx: &Context,
+    scene: &Scene,
+    options: &RenderOptions,
+    blended: &[bool],
+    frames_in_flight: usize,
+) -> Result<SceneResources, RenderError> {
+    let gpu = GpuScene::new(ctx, scene, frames_in_flight)?;
+    let pipelines = match Pipelines::new(ctx, gpu.set_layout, options.count_fragments) {
+        Ok(p) => p,
+        Err(e) => {
+            gpu.destroy(ctx);
+            return Err(e.into());
+        }
+    };
+    let mut res = SceneResources {
+        scene: gpu,
+        pipelines,
+        frame: FrameData::default(),
+        states: States::default(),
+    };
+    match add_states(ctx, scene, options, blended, frames_in_flight, &mut res) {
+        Ok(()) => Ok(res),
+        Err(e) => {
+            res.destroy(ctx);
+            Err(e.into())
+        }
+    }
+}
+
+/// The states of `options`' techniques.
+fn add_states(
+    ctx: &Context,
+    scene: &Scene,
+    options: &RenderOptions,
+    blended: &[bool],
+    frames_in_flight: usize,
+    res: &mut SceneResources,
+) -> Result<(), VkError> {
+    let culling = options.culling;
+    let instances = scene.instances().len() as u32;
+    let set_layout = res.scene.set_layout;
+    if culling.uses_pyramid() {
+        let depth = scene
+            .camera_path()
+            .camera(0)
+            .map_or(DepthConvention::Reverse, |c| {
+                c.projection.depth_convention()
+            });
+        let size = (options.width, options.height);
+        // Reprojection moves last frame's full-resolution depth: the pyramid's level 0.
+        let base_level = if culling == Culling::Reproject {
+            0
+        } else {
+            options.hiz_base_level
+        };
+        let hiz = HizState::new(
+            ctx,
+            size,
+            options.hiz_mode,
+            depth,
+            options.depth_format,
+            base_level,
+            frames_in_flight,
+        )?;
+        if culling == Culling::Reproject {
+            match ReprojectState::new(ctx, &hiz, frames_in_flight) {
+                Ok(r) => {
+                    res.states.insert(r);
+                }
+                Err(e) => {
+                    res.states.insert(hiz);
+                    return Err(e);
+                }
+            }
+        }
+        res.states.insert(hiz);
+    }
+    if culling.uses_gpu_lists() {
+        let hiz = res.states.get::<HizState>();
+        // Reprojection's culling reads the reprojected pyramid (with the same level table).
+        let occluder = match (hiz, res.states.get::<ReprojectState>()) {
+            (Some(h), Some(r)) => Some(Occluder {
+                pyramid: r.pyramid.raw,
+                levels: h.levels.raw,
+            }),
+            (h, _) => h.map(Occluder::of),
+        };
+        let c = CullState::new(
+            ctx,
+            culling,
+            scene,
+            set_layout,
+            frames_in_flight,
+            occluder,
+            options.cull_bounds,
+        )?;
+        let draw_ids = c.draw_ids.raw;
+        res.states.insert(c);
+        res.scene.add_culled_sets(ctx, draw_ids)?;
+        if culling == Culling::RasterOcclusion {
+            let visibility = res.states.get::<CullState>().map(|c| &c.visibility);
+            if let Some(visibility) = visibility {
+                let scale = options.raster_occlusion_scale;
+                let raster = RasterOcclusion::new(
+                    ctx,
+                    set_layout,
+                    visibility,
+                    instances,
+                    scale,
+                    frames_in_flight,
+                )?;
+                res.states.insert(raster);
+            }
+        }
+    }
+    if culling.uses_queries() {
+        let conditional = culling.conditional();
+        let oq = OqState::new(
+            ctx,
+            scene,
+            options.oq_group,
+            conditional,
+            blended,
+            set_layout,
+            frames_in_flight,
+        )?;
+        res.states.insert(oq);
+    }
+    if options.technique == Technique::Visbuf {
+        res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);
+    }
+    Ok(())
+}
