@@ -127,6 +127,18 @@ enum TgCulling
   TG_CULLING_OQ = 4,
   TG_CULLING_OQ_CONDITIONAL = 5,
   TG_CULLING_RASTER_OCCLUSION = 6,
+  /**
+   * Needs the scene's clusters (`tg_scene_attach_clusters`).
+   */
+  TG_CULLING_FRUSTUM_CLUSTERS = 7,
+  /**
+   * Needs the scene's clusters (`tg_scene_attach_clusters`).
+   */
+  TG_CULLING_HIZ_TWO_PHASE_CLUSTERS = 8,
+  /**
+   * Last frame's depth reprojected: not conservative (docs/ACCURACY.md).
+   */
+  TG_CULLING_REPROJECT = 9,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -1191,6 +1203,19 @@ TgStatus tg_scene_create(const TgSceneDesc *desc, TgScene *out_scene);
  * `spec` is a NUL-terminated string; `out_scene` is writable.
  */
 TgStatus tg_scene_load(const char *spec, TgScene *out_scene);
+
+/**
+ * Attaches prebuilt clusters to a scene, read from the file at `path` (written on the desktop
+ * by `tilegraph scene-info SCENE --write-clusters FILE`, or by the engine's own asset
+ * pipeline in that format): the cluster techniques (TG_CULLING_FRUSTUM_CLUSTERS,
+ * TG_CULLING_HIZ_TWO_PHASE_CLUSTERS) need them. The file must have been built from this
+ * scene's geometry; the scene's index buffer is then in cluster order. Refused with
+ * TG_STATUS_IN_USE while renderers made from the scene exist.
+ *
+ * # Safety
+ * `path` is a NUL-terminated string.
+ */
+TgStatus tg_scene_attach_clusters(TgScene scene, const char *path);
 
 /**
  * Destroys a scene (renderers drawing it are destroyed first: TG_STATUS_IN_USE otherwise).

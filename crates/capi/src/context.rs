@@ -50,6 +50,12 @@ pub enum TgCulling {
     Oq = 4,
     OqConditional = 5,
     RasterOcclusion = 6,
+    /// Needs the scene's clusters (`tg_scene_attach_clusters`).
+    FrustumClusters = 7,
+    /// Needs the scene's clusters (`tg_scene_attach_clusters`).
+    HizTwoPhaseClusters = 8,
+    /// Last frame's depth reprojected: not conservative (docs/ACCURACY.md).
+    Reproject = 9,
 }
 
 /// Device features tilegraph may need, as bits of `TgDeviceRequirements::features`.
@@ -157,6 +163,9 @@ pub(crate) fn culling(raw: u32) -> Result<Culling, Failure> {
         4 => Culling::Oq,
         5 => Culling::OqConditional,
         6 => Culling::RasterOcclusion,
+        7 => Culling::FrustumClusters,
+        8 => Culling::HizTwoPhaseClusters,
+        9 => Culling::Reproject,
         _ => return Err(Failure::invalid(format!("culling {raw} is no TgCulling"))),
     })
 }

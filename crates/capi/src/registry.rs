@@ -267,6 +267,31 @@ pub fn take<T: Any>(raw: u64, kind: Kind, name: &str) -> Result<Box<T>, Failure>
     })
 }
 
+/// Runs `f` on the object `raw` names, mutably; refused (TG_STATUS_IN_USE) while objects made
+/// from it (renderers) exist, since they hold what it was when they were made.
+pub fn with_unused_mut<T: Any, R>(
+    raw: u64,
+    kind: Kind,
+    name: &str,
+    f: impl FnOnce(&mut T) -> Result<R, Failure>,
+) -> Result<R, Failure> {
+    REGISTRY.with(|r| {
+        let mut r = r.borrow_mut();
+        let slot = r.slot(raw, kind, name)?;
+        if slot.users > 0 {
+            return Err(Failure::new(
+                TgStatus::InUse,
+                format!(
+                    "`{name}` still has {} user(s) (renderers made from it): destroy them first",
+                    slot.users
+                ),
+            ));
+        }
+        let object: &mut T = downcast(slot, name)?;
+        f(object)
+    })
+}
+
 /// Puts an object taken with [`take`] back.
 pub fn put_back<T: Any>(raw: u64, kind: Kind, object: Box<T>) {
     REGISTRY.with(|r| {

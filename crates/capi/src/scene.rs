@@ -293,6 +293,27 @@ pub unsafe extern "C" fn tg_scene_load(spec: *const c_char, out_scene: *mut TgSc
     })
 }
 
+/// Attaches prebuilt clusters to a scene, read from the file at `path` (written on the desktop
+/// by `tilegraph scene-info SCENE --write-clusters FILE`, or by the engine's own asset
+/// pipeline in that format): the cluster techniques (TG_CULLING_FRUSTUM_CLUSTERS,
+/// TG_CULLING_HIZ_TWO_PHASE_CLUSTERS) need them. The file must have been built from this
+/// scene's geometry; the scene's index buffer is then in cluster order. Refused with
+/// TG_STATUS_IN_USE while renderers made from the scene exist.
+///
+/// # Safety
+/// `path` is a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn tg_scene_attach_clusters(scene: TgScene, path: *const c_char) -> TgStatus {
+    boundary("tg_scene_attach_clusters", || {
+        // SAFETY: the caller's contract.
+        let path = unsafe { string(path, "path") }?;
+        let data = tilegraph_scene::clusters::ClusterData::read(std::path::Path::new(path))?;
+        registry::with_unused_mut(scene.raw, Kind::Scene, "scene", |s: &mut Scene| {
+            Ok(s.attach_clusters(data)?)
+        })
+    })
+}
+
 /// Destroys a scene (renderers drawing it are destroyed first: TG_STATUS_IN_USE otherwise).
 /// A zero handle is a no-op.
 #[no_mangle]
