@@ -9,7 +9,9 @@
 //! equal to the unculled one (the frustum and two-phase HiZ techniques, instance and cluster
 //! level, which draw in the unculled order), on a
 //! three-frame path whose last frame jumps elsewhere without a
-//! cut (two-phase culling's history is then wrong, and must not matter).
+//! cut (two-phase culling's history is then wrong, and must not matter); and renders the first
+//! view with the visibility buffer and with forward shading (no pre-pass), which must be equal
+//! bit for bit.
 //!
 //! 64 cases by default, the same ones every run; `PROPTEST_CASES` runs more of the same sequence. A failing case shrinks to a small one,
 //! and its seed is written to `tests/proptest-regressions/random_extremes.txt`, which is
@@ -22,7 +24,7 @@ use tilegraph_cull::{DepthFormat, NpotMode};
 use tilegraph_e2e::gpu_with;
 use tilegraph_passes::cull::{CullBounds, Culling};
 use tilegraph_passes::cullcheck::{cull_check_options, CheckExtras};
-use tilegraph_passes::RenderOptions;
+use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
 use tilegraph_scene::{Camera, CameraPath, DepthConvention, PathKey, Projection, Scene};
 
 /// Where a camera stands relative to instance `instance`'s bounding box.
@@ -327,6 +329,37 @@ fn conservative_culling_holds_at_random_extremes() {
             }
             checked.set(checked.get() + 1);
         }
+        // The visibility buffer against forward shading without a pre-pass, bit for bit (both
+        // keep the first drawn of surfaces tied in depth; passes.rs says why the pre-pass
+        // differs there).
+        let camera = case.camera(&scene, &case.views[0]);
+        let mut images = Vec::new();
+        for technique in [Technique::Forward, Technique::Visbuf] {
+            let options = RenderOptions {
+                technique,
+                width: case.size.0,
+                height: case.size.1,
+                depth_prepass: Some(false),
+                depth_format: if case.d16 {
+                    DepthFormat::D16Unorm
+                } else {
+                    DepthFormat::D32Float
+                },
+                ..Default::default()
+            };
+            let image = SceneRenderer::new(&g, &scene, options)
+                .and_then(|mut r| {
+                    let image = r.render(&g, &scene, &camera).and_then(|_| r.read_image(&g));
+                    r.destroy(&g);
+                    image
+                })
+                .map_err(|e| TestCaseError::fail(format!("{}: {e}", technique.name())))?;
+            images.push(image);
+        }
+        prop_assert!(
+            images[0] == images[1],
+            "the visibility buffer differs from forward shading"
+        );
         Ok(())
     });
     if let Err(e) = result {
