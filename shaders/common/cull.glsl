@@ -16,7 +16,7 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
     mat4 hiz_view_proj;    // camera-relative position -> clip space of the frame the pyramid was built in
     uvec4 info;            // x: instances, y: phase, z: HiZ levels (0 = no pyramid), w: 1 reverse-Z
     uvec4 screen;          // x, y: depth size (px) the pyramid maps from, z: list stride, w: 1 = sphere bounds
-    uvec4 groups;          // x: groups per phase, y: 1 = keep empty commands (fixed draw count)
+    uvec4 groups;          // x: groups per phase, y: 1 = keep empty commands (fixed draw count), z: 1 = D16 depth
     uvec4 group_start;     // per list of a phase: its first group
     uvec4 group_count;     // per list of a phase: its number of groups
     // Sphere bounds only:

@@ -4,6 +4,18 @@
 #ifndef TILEGRAPH_CULL_TESTS_GLSL
 #define TILEGRAPH_CULL_TESTS_GLSL
 
+#include "hiz.glsl"
+
+// A D16 attachment holds a fragment at its rounded code, up to half a step nearer than the float
+// depth: the test compares the code on the near side (tilegraph_cull::DepthFormat::toward_near).
+// The f32 product is within 0.004 of the exact one, so a fraction that close to a whole code
+// goes one code further toward the near plane.
+float toward_near_d16(float d, bool reverse) {
+    float scaled = clamp(d, 0.0, 1.0) * 65535.0;
+    uint k = reverse ? uint(ceil(scaled + 0.01)) : uint(max(floor(scaled - 0.01), 0.0));
+    return hiz_d16_exact(min(k, 65535u));
+}
+
 layout(set = 1, binding = 5, std430) readonly buffer Pyramid { float pyramid[]; };
 // Per stored level (the finest may be level 1 or 2: knob hiz_resolution): (offset, width, height,
 // 0), then (texels_x, pixels_x, texels_y, pixels_y): depth pixel p maps to texel
@@ -152,6 +164,9 @@ bool hiz_visible_bounds(Instance inst, bool sphere) {
     // depth comes from one more product).
     uint ulps = sphere ? 8u : 4u;
     float nearest = uintBitsToFloat(reverse ? floatBitsToUint(p.nearest) + ulps : max(floatBitsToUint(p.nearest), ulps) - ulps);
+    if (cull.groups.z == 1u) {
+        nearest = toward_near_d16(nearest, reverse);
+    }
     for (uint k = 0u; k < cull.info.z; ++k) {
         uvec4 l = levels[2u * k];
         uvec4 sc = levels[2u * k + 1u];

@@ -352,7 +352,8 @@ pub struct CullParams {
     pub info: [u32; 4],
     /// x, y pyramid level-0 size; z list stride.
     pub screen: [u32; 4],
-    /// x draw groups per phase (at least 1), y 1 = keep empty commands (fixed draw count).
+    /// x draw groups per phase (at least 1), y 1 = keep empty commands (fixed draw count),
+    /// z 1 = a D16 pyramid (the HiZ test compares the code on the near side).
     pub groups: [u32; 4],
     /// Per list of a phase: its first draw group.
     pub group_start: [u32; 4],

@@ -399,6 +399,8 @@ impl CullState {
         let total = layout.groups.len() as u32;
         let keep_empty = u32::from(matches!(self.draw_count, DrawCount::Fixed { .. }));
         let spheres = u32::from(self.bounds == CullBounds::Sphere);
+        let d16 =
+            u32::from(pyramid.is_some_and(|p| p.format == tilegraph_cull::DepthFormat::D16Unorm));
         // Cluster culling: where its commands and draw ids go, entries per list, and the cone
         // test (perspective views only: an orthographic view's direction is not modelled).
         let (cluster_info, list_len, cmd_base) = match &self.clusters {
@@ -435,7 +437,7 @@ impl CullState {
                 hiz_view_proj: view_proj.to_cols_array_2d(),
                 info: [n, phase as u32, levels, reverse],
                 screen: [pw, ph, n.max(1), spheres],
-                groups: [total.max(1), keep_empty, 0, 0],
+                groups: [total.max(1), keep_empty, d16, 0],
                 group_start: layout.group_start,
                 group_count: layout.group_count,
                 hiz_view: view.to_cols_array_2d(),

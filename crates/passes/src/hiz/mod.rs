@@ -149,6 +149,8 @@ pub struct PyramidInfo {
     pub extent_px: (u32, u32),
     /// The convention of the depth it was last built from.
     pub built_from: Option<DepthConvention>,
+    /// The depth's format: a D16 pyramid holds codes.
+    pub format: DepthFormat,
 }
 
 impl HizState {
@@ -157,6 +159,7 @@ impl HizState {
             levels: self.layout.levels.len() as u32,
             extent_px: self.layout.extent_px(),
             built_from: self.built_from,
+            format: self.layout.format,
         }
     }
 }
