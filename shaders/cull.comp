@@ -9,6 +9,7 @@
 //   1 hiz          frustum + HiZ test against the previous frame's pyramid, projected with the
 //                  previous frame's matrices (reprojected to the current eye);
 //   2 early        two-phase, first half: what was visible last frame and is in the frustum;
+//                  raster occlusion (groups.w != 0): this frame's box flags, or carried;
 //   3 late         two-phase, second half: test everything in the frustum against the pyramid
 //                  of the early depth; list what is visible and was not drawn early (and add it
 //                  to the early lists, which the colour pass then draws); the result is next
@@ -17,6 +18,7 @@
 #include "scene.glsl"
 #include "cull.glsl"
 #include "cull_tests.glsl"
+#include "recheck.glsl"
 
 layout(local_size_x = 64) in;
 
@@ -50,6 +52,15 @@ void main() {
         mark(list, id, in_frustum);
     } else if (phase == 1u) {
         mark(list, id, in_frustum && hiz_visible(inst));
+    } else if (phase == 2u && cull.groups.w != 0u) {
+        // Raster occlusion (cull.groups.w: the packed recheck): a box fragment passed, or the
+        // instance was drawn last frame and its box was not tested (recheck.glsl). The word
+        // becomes next frame's: drawn or not, this frame's pass flag cleared.
+        uint word = visible_last[id];
+        bool draw = in_frustum
+            && ((word & FLAG_PASSED) != 0u || raster_carried(word, cull.groups.w, id));
+        mark(list, id, draw);
+        visible_last[id] = draw ? FLAG_DRAWN : 0u;
     } else if (phase == 2u) {
         mark(list, id, in_frustum && visible_last[id] != 0u);
     } else {

@@ -1,12 +1,21 @@
 #version 450
 // Raster occlusion: every instance's camera-relative bounding box (instance = gl_InstanceIndex,
-// 36 vertices, no vertex buffer), depth tested against the pre-pass depth, nothing written but
+// vertex = corner: an indexed draw of the box's 12 triangles over 8 corners, BOX_INDICES in
+// occlusion/raster.rs, no vertex buffer), depth tested against the pre-pass depth, nothing written but
 // the fragment shader's visibility flag. A box that reaches in front of the near plane would be
 // clipped and could miss: it becomes a screen-covering triangle at the near plane instead, which
 // passes the depth test everywhere (conservative: the instance is flagged).
 #include "scene.glsl"
+#include "recheck.glsl"
 
 layout(location = 0) flat out uint v_instance;
+
+// Per instance: FLAG_PASSED (this frame, the fragment shader) | FLAG_DRAWN (last frame).
+layout(set = 1, binding = 0, std430) readonly buffer Visible { uint visible[]; };
+
+// x: the packed recheck (recheck.glsl): an instance drawn last frame whose turn has not come is
+// not tested (cull.comp draws it).
+layout(push_constant) uniform Push { uvec4 recheck; } push;
 
 // 1: the box itself, at full resolution. k > 1: against a 1/k-resolution farthest-depth image,
 // where a small box could miss every low-resolution pixel centre; instead its screen rectangle,
@@ -15,18 +24,6 @@ layout(location = 0) flat out uint v_instance;
 // full-resolution one).
 layout(constant_id = 0) const uint SCALE = 1u;
 
-// Two triangles front-facing on screen (the pipeline culls back faces): top-left, bottom-left,
-// top-right, then top-right, bottom-left, bottom-right (bit 0: right, bit 1: bottom).
-const uint QUAD[6] = uint[6](0u, 2u, 1u, 1u, 2u, 3u);
-
-const uint CORNERS[36] = uint[36](
-    0u, 2u, 1u, 1u, 2u, 3u,  // -z
-    4u, 5u, 6u, 5u, 7u, 6u,  // +z
-    0u, 1u, 4u, 1u, 5u, 4u,  // -y
-    2u, 6u, 3u, 3u, 6u, 7u,  // +y
-    0u, 4u, 2u, 2u, 4u, 6u,  // -x
-    1u, 3u, 5u, 3u, 7u, 5u   // +x
-);
 
 vec3 corner_sign(uint c) {
     return vec3(float(c & 1u), float((c >> 1u) & 1u), float((c >> 2u) & 1u)) * 2.0 - 1.0;
@@ -34,8 +31,12 @@ vec3 corner_sign(uint c) {
 
 void main() {
     uint id = uint(gl_InstanceIndex);
-    Instance inst = instances[id];
     v_instance = id;
+    if (raster_carried(visible[id], push.recheck.x, id)) {
+        gl_Position = vec4(2.0, 2.0, 0.5, 1.0); // every vertex on one point off screen
+        return;
+    }
+    Instance inst = instances[id];
     // f32 camera-relative bounds: pad by a few ulps so rounding never shrinks the box.
     vec3 half_size = inst.half_extents * (1.0 + 1e-5) + vec3(1e-5);
     float near_depth = frame.depth_params.x;
@@ -63,10 +64,13 @@ void main() {
         gl_Position = vec4(2.0, 2.0, 0.5, 1.0); // every vertex on one point off screen
         return;
     }
+    uint c = uint(gl_VertexIndex);
     if (crosses) {
-        // Top-left, bottom-left (far below), top-right (far right): front-facing on screen.
-        uint v = uint(gl_VertexIndex);
-        vec2 p = v < 3u ? vec2(v == 2u ? 3.0 : -1.0, v == 1u ? 3.0 : -1.0) : vec2(0.0);
+        // The first triangle (corners 0, 2, 1) becomes top-left, bottom-left (far below),
+        // top-right (far right): front-facing on screen. The other corners meet at the centre;
+        // whatever else they draw lies on screen at the near depth too (the flag is set anyway).
+        vec2 p = c == 0u ? vec2(-1.0) : c == 2u ? vec2(-1.0, 3.0) : c == 1u ? vec2(3.0, -1.0)
+                                                                        : vec2(0.0);
         gl_Position = vec4(p, near_depth, 1.0);
         return;
     }
@@ -87,12 +91,12 @@ void main() {
         vec2 pad = 2.0 * float(SCALE) * frame.viewport.zw;
         lo -= pad;
         hi += pad;
-        uint v = uint(gl_VertexIndex);
-        uint q = v < 6u ? QUAD[v] : 0u;
-        vec2 p = vec2((q & 1u) != 0u ? hi.x : lo.x, (q & 2u) != 0u ? hi.y : lo.y);
-        gl_Position = vec4(v < 6u ? p : lo, nearest, 1.0);
+        // Corners 0-3 are the rectangle's (bit 0: right, bit 1: bottom): the -z face's two
+        // triangles (0, 2, 1), (1, 2, 3) cover it front-facing. Corners 4-7 collapse onto its
+        // top-left corner: the other faces draw nothing or part of the rectangle again.
+        vec2 p = vec2((c & 1u) != 0u ? hi.x : lo.x, (c & 2u) != 0u ? hi.y : lo.y);
+        gl_Position = vec4(c < 4u ? p : lo, nearest, 1.0);
         return;
     }
-    uint c = CORNERS[gl_VertexIndex];
     gl_Position = frame.view_proj * vec4(proxy_corner(inst.center, half_size, corner_sign(c)), 1.0);
 }

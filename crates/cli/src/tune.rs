@@ -4,7 +4,8 @@
 //! the evidence in its comments.
 //!
 //! The sweep is in two stages (coordinate descent): every culling with its own knobs
-//! (`hiz_npot`, `hiz_resolution`, `cull_bounds`, `oq_group`, `raster_occlusion_scale`) under
+//! (`hiz_npot`, `hiz_resolution`, `cull_bounds`, `oq_group`, `occlusion_recheck`,
+//! `raster_occlusion_scale`) under
 //! the profile's shading and draw order; then, with the best of those fixed, every shading ×
 //! draw order (× alpha pre-pass where the scene has alpha-tested geometry). Both stages' runs are kept in `results.json`, so an
 //! interrupted tune resumes, and `report.md` and the plots are written as `bench` writes them.
@@ -217,6 +218,7 @@ fn tune_on(
             "hiz_resolution",
             "cull_bounds",
             "oq_group",
+            "occlusion_recheck",
             "raster_occlusion_scale",
         ]
         .iter()

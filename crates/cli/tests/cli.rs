@@ -478,7 +478,8 @@ fn visbuf_with_occlusion_queries_is_clean_under_synchronization_validation() {
 }
 
 /// `--save-frames` writes the technique's image, the reference and a diff for exactly the
-/// frames that went wrong. Next-frame queries lose instances as they come into view.
+/// frames that went wrong. Next-frame queries, one per instance, lose instances as they come
+/// into view.
 #[test]
 fn cull_check_saves_the_frames_that_went_wrong() {
     let dir = std::env::temp_dir().join(format!("tilegraph-saved-{}", std::process::id()));
@@ -489,6 +490,11 @@ fn cull_check_saves_the_frames_that_went_wrong() {
             "city:1500",
             "--culling",
             "oq",
+            // One query per instance, every instance tested every frame: the one-frame lag shows.
+            "--set",
+            "oq_group=1",
+            "--set",
+            "occlusion_recheck=1",
             "--size",
             "160x90",
             "--frames",

@@ -149,7 +149,7 @@ pub fn cull_check(
 ) -> Result<CullCheck, RenderError> {
     let options = CheckOptions {
         hiz_mode,
-        oq_group: 1,
+        oq_group: RenderOptions::default().oq_group,
         raster_occlusion_scale: 1,
     };
     cull_check_with(ctx, scene, culling, path, size, max_frames, &options)

@@ -468,6 +468,12 @@ impl Resolved {
         if let Some(g) = self.get("oq_group").and_then(KnobValue::as_integer) {
             options.oq_group = g as usize;
         }
+        if let Some(n) = self
+            .get("occlusion_recheck")
+            .and_then(KnobValue::as_integer)
+        {
+            options.occlusion_recheck = n;
+        }
         if let Some(s) = self
             .get("raster_occlusion_scale")
             .and_then(KnobValue::as_integer)
@@ -526,7 +532,7 @@ mod tests {
                     "hiz_npot" => ["edge-aware", "pad-to-pow2"].contains(&s.as_str()),
                     "hiz_resolution" => ["full", "half", "quarter"].contains(&s.as_str()),
                     "cull_bounds" => ["aabb", "sphere"].contains(&s.as_str()),
-                    "oq_group" | "raster_occlusion_scale" => {
+                    "oq_group" | "raster_occlusion_scale" | "occlusion_recheck" => {
                         matches!(k.domain, Domain::Integers(_))
                     }
                     other => panic!("knob {other} has no meaning in tilegraph-passes"),

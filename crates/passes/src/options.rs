@@ -103,6 +103,11 @@ pub struct RenderOptions {
     pub capture_ids: bool,
     /// Occlusion queries: instances per query (groups of nearby instances share one box).
     pub oq_group: usize,
+    /// Occlusion queries and raster occlusion (knob `occlusion_recheck`): what was visible is
+    /// drawn untested and its box tested again once every this many frames (staggered per
+    /// query group or instance); hidden boxes are tested every frame. 1 tests every box every
+    /// frame.
+    pub occlusion_recheck: u32,
     /// Raster occlusion: 1 tests boxes at full resolution; 2 or 4 test screen rectangles
     /// against a conservative (farthest-depth) 1/2 or 1/4 resolution depth.
     pub raster_occlusion_scale: u32,
@@ -126,7 +131,8 @@ impl Default for RenderOptions {
             hiz_base_level: 0,
             cull_bounds: CullBounds::Aabb,
             capture_ids: false,
-            oq_group: 1,
+            oq_group: 16,
+            occlusion_recheck: 8,
             raster_occlusion_scale: 1,
         }
     }

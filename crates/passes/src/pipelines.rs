@@ -27,6 +27,11 @@ use tilegraph_vk::{Context, VkError};
 
 use crate::draws::DrawClass;
 
+/// How far occlusion proxies are pulled toward the eye, in units of the depth format (a D32
+/// float's ulp at the box's largest depth, 1/65535 for D16): a few, against interpolation and
+/// rounding differences between a box and the surface it encloses.
+pub const PROXY_DEPTH_BIAS: i32 = 4;
+
 mod spv {
     pub const DEPTH_VS: &[u8] = include_bytes!("../../../shaders/spv/depth.vert.spv");
     pub const DEPTH_ALPHA_VS: &[u8] = include_bytes!("../../../shaders/spv/depth_alpha.vert.spv");
@@ -269,6 +274,12 @@ impl Pipelines {
     /// its back face at every pixel, so the back faces add fragments and no answer. A box the
     /// camera is in or that reaches the near plane is not a box here: queries skip it, raster
     /// occlusion draws a front-facing screen-covering triangle for it.
+    ///
+    /// The box's depth is biased toward the eye by [`PROXY_DEPTH_BIAS`] units of the depth
+    /// format: where a box face and the surface it encloses round to the same depth (depths
+    /// crowded near 1.0 by a tiny near plane and standard depth, where the pixel of padding the
+    /// box gets is less than an ulp), an interpolation error of an ulp must not put the box
+    /// behind its own surface.
     pub fn proxy(
         &mut self,
         pc: &PassContext<'_>,
@@ -313,6 +324,11 @@ impl Pipelines {
                             vk::CompareOp::GREATER_OR_EQUAL
                         } else {
                             vk::CompareOp::LESS_OR_EQUAL
+                        },
+                        bias: if reverse {
+                            PROXY_DEPTH_BIAS
+                        } else {
+                            -PROXY_DEPTH_BIAS
                         },
                     },
                     blend: Blend::NoColorWrites,
@@ -459,6 +475,7 @@ fn scene_pipeline(
         test: true,
         write: true,
         compare: nearer(depth),
+        bias: 0,
     };
     let pos_only = [POSITION];
     let pos_uv = [POSITION, UV];
@@ -491,16 +508,19 @@ fn scene_pipeline(
                     test: true,
                     write: false,
                     compare: nearer(depth),
+                    bias: 0,
                 },
                 (_, ColourDepth::Equal) => DepthState {
                     test: true,
                     write: false,
                     compare: vk::CompareOp::EQUAL,
+                    bias: 0,
                 },
                 (_, ColourDepth::WriteOrEqual) => DepthState {
                     test: true,
                     write: true,
                     compare: nearer_or_equal(depth),
+                    bias: 0,
                 },
                 (_, ColourDepth::Write) => write,
             };

@@ -192,9 +192,16 @@ pub const KNOBS: &[KnobSpec] = &[
     KnobSpec {
         name: "oq_group",
         domain: Domain::Integers(&[1, 2, 4, 8, 16, 32, 64]),
-        default: DefaultValue::Integer(1),
+        default: DefaultValue::Integer(16),
         applies: Applies::WithCulling(&["oq", "oq-conditional"]),
         help: "instances per occlusion query (a union box): fewer queries, more drawn",
+    },
+    KnobSpec {
+        name: "occlusion_recheck",
+        domain: Domain::Integers(&[1, 2, 4, 8, 16, 32]),
+        default: DefaultValue::Integer(8),
+        applies: Applies::WithCulling(&["oq", "oq-conditional", "raster-occlusion"]),
+        help: "frames between tests of what was visible: a box found visible is drawn untested until its turn comes (1 in N frames); hidden boxes are tested every frame (1: every box, every frame)",
     },
     KnobSpec {
         name: "raster_occlusion_scale",

@@ -41,6 +41,10 @@ pub struct DepthState {
     pub test: bool,
     pub write: bool,
     pub compare: vk::CompareOp,
+    /// Constant depth bias in the depth format's own units (a float format's ulp at the
+    /// primitive's largest depth, 1/65535 for D16; spec "Depth Bias"), applied after clipping;
+    /// 0 leaves it off.
+    pub bias: i32,
 }
 
 impl DepthState {
@@ -48,6 +52,7 @@ impl DepthState {
         test: false,
         write: false,
         compare: vk::CompareOp::ALWAYS,
+        bias: 0,
     };
 }
 
@@ -171,6 +176,8 @@ pub fn create_graphics_pipeline(
             .polygon_mode(vk::PolygonMode::FILL)
             .cull_mode(desc.cull)
             .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .depth_bias_enable(desc.depth.bias != 0)
+            .depth_bias_constant_factor(desc.depth.bias as f32)
             .line_width(1.0);
         let multisample =
             vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(desc.samples);
@@ -496,6 +503,7 @@ mod tests {
                 test: true,
                 write: true,
                 compare: vk::CompareOp::GREATER,
+                bias: 0,
             },
             blend,
             cull: vk::CullModeFlags::BACK,

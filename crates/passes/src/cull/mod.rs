@@ -44,6 +44,39 @@ pub use layout::GpuLayout;
 pub use readback::{GpuLists, IndirectDraw};
 pub use state::{CullState, GpuCullCounts, Occluder};
 
+/// Temporal coherence of the occlusion tests (knob `occlusion_recheck`; CHC++, Mattausch et al.
+/// 2008, re-queries visible objects at intervals): an item (a query group, or an instance under
+/// raster occlusion) found visible is drawn without a test until its turn comes, once every
+/// `interval` frames, staggered by item so the re-tests spread over the frames. Hidden items are
+/// tested every frame, so nothing visible is ever culled: a stale "visible" costs draws only.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Recheck {
+    interval: u32,
+    offset: u32,
+}
+
+impl Recheck {
+    /// Frame `frame`'s turns with `interval` (1 or less: every item is tested every frame).
+    pub fn new(interval: u32, frame: u64) -> Self {
+        let interval = interval.clamp(1, 0xFFFF);
+        Recheck {
+            interval,
+            offset: (frame % u64::from(interval)) as u32,
+        }
+    }
+
+    /// Whether an item found visible skips its test this frame (`recheck_carries` in
+    /// `shaders/common/recheck.glsl`).
+    pub fn carries(self, item: u32) -> bool {
+        !item.wrapping_add(self.offset).is_multiple_of(self.interval)
+    }
+
+    /// The shaders' form: interval | offset << 16.
+    pub fn packed(self) -> u32 {
+        self.interval | (self.offset << 16)
+    }
+}
+
 /// The culling buffers in one frame's graph. They live as long as the renderer (visibility and
 /// the pyramid carry over from frame to frame, tools read the drawn set back), so each frame
 /// imports them; the graph then orders the culling dispatches, the indirect draws and the
@@ -509,6 +542,26 @@ pub fn cpu_frustum_mask_into(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_item_has_one_turn_in_each_interval_and_the_turns_are_staggered() {
+        for interval in [1u32, 2, 8, 32] {
+            for item in [0u32, 1, 7, 12_345, u32::MAX] {
+                let turns = (0..u64::from(interval))
+                    .filter(|&f| !Recheck::new(interval, f).carries(item))
+                    .count();
+                assert_eq!(turns, 1, "item {item}, interval {interval}");
+            }
+            // In any frame, 1 item in `interval` has its turn.
+            let due = (0..1024u32)
+                .filter(|&i| !Recheck::new(interval, 5).carries(i))
+                .count();
+            assert_eq!(due, 1024 / interval as usize, "interval {interval}");
+        }
+        assert_eq!(Recheck::new(8, 13).packed(), 8 | (5 << 16));
+        // Out of range: every item tested every frame.
+        assert!(!Recheck::new(0, 3).carries(9));
+    }
 
     #[test]
     fn cli_spellings_round_trip() {

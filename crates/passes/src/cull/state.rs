@@ -15,7 +15,7 @@ use tilegraph_vk::{Buffer, Context, Feature, VkError};
 use super::clusters::{ClusterStage, Shared};
 use super::{
     gpu_planes, sphere_projection, CullBounds, CullParams, Culling, DrawCount, GpuLayout, Phase,
-    Step, LISTS_PER_PHASE, LIST_COUNT,
+    Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
 };
 use crate::draws::DrawList;
 use crate::frame::PassState;
@@ -87,6 +87,8 @@ pub struct CullState {
     slots: Vec<SlotInputs>,
     /// Frames written so far (numbers the frames [`CullState::collect`] reports).
     frames_written: u64,
+    /// Raster occlusion: the box re-test interval (knob `occlusion_recheck`).
+    recheck_interval: u32,
     /// The layout being written (kept: no allocation per frame).
     pub(super) layout: GpuLayout,
     set_layout: vk::DescriptorSetLayout,
@@ -215,6 +217,7 @@ impl CullState {
             no_pyramid,
             slots: Vec::new(),
             frames_written: 0,
+            recheck_interval: 1,
             layout: GpuLayout::default(),
             set_layout: vk::DescriptorSetLayout::null(),
             pipeline_layout: vk::PipelineLayout::null(),
@@ -374,6 +377,17 @@ impl CullState {
         Ok(set)
     }
 
+    /// Raster occlusion: test a box drawn last frame again once every `interval` frames.
+    pub fn set_recheck_interval(&mut self, interval: u32) {
+        self.recheck_interval = interval.max(1);
+    }
+
+    /// Raster occlusion: this frame's turns (the one [`Self::write_frame`] wrote last; the
+    /// boxes' vertex shader must skip the same instances).
+    pub fn recheck(&self) -> Recheck {
+        Recheck::new(self.recheck_interval, self.frames_written.saturating_sub(1))
+    }
+
     /// Writes slot `slot`'s culling inputs for `frame`: each instance's entry in the lists in
     /// the CPU list's draw order and the draw groups (so the culled frame draws its survivors
     /// in the unculled order), and both phases' parameters. After a camera cut, single-phase
@@ -425,6 +439,8 @@ impl CullState {
         // current eye, as `reproject` is) for single-phase HiZ, this frame's for the late phase.
         let previous_view = frame.previous.view
             * Mat4::from_translation((frame.current.eye - frame.previous.eye).as_vec3());
+        // Raster occlusion's early phase reads the box flags with this frame's turns.
+        let recheck = Recheck::new(self.recheck_interval, self.frames_written).packed();
         let params = |phase: Phase, view_proj: Mat4, levels: u32, previous: bool| {
             let (view, projection) = if previous {
                 (previous_view, frame.previous.projection)
@@ -437,7 +453,16 @@ impl CullState {
                 hiz_view_proj: view_proj.to_cols_array_2d(),
                 info: [n, phase as u32, levels, reverse],
                 screen: [pw, ph, n.max(1), spheres],
-                groups: [total.max(1), keep_empty, d16, 0],
+                groups: [
+                    total.max(1),
+                    keep_empty,
+                    d16,
+                    if self.culling == Culling::RasterOcclusion {
+                        recheck
+                    } else {
+                        0
+                    },
+                ],
                 group_start: layout.group_start,
                 group_count: layout.group_count,
                 hiz_view: view.to_cols_array_2d(),

@@ -25,6 +25,7 @@ use tilegraph_vk::executor::PassContext;
 use tilegraph_vk::pipeline::create_pipeline_layout;
 use tilegraph_vk::{Buffer, Context, VkError};
 
+use crate::cull::Recheck;
 use crate::frame::{scene_set, FrameGraph, PassState, Payload, SceneResources};
 use crate::pipelines::Proxy;
 
@@ -154,12 +155,14 @@ pub fn crosses_near_plane(
     })
 }
 
-/// Per frame slot: the frame whose queries the pool holds, and the group of each query it
-/// issued (query `k` tested `groups[k]`).
+/// Per frame slot: the frame whose queries the pool holds, the group of each query it issued
+/// (query `k` tested `groups[k]`), and the groups it drew untested because they were visible
+/// (`occlusion_recheck`).
 #[derive(Debug, Default, Clone)]
 struct Pending {
     frame: u64,
     groups: Vec<u32>,
+    carried: Vec<u32>,
 }
 
 /// Marks a group that a frame did not query in [`OqState`]'s per-group query indices.
@@ -172,6 +175,11 @@ pub struct OqState {
     group_of: Vec<u32>,
     /// Per group: the newest known result (passed, or no result yet).
     passed: Vec<bool>,
+    /// Per group: the newest complete frame found it visible (its query passed, or it was
+    /// carried as visible); such a group is queried again only on its turn.
+    known_visible: Vec<bool>,
+    /// Frames between re-tests of a visible group (knob `occlusion_recheck`).
+    recheck_interval: u32,
     pools: Vec<vk::QueryPool>,
     pending: Vec<Option<Pending>>,
     /// This frame's boxes, one query each: query `k` draws `frame_boxes[k]`. Queries are
@@ -231,6 +239,8 @@ impl OqState {
         let pipeline_layout = create_pipeline_layout(ctx, &[scene_set_layout], Some(push))?;
         let mut state = OqState {
             passed: vec![true; groups.len()],
+            known_visible: vec![false; groups.len()],
+            recheck_interval: 1,
             groups,
             group_of,
             pools: Vec::new(),
@@ -281,6 +291,12 @@ impl OqState {
         Ok(state)
     }
 
+    /// Query a group found visible again once every `interval` frames (staggered by group);
+    /// in between it is drawn untested. Hidden groups are queried every frame.
+    pub fn set_recheck_interval(&mut self, interval: u32) {
+        self.recheck_interval = interval.max(1);
+    }
+
     fn query_count(&self) -> u32 {
         self.groups.len().max(1) as u32
     }
@@ -328,9 +344,19 @@ impl OqState {
             }
             // Groups the frame did not query pass; a query without its result passes too.
             self.passed.fill(true);
+            self.known_visible.fill(false);
+            for &g in &p.carried {
+                if let Some(known) = self.known_visible.get_mut(g as usize) {
+                    *known = true;
+                }
+            }
             for (&g, [value, avail]) in p.groups.iter().zip(&results) {
-                if let Some(passed) = self.passed.get_mut(g as usize) {
-                    *passed = *avail == 0 || *value != 0;
+                let passed = *avail == 0 || *value != 0;
+                if let Some(slot) = self.passed.get_mut(g as usize) {
+                    *slot = passed;
+                }
+                if let Some(known) = self.known_visible.get_mut(g as usize) {
+                    *known = passed;
                 }
             }
             if s != slot {
@@ -358,7 +384,8 @@ impl OqState {
 
     /// This frame's boxes in slot `slot`, camera-relative to `m.eye`; `drawable` (per
     /// instance, the CPU frustum test) leaves out groups with no member in the frustum: not
-    /// queried, and not drawn (they are not in the CPU lists either).
+    /// queried, and not drawn (they are not in the CPU lists either). A group the newest
+    /// complete frame found visible is not queried unless its re-test turn came: it is drawn.
     pub fn prepare(
         &mut self,
         slot: usize,
@@ -368,6 +395,8 @@ impl OqState {
     ) {
         self.frame_boxes.clear();
         let mut queried = Vec::new();
+        let mut carried = Vec::new();
+        let recheck = Recheck::new(self.recheck_interval, self.frames);
         let mut query_of = vec![NOT_QUERIED; self.groups.len()];
         let in_view = |i: u32| drawable.is_none_or(|d| d.get(i as usize).copied().unwrap_or(true));
         self.current_drawable = self
@@ -386,6 +415,11 @@ impl OqState {
             if crosses_near_plane(m.view_projection, m.depth, center, half, viewport_height_px) {
                 continue;
             }
+            let q32 = q as u32;
+            if self.known_visible.get(q).copied().unwrap_or(false) && recheck.carries(q32) {
+                carried.push(q32);
+                continue;
+            }
             if let Some(k) = query_of.get_mut(q) {
                 *k = queried.len() as u32;
             }
@@ -401,6 +435,7 @@ impl OqState {
             *p = Some(Pending {
                 frame: self.frames,
                 groups: queried,
+                carried,
             });
         }
         self.frame_slot = slot;

@@ -15,7 +15,7 @@ use tilegraph_vk::pipeline::{
 };
 use tilegraph_vk::{Buffer, Context, VkError};
 
-use crate::cull::{add_cull, zero_fill, CullLists, Culling};
+use crate::cull::{add_cull, CullLists, Culling, Recheck};
 use crate::frame::{scene_set, FrameGraph, PassState, Payload, SceneResources};
 use crate::pipelines::{PipelineKey, Pipelines, Proxy, FULLSCREEN_VS};
 use crate::targets::SceneTargets;
@@ -30,9 +30,6 @@ pub fn add_raster_occlusion(
     scale: u32,
 ) {
     let visibility = lists.visibility;
-    let clear: Payload = Box::new(move |pc, _| zero_fill(pc, visibility));
-    g.transfer_pass("raster-occlusion-clear", PassClass::Compute, clear)
-        .transfer_dst(visibility);
     let boxes: Payload = Box::new(|pc, res| {
         let set = scene_set(pc, res)?;
         let SceneResources {
@@ -76,12 +73,26 @@ pub fn add_raster_occlusion(
     } else {
         targets.depth
     };
-    // The fragment shader reads a flag before setting it (one store per visible box).
+    // The vertex shader skips the boxes of instances drawn last frame whose turn has not come
+    // (`occlusion_recheck`); the fragment shader reads a flag before setting it (one store per
+    // visible box). `cull.comp` reads the flags and leaves next frame's (no clear).
     g.raster_pass("raster-occlusion", PassClass::OcclusionQuery, boxes)
         .depth_stencil_read_only(tested_depth)
         .storage_read_write(visibility);
     add_cull(g, lists, Culling::RasterOcclusion);
 }
+
+/// A box's 12 triangles over its corners (bit 0: +x, bit 1: +y, bit 2: +z), front faces
+/// counter-clockwise seen from outside; the first face's two triangles are also the screen
+/// rectangle of reduced-resolution raster occlusion (`raster_occlusion.vert`).
+const BOX_INDICES: [u16; 36] = [
+    0, 2, 1, 1, 2, 3, // -z
+    4, 5, 6, 5, 7, 6, // +z
+    0, 1, 4, 1, 5, 4, // -y
+    2, 6, 3, 3, 6, 7, // +y
+    0, 4, 2, 2, 4, 6, // -x
+    1, 3, 5, 3, 7, 5, // +x
+];
 
 /// Raster occlusion (`Culling::RasterOcclusion`): every instance's box drawn against the
 /// pre-pass depth with early fragment tests, surviving fragments flag the instance in the
@@ -94,6 +105,12 @@ pub struct RasterOcclusion {
     instance_count: u32,
     /// 1: full resolution; k > 1: against a conservative ~1/k-resolution depth.
     pub scale: u32,
+    /// This frame's box re-test turns (the culling state's, [`crate::cull::CullState::recheck`]).
+    recheck: Recheck,
+    /// The box's 12 triangles over its 8 corners ([`BOX_INDICES`]): an indexed draw shades 8
+    /// vertices per box, not 36 (the vertex shader's work is the pass's cost where the boxes are
+    /// small or skipped).
+    indices: Buffer,
     downsample: Option<Downsample>,
 }
 
@@ -196,14 +213,26 @@ impl RasterOcclusion {
         scale: u32,
         frames_in_flight: usize,
     ) -> Result<Self, VkError> {
-        let set_layout = tilegraph_vk::pipeline::create_set_layout(
+        let indices = crate::gpu_scene::upload(
+            ctx,
+            "raster occlusion box",
+            bytemuck::cast_slice(&BOX_INDICES),
+            vk::BufferUsageFlags::INDEX_BUFFER,
+        )?;
+        let set_layout = match tilegraph_vk::pipeline::create_set_layout(
             ctx,
             &[(
                 0,
                 vk::DescriptorType::STORAGE_BUFFER,
-                vk::ShaderStageFlags::FRAGMENT,
+                vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT,
             )],
-        )?;
+        ) {
+            Ok(l) => l,
+            Err(e) => {
+                ctx.destroy_buffer(indices);
+                return Err(e);
+            }
+        };
         let sizes = [vk::DescriptorPoolSize {
             ty: vk::DescriptorType::STORAGE_BUFFER,
             descriptor_count: 1,
@@ -215,6 +244,7 @@ impl RasterOcclusion {
         let pool = match unsafe { ctx.device.create_descriptor_pool(&pool_info, None) } {
             Ok(p) => p,
             Err(r) => {
+                ctx.destroy_buffer(indices);
                 // SAFETY: the layout is unused.
                 unsafe { ctx.device.destroy_descriptor_set_layout(set_layout, None) };
                 return Err(VkError::call("vkCreateDescriptorPool", r));
@@ -227,6 +257,8 @@ impl RasterOcclusion {
             pipeline_layout: vk::PipelineLayout::null(),
             instance_count,
             scale: scale.max(1),
+            recheck: Recheck::new(1, 0),
+            indices,
             downsample: None,
         };
         if state.scale > 1 {
@@ -238,7 +270,12 @@ impl RasterOcclusion {
                 }
             }
         }
-        match create_pipeline_layout(ctx, &[scene_set_layout, set_layout], None) {
+        let push = vk::PushConstantRange {
+            stage_flags: vk::ShaderStageFlags::VERTEX,
+            offset: 0,
+            size: 16,
+        };
+        match create_pipeline_layout(ctx, &[scene_set_layout, set_layout], Some(push)) {
             Ok(l) => state.pipeline_layout = l,
             Err(e) => {
                 state.destroy_all(ctx);
@@ -267,17 +304,25 @@ impl RasterOcclusion {
         Ok(state)
     }
 
-    /// Records one instanced draw of every instance's box.
+    /// This frame's re-test turns: the boxes of instances drawn last frame are skipped unless
+    /// their turn came (`cull.comp` reads the same turns).
+    pub fn set_recheck(&mut self, recheck: Recheck) {
+        self.recheck = recheck;
+    }
+
+    /// Records one instanced, indexed draw of every instance's box.
     pub fn record(
         &self,
         pc: &PassContext<'_>,
         scene_set: vk::DescriptorSet,
         pipeline: vk::Pipeline,
     ) -> Result<(), VkError> {
+        let indices = self.indices.raw;
         pc.set_full_viewport();
         let d = &pc.ctx.device;
         // SAFETY: inside the raster-occlusion subpass; pipeline, layout and sets are live; the
-        // graph put the visibility buffer in fragment-shader storage-write use for this pass.
+        // graph put the visibility buffer in vertex/fragment-shader storage use for this pass;
+        // the index buffer holds BOX_INDICES.
         unsafe {
             d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
             d.cmd_bind_descriptor_sets(
@@ -288,7 +333,22 @@ impl RasterOcclusion {
                 &[scene_set, self.set],
                 &[],
             );
-            d.cmd_draw(pc.cb, 36, self.instance_count, 0, 0);
+            d.cmd_push_constants(
+                pc.cb,
+                self.pipeline_layout,
+                vk::ShaderStageFlags::VERTEX,
+                0,
+                bytemuck::bytes_of(&[self.recheck.packed(), 0, 0, 0]),
+            );
+            d.cmd_bind_index_buffer(pc.cb, indices, 0, vk::IndexType::UINT16);
+            d.cmd_draw_indexed(
+                pc.cb,
+                BOX_INDICES.len() as u32,
+                self.instance_count,
+                0,
+                0,
+                0,
+            );
         }
         Ok(())
     }
@@ -341,6 +401,7 @@ impl RasterOcclusion {
                             test: true,
                             write: true,
                             compare: vk::CompareOp::ALWAYS,
+                            bias: 0,
                         },
                         blend: Blend::NoColorWrites,
                         cull: vk::CullModeFlags::NONE,
@@ -409,6 +470,7 @@ impl RasterOcclusion {
         if let Some(d) = self.downsample {
             d.destroy(ctx);
         }
+        ctx.destroy_buffer(self.indices);
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
         unsafe {
             ctx.device

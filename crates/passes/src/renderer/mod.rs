@@ -32,7 +32,7 @@ use crate::frame::{FrameGraph, Payload, SceneResources};
 use crate::gpu_scene::FrameUniforms;
 use crate::hiz::{HizState, ReprojectState};
 use crate::lint::lint_frame;
-use crate::occlusion::OqState;
+use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
 use crate::setup::{FrameSetup, SceneContent, Technique};
 use crate::targets::{create_target, destroy_target};
@@ -600,6 +600,10 @@ impl SceneRenderer {
         let pyramid = res.states.get::<HizState>().map(HizState::info);
         if let Some(cull) = res.states.get_mut::<CullState>() {
             cull.write_frame(ctx, slot, frame, &res.frame.draws, (w, h), pyramid)?;
+        }
+        let recheck = res.states.get::<CullState>().map(CullState::recheck);
+        if let (Some(r), Some(recheck)) = (res.states.get_mut::<RasterOcclusion>(), recheck) {
+            r.set_recheck(recheck);
         }
         if let Some(r) = res.states.get_mut::<ReprojectState>() {
             r.write_frame(frame, pyramid.and_then(|p| p.built_from));

@@ -105,7 +105,7 @@ fn add_states(
             }),
             (h, _) => h.map(Occluder::of),
         };
-        let c = CullState::new(
+        let mut c = CullState::new(
             ctx,
             culling,
             scene,
@@ -114,6 +114,7 @@ fn add_states(
             occluder,
             options.cull_bounds,
         )?;
+        c.set_recheck_interval(options.occlusion_recheck);
         let draw_ids = c.draw_ids.raw;
         res.states.insert(c);
         res.scene.add_culled_sets(ctx, draw_ids)?;
@@ -135,7 +136,7 @@ fn add_states(
     }
     if culling.uses_queries() {
         let conditional = culling.conditional();
-        let oq = OqState::new(
+        let mut oq = OqState::new(
             ctx,
             scene,
             options.oq_group,
@@ -144,6 +145,7 @@ fn add_states(
             set_layout,
             frames_in_flight,
         )?;
+        oq.set_recheck_interval(options.occlusion_recheck);
         res.states.insert(oq);
     }
     if options.technique == Technique::Visbuf {
