@@ -440,7 +440,8 @@ impl CullState {
         let previous_view = frame.previous.view
             * Mat4::from_translation((frame.current.eye - frame.previous.eye).as_vec3());
         // Raster occlusion's early phase reads the box flags with this frame's turns.
-        let recheck = Recheck::new(self.recheck_interval, self.frames_written).packed();
+        let recheck = (self.culling == Culling::RasterOcclusion)
+            .then(|| Recheck::new(self.recheck_interval, self.frames_written).packed());
         let params = |phase: Phase, view_proj: Mat4, levels: u32, previous: bool| {
             let (view, projection) = if previous {
                 (previous_view, frame.previous.projection)
@@ -453,16 +454,7 @@ impl CullState {
                 hiz_view_proj: view_proj.to_cols_array_2d(),
                 info: [n, phase as u32, levels, reverse],
                 screen: [pw, ph, n.max(1), spheres],
-                groups: [
-                    total.max(1),
-                    keep_empty,
-                    d16,
-                    if self.culling == Culling::RasterOcclusion {
-                        recheck
-                    } else {
-                        0
-                    },
-                ],
+                groups: [total.max(1), keep_empty, d16, recheck.unwrap_or(0)],
                 group_start: layout.group_start,
                 group_count: layout.group_count,
                 hiz_view: view.to_cols_array_2d(),
