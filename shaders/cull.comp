@@ -24,7 +24,9 @@ layout(local_size_x = 64) in;
 
 // Per entry: 0 = culled, instance id + 1 = drawn (read by cull_compact.comp).
 layout(set = 1, binding = 8, std430) writeonly buffer Entries { uint entries[]; };
-layout(set = 1, binding = 4, std430) buffer Visibility { uint visible_last[]; };     // 0 / 1 per instance
+// Per instance: two-phase culling's 0 / 1 (visible last frame); raster occlusion's
+// FLAG_PASSED | FLAG_DRAWN (recheck.glsl).
+layout(set = 1, binding = 4, std430) buffer Visibility { uint visible_last[]; };
 // Per instance: its entry in its list, list * stride + position, in the CPU draw order (the
 // order an unculled frame draws in), so the culled frame draws the survivors in the same order
 // and ties between coplanar surfaces resolve the same way. ~0u for blended instances.
@@ -56,9 +58,12 @@ void main() {
         // Raster occlusion (cull.groups.w: the packed recheck): a box fragment passed, or the
         // instance was drawn last frame and its box was not tested (recheck.glsl). The word
         // becomes next frame's: drawn or not, this frame's pass flag cleared.
+        // A box at the near plane was not drawn (its proxy would be clipped): visible. The
+        // test is the vertex shader's, widened so that rounding never makes it disagree.
         uint word = visible_last[id];
-        bool draw = in_frustum
-            && ((word & FLAG_PASSED) != 0u || raster_carried(word, cull.groups.w, id));
+        bool near = proxy_crosses_near(inst.center, raster_proxy_half_size(inst.half_extents), 1e-5);
+        bool draw = in_frustum && ((word & FLAG_PASSED) != 0u || near
+                                   || raster_carried(word, cull.groups.w, id));
         mark(list, id, draw);
         visible_last[id] = draw ? FLAG_DRAWN : 0u;
     } else if (phase == 2u) {

@@ -11,10 +11,9 @@ layout(set = 1, binding = 0, std430) buffer Visible { uint visible[]; };
 layout(location = 0) flat in uint v_instance;
 
 void main() {
-    // Bit 0 of the word (bit 1, last frame's drawn flag, stays: nothing else writes the word
-    // during this pass, so every store writes the same value).
-    uint word = visible[v_instance];
-    if ((word & 1u) == 0u) {
-        visible[v_instance] = word | 1u;
+    // Bit 0 of the word, atomically (bit 1, last frame's drawn flag, which the vertex shader
+    // reads, is never written during this pass).
+    if ((visible[v_instance] & 1u) == 0u) {
+        atomicOr(visible[v_instance], 1u);
     }
 }

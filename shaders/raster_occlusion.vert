@@ -1,10 +1,10 @@
 #version 450
 // Raster occlusion: every instance's camera-relative bounding box (instance = gl_InstanceIndex,
 // vertex = corner: an indexed draw of the box's 12 triangles over 8 corners, BOX_INDICES in
-// occlusion/raster.rs, no vertex buffer), depth tested against the pre-pass depth, nothing written but
-// the fragment shader's visibility flag. A box that reaches in front of the near plane would be
-// clipped and could miss: it becomes a screen-covering triangle at the near plane instead, which
-// passes the depth test everywhere (conservative: the instance is flagged).
+// occlusion/raster.rs, no vertex buffer), depth tested against the pre-pass depth, nothing
+// written but the fragment shader's visibility flag. A box that reaches the near plane (or its
+// guard band, NEAR_GUARD) would be clipped and could miss: it draws nothing, and cull.comp counts
+// it visible (the same test, widened).
 #include "scene.glsl"
 #include "recheck.glsl"
 
@@ -25,10 +25,6 @@ layout(push_constant) uniform Push { uvec4 recheck; } push;
 layout(constant_id = 0) const uint SCALE = 1u;
 
 
-vec3 corner_sign(uint c) {
-    return vec3(float(c & 1u), float((c >> 1u) & 1u), float((c >> 2u) & 1u)) * 2.0 - 1.0;
-}
-
 void main() {
     uint id = uint(gl_InstanceIndex);
     v_instance = id;
@@ -38,21 +34,20 @@ void main() {
     }
     Instance inst = instances[id];
     // f32 camera-relative bounds: pad by a few ulps so rounding never shrinks the box.
-    vec3 half_size = inst.half_extents * (1.0 + 1e-5) + vec3(1e-5);
-    float near_depth = frame.depth_params.x;
-    bool reverse = near_depth == 1.0;
+    vec3 half_size = raster_proxy_half_size(inst.half_extents);
+    bool reverse = frame.depth_params.x == 1.0;
     bool crosses = false;
     // Outcodes: bit k set while every corner lies beyond side k of the clip volume (x < -w,
     // x > w, y < -w, y > w) or behind the eye (w <= 0). The box is the hull of its corners and
     // clip space is linear in them, so a bit still set after all 8 puts the whole box outside:
-    // it draws nothing. Without this, every box the eye's plane cuts — a row of buildings
-    // across the whole city — would become a screen-covering triangle below.
+    // it draws nothing (and is not counted as crossing the near plane: without the outcodes,
+    // every box the eye's plane cuts — a row of buildings across the whole city — would).
     uint outside = 31u;
     for (uint i = 0u; i < 8u; ++i) {
         // The corners drawn below (grown toward the eye), not the box's own.
-        vec3 corner = proxy_corner(inst.center, half_size, corner_sign(i));
+        vec3 corner = proxy_corner(inst.center, half_size, proxy_corner_sign(i));
         vec4 clip = frame.view_proj * vec4(corner, 1.0);
-        crosses = crosses || clip.w <= 0.0 || (reverse ? clip.z > clip.w : clip.z < 0.0);
+        crosses = crosses || proxy_corner_near(clip, reverse, 0.0);
         // A relative margin: rounding must never put a touching box outside.
         float tol = 1e-5 * abs(clip.w) + 1e-6;
         uint code = (clip.x < -clip.w - tol ? 1u : 0u) | (clip.x > clip.w + tol ? 2u : 0u)
@@ -60,26 +55,18 @@ void main() {
                   | (clip.w < -tol ? 16u : 0u);
         outside &= code;
     }
-    if (outside != 0u) {
+    if (outside != 0u || crosses) {
+        // Outside: nothing to test. Crossing the near plane: cull.comp counts it visible.
         gl_Position = vec4(2.0, 2.0, 0.5, 1.0); // every vertex on one point off screen
         return;
     }
     uint c = uint(gl_VertexIndex);
-    if (crosses) {
-        // The first triangle (corners 0, 2, 1) becomes top-left, bottom-left (far below),
-        // top-right (far right): front-facing on screen. The other corners meet at the centre;
-        // whatever else they draw lies on screen at the near depth too (the flag is set anyway).
-        vec2 p = c == 0u ? vec2(-1.0) : c == 2u ? vec2(-1.0, 3.0) : c == 1u ? vec2(3.0, -1.0)
-                                                                        : vec2(0.0);
-        gl_Position = vec4(p, near_depth, 1.0);
-        return;
-    }
     if (SCALE > 1u) {
         vec2 lo = vec2(1e30);
         vec2 hi = vec2(-1e30);
         float nearest = reverse ? 0.0 : 1.0;
         for (uint i = 0u; i < 8u; ++i) {
-            vec4 clip = frame.view_proj * vec4(inst.center + corner_sign(i) * half_size, 1.0);
+            vec4 clip = frame.view_proj * vec4(inst.center + proxy_corner_sign(i) * half_size, 1.0);
             vec3 ndc = clip.xyz / clip.w;
             lo = min(lo, ndc.xy);
             hi = max(hi, ndc.xy);
@@ -98,5 +85,5 @@ void main() {
         gl_Position = vec4(c < 4u ? p : lo, nearest, 1.0);
         return;
     }
-    gl_Position = frame.view_proj * vec4(proxy_corner(inst.center, half_size, corner_sign(c)), 1.0);
+    gl_Position = frame.view_proj * vec4(proxy_corner(inst.center, half_size, proxy_corner_sign(c)), 1.0);
 }

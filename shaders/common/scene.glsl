@@ -102,4 +102,42 @@ vec3 proxy_corner(vec3 center, vec3 half_size, vec3 corner_sign) {
     return (center + grown * corner_sign) * (1.0 - 1.0 / 4096.0);
 }
 
+// Corner `c` of a box as a sign per axis (bit 0: +x, bit 1: +y, bit 2: +z).
+vec3 proxy_corner_sign(uint c) {
+    return vec3(float(c & 1u), float((c >> 1u) & 1u), float((c >> 2u) & 1u)) * 2.0 - 1.0;
+}
+
+// How near the near plane a proxy may come and still be rasterized, in NDC depth (2^-12). The
+// proxy pipelines bias depth toward the eye by a few units of the depth format (at most 2^-22 for
+// a float near 1, 2^-14 for D16: PROXY_DEPTH_BIAS in pipelines.rs), which then stays inside
+// [0, 1]. A nearer box counts as crossing the near plane (`crosses_near_plane` on the CPU).
+const float NEAR_GUARD = 1.0 / 4096.0;
+
+// Whether one clip-space proxy corner lies behind the eye or within NEAR_GUARD of the near plane;
+// `tol` (clip units) widens the test.
+bool proxy_corner_near(vec4 clip, bool reverse, float tol) {
+    return clip.w <= tol
+        || (reverse ? clip.z >= clip.w * (1.0 - NEAR_GUARD) - tol
+                    : clip.z <= clip.w * NEAR_GUARD + tol);
+}
+
+// Whether a camera-relative box's proxy (its grown corners) reaches the near plane's guard band
+// or behind the eye; `margin` widens the test relative to each corner's w.
+bool proxy_crosses_near(vec3 center, vec3 half_size, float margin) {
+    bool reverse = frame.depth_params.x == 1.0;
+    bool near = false;
+    for (uint i = 0u; i < 8u; ++i) {
+        vec3 corner = proxy_corner(center, half_size, proxy_corner_sign(i));
+        vec4 clip = frame.view_proj * vec4(corner, 1.0);
+        near = near || proxy_corner_near(clip, reverse, margin * abs(clip.w));
+    }
+    return near;
+}
+
+// The padded f32 half size the raster-occlusion proxies are built from: rounding the
+// camera-relative bounds never shrinks the box.
+vec3 raster_proxy_half_size(vec3 half_extents) {
+    return half_extents * (1.0 + 1e-5) + vec3(1e-5);
+}
+
 #endif

@@ -272,8 +272,9 @@ impl Pipelines {
     /// encloses its object, so where the object is in front of the depth the box is too, or
     /// level with it: hence OR_EQUAL; and seen from outside, a box's front face is nearer than
     /// its back face at every pixel, so the back faces add fragments and no answer. A box the
-    /// camera is in or that reaches the near plane is not a box here: queries skip it, raster
-    /// occlusion draws a front-facing screen-covering triangle for it.
+    /// camera is in or that reaches the near plane (or its guard band, [`NEAR_GUARD`](crate::occlusion::queries::NEAR_GUARD)) is not
+    /// drawn: queries skip it and draw its instances, raster occlusion's culling counts it
+    /// visible.
     ///
     /// The box's depth is biased toward the eye by [`PROXY_DEPTH_BIAS`] units of the depth
     /// format: where a box face and the surface it encloses round to the same depth (depths

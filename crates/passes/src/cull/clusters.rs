@@ -13,12 +13,10 @@ use ash::vk;
 use tilegraph_profile::MemoryUse;
 use tilegraph_scene::{MaterialClass, Scene};
 use tilegraph_vk::ash;
-use tilegraph_vk::pipeline::{
-    allocate_set, create_compute_pipeline, create_pipeline_layout, create_set_layout,
-    write_buffer_set, Stage,
-};
+use tilegraph_vk::pipeline::write_buffer_set;
 use tilegraph_vk::{Buffer, Context, VkError};
 
+use super::compute::ComputeStage;
 use super::{list_index, LISTS_PER_PHASE, LIST_COUNT};
 use crate::gpu_scene::upload;
 
@@ -111,11 +109,9 @@ pub struct ClusterStage {
     pub commands: Buffer,
     /// Per list: the draw count (0-7); 8-15 unused.
     pub counts: Buffer,
-    set_layout: vk::DescriptorSetLayout,
-    pipeline_layout: vk::PipelineLayout,
-    /// `cluster_cull.comp`, `cluster_scan.comp`, `cluster_emit.comp`.
-    pipelines: [vk::Pipeline; 3],
-    pool: vk::DescriptorPool,
+    /// `cluster_cull.comp`, `cluster_scan.comp`, `cluster_emit.comp`, their layouts and set
+    /// pool.
+    compute: ComputeStage,
     /// Two per slot: the early (or only) and the late phase.
     sets: Vec<vk::DescriptorSet>,
 }
@@ -227,10 +223,7 @@ impl ClusterStage {
             offsets,
             commands,
             counts,
-            set_layout: vk::DescriptorSetLayout::null(),
-            pipeline_layout: vk::PipelineLayout::null(),
-            pipelines: [vk::Pipeline::null(); 3],
-            pool: vk::DescriptorPool::null(),
+            compute: ComputeStage::EMPTY,
             sets: Vec::new(),
         };
         match stage.init(ctx, shared, scene_set_layout) {
@@ -258,49 +251,18 @@ impl ClusterStage {
             };
             Ok(())
         })?;
-        let c = vk::ShaderStageFlags::COMPUTE;
-        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
-        let mut bindings = vec![(0, vk::DescriptorType::UNIFORM_BUFFER, c)];
-        bindings.extend((1..=STORAGE_BINDINGS).map(|b| (b, ssbo, c)));
-        self.set_layout = create_set_layout(ctx, &bindings)?;
-        self.pipeline_layout =
-            create_pipeline_layout(ctx, &[scene_set_layout, self.set_layout], None)?;
-        let stages = [
+        let shaders = [
             ("cluster_cull.comp", CULL_SPV),
             ("cluster_scan.comp", SCAN_SPV),
             ("cluster_emit.comp", EMIT_SPV),
         ];
-        for (pipeline, (name, spirv)) in self.pipelines.iter_mut().zip(stages) {
-            *pipeline = create_compute_pipeline(
-                ctx,
-                &Stage {
-                    name,
-                    spirv,
-                    specialization: &[],
-                },
-                self.pipeline_layout,
-            )?;
-        }
         let sets = 2 * shared.slots.len() as u32;
-        let sizes = [
-            vk::DescriptorPoolSize {
-                ty: vk::DescriptorType::UNIFORM_BUFFER,
-                descriptor_count: sets,
-            },
-            vk::DescriptorPoolSize {
-                ty: ssbo,
-                descriptor_count: STORAGE_BINDINGS * sets,
-            },
-        ];
-        let pool_info = vk::DescriptorPoolCreateInfo::default()
-            .max_sets(sets)
-            .pool_sizes(&sizes);
-        // SAFETY: valid create info.
-        self.pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
-            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
+        self.compute
+            .init(ctx, scene_set_layout, STORAGE_BINDINGS, shaders, sets)?;
+        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
         for (params, order) in &shared.slots {
             for p in params {
-                let set = allocate_set(ctx, self.pool, self.set_layout)?;
+                let set = self.compute.allocate_set(ctx)?;
                 write_buffer_set(
                     ctx,
                     set,
@@ -351,9 +313,12 @@ impl ClusterStage {
         // One workgroup per instance, in rows of 65,535 (the least maxComputeWorkGroupCount).
         let rows = (instances.min(65_535), instances.div_ceil(65_535));
         let (pipeline, (x, y)) = match step {
-            ClusterStep::Cull => (self.pipelines[0], rows),
-            ClusterStep::Scan => (self.pipelines[1], ((which as u32 + 1) * LISTS_PER_PHASE, 1)),
-            ClusterStep::Emit => (self.pipelines[2], rows),
+            ClusterStep::Cull => (self.compute.pipelines[0], rows),
+            ClusterStep::Scan => (
+                self.compute.pipelines[1],
+                ((which as u32 + 1) * LISTS_PER_PHASE, 1),
+            ),
+            ClusterStep::Emit => (self.compute.pipelines[2], rows),
         };
         if x == 0 {
             return Ok(());
@@ -365,7 +330,7 @@ impl ClusterStage {
             ctx.device.cmd_bind_descriptor_sets(
                 cb,
                 vk::PipelineBindPoint::COMPUTE,
-                self.pipeline_layout,
+                self.compute.pipeline_layout,
                 0,
                 &[scene_set, set],
                 &[],
@@ -376,17 +341,7 @@ impl ClusterStage {
     }
 
     pub(super) fn destroy(self, ctx: &Context) {
-        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
-        unsafe {
-            for p in self.pipelines {
-                ctx.device.destroy_pipeline(p, None);
-            }
-            ctx.device
-                .destroy_pipeline_layout(self.pipeline_layout, None);
-            ctx.device.destroy_descriptor_pool(self.pool, None);
-            ctx.device
-                .destroy_descriptor_set_layout(self.set_layout, None);
-        }
+        self.compute.destroy(ctx);
         for b in [
             self.clusters,
             self.mesh_clusters,

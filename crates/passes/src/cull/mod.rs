@@ -36,6 +36,7 @@ use crate::frame::{scene_set, DrawSource, FrameGraph, Payload};
 use crate::hiz::HizState;
 
 pub mod clusters;
+mod compute;
 mod layout;
 mod readback;
 mod state;

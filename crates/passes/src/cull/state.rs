@@ -6,13 +6,11 @@ use tilegraph_profile::MemoryUse;
 use tilegraph_scene::{CameraFrame, DepthConvention};
 use tilegraph_vk::ash;
 use tilegraph_vk::executor::BufferHandle;
-use tilegraph_vk::pipeline::{
-    allocate_set, create_compute_pipeline, create_pipeline_layout, create_set_layout,
-    write_buffer_set, Stage,
-};
+use tilegraph_vk::pipeline::write_buffer_set;
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
 
 use super::clusters::{ClusterStage, Shared};
+use super::compute::ComputeStage;
 use super::{
     gpu_planes, sphere_projection, CullBounds, CullParams, Culling, DrawCount, GpuLayout, Phase,
     Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
@@ -91,11 +89,8 @@ pub struct CullState {
     recheck_interval: u32,
     /// The layout being written (kept: no allocation per frame).
     pub(super) layout: GpuLayout,
-    set_layout: vk::DescriptorSetLayout,
-    pub pipeline_layout: vk::PipelineLayout,
-    /// `cull.comp`, `cull_compact.comp`, `cull_commands.comp`.
-    pipelines: [vk::Pipeline; 3],
-    pool: vk::DescriptorPool,
+    /// `cull.comp`, `cull_compact.comp`, `cull_commands.comp`, their layouts and set pool.
+    compute: ComputeStage,
     /// Two per slot: the early (or only) and the late phase.
     sets: Vec<vk::DescriptorSet>,
     /// The cluster stage of the cluster techniques.
@@ -219,10 +214,7 @@ impl CullState {
             frames_written: 0,
             recheck_interval: 1,
             layout: GpuLayout::default(),
-            set_layout: vk::DescriptorSetLayout::null(),
-            pipeline_layout: vk::PipelineLayout::null(),
-            pipelines: [vk::Pipeline::null(); 3],
-            pool: vk::DescriptorPool::null(),
+            compute: ComputeStage::EMPTY,
             sets: Vec::new(),
             clusters: None,
         };
@@ -281,46 +273,14 @@ impl CullState {
         occluder: Option<Occluder>,
     ) -> Result<(), VkError> {
         let n = u64::from(self.instance_count.max(1));
-        let c = vk::ShaderStageFlags::COMPUTE;
-        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
-        let mut bindings = vec![(0, vk::DescriptorType::UNIFORM_BUFFER, c)];
-        bindings.extend((1..=STORAGE_BINDINGS).map(|b| (b, ssbo, c)));
-        self.set_layout = create_set_layout(ctx, &bindings)?;
-        self.pipeline_layout =
-            create_pipeline_layout(ctx, &[scene_set_layout, self.set_layout], None)?;
-        let stages = [
+        let slots = frames_in_flight.max(1) as u32;
+        let shaders = [
             ("cull.comp", CULL_SPV),
             ("cull_compact.comp", COMPACT_SPV),
             ("cull_commands.comp", COMMANDS_SPV),
         ];
-        for (pipeline, (name, spirv)) in self.pipelines.iter_mut().zip(stages) {
-            *pipeline = create_compute_pipeline(
-                ctx,
-                &Stage {
-                    name,
-                    spirv,
-                    specialization: &[],
-                },
-                self.pipeline_layout,
-            )?;
-        }
-        let slots = frames_in_flight.max(1) as u32;
-        let sizes = [
-            vk::DescriptorPoolSize {
-                ty: vk::DescriptorType::UNIFORM_BUFFER,
-                descriptor_count: 2 * slots,
-            },
-            vk::DescriptorPoolSize {
-                ty: ssbo,
-                descriptor_count: 2 * STORAGE_BINDINGS * slots,
-            },
-        ];
-        let pool_info = vk::DescriptorPoolCreateInfo::default()
-            .max_sets(2 * slots)
-            .pool_sizes(&sizes);
-        // SAFETY: valid create info.
-        self.pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
-            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
+        self.compute
+            .init(ctx, scene_set_layout, STORAGE_BINDINGS, shaders, 2 * slots)?;
         for slot in 0..slots {
             let inputs = SlotInputs::new(ctx, slot, n)?;
             self.slots.push(inputs);
@@ -351,7 +311,7 @@ impl CullState {
     ) -> Result<vk::DescriptorSet, VkError> {
         let inputs = self.slot(index / 2)?;
         // The pool holds a set per parameter block.
-        let set = allocate_set(ctx, self.pool, self.set_layout)?;
+        let set = self.compute.allocate_set(ctx)?;
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
         write_buffer_set(
             ctx,
@@ -534,9 +494,9 @@ impl CullState {
         let inputs = self.slot(slot)?;
         let phases = which as u32 + 1; // the late phase compacts the early lists again
         let (pipeline, groups) = match step {
-            Step::Mark => (self.pipelines[0], self.instance_count.div_ceil(64)),
-            Step::Compact => (self.pipelines[1], phases * inputs.group_total),
-            Step::Commands => (self.pipelines[2], phases * LISTS_PER_PHASE),
+            Step::Mark => (self.compute.pipelines[0], self.instance_count.div_ceil(64)),
+            Step::Compact => (self.compute.pipelines[1], phases * inputs.group_total),
+            Step::Commands => (self.compute.pipelines[2], phases * LISTS_PER_PHASE),
             Step::Cluster(step) => {
                 let Some(c) = &self.clusters else {
                     return Err(VkError::Invalid {
@@ -557,7 +517,7 @@ impl CullState {
             ctx.device.cmd_bind_descriptor_sets(
                 cb,
                 vk::PipelineBindPoint::COMPUTE,
-                self.pipeline_layout,
+                self.compute.pipeline_layout,
                 0,
                 &[scene_set, set],
                 &[],
@@ -715,17 +675,7 @@ impl CullState {
         if let Some(c) = self.clusters {
             c.destroy(ctx);
         }
-        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
-        unsafe {
-            for p in self.pipelines {
-                ctx.device.destroy_pipeline(p, None);
-            }
-            ctx.device
-                .destroy_pipeline_layout(self.pipeline_layout, None);
-            ctx.device.destroy_descriptor_pool(self.pool, None);
-            ctx.device
-                .destroy_descriptor_set_layout(self.set_layout, None);
-        }
+        self.compute.destroy(ctx);
         let buffers = [
             self.commands,
             self.counts,

@@ -128,10 +128,15 @@ pub fn proxy_corner(center: Vec3, half: Vec3, corner_sign: Vec3, viewport_height
     (center + grown * corner_sign) * (1.0 - 1.0 / 4096.0)
 }
 
-/// Whether the proxy box of a camera-relative box reaches in front of the near plane (or
-/// behind the eye): its rasterization is clipped there, so a query could miss a visible object.
-/// Such boxes are not queried; their instances are drawn. The test is on the corners the proxy
-/// shader draws (grown, see [`proxy_corner`]), not on the box itself.
+/// How near the near plane a proxy may come and still be drawn, in NDC depth (`NEAR_GUARD` in
+/// `shaders/common/scene.glsl`): the proxy pipelines' depth bias (`PROXY_DEPTH_BIAS`, at most
+/// 2^-14 for D16) then keeps its depth inside [0, 1].
+pub const NEAR_GUARD: f32 = 1.0 / 4096.0;
+
+/// Whether the proxy box of a camera-relative box reaches in front of the near plane, into its
+/// guard band ([`NEAR_GUARD`]) or behind the eye: its rasterization is clipped there, so a query
+/// could miss a visible object. Such boxes are not queried; their instances are drawn. The test
+/// is on the corners the proxy shader draws (grown, see [`proxy_corner`]), not on the box itself.
 pub fn crosses_near_plane(
     view_proj: Mat4,
     depth: DepthConvention,
@@ -149,8 +154,8 @@ pub fn crosses_near_plane(
         let p = view_proj * corner.extend(1.0);
         p.w <= 0.0
             || match depth {
-                DepthConvention::Reverse => p.z > p.w,
-                DepthConvention::Standard => p.z < 0.0,
+                DepthConvention::Reverse => p.z >= p.w * (1.0 - NEAR_GUARD),
+                DepthConvention::Standard => p.z <= p.w * NEAR_GUARD,
             }
     })
 }
@@ -163,6 +168,28 @@ struct Pending {
     frame: u64,
     groups: Vec<u32>,
     carried: Vec<u32>,
+}
+
+/// Folds one complete frame into what is known visible per group (`occlusion_recheck`): a query's
+/// answer replaces what was known; a group the frame drew untested because it was known visible
+/// keeps what is known (a later frame's answer may already have said it is hidden: frames in
+/// flight overlap, and results are read in frame order); any other group — out of the frustum,
+/// at the near plane — is not known visible, so it is queried when it can be.
+fn learn_visibility(known: &mut [bool], carried: &[u32], answers: &[(u32, bool)]) {
+    let mut keep = vec![false; known.len()];
+    for &g in carried {
+        if let Some(k) = keep.get_mut(g as usize) {
+            *k = true;
+        }
+    }
+    for (k, keep) in known.iter_mut().zip(keep) {
+        *k = *k && keep;
+    }
+    for &(g, passed) in answers {
+        if let Some(k) = known.get_mut(g as usize) {
+            *k = passed;
+        }
+    }
 }
 
 /// Marks a group that a frame did not query in [`OqState`]'s per-group query indices.
@@ -344,21 +371,18 @@ impl OqState {
             }
             // Groups the frame did not query pass; a query without its result passes too.
             self.passed.fill(true);
-            self.known_visible.fill(false);
-            for &g in &p.carried {
-                if let Some(known) = self.known_visible.get_mut(g as usize) {
-                    *known = true;
-                }
-            }
-            for (&g, [value, avail]) in p.groups.iter().zip(&results) {
-                let passed = *avail == 0 || *value != 0;
+            let answers: Vec<(u32, bool)> = p
+                .groups
+                .iter()
+                .zip(&results)
+                .map(|(&g, [value, avail])| (g, *avail == 0 || *value != 0))
+                .collect();
+            for &(g, passed) in &answers {
                 if let Some(slot) = self.passed.get_mut(g as usize) {
                     *slot = passed;
                 }
-                if let Some(known) = self.known_visible.get_mut(g as usize) {
-                    *known = passed;
-                }
             }
+            learn_visibility(&mut self.known_visible, &p.carried, &answers);
             if s != slot {
                 // Newer results, read early; the pool is recycled when its slot comes round.
                 continue;
@@ -727,6 +751,28 @@ mod tests {
             "the box's own nearest face is past the near plane"
         );
         assert!(crosses_near_plane(proj, reverse, center, half, h));
+    }
+
+    /// Two frames in flight: frame F is prepared from F-2's results, so the even and the odd
+    /// frames form two chains. A visible group whose turn falls in one chain was found hidden
+    /// there; the other chain, which only carried it, must not make it visible again.
+    #[test]
+    fn a_carried_group_keeps_the_newest_answer_of_any_frame() {
+        let mut known = vec![true, true, false];
+        // Odd frame: group 0's turn, found hidden; group 1 carried; group 2 out of the frustum.
+        learn_visibility(&mut known, &[1], &[(0, false)]);
+        assert_eq!(known, [false, true, false]);
+        // A frame that carried groups 0 and 1 (it saw them visible) read again after it, as
+        // `collect` re-reads a frame whose slot has not come round.
+        learn_visibility(&mut known, &[0, 1], &[]);
+        assert_eq!(
+            known,
+            [false, true, false],
+            "carrying never makes a group visible"
+        );
+        // Group 2 comes into view, queried, passes; group 1 leaves the frustum.
+        learn_visibility(&mut known, &[], &[(2, true)]);
+        assert_eq!(known, [false, false, true]);
     }
 
     #[test]

@@ -20,7 +20,7 @@ use crate::frame::{scene_set, FrameGraph, PassState, Payload, SceneResources};
 use crate::pipelines::{PipelineKey, Pipelines, Proxy, FULLSCREEN_VS};
 use crate::targets::SceneTargets;
 
-/// Declares raster occlusion before the first colour pass: the flags cleared, the boxes drawn
+/// Declares raster occlusion before the first colour pass: the boxes drawn
 /// against the targets' depth (or a 1/`scale` copy of it), then the culling dispatch that turns
 /// the flags into the lists.
 pub fn add_raster_occlusion(

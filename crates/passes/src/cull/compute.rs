@@ -1,0 +1,101 @@
+//! The Vulkan objects a culling stage is made of — instance culling (`cull.comp`,
+//! `cull_compact.comp`, `cull_commands.comp`) and the cluster stage (`cluster_cull.comp`,
+//! `cluster_scan.comp`, `cluster_emit.comp`) alike: one descriptor set layout (binding 0 the
+//! phase's parameter block, then storage buffers), a pipeline layout after the scene's set, three
+//! compute pipelines and a pool for the per-slot, per-phase sets.
+
+use ash::vk;
+use tilegraph_vk::ash;
+use tilegraph_vk::pipeline::{
+    allocate_set, create_compute_pipeline, create_pipeline_layout, create_set_layout, Stage,
+};
+use tilegraph_vk::{Context, VkError};
+
+/// A compute shader of a stage: its name (for errors and debug names) and SPIR-V.
+pub(super) type Shader = (&'static str, &'static [u8]);
+
+/// Set layout, pipeline layout, the stage's three pipelines and its descriptor pool. Made empty
+/// ([`ComputeStage::EMPTY`]) and filled by [`ComputeStage::init`], so an error half-way leaves
+/// what was made for [`ComputeStage::destroy`].
+pub(super) struct ComputeStage {
+    pub set_layout: vk::DescriptorSetLayout,
+    pub pipeline_layout: vk::PipelineLayout,
+    pub pipelines: [vk::Pipeline; 3],
+    pool: vk::DescriptorPool,
+}
+
+impl ComputeStage {
+    pub const EMPTY: ComputeStage = ComputeStage {
+        set_layout: vk::DescriptorSetLayout::null(),
+        pipeline_layout: vk::PipelineLayout::null(),
+        pipelines: [vk::Pipeline::null(); 3],
+        pool: vk::DescriptorPool::null(),
+    };
+
+    /// Binding 0 a uniform buffer, bindings 1..=`storage` storage buffers (all compute); the
+    /// pipelines of `shaders` (set 0 the scene's, set 1 this one); a pool for `sets` sets.
+    pub fn init(
+        &mut self,
+        ctx: &Context,
+        scene_set_layout: vk::DescriptorSetLayout,
+        storage: u32,
+        shaders: [Shader; 3],
+        sets: u32,
+    ) -> Result<(), VkError> {
+        let c = vk::ShaderStageFlags::COMPUTE;
+        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
+        let mut bindings = vec![(0, vk::DescriptorType::UNIFORM_BUFFER, c)];
+        bindings.extend((1..=storage).map(|b| (b, ssbo, c)));
+        self.set_layout = create_set_layout(ctx, &bindings)?;
+        self.pipeline_layout =
+            create_pipeline_layout(ctx, &[scene_set_layout, self.set_layout], None)?;
+        for (pipeline, (name, spirv)) in self.pipelines.iter_mut().zip(shaders) {
+            *pipeline = create_compute_pipeline(
+                ctx,
+                &Stage {
+                    name,
+                    spirv,
+                    specialization: &[],
+                },
+                self.pipeline_layout,
+            )?;
+        }
+        let sizes = [
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::UNIFORM_BUFFER,
+                descriptor_count: sets,
+            },
+            vk::DescriptorPoolSize {
+                ty: ssbo,
+                descriptor_count: storage * sets,
+            },
+        ];
+        let pool_info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(sets)
+            .pool_sizes(&sizes);
+        // SAFETY: valid create info.
+        self.pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
+            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
+        Ok(())
+    }
+
+    /// One set of the stage's layout from its pool.
+    pub fn allocate_set(&self, ctx: &Context) -> Result<vk::DescriptorSet, VkError> {
+        allocate_set(ctx, self.pool, self.set_layout)
+    }
+
+    /// Destroys what was made; the GPU must be idle.
+    pub fn destroy(self, ctx: &Context) {
+        // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.
+        unsafe {
+            for p in self.pipelines {
+                ctx.device.destroy_pipeline(p, None);
+            }
+            ctx.device
+                .destroy_pipeline_layout(self.pipeline_layout, None);
+            ctx.device.destroy_descriptor_pool(self.pool, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}
