@@ -320,23 +320,8 @@ impl ClusterStage {
             ),
             ClusterStep::Emit => (self.compute.pipelines[2], rows),
         };
-        if x == 0 {
-            return Ok(());
-        }
-        // SAFETY: recording outside a render pass; pipeline, layout and sets are live.
-        unsafe {
-            ctx.device
-                .cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
-            ctx.device.cmd_bind_descriptor_sets(
-                cb,
-                vk::PipelineBindPoint::COMPUTE,
-                self.compute.pipeline_layout,
-                0,
-                &[scene_set, set],
-                &[],
-            );
-            ctx.device.cmd_dispatch(cb, x, y, 1);
-        }
+        self.compute
+            .dispatch(ctx, cb, pipeline, [scene_set, set], (x, y));
         Ok(())
     }
 

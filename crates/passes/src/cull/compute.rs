@@ -84,6 +84,36 @@ impl ComputeStage {
         allocate_set(ctx, self.pool, self.set_layout)
     }
 
+    /// Records `pipeline` (one of [`Self::pipelines`]) over `groups` workgroups with the scene's
+    /// set and the stage's `set`; nothing when a dimension is 0. The graph put the barriers
+    /// around the pass.
+    pub fn dispatch(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        pipeline: vk::Pipeline,
+        sets: [vk::DescriptorSet; 2],
+        groups: (u32, u32),
+    ) {
+        if groups.0 == 0 || groups.1 == 0 {
+            return;
+        }
+        // SAFETY: recording outside a render pass; pipeline, layout and sets are live.
+        unsafe {
+            ctx.device
+                .cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
+            ctx.device.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::COMPUTE,
+                self.pipeline_layout,
+                0,
+                &sets,
+                &[],
+            );
+            ctx.device.cmd_dispatch(cb, groups.0, groups.1, 1);
+        }
+    }
+
     /// Destroys what was made; the GPU must be idle.
     pub fn destroy(self, ctx: &Context) {
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.

@@ -507,23 +507,8 @@ impl CullState {
                 return c.record_dispatch(ctx, cb, scene_set, slot, which, step);
             }
         };
-        if groups == 0 {
-            return Ok(());
-        }
-        // SAFETY: recording outside a render pass; pipeline, layout and sets are live.
-        unsafe {
-            ctx.device
-                .cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
-            ctx.device.cmd_bind_descriptor_sets(
-                cb,
-                vk::PipelineBindPoint::COMPUTE,
-                self.compute.pipeline_layout,
-                0,
-                &[scene_set, set],
-                &[],
-            );
-            ctx.device.cmd_dispatch(cb, groups, 1, 1);
-        }
+        self.compute
+            .dispatch(ctx, cb, pipeline, [scene_set, set], (groups, 1));
         Ok(())
     }
 
