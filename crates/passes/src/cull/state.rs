@@ -87,6 +87,8 @@ pub struct CullState {
     frames_written: u64,
     /// Raster occlusion: the box re-test interval (knob `occlusion_recheck`).
     recheck_interval: u32,
+    /// Raster occlusion: the turns of the frame [`Self::write_frame`] wrote last.
+    recheck: Recheck,
     /// The layout being written (kept: no allocation per frame).
     pub(super) layout: GpuLayout,
     /// `cull.comp`, `cull_compact.comp`, `cull_commands.comp`, their layouts and set pool.
@@ -213,6 +215,7 @@ impl CullState {
             slots: Vec::new(),
             frames_written: 0,
             recheck_interval: 1,
+            recheck: Recheck::new(1, 0),
             layout: GpuLayout::default(),
             compute: ComputeStage::EMPTY,
             sets: Vec::new(),
@@ -342,10 +345,10 @@ impl CullState {
         self.recheck_interval = interval.max(1);
     }
 
-    /// Raster occlusion: this frame's turns (the one [`Self::write_frame`] wrote last; the
-    /// boxes' vertex shader must skip the same instances).
+    /// Raster occlusion: the turns of the frame [`Self::write_frame`] wrote last (the boxes'
+    /// vertex shader must skip the same instances).
     pub fn recheck(&self) -> Recheck {
-        Recheck::new(self.recheck_interval, self.frames_written.saturating_sub(1))
+        self.recheck
     }
 
     /// Writes slot `slot`'s culling inputs for `frame`: each instance's entry in the lists in
@@ -400,8 +403,8 @@ impl CullState {
         let previous_view = frame.previous.view
             * Mat4::from_translation((frame.current.eye - frame.previous.eye).as_vec3());
         // Raster occlusion's early phase reads the box flags with this frame's turns.
-        let recheck = (self.culling == Culling::RasterOcclusion)
-            .then(|| Recheck::new(self.recheck_interval, self.frames_written).packed());
+        self.recheck = Recheck::new(self.recheck_interval, self.frames_written);
+        let recheck = (self.culling == Culling::RasterOcclusion).then(|| self.recheck.packed());
         let params = |phase: Phase, view_proj: Mat4, levels: u32, previous: bool| {
             let (view, projection) = if previous {
                 (previous_view, frame.previous.projection)
