@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use android_activity::input::{InputEvent, MotionAction};
 use android_activity::{AndroidApp, InputStatus, MainEvent, PollEvent};
 use tilegraph_passes::cull::Culling;
-use tilegraph_passes::{RenderError, RenderOptions, SceneRenderer};
+use tilegraph_passes::{GpuTiming, RenderError, RenderOptions, SceneRenderer};
 use tilegraph_scene::Scene;
 use tilegraph_vk::executor::EngineFrame;
 use tilegraph_vk::Context;
@@ -159,6 +159,9 @@ fn renderer(
         culling,
         width: swapchain.extent.width,
         height: swapchain.extent.height,
+        // The log line shows each pass's time, not its shader invocations: no statistics
+        // queries.
+        gpu_timing: GpuTiming::Passes,
         ..RenderOptions::default()
     };
     SceneRenderer::for_engine(ctx, scene, options, FRAMES_IN_FLIGHT)

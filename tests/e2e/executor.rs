@@ -10,6 +10,7 @@ use tilegraph_graph::Residency;
 use tilegraph_vk::ash::vk;
 
 use tilegraph_vk::executor::{Executor, Externals};
+use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
 use tilegraph_vk::readback::read_image;
 
 const W: u32 = 160;
@@ -151,6 +152,73 @@ fn classic_mobile_frame_renders_under_every_profile() {
             }
         }
     }
+}
+
+/// Each timing mode records the queries it names and no others (validation checks that every
+/// query read was written), and a change of mode starts a new history.
+#[test]
+fn each_timing_mode_measures_what_it_names() {
+    let g = gpu(Some("lavapipe")).unwrap();
+    let kit = Kit::new(&g).unwrap();
+    let frame = classic_mobile_frame(&kit, W, H);
+    let target_id = frame.target;
+    let mut compiled = frame.graph.compile(g.profile()).unwrap();
+    let plan = Arc::new(compiled.plan.clone());
+    let (image, handle) = target(&g, W, H).unwrap();
+    let ext = externals(target_id, &handle);
+    let mut exec = Executor::new(&g).unwrap();
+    let stats_supported = g.has_feature(tilegraph_vk::Feature::PipelineStatisticsQuery);
+    let passes = plan.passes.len();
+    for timing in [
+        GpuTiming::Frame,
+        GpuTiming::Passes,
+        GpuTiming::Off,
+        GpuTiming::PassStatistics,
+        GpuTiming::Frame,
+    ] {
+        exec.set_timing(&g, timing).unwrap();
+        assert_eq!(exec.timing(), timing);
+        assert!(exec.medians().is_empty(), "{timing}: history kept");
+        for _ in 0..3 {
+            exec.execute(&g, &plan, &ext, &mut |id, pc| match compiled.payload_mut(id) {
+                Some(p) => p(pc),
+                None => Ok(()),
+            })
+            .unwrap();
+        }
+        exec.finish(&g).unwrap();
+        let latest = exec.latest_timings();
+        let names: Vec<String> = exec.medians().into_iter().map(|m| m.name).collect();
+        match timing {
+            GpuTiming::Off => {
+                assert!(latest.is_none(), "off: {latest:?}");
+                assert!(names.is_empty(), "off: {names:?}");
+            }
+            GpuTiming::Frame => {
+                let t = latest.unwrap();
+                assert_eq!(t.passes.len(), 1, "{t:?}");
+                let f = &t.passes[0];
+                assert_eq!(f.name, FRAME_TIMING);
+                assert!(f.end_ticks > f.begin_ticks && f.gpu_ms > 0.0, "{f:?}");
+                assert!(f.vertex_invocations.is_none());
+                assert_eq!(names, [FRAME_TIMING]);
+            }
+            GpuTiming::Passes | GpuTiming::PassStatistics => {
+                let t = latest.unwrap();
+                assert_eq!(t.passes.len(), passes, "{timing}: {t:?}");
+                let counted = timing == GpuTiming::PassStatistics && stats_supported;
+                assert!(
+                    t.passes.iter().all(|p| p.vertex_invocations.is_some() == counted
+                        && p.fragment_invocations.is_some() == counted),
+                    "{timing}: {t:?}"
+                );
+                assert_eq!(names.len(), passes, "{timing}: {names:?}");
+            }
+        }
+    }
+    exec.destroy(&g);
+    kit.borrow_mut().destroy(&g);
+    destroy_target(&g, image, handle);
 }
 
 #[test]

@@ -149,6 +149,40 @@ typedef uint32_t TgCulling;
 #endif // __cplusplus
 
 /**
+ * What the GPU queries of a renderer's frames measure (`tg_renderer_set_gpu_timing`).
+ */
+enum TgGpuTiming
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * No queries: `TgFrameStats::timed_pass_count` stays 0.
+   */
+  TG_GPU_TIMING_OFF = 0,
+  /**
+   * Two timestamps around the frame: one timing, named "frame" — the GPU frame time
+   * (clears, stores and barriers between passes included), for a shipped game's HUD.
+   */
+  TG_GPU_TIMING_FRAME = 1,
+  /**
+   * A timestamp pair around each pass.
+   */
+  TG_GPU_TIMING_PASSES = 2,
+  /**
+   * Timestamps and shader-invocation counts around each pass (the default; profiling).
+   */
+  TG_GPU_TIMING_PASS_STATISTICS = 3,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum TgGpuTiming TgGpuTiming;
+#else
+typedef uint32_t TgGpuTiming;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
  * How a material's coverage is decided.
  */
 enum TgMaterialClass
@@ -778,7 +812,8 @@ typedef struct {
   uint64_t timed_frame;
   uint32_t timed_pass_count;
   /**
-   * The sum of that frame's passes' GPU time.
+   * The sum of that frame's timings: its passes' GPU time, or with `TG_GPU_TIMING_FRAME`
+   * the whole frame's.
    */
   double timed_gpu_ms;
   /**
@@ -1179,6 +1214,13 @@ TgStatus tg_renderer_stats(TgRenderer renderer, TgFrameStats *out_stats);
  * `out_time` is writable.
  */
 TgStatus tg_renderer_pass_time(TgRenderer renderer, uint32_t index, TgPassTime *out_time);
+
+/**
+ * Sets what the GPU queries of the renderer's next frames measure (a `TgGpuTiming`). A
+ * change waits for the device (as `tg_renderer_destroy`: the engine's queue is idle
+ * meanwhile) and forgets the times so far; the same timing again does nothing.
+ */
+TgStatus tg_renderer_set_gpu_timing(TgRenderer renderer, uint32_t timing);
 
 /**
  * Destroys a renderer: waits for the device (the engine's queue is idle meanwhile), then

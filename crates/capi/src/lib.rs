@@ -33,7 +33,8 @@ pub use plan::{
     TgAttachment, TgBarrier, TgPlan, TgPlanSummary, TgResidency, TgStep, TgStepKind, TgSubpass,
 };
 pub use renderer::{
-    TgEngineFrame, TgFrameStats, TgImageState, TgPassTime, TgRenderer, TgRendererDesc, TgTarget,
+    TgEngineFrame, TgFrameStats, TgGpuTiming, TgImageState, TgPassTime, TgRenderer, TgRendererDesc,
+    TgTarget,
 };
 pub use scene::{
     TgCamera, TgInstance, TgMaterial, TgMaterialClass, TgMesh, TgScene, TgSceneDesc, TgVertex,

@@ -4,7 +4,7 @@
 use std::ffi::{c_char, c_void, CString};
 
 use tilegraph_graph::{AccessFlags, Layout, PipelineStages, ResourceState};
-use tilegraph_passes::{EngineTarget, FrameReport, RenderOptions, SceneRenderer};
+use tilegraph_passes::{EngineTarget, FrameReport, GpuTiming, RenderOptions, SceneRenderer};
 use tilegraph_scene::{Camera, CameraFrame, Scene};
 use tilegraph_vk::ash::vk::{self, Handle};
 use tilegraph_vk::executor::{EngineFrame, ImageHandle};
@@ -98,7 +98,8 @@ pub struct TgFrameStats {
     /// The newest frame whose GPU times arrived (frames in flight earlier), and its passes.
     pub timed_frame: u64,
     pub timed_pass_count: u32,
-    /// The sum of that frame's passes' GPU time.
+    /// The sum of that frame's timings: its passes' GPU time, or with `TG_GPU_TIMING_FRAME`
+    /// the whole frame's.
     pub timed_gpu_ms: f64,
     /// Non-zero when the GPU culling counts below exist (GPU culling, and a frame completed).
     pub gpu_counted: u32,
@@ -390,6 +391,51 @@ fn pass_time(r: &mut RendererObject, index: usize) -> Result<TgPassTime, Failure
         has_statistics: u32::from(pass.vertex_invocations.is_some()),
         vertex_invocations: pass.vertex_invocations.unwrap_or(0),
         fragment_invocations: pass.fragment_invocations.unwrap_or(0),
+    })
+}
+
+/// What the GPU queries of a renderer's frames measure (`tg_renderer_set_gpu_timing`).
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TgGpuTiming {
+    /// No queries: `TgFrameStats::timed_pass_count` stays 0.
+    Off = 0,
+    /// Two timestamps around the frame: one timing, named "frame" — the GPU frame time
+    /// (clears, stores and barriers between passes included), for a shipped game's HUD.
+    Frame = 1,
+    /// A timestamp pair around each pass.
+    Passes = 2,
+    /// Timestamps and shader-invocation counts around each pass (the default; profiling).
+    PassStatistics = 3,
+}
+
+fn gpu_timing(raw: u32) -> Result<GpuTiming, Failure> {
+    Ok(match raw {
+        0 => GpuTiming::Off,
+        1 => GpuTiming::Frame,
+        2 => GpuTiming::Passes,
+        3 => GpuTiming::PassStatistics,
+        _ => {
+            return Err(Failure::invalid(format!(
+                "gpu timing {raw} is no TgGpuTiming"
+            )))
+        }
+    })
+}
+
+/// Sets what the GPU queries of the renderer's next frames measure (a `TgGpuTiming`). A
+/// change waits for the device (as `tg_renderer_destroy`: the engine's queue is idle
+/// meanwhile) and forgets the times so far; the same timing again does nothing.
+#[no_mangle]
+pub extern "C" fn tg_renderer_set_gpu_timing(renderer: TgRenderer, timing: u32) -> TgStatus {
+    boundary("tg_renderer_set_gpu_timing", || {
+        let timing = gpu_timing(timing)?;
+        let mut r = registry::take::<RendererObject>(renderer.raw, Kind::Renderer, "renderer")?;
+        let result = registry::with(r.context, Kind::Context, "context", |c: &ContextObject| {
+            Ok(r.renderer.set_gpu_timing(&c.ctx, timing)?)
+        });
+        registry::put_back(renderer.raw, Kind::Renderer, r);
+        result
     })
 }
 

@@ -110,7 +110,7 @@ fn rust_reference() -> Vec<u8> {
     };
     let g = gpu_with(Some("mali-valhall"), options.device_features()).unwrap();
     let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
-    for frame in scene.camera_path().frames(160.0 / 90.0).take(4) {
+    for frame in scene.camera_path().frames(160.0 / 90.0).take(6) {
         r.render_frame(&g, &scene, &frame).unwrap();
     }
     let image = r.read_image(&g).unwrap();
@@ -125,6 +125,9 @@ fn the_c_sample_renders_the_rust_paths_image() {
     let log = run(&exe, &[out.to_str().unwrap(), "mali-valhall"]);
     assert!(log.contains("profile mali-valhall (forced"), "{log}");
     assert!(log.contains("GPU times of frame"), "{log}");
+    // Timed per pass first, then (tg_renderer_set_gpu_timing) as a whole frame.
+    assert!(log.contains("  depth-prepass"), "{log}");
+    assert!(log.lines().any(|l| l.starts_with("  frame ")), "{log}");
     let pixels = std::fs::read(&out).unwrap();
     let reference = rust_reference();
     assert_eq!(pixels.len(), reference.len());

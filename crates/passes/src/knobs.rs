@@ -13,6 +13,7 @@ use tilegraph_profile::knobs::{
 use tilegraph_profile::{Profile, SortOrder};
 use tilegraph_scene::Scene;
 
+use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
 use tilegraph_vk::Context;
 
 use crate::cull::{CullBounds, Culling};
@@ -139,11 +140,26 @@ impl AutoTrial {
             renderer.destroy(ctx);
             return Err(e);
         }
+        // The candidates are timed as whole frames (two timestamps, no per-pass queries):
+        // clears, stores and barriers between passes count, per-pass queries do not.
+        let timing = if step == TrialStep::StartTiming {
+            GpuTiming::Frame
+        } else {
+            options.gpu_timing
+        };
+        if let Err(e) = renderer.set_gpu_timing(ctx, timing) {
+            renderer.destroy(ctx);
+            return Err(e);
+        }
         if step == TrialStep::StartTiming {
             renderer.clear_timings();
             return Ok((renderer, None));
         }
-        let ms = renderer.medians().iter().map(|m| m.median_gpu_ms).sum();
+        let ms = renderer
+            .medians()
+            .iter()
+            .find(|m| m.name == FRAME_TIMING)
+            .map_or(0.0, |m| m.median_gpu_ms);
         let (next, decided) = match self.record(ms) {
             Ok(next) => (next, None),
             Err((best, why)) => (best, Some(why)),

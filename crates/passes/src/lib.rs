@@ -40,3 +40,4 @@ pub use options::{FrameReport, RenderError, RenderOptions, WantedBy};
 pub use renderer::{EngineTarget, SceneRenderer};
 pub use setup::{decide, FrameSetup, PassDecision, PassKind, SceneContent, Technique};
 pub use targets::SceneTargets;
+pub use tilegraph_vk::queries::GpuTiming;

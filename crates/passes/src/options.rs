@@ -7,6 +7,7 @@ use tilegraph_cull::NpotMode;
 use tilegraph_graph::{GraphError, Plan};
 use tilegraph_scene::Scene;
 use tilegraph_vk::executor::FrameStats;
+use tilegraph_vk::queries::GpuTiming;
 use tilegraph_vk::{Context, Feature, FeatureRequest, VkError};
 
 use crate::cull::{CullBounds, CullState, Culling, GpuCullCounts};
@@ -111,6 +112,10 @@ pub struct RenderOptions {
     /// Raster occlusion: 1 tests boxes at full resolution; 2 or 4 test screen rectangles
     /// against a conservative (farthest-depth) 1/2 or 1/4 resolution depth.
     pub raster_occlusion_scale: u32,
+    /// What each frame's GPU queries measure: per pass with shader statistics (the default, for
+    /// profiling), per pass, the whole frame only (what a shipped frame needs for its frame
+    /// time), or nothing. Timing every pass costs the GPU time of its own (docs/BENCHMARKS.md).
+    pub gpu_timing: GpuTiming,
 }
 
 impl Default for RenderOptions {
@@ -134,6 +139,7 @@ impl Default for RenderOptions {
             oq_group: 16,
             occlusion_recheck: 8,
             raster_occlusion_scale: 1,
+            gpu_timing: GpuTiming::PassStatistics,
         }
     }
 }

@@ -66,7 +66,65 @@ struct Slot {
     frame: u64,
     /// Whether statistics queries were begun (and so must be read) for each pass.
     has_stats: Vec<bool>,
+    /// What the slot's frame measures (the ring's mode when the frame began).
+    timing: GpuTiming,
 }
+
+/// What a frame's queries measure. Every query costs the GPU something: a timestamp pair per
+/// pass orders the passes' start and end against it, a statistics query per pass counts shader
+/// invocations (seed 002 keeps them to profiling builds). A shipped frame wants `Frame` or
+/// `Off`; a profile being tuned wants the passes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GpuTiming {
+    /// No queries.
+    Off,
+    /// Two timestamps around the whole frame: one timing, named [`FRAME_TIMING`].
+    Frame,
+    /// A timestamp pair around each pass.
+    Passes,
+    /// A timestamp pair and a pipeline-statistics query (vertex and fragment shader
+    /// invocations, where the device counts them) around each pass.
+    #[default]
+    PassStatistics,
+}
+
+impl GpuTiming {
+    pub const ALL: [GpuTiming; 4] = [
+        GpuTiming::Off,
+        GpuTiming::Frame,
+        GpuTiming::Passes,
+        GpuTiming::PassStatistics,
+    ];
+
+    /// The name `--timing` and the docs use.
+    pub const fn name(self) -> &'static str {
+        match self {
+            GpuTiming::Off => "off",
+            GpuTiming::Frame => "frame",
+            GpuTiming::Passes => "passes",
+            GpuTiming::PassStatistics => "pass-statistics",
+        }
+    }
+
+    /// The mode named `name`, if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|t| t.name() == name)
+    }
+
+    fn per_pass(self) -> bool {
+        matches!(self, GpuTiming::Passes | GpuTiming::PassStatistics)
+    }
+}
+
+impl std::fmt::Display for GpuTiming {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The name of the one timing a [`GpuTiming::Frame`] frame has.
+pub const FRAME_TIMING: &str = "frame";
 
 /// The ring. `capacity_passes` bounds how many passes one frame may time.
 pub struct QueryRing {
@@ -78,6 +136,7 @@ pub struct QueryRing {
     period_ns: f64,
     valid_mask: u64,
     stats_supported: bool,
+    timing: GpuTiming,
 }
 
 const STATS: vk::QueryPipelineStatisticFlags = vk::QueryPipelineStatisticFlags::from_raw(
@@ -111,6 +170,7 @@ impl QueryRing {
                 (1u64 << bits) - 1
             },
             stats_supported,
+            timing: GpuTiming::default(),
         };
         for i in 0..slots.max(1) {
             let ts_info = vk::QueryPoolCreateInfo::default()
@@ -151,6 +211,7 @@ impl QueryRing {
                 passes: 0,
                 frame: 0,
                 has_stats: Vec::new(),
+                timing: GpuTiming::Off,
             });
         }
         Ok(ring)
@@ -168,6 +229,16 @@ impl QueryRing {
         self.stats_supported
     }
 
+    pub fn timing(&self) -> GpuTiming {
+        self.timing
+    }
+
+    /// Measures the frames recorded from now on with `timing`. A slot recorded before keeps
+    /// what it recorded and is collected as it was.
+    pub fn set_timing(&mut self, timing: GpuTiming) {
+        self.timing = timing;
+    }
+
     /// Starts recording frame `frame` into `slot`: resets its queries on the GPU timeline. The
     /// caller guarantees the slot's previous frame has completed (its fence signalled) and has
     /// been collected (or is abandoned).
@@ -179,36 +250,77 @@ impl QueryRing {
         frame: u64,
     ) -> Result<(), VkError> {
         let cap = self.capacity_passes;
+        let timing = self.timing;
         let s = self.slot_mut(slot)?;
         s.passes = 0;
         s.has_stats.clear();
         s.frame = frame;
+        s.timing = timing;
+        if timing == GpuTiming::Off {
+            return Ok(());
+        }
+        // Only what this frame writes is reset: two timestamps for a frame-only timing.
+        let (timestamps, stats) = match timing {
+            GpuTiming::Frame => (2, 0),
+            GpuTiming::Passes => (2 * cap, 0),
+            _ => (2 * cap, cap),
+        };
         // SAFETY: cb is recording outside a render pass; the pools are not in use by the GPU
         // (the caller waited on this slot's fence).
         unsafe {
             ctx.device
-                .cmd_reset_query_pool(cb, s.timestamps, 0, 2 * cap);
-            if s.stats != vk::QueryPool::null() {
-                ctx.device.cmd_reset_query_pool(cb, s.stats, 0, cap);
+                .cmd_reset_query_pool(cb, s.timestamps, 0, timestamps);
+            if stats != 0 && s.stats != vk::QueryPool::null() {
+                ctx.device.cmd_reset_query_pool(cb, s.stats, 0, stats);
             }
+        }
+        if timing == GpuTiming::Frame {
+            match s.names.first_mut() {
+                Some(kept) => {
+                    kept.clear();
+                    kept.push_str(FRAME_TIMING);
+                }
+                None => s.names.push(FRAME_TIMING.to_string()),
+            }
+            s.passes = 1;
+            s.has_stats.push(false);
+            ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::TOP_OF_PIPE, s.timestamps, 0)?;
         }
         Ok(())
     }
 
-    /// Writes the "before" timestamp of a pass and returns its index in the frame. With
-    /// `statistics`, begins a pipeline-statistics query (call outside or at the start of a
-    /// render pass the query is wholly inside, per the spec's rules on query scope).
+    /// Ends frame-only timing ([`GpuTiming::Frame`]) of the frame recorded into `slot`: its
+    /// closing timestamp, after everything the frame recorded. Nothing for the other modes.
+    pub fn end_frame(
+        &mut self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        slot: usize,
+    ) -> Result<(), VkError> {
+        let s = self.slot_mut(slot)?;
+        if s.timing == GpuTiming::Frame {
+            ctx.cmd_write_timestamp2(cb, vk::PipelineStageFlags2::BOTTOM_OF_PIPE, s.timestamps, 1)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the "before" timestamp of a pass and returns its index in the frame, for
+    /// [`QueryRing::end_pass`]; `None` when the frame does not time its passes. With
+    /// [`GpuTiming::PassStatistics`], begins a pipeline-statistics query (call outside or at the
+    /// start of a render pass the query is wholly inside, per the spec's rules on query scope).
     pub fn begin_pass(
         &mut self,
         ctx: &Context,
         cb: vk::CommandBuffer,
         slot: usize,
         name: &str,
-        statistics: bool,
-    ) -> Result<u32, VkError> {
+    ) -> Result<Option<u32>, VkError> {
         let cap = self.capacity_passes;
         let stats_ok = self.stats_supported;
         let s = self.slot_mut(slot)?;
+        if !s.timing.per_pass() {
+            return Ok(None);
+        }
         let index = s.passes as u32;
         if index >= cap {
             return Err(VkError::Invalid {
@@ -226,7 +338,7 @@ impl QueryRing {
             None => s.names.push(name.to_string()),
         }
         s.passes += 1;
-        let stats = statistics && stats_ok;
+        let stats = s.timing == GpuTiming::PassStatistics && stats_ok;
         s.has_stats.push(stats);
         ctx.cmd_write_timestamp2(
             cb,
@@ -241,17 +353,21 @@ impl QueryRing {
                     .cmd_begin_query(cb, s.stats, index, vk::QueryControlFlags::empty());
             }
         }
-        Ok(index)
+        Ok(Some(index))
     }
 
-    /// Writes the "after" timestamp of pass `index` (and ends its statistics query).
+    /// Writes the "after" timestamp of pass `index` (and ends its statistics query); nothing
+    /// for a pass [`QueryRing::begin_pass`] did not time.
     pub fn end_pass(
         &mut self,
         ctx: &Context,
         cb: vk::CommandBuffer,
         slot: usize,
-        index: u32,
+        index: Option<u32>,
     ) -> Result<(), VkError> {
+        let Some(index) = index else {
+            return Ok(());
+        };
         let s = self.slot_mut(slot)?;
         let stats = s.has_stats.get(index as usize).copied().unwrap_or(false);
         if stats {

@@ -122,7 +122,7 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
 /// settings that failed.
 pub fn table(g: &Group<'_>, labels: &Labels) -> String {
     let mut md = String::new();
-    md.push_str("| setting | profile | frames | FN (frames) | FN rate | FP rate | images equal | culling ms | frame ms | p95 ms | CPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    md.push_str("| setting | profile | frames | FN (frames) | FN rate | FP rate | images equal | culling ms | in passes ms | frame ms | p95 ms | CPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     let mut measured = g.measured();
     measured.sort_by(|a, b| {
         let ms = |r: &RunRecord| r.totals.as_ref().map_or(f64::MAX, |t| t.frame_gpu_ms);
@@ -139,7 +139,7 @@ pub fn table(g: &Group<'_>, labels: &Labels) -> String {
         }
         let _ = writeln!(
                 md,
-                "| {label} | {} | {} | {} ({}) | {:.4} | {:.3} | {}/{} | {:.3} | {:.3} | {:.3} | {:.2} |",
+                "| {label} | {} | {} | {} ({}) | {:.4} | {:.3} | {}/{} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} |",
                 r.device.profile,
                 t.frames,
                 t.false_negatives,
@@ -149,6 +149,7 @@ pub fn table(g: &Group<'_>, labels: &Labels) -> String {
                 t.frames_image_equal,
                 t.frames,
                 t.cull_gpu_ms,
+                t.passes_gpu_ms,
                 t.frame_gpu_ms,
                 t.frame_gpu_ms_p95,
                 t.cpu_ms

@@ -22,7 +22,7 @@ use tilegraph_vk::executor::{
     EngineFrame, Executor, External, Externals, FrameStats, ImageHandle, PassContext, Submission,
 };
 use tilegraph_vk::frames::DEFAULT_FRAMES_IN_FLIGHT;
-use tilegraph_vk::queries::PassMedian;
+use tilegraph_vk::queries::{GpuTiming, PassMedian};
 use tilegraph_vk::{Context, Image, VkError};
 
 use crate::compose::{declare_scene, kept_import, ColorTarget, DeclarationKey, SceneFrame};
@@ -131,10 +131,14 @@ impl SceneRenderer {
         frames_in_flight: usize,
     ) -> Result<Self, RenderError> {
         let instance_bits = check_device(ctx, &options, scene)?;
-        let executor = match submission {
+        let mut executor = match submission {
             Submission::Owned => Executor::with_frames(ctx, frames_in_flight, 256)?,
             Submission::Engine => Executor::for_engine(ctx, frames_in_flight)?,
         };
+        if let Err(e) = executor.set_timing(ctx, options.gpu_timing) {
+            executor.destroy(ctx);
+            return Err(e.into());
+        }
         let blended: Vec<bool> = scene
             .instances()
             .iter()
@@ -636,6 +640,14 @@ impl SceneRenderer {
 
     pub fn executor(&self) -> &Executor {
         &self.executor
+    }
+
+    /// What the GPU queries of the next frames measure ([`RenderOptions::gpu_timing`]). A
+    /// change waits for the frames in flight and forgets the timings so far.
+    pub fn set_gpu_timing(&mut self, ctx: &Context, timing: GpuTiming) -> Result<(), RenderError> {
+        self.executor.set_timing(ctx, timing)?;
+        self.options.gpu_timing = timing;
+        Ok(())
     }
 
     pub fn destroy(self, ctx: &Context) {

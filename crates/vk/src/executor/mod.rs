@@ -30,7 +30,7 @@ use resources::build_resources;
 
 use crate::error::VkError;
 use crate::frames::{FrameRing, FrameToken, DEFAULT_FRAMES_IN_FLIGHT};
-use crate::queries::{FrameTimings, PassMedian, QueryRing, TimingHistory};
+use crate::queries::{FrameTimings, GpuTiming, PassMedian, QueryRing, TimingHistory};
 use crate::{Context, Feature};
 
 /// Statistics of one executed frame.
@@ -194,6 +194,25 @@ impl Executor {
         self.history = TimingHistory::default();
     }
 
+    /// What the queries of each frame measure ([`GpuTiming::PassStatistics`] until set).
+    pub fn timing(&self) -> GpuTiming {
+        self.queries.timing()
+    }
+
+    /// Measures the next frames with `timing`: waits for the frames in flight (their timings
+    /// are collected and then forgotten with the rest, being of the old mode), so the history
+    /// holds the new mode's frames only.
+    pub fn set_timing(&mut self, ctx: &Context, timing: GpuTiming) -> Result<(), VkError> {
+        if timing == self.queries.timing() {
+            return Ok(());
+        }
+        self.collect_all(ctx)?;
+        self.queries.set_timing(timing);
+        self.clear_timings();
+        self.timed = false;
+        Ok(())
+    }
+
     /// Physical resources of the current plan (e.g. to read back an exported image).
     pub fn resources(&self) -> Option<&Resources> {
         self.resources.as_ref()
@@ -318,7 +337,8 @@ impl Executor {
             stats,
             record,
         }
-        .record_steps()
+        .record_steps()?;
+        self.queries.end_frame(ctx, token.cb, token.slot)
     }
 
     /// A different plan: waits for every frame in flight, then builds its resources for the

@@ -391,7 +391,7 @@ impl FrameRecorder<'_, '_> {
     ) -> Result<(), VkError> {
         let (ctx, cb, slot) = (self.ctx, self.token.cb, self.token.slot);
         ctx.begin_label(cb, name);
-        let q = self.queries.begin_pass(ctx, cb, slot, name, true)?;
+        let q = self.queries.begin_pass(ctx, cb, slot, name)?;
         let mut pc = PassContext {
             ctx,
             cb,
