@@ -442,6 +442,8 @@ fn knobs_the_run_cannot_use_are_errors_and_the_flag_is_credited() {
     for candidate in ["none", "frustum", "hiz-2phase"] {
         assert!(trial.contains(&format!("{candidate} ")), "{trial}");
     }
+    // Each candidate's whole-frame time arrived (a frame of city:100 takes milliseconds here).
+    assert!(!trial.contains(" 0.000 ms"), "{trial}");
     assert!(
         v["auto_reason"]
             .as_str()

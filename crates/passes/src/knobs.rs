@@ -141,25 +141,30 @@ impl AutoTrial {
             return Err(e);
         }
         // The candidates are timed as whole frames (two timestamps, no per-pass queries):
-        // clears, stores and barriers between passes count, per-pass queries do not.
-        let timing = if step == TrialStep::StartTiming {
-            GpuTiming::Frame
-        } else {
-            options.gpu_timing
-        };
-        if let Err(e) = renderer.set_gpu_timing(ctx, timing) {
-            renderer.destroy(ctx);
-            return Err(e);
-        }
+        // clears, stores and barriers between passes count, per-pass queries do not. The
+        // renderer goes back to the engine's timing once its time is read.
         if step == TrialStep::StartTiming {
+            if let Err(e) = renderer.set_gpu_timing(ctx, GpuTiming::Frame) {
+                renderer.destroy(ctx);
+                return Err(e);
+            }
             renderer.clear_timings();
             return Ok((renderer, None));
         }
-        let ms = renderer
-            .medians()
-            .iter()
-            .find(|m| m.name == FRAME_TIMING)
-            .map_or(0.0, |m| m.median_gpu_ms);
+        let ms = match renderer.medians().iter().find(|m| m.name == FRAME_TIMING) {
+            Some(m) => m.median_gpu_ms,
+            None => {
+                log::warn!(
+                    "auto: no GPU frame time arrived for {}; it is not kept",
+                    self.current().name()
+                );
+                f64::INFINITY
+            }
+        };
+        if let Err(e) = renderer.set_gpu_timing(ctx, options.gpu_timing) {
+            renderer.destroy(ctx);
+            return Err(e);
+        }
         let (next, decided) = match self.record(ms) {
             Ok(next) => (next, None),
             Err((best, why)) => (best, Some(why)),
