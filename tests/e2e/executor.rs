@@ -180,10 +180,15 @@ fn each_timing_mode_measures_what_it_names() {
         assert_eq!(exec.timing(), timing);
         assert!(exec.medians().is_empty(), "{timing}: history kept");
         for _ in 0..3 {
-            exec.execute(&g, &plan, &ext, &mut |id, pc| match compiled.payload_mut(id) {
-                Some(p) => p(pc),
-                None => Ok(()),
-            })
+            exec.execute(
+                &g,
+                &plan,
+                &ext,
+                &mut |id, pc| match compiled.payload_mut(id) {
+                    Some(p) => p(pc),
+                    None => Ok(()),
+                },
+            )
             .unwrap();
         }
         exec.finish(&g).unwrap();
@@ -208,8 +213,10 @@ fn each_timing_mode_measures_what_it_names() {
                 assert_eq!(t.passes.len(), passes, "{timing}: {t:?}");
                 let counted = timing == GpuTiming::PassStatistics && stats_supported;
                 assert!(
-                    t.passes.iter().all(|p| p.vertex_invocations.is_some() == counted
-                        && p.fragment_invocations.is_some() == counted),
+                    t.passes
+                        .iter()
+                        .all(|p| p.vertex_invocations.is_some() == counted
+                            && p.fragment_invocations.is_some() == counted),
                     "{timing}: {t:?}"
                 );
                 assert_eq!(names.len(), passes, "{timing}: {names:?}");

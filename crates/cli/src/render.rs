@@ -135,7 +135,11 @@ fn render_with(
         let passes = Timed {
             medians: renderer.medians(),
             latest: renderer.executor().latest_timings().cloned(),
-            frames: renderer.executor().history().frames().min(u64::from(frames)),
+            frames: renderer
+                .executor()
+                .history()
+                .frames()
+                .min(u64::from(frames)),
             frame_ms: None,
         };
         renderer.set_gpu_timing(ctx, GpuTiming::Frame)?;

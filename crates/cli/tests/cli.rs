@@ -444,6 +444,19 @@ fn knobs_the_run_cannot_use_are_errors_and_the_flag_is_credited() {
     }
     // Each candidate's whole-frame time arrived (a frame of city:100 takes milliseconds here).
     assert!(!trial.contains(" 0.000 ms"), "{trial}");
+    // Under the visibility buffer, which has no depth pre-pass for query boxes, the trial
+    // leaves same-frame queries out (it failed on them before).
+    let (ok, stdout, err) = run(
+        &["render", "city:100", "--shading", "visbuf", "--json"],
+        &env,
+    );
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let trial = v["auto_trial"].as_str().unwrap();
+    assert!(
+        trial.contains("hiz-2phase ") && !trial.contains("oq-conditional"),
+        "{trial}"
+    );
     assert!(
         v["auto_reason"]
             .as_str()

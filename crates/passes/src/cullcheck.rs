@@ -12,8 +12,8 @@
 
 use serde::Serialize;
 use tilegraph_scene::{CameraPath, Scene};
-use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
+use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::Context;
 
 use crate::cull::Culling;

@@ -69,7 +69,9 @@ pub enum TrialStep {
 }
 
 impl AutoTrial {
-    pub fn new(first: Culling, inputs: AutoInputs) -> AutoTrial {
+    /// The trial of `first` and the other candidates that run with `technique` on a device
+    /// with `inputs`.
+    pub fn new(first: Culling, inputs: AutoInputs, technique: Technique) -> AutoTrial {
         let mut candidates = vec![first];
         for c in [
             Culling::None,
@@ -79,6 +81,7 @@ impl AutoTrial {
         ] {
             if candidates.contains(&c)
                 || (c == Culling::OqConditional && !inputs.conditional_rendering)
+                || c.unsupported_with(technique).is_some()
             {
                 continue;
             }
@@ -281,7 +284,7 @@ impl Resolved {
     pub fn auto_trial(&self, inputs: AutoInputs) -> Option<AutoTrial> {
         self.auto_reason
             .as_ref()
-            .map(|_| AutoTrial::new(self.culling, inputs))
+            .map(|_| AutoTrial::new(self.culling, inputs, self.technique))
     }
 }
 
@@ -293,7 +296,7 @@ pub fn offered(content: SceneContent) -> impl Iterator<Item = &'static KnobSpec>
 }
 
 /// Picks the culling for a scene (`culling = auto`), with the reason.
-pub fn auto_culling(scene: &Scene, inputs: AutoInputs) -> (Culling, String) {
+pub fn auto_culling(scene: &Scene, inputs: AutoInputs, technique: Technique) -> (Culling, String) {
     let content = SceneContent::of(scene);
     let drawn = content.opaque + content.alpha_tested;
     let triangles: u64 = scene
@@ -311,7 +314,11 @@ pub fn auto_culling(scene: &Scene, inputs: AutoInputs) -> (Culling, String) {
             ),
         );
     }
-    if per_instance >= AUTO_QUERY_TRIANGLES_PER_INSTANCE && inputs.conditional_rendering {
+    let queries_run = Culling::OqConditional.unsupported_with(technique).is_none();
+    if per_instance >= AUTO_QUERY_TRIANGLES_PER_INSTANCE
+        && inputs.conditional_rendering
+        && queries_run
+    {
         return (
             Culling::OqConditional,
             format!(
@@ -323,10 +330,14 @@ pub fn auto_culling(scene: &Scene, inputs: AutoInputs) -> (Culling, String) {
         Culling::HizTwoPhase,
         format!(
             "auto: {drawn} instances of {per_instance} triangles on average: two-phase HiZ, the cheapest conservative culling{}",
-            if per_instance >= AUTO_QUERY_TRIANGLES_PER_INSTANCE {
-                " (same-frame queries would suit heavy instances, but the device lacks conditional rendering)"
-            } else {
-                ""
+            match (per_instance >= AUTO_QUERY_TRIANGLES_PER_INSTANCE, queries_run) {
+                (false, _) => "",
+                (true, false) => {
+                    " (same-frame queries would suit heavy instances, but the visibility buffer has no depth pre-pass for them)"
+                }
+                (true, true) => {
+                    " (same-frame queries would suit heavy instances, but the device lacks conditional rendering)"
+                }
             }
         ),
     )
@@ -367,14 +378,14 @@ pub fn resolve(
             .map(|v| v.to_string())
             .unwrap_or_default()
     };
+    let technique = Technique::parse(&name_of("shading")).unwrap_or(Technique::Forward);
     let (culling, auto_reason) = match Culling::parse(&name_of("culling")) {
         Some(c) => (c, None),
         None => {
-            let (c, why) = auto_culling(scene, inputs);
+            let (c, why) = auto_culling(scene, inputs, technique);
             (c, Some(why))
         }
     };
-    let technique = Technique::parse(&name_of("shading")).unwrap_or(Technique::Forward);
     let mut knobs = Vec::new();
     for k in offered(content) {
         let (v, origin) = value(k);
@@ -615,7 +626,7 @@ mod tests {
         let inputs = AutoInputs {
             conditional_rendering: false,
         };
-        let mut t = AutoTrial::new(Culling::HizTwoPhase, inputs);
+        let mut t = AutoTrial::new(Culling::HizTwoPhase, inputs, Technique::Forward);
         assert_eq!(t.frames(), 3 * (AUTO_WARMUP_FRAMES + AUTO_TIMED_FRAMES));
         let times = [0.5, 1.1, 0.7];
         let mut decided = None;
@@ -640,13 +651,17 @@ mod tests {
         assert!(why.starts_with("auto timed on this device"), "{why}");
         assert!(why.contains("none 1.100 ms"), "{why}");
         // Same-frame queries are a candidate only where the device has conditional rendering.
-        let with = AutoTrial::new(
-            Culling::None,
-            AutoInputs {
-                conditional_rendering: true,
-            },
-        );
+        let conditional = AutoInputs {
+            conditional_rendering: true,
+        };
+        let with = AutoTrial::new(Culling::None, conditional, Technique::Forward);
         assert_eq!(with.candidates.len(), 4);
+        // ... and only with a technique that draws a depth pre-pass for them to test against.
+        let visbuf = AutoTrial::new(Culling::HizTwoPhase, conditional, Technique::Visbuf);
+        assert_eq!(
+            visbuf.candidates,
+            [Culling::HizTwoPhase, Culling::None, Culling::Frustum]
+        );
     }
 
     #[test]
@@ -655,11 +670,45 @@ mod tests {
             conditional_rendering: true,
         };
         let small = tilegraph_scene::load("city:100").unwrap();
-        let (c, why) = auto_culling(&small, inputs);
+        let (c, why) = auto_culling(&small, inputs, Technique::Forward);
         assert_eq!(c, Culling::None, "{why}");
         let big = tilegraph_scene::load("city:2000").unwrap();
-        let (c, why) = auto_culling(&big, inputs);
+        let (c, why) = auto_culling(&big, inputs, Technique::Forward);
         assert_eq!(c, Culling::HizTwoPhase, "{why}");
         assert!(why.contains("instances"), "{why}");
+    }
+
+    /// Heavy instances get same-frame queries, except under the visibility buffer, which has no
+    /// depth pre-pass to test their boxes against (`tilegraph render --shading visbuf` with the
+    /// default culling failed on every device with conditional rendering).
+    #[test]
+    fn auto_leaves_queries_out_where_the_technique_cannot_run_them() {
+        let inputs = AutoInputs {
+            conditional_rendering: true,
+        };
+        // 300 instances of a 1,000-triangle mesh.
+        let mut b = tilegraph_scene::SceneBuilder::new("heavy");
+        let material = b.add_material(tilegraph_scene::Material::opaque([1.0; 4]));
+        let v = |x: f32, z: f32| tilegraph_scene::Vertex {
+            position: [x, 0.0, z],
+            normal: [0.0, 1.0, 0.0],
+            uv: [0.0; 2],
+        };
+        let indices: Vec<u32> = (0..1000).flat_map(|_| [0, 1, 2]).collect();
+        let mesh = b
+            .add_mesh(&[v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0)], &indices, material)
+            .unwrap();
+        for i in 0..300 {
+            let at = glam::DVec3::new(f64::from(i) * 2.0, 0.0, 0.0);
+            b.add_instance(tilegraph_scene::Transform::from_translation(at), mesh)
+                .unwrap();
+        }
+        let heavy = b.build(None).unwrap();
+        let (c, why) = auto_culling(&heavy, inputs, Technique::Forward);
+        assert_eq!(c, Culling::OqConditional, "{why}");
+        let (c, why) = auto_culling(&heavy, inputs, Technique::Visbuf);
+        assert_eq!(c, Culling::HizTwoPhase, "{why}");
+        assert!(why.contains("visibility buffer"), "{why}");
+        assert_eq!(c.unsupported_with(Technique::Visbuf), None);
     }
 }

@@ -261,32 +261,17 @@ pub(crate) fn check_device(
             max_triangles: max_tris,
         });
     }
-    if options.technique == Technique::Visbuf
-        && matches!(
-            options.culling,
-            Culling::OqConditional | Culling::RasterOcclusion
-        )
-    {
-        // Both test boxes against a depth pre-pass before colour; the visibility buffer has no
-        // pre-pass to test against.
+    if let Some(reason) = options.culling.unsupported_with(options.technique) {
         return Err(RenderError::UnsupportedCulling {
             culling: options.culling.name(),
             technique: options.technique.name(),
-            reason: "it needs a depth pre-pass before colour",
+            reason,
         });
     }
     if options.culling.clusters() && scene.clusters().is_none() {
         return Err(RenderError::NoClusters {
             culling: options.culling.name(),
             scene: scene.name().to_string(),
-        });
-    }
-    if options.technique == Technique::Visbuf && options.culling.clusters() {
-        // The ids pass stores gl_PrimitiveID, which a cluster command restarts at its range.
-        return Err(RenderError::UnsupportedCulling {
-            culling: options.culling.name(),
-            technique: options.technique.name(),
-            reason: "its ids hold primitive ids, which restart at each cluster range",
         });
     }
     if let Some((feature, wanted_by)) = options

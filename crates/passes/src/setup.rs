@@ -182,6 +182,23 @@ impl Culling {
         )
     }
 
+    /// Why this culling cannot run with `technique`, or `None` when it can.
+    pub fn unsupported_with(self, technique: Technique) -> Option<&'static str> {
+        if technique != Technique::Visbuf {
+            return None;
+        }
+        if matches!(self, Culling::OqConditional | Culling::RasterOcclusion) {
+            // Both test boxes against a depth pre-pass before colour; the visibility buffer has
+            // no pre-pass to test against.
+            Some("it needs a depth pre-pass before colour")
+        } else if self.clusters() {
+            // The ids pass stores gl_PrimitiveID, which a cluster command restarts at its range.
+            Some("its ids hold primitive ids, which restart at each cluster range")
+        } else {
+            None
+        }
+    }
+
     pub fn uses_pyramid(self) -> bool {
         matches!(
             self.base(),

@@ -91,9 +91,11 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
         md,
         "tilegraph {}; device: {}. Every run renders its camera path three times — the exact \
          oracle, the unculled reference and the setting — and counts false negatives (visible but \
-         culled; FN rate = FN / visible) and false positives (FP rate = FP / drawn) per frame; GPU \
-         times are medians (and 95th percentiles) of per-pass timestamps. Conservative settings \
-         sit on FN rate 0; **bold** rows are the Pareto front of (frame GPU ms, FN rate).\n",
+         culled; FN rate = FN / visible) and false positives (FP rate = FP / drawn) per frame; the \
+         frame's GPU time is the median (and 95th percentile) of frames timed whole, two \
+         timestamps each; culling ms and in-passes ms sum per-pass medians of frames timed per \
+         pass (what lies between the passes — clears, stores, barriers — is in the frame only). \
+         Conservative settings sit on FN rate 0; **bold** rows are the Pareto front of (frame GPU ms, FN rate).\n",
         env!("CARGO_PKG_VERSION"),
         devices.join("; ")
     );
