@@ -3,13 +3,14 @@
 use std::sync::Arc;
 use tilegraph_e2e::frames::{
     aliasing_frame, classic_mobile_frame, destroy_target, externals, target, visbuf_frame, Frame,
-    Kit,
+    Kit, Payload,
 };
 use tilegraph_e2e::gpu;
 use tilegraph_graph::Residency;
 use tilegraph_vk::ash::vk;
 
-use tilegraph_vk::executor::{Executor, Externals};
+use tilegraph_graph::CompiledGraph;
+use tilegraph_vk::executor::{Executor, Externals, FrameStats};
 use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
 use tilegraph_vk::readback::read_image;
 
@@ -23,6 +24,21 @@ fn px(bytes: &[u8], x: u32, y: u32) -> [u8; 4] {
 
 fn close(a: [u8; 4], b: [u8; 4]) -> bool {
     a.iter().zip(b).all(|(x, y)| x.abs_diff(y) <= 2)
+}
+
+/// Executes one frame of `plan`, each pass recorded by its compiled payload.
+fn execute(
+    exec: &mut Executor,
+    g: &tilegraph_vk::Context,
+    plan: &Arc<tilegraph_graph::Plan>,
+    ext: &Externals,
+    compiled: &mut CompiledGraph<Payload>,
+) -> FrameStats {
+    exec.execute(g, plan, ext, &mut |id, pc| match compiled.payload_mut(id) {
+        Some(p) => p(pc),
+        None => Ok(()),
+    })
+    .unwrap()
 }
 
 struct Outcome {
@@ -51,17 +67,7 @@ fn run(
     let mut allocations = Vec::new();
     let mut stats = None;
     for _ in 0..frames {
-        let s = exec
-            .execute(
-                &g,
-                &plan,
-                &ext,
-                &mut |id, pc| match compiled.payload_mut(id) {
-                    Some(p) => p(pc),
-                    None => Ok(()),
-                },
-            )
-            .unwrap();
+        let s = execute(&mut exec, &g, &plan, &ext, &mut compiled);
         allocations.push(s.allocations);
         stats = Some(s);
     }
@@ -180,16 +186,7 @@ fn each_timing_mode_measures_what_it_names() {
         assert_eq!(exec.timing(), timing);
         assert!(exec.medians().is_empty(), "{timing}: history kept");
         for _ in 0..3 {
-            exec.execute(
-                &g,
-                &plan,
-                &ext,
-                &mut |id, pc| match compiled.payload_mut(id) {
-                    Some(p) => p(pc),
-                    None => Ok(()),
-                },
-            )
-            .unwrap();
+            execute(&mut exec, &g, &plan, &ext, &mut compiled);
         }
         exec.finish(&g).unwrap();
         let latest = exec.latest_timings();
@@ -501,16 +498,7 @@ fn framebuffers_of_external_views_are_forgotten_on_request() {
     let plan = Arc::new(compiled.plan.clone());
     let mut exec = Executor::new(&g).unwrap();
     let mut run_frame = |exec: &mut Executor, handle: &tilegraph_vk::executor::ImageHandle| {
-        exec.execute(
-            &g,
-            &plan,
-            &externals(target_id, handle),
-            &mut |id, pc| match compiled.payload_mut(id) {
-                Some(p) => p(pc),
-                None => Ok(()),
-            },
-        )
-        .unwrap();
+        execute(exec, &g, &plan, &externals(target_id, handle), &mut compiled);
     };
     let (image, handle) = target(&g, W, H).unwrap();
     run_frame(&mut exec, &handle);

@@ -282,10 +282,10 @@ fn demo(out: &std::path::Path, size: (u32, u32), frames: u32) -> Result<(), CliE
 
 /// What the device's figures cannot say: on a CPU rasterizer (lavapipe) pipeline statistics
 /// count fragments before the depth test, and timestamps between passes of one render pass
-/// land where the rasterizer happens to flush.
+/// land where the rasterizer happens to flush (its tiles are rasterized outside them).
 pub fn device_caveat(ctx: &tilegraph_vk::Context) -> Option<&'static str> {
     (ctx.physical.identity.device_type == tilegraph_profile::DeviceType::Cpu).then_some(
-        "note: a CPU rasterizer: fragment counts are before the depth test, and per-pass times inside one render pass are where it flushed; compare frame totals",
+        "note: a CPU rasterizer: fragment counts are before the depth test, and per-pass times inside one render pass are where it flushed (most rasterization falls outside them); compare frames timed whole",
     )
 }
 
