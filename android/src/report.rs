@@ -37,7 +37,7 @@ pub fn stats_line(
     }
     if let Some(t) = timings {
         let total: f64 = t.passes.iter().map(|p| p.gpu_ms).sum();
-        let _ = write!(line, " | GPU {total:.2} ms:");
+        let _ = write!(line, " | GPU passes {total:.2} ms:");
         for p in &t.passes {
             let _ = write!(line, " {} {:.2}", p.name, p.gpu_ms);
         }
@@ -97,7 +97,7 @@ mod tests {
         let line = stats_line(Culling::HizTwoPhase, 59.94, 120, Some(880), Some(&timings));
         assert_eq!(
             line,
-            "hiz-2phase | 59.9 fps | 120 draws | 880 culled on the GPU | GPU 1.75 ms: cull 0.25 opaque 1.50"
+            "hiz-2phase | 59.9 fps | 120 draws | 880 culled on the GPU | GPU passes 1.75 ms: cull 0.25 opaque 1.50"
         );
     }
 }

@@ -498,7 +498,13 @@ fn framebuffers_of_external_views_are_forgotten_on_request() {
     let plan = Arc::new(compiled.plan.clone());
     let mut exec = Executor::new(&g).unwrap();
     let mut run_frame = |exec: &mut Executor, handle: &tilegraph_vk::executor::ImageHandle| {
-        execute(exec, &g, &plan, &externals(target_id, handle), &mut compiled);
+        execute(
+            exec,
+            &g,
+            &plan,
+            &externals(target_id, handle),
+            &mut compiled,
+        );
     };
     let (image, handle) = target(&g, W, H).unwrap();
     run_frame(&mut exec, &handle);

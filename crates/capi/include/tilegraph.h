@@ -1218,7 +1218,8 @@ TgStatus tg_renderer_pass_time(TgRenderer renderer, uint32_t index, TgPassTime *
 /**
  * Sets what the GPU queries of the renderer's next frames measure (a `TgGpuTiming`). A
  * change waits for the device (as `tg_renderer_destroy`: the engine's queue is idle
- * meanwhile) and forgets the times so far; the same timing again does nothing.
+ * meanwhile) and forgets the times so far; the same timing again does nothing. Call it after
+ * submitting every frame recorded: one recorded and not yet submitted is never timed.
  */
 TgStatus tg_renderer_set_gpu_timing(TgRenderer renderer, uint32_t timing);
 

@@ -425,7 +425,8 @@ fn gpu_timing(raw: u32) -> Result<GpuTiming, Failure> {
 
 /// Sets what the GPU queries of the renderer's next frames measure (a `TgGpuTiming`). A
 /// change waits for the device (as `tg_renderer_destroy`: the engine's queue is idle
-/// meanwhile) and forgets the times so far; the same timing again does nothing.
+/// meanwhile) and forgets the times so far; the same timing again does nothing. Call it after
+/// submitting every frame recorded: one recorded and not yet submitted is never timed.
 #[no_mangle]
 pub extern "C" fn tg_renderer_set_gpu_timing(renderer: TgRenderer, timing: u32) -> TgStatus {
     boundary("tg_renderer_set_gpu_timing", || {

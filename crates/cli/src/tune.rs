@@ -466,7 +466,9 @@ fn tune_on(
 /// The held-out check of `tune`: runs a setting on the path it was not tuned on and remembers
 /// the result per way of culling. Which instances a setting draws depends on its culling and
 /// the culling's own knobs, not on shading or draw order, so a setting culled like one already
-/// run takes that run's verdict. At most [`HeldOut::MAX_RUNS`] ways of culling are run.
+/// run takes that run's verdict. At most [`HeldOut::MAX_RUNS`] ways of culling that can miss
+/// are run; a conservative culling (FN 0 by construction) is always run, so that the fastest
+/// of those is reached however many faster ones overfit.
 struct HeldOut {
     max_fn_rate: Option<f64>,
     /// Per way of culling: its held-out totals and whether they meet the constraint.
@@ -502,8 +504,8 @@ impl HeldOut {
     }
 
     /// Whether `s` (ranked as `c`) meets the constraint on the held-out path, running it with
-    /// `run` unless a setting culled like it ran already. `Ok(false)` also once
-    /// [`HeldOut::MAX_RUNS`] ways of culling have run.
+    /// `run` unless a setting culled like it ran already. `Ok(false)` also for a culling that
+    /// can miss once [`HeldOut::MAX_RUNS`] ways of culling have run.
     fn check(
         &mut self,
         c: &Candidate,
@@ -513,7 +515,11 @@ impl HeldOut {
         let like = Self::culled_like(s);
         let holds = match self.runs.iter().find(|(l, _, _)| *l == like) {
             Some((_, _, holds)) => *holds,
-            None if self.runs.len() >= Self::MAX_RUNS => return Ok(false),
+            None if self.runs.len() >= Self::MAX_RUNS
+                && !Culling::parse(&s.culling).is_some_and(Culling::conservative) =>
+            {
+                return Ok(false)
+            }
             None => {
                 let held = Setting {
                     camera_path: Some("held-out".into()),
@@ -616,6 +622,113 @@ mod tests {
         )
         .unwrap();
         assert_eq!(r[0].key, "x");
+    }
+
+    fn setting(culling: &str, knobs: &[(&str, &str)]) -> Setting {
+        Setting {
+            scene: "city".into(),
+            profile: None,
+            size: [320, 180],
+            camera_path: None,
+            shading: "forward".into(),
+            culling: culling.into(),
+            knobs: knobs
+                .iter()
+                .map(|(k, v)| (k.to_string(), KnobValue::Name(v.to_string())))
+                .collect(),
+        }
+    }
+
+    fn held_out_run(s: &Setting, false_negatives: usize) -> RunRecord {
+        RunRecord {
+            key: s.key(),
+            settings: s.clone(),
+            device: crate::bench::results::DeviceRecord {
+                build: String::new(),
+                name: "test".into(),
+                driver: String::new(),
+                driver_version: String::new(),
+                api: String::new(),
+                profile: "lavapipe".into(),
+                profile_matched_by: String::new(),
+            },
+            culling: s.culling.clone(),
+            auto_reason: None,
+            knobs: Vec::new(),
+            error: None,
+            wall_s: 0.0,
+            totals: Some(TotalsRecord {
+                frames: 1,
+                visible: 100,
+                drawn: 100,
+                false_negatives,
+                false_positives: 0,
+                fn_rate: false_negatives as f64 / 100.0,
+                fp_rate: 0.0,
+                frames_with_false_negatives: usize::from(false_negatives > 0),
+                frames_image_equal: 1,
+                triangles_drawn: 0,
+                frame_gpu_ms: 1.0,
+                frame_gpu_ms_p95: 1.0,
+                passes_gpu_ms: 1.0,
+                cull_gpu_ms: 0.0,
+                cpu_ms: 0.0,
+            }),
+            passes: Vec::new(),
+            frames: Vec::new(),
+        }
+    }
+
+    /// On lavapipe with frames timed whole, the fastest settings with FN 0 on the tuning path
+    /// were a dozen single-phase HiZ and next-frame query variants that all miss held out, and
+    /// tune gave up before it reached a conservative culling. The cap now spares those.
+    #[test]
+    fn the_held_out_check_reaches_a_conservative_culling_after_many_overfit() {
+        let mut held = HeldOut::new(None);
+        let mut ran = 0;
+        let mut fast = Vec::new();
+        for bounds in ["aabb", "sphere"] {
+            for npot in ["edge-aware", "pad-to-pow2"] {
+                for res in ["full", "half", "quarter"] {
+                    fast.push(setting(
+                        "hiz",
+                        &[
+                            ("cull_bounds", bounds),
+                            ("hiz_npot", npot),
+                            ("hiz_resolution", res),
+                        ],
+                    ));
+                }
+            }
+        }
+        for group in ["1", "4", "8", "16"] {
+            fast.push(setting("oq", &[("oq_group", group)]));
+        }
+        for s in &fast {
+            let holds = held
+                .check(&c(&s.key(), 0.4, 0, 100, 0.5, 1), s, |h| {
+                    ran += 1;
+                    Ok(held_out_run(h, 7))
+                })
+                .unwrap();
+            assert!(!holds);
+        }
+        assert_eq!(
+            ran,
+            HeldOut::MAX_RUNS,
+            "ways of culling that can miss stop at the cap"
+        );
+        let two_phase = setting("hiz-2phase", &[]);
+        let holds = held
+            .check(&c("two", 0.5, 0, 100, 0.6, 1), &two_phase, |h| {
+                ran += 1;
+                Ok(held_out_run(h, 0))
+            })
+            .unwrap();
+        assert!(holds, "a conservative culling is checked past the cap");
+        assert_eq!(ran, HeldOut::MAX_RUNS + 1);
+        // Those past the cap never ran: not known to be overfit.
+        assert_eq!(held.overfit.len(), HeldOut::MAX_RUNS);
     }
 
     #[test]

@@ -213,7 +213,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         cpu_times.sort_unstable();
         let ms = |d: Duration| d.as_secs_f64() * 1e3;
         println!(
-            "  {:<11} record + stats, thread CPU: median {:.3} ms, p90 {:.3} ms; wall: median {:.3} ms, p90 {:.3} ms; heap allocations over {frames} frames: {allocations}; newest GPU frame {gpu_ms:.2} ms",
+            "  {:<11} record + stats, thread CPU: median {:.3} ms, p90 {:.3} ms; wall: median {:.3} ms, p90 {:.3} ms; heap allocations over {frames} frames: {allocations}; newest GPU frame, passes summed, {gpu_ms:.2} ms",
             culling.name(),
             ms(percentile(&cpu_times, 0.5)),
             ms(percentile(&cpu_times, 0.9)),

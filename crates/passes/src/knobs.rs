@@ -197,6 +197,17 @@ impl AutoTrial {
             .copied()
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .unwrap_or((Culling::None, 0.0));
+        if !best_ms.is_finite() {
+            // No candidate's GPU frame time arrived: nothing to compare.
+            let first = self.candidates.first().copied().unwrap_or(Culling::None);
+            return Err((
+                first,
+                format!(
+                    "auto could not time the candidates on this device (no GPU frame time arrived): {} kept",
+                    first.name()
+                ),
+            ));
+        }
         let tried: Vec<String> = self
             .timed
             .iter()
@@ -650,6 +661,15 @@ mod tests {
         assert_eq!(c, Culling::HizTwoPhase);
         assert!(why.starts_with("auto timed on this device"), "{why}");
         assert!(why.contains("none 1.100 ms"), "{why}");
+        // A trial that timed nothing keeps its first candidate and says why.
+        let mut blind = AutoTrial::new(Culling::Frustum, inputs, Technique::Forward);
+        let mut kept = None;
+        while kept.is_none() {
+            kept = blind.record(f64::INFINITY).err();
+        }
+        let (c, why) = kept.unwrap();
+        assert_eq!(c, Culling::Frustum);
+        assert!(why.contains("could not time"), "{why}");
         // Same-frame queries are a candidate only where the device has conditional rendering.
         let conditional = AutoInputs {
             conditional_rendering: true,

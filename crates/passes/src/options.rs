@@ -114,7 +114,8 @@ pub struct RenderOptions {
     pub raster_occlusion_scale: u32,
     /// What each frame's GPU queries measure: per pass with shader statistics (the default, for
     /// profiling), per pass, the whole frame only (what a shipped frame needs for its frame
-    /// time), or nothing. Timing every pass costs the GPU time of its own (docs/BENCHMARKS.md).
+    /// time), or nothing. Timing every pass costs the GPU time of its own, and only the whole frame
+    /// counts the clears between passes (docs/ACCURACY.md, "What a frame time is").
     pub gpu_timing: GpuTiming,
 }
 

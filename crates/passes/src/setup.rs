@@ -182,6 +182,13 @@ impl Culling {
         )
     }
 
+    /// Whether the technique never culls a visible instance by construction (`tests/e2e`
+    /// holds each to FN 0 and equal images); the others trade misses for speed (single-phase
+    /// HiZ after a cut, next-frame queries as objects appear, reprojected depth).
+    pub fn conservative(self) -> bool {
+        !matches!(self, Culling::Hiz | Culling::Oq | Culling::Reproject)
+    }
+
     /// Why this culling cannot run with `technique`, or `None` when it can.
     pub fn unsupported_with(self, technique: Technique) -> Option<&'static str> {
         if technique != Technique::Visbuf {

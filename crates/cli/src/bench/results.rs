@@ -12,7 +12,7 @@ use super::Setting;
 use crate::CliError;
 
 /// Format version of results.json; a file of another version is not resumed from.
-pub const RESULTS_VERSION: u32 = 1;
+pub const RESULTS_VERSION: u32 = 2;
 
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct Results {
@@ -74,8 +74,8 @@ pub struct TotalsRecord {
     /// 95th percentile of the same frames.
     pub frame_gpu_ms_p95: f64,
     /// Sum of the passes' medians (timed each, in a pass of their own along the path): the
-    /// frame without what lies between its passes. 0 in results written before it was kept.
-    #[serde(default)]
+    /// frame without what lies between its passes. (Format 1 had no such field, and its
+    /// `frame_gpu_ms` was this sum.)
     pub passes_gpu_ms: f64,
     pub cull_gpu_ms: f64,
     pub cpu_ms: f64,

@@ -175,7 +175,8 @@ impl Executor {
         self.frames.wait_next(ctx)
     }
 
-    /// Per-pass median GPU times over every frame collected so far.
+    /// Median GPU time of each timing over every frame collected so far: each pass, or the
+    /// one timing named `frame` ([`GpuTiming::Frame`]).
     pub fn medians(&self) -> Vec<PassMedian> {
         self.history.medians()
     }

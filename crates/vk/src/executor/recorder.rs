@@ -2,7 +2,8 @@
 //! its physical resources, the caller's externals and the frame's command buffer through the
 //! plan's steps — barrier batches as one `vkCmdPipelineBarrier2` each, render passes with their
 //! subpasses, compute and transfer passes, flushes — and hands each pass to its payload with a
-//! [`PassContext`], wrapped in a debug label and a pair of timestamps. Its lists live in
+//! [`PassContext`], wrapped in a debug label and (as the frame's `GpuTiming` says) a pair of
+//! timestamps. Its lists live in
 //! [`RecorderState`], kept by the executor from frame to frame: a steady frame allocates
 //! nothing here.
 
@@ -381,7 +382,8 @@ impl FrameRecorder<'_, '_> {
         Ok(())
     }
 
-    /// Records one pass through its payload, in a debug label and between two timestamps.
+    /// Records one pass through its payload, in a debug label (and between two timestamps when
+    /// the frame times its passes).
     fn run_pass(
         &mut self,
         pass: PassId,
