@@ -71,7 +71,7 @@ void main() {
     // hold from older frames). Read by every thread before thread 0 rewrites it below.
     uint early_runs = late ? runs[e] : 0u;
     bool drawn = late ? visible_last[id] != 0u : entries[e] != 0u;
-    Instance inst = instances[id];
+    Instance inst = instance_at(id);
     uvec2 range = mesh_clusters[inst.mesh];
     if (!drawn || range.y == 0u) {
         barrier();

@@ -91,7 +91,7 @@ void main() {
         return;
     }
     uint e = order[id];
-    Instance inst = instances[id];
+    Instance inst = instance_at(id);
     uvec2 range = mesh_clusters[inst.mesh];
     uint base = cluster_base[id];
     emit(0u, id, e, inst, range, base);

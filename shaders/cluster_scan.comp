@@ -1,8 +1,9 @@
 #version 450
 // Cluster culling, second step: one workgroup per list places each entry's runs among the
-// list's commands (an exclusive prefix sum over the entries in list order: the unculled draw
-// order) and writes the list's draw count. Workgroup w is list w: the early (or only) dispatch
-// runs lists 0-3 and empties the late lists' counts, the late one 0-7.
+// list's commands (an exclusive prefix sum over the entries in the unculled draw order: the
+// list's groups in the frame's order, each group's entries in entry order) and writes the
+// list's draw count. Workgroup w is list w: the early (or only) dispatch runs lists 0-3 and
+// empties the late lists' counts, the late one 0-7.
 #include "cull.glsl"
 #include "cluster.glsl"
 
@@ -21,18 +22,44 @@ const uint CHUNK = THREADS * PER_THREAD;
 
 shared uint scan[THREADS];
 
+// The group of the list holding the list's `i`-th entry in draw order (groups [g0, g0 + n)).
+uint group_of(uint g0, uint n, uint i) {
+    uint lo = g0;
+    uint hi = g0 + n;
+    while (hi - lo > 1u) {
+        uint mid = (lo + hi) / 2u;
+        if (cluster_groups[mid].first <= i) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+// The entry (of list `list`) of the list's `i`-th entry in draw order, `g` its group.
+uint entry_at(uint list, uint g, uint i) {
+    Group group = cluster_groups[g];
+    return list * cull.screen.z + group.position + (i - group.first);
+}
+
 void main() {
     uint list = gl_WorkGroupID.x;
     uint n = cull.list_len[list % 4u];
-    uint base = list * cull.screen.z;
+    uint g0 = cull.group_start[list % 4u];
+    uint groups = cull.group_count[list % 4u];
     uint t = gl_LocalInvocationID.x;
     uint placed = 0u;
     for (uint chunk = 0u; chunk < n; chunk += CHUNK) {
         uint first = chunk + t * PER_THREAD;
         uint last = min(first + PER_THREAD, n);
+        uint g = first < last ? group_of(g0, groups, first) : g0;
         uint mine = 0u;
         for (uint i = first; i < last; ++i) {
-            mine += runs[base + i];
+            while (i >= cluster_groups[g].first + cluster_groups[g].len) {
+                g += 1u;
+            }
+            mine += runs[entry_at(list, g, i)];
         }
         scan[t] = mine;
         barrier();
@@ -43,9 +70,14 @@ void main() {
             barrier();
         }
         uint at = placed + scan[t] - mine;
+        g = first < last ? group_of(g0, groups, first) : g0;
         for (uint i = first; i < last; ++i) {
-            offsets[base + i] = at;
-            at += runs[base + i];
+            while (i >= cluster_groups[g].first + cluster_groups[g].len) {
+                g += 1u;
+            }
+            uint e = entry_at(list, g, i);
+            offsets[e] = at;
+            at += runs[e];
         }
         placed += scan[THREADS - 1u];
         barrier();

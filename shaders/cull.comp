@@ -43,7 +43,7 @@ void main() {
     if (id >= cull.info.x) {
         return;
     }
-    Instance inst = instances[id];
+    Instance inst = instance_at(id);
     if (order[id] == 0xFFFFFFFFu) {
         return;
     }

@@ -9,6 +9,6 @@ invariant gl_Position;
 layout(location = 0) in vec3 in_position;
 
 void main() {
-    Instance inst = instances[draw_instances[gl_InstanceIndex]];
+    Instance inst = instance_at(draw_instances[gl_InstanceIndex]);
     gl_Position = frame.view_proj * vec4(instance_transform(inst, in_position), 1.0);
 }

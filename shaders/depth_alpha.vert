@@ -11,7 +11,7 @@ layout(location = 0) out vec2 v_uv;
 layout(location = 1) flat out uint v_material;
 
 void main() {
-    Instance inst = instances[draw_instances[gl_InstanceIndex]];
+    Instance inst = instance_at(draw_instances[gl_InstanceIndex]);
     gl_Position = frame.view_proj * vec4(instance_transform(inst, in_position), 1.0);
     v_uv = in_uv;
     v_material = meshes[inst.mesh].material;

@@ -13,7 +13,7 @@ layout(location = 1) out vec2 v_uv;
 layout(location = 2) flat out uint v_material;
 
 void main() {
-    Instance inst = instances[draw_instances[gl_InstanceIndex]];
+    Instance inst = instance_at(draw_instances[gl_InstanceIndex]);
     gl_Position = frame.view_proj * vec4(instance_transform(inst, in_position), 1.0);
     v_normal = instance_normal(inst, in_normal);
     v_uv = in_uv;

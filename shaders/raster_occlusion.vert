@@ -32,7 +32,7 @@ void main() {
         gl_Position = vec4(2.0, 2.0, 0.5, 1.0); // every vertex on one point off screen
         return;
     }
-    Instance inst = instances[id];
+    Instance inst = instance_at(id);
     // f32 camera-relative bounds: pad by a few ulps so rounding never shrinks the box.
     vec3 half_size = raster_proxy_half_size(inst.half_extents);
     bool reverse = frame.depth_params.x == 1.0;

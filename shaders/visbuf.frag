@@ -12,7 +12,7 @@ layout(location = 0) out uint o_id;
 
 void main() {
     if (ALPHA_TESTED == 1u) {
-        Material m = materials[meshes[instances[v_instance].mesh].material];
+        Material m = materials[meshes[records[v_instance].mesh].material];
         if (leaf_alpha(v_uv, m.base_color.a) < m.alpha_cutoff) {
             discard;
         }

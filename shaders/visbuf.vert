@@ -12,7 +12,7 @@ layout(location = 1) flat out uint v_instance;
 
 void main() {
     uint id = draw_instances[gl_InstanceIndex];
-    Instance inst = instances[id];
+    Instance inst = instance_at(id);
     gl_Position = frame.view_proj * vec4(instance_transform(inst, in_position), 1.0);
     v_uv = in_uv;
     v_instance = id;

@@ -32,6 +32,8 @@ layout(set = 1, binding = 12, std430) buffer Flags { uint flags[]; };
 // Per list entry (0-7 lists of `stride`): runs of drawn clusters, and the first command's place.
 layout(set = 1, binding = 14, std430) buffer Runs { uint runs[]; };
 layout(set = 1, binding = 15, std430) buffer Offsets { uint offsets[]; };
+// The frame's draw groups (cull.glsl), in draw order.
+layout(set = 1, binding = 16, std430) readonly buffer ClusterGroups { Group cluster_groups[]; };
 
 // The instance a workgroup handles: dispatches are (min(n, 65535), ceil(n / 65535)).
 uint workgroup_instance() {

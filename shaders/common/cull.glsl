@@ -30,12 +30,15 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
 } cull;
 
 // A draw group: `len` consecutive entries of list `list` (of a phase) from `position`, all of
-// mesh `mesh` (the CPU draw list's instanced draw).
+// mesh `mesh` (a bucket of the scene: the unculled frame's instanced draw). `first`: the entries
+// of the list's groups before it in the frame's draw order (the groups are not in entry order:
+// the frame orders buckets front to back, say).
 struct Group {
     uint position;
     uint len;
     uint mesh;
     uint list;
+    uint first;
 };
 
 #endif

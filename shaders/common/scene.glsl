@@ -3,8 +3,20 @@
 #ifndef TILEGRAPH_SCENE_GLSL
 #define TILEGRAPH_SCENE_GLSL
 
-// tilegraph_scene::GpuInstance (80 bytes): camera-relative affine model matrix as three rows,
-// camera-relative bounds.
+// tilegraph_scene::GpuInstance (96 bytes): the resident per-instance record, in world space with
+// the translation split into two f32 (high + low; tilegraph_scene::SplitPoint).
+struct InstanceRecord {
+    vec4 rows[3];          // rows of the linear part; w: translation, high part
+    vec3 translation_low;  // translation, low part
+    uint mesh;
+    vec3 center_offset;    // bounds centre minus translation
+    float radius;
+    vec3 half_extents;
+    uint flags;            // tilegraph_scene::InstanceFlags
+};
+
+// An instance relative to the camera (tilegraph_scene::RelativeInstance), as instance_at() makes
+// it: the camera-relative affine model matrix as three rows, the camera-relative bounds.
 struct Instance {
     vec4 model_rows[3];
     vec3 center;
@@ -43,13 +55,38 @@ layout(set = 0, binding = 0, std140) uniform Frame {
     vec4 viewport;         // xy: viewport size in px, zw: 1 / size
     mat4 inv_view_proj;    // for the visibility-buffer resolve's per-pixel rays
     vec4 depth_params;     // x: depth of the near plane (1 reverse-Z, 0 standard), y: mid depth
+    vec4 eye_high;         // xyz: the eye's world position, high part
+    vec4 eye_low;          // xyz: its low part
 } frame;
 
-layout(set = 0, binding = 1, std430) readonly buffer Instances { Instance instances[]; };
+layout(set = 0, binding = 1, std430) readonly buffer Instances { InstanceRecord records[]; };
 // Draw list: gl_InstanceIndex (which includes firstInstance) indexes this to get the instance id.
 layout(set = 0, binding = 2, std430) readonly buffer DrawList { uint draw_instances[]; };
 layout(set = 0, binding = 3, std430) readonly buffer Meshes { Mesh meshes[]; };
 layout(set = 0, binding = 4, std430) readonly buffer Materials { Material materials[]; };
+
+// Instance `id` relative to the eye: the translation is (high - eye high) + (low - eye low), the
+// bounds centre that plus the offset, the box grown by a few ulps of each (what rounding the
+// centre, the offset and the vertex transform may move a vertex by). `precise`: the same
+// operations in every shader, never fused or reordered, so every pass places an instance
+// exactly alike (the colour pass's EQUAL depth test needs that) and the CPU twin
+// (GpuInstance::relative) agrees.
+Instance instance_at(uint id) {
+    InstanceRecord r = records[id];
+    precise vec3 high = vec3(r.rows[0].w, r.rows[1].w, r.rows[2].w);
+    precise vec3 t = (high - frame.eye_high.xyz) + (r.translation_low - frame.eye_low.xyz);
+    precise vec3 c = t + r.center_offset;
+    vec3 pad = (abs(t) + abs(c) + abs(r.center_offset)) * (2.0 * 1.1920929e-7);
+    Instance inst;
+    inst.model_rows[0] = vec4(r.rows[0].xyz, t.x);
+    inst.model_rows[1] = vec4(r.rows[1].xyz, t.y);
+    inst.model_rows[2] = vec4(r.rows[2].xyz, t.z);
+    inst.center = c;
+    inst.mesh = r.mesh;
+    inst.half_extents = r.half_extents + pad;
+    inst.radius = r.radius + length(pad);
+    return inst;
+}
 
 vec3 instance_transform(Instance inst, vec3 p) {
     vec4 h = vec4(p, 1.0);

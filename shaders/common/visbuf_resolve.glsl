@@ -46,7 +46,7 @@ void resolve(uint id) {
         discard;
     }
     uvec2 it = visbuf_unpack(id);
-    Instance inst = instances[it.x];
+    Instance inst = instance_at(it.x);
     Mesh mesh = meshes[inst.mesh];
     uint base = mesh.first_index + 3u * it.y;
     Vtx v0 = load_vertex(uint(int(index_data[base]) + mesh.vertex_offset));

@@ -217,3 +217,39 @@ pub fn closed_spheres(rows: u32, columns: u32, exempt: bool) -> tilegraph_scene:
         .expect("clusters of this scene");
     scene
 }
+
+/// `n` opaque walls, each its own mesh (so each its own draw bucket), one behind the other in
+/// front of the camera and each covering its view: drawn back to front, every pixel is shaded
+/// `n` times without a depth pre-pass.
+pub fn stacked_walls(n: u32) -> tilegraph_scene::Scene {
+    use glam::DVec3;
+    use tilegraph_scene::{Camera, CameraPath, Material, PathKey, SceneBuilder, Transform, Vertex};
+    let mut b = SceneBuilder::new(format!("{n} stacked walls"));
+    for k in 0..n {
+        let shade = 0.2 + 0.6 * k as f32 / n.max(1) as f32;
+        let material = b.add_material(Material::opaque([shade, 0.5, 1.0 - shade, 1.0]));
+        // Wall k at z = -(2 + k), wide enough to fill a 60-degree view from the origin.
+        let z = -(2.0 + k as f32);
+        let half = 2.0 * (2.0 + k as f32);
+        let v = |x: f32, y: f32| Vertex {
+            position: [x, y, z],
+            normal: [0.0, 0.0, 1.0],
+            uv: [0.0, 0.0],
+        };
+        let vertices = [
+            v(-half, -half),
+            v(half, -half),
+            v(half, half),
+            v(-half, half),
+        ];
+        let mesh = b
+            .add_mesh(&vertices, &[0, 1, 2, 0, 2, 3], material)
+            .expect("a valid wall");
+        b.add_instance(Transform::IDENTITY, mesh)
+            .expect("a valid instance");
+    }
+    let camera = Camera::looking_at(DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0));
+    let path = CameraPath::new("facing the walls", vec![PathKey { camera, cut: true }])
+        .expect("a valid path");
+    b.build(Some(path)).expect("a scene")
+}

@@ -1,14 +1,20 @@
-//! Draw lists: instances grouped into one instanced draw per mesh (seed 002: batching and
-//! instancing), in the order the profile wants — opaque front to back where early depth
-//! rejection pays, by state where the hardware removes hidden surfaces itself, blended back to
-//! front always.
+//! Draw lists: instances grouped into one instanced draw per bucket of the scene (a mesh of
+//! one draw list, seed 002: batching and instancing), blended instances one by one back to
+//! front.
 //!
 //! The vertex shaders read `draw_instances[gl_InstanceIndex]`; each draw's `first_instance` is
-//! its offset in that list, so one list serves every pass of the frame.
+//! its first entry in that list. Unculled, a draw is a bucket of the scene as it sits in the
+//! resident lists ([`tilegraph_scene::DrawBuckets`]): nothing per instance is done on the CPU.
+//! A frame whose CPU decides what is drawn (occlusion queries, raster occlusion's pre-pass, and
+//! blended geometry always) writes its instances after the scene's lists (from `cpu_base`), in
+//! the buckets' entry order: every technique draws in one order, so culled images equal
+//! unculled ones.
+
+use std::collections::HashMap;
 
 use glam::DVec3;
 use tilegraph_profile::SortOrder;
-use tilegraph_scene::{MaterialClass, Scene};
+use tilegraph_scene::{DrawGroup, MaterialClass, Scene};
 
 /// One `vkCmdDrawIndexed`: a mesh, instanced over `instance_count` entries of the draw list
 /// starting at `first_instance`.
@@ -51,8 +57,10 @@ impl DrawClass {
 /// The frame's draw list, split by material class.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct DrawList {
-    /// Instance ids, indexed by `gl_InstanceIndex`.
+    /// The frame's CPU lists: instance ids of entries `cpu_base..`.
     pub instances: Vec<u32>,
+    /// The first entry of the CPU lists (after the scene's lists).
+    pub cpu_base: u32,
     pub opaque: Vec<Draw>,
     pub alpha_tested: Vec<Draw>,
     pub blended: Vec<Draw>,
@@ -75,81 +83,160 @@ impl DrawList {
             .map(|d| u64::from(d.index_count / 3) * u64::from(d.instance_count))
             .sum()
     }
+
+    /// The instance at `entry` of the frame's CPU lists.
+    pub fn cpu_instance(&self, entry: u32) -> Option<u32> {
+        let k = entry.checked_sub(self.cpu_base)?;
+        self.instances.get(k as usize).copied()
+    }
 }
 
+/// The scene's buckets in this frame's draw order, into `out`: list by list, and inside a list
+/// by the profile's opaque order applied to the buckets' bounds — nearest first
+/// (`front-to-back`), farthest first, or by mesh (`by-state`, `none`). Coarse: a bucket holds
+/// every instance of a mesh in its list, so for instanced props its bounds span the scene; for
+/// a level of one instance per mesh it is the instance's order. Each key ends in the mesh
+/// (unique in a list): the order is one.
+pub fn order_groups(scene: &Scene, eye: DVec3, order: SortOrder, out: &mut Vec<DrawGroup>) {
+    out.clear();
+    out.extend(scene.buckets().groups());
+    let near = |g: &DrawGroup| {
+        let b = g.bounds;
+        let d = (b.min - eye).max(eye - b.max).max(DVec3::ZERO);
+        d.length_squared()
+    };
+    match order {
+        SortOrder::FrontToBack => out.sort_unstable_by(|a, b| {
+            (a.list.cmp(&b.list))
+                .then(near(a).total_cmp(&near(b)))
+                .then(a.mesh.cmp(&b.mesh))
+        }),
+        SortOrder::BackToFront => out.sort_unstable_by(|a, b| {
+            (a.list.cmp(&b.list))
+                .then(near(b).total_cmp(&near(a)))
+                .then(a.mesh.cmp(&b.mesh))
+        }),
+        SortOrder::ByState | SortOrder::None => {
+            out.sort_unstable_by_key(|g| (g.list, g.mesh));
+        }
+    }
+}
+
+/// What the CPU found in the frustum this frame: the opaque and alpha-tested instances where the
+/// CPU decides what is drawn (`None`: the scene's buckets are drawn as they are), and the
+/// blended instances.
 #[derive(Debug, Clone, Copy)]
-struct Item {
-    instance: u32,
-    mesh: u32,
-    distance_sq: f64,
-}
-
-/// Builds the draw list for a camera at `eye`, with `visible` (if given) restricting which
-/// instances are drawn (CPU culling results, or `None` for everything).
-pub fn build(
-    scene: &Scene,
-    eye: DVec3,
-    opaque_sort: SortOrder,
-    visible: Option<&[bool]>,
-) -> DrawList {
-    let mut list = DrawList::default();
-    DrawBuilder::default().build_into(scene, eye, opaque_sort, visible, &mut list);
-    list
+pub struct Visible<'a> {
+    pub opaque: Option<&'a [u32]>,
+    pub blended: &'a [u32],
 }
 
 /// Builds draw lists frame after frame without allocating: its sorting buffers, and the
 /// lists it fills, keep their capacity.
 #[derive(Debug, Default)]
 pub struct DrawBuilder {
-    classes: [Vec<Item>; 3],
-    groups: Vec<(f64, u32, std::ops::Range<usize>)>,
+    /// Visible opaque and alpha-tested instances: their bucket's place in the frame's order,
+    /// their entry, their id.
+    listed: Vec<(u32, u32, u32)>,
+    /// Each bucket's (list, mesh) place in the frame's order.
+    ranks: HashMap<(u32, u32), u32>,
+    /// Visible blended instances with their distance.
+    blended: Vec<(f64, u32)>,
 }
 
 impl DrawBuilder {
-    /// [`build`] into `list` (its vectors cleared and refilled).
+    /// Fills `list`: the opaque and alpha-tested draws — the scene's buckets in the frame's
+    /// order `groups` (`visible` `None`), or the `visible` instances of them in that order and
+    /// each bucket's entry order, written from `cpu_base` — and the `blended` instances
+    /// farthest first.
     pub fn build_into(
         &mut self,
         scene: &Scene,
         eye: DVec3,
-        opaque_sort: SortOrder,
-        visible: Option<&[bool]>,
+        groups: &[DrawGroup],
+        visible: Visible<'_>,
+        cpu_base: u32,
         list: &mut DrawList,
     ) {
-        for c in &mut self.classes {
-            c.clear();
-        }
-        for (i, inst) in scene.instances().iter().enumerate() {
-            if visible.is_some_and(|v| !v.get(i).copied().unwrap_or(false)) {
-                continue;
-            }
-            let class =
-                DrawClass::of(scene.instance_material(inst).map(|m| m.class)).index() as usize;
-            let d = inst.bounds.center - eye;
-            self.classes[class].push(Item {
-                instance: i as u32,
-                mesh: inst.mesh.0,
-                distance_sq: d.length_squared(),
-            });
-        }
+        let Visible {
+            opaque: visible,
+            blended,
+        } = visible;
         list.instances.clear();
-        let [opaque, alpha, blended] = &mut self.classes;
-        grouped(
-            scene,
-            opaque,
-            opaque_sort,
-            &mut self.groups,
-            &mut list.instances,
-            &mut list.opaque,
-        );
-        grouped(
-            scene,
-            alpha,
-            opaque_sort,
-            &mut self.groups,
-            &mut list.instances,
-            &mut list.alpha_tested,
-        );
-        back_to_front(scene, blended, &mut list.instances, &mut list.blended);
+        list.opaque.clear();
+        list.alpha_tested.clear();
+        list.blended.clear();
+        list.cpu_base = cpu_base;
+        let buckets = scene.buckets();
+        let stride = buckets.stride();
+        match visible {
+            None => {
+                for g in groups {
+                    let first = g.list * stride + g.position;
+                    push_draw(scene, list, g.list, g.mesh, first, g.len);
+                }
+            }
+            Some(ids) => {
+                self.ranks.clear();
+                for (r, g) in groups.iter().enumerate() {
+                    self.ranks.insert((g.list, g.mesh), r as u32);
+                }
+                self.listed.clear();
+                let ranks = &self.ranks;
+                self.listed.extend(ids.iter().filter_map(|&i| {
+                    let entry = buckets.entry(i)?;
+                    let mesh = scene.instances().get(i as usize)?.mesh.0;
+                    let rank = *ranks.get(&(entry / stride.max(1), mesh))?;
+                    Some((rank, entry, i))
+                }));
+                self.listed.sort_unstable();
+                let mut k = 0;
+                while let Some(&(rank, _, _)) = self.listed.get(k) {
+                    let first = cpu_base + list.instances.len() as u32;
+                    let mut n = 0;
+                    while let Some(&(r, _, i)) = self.listed.get(k) {
+                        if r != rank {
+                            break;
+                        }
+                        list.instances.push(i);
+                        n += 1;
+                        k += 1;
+                    }
+                    if let Some(g) = groups.get(rank as usize) {
+                        push_draw(scene, list, g.list, g.mesh, first, n);
+                    }
+                }
+            }
+        }
+        self.blended.clear();
+        self.blended.extend(blended.iter().filter_map(|&i| {
+            let inst = scene.instances().get(i as usize)?;
+            Some(((inst.bounds.center - eye).length_squared(), i))
+        }));
+        // Farthest first; the id breaks ties, so the order is one.
+        self.blended
+            .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        for &(_, i) in &self.blended {
+            let Some(inst) = scene.instances().get(i as usize) else {
+                continue;
+            };
+            let first = cpu_base + list.instances.len() as u32;
+            list.instances.push(i);
+            if let Some(d) = draw_for(scene, inst.mesh.0, first, 1) {
+                list.blended.push(d);
+            }
+        }
+    }
+}
+
+/// A draw of `count` entries from `first` of mesh `mesh`, in the class of draw list `l`.
+fn push_draw(scene: &Scene, list: &mut DrawList, l: u32, mesh: u32, first: u32, count: u32) {
+    if let Some(d) = draw_for(scene, mesh, first, count) {
+        if l >= 2 {
+            list.alpha_tested.push(d);
+        } else {
+            list.opaque.push(d);
+        }
     }
 }
 
@@ -167,83 +254,4 @@ fn draw_for(scene: &Scene, mesh: u32, first_instance: u32, instance_count: u32) 
         instance_count,
         double_sided,
     })
-}
-
-/// One draw per mesh. Front to back: instances sorted by distance inside each draw, draws by
-/// their nearest instance — a mesh group cannot be both instanced and globally depth-sorted,
-/// and nearest-first per group is what coarse front-to-back sorting means in practice. Every
-/// sort key ends in a unique id (instance, mesh), so unstable sorts (which allocate nothing)
-/// give the one order.
-fn grouped(
-    scene: &Scene,
-    items: &mut [Item],
-    order: SortOrder,
-    groups: &mut Vec<(f64, u32, std::ops::Range<usize>)>,
-    out: &mut Vec<u32>,
-    draws: &mut Vec<Draw>,
-) {
-    match order {
-        SortOrder::BackToFront => items.sort_unstable_by(|a, b| {
-            a.mesh
-                .cmp(&b.mesh)
-                .then(b.distance_sq.total_cmp(&a.distance_sq))
-                .then(a.instance.cmp(&b.instance))
-        }),
-        SortOrder::FrontToBack => items.sort_unstable_by(|a, b| {
-            a.mesh
-                .cmp(&b.mesh)
-                .then(a.distance_sq.total_cmp(&b.distance_sq))
-                .then(a.instance.cmp(&b.instance))
-        }),
-        SortOrder::ByState | SortOrder::None => {
-            items.sort_unstable_by_key(|a| (a.mesh, a.instance))
-        }
-    }
-    groups.clear();
-    let mut start = 0;
-    while start < items.len() {
-        let mesh = items[start].mesh;
-        let end = items[start..]
-            .iter()
-            .position(|i| i.mesh != mesh)
-            .map_or(items.len(), |p| start + p);
-        let nearest = items[start..end]
-            .iter()
-            .map(|i| i.distance_sq)
-            .fold(f64::INFINITY, f64::min);
-        groups.push((nearest, mesh, start..end));
-        start = end;
-    }
-    match order {
-        SortOrder::FrontToBack => {
-            groups.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
-        }
-        SortOrder::BackToFront => {
-            groups.sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)))
-        }
-        SortOrder::ByState | SortOrder::None => {}
-    }
-    draws.clear();
-    for (_, mesh, range) in groups.iter() {
-        let first = out.len() as u32;
-        out.extend(items[range.clone()].iter().map(|i| i.instance));
-        if let Some(d) = draw_for(scene, *mesh, first, range.len() as u32) {
-            draws.push(d);
-        }
-    }
-}
-
-/// Blended geometry: one draw per instance, farthest first, so blending composes correctly.
-fn back_to_front(scene: &Scene, items: &mut [Item], out: &mut Vec<u32>, draws: &mut Vec<Draw>) {
-    items.sort_unstable_by(|a, b| {
-        b.distance_sq
-            .total_cmp(&a.distance_sq)
-            .then(a.instance.cmp(&b.instance))
-    });
-    draws.clear();
-    draws.extend(items.iter().filter_map(|i| {
-        let first = out.len() as u32;
-        out.push(i.instance);
-        draw_for(scene, i.mesh, first, 1)
-    }));
 }

@@ -117,6 +117,11 @@ pub struct RenderOptions {
     /// time), or nothing. Timing every pass costs the GPU time of its own, and only the whole frame
     /// counts the clears between passes (docs/ACCURACY.md, "What a frame time is").
     pub gpu_timing: GpuTiming,
+    /// Instance slots the renderer's buffers hold from the start (rounded up to a power of
+    /// two; at least the scene's). A scene that outgrows them gets new buffers at its next
+    /// frame, after the frames in flight are waited for: an engine that knows how many
+    /// instances it will spawn says so here.
+    pub instance_capacity: u32,
 }
 
 impl Default for RenderOptions {
@@ -141,6 +146,7 @@ impl Default for RenderOptions {
             occlusion_recheck: 8,
             raster_occlusion_scale: 1,
             gpu_timing: GpuTiming::PassStatistics,
+            instance_capacity: 0,
         }
     }
 }

@@ -4,7 +4,7 @@
 
 use serde::Serialize;
 use tilegraph_profile::{DepthPrepass, Profile};
-use tilegraph_scene::{MaterialClass, Scene};
+use tilegraph_scene::Scene;
 
 /// How the frame decides what gets shaded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -259,16 +259,19 @@ pub struct SceneContent {
 }
 
 impl SceneContent {
+    /// The drawn instances of `scene` per class (kept by the scene: no walk over instances).
     pub fn of(scene: &Scene) -> Self {
-        let mut c = SceneContent::default();
-        for i in scene.instances() {
-            match scene.instance_material(i).map(|m| m.class) {
-                Some(MaterialClass::Opaque) | None => c.opaque += 1,
-                Some(MaterialClass::AlphaTested { .. }) => c.alpha_tested += 1,
-                Some(MaterialClass::Blended) => c.blended += 1,
-            }
+        let c = scene.drawn_by_class();
+        SceneContent {
+            opaque: c.opaque as usize,
+            alpha_tested: c.alpha_tested as usize,
+            blended: c.blended as usize,
         }
-        c
+    }
+
+    /// Which classes the scene draws at all: what the frame's passes depend on.
+    pub fn presence(&self) -> [bool; 3] {
+        [self.opaque > 0, self.alpha_tested > 0, self.blended > 0]
     }
 }
 

@@ -93,17 +93,19 @@ fn assert_struct(
 fn instance_mesh_material_and_frame_match_rust() {
     let forward_vert = include_bytes!("../../../shaders/spv/forward.vert.spv");
     let resolve = include_bytes!("../../../shaders/spv/visbuf_resolve_sampled.frag.spv");
-    assert_eq!(size_of::<GpuInstance>(), 80);
+    assert_eq!(size_of::<GpuInstance>(), 96);
     assert_struct(
         forward_vert,
         "forward.vert",
-        "Instance",
+        "InstanceRecord",
         &[
-            offset_of!(GpuInstance, model_rows),
-            offset_of!(GpuInstance, center),
+            offset_of!(GpuInstance, rows),
+            offset_of!(GpuInstance, translation_low),
             offset_of!(GpuInstance, mesh),
-            offset_of!(GpuInstance, half_extents),
+            offset_of!(GpuInstance, center_offset),
             offset_of!(GpuInstance, radius),
+            offset_of!(GpuInstance, half_extents),
+            offset_of!(GpuInstance, flags),
         ],
         size_of::<GpuInstance>(),
         true,
@@ -151,6 +153,8 @@ fn instance_mesh_material_and_frame_match_rust() {
             offset_of!(FrameUniforms, viewport),
             offset_of!(FrameUniforms, inv_view_proj),
             offset_of!(FrameUniforms, depth_params),
+            offset_of!(FrameUniforms, eye_high),
+            offset_of!(FrameUniforms, eye_low),
         ],
         size_of::<FrameUniforms>(),
         false,

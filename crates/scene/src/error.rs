@@ -141,6 +141,24 @@ pub enum SceneError {
     /// Cluster data that does not fit its scene, or a cluster file that does not parse.
     #[error("clusters of {what}: {reason}")]
     Clusters { what: String, reason: String },
+
+    /// A handle to an instance or mesh that no longer exists (or never did).
+    #[error("{scene}: stale {what} handle {index} (generation {generation}): {reason}")]
+    StaleHandle {
+        scene: String,
+        what: &'static str,
+        index: u32,
+        generation: u32,
+        reason: String,
+    },
+
+    /// A mesh removed while instances still draw it.
+    #[error("{scene}: mesh {mesh} is drawn by {instances} instances: remove them first")]
+    MeshInUse {
+        scene: String,
+        mesh: u32,
+        instances: u32,
+    },
 }
 
 impl SceneError {
@@ -165,7 +183,9 @@ impl SceneError {
             | SceneError::EmptyScene { .. }
             | SceneError::BadSpec { .. }
             | SceneError::CameraPath { .. }
-            | SceneError::Clusters { .. } => None,
+            | SceneError::Clusters { .. }
+            | SceneError::StaleHandle { .. }
+            | SceneError::MeshInUse { .. } => None,
         }
     }
 
@@ -189,6 +209,8 @@ impl SceneError {
             SceneError::BadSpec { .. } => "bad-spec",
             SceneError::CameraPath { .. } => "camera-path",
             SceneError::Clusters { .. } => "clusters",
+            SceneError::StaleHandle { .. } => "stale-handle",
+            SceneError::MeshInUse { .. } => "mesh-in-use",
         }
     }
 }

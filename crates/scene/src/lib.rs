@@ -12,9 +12,14 @@
 //! - **Cameras** ([`Camera`], [`Projection`], [`CameraPath`]): Vulkan clip space with the y flip,
 //!   reverse-Z with an infinite far plane by default ([`DepthConvention`]), fly-through splines,
 //!   orbits, JSON camera paths, previous-frame matrices for reprojection.
-//! - **Large worlds**: instance translations are f64; per frame,
-//!   [`Scene::write_gpu_instances`] produces camera-relative f32 records ([`GpuInstance`]) to pair
+//! - **Large worlds**: instance translations are f64; an instance's GPU record
+//!   ([`GpuInstance`]) holds them split into two f32 ([`SplitPoint`]), and the shaders subtract
+//!   the split eye to place it camera-relative ([`GpuInstance::relative`] on the CPU), to pair
 //!   with [`Camera::view_relative`] (eye at the origin).
+//! - **Changes by handle** ([`InstanceHandle`], [`MeshHandle`]): instances added, removed,
+//!   moved in batches and hidden, meshes streamed in and out, each written to a journal a
+//!   renderer follows to upload only what changed ([`Scene::changes_since`]); draw buckets
+//!   ([`DrawBuckets`]) and loose grids ([`LooseGrid`]) kept from change to change.
 //!
 //! # Loading by spec (what the CLI calls)
 //!
@@ -38,6 +43,7 @@ pub mod clusters;
 mod error;
 pub mod export;
 mod gltf_load;
+pub mod motion;
 pub mod procedural;
 mod scene;
 
@@ -52,11 +58,14 @@ pub use gltf_load::{
     load_gltf, load_gltf_bytes, FileResolver, Limits, MemoryResources, NoResources,
     ResourceResolver,
 };
+pub use motion::{Motion, MotionParams};
 pub use procedural::{generate, ProceduralKind, ProceduralParams};
 pub use scene::{
-    BoundsInfo, ClassCounts, GltfCounts, GpuInstance, GpuMaterial, GpuMesh, Instance,
-    InstanceBounds, InstanceId, Material, MaterialClass, MaterialId, Mesh, MeshId, Scene,
-    SceneBuilder, SceneInfo, SceneSource, Transform, Vertex,
+    BoundsInfo, Change, ClassCounts, DrawBuckets, DrawGroup, GltfCounts, GpuInstance, GpuMaterial,
+    GpuMesh, Instance, InstanceBounds, InstanceFlags, InstanceHandle, InstanceId, LooseGrid,
+    Material, MaterialClass, MaterialId, Mesh, MeshHandle, MeshId, Overlap, RelativeInstance,
+    Scene, SceneBuilder, SceneCursor, SceneInfo, SceneSource, SplitPoint, Transform, Vertex,
+    DRAW_LISTS,
 };
 /// Shared with the culling references and the passes (tilegraph-types); re-exported so scene
 /// users name them from here as before.

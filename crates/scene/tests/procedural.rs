@@ -275,14 +275,16 @@ fn specs_and_the_default_scene() {
 
 #[test]
 fn gpu_records_match_instances() {
-    // Above the threading threshold, so the split path is checked against the serial one.
     let s = gen(ProceduralKind::Interior, 70_000, 1);
     let eye = DVec3::new(3.0, 1.6, -2.0);
     let recs = s.gpu_instances(eye);
     assert_eq!(recs.len(), s.instances().len());
-    let mut serial = Vec::new();
-    s.write_gpu_instances_threads(eye, &mut serial, 1);
-    assert_eq!(serial, recs);
+    let split = tilegraph_scene::SplitPoint::new(eye);
+    let world = s.gpu_records();
+    assert!(world
+        .iter()
+        .zip(&recs)
+        .all(|(w, r)| w.relative(&split) == *r));
     let (meshes, materials) = (s.gpu_meshes(), s.gpu_materials());
     for (r, i) in recs.iter().zip(s.instances()) {
         assert_eq!(r.mesh, i.mesh.0);

@@ -24,8 +24,8 @@ const CULL_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_cull.com
 const SCAN_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_scan.comp.spv");
 const EMIT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_emit.comp.spv");
 
-/// The cluster set's storage buffers: bindings 1-15 (common/cluster.glsl).
-const STORAGE_BINDINGS: u32 = 15;
+/// The cluster set's storage buffers: bindings 1-16 (common/cluster.glsl).
+const STORAGE_BINDINGS: u32 = 16;
 
 /// Where each instance's clusters sit and how many commands each list can hold.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -84,8 +84,8 @@ impl ClusterLayout {
 
 /// The buffers the cluster stage binds that the instance culling owns.
 pub(super) struct Shared<'a> {
-    /// Per frame slot: the early and late parameter blocks and the order.
-    pub slots: Vec<([vk::Buffer; 2], vk::Buffer)>,
+    /// Per frame slot: the early and late parameter blocks, the order and the draw groups.
+    pub slots: Vec<([vk::Buffer; 2], vk::Buffer, vk::Buffer)>,
     pub draw_ids: vk::Buffer,
     pub visibility: vk::Buffer,
     pub entries: vk::Buffer,
@@ -260,7 +260,7 @@ impl ClusterStage {
         self.compute
             .init(ctx, scene_set_layout, STORAGE_BINDINGS, shaders, sets)?;
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
-        for (params, order) in &shared.slots {
+        for (params, order, groups) in &shared.slots {
             for p in params {
                 let set = self.compute.allocate_set(ctx)?;
                 write_buffer_set(
@@ -283,6 +283,7 @@ impl ClusterStage {
                         (13, ssbo, self.visibility.raw),
                         (14, ssbo, self.runs.raw),
                         (15, ssbo, self.offsets.raw),
+                        (16, ssbo, *groups),
                     ],
                 );
                 self.sets.push(set);

@@ -43,7 +43,7 @@ mod state;
 
 pub use layout::GpuLayout;
 pub use readback::{GpuLists, IndirectDraw};
-pub use state::{CullState, GpuCullCounts, Occluder};
+pub use state::{CullInputs, CullState, FrameLists, GpuCullCounts, Occluder};
 
 /// Temporal coherence of the occlusion tests (knob `occlusion_recheck`; CHC++, Mattausch et al.
 /// 2008, re-queries visible objects at intervals): an item (a query group, or an instance under
@@ -504,40 +504,55 @@ pub fn gpu_planes(view_proj: Mat4, convention: DepthConvention) -> Result<[[f32;
     Ok(f.gpu_planes().map(|p| p.to_array()))
 }
 
-/// CPU plane-test frustum culling (the reference's conservative test) of every instance, in
-/// camera-relative f64 bounds: `mask[i]` = not rejected. Used for blended geometry, which the
-/// GPU lists leave to the CPU so it can be sorted back to front.
-pub fn cpu_frustum_mask(
+/// CPU plane-test frustum culling (the reference's conservative test), in camera-relative f64
+/// bounds, of the drawn instances of `grid` (one of the scene's): `out` gets those not
+/// rejected. Cells first, then the members of the cells the frustum cuts: the cost follows what
+/// is visible. Used for blended geometry (the GPU lists leave it to the CPU to be sorted back
+/// to front) and for the lists the CPU decides.
+pub fn cpu_frustum_visible(
     scene: &tilegraph_scene::Scene,
+    grid: &tilegraph_scene::LooseGrid,
     m: &tilegraph_scene::FrameMatrices,
-) -> Result<Vec<bool>, VkError> {
-    let mut mask = Vec::new();
-    cpu_frustum_mask_into(scene, m, &mut mask)?;
-    Ok(mask)
-}
-
-/// [`cpu_frustum_mask`] into `mask` (cleared and refilled: no allocation once it has the
-/// scene's length).
-pub fn cpu_frustum_mask_into(
-    scene: &tilegraph_scene::Scene,
-    m: &tilegraph_scene::FrameMatrices,
-    mask: &mut Vec<bool>,
+    out: &mut Vec<u32>,
 ) -> Result<(), VkError> {
     let invalid = |e: tilegraph_cull::CullError| VkError::Invalid {
         what: "frustum".into(),
         reason: e.to_string(),
     };
     let frustum = Frustum::from_clip_from_world(&m.view_projection, m.depth).map_err(invalid)?;
-    mask.clear();
-    for inst in scene.instances() {
-        let b = inst.bounds.aabb();
+    let test = |b: &tilegraph_scene::DAabb| -> Result<tilegraph_cull::PlaneTest, VkError> {
         let aabb = tilegraph_cull::Aabb::from_world_f64(b.min, b.max, m.eye).map_err(invalid)?;
-        mask.push(!matches!(
-            frustum.test_aabb(&aabb).map_err(invalid)?,
-            tilegraph_cull::PlaneTest::Outside(_)
-        ));
-    }
-    Ok(())
+        frustum.test_aabb(&aabb).map_err(invalid)
+    };
+    out.clear();
+    let failed = std::cell::RefCell::new(None);
+    grid.visit(
+        |cell| match test(cell) {
+            Ok(tilegraph_cull::PlaneTest::Inside) => tilegraph_scene::Overlap::Inside,
+            Ok(tilegraph_cull::PlaneTest::Intersecting) => tilegraph_scene::Overlap::Partial,
+            Ok(tilegraph_cull::PlaneTest::Outside(_)) => tilegraph_scene::Overlap::Outside,
+            Err(e) => {
+                failed.borrow_mut().get_or_insert(e);
+                tilegraph_scene::Overlap::Outside
+            }
+        },
+        |i, overlap| {
+            let inside = overlap == tilegraph_scene::Overlap::Inside
+                || scene.instances().get(i as usize).is_some_and(|inst| {
+                    match test(&inst.bounds.aabb()) {
+                        Ok(t) => !matches!(t, tilegraph_cull::PlaneTest::Outside(_)),
+                        Err(e) => {
+                            failed.borrow_mut().get_or_insert(e);
+                            false
+                        }
+                    }
+                });
+            if inside {
+                out.push(i);
+            }
+        },
+    );
+    failed.into_inner().map_or(Ok(()), Err)
 }
 
 #[cfg(test)]

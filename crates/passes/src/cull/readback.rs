@@ -19,9 +19,11 @@ pub struct GpuLists {
     pub draw_count: DrawCount,
     /// Per list ([`list_index`]), the commands its draw count covers.
     pub lists: Vec<Vec<IndirectDraw>>,
-    /// Per instance, its entry in the unculled order of the last frame written
-    /// ([`GpuLayout::order`]).
+    /// Per instance slot, its entry in the unculled order of the last frame written
+    /// (`u32::MAX`: in no GPU list).
     pub order: Vec<u32>,
+    /// Entries per list of the last frame (entry `e` is in list `e / stride`).
+    pub stride: u32,
 }
 
 impl GpuLists {
@@ -41,7 +43,8 @@ impl CullState {
     /// The last frame's lists as the GPU left them (reads the counts, commands and draw ids
     /// back; waits).
     /// With cluster culling, the cluster commands: each draws one instance's index range.
-    pub fn read_lists(&self, ctx: &Context) -> Result<GpuLists, VkError> {
+    /// `order`: the instances' entries of that frame (the scene's, [`crate::GpuScene`]).
+    pub fn read_lists(&self, ctx: &Context, order: Vec<u32>) -> Result<GpuLists, VkError> {
         let (counts, commands) = match &self.clusters {
             Some(c) => (&c.counts, &c.commands),
             None => (&self.counts, &self.commands),
@@ -53,7 +56,7 @@ impl CullState {
             b.get(4 * i..4 * i + 4)
                 .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
         };
-        let stride = self.instance_count.max(1) as usize;
+        let stride = self.layout.stride.max(1) as usize;
         // Per list: where its commands start and how many it can hold.
         let place = |list: usize| match &self.clusters {
             Some(c) => (
@@ -85,13 +88,14 @@ impl CullState {
         Ok(GpuLists {
             draw_count: self.draw_count,
             lists,
-            order: self.layout.order.clone(),
+            order,
+            stride: self.layout.stride,
         })
     }
 
     /// The instances drawn by the last frame: the ids each list's commands cover (waits).
     pub fn drawn_instances(&self, ctx: &Context) -> Result<Vec<u32>, VkError> {
-        let lists = self.read_lists(ctx)?;
+        let lists = self.read_lists(ctx, Vec::new())?;
         let mut out: Vec<u32> = lists
             .lists
             .iter()

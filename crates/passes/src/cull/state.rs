@@ -15,8 +15,8 @@ use super::{
     gpu_planes, sphere_projection, CullBounds, CullParams, Culling, DrawCount, GpuLayout, Phase,
     Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
 };
-use crate::draws::DrawList;
 use crate::frame::PassState;
+use crate::gpu_scene::Capacity;
 use crate::hiz::{HizState, PyramidInfo};
 
 /// What a frame's GPU culling drew, read back without waiting once its slot completed.
@@ -35,10 +35,10 @@ pub struct GpuCullCounts {
 /// Per frame slot: what the CPU wrote for the GPU lists of that slot's frame.
 struct SlotInputs {
     params: [Buffer; 2],
-    /// Each instance's entry (`Order` of cull.comp).
-    order: Buffer,
     /// The draw groups (`Groups` of common/cull.glsl).
     groups: Buffer,
+    /// Entries per list of the slot's frame (the scene's stride then).
+    stride: u32,
     /// Groups per list of a phase, as written (what the draws of that frame cover).
     group_count: [u32; 4],
     /// Groups per phase.
@@ -66,12 +66,38 @@ impl Occluder {
     }
 }
 
+/// A frame's lists as the culling reads them: the scene's buckets in the frame's draw order,
+/// the lists' stride, the scene's instance slots.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameLists<'a> {
+    pub groups: &'a [tilegraph_scene::DrawGroup],
+    pub stride: u32,
+    pub instance_slots: u32,
+}
+
+/// What a [`CullState`] is made with besides the scene.
+pub struct CullInputs<'a> {
+    /// Set 0's layout (the scene's, [`crate::GpuScene`]).
+    pub scene_set_layout: vk::DescriptorSetLayout,
+    /// Per frame slot, the instances' entries ([`crate::GpuScene::order`]).
+    pub orders: &'a [vk::Buffer],
+    /// The pyramid the HiZ techniques test against (bound for the shader).
+    pub occluder: Option<Occluder>,
+    /// What `cull.comp` tests (knob `cull_bounds`).
+    pub bounds: CullBounds,
+    /// Room for instance slots and list entries.
+    pub capacity: Capacity,
+}
+
 /// The persistent culling state of one renderer.
 pub struct CullState {
     pub culling: Culling,
     /// What `cull.comp` tests: the box or the sphere (knob `cull_bounds`).
     pub bounds: CullBounds,
-    pub instance_count: u32,
+    /// Room of the buffers (instance slots, list stride).
+    pub capacity: Capacity,
+    /// Instance slots of the frame written last (the mark dispatch's size).
+    instances: u32,
     pub draw_count: DrawCount,
     pub commands: Buffer,
     pub counts: Buffer,
@@ -133,13 +159,17 @@ impl CullState {
         ctx: &Context,
         culling: Culling,
         scene: &tilegraph_scene::Scene,
-        scene_set_layout: vk::DescriptorSetLayout,
-        frames_in_flight: usize,
-        occluder: Option<Occluder>,
-        bounds: CullBounds,
+        inputs: CullInputs<'_>,
     ) -> Result<Self, VkError> {
-        let instance_count = scene.instances().len() as u32;
-        let n = u64::from(instance_count.max(1));
+        let CullInputs {
+            scene_set_layout,
+            orders,
+            occluder,
+            bounds,
+            capacity,
+        } = inputs;
+        let n = u64::from(capacity.instances.max(1));
+        let stride = u64::from(capacity.stride.max(1));
         // The cluster commands' draw ids follow the instance lists'.
         let cluster_commands = if culling.clusters() {
             let layout =
@@ -160,16 +190,20 @@ impl CullState {
         let src = vk::BufferUsageFlags::TRANSFER_SRC;
         let dst = vk::BufferUsageFlags::TRANSFER_DST;
         let specs = [
-            ("cull commands", n * lists * 20, storage | indirect | src),
+            (
+                "cull commands",
+                stride * lists * 20,
+                storage | indirect | src,
+            ),
             // Draw count, then instances drawn, per list.
             ("cull counts", 2 * lists * 4, storage | indirect | src),
             (
                 "cull draw ids",
-                (n * lists + cluster_commands) * 4,
+                (stride * lists + cluster_commands) * 4,
                 storage | src,
             ),
             ("visibility", n * 4, storage | dst),
-            ("cull entries", n * lists * 4, storage),
+            ("cull entries", stride * lists * 4, storage),
             // At most one group per instance and phase.
             ("cull survivors", 2 * n * 4, storage),
             // Bound as the pyramid without one: never written, never read (the levels say 0).
@@ -203,7 +237,8 @@ impl CullState {
         let mut state = CullState {
             culling,
             bounds,
-            instance_count,
+            capacity,
+            instances: 0,
             draw_count,
             commands,
             counts,
@@ -226,7 +261,7 @@ impl CullState {
         // its late phase everything the frustum keeps, on every run alike. Once, at creation,
         // so that no frame's declaration differs.
         let zeroed = state
-            .init(ctx, scene_set_layout, frames_in_flight, occluder)
+            .init(ctx, scene_set_layout, orders, occluder)
             .and_then(|()| {
                 if !culling.clusters() {
                     return Ok(());
@@ -235,7 +270,10 @@ impl CullState {
                     slots: state
                         .slots
                         .iter()
-                        .map(|s| ([s.params[0].raw, s.params[1].raw], s.order.raw))
+                        .zip(orders)
+                        .map(|(s, &order)| {
+                            ([s.params[0].raw, s.params[1].raw], order, s.groups.raw)
+                        })
                         .collect(),
                     draw_ids: state.draw_ids.raw,
                     visibility: state.visibility.raw,
@@ -244,7 +282,8 @@ impl CullState {
                     levels: occluder.map_or(state.no_pyramid.raw, |o| o.levels),
                     scene,
                 };
-                state.clusters = ClusterStage::new(ctx, &shared, instance_count, scene_set_layout)?;
+                state.clusters =
+                    ClusterStage::new(ctx, &shared, capacity.stride, scene_set_layout)?;
                 Ok(())
             })
             .and_then(|()| {
@@ -272,11 +311,11 @@ impl CullState {
         &mut self,
         ctx: &Context,
         scene_set_layout: vk::DescriptorSetLayout,
-        frames_in_flight: usize,
+        orders: &[vk::Buffer],
         occluder: Option<Occluder>,
     ) -> Result<(), VkError> {
-        let n = u64::from(self.instance_count.max(1));
-        let slots = frames_in_flight.max(1) as u32;
+        let n = u64::from(self.capacity.instances.max(1));
+        let slots = orders.len().max(1) as u32;
         let shaders = [
             ("cull.comp", CULL_SPV),
             ("cull_compact.comp", COMPACT_SPV),
@@ -292,7 +331,8 @@ impl CullState {
         let pyramid = occluder.map_or(self.no_pyramid.raw, |o| o.pyramid);
         let levels = occluder.map_or(self.no_pyramid.raw, |o| o.levels);
         for i in 0..2 * slots as usize {
-            let set = self.write_set(ctx, i, pyramid, levels)?;
+            let order = orders.get(i / 2).copied().unwrap_or(vk::Buffer::null());
+            let set = self.write_set(ctx, i, pyramid, levels, order)?;
             self.sets.push(set);
         }
         Ok(())
@@ -311,6 +351,7 @@ impl CullState {
         index: usize,
         pyramid: vk::Buffer,
         levels: vk::Buffer,
+        order: vk::Buffer,
     ) -> Result<vk::DescriptorSet, VkError> {
         let inputs = self.slot(index / 2)?;
         // The pool holds a set per parameter block.
@@ -331,7 +372,7 @@ impl CullState {
                 (4, ssbo, self.visibility.raw),
                 (5, ssbo, pyramid),
                 (6, ssbo, levels),
-                (7, ssbo, inputs.order.raw),
+                (7, ssbo, order),
                 (8, ssbo, self.entries.raw),
                 (9, ssbo, inputs.groups.raw),
                 (10, ssbo, self.survivors.raw),
@@ -361,17 +402,19 @@ impl CullState {
         ctx: &Context,
         slot: usize,
         frame: &CameraFrame,
-        draws: &DrawList,
+        lists: FrameLists<'_>,
         extent: (u32, u32),
         pyramid: Option<PyramidInfo>,
     ) -> Result<(), VkError> {
         let m = &frame.current;
-        self.layout.fill(draws, self.instance_count as usize);
+        self.layout.fill(lists.groups, lists.stride);
+        self.instances = lists.instance_slots;
+        let stride = self.layout.stride.max(1);
         let planes = gpu_planes(m.view_projection, m.depth)?;
         let levels = pyramid.map_or(0, |p| p.levels);
         let (pw, ph) = pyramid.map_or(extent, |p| p.extent_px);
         let reverse = u32::from(m.depth == DepthConvention::Reverse);
-        let n = self.instance_count;
+        let n = self.instances;
         let layout = &self.layout;
         let total = layout.groups.len() as u32;
         let keep_empty = u32::from(matches!(self.draw_count, DrawCount::Fixed { .. }));
@@ -388,10 +431,11 @@ impl CullState {
                         *l += g[1];
                     }
                 }
+                debug_assert!(len.iter().sum::<u32>() == layout.entries);
                 let cone = u32::from(sphere_projection(m.projection).0[2] == 1.0);
                 let b = c.layout.cmd_base;
                 (
-                    [n.max(1) * LIST_COUNT, cone, c.layout.total, 0],
+                    [stride * LIST_COUNT, cone, c.layout.total, 0],
                     len,
                     [[b[0], b[1], b[2], b[3]], [b[4], b[5], b[6], b[7]]],
                 )
@@ -416,7 +460,7 @@ impl CullState {
                 planes,
                 hiz_view_proj: view_proj.to_cols_array_2d(),
                 info: [n, phase as u32, levels, reverse],
-                screen: [pw, ph, n.max(1), spheres],
+                screen: [pw, ph, stride, spheres],
                 groups: [total.max(1), keep_empty, d16, recheck.unwrap_or(0)],
                 group_start: layout.group_start,
                 group_count: layout.group_count,
@@ -458,14 +502,14 @@ impl CullState {
             _ => params(Phase::Frustum, m.view_projection, 0, false),
         };
         let late = params(Phase::Late, m.view_projection, levels, false);
-        let (group_count, order, groups) = (layout.group_count, &layout.order, &layout.groups);
+        let (group_count, groups) = (layout.group_count, &layout.groups);
         let entries = layout.entries;
         let inputs = self.slots.get_mut(slot).ok_or_else(|| VkError::Invalid {
             what: "cull".into(),
             reason: format!("no inputs for frame slot {slot}"),
         })?;
-        ctx.write_mapped(&mut inputs.order, 0, bytemuck::cast_slice(order))?;
         ctx.write_mapped(&mut inputs.groups, 0, bytemuck::cast_slice(groups))?;
+        inputs.stride = stride;
         let [early_params, late_params] = &mut inputs.params;
         ctx.write_mapped(early_params, 0, bytemuck::bytes_of(&first))?;
         ctx.write_mapped(late_params, 0, bytemuck::bytes_of(&late))?;
@@ -497,7 +541,10 @@ impl CullState {
         let inputs = self.slot(slot)?;
         let phases = which as u32 + 1; // the late phase compacts the early lists again
         let (pipeline, groups) = match step {
-            Step::Mark => (self.compute.pipelines[0], self.instance_count.div_ceil(64)),
+            Step::Mark => (
+                self.compute.pipelines[0],
+                self.instances.div_ceil(64).max(1),
+            ),
             Step::Compact => (self.compute.pipelines[1], phases * inputs.group_total),
             Step::Commands => (self.compute.pipelines[2], phases * LISTS_PER_PHASE),
             Step::Cluster(step) => {
@@ -524,8 +571,8 @@ impl CullState {
         slot: usize,
         list: u32,
     ) -> Result<(), VkError> {
-        let groups = self
-            .slot(slot)?
+        let inputs = self.slot(slot)?;
+        let groups = inputs
             .group_count
             .get((list % LISTS_PER_PHASE) as usize)
             .copied()
@@ -533,7 +580,7 @@ impl CullState {
         if groups == 0 {
             return Ok(());
         }
-        let stride = u64::from(self.instance_count.max(1));
+        let stride = u64::from(inputs.stride.max(1));
         let (commands, counts, offset, groups) = match &self.clusters {
             // Cluster lists: the list's commands from its base, up to its capacity.
             Some(c) => {
@@ -677,7 +724,7 @@ impl CullState {
             .into_iter()
             .chain(self.slots.into_iter().flat_map(|s| {
                 let [a, b] = s.params;
-                [a, b, s.order, s.groups, s.stats]
+                [a, b, s.groups, s.stats]
             }))
         {
             ctx.destroy_buffer(b);
@@ -686,7 +733,7 @@ impl CullState {
 }
 
 impl SlotInputs {
-    /// Frame slot `slot`'s parameter blocks, order and groups for up to `n` instances.
+    /// Frame slot `slot`'s parameter blocks and groups for up to `n` instances.
     fn new(ctx: &Context, slot: u32, n: u64) -> Result<Self, VkError> {
         let uniform = vk::BufferUsageFlags::UNIFORM_BUFFER;
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
@@ -695,9 +742,8 @@ impl SlotInputs {
         let specs = [
             ("params.early", params_size, uniform, streaming),
             ("params.late", params_size, uniform, streaming),
-            ("order", n * 4, storage, streaming),
             // At most one group per instance.
-            ("groups", n * 16, storage, streaming),
+            ("groups", n * 20, storage, streaming),
             (
                 "stats",
                 2 * u64::from(LIST_COUNT) * 4,
@@ -716,11 +762,11 @@ impl SlotInputs {
                 }
             }
         }
-        match <[Buffer; 5]>::try_from(made) {
-            Ok([early, late, order, groups, stats]) => Ok(SlotInputs {
+        match <[Buffer; 4]>::try_from(made) {
+            Ok([early, late, groups, stats]) => Ok(SlotInputs {
                 params: [early, late],
-                order,
                 groups,
+                stride: 1,
                 group_count: [0; 4],
                 group_total: 0,
                 stats,

@@ -195,6 +195,11 @@ fn learn_visibility(known: &mut [bool], carried: &[u32], answers: &[(u32, bool)]
 /// Marks a group that a frame did not query in [`OqState`]'s per-group query indices.
 const NOT_QUERIED: u32 = u32::MAX;
 
+/// The group of an instance that changed since the groups were made ([`OqState::forget`]): in
+/// no group, drawn unconditionally (blended instances are in none either, `u32::MAX`, but drawn
+/// by their own passes).
+const FORGOTTEN: u32 = u32::MAX - 1;
+
 /// The persistent occlusion-query state of one renderer.
 pub struct OqState {
     pub groups: Vec<QueryGroup>,
@@ -225,6 +230,8 @@ pub struct OqState {
     previous_query: Vec<u32>,
     /// Per instance: whether this frame's CPU lists hold it (frustum).
     current_drawable: Vec<bool>,
+    /// Instances forgotten since the groups were made.
+    forgotten: usize,
 }
 
 impl PassState for OqState {
@@ -240,16 +247,27 @@ impl OqState {
         [tilegraph_vk::Feature::HostQueryReset]
     }
 
+    /// Queries for `scene`'s drawn opaque and alpha-tested instances, in groups of
+    /// `group_size`.
     pub fn new(
         ctx: &Context,
         scene: &Scene,
         group_size: usize,
         conditional: bool,
-        excluded: &[bool],
         scene_set_layout: vk::DescriptorSetLayout,
         frames_in_flight: usize,
     ) -> Result<Self, VkError> {
-        let groups = build_groups(scene, group_size, excluded, conditional);
+        let excluded: Vec<bool> = scene
+            .instances()
+            .iter()
+            .map(|i| {
+                !i.flags.is_drawn()
+                    || scene
+                        .instance_material(i)
+                        .is_some_and(|m| m.class == tilegraph_scene::MaterialClass::Blended)
+            })
+            .collect();
+        let groups = build_groups(scene, group_size, &excluded, conditional);
         let mut group_of = vec![u32::MAX; scene.instances().len()];
         for (g, group) in groups.iter().enumerate() {
             for &i in &group.members {
@@ -280,6 +298,7 @@ impl OqState {
             current_query: Vec::new(),
             previous_query: Vec::new(),
             current_drawable: Vec::new(),
+            forgotten: 0,
         };
         let count = state.query_count();
         if conditional {
@@ -395,6 +414,25 @@ impl OqState {
             }
         }
         Ok(())
+    }
+
+    /// Instance slot `instance` changed since the groups were made (it moved, came or went,
+    /// was hidden or shown): its group's box no longer stands for it, so it is drawn without a
+    /// query from now on, until the groups are made again.
+    pub fn forget(&mut self, instance: u32) {
+        let i = instance as usize;
+        if self.group_of.len() <= i {
+            self.group_of.resize(i + 1, FORGOTTEN);
+        }
+        if self.group_of[i] != FORGOTTEN {
+            self.group_of[i] = FORGOTTEN;
+            self.forgotten += 1;
+        }
+    }
+
+    /// Instances drawn without a query since the groups were made ([`Self::forget`]).
+    pub fn forgotten(&self) -> usize {
+        self.forgotten
     }
 
     /// Per instance: whether the newest query result lets it be drawn (instances without a

@@ -10,13 +10,14 @@
 //! declared payloads and the compiled plan; [`SceneRenderer::execute_graph`] records a graph the
 //! caller declared — an engine's frame, the shipped passes and its own on one graph.
 
+mod fit;
 mod readback;
 mod resources;
 
 use std::sync::Arc;
 
 use tilegraph_graph::{Format, ImageId, Import, Plan, PlanCache, ResourceState};
-use tilegraph_scene::{Camera, CameraFrame, DepthConvention, MaterialClass, Scene};
+use tilegraph_scene::{Camera, CameraFrame, DepthConvention, Scene, SceneCursor};
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::{
     EngineFrame, Executor, External, Externals, FrameStats, ImageHandle, PassContext, Submission,
@@ -26,16 +27,17 @@ use tilegraph_vk::queries::{GpuTiming, PassMedian};
 use tilegraph_vk::{Context, Image, VkError};
 
 use crate::compose::{declare_scene, kept_import, ColorTarget, DeclarationKey, SceneFrame};
-use crate::cull::{cpu_frustum_mask_into, CullState, Culling, GpuCullCounts};
-use crate::draws::DrawBuilder;
+use crate::cull::{cpu_frustum_visible, CullState, Culling, FrameLists, GpuCullCounts};
+use crate::draws::{order_groups, DrawBuilder, Visible};
 use crate::frame::{FrameGraph, Payload, SceneResources};
-use crate::gpu_scene::FrameUniforms;
+use crate::gpu_scene::{visbuf_instance_bits, Capacity, FrameUniforms};
 use crate::hiz::{HizState, ReprojectState};
 use crate::lint::lint_frame;
 use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
 use crate::setup::{FrameSetup, SceneContent, Technique};
 use crate::targets::{create_target, destroy_target};
+use fit::{decide_setup, CpuLists};
 use resources::create_resources;
 
 /// An image the renderer keeps across frames, with its view.
@@ -81,12 +83,17 @@ pub struct SceneRenderer {
     instance_bits: Option<u32>,
     frames: u64,
     last_slot: usize,
-    /// Per instance: whether its material is blended.
-    blended: Vec<bool>,
-    /// Per instance: whether this frame draws it (CPU frustum culling, query results); kept
-    /// from frame to frame, as are the draw lists' sorting buffers: no allocation per frame.
-    visible: Vec<bool>,
+    /// Instance slots of the scene the last frame drew.
+    last_instances: usize,
+    /// What the CPU decides per frame, kept from frame to frame (no allocation per frame).
+    cpu: CpuLists,
     draw_builder: DrawBuilder,
+    /// The scene's structure version the per-instance layouts were made for.
+    structure: u64,
+    /// Where the occlusion queries' groups stand in the scene's changes.
+    oq_cursor: Option<SceneCursor>,
+    /// The drawn instances per class the frame setup was decided for.
+    content: SceneContent,
     /// Occlusion queries: the opaque and alpha-tested instances the last frame drew.
     last_drawn: Option<Vec<u32>>,
     /// The newest completed frame's GPU culling counts (read without waiting).
@@ -139,16 +146,8 @@ impl SceneRenderer {
             executor.destroy(ctx);
             return Err(e.into());
         }
-        let blended: Vec<bool> = scene
-            .instances()
-            .iter()
-            .map(|i| {
-                scene
-                    .instance_material(i)
-                    .is_some_and(|m| m.class == MaterialClass::Blended)
-            })
-            .collect();
-        let parts = create_resources(ctx, scene, &options, &blended, executor.frames_in_flight())
+        let capacity = Capacity::for_scene(scene, options.instance_capacity);
+        let parts = create_resources(ctx, scene, &options, executor.frames_in_flight(), capacity)
             .and_then(
                 |resources| match create_targets(ctx, &options, submission) {
                     Ok(targets) => Ok((resources, targets)),
@@ -165,16 +164,8 @@ impl SceneRenderer {
                 return Err(e);
             }
         };
-        let setup = crate::setup::decide_for(
-            SceneContent::of(scene),
-            ctx.profile(),
-            options.technique,
-            options.culling,
-            crate::setup::PrepassKnobs {
-                depth: options.depth_prepass,
-                alpha: options.alpha_prepass,
-            },
-        );
+        let content = SceneContent::of(scene);
+        let setup = decide_setup(&options, ctx, content);
         Ok(SceneRenderer {
             options,
             setup: Arc::new(setup),
@@ -185,9 +176,12 @@ impl SceneRenderer {
             instance_bits,
             frames: 0,
             last_slot: 0,
-            blended,
-            visible: Vec::new(),
+            last_instances: scene.instances().len(),
+            cpu: CpuLists::default(),
             draw_builder: DrawBuilder::default(),
+            structure: scene.structure_version(),
+            oq_cursor: Some(scene.cursor()),
+            content,
             last_drawn: None,
             gpu_counts: None,
             last_camera: None,
@@ -381,6 +375,8 @@ impl SceneRenderer {
             externals,
             ..
         } = declared;
+        let upload = resources.scene.take_upload();
+        let mut prologue = |ctx: &Context, cb: vk::CommandBuffer| upload.record(ctx, cb);
         let mut record = |id: tilegraph_graph::PassId, pc: &mut PassContext<'_>| match payloads
             .get_mut(id.index())
             .and_then(Option::as_mut)
@@ -389,9 +385,11 @@ impl SceneRenderer {
             None => Ok(()),
         };
         let stats = match engine {
-            None => executor.execute(ctx, plan, externals, &mut record)?,
-            Some(f) => executor.record(ctx, plan, externals, f, &mut record)?,
+            None => executor.execute_with(ctx, plan, externals, &mut prologue, &mut record),
+            Some(f) => executor.record_with(ctx, plan, externals, f, &mut prologue, &mut record),
         };
+        resources.scene.end_upload(upload, stats.is_ok());
+        let stats = stats?;
         let plan = Arc::clone(plan);
         self.finish_frame(ctx, plan, stats, declare)
     }
@@ -431,6 +429,8 @@ impl SceneRenderer {
         self.arm_trace();
         let mut frame = self.plan_cache.compile(graph, ctx.profile())?;
         let resources = &mut self.resources;
+        let upload = resources.scene.take_upload();
+        let mut prologue = |ctx: &Context, cb: vk::CommandBuffer| upload.record(ctx, cb);
         let mut record = |id: tilegraph_graph::PassId, pc: &mut PassContext<'_>| match frame
             .payloads
             .get_mut(id.index())
@@ -439,14 +439,18 @@ impl SceneRenderer {
             Some(p) => p(pc, resources),
             None => Ok(()),
         };
+        let plan = &frame.plan;
         let stats = match engine {
             None => self
                 .executor
-                .execute(ctx, &frame.plan, externals, &mut record)?,
-            Some(f) => self
-                .executor
-                .record(ctx, &frame.plan, externals, f, &mut record)?,
+                .execute_with(ctx, plan, externals, &mut prologue, &mut record),
+            Some(f) => {
+                self.executor
+                    .record_with(ctx, plan, externals, f, &mut prologue, &mut record)
+            }
         };
+        self.resources.scene.end_upload(upload, stats.is_ok());
+        let stats = stats?;
         self.finish_frame(ctx, frame.plan, stats, !frame.reused)
     }
 
@@ -522,27 +526,24 @@ impl SceneRenderer {
         frame: &CameraFrame,
         slot: Option<usize>,
     ) -> Result<(), RenderError> {
+        self.fit(ctx, scene)?;
         let (w, h) = (self.options.width, self.options.height);
         self.last_camera = Some(frame.camera);
         let m = frame.current;
         let culling = self.options.culling;
-        // With GPU culling on, the CPU lists serve only blended geometry: frustum-cull it here.
+        // Blended geometry is frustum-culled here and sorted back to front by every technique.
         // Techniques whose CPU lists draw opaque geometry (queries, and the pre-pass that raster
-        // occlusion tests against) frustum-cull all of it here; the others only blended.
-        let cpu_frustum_all = culling.uses_queries() || culling == Culling::RasterOcclusion;
-        let mut masked = culling != Culling::None;
-        if masked {
-            cpu_frustum_mask_into(scene, &m, &mut self.visible)?;
-            for (v, b) in self.visible.iter_mut().zip(&self.blended) {
-                *v = *v || (!b && !cpu_frustum_all);
-            }
+        // occlusion tests against) frustum-cull it here too; unculled and GPU-culled frames draw
+        // the scene's buckets as they are.
+        let cpu_lists = culling.uses_queries() || culling == Culling::RasterOcclusion;
+        cpu_frustum_visible(scene, scene.blended_grid(), &m, &mut self.cpu.blended)?;
+        if cpu_lists {
+            cpu_frustum_visible(scene, scene.opaque_grid(), &m, &mut self.cpu.visible)?;
         }
         let slot = match slot {
             Some(s) => s,
             None => self.executor.acquire_slot(ctx)?,
         };
-        // Occlusion queries: the newest complete frame's results select what this frame draws
-        // (read now, never waited for: the acquired slot's frame has completed).
         if let Some(cull) = self.resources.states.get_mut::<CullState>() {
             // The slot's frame has completed: its counts are there to read.
             if let Some(counts) = cull.collect(ctx, slot)? {
@@ -550,31 +551,26 @@ impl SceneRenderer {
             }
         }
         if let Some(oq) = self.resources.states.get_mut::<OqState>() {
+            // Occlusion queries: the newest complete frame's results select what this frame
+            // draws (read now, never waited for: the acquired slot's frame has completed).
             oq.collect(ctx, slot)?;
-            let mask = masked.then_some(self.visible.as_slice());
+            self.cpu.mark_visible(scene.instances().len());
             if culling.conditional() {
                 // Same-frame results on the GPU; reading the slot only recycles its pool.
-                oq.prepare(slot, &m, h as f32, mask);
+                oq.prepare(slot, &m, h as f32, Some(&self.cpu.mask));
             } else {
                 let passed = oq.mask();
                 // Every instance in the frustum is queried, drawn or not: a hidden one must be
                 // able to come back.
-                oq.prepare(slot, &m, h as f32, mask);
-                if !masked {
-                    self.visible.clear();
-                    self.visible.resize(passed.len(), true);
-                    masked = true;
-                }
-                for (v, p) in self.visible.iter_mut().zip(passed) {
-                    *v = *v && p;
-                }
-                let blended = &self.blended;
-                self.last_drawn = Some(
-                    (0..self.visible.len())
-                        .filter(|&i| self.visible[i] && !blended.get(i).copied().unwrap_or(false))
-                        .map(|i| i as u32)
-                        .collect(),
-                );
+                oq.prepare(slot, &m, h as f32, Some(&self.cpu.mask));
+                self.cpu
+                    .visible
+                    .retain(|&i| passed.get(i as usize).copied().unwrap_or(true));
+                let mut drawn = self.last_drawn.take().unwrap_or_default();
+                drawn.clear();
+                drawn.extend_from_slice(&self.cpu.visible);
+                drawn.sort_unstable();
+                self.last_drawn = Some(drawn);
             }
         }
         let profile = ctx.profile();
@@ -582,28 +578,50 @@ impl SceneRenderer {
             .options
             .opaque_order
             .unwrap_or(profile.passes.opaque_sort);
+        order_groups(scene, m.eye, order, &mut self.cpu.groups);
         let res = &mut self.resources;
+        let capacity = res.scene.capacity();
         self.draw_builder.build_into(
             scene,
             m.eye,
-            order,
-            masked.then_some(self.visible.as_slice()),
+            &self.cpu.groups,
+            Visible {
+                opaque: cpu_lists.then_some(self.cpu.visible.as_slice()),
+                blended: &self.cpu.blended,
+            },
+            capacity.cpu_base(),
             &mut res.frame.draws,
         );
         res.frame.depth = m.depth;
+        let instance_bits =
+            visbuf_instance_bits(capacity.instances as usize, scene.max_mesh_triangles());
+        if self.options.technique == Technique::Visbuf && instance_bits.is_none() {
+            return Err(RenderError::VisbufIdOverflow {
+                instances: capacity.instances as usize,
+                max_triangles: scene.max_mesh_triangles(),
+            });
+        }
         let uniforms = FrameUniforms::new(
             m.view_projection,
             m.depth,
             (w, h),
             &self.options.lighting,
-            self.instance_bits.unwrap_or(32),
+            instance_bits.unwrap_or(32),
+            m.eye,
         );
+        self.instance_bits = instance_bits;
         res.scene
-            .write_frame(ctx, slot, scene, m.eye, &uniforms, &res.frame.draws)?;
+            .write_frame(ctx, slot, scene, &uniforms, &res.frame.draws.instances)?;
         self.last_slot = slot;
+        self.last_instances = scene.instances().len();
         let pyramid = res.states.get::<HizState>().map(HizState::info);
         if let Some(cull) = res.states.get_mut::<CullState>() {
-            cull.write_frame(ctx, slot, frame, &res.frame.draws, (w, h), pyramid)?;
+            let lists = FrameLists {
+                groups: &self.cpu.groups,
+                stride: scene.buckets().stride(),
+                instance_slots: scene.instances().len() as u32,
+            };
+            cull.write_frame(ctx, slot, frame, lists, (w, h), pyramid)?;
         }
         let recheck = res.states.get::<CullState>().map(CullState::recheck);
         if let (Some(r), Some(recheck)) = (res.states.get_mut::<RasterOcclusion>(), recheck) {

@@ -58,8 +58,12 @@ impl SceneRenderer {
     /// The last frame's GPU culling lists (waits), or `None` without GPU lists.
     pub fn gpu_lists(&mut self, ctx: &Context) -> Result<Option<GpuLists>, RenderError> {
         self.executor.finish(ctx)?;
+        let order = self
+            .resources
+            .scene
+            .read_order(ctx, self.last_slot, self.last_instances)?;
         let cull = self.resources.states.get::<CullState>();
-        Ok(cull.map(|c| c.read_lists(ctx)).transpose()?)
+        Ok(cull.map(|c| c.read_lists(ctx, order)).transpose()?)
     }
 
     /// Fragments shaded by the opaque, alpha-tested and blended colour passes of the last frame

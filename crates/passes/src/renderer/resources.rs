@@ -6,7 +6,7 @@ use tilegraph_vk::{Context, VkError};
 
 use crate::cull::{CullState, Culling, Occluder};
 use crate::frame::{FrameData, SceneResources, States};
-use crate::gpu_scene::GpuScene;
+use crate::gpu_scene::{Capacity, GpuScene};
 use crate::hiz::{HizState, ReprojectState};
 use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{RenderError, RenderOptions};
@@ -14,17 +14,17 @@ use crate::pipelines::Pipelines;
 use crate::setup::Technique;
 use crate::visbuf::ResolveSets;
 
-/// The GPU side of a renderer: the scene uploaded, the pipelines' layouts, and the state of the
-/// culling technique (`blended`: per instance, whether its material is blended). Whatever was
-/// created is destroyed again when a later step fails.
+/// The GPU side of a renderer: the scene uploaded with room for `capacity`, the pipelines'
+/// layouts, and the state of the culling technique. Whatever was created is destroyed again
+/// when a later step fails.
 pub(super) fn create_resources(
     ctx: &Context,
     scene: &Scene,
     options: &RenderOptions,
-    blended: &[bool],
     frames_in_flight: usize,
+    capacity: Capacity,
 ) -> Result<SceneResources, RenderError> {
-    let gpu = GpuScene::new(ctx, scene, frames_in_flight)?;
+    let gpu = GpuScene::new(ctx, scene, frames_in_flight, capacity)?;
     let pipelines = match Pipelines::new(ctx, gpu.set_layout, options.count_fragments) {
         Ok(p) => p,
         Err(e) => {
@@ -38,7 +38,7 @@ pub(super) fn create_resources(
         frame: FrameData::default(),
         states: States::default(),
     };
-    match add_states(ctx, scene, options, blended, frames_in_flight, &mut res) {
+    match add_states(ctx, scene, options, frames_in_flight, capacity, &mut res) {
         Ok(()) => Ok(res),
         Err(e) => {
             res.destroy(ctx);
@@ -52,12 +52,12 @@ fn add_states(
     ctx: &Context,
     scene: &Scene,
     options: &RenderOptions,
-    blended: &[bool],
     frames_in_flight: usize,
+    capacity: Capacity,
     res: &mut SceneResources,
 ) -> Result<(), VkError> {
     let culling = options.culling;
-    let instances = scene.instances().len() as u32;
+    let instances = capacity.instances;
     let set_layout = res.scene.set_layout;
     if culling.uses_pyramid() {
         let depth = scene
@@ -105,14 +105,20 @@ fn add_states(
             }),
             (h, _) => h.map(Occluder::of),
         };
+        let orders: Vec<_> = (0..frames_in_flight.max(1))
+            .filter_map(|slot| res.scene.order(slot))
+            .collect();
         let mut c = CullState::new(
             ctx,
             culling,
             scene,
-            set_layout,
-            frames_in_flight,
-            occluder,
-            options.cull_bounds,
+            crate::cull::CullInputs {
+                scene_set_layout: set_layout,
+                orders: &orders,
+                occluder,
+                bounds: options.cull_bounds,
+                capacity,
+            },
         )?;
         c.set_recheck_interval(options.occlusion_recheck);
         let draw_ids = c.draw_ids.raw;
@@ -141,7 +147,6 @@ fn add_states(
             scene,
             options.oq_group,
             conditional,
-            blended,
             set_layout,
             frames_in_flight,
         )?;

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use crate::bounds::{Aabb, DAabb, DSphere};
 
-use super::gpu::GpuInstance;
+use super::gpu::{GpuInstance, GpuMaterial, GpuMesh, SplitPoint};
 
 /// One vertex of the shared vertex buffer. 32 bytes, std430-compatible (scalar floats only).
 #[repr(C)]
@@ -103,6 +103,36 @@ impl Mesh {
     pub fn triangle_count(&self) -> u32 {
         self.index_count / 3
     }
+
+    /// Its entry of the GPU mesh table.
+    pub fn gpu(&self) -> GpuMesh {
+        GpuMesh {
+            first_index: self.first_index,
+            index_count: self.index_count,
+            vertex_offset: self.vertex_offset,
+            material: self.material.0,
+            aabb_min: self.local_aabb.min.to_array(),
+            _pad0: 0,
+            aabb_max: self.local_aabb.max.to_array(),
+            _pad1: 0,
+        }
+    }
+}
+
+impl Material {
+    /// Its entry of the GPU material table.
+    pub fn gpu(&self) -> GpuMaterial {
+        GpuMaterial {
+            base_color: self.base_color,
+            class: self.class.gpu_code(),
+            alpha_cutoff: match self.class {
+                MaterialClass::AlphaTested { cutoff } => cutoff,
+                _ => 0.0,
+            },
+            double_sided: u32::from(self.double_sided),
+            _pad: 0,
+        }
+    }
 }
 
 /// A placement in the world: an f32 3x3 linear part (rotation, scale, shear) and an f64
@@ -195,35 +225,142 @@ impl InstanceBounds {
     }
 }
 
-/// One drawn object: a mesh placed in the world.
+/// One object: a mesh placed in the world, with its flags.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Instance {
     pub transform: Transform,
     pub mesh: MeshId,
     pub bounds: InstanceBounds,
+    pub flags: InstanceFlags,
 }
 
 impl Instance {
-    /// The per-frame record for the GPU, relative to the camera at `eye`.
+    /// Its world-space record for the GPU ([`GpuInstance`]): the linear part, the translation
+    /// split high + low, the bounds centre as an f32 offset from the translation.
     #[inline]
-    pub fn gpu_record(&self, eye: DVec3) -> GpuInstance {
-        let t = (self.transform.translation - eye).as_vec3();
-        let c = (self.bounds.center - eye).as_vec3();
+    pub fn gpu_record(&self) -> GpuInstance {
+        let t = SplitPoint::new(self.transform.translation);
+        let offset = (self.bounds.center - self.transform.translation).as_vec3();
         let l = self.transform.linear;
-        // The translation and the centre are rounded to f32 separately (and the GPU adds the
-        // translation in f32): grow the box by a few ulps of both so it still encloses what is
-        // drawn.
-        let pad = (t.abs() + c.abs()) * (4.0 * f32::EPSILON / 2.0);
         GpuInstance {
-            model_rows: [
-                [l.x_axis.x, l.y_axis.x, l.z_axis.x, t.x],
-                [l.x_axis.y, l.y_axis.y, l.z_axis.y, t.y],
-                [l.x_axis.z, l.y_axis.z, l.z_axis.z, t.z],
+            rows: [
+                [l.x_axis.x, l.y_axis.x, l.z_axis.x, t.high.x],
+                [l.x_axis.y, l.y_axis.y, l.z_axis.y, t.high.y],
+                [l.x_axis.z, l.y_axis.z, l.z_axis.z, t.high.z],
             ],
-            center: c.to_array(),
+            translation_low: t.low.to_array(),
             mesh: self.mesh.0,
-            half_extents: (self.bounds.half_extents + pad).to_array(),
-            radius: self.bounds.radius + pad.length(),
+            center_offset: offset.to_array(),
+            radius: self.bounds.radius,
+            half_extents: self.bounds.half_extents.to_array(),
+            flags: self.flags.bits(),
         }
+    }
+}
+
+/// A handle to an instance a game holds: its slot and the slot's generation. A removed
+/// instance's handle (every copy of it) is stale: using it is [`SceneError::StaleHandle`](crate::SceneError),
+/// never a change to whichever instance takes the slot next.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct InstanceHandle {
+    pub(crate) slot: u32,
+    pub(crate) generation: u32,
+}
+
+/// A handle to a mesh: its index and the index's generation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+pub struct MeshHandle {
+    pub(crate) index: u32,
+    pub(crate) generation: u32,
+}
+
+impl InstanceHandle {
+    /// The slot: the instance's index in [`Scene::instances`](crate::Scene::instances) and on
+    /// the GPU.
+    pub fn id(self) -> InstanceId {
+        InstanceId(self.slot)
+    }
+    pub fn generation(self) -> u32 {
+        self.generation
+    }
+    /// The handle as one integer (slot in the low 32 bits), for a C ABI or a save file.
+    pub fn to_bits(self) -> u64 {
+        u64::from(self.generation) << 32 | u64::from(self.slot)
+    }
+    pub fn from_bits(bits: u64) -> Self {
+        InstanceHandle {
+            slot: bits as u32,
+            generation: (bits >> 32) as u32,
+        }
+    }
+}
+
+impl MeshHandle {
+    pub fn id(self) -> MeshId {
+        MeshId(self.index)
+    }
+    pub fn generation(self) -> u32 {
+        self.generation
+    }
+    /// The handle as one integer (index in the low 32 bits).
+    pub fn to_bits(self) -> u64 {
+        u64::from(self.generation) << 32 | u64::from(self.index)
+    }
+    pub fn from_bits(bits: u64) -> Self {
+        MeshHandle {
+            index: bits as u32,
+            generation: (bits >> 32) as u32,
+        }
+    }
+}
+
+/// What an instance is besides its mesh and place: hidden (kept, not drawn), casting shadows.
+/// The bits are the record's `flags` on the GPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct InstanceFlags(u32);
+
+impl InstanceFlags {
+    pub const NONE: InstanceFlags = InstanceFlags(0);
+    /// Kept in the scene, not drawn (and not culled: it costs nothing per frame).
+    pub const HIDDEN: InstanceFlags = InstanceFlags(1);
+    /// Drawn into shadow maps (what an instance of a built scene starts with).
+    pub const CASTS_SHADOWS: InstanceFlags = InstanceFlags(2);
+    /// A free slot (no instance). Never set by a caller.
+    pub(crate) const FREE: InstanceFlags = InstanceFlags(1 << 31);
+    const PUBLIC: u32 = 0b11;
+
+    /// Flags from their bits; `None` for an unknown bit.
+    pub fn from_bits(bits: u32) -> Option<Self> {
+        (bits & !Self::PUBLIC == 0).then_some(InstanceFlags(bits))
+    }
+    pub fn bits(self) -> u32 {
+        self.0
+    }
+    pub fn contains(self, other: InstanceFlags) -> bool {
+        self.0 & other.0 == other.0
+    }
+    /// Drawn: neither hidden nor a free slot.
+    pub fn is_drawn(self) -> bool {
+        self.0 & (Self::HIDDEN.0 | Self::FREE.0) == 0
+    }
+    pub(crate) fn is_free(self) -> bool {
+        self.contains(Self::FREE)
+    }
+    /// Without the bits a caller may not set.
+    pub(crate) fn public(self) -> Self {
+        InstanceFlags(self.0 & Self::PUBLIC)
+    }
+}
+
+impl Default for InstanceFlags {
+    fn default() -> Self {
+        InstanceFlags::CASTS_SHADOWS
+    }
+}
+
+impl std::ops::BitOr for InstanceFlags {
+    type Output = InstanceFlags;
+    fn bitor(self, rhs: InstanceFlags) -> InstanceFlags {
+        InstanceFlags(self.0 | rhs.0)
     }
 }

@@ -10,19 +10,24 @@ use crate::bounds::{transformed_bounds, Aabb, DAabb};
 use crate::camera::CameraPath;
 use crate::error::SceneError;
 
+mod buckets;
 mod clusters;
+mod edit;
 mod elements;
 mod gpu;
+mod grid;
+mod journal;
+mod pool;
 
+pub use buckets::{DrawBuckets, DrawGroup, DRAW_LISTS};
 pub use clusters::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VERTICES};
 pub use elements::{
-    Instance, InstanceBounds, InstanceId, Material, MaterialClass, MaterialId, Mesh, MeshId,
-    Transform, Vertex,
+    Instance, InstanceBounds, InstanceFlags, InstanceHandle, InstanceId, Material, MaterialClass,
+    MaterialId, Mesh, MeshHandle, MeshId, Transform, Vertex,
 };
-pub use gpu::{GpuInstance, GpuMaterial, GpuMesh};
-
-/// Instance count from which [`Scene::write_gpu_instances`] splits the work across threads.
-const PARALLEL_RECORDS_MIN: usize = 1 << 16;
+pub use gpu::{GpuInstance, GpuMaterial, GpuMesh, RelativeInstance, SplitPoint};
+pub use grid::{LooseGrid, Overlap};
+pub use journal::{Change, SceneCursor};
 
 /// Where a scene came from.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -52,7 +57,12 @@ pub struct GltfCounts {
     pub nodes_in_scene: usize,
 }
 
-/// A loaded or generated scene. Immutable once built, except for [`Scene::translate`].
+/// A loaded or generated scene: arrays a renderer uploads, changed by handle
+/// ([`Scene::add_instance`], [`Scene::set_transforms`], [`Scene::add_mesh`], ... in `edit.rs`),
+/// each change written to a journal a renderer follows ([`Scene::changes_since`]).
+///
+/// [`Scene::instances`] holds every instance slot, free ones too (flags
+/// [`InstanceFlags::is_drawn`] false): an instance's slot is its index on the GPU.
 #[derive(Clone, Debug)]
 pub struct Scene {
     name: String,
@@ -67,6 +77,8 @@ pub struct Scene {
     camera_path: CameraPath,
     /// Attached clusters (the index buffer is then in cluster order).
     clusters: Option<Clusters>,
+    /// Handles, free slots and ranges, buckets, grids, the journal.
+    dynamic: edit::Dynamic,
 }
 
 impl Scene {
@@ -156,6 +168,7 @@ impl Scene {
         }
         validate_clusters(self, &data)?;
         self.indices = data.indices;
+        self.dynamic.journal.push(Change::Everything);
         self.clusters = Some(Clusters {
             clusters: data.clusters,
             mesh_clusters: data.mesh_clusters,
@@ -167,6 +180,7 @@ impl Scene {
     pub fn triangles_drawn(&self) -> u64 {
         self.instances
             .iter()
+            .filter(|i| i.flags.is_drawn())
             .map(|i| {
                 self.mesh(i.mesh)
                     .map_or(0, |m| u64::from(m.triangle_count()))
@@ -174,89 +188,36 @@ impl Scene {
             .sum()
     }
 
-    /// Fills `out` with this frame's camera-relative instance records, in instance order.
-    ///
-    /// Uses half the available cores (the rest of the frame, and the driver, need the others):
-    /// one thread on a 2-core machine, where measurements showed a second thread losing as often
-    /// as winning. See [`Self::write_gpu_instances_threads`] to choose.
-    pub fn write_gpu_instances(&self, eye: DVec3, out: &mut Vec<GpuInstance>) {
-        // Asked once: the query reads cgroup files (and allocates) every time.
-        static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
-        let cores =
-            *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |t| t.get()));
-        self.write_gpu_instances_threads(eye, out, cores / 2);
+    /// Every instance slot's record as [`Instance::gpu_record`] makes it.
+    pub fn gpu_records(&self) -> Vec<GpuInstance> {
+        self.instances.iter().map(Instance::gpu_record).collect()
     }
 
-    /// Fills `out` with this frame's records using at most `max_threads` threads.
-    ///
-    /// No allocation when `out` is the previous frame's buffer: it is overwritten in place. Below
-    /// 65,536 instances the work stays on the calling thread (spawning would cost more). See the
-    /// `scene_generate` bench for timings.
-    pub fn write_gpu_instances_threads(
-        &self,
-        eye: DVec3,
-        out: &mut Vec<GpuInstance>,
-        max_threads: usize,
-    ) {
-        let n = self.instances.len();
-        if out.len() != n {
-            out.clear();
-            out.resize(n, GpuInstance::default());
-        }
-        let fill = move |dst: &mut [GpuInstance], src: &[Instance]| {
-            for (d, s) in dst.iter_mut().zip(src) {
-                *d = s.gpu_record(eye);
-            }
-        };
-        let threads = max_threads.clamp(1, 8);
-        if n < PARALLEL_RECORDS_MIN || threads < 2 {
-            fill(out, &self.instances);
-            return;
-        }
-        let chunk = n.div_ceil(threads);
-        std::thread::scope(|scope| {
-            for (dst, src) in out.chunks_mut(chunk).zip(self.instances.chunks(chunk)) {
-                scope.spawn(move || fill(dst, src));
-            }
-        });
-    }
-
-    pub fn gpu_instances(&self, eye: DVec3) -> Vec<GpuInstance> {
-        let mut v = Vec::new();
-        self.write_gpu_instances(eye, &mut v);
-        v
+    /// Every instance slot seen from `eye`, as the shaders see it ([`GpuInstance::relative`]):
+    /// what CPU references test.
+    pub fn gpu_instances(&self, eye: DVec3) -> Vec<RelativeInstance> {
+        let eye = SplitPoint::new(eye);
+        self.instances
+            .iter()
+            .map(|i| i.gpu_record().relative(&eye))
+            .collect()
     }
 
     pub fn gpu_meshes(&self) -> Vec<GpuMesh> {
-        self.meshes
-            .iter()
-            .map(|m| GpuMesh {
-                first_index: m.first_index,
-                index_count: m.index_count,
-                vertex_offset: m.vertex_offset,
-                material: m.material.0,
-                aabb_min: m.local_aabb.min.to_array(),
-                _pad0: 0,
-                aabb_max: m.local_aabb.max.to_array(),
-                _pad1: 0,
-            })
-            .collect()
+        self.meshes.iter().map(Mesh::gpu).collect()
     }
 
     pub fn gpu_materials(&self) -> Vec<GpuMaterial> {
-        self.materials
+        self.materials.iter().map(Material::gpu).collect()
+    }
+
+    /// Triangles of the largest mesh.
+    pub fn max_mesh_triangles(&self) -> u32 {
+        self.meshes
             .iter()
-            .map(|m| GpuMaterial {
-                base_color: m.base_color,
-                class: m.class.gpu_code(),
-                alpha_cutoff: match m.class {
-                    MaterialClass::AlphaTested { cutoff } => cutoff,
-                    _ => 0.0,
-                },
-                double_sided: u32::from(m.double_sided),
-                _pad: 0,
-            })
-            .collect()
+            .map(Mesh::triangle_count)
+            .max()
+            .unwrap_or(0)
     }
 
     /// Moves the whole world (instances, bounds, camera path) by `offset`, in f64.
@@ -271,6 +232,9 @@ impl Scene {
             self.bounds = DAabb::new(self.bounds.min + offset, self.bounds.max + offset);
         }
         self.camera_path = self.camera_path.translated(offset);
+        self.dynamic
+            .index_all(&self.instances, &self.meshes, &self.materials, self.bounds);
+        self.dynamic.journal.push(Change::Everything);
     }
 
     /// The counts the CLI prints (`tilegraph scene info`).
@@ -280,7 +244,7 @@ impl Scene {
             materials.add(m.class);
         }
         let mut instances_by_class = ClassCounts::default();
-        for i in &self.instances {
+        for i in self.instances.iter().filter(|i| !i.flags.is_free()) {
             if let Some(m) = self.instance_material(i) {
                 instances_by_class.add(m.class);
             }
@@ -293,8 +257,8 @@ impl Scene {
         SceneInfo {
             name: self.name.clone(),
             source: self.source.clone(),
-            instances: self.instances.len() as u64,
-            meshes: self.meshes.len() as u64,
+            instances: self.live_instances() as u64,
+            meshes: self.meshes.iter().filter(|m| m.index_count > 0).count() as u64,
             triangles: self.triangles_drawn(),
             bounds: BoundsInfo { min, max },
             materials,
@@ -377,6 +341,56 @@ fn validate_clusters(scene: &Scene, data: &ClusterData) -> Result<(), SceneError
     Ok(())
 }
 
+/// Checks a mesh's data: the material exists, indices are a positive multiple of 3 and inside
+/// the vertices, every vertex is finite.
+fn check_mesh(
+    name: &str,
+    pointer: &str,
+    vertices: &[Vertex],
+    indices: &[u32],
+    material: MaterialId,
+    materials: usize,
+) -> Result<(), SceneError> {
+    let invalid = |reason: String| SceneError::Invalid {
+        file: name.to_string(),
+        pointer: pointer.to_string(),
+        reason,
+    };
+    if material.index() >= materials {
+        return Err(invalid(format!("material {} does not exist", material.0)));
+    }
+    if !indices.len().is_multiple_of(3) || indices.is_empty() {
+        return Err(invalid(format!(
+            "{} indices is not a positive multiple of 3",
+            indices.len()
+        )));
+    }
+    if let Some((position, &index)) = indices
+        .iter()
+        .enumerate()
+        .find(|(_, &i)| i as usize >= vertices.len())
+    {
+        return Err(SceneError::IndexOutOfRange {
+            file: name.to_string(),
+            pointer: pointer.to_string(),
+            index: u64::from(index),
+            position,
+            vertex_count: vertices.len(),
+        });
+    }
+    if let Some(i) = vertices
+        .iter()
+        .position(|v| !(v.position.iter().chain(&v.normal).chain(&v.uv)).all(|x| x.is_finite()))
+    {
+        return Err(SceneError::NonFinite {
+            file: name.to_string(),
+            pointer: pointer.to_string(),
+            what: format!("vertex {i}"),
+        });
+    }
+    Ok(())
+}
+
 /// Counts per material class.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct ClassCounts {
@@ -387,10 +401,19 @@ pub struct ClassCounts {
 
 impl ClassCounts {
     fn add(&mut self, class: MaterialClass) {
+        *self.of(class) += 1;
+    }
+
+    fn remove(&mut self, class: MaterialClass) {
+        let n = self.of(class);
+        *n = n.saturating_sub(1);
+    }
+
+    fn of(&mut self, class: MaterialClass) -> &mut u64 {
         match class {
-            MaterialClass::Opaque => self.opaque += 1,
-            MaterialClass::AlphaTested { .. } => self.alpha_tested += 1,
-            MaterialClass::Blended => self.blended += 1,
+            MaterialClass::Opaque => &mut self.opaque,
+            MaterialClass::AlphaTested { .. } => &mut self.alpha_tested,
+            MaterialClass::Blended => &mut self.blended,
         }
     }
 }
@@ -539,38 +562,14 @@ impl SceneBuilder {
         material: MaterialId,
     ) -> Result<MeshId, SceneError> {
         let pointer = format!("/meshes/{}", self.meshes.len());
-        if material.index() >= self.materials.len() {
-            return Err(self.error(pointer, format!("material {} does not exist", material.0)));
-        }
-        if !indices.len().is_multiple_of(3) || indices.is_empty() {
-            return Err(self.error(
-                pointer,
-                format!("{} indices is not a positive multiple of 3", indices.len()),
-            ));
-        }
-        if let Some((position, &index)) = indices
-            .iter()
-            .enumerate()
-            .find(|(_, &i)| i as usize >= vertices.len())
-        {
-            return Err(SceneError::IndexOutOfRange {
-                file: self.name.clone(),
-                pointer,
-                index: u64::from(index),
-                position,
-                vertex_count: vertices.len(),
-            });
-        }
-        if let Some(i) = vertices
-            .iter()
-            .position(|v| !(v.position.iter().chain(&v.normal).chain(&v.uv)).all(|x| x.is_finite()))
-        {
-            return Err(SceneError::NonFinite {
-                file: self.name.clone(),
-                pointer,
-                what: format!("vertex {i}"),
-            });
-        }
+        check_mesh(
+            &self.name,
+            &pointer,
+            vertices,
+            indices,
+            material,
+            self.materials.len(),
+        )?;
         if self.vertices.len() + vertices.len() > i32::MAX as usize
             || self.indices.len() + indices.len() > u32::MAX as usize
         {
@@ -693,6 +692,7 @@ impl SceneBuilder {
                 half_extents,
                 radius,
             },
+            flags: InstanceFlags::default(),
         });
         Ok(InstanceId((self.instances.len() - 1) as u32))
     }
@@ -716,6 +716,7 @@ impl SceneBuilder {
                 half_extents,
                 radius,
             },
+            flags: InstanceFlags::default(),
         });
     }
 
@@ -746,6 +747,14 @@ impl SceneBuilder {
             Some(p) => p,
             None => CameraPath::orbit_bounds(&bounds),
         };
+        let dynamic = edit::Dynamic::build(
+            &self.instances,
+            &self.meshes,
+            &self.materials,
+            self.vertices.len(),
+            self.indices.len(),
+            bounds,
+        );
         Ok(Scene {
             name: self.name,
             source: self.source,
@@ -758,6 +767,7 @@ impl SceneBuilder {
             gltf_counts: self.gltf_counts,
             camera_path,
             clusters: None,
+            dynamic,
         })
     }
 }
@@ -768,38 +778,49 @@ mod tests {
     use glam::Mat3;
     use std::mem::{align_of, offset_of, size_of};
 
-    /// A mesh whose coordinates sit 10^4 m from its origin, seen from 5 cm: the record's box
-    /// encloses every vertex where the GPU puts it (f32 transform of f32 inputs), though the
-    /// f32 bounds arithmetic and the separately rounded centre and translation each lose a
-    /// little (half a millimetre here without the padding).
+    /// A mesh whose coordinates sit 10^4 m from its origin, placed at the origin and 10^6 m
+    /// out, seen from 5 cm and from far: the camera-relative box the shaders compute encloses
+    /// every vertex where the GPU puts it (f32 transform of f32 inputs), and the
+    /// camera-relative translation made from the split record is within a few f32 ulps of the
+    /// exact f64 difference.
     #[test]
     fn gpu_records_enclose_far_off_origin_vertices() {
         let local = Aabb::new(
             Vec3::new(10_000.0, 0.0, 0.0),
             Vec3::new(10_000.251, 0.1, 0.1),
         );
-        let (center, half_extents, radius) =
-            transformed_bounds(Mat3::IDENTITY, DVec3::ZERO, &local);
-        let instance = Instance {
-            transform: Transform::IDENTITY,
-            mesh: MeshId(0),
-            bounds: InstanceBounds {
-                center,
-                half_extents,
-                radius,
-            },
-        };
-        for eye_x in [10_000.3, 10_000.0, 9_999.9, 0.0] {
-            let eye = DVec3::new(eye_x, 0.05, 0.05);
-            let r = instance.gpu_record(eye);
-            let t = Vec3::new(r.model_rows[0][3], r.model_rows[1][3], r.model_rows[2][3]);
-            let (c, h) = (Vec3::from_array(r.center), Vec3::from_array(r.half_extents));
-            for p in [local.min, local.max] {
-                let on_gpu = p + t;
+        for translation in [DVec3::ZERO, DVec3::new(1e6 + 0.3, -2.0, 1e6)] {
+            let (center, half_extents, radius) =
+                transformed_bounds(Mat3::IDENTITY, translation, &local);
+            let instance = Instance {
+                transform: Transform::from_translation(translation),
+                mesh: MeshId(0),
+                bounds: InstanceBounds {
+                    center,
+                    half_extents,
+                    radius,
+                },
+                flags: InstanceFlags::default(),
+            };
+            let record = instance.gpu_record();
+            for eye_x in [10_000.3, 10_000.0, 9_999.9, 0.0, -5e5] {
+                let eye = translation + DVec3::new(eye_x, 0.05, 0.05);
+                let r = record.relative(&SplitPoint::new(eye));
+                let t = Vec3::new(r.model_rows[0][3], r.model_rows[1][3], r.model_rows[2][3]);
+                let exact = translation - eye;
+                let err = (t.as_dvec3() - exact).abs().max_element();
                 assert!(
-                    (on_gpu - c).abs().cmple(h).all(),
-                    "eye x {eye_x}: vertex at {on_gpu:?} outside {c:?} +- {h:?}"
+                    err <= 4.0 * f64::from(f32::EPSILON) * exact.abs().max_element() + 1e-6,
+                    "eye x {eye_x}: translation {t:?}, exact {exact:?}"
                 );
+                let (c, h) = (Vec3::from_array(r.center), Vec3::from_array(r.half_extents));
+                for p in [local.min, local.max] {
+                    let on_gpu = p + t;
+                    assert!(
+                        (on_gpu - c).abs().cmple(h).all(),
+                        "eye x {eye_x}: vertex at {on_gpu:?} outside {c:?} +- {h:?}"
+                    );
+                }
             }
         }
     }
@@ -809,11 +830,13 @@ mod tests {
         assert_eq!(size_of::<Vertex>(), 32);
         assert_eq!(offset_of!(Vertex, normal), 12);
         assert_eq!(offset_of!(Vertex, uv), 24);
-        assert_eq!(size_of::<GpuInstance>(), 80);
-        assert_eq!(offset_of!(GpuInstance, center), 48);
+        assert_eq!(size_of::<GpuInstance>(), 96);
+        assert_eq!(offset_of!(GpuInstance, translation_low), 48);
         assert_eq!(offset_of!(GpuInstance, mesh), 60);
-        assert_eq!(offset_of!(GpuInstance, half_extents), 64);
+        assert_eq!(offset_of!(GpuInstance, center_offset), 64);
         assert_eq!(offset_of!(GpuInstance, radius), 76);
+        assert_eq!(offset_of!(GpuInstance, half_extents), 80);
+        assert_eq!(offset_of!(GpuInstance, flags), 92);
         assert_eq!(size_of::<GpuMesh>(), 48);
         assert_eq!(offset_of!(GpuMesh, aabb_min), 16);
         assert_eq!(offset_of!(GpuMesh, aabb_max), 32);

@@ -20,7 +20,7 @@ use ash::vk;
 use tilegraph_graph::Plan;
 
 pub use crate::frames::Submission;
-pub use recorder::{PassContext, RecordFn, RecordPass};
+pub use recorder::{PassContext, PrologueFn, RecordFn, RecordPass};
 pub use render_pass::RenderPassRef;
 pub use resources::{aspect_of, BufferHandle, External, Externals, ImageHandle, Resources};
 
@@ -85,6 +85,12 @@ pub struct Executor {
     resources_since: u64,
     /// Render passes recorded by the last frame (for tests and reports).
     pub last_stats: FrameStats,
+}
+
+/// What records a frame: commands before its first pass, and each pass.
+struct Callbacks<'p, 'a, 'b> {
+    prologue: Option<&'p mut PrologueFn<'a>>,
+    record: &'p mut RecordFn<'b>,
 }
 
 impl Executor {
@@ -233,7 +239,19 @@ impl Executor {
         externals: &Externals,
         record: &mut RecordFn<'_>,
     ) -> Result<FrameStats, VkError> {
-        self.run(ctx, plan, externals, None, record)
+        self.run(ctx, plan, externals, None, None, record)
+    }
+
+    /// [`Executor::execute`] with a `prologue` recorded before the first pass.
+    pub fn execute_with(
+        &mut self,
+        ctx: &Context,
+        plan: &Arc<Plan>,
+        externals: &Externals,
+        prologue: &mut PrologueFn<'_>,
+        record: &mut RecordFn<'_>,
+    ) -> Result<FrameStats, VkError> {
+        self.run(ctx, plan, externals, None, Some(prologue), record)
     }
 
     /// Records one frame of `plan` into the engine's command buffer (an executor made with
@@ -251,7 +269,20 @@ impl Executor {
         frame: EngineFrame,
         record: &mut RecordFn<'_>,
     ) -> Result<FrameStats, VkError> {
-        self.run(ctx, plan, externals, Some(frame), record)
+        self.run(ctx, plan, externals, Some(frame), None, record)
+    }
+
+    /// [`Executor::record`] with a `prologue` recorded before the first pass.
+    pub fn record_with(
+        &mut self,
+        ctx: &Context,
+        plan: &Arc<Plan>,
+        externals: &Externals,
+        frame: EngineFrame,
+        prologue: &mut PrologueFn<'_>,
+        record: &mut RecordFn<'_>,
+    ) -> Result<FrameStats, VkError> {
+        self.run(ctx, plan, externals, Some(frame), Some(prologue), record)
     }
 
     fn run(
@@ -260,13 +291,15 @@ impl Executor {
         plan: &Arc<Plan>,
         externals: &Externals,
         engine: Option<EngineFrame>,
+        prologue: Option<&mut PrologueFn<'_>>,
         record: &mut RecordFn<'_>,
     ) -> Result<FrameStats, VkError> {
         let allocations_before = ctx.allocation_count();
         let mut stats = FrameStats::default();
         let mut token = self.begin(ctx, engine)?;
         // The slot is the frame's from here: a failure ends it (nothing of it is submitted).
-        let result = self.run_token(ctx, plan, externals, &mut token, &mut stats, record);
+        let callbacks = Callbacks { prologue, record };
+        let result = self.run_token(ctx, plan, externals, &mut token, &mut stats, callbacks);
         if let Err(e) = result {
             if let Err(gave_up) = self.frames.abandon(ctx, &token) {
                 log::error!("giving up the frame after \"{e}\": {gave_up}");
@@ -296,8 +329,9 @@ impl Executor {
         externals: &Externals,
         token: &mut FrameToken,
         stats: &mut FrameStats,
-        record: &mut RecordFn<'_>,
+        callbacks: Callbacks<'_, '_, '_>,
     ) -> Result<(), VkError> {
+        let Callbacks { prologue, record } = callbacks;
         ctx.injected_fault("recording the frame (injected fault)")?;
         if token.completed_frame.is_some() {
             self.collect_slot(ctx, token.slot)?;
@@ -312,6 +346,9 @@ impl Executor {
         }
         self.queries
             .begin_frame(ctx, token.cb, token.slot, token.frame)?;
+        if let Some(prologue) = prologue {
+            prologue(ctx, token.cb)?;
+        }
         let Some(resources) = self.resources.as_ref() else {
             return Err(VkError::Invalid {
                 what: "executor".into(),

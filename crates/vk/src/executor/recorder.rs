@@ -136,6 +136,10 @@ impl<F: FnMut(&mut PassContext<'_>) -> Result<(), VkError>> RecordPass for F {
     }
 }
 
+/// Commands recorded into a frame's command buffer before its first pass (after its opening
+/// timestamp), outside any render pass: an upload of what changed since the last frame.
+pub type PrologueFn<'a> = dyn FnMut(&Context, vk::CommandBuffer) -> Result<(), VkError> + 'a;
+
 /// The callback that records each pass of a frame (the payloads, looked up by [`PassId`]).
 pub type RecordFn<'a> = dyn FnMut(PassId, &mut PassContext<'_>) -> Result<(), VkError> + 'a;
 

@@ -1,0 +1,590 @@
+//! The scene on the GPU.
+//!
+//! **Per frame slot**, in the profile's streaming memory type, written in place (seed 001: no
+//! staging copy for data the CPU rewrites): the camera uniforms; one record per instance slot
+//! ([`GpuInstance`], world space, split high + low: the shaders make it camera-relative); each
+//! instance's draw entry (`order`); the draw lists' entries (the scene's buckets, then this
+//! frame's CPU lists); the mesh and material tables. A slot's copies are brought up to date from
+//! the scene's journal when the slot is reused — only what changed since that slot's last frame
+//! is written — so a frame's CPU work follows what changed, not the scene's size.
+//!
+//! **Resident**, one copy in the static-geometry memory type: the vertices and indices. A mesh
+//! added at run time is copied in at the start of the next frame from a staging buffer of the
+//! slot ([`GpuScene::record_upload`], recorded before the frame's passes); when the arrays
+//! outgrow the buffers, larger ones take over — the old content copied on the GPU, the old
+//! buffers destroyed once the frames that read them are done. Nothing waits.
+
+use ash::vk;
+use bytemuck::{Pod, Zeroable};
+use glam::{DVec3, Mat4, Vec3};
+use tilegraph_profile::MemoryUse;
+use tilegraph_scene::{
+    DepthConvention, GpuInstance, GpuMaterial, GpuMesh, Scene, SceneCursor, SplitPoint, DRAW_LISTS,
+};
+use tilegraph_vk::ash;
+use tilegraph_vk::pipeline::{allocate_set, create_set_layout, write_buffer_set};
+use tilegraph_vk::{Buffer, Context, VkError};
+
+mod geometry;
+mod slots;
+
+pub(crate) use geometry::upload;
+pub use geometry::GeometryUpload;
+use geometry::{grown, upload_sized, Copy, GEOMETRY_USAGE};
+use slots::{destroy_slot, SlotBuffers};
+
+/// `Frame` uniform block of `shaders/common/scene.glsl` (std140, 240 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct FrameUniforms {
+    pub view_proj: [[f32; 4]; 4],
+    pub light_dir: [f32; 4],
+    pub light_color: [f32; 4],
+    /// x: heavy ALU iterations, y: visbuf instance-id bits, z/w: viewport px.
+    pub params: [u32; 4],
+    /// xy: viewport size, zw: its reciprocal.
+    pub viewport: [f32; 4],
+    pub inv_view_proj: [[f32; 4]; 4],
+    /// x: depth of the near plane, y: a depth strictly between near and far.
+    pub depth_params: [f32; 4],
+    /// The eye's world position split high + low ([`SplitPoint`]; w unused).
+    pub eye_high: [f32; 4],
+    pub eye_low: [f32; 4],
+}
+
+/// Per-frame shading parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lighting {
+    /// Unit direction towards the light (world space).
+    pub direction: Vec3,
+    pub color: Vec3,
+    pub ambient: f32,
+    /// Iterations of the heavy-material ALU loop (0 = plain Lambert).
+    pub heavy_iterations: u32,
+}
+
+impl Default for Lighting {
+    fn default() -> Self {
+        Lighting {
+            direction: Vec3::new(0.4, 0.8, 0.3).normalize(),
+            color: Vec3::splat(0.85),
+            ambient: 0.2,
+            heavy_iterations: 0,
+        }
+    }
+}
+
+impl FrameUniforms {
+    pub fn new(
+        view_proj: Mat4,
+        convention: DepthConvention,
+        extent: (u32, u32),
+        lighting: &Lighting,
+        visbuf_instance_bits: u32,
+        eye: DVec3,
+    ) -> Self {
+        let (w, h) = (extent.0.max(1) as f32, extent.1.max(1) as f32);
+        let near = match convention {
+            DepthConvention::Reverse => 1.0,
+            DepthConvention::Standard => 0.0,
+        };
+        let eye = SplitPoint::new(eye);
+        FrameUniforms {
+            view_proj: view_proj.to_cols_array_2d(),
+            light_dir: lighting
+                .direction
+                .normalize_or_zero()
+                .extend(lighting.ambient)
+                .to_array(),
+            light_color: lighting.color.extend(1.0).to_array(),
+            params: [
+                lighting.heavy_iterations,
+                visbuf_instance_bits,
+                extent.0,
+                extent.1,
+            ],
+            viewport: [w, h, 1.0 / w, 1.0 / h],
+            inv_view_proj: view_proj.inverse().to_cols_array_2d(),
+            depth_params: [near, 0.5, 0.0, 0.0],
+            eye_high: eye.high.extend(0.0).to_array(),
+            eye_low: eye.low.extend(0.0).to_array(),
+        }
+    }
+}
+
+/// Bits of the visibility-buffer id given to the instance index: enough for every instance slot
+/// with the all-ones value left free, the rest for the triangle. `None` when the largest mesh's
+/// triangles do not fit in what is left.
+pub fn visbuf_instance_bits(instances: usize, max_triangles_per_mesh: u32) -> Option<u32> {
+    let needed = usize::BITS - instances.leading_zeros(); // values 0..=instances need this many
+    let instance_bits = needed.max(1);
+    let tri_bits = 32u32.checked_sub(instance_bits)?;
+    let fits = tri_bits >= 32 || u64::from(max_triangles_per_mesh) <= (1u64 << tri_bits);
+    fits.then_some(instance_bits)
+}
+
+/// An entry of `order` for an instance in no GPU list (hidden, blended, a free slot).
+pub const NO_ENTRY: u32 = u32::MAX;
+
+/// How much of a scene a renderer's buffers hold: instance slots and the draw lists' stride.
+/// A scene that outgrows it needs new buffers ([`crate::SceneRenderer`] makes them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Capacity {
+    pub instances: u32,
+    pub stride: u32,
+}
+
+impl Capacity {
+    /// Room for `scene` and for at least `instances` instance slots, rounded up to powers of
+    /// two (a growing scene outgrows it a logarithmic number of times).
+    pub fn for_scene(scene: &Scene, instances: u32) -> Self {
+        let round = |n: u32| n.max(64).checked_next_power_of_two().unwrap_or(u32::MAX);
+        let slots = u32::try_from(scene.instances().len()).unwrap_or(u32::MAX);
+        let stride = scene.buckets().stride();
+        Capacity {
+            instances: round(slots.max(instances)),
+            // A list may hold every instance slot: then no growth of the scene's buckets
+            // outgrows the stride before its instances outgrow the slots.
+            stride: round(stride.max(slots.max(instances).saturating_add(64))),
+        }
+    }
+
+    /// Whether `scene` fits.
+    pub fn holds(&self, scene: &Scene) -> bool {
+        scene.instances().len() as u64 <= u64::from(self.instances)
+            && scene.buckets().stride() <= self.stride
+    }
+
+    /// The first entry of the frame's CPU lists (after the scene's lists).
+    pub fn cpu_base(&self) -> u32 {
+        DRAW_LISTS as u32 * self.stride
+    }
+
+    /// Entries of a slot's entry buffer: the lists, then room for a CPU list of every slot.
+    pub fn entries(&self) -> u64 {
+        u64::from(self.cpu_base()) + u64::from(self.instances)
+    }
+}
+
+/// Everything the scene passes bind: set 0 of `scene.glsl`.
+pub struct GpuScene {
+    pub vertices: Buffer,
+    pub indices: Buffer,
+    frames: Vec<SlotBuffers>,
+    pub set_layout: vk::DescriptorSetLayout,
+    pool: vk::DescriptorPool,
+    capacity: Capacity,
+    /// The culling shader's draw list, bound by the culled sets.
+    culled_draw_ids: Option<vk::Buffer>,
+    /// The scene as the resident geometry holds it.
+    geometry_cursor: Option<SceneCursor>,
+    /// Bumped whenever the geometry buffers are replaced.
+    geometry_serial: u64,
+    /// Copies for the next frame's upload (kept: no allocation per frame).
+    copies: Vec<Copy>,
+    /// Bytes staged this frame (CPU side, copied into the slot's staging buffer).
+    staged: Vec<u8>,
+    /// Buffers replaced, and the frame count from which they may go.
+    retired: Vec<(Buffer, u64)>,
+    /// Frames written ([`Self::write_frame`] calls).
+    frames_written: u64,
+    /// Dedup of a frame's writes: the frame that last wrote each instance slot and entry.
+    instance_stamps: Vec<u64>,
+    entry_stamps: Vec<u64>,
+}
+
+/// Creates `size` bytes for `use_`; names it.
+fn buffer(
+    ctx: &Context,
+    name: &str,
+    size: u64,
+    usage: vk::BufferUsageFlags,
+    use_: MemoryUse,
+) -> Result<Buffer, VkError> {
+    ctx.create_buffer(name, size.max(16), usage, use_)
+}
+
+impl GpuScene {
+    /// Uploads the scene's geometry and creates `frames_in_flight` sets of per-slot buffers
+    /// with room for `capacity`.
+    pub fn new(
+        ctx: &Context,
+        scene: &Scene,
+        frames_in_flight: usize,
+        capacity: Capacity,
+    ) -> Result<Self, VkError> {
+        let vertices = upload_sized(
+            ctx,
+            "scene vertices",
+            bytemuck::cast_slice(scene.vertices()),
+            grown(scene.vertices().len() as u64) * 32,
+            vk::BufferUsageFlags::VERTEX_BUFFER | GEOMETRY_USAGE,
+        )?;
+        let indices = match upload_sized(
+            ctx,
+            "scene indices",
+            bytemuck::cast_slice(scene.indices()),
+            grown(scene.indices().len() as u64) * 4,
+            vk::BufferUsageFlags::INDEX_BUFFER | GEOMETRY_USAGE,
+        ) {
+            Ok(b) => b,
+            Err(e) => {
+                ctx.destroy_buffer(vertices);
+                return Err(e);
+            }
+        };
+        let all = vk::ShaderStageFlags::VERTEX
+            | vk::ShaderStageFlags::FRAGMENT
+            | vk::ShaderStageFlags::COMPUTE;
+        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
+        let set_layout = create_set_layout(
+            ctx,
+            &[
+                (0, vk::DescriptorType::UNIFORM_BUFFER, all),
+                (1, ssbo, all),
+                (2, ssbo, all),
+                (3, ssbo, all),
+                (4, ssbo, all),
+                (5, ssbo, all),
+                (6, ssbo, all),
+                (7, ssbo, all),
+            ],
+        );
+        let set_layout = match set_layout {
+            Ok(l) => l,
+            Err(e) => {
+                ctx.destroy_buffer(vertices);
+                ctx.destroy_buffer(indices);
+                return Err(e);
+            }
+        };
+        let n = frames_in_flight.max(1) as u32;
+        let sizes = [
+            vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::UNIFORM_BUFFER,
+                descriptor_count: 2 * n,
+            },
+            vk::DescriptorPoolSize {
+                ty: ssbo,
+                descriptor_count: 2 * 7 * n,
+            },
+        ];
+        let pool_info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(2 * n)
+            .pool_sizes(&sizes);
+        // SAFETY: valid create info.
+        let pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
+            .map_err(|r| VkError::call("vkCreateDescriptorPool", r));
+        let mut gs = GpuScene {
+            vertices,
+            indices,
+            frames: Vec::new(),
+            set_layout,
+            pool: vk::DescriptorPool::null(),
+            capacity,
+            culled_draw_ids: None,
+            geometry_cursor: Some(scene.cursor()),
+            geometry_serial: 0,
+            copies: Vec::new(),
+            staged: Vec::new(),
+            retired: Vec::new(),
+            frames_written: 0,
+            instance_stamps: vec![0; capacity.instances as usize],
+            entry_stamps: vec![0; capacity.cpu_base() as usize],
+        };
+        match pool {
+            Ok(p) => gs.pool = p,
+            Err(e) => {
+                gs.destroy(ctx);
+                return Err(e);
+            }
+        }
+        for i in 0..n {
+            match gs.slot_buffers(ctx, i, scene) {
+                Ok(fb) => gs.frames.push(fb),
+                Err(e) => {
+                    gs.destroy(ctx);
+                    return Err(e);
+                }
+            }
+        }
+        Ok(gs)
+    }
+
+    fn slot_buffers(&self, ctx: &Context, i: u32, scene: &Scene) -> Result<SlotBuffers, VkError> {
+        let c = self.capacity;
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let streaming = MemoryUse::Streaming;
+        let specs = [
+            (
+                "frame uniforms",
+                std::mem::size_of::<FrameUniforms>() as u64,
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                streaming,
+            ),
+            (
+                "instance records",
+                u64::from(c.instances) * std::mem::size_of::<GpuInstance>() as u64,
+                storage,
+                streaming,
+            ),
+            (
+                "instance entries",
+                u64::from(c.instances) * 4,
+                storage,
+                streaming,
+            ),
+            ("draw entries", c.entries() * 4, storage, streaming),
+            (
+                "meshes",
+                grown(scene.meshes().len() as u64) * std::mem::size_of::<GpuMesh>() as u64,
+                storage,
+                streaming,
+            ),
+            (
+                "materials",
+                grown(scene.materials().len() as u64) * std::mem::size_of::<GpuMaterial>() as u64,
+                storage,
+                streaming,
+            ),
+            ("fragment counters", 16, storage, MemoryUse::Readback),
+        ];
+        let mut made: Vec<Buffer> = Vec::with_capacity(specs.len());
+        for (name, size, usage, use_) in specs {
+            match buffer(ctx, &format!("{name}[{i}]"), size, usage, use_) {
+                Ok(b) => made.push(b),
+                Err(e) => {
+                    for b in made {
+                        ctx.destroy_buffer(b);
+                    }
+                    return Err(e);
+                }
+            }
+        }
+        let mut it = made.into_iter();
+        let (
+            Some(uniforms),
+            Some(records),
+            Some(order),
+            Some(entries),
+            Some(meshes),
+            Some(materials),
+            Some(counters),
+        ) = (
+            it.next(),
+            it.next(),
+            it.next(),
+            it.next(),
+            it.next(),
+            it.next(),
+            it.next(),
+        )
+        else {
+            return Err(VkError::Invalid {
+                what: "scene buffers".into(),
+                reason: "not all made".into(),
+            });
+        };
+        let mut slot = SlotBuffers {
+            uniforms,
+            records,
+            order,
+            entries,
+            meshes,
+            materials,
+            counters,
+            staging: None,
+            set: vk::DescriptorSet::null(),
+            culled_set: None,
+            cursor: None,
+            geometry_serial: self.geometry_serial,
+        };
+        match allocate_set(ctx, self.pool, self.set_layout) {
+            Ok(set) => slot.set = set,
+            Err(e) => {
+                destroy_slot(ctx, slot);
+                return Err(e);
+            }
+        }
+        self.write_sets(ctx, &slot);
+        Ok(slot)
+    }
+
+    /// Writes a slot's sets over its buffers and the resident geometry.
+    fn write_sets(&self, ctx: &Context, slot: &SlotBuffers) {
+        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
+        let sets = [(slot.set, slot.entries.raw)]
+            .into_iter()
+            .chain(slot.culled_set.zip(self.culled_draw_ids));
+        for (set, draw_list) in sets {
+            write_buffer_set(
+                ctx,
+                set,
+                &[
+                    (0, vk::DescriptorType::UNIFORM_BUFFER, slot.uniforms.raw),
+                    (1, ssbo, slot.records.raw),
+                    (2, ssbo, draw_list),
+                    (3, ssbo, slot.meshes.raw),
+                    (4, ssbo, slot.materials.raw),
+                    (5, ssbo, self.vertices.raw),
+                    (6, ssbo, self.indices.raw),
+                    (7, ssbo, slot.counters.raw),
+                ],
+            );
+        }
+    }
+
+    /// Creates, per frame slot, the set that GPU-culled draws bind: the same as the plain one
+    /// but with the draw list the culling shader writes (`draw_ids`).
+    pub fn add_culled_sets(&mut self, ctx: &Context, draw_ids: vk::Buffer) -> Result<(), VkError> {
+        self.culled_draw_ids = Some(draw_ids);
+        for i in 0..self.frames.len() {
+            let set = allocate_set(ctx, self.pool, self.set_layout)?;
+            self.frames[i].culled_set = Some(set);
+            self.write_sets(ctx, &self.frames[i]);
+        }
+        Ok(())
+    }
+
+    /// The culled-draw set of a frame slot (after [`Self::add_culled_sets`]).
+    pub fn culled_set(&self, slot: usize) -> Option<vk::DescriptorSet> {
+        self.frames.get(slot).and_then(|f| f.culled_set)
+    }
+
+    /// The descriptor set (set 0) of a frame slot.
+    pub fn set(&self, slot: usize) -> Option<vk::DescriptorSet> {
+        self.frames.get(slot).map(|f| f.set)
+    }
+
+    /// The instance entries (`order`) of a frame slot, which the culling shader reads.
+    pub fn order(&self, slot: usize) -> Option<vk::Buffer> {
+        self.frames.get(slot).map(|f| f.order.raw)
+    }
+
+    /// The room the per-slot buffers have.
+    pub fn capacity(&self) -> Capacity {
+        self.capacity
+    }
+
+    /// Brings `slot`'s buffers up to `scene` (what changed since the slot's last frame), writes
+    /// this frame's uniforms and CPU lists (`cpu_entries`: instance ids from
+    /// [`Capacity::cpu_base`]), and stages the geometry the scene added since the last frame
+    /// (the caller guarantees the GPU finished the slot's previous frame, and records
+    /// [`Self::record_upload`] before the frame's passes).
+    pub fn write_frame(
+        &mut self,
+        ctx: &Context,
+        slot: usize,
+        scene: &Scene,
+        uniforms: &FrameUniforms,
+        cpu_entries: &[u32],
+    ) -> Result<(), VkError> {
+        if !self.capacity.holds(scene)
+            || cpu_entries.len() as u64 > u64::from(self.capacity.instances)
+        {
+            return Err(VkError::Invalid {
+                what: "scene buffers".into(),
+                reason: format!(
+                    "scene of {} instance slots and stride {} past the capacity {:?}",
+                    scene.instances().len(),
+                    scene.buckets().stride(),
+                    self.capacity
+                ),
+            });
+        }
+        self.frames_written += 1;
+        self.destroy_retired(ctx);
+        self.sync_geometry(ctx, slot, scene)?;
+        self.sync_slot(ctx, slot, scene)?;
+        let base = self.capacity.cpu_base() as usize * 4;
+        let f = self.frames.get_mut(slot).ok_or_else(|| no_slot(slot))?;
+        ctx.write_mapped(&mut f.uniforms, 0, bytemuck::bytes_of(uniforms))?;
+        ctx.write_mapped(&mut f.entries, base, bytemuck::cast_slice(cpu_entries))?;
+        ctx.write_mapped(&mut f.counters, 0, &[0u8; 16])?;
+        Ok(())
+    }
+}
+
+impl GpuScene {
+    /// Fragments shaded per material class (opaque, alpha-tested, blended) by the frame last
+    /// recorded into `slot`, when it counted them (`forward_count.frag`). Call after the frame
+    /// completed.
+    pub fn fragment_counts(&self, ctx: &Context, slot: usize) -> Result<[u32; 3], VkError> {
+        let f = self.frames.get(slot).ok_or_else(|| no_slot(slot))?;
+        ctx.invalidate_mapped(&f.counters)?;
+        let m = f.counters.mapped().ok_or_else(|| VkError::Invalid {
+            what: "fragment counters".into(),
+            reason: "not host-visible".into(),
+        })?;
+        let word =
+            |i: usize| u32::from_le_bytes([m[4 * i], m[4 * i + 1], m[4 * i + 2], m[4 * i + 3]]);
+        Ok([word(0), word(1), word(2)])
+    }
+
+    /// The instance entries (`order`) of the frame last written into `slot`, for its first
+    /// `instances` slots (tests and tools; call once that frame completed).
+    pub fn read_order(
+        &self,
+        ctx: &Context,
+        slot: usize,
+        instances: usize,
+    ) -> Result<Vec<u32>, VkError> {
+        let f = self.frames.get(slot).ok_or_else(|| no_slot(slot))?;
+        ctx.invalidate_mapped(&f.order)?;
+        let bytes = f.order.mapped().unwrap_or(&[]);
+        Ok(bytes
+            .chunks_exact(4)
+            .take(instances)
+            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .collect())
+    }
+
+    /// Device memory of the scene on the GPU, in bytes: the resident geometry, and each
+    /// slot's records, entries, tables and staging.
+    pub fn memory_bytes(&self) -> u64 {
+        let slots: u64 = self
+            .frames
+            .iter()
+            .map(|f| {
+                [
+                    &f.uniforms,
+                    &f.records,
+                    &f.order,
+                    &f.entries,
+                    &f.meshes,
+                    &f.materials,
+                ]
+                .iter()
+                .map(|b| b.size)
+                .sum::<u64>()
+                    + f.staging.as_ref().map_or(0, |s| s.size)
+            })
+            .sum();
+        self.vertices.size + self.indices.size + slots
+    }
+
+    pub fn destroy(self, ctx: &Context) {
+        for f in self.frames {
+            destroy_slot(ctx, f);
+        }
+        for (b, _) in self.retired {
+            ctx.destroy_buffer(b);
+        }
+        // SAFETY: the caller waited for the GPU; sets are freed with the pool (a null pool or
+        // layout is ignored).
+        unsafe {
+            ctx.device.destroy_descriptor_pool(self.pool, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+        ctx.destroy_buffer(self.vertices);
+        ctx.destroy_buffer(self.indices);
+    }
+}
+
+fn no_slot(slot: usize) -> VkError {
+    VkError::Invalid {
+        what: "frame slot".into(),
+        reason: format!("{slot} out of range"),
+    }
+}

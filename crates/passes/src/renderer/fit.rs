@@ -1,0 +1,134 @@
+//! Keeping a renderer fit for a scene that changes: room in its buffers, per-instance layouts
+//! that cannot follow changes made again, the frame's passes decided again when a material
+//! class appears or disappears; and what the CPU decides per frame, kept between frames.
+
+use std::sync::Arc;
+
+use tilegraph_scene::{DrawGroup, Scene};
+use tilegraph_vk::Context;
+
+use super::{create_resources, SceneRenderer};
+use crate::gpu_scene::Capacity;
+use crate::occlusion::OqState;
+use crate::options::{RenderError, RenderOptions};
+use crate::setup::{FrameSetup, SceneContent};
+
+/// What the CPU decides per frame: the frustum's blended instances (and opaque ones for the
+/// techniques whose CPU lists draw them), a per-slot mask of them for the occlusion queries,
+/// and the scene's buckets in the frame's draw order.
+#[derive(Debug, Default)]
+pub(super) struct CpuLists {
+    pub(super) visible: Vec<u32>,
+    pub(super) blended: Vec<u32>,
+    pub(super) mask: Vec<bool>,
+    /// The slots set in `mask` (cleared next frame: the cost follows what is visible).
+    marked: Vec<u32>,
+    pub(super) groups: Vec<DrawGroup>,
+}
+
+impl CpuLists {
+    /// `mask` for a scene of `slots` instance slots: true exactly for `visible`.
+    pub(super) fn mark_visible(&mut self, slots: usize) {
+        for &i in &self.marked {
+            if let Some(m) = self.mask.get_mut(i as usize) {
+                *m = false;
+            }
+        }
+        self.mask.resize(slots, false);
+        self.marked.clear();
+        for &i in &self.visible {
+            if let Some(m) = self.mask.get_mut(i as usize) {
+                *m = true;
+                self.marked.push(i);
+            }
+        }
+    }
+}
+
+/// The frame setup of `options` for a scene holding `content`, on `ctx`'s profile.
+pub(super) fn decide_setup(
+    options: &RenderOptions,
+    ctx: &Context,
+    content: SceneContent,
+) -> FrameSetup {
+    crate::setup::decide_for(
+        content,
+        ctx.profile(),
+        options.technique,
+        options.culling,
+        crate::setup::PrepassKnobs {
+            depth: options.depth_prepass,
+            alpha: options.alpha_prepass,
+        },
+    )
+}
+
+impl SceneRenderer {
+    /// Makes the renderer fit `scene` before a frame: buffers with room for its instances and
+    /// lists (else new ones: the frames in flight are waited for, once per doubling), per-
+    /// instance layouts made again where they cannot follow changes (cluster bases when
+    /// instances come or go; query groups when a quarter of the instances changed), and the
+    /// frame's passes decided again when a material class appears or disappears.
+    pub(super) fn fit(&mut self, ctx: &Context, scene: &Scene) -> Result<(), RenderError> {
+        let culling = self.options.culling;
+        let mut rebuild = !self.resources.scene.capacity().holds(scene);
+        if culling.clusters() && self.structure != scene.structure_version() {
+            rebuild = true;
+        }
+        if let Some(oq) = self.resources.states.get_mut::<OqState>() {
+            match self.oq_cursor.and_then(|c| scene.changes_since(c)) {
+                Some(changes) => {
+                    for c in changes {
+                        if let tilegraph_scene::Change::Instance(i) = c {
+                            oq.forget(*i);
+                        }
+                    }
+                    rebuild |= oq.forgotten() * 4 > scene.live_instances().max(64);
+                }
+                None => rebuild = true,
+            }
+        }
+        if rebuild {
+            self.rebuild(ctx, scene)?;
+        }
+        self.structure = scene.structure_version();
+        self.oq_cursor = Some(scene.cursor());
+        let content = SceneContent::of(scene);
+        if content.presence() != self.content.presence() {
+            self.setup = Arc::new(decide_setup(&self.options, ctx, content));
+            self.declared = None;
+        }
+        self.content = content;
+        Ok(())
+    }
+
+    /// New buffers and technique states for `scene` (the frames in flight are waited for; the
+    /// old ones go), and the frame declared again.
+    fn rebuild(&mut self, ctx: &Context, scene: &Scene) -> Result<(), RenderError> {
+        self.executor.finish(ctx)?;
+        let hint = self
+            .options
+            .instance_capacity
+            .max(self.resources.scene.capacity().instances);
+        let capacity = Capacity::for_scene(scene, hint);
+        log::info!(
+            "renderer: new buffers for {} instance slots, list stride {} ({:?})",
+            scene.instances().len(),
+            scene.buckets().stride(),
+            capacity
+        );
+        let fresh = create_resources(
+            ctx,
+            scene,
+            &self.options,
+            self.executor.frames_in_flight(),
+            capacity,
+        )?;
+        self.declared = None;
+        let old = std::mem::replace(&mut self.resources, fresh);
+        old.destroy(ctx);
+        self.last_drawn = None;
+        self.gpu_counts = None;
+        Ok(())
+    }
+}
