@@ -131,6 +131,7 @@ impl Device {
             queue_index: 0,
             enabled: config.enabled.clone(),
             profile,
+            profile_forced_by: "debug.tilegraph.profile".into(),
         };
         // SAFETY: created above with tilegraph's configuration; destroyed after the context.
         let ctx = unsafe { Context::adopt(adopted, handed) }?;

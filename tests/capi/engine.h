@@ -336,4 +336,56 @@ static int engine_destroy(Engine *e) {
     return engine_messages;
 }
 
+/* Copies the image (left in TRANSFER_SRC by tilegraph) into the file at `path` (raw RGBA8). */
+static inline void engine_read_back(const Engine *e, const EngineImage *img, uint32_t width,
+                                    uint32_t height, const char *path) {
+    VkDeviceSize size = (VkDeviceSize)width * height * 4;
+    VkBufferCreateInfo info = {.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO,
+                               .size = size,
+                               .usage = VK_BUFFER_USAGE_TRANSFER_DST_BIT};
+    VkBuffer buffer;
+    VK_CHECK(vkCreateBuffer(e->device, &info, NULL, &buffer));
+    VkMemoryRequirements req;
+    vkGetBufferMemoryRequirements(e->device, buffer, &req);
+    VkMemoryAllocateInfo alloc = {
+        .sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO,
+        .allocationSize = req.size,
+        .memoryTypeIndex = engine_memory_type(e, req.memoryTypeBits,
+                                              VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
+                                                  VK_MEMORY_PROPERTY_HOST_COHERENT_BIT)};
+    VkDeviceMemory memory;
+    VK_CHECK(vkAllocateMemory(e->device, &alloc, NULL, &memory));
+    VK_CHECK(vkBindBufferMemory(e->device, buffer, memory, 0));
+
+    EngineSlot s = engine_slot(e);
+    engine_begin(e, &s);
+    VkBufferImageCopy region = {.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1},
+                                .imageExtent = {width, height, 1}};
+    vkCmdCopyImageToBuffer(s.cb, img->image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, buffer, 1,
+                           &region);
+    VkMemoryBarrier2 to_host = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER_2,
+                                .srcStageMask = VK_PIPELINE_STAGE_2_COPY_BIT,
+                                .srcAccessMask = VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                                .dstStageMask = VK_PIPELINE_STAGE_2_HOST_BIT,
+                                .dstAccessMask = VK_ACCESS_2_HOST_READ_BIT};
+    VkDependencyInfo dep = {.sType = VK_STRUCTURE_TYPE_DEPENDENCY_INFO,
+                            .memoryBarrierCount = 1,
+                            .pMemoryBarriers = &to_host};
+    vkCmdPipelineBarrier2(s.cb, &dep);
+    engine_submit(e, &s);
+    VK_CHECK(vkWaitForFences(e->device, 1, &s.fence, VK_TRUE, UINT64_MAX));
+
+    void *pixels;
+    VK_CHECK(vkMapMemory(e->device, memory, 0, size, 0, &pixels));
+    FILE *f = fopen(path, "wb");
+    CHECK(f != NULL, "cannot write %s", path);
+    CHECK(fwrite(pixels, 1, (size_t)size, f) == (size_t)size, "short write to %s", path);
+    fclose(f);
+    vkUnmapMemory(e->device, memory);
+    engine_slot_destroy(e, &s);
+    vkDestroyBuffer(e->device, buffer, NULL);
+    vkFreeMemory(e->device, memory, NULL);
+}
+
+
 #endif

@@ -163,6 +163,7 @@ impl Engine {
             queue_index: 0,
             enabled: config.enabled.clone(),
             profile: profile.map(str::to_string),
+            profile_forced_by: "the test engine".into(),
         };
         // SAFETY: the device was created just above with the configuration tilegraph asked
         // for; the engine destroys it only after the context.

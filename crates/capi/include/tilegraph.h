@@ -22,6 +22,16 @@
 #include <stddef.h>
 
 /**
+ * Kept in the scene, not drawn (nor culled: it costs nothing per frame).
+ */
+#define TG_INSTANCE_HIDDEN 1
+
+/**
+ * Drawn into shadow maps (instances of a loaded or created scene have it).
+ */
+#define TG_INSTANCE_CASTS_SHADOWS 2
+
+/**
  * What a call did. `TG_STATUS_OK` is zero; every other value leaves a message for
  * `tg_last_error`.
  */
@@ -408,6 +418,56 @@ typedef uint32_t TgPassClass;
 #endif // __cplusplus
 
 /**
+ * A scene.
+ */
+typedef struct {
+  uint64_t raw;
+} TgScene;
+
+typedef struct {
+  float base_color[4];
+  /**
+   * A TgMaterialClass.
+   */
+  uint32_t material_class;
+  /**
+   * For TG_MATERIAL_CLASS_ALPHA_TESTED: alpha below it is discarded.
+   */
+  float alpha_cutoff;
+  /**
+   * Non-zero: drawn without back-face culling.
+   */
+  uint32_t double_sided;
+} TgMaterial;
+
+/**
+ * One vertex: 32 bytes, 4-byte aligned.
+ */
+typedef struct {
+  float position[3];
+  float normal[3];
+  float uv[2];
+} TgVertex;
+
+/**
+ * A placement: a column-major 3x3 linear part and an f64 translation.
+ */
+typedef struct {
+  float linear[9];
+  double translation[3];
+} TgTransform;
+
+/**
+ * An instance to add: a mesh handle (`tg_scene_add_mesh`, `tg_scene_mesh_handle`), where,
+ * and its TG_INSTANCE_* flags.
+ */
+typedef struct {
+  uint64_t mesh;
+  TgTransform transform;
+  uint32_t flags;
+} TgInstanceDesc;
+
+/**
  * `vkGetInstanceProcAddr` as the engine has it (the loader's, or its own layer chain's):
  * `PFN_vkVoidFunction (VkInstance, const char*)`.
  */
@@ -678,13 +738,6 @@ typedef struct {
   int32_t new_layout;
 } TgBarrier;
 
-/**
- * A scene.
- */
-typedef struct {
-  uint64_t raw;
-} TgScene;
-
 typedef struct {
   /**
    * A TgTechnique.
@@ -848,31 +901,6 @@ typedef struct {
 } TgPassTime;
 
 /**
- * One vertex: 32 bytes, 4-byte aligned.
- */
-typedef struct {
-  float position[3];
-  float normal[3];
-  float uv[2];
-} TgVertex;
-
-typedef struct {
-  float base_color[4];
-  /**
-   * A TgMaterialClass.
-   */
-  uint32_t material_class;
-  /**
-   * For TG_MATERIAL_CLASS_ALPHA_TESTED: alpha below it is discarded.
-   */
-  float alpha_cutoff;
-  /**
-   * Non-zero: drawn without back-face culling.
-   */
-  uint32_t double_sided;
-} TgMaterial;
-
-/**
  * A mesh: a range of the scene's vertices and indices (indices relative to `first_vertex`)
  * with one material.
  */
@@ -919,6 +947,120 @@ typedef struct {
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+/**
+ * Adds a material; its index goes to `out_material`.
+ *
+ * # Safety
+ * `material` is readable, `out_material` writable.
+ */
+TgStatus tg_scene_add_material(TgScene scene,
+                               const TgMaterial *material_desc,
+                               uint32_t *out_material);
+
+/**
+ * Adds a mesh: its vertices and indices (relative to its first vertex) go into free ranges of
+ * the scene's shared buffers; renderers copy them to the GPU at their next record. Its handle
+ * goes to `out_mesh`. Refused (TG_STATUS_SCENE) on a scene with clusters attached.
+ *
+ * # Safety
+ * The arrays hold their counts; `out_mesh` is writable.
+ */
+TgStatus tg_scene_add_mesh(TgScene scene,
+                           const TgVertex *vertices,
+                           uint32_t vertex_count,
+                           const uint32_t *indices,
+                           uint32_t index_count,
+                           uint32_t material_index,
+                           uint64_t *out_mesh);
+
+/**
+ * Removes a mesh no instance draws any more (TG_STATUS_IN_USE otherwise); its ranges of the
+ * shared buffers are free for the next mesh.
+ */
+TgStatus tg_scene_remove_mesh(TgScene scene, uint64_t mesh);
+
+/**
+ * The handle of mesh `index` of a loaded or created scene (its meshes in order).
+ *
+ * # Safety
+ * `out_mesh` is writable.
+ */
+TgStatus tg_scene_mesh_handle(TgScene scene, uint32_t index, uint64_t *out_mesh);
+
+/**
+ * The handle of instance `index` of a loaded or created scene (its instances in order).
+ *
+ * # Safety
+ * `out_instance` is writable.
+ */
+TgStatus tg_scene_instance_handle(TgScene scene, uint32_t index, uint64_t *out_instance);
+
+/**
+ * Adds `count` instances; their handles go to `out_instances` (in order). All or nothing: an
+ * error (a stale mesh handle, a non-finite transform, unknown flags) names the entry and adds
+ * none.
+ *
+ * # Safety
+ * `descs` holds `count` elements, `out_instances` room for `count`.
+ */
+TgStatus tg_scene_add_instances(TgScene scene,
+                                const TgInstanceDesc *descs,
+                                uint32_t count,
+                                uint64_t *out_instances);
+
+/**
+ * Removes `count` instances. All or nothing: a stale or repeated handle names the entry and
+ * removes none.
+ *
+ * # Safety
+ * `instances` holds `count` elements.
+ */
+TgStatus tg_scene_remove_instances(TgScene scene, const uint64_t *instances, uint32_t count);
+
+/**
+ * Moves `count` instances: `instances[k]` to `transforms[k]`. One call a frame for every
+ * moving object. All or nothing: a stale handle or a non-finite transform names the entry and
+ * moves none.
+ *
+ * # Safety
+ * Both arrays hold `count` elements.
+ */
+TgStatus tg_scene_set_transforms(TgScene scene,
+                                 const uint64_t *instances,
+                                 const TgTransform *transforms,
+                                 uint32_t count);
+
+/**
+ * Sets `count` instances' TG_INSTANCE_* flags: `flags[k]` for `instances[k]`. All or nothing.
+ *
+ * # Safety
+ * Both arrays hold `count` elements.
+ */
+TgStatus tg_scene_set_flags(TgScene scene,
+                            const uint64_t *instances,
+                            const uint32_t *flag_bits,
+                            uint32_t count);
+
+/**
+ * Gives an instance the local box of its animated mesh (a skinned character: the box of every
+ * pose), which culling then tests; null `min` and `max` give it back its mesh's box.
+ *
+ * # Safety
+ * `min` and `max` are both null or both readable float[3].
+ */
+TgStatus tg_scene_set_local_bounds(TgScene scene,
+                                   uint64_t instance,
+                                   const float (*min)[3],
+                                   const float (*max)[3]);
+
+/**
+ * Where a live instance is.
+ *
+ * # Safety
+ * `out_transform` is writable.
+ */
+TgStatus tg_scene_instance_transform(TgScene scene, uint64_t instance, TgTransform *out_transform);
 
 /**
  * What the engine must enable on its device to render with `query`'s technique and culling

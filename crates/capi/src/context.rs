@@ -354,6 +354,7 @@ pub unsafe extern "C" fn tg_context_adopt(
             queue_index: info.queue_index,
             enabled,
             profile: profile.map(str::to_string),
+            profile_forced_by: "TgAdoptInfo.profile".into(),
         };
         // SAFETY: as above.
         let ctx = unsafe { Context::adopt(instance, adopted) }?;

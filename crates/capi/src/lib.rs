@@ -11,10 +11,13 @@
 //! - `context.rs`: what to enable on the engine's device, adopting it, the profile, a memory
 //!   budget;
 //! - `scene.rs`: scenes from plain arrays or a glTF file, cameras;
+//! - `changes.rs`: a scene a game changes every frame, by handle (meshes, instances, batched
+//!   transforms, flags, animated bounds);
 //! - `renderer.rs`: recording a scene's frame into the engine's command buffer, statistics;
 //! - `graph.rs`, `plan.rs`: the compiler alone — declare, compile, walk the plan;
 //! - `features.rs`: tilegraph's features set in the engine's own feature structs.
 
+pub mod changes;
 pub mod context;
 pub mod features;
 pub mod graph;
@@ -24,6 +27,10 @@ pub mod renderer;
 pub mod scene;
 pub mod status;
 
+#[cfg(test)]
+mod cluster_tests;
+
+pub use changes::{TgInstanceDesc, TgTransform, TG_INSTANCE_CASTS_SHADOWS, TG_INSTANCE_HIDDEN};
 pub use context::{
     TgAdoptInfo, TgContext, TgCulling, TgDeviceQuery, TgDeviceRequirements, TgFeature, TgTechnique,
 };

@@ -292,6 +292,22 @@ pub fn with_unused_mut<T: Any, R>(
     })
 }
 
+/// Runs `f` on the object `raw` names, mutably, users or not: for an object its users follow
+/// (a scene its renderers read at their next record).
+pub fn with_mut<T: Any, R>(
+    raw: u64,
+    kind: Kind,
+    name: &str,
+    f: impl FnOnce(&mut T) -> Result<R, Failure>,
+) -> Result<R, Failure> {
+    REGISTRY.with(|r| {
+        let mut r = r.borrow_mut();
+        let slot = r.slot(raw, kind, name)?;
+        let object: &mut T = downcast(slot, name)?;
+        f(object)
+    })
+}
+
 /// Puts an object taken with [`take`] back.
 pub fn put_back<T: Any>(raw: u64, kind: Kind, object: Box<T>) {
     REGISTRY.with(|r| {

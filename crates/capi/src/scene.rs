@@ -156,7 +156,7 @@ impl TgCamera {
     }
 }
 
-fn material(index: usize, m: &TgMaterial) -> Result<Material, Failure> {
+pub(crate) fn material(index: usize, m: &TgMaterial) -> Result<Material, Failure> {
     let class = match m.material_class {
         0 => MaterialClass::Opaque,
         1 => MaterialClass::AlphaTested {

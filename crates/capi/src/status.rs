@@ -146,7 +146,12 @@ impl From<GraphError> for Failure {
 
 impl From<SceneError> for Failure {
     fn from(e: SceneError) -> Self {
-        Failure::new(TgStatus::Scene, e.to_string())
+        let status = match e {
+            SceneError::StaleHandle { .. } => TgStatus::InvalidHandle,
+            SceneError::MeshInUse { .. } => TgStatus::InUse,
+            _ => TgStatus::Scene,
+        };
+        Failure::new(status, e.to_string())
     }
 }
 
@@ -305,6 +310,25 @@ pub unsafe fn array<'a, T>(ptr: *const T, count: usize, name: &str) -> Result<&'
     }
     // SAFETY: non-null, aligned, size in range (checked); valid by the caller's contract.
     Ok(unsafe { std::slice::from_raw_parts(ptr, count) })
+}
+
+/// An output array of `count` elements: `count` zero is an empty slice (the pointer may then be
+/// null); otherwise the pointer must be non-null and aligned.
+///
+/// # Safety
+/// A non-null `ptr` points to `count` writable elements.
+pub unsafe fn out_array<'a, T>(
+    ptr: *mut T,
+    count: usize,
+    name: &str,
+) -> Result<&'a mut [T], Failure> {
+    // SAFETY: the caller's contract; `array` checks null, alignment and size.
+    let checked = unsafe { array(ptr.cast_const(), count, name) }?;
+    if checked.is_empty() {
+        return Ok(&mut []);
+    }
+    // SAFETY: non-null, aligned, in range (checked above); writable by the caller's contract.
+    Ok(unsafe { std::slice::from_raw_parts_mut(ptr, count) })
 }
 
 /// A NUL-terminated UTF-8 string argument.

@@ -3,6 +3,8 @@
 //!
 //! - `sample.c` renders the city with two-phase HiZ on the C engine's own device, into its own
 //!   image, through its own command buffers; its pixels equal the Rust path's, bit for bit;
+//! - `moving.c` moves, spawns and removes instances every frame through the C ABI before
+//!   recording; its pixels equal the same changes made through the Rust API, bit for bit;
 //! - `errors.c` drives every error status and checks each message, faults included.
 //!
 //! `cargo xtask test` builds the static library first (`cargo build --profile test -p
@@ -130,6 +132,86 @@ fn the_c_sample_renders_the_rust_paths_image() {
     assert!(log.lines().any(|l| l.starts_with("  frame ")), "{log}");
     let pixels = std::fs::read(&out).unwrap();
     let reference = rust_reference();
+    assert_eq!(pixels.len(), reference.len());
+    let differing = pixels
+        .iter()
+        .zip(&reference)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert_eq!(
+        differing, 0,
+        "{differing} bytes differ from the Rust path's image"
+    );
+}
+
+/// The Rust path of `tests/capi/moving.c`: the same changes before the same frames.
+fn rust_moving_reference() -> Vec<u8> {
+    use glam::Mat3;
+    use tilegraph_scene::{InstanceFlags, InstanceId, MeshId, Transform};
+    let mut scene = tilegraph_scene::load("city:300").unwrap();
+    let options = RenderOptions {
+        technique: Technique::Prepass,
+        culling: Culling::HizTwoPhase,
+        width: 160,
+        height: 90,
+        ..Default::default()
+    };
+    let g = gpu_with(Some("mali-valhall"), options.device_features()).unwrap();
+    let movers: Vec<_> = (0..40)
+        .map(|k| scene.instance_handle(InstanceId(3 * k)).unwrap())
+        .collect();
+    let base: Vec<Transform> = movers
+        .iter()
+        .map(|h| scene.instance(*h).unwrap().transform)
+        .collect();
+    let crate_mesh = scene.mesh_handle(MeshId(2)).unwrap();
+    let path = scene.camera_path().clone();
+    let mut spawned = Vec::new();
+    let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+    for (i, frame) in path.frames(160.0 / 90.0).take(8).enumerate() {
+        let moves: Vec<_> = movers
+            .iter()
+            .zip(&base)
+            .enumerate()
+            .map(|(k, (h, t))| {
+                let mut t = *t;
+                t.translation.x += ((i + k) % 4) as f64 * 0.5;
+                (*h, t)
+            })
+            .collect();
+        scene.set_transforms(&moves).unwrap();
+        let camera = path.camera(i).unwrap();
+        let added: Vec<_> = (0..4)
+            .map(|k| {
+                let mut at = camera.eye + (camera.target - camera.eye) * 0.25;
+                at.x += f64::from(k) * 1.5;
+                let t = Transform::new(Mat3::IDENTITY, at);
+                scene
+                    .add_instance(crate_mesh, t, InstanceFlags::CASTS_SHADOWS)
+                    .unwrap()
+            })
+            .collect();
+        spawned.push(added);
+        if i >= 2 {
+            for h in &spawned[i - 2] {
+                scene.remove_instance(*h).unwrap();
+            }
+        }
+        r.render_frame(&g, &scene, &frame).unwrap();
+    }
+    let image = r.read_image(&g).unwrap();
+    r.destroy(&g);
+    image.pixels
+}
+
+#[test]
+fn the_c_moving_scene_renders_the_rust_paths_image() {
+    let exe = compile("moving");
+    let out = target_dir().join("capi-moving.rgba");
+    let log = run(&exe, &[out.to_str().unwrap()]);
+    assert!(log.trim_end().ends_with("ok"), "{log}");
+    let pixels = std::fs::read(&out).unwrap();
+    let reference = rust_moving_reference();
     assert_eq!(pixels.len(), reference.len());
     let differing = pixels
         .iter()

@@ -82,6 +82,7 @@ pub fn check(
         auto: resolved.auto_trial(crate::run::auto_inputs(ctx)),
         on_failure: save_frames.map(|_| &mut save as OnFailure<'_>),
         on_frame: Some(&mut progress),
+        motion: crate::run::split_motion(&a.scene)?.1,
         timing_warmup: crate::run::TIMING_WARMUP,
     };
     let check = cull_check_options(ctx, scene, o, &path, a.frames.map(|f| f as usize), extras);

@@ -23,7 +23,7 @@ pub fn run(profile: Option<&str>, scene: Option<&str>, json: bool) -> Result<(),
     let set = ProfileSet::from_env()?;
     let profile = profile.map(|p| set.get(p)).transpose()?;
     let content = scene
-        .map(tilegraph_scene::load)
+        .map(|s| crate::run::load_scene(s, false))
         .transpose()?
         .map(|s| SceneContent::of(&s));
     let rows: Vec<KnobJson> = KNOBS

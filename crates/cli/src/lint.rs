@@ -12,7 +12,7 @@ use crate::CliError;
 
 pub fn run(args: &RunArgs) -> Result<(), CliError> {
     let knobs = args.knob_settings(TechniqueMeant::Shading)?;
-    let scene = tilegraph_scene::load(&args.scene)?;
+    let scene = crate::run::load_scene(&args.scene, false)?;
     let (w, h) = args.size.unwrap_or((160, 90));
     crate::run::on_context(args.context_options(FeatureRequest::executor()), |ctx| {
         let mut ropts = RenderOptions {

@@ -295,7 +295,7 @@ fn scene_info(
     clusters: bool,
     write_clusters: Option<&std::path::Path>,
 ) -> Result<(), CliError> {
-    let scene = tilegraph_scene::load(spec)?;
+    let scene = run::load_scene(spec, false)?;
     let info = scene.info();
     let clusters = if clusters || write_clusters.is_some() {
         let (data, stats) = tilegraph_scene::clusters::build(&scene)?;

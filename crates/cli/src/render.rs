@@ -69,6 +69,26 @@ struct TimingJson {
     median_gpu_ms: f64,
 }
 
+/// The scene a render draws: as loaded, or moving one frame further at every frame
+/// (`SPEC@moving`, [`crate::run::split_motion`]).
+struct World<'a> {
+    still: &'a tilegraph_scene::Scene,
+    moving: Option<(tilegraph_scene::Scene, tilegraph_scene::Motion)>,
+    frame: usize,
+}
+
+impl World<'_> {
+    /// The scene of the next frame.
+    fn next(&mut self) -> Result<&tilegraph_scene::Scene, CliError> {
+        let Some((scene, motion)) = &mut self.moving else {
+            return Ok(self.still);
+        };
+        motion.apply(scene, self.frame)?;
+        self.frame += 1;
+        Ok(scene)
+    }
+}
+
 pub fn run(args: &RenderArgs<'_>) -> Result<(), CliError> {
     image_io::check_png_path(args.out)?;
     let run = args.run;
@@ -102,14 +122,24 @@ fn render_with(
             path.len()
         ))
     })?;
+    let mut world = World {
+        still: scene,
+        moving: crate::run::split_motion(&run.scene)?
+            .1
+            .map(|p| (scene.clone(), tilegraph_scene::Motion::new(scene, &path, p))),
+        frame: 0,
+    };
     let mut renderer = SceneRenderer::new(ctx, scene, ropts.clone())?;
     let mut trial_reason = None;
     // `auto`: time every candidate on this device first, keep the fastest.
     if let Some(mut trial) = resolved.auto_trial(crate::run::auto_inputs(ctx)) {
         while trial_reason.is_none() {
-            if let Err(e) = renderer.render(ctx, scene, &camera) {
+            let drawn = world
+                .next()
+                .and_then(|s| Ok(renderer.render(ctx, s, &camera)?));
+            if let Err(e) = drawn {
                 renderer.destroy(ctx);
-                return Err(e.into());
+                return Err(e);
             }
             // On an error the trial has destroyed the renderer.
             let (next, why) = trial.after_render(ctx, scene, renderer, &mut ropts)?;
@@ -124,7 +154,7 @@ fn render_with(
         let mut lint = None;
         renderer.lint_next_frame();
         for _ in 0..frames {
-            let report = renderer.render(ctx, scene, &camera)?;
+            let report = renderer.render(ctx, world.next()?, &camera)?;
             lint = lint.or_else(|| report.lint.clone());
             last = Some(report);
         }
@@ -144,7 +174,7 @@ fn render_with(
         };
         renderer.set_gpu_timing(ctx, GpuTiming::Frame)?;
         for _ in 0..frames {
-            renderer.render(ctx, scene, &camera)?;
+            renderer.render(ctx, world.next()?, &camera)?;
         }
         renderer.finish(ctx)?;
         let timed = Timed {

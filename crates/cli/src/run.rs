@@ -9,7 +9,7 @@ use tilegraph_passes::cull::Culling;
 use tilegraph_passes::knobs::{self, AutoInputs, Resolved};
 use tilegraph_passes::{RenderOptions, Technique};
 use tilegraph_profile::knobs::{KnobSettings, KnobValue};
-use tilegraph_scene::{CameraPath, Scene};
+use tilegraph_scene::{CameraPath, MotionParams, Scene};
 use tilegraph_vk::{Context, ContextOptions, Feature, FeatureRequest};
 
 use crate::{parse_size, CliError};
@@ -145,9 +145,50 @@ pub fn wants_clusters(knobs: &KnobSettings) -> bool {
         .is_some_and(Culling::clusters)
 }
 
-/// Loads the scene `spec`; with `clusters`, attaches its clusters: from the cache
-/// (`tilegraph_scene::clusters::cache_dir`), else built with meshoptimizer and cached.
+/// A scene spec's motion: `SPEC@moving[:MOVERS[:SPAWNS[:SEED]]]` moves the scene along the
+/// camera path ([`MotionParams`]: the share of small instances that move, the instances
+/// spawned in front of the camera, the seed); returns the spec without it.
+pub fn split_motion(spec: &str) -> Result<(&str, Option<MotionParams>), CliError> {
+    let Some((scene, motion)) = spec.rsplit_once("@moving") else {
+        return Ok((spec, None));
+    };
+    let bad = |why: &str| {
+        CliError::Usage(format!(
+            "scene `{spec}`: {why} (SPEC@moving[:MOVERS[:SPAWNS[:SEED]]], e.g. city:10k@moving:0.2:12:1)"
+        ))
+    };
+    let mut params = MotionParams::default();
+    if !motion.is_empty() {
+        let parts: Vec<&str> = motion
+            .strip_prefix(':')
+            .ok_or_else(|| bad("`@moving` is followed by `:`"))?
+            .split(':')
+            .collect();
+        if parts.len() > 3 {
+            return Err(bad("too many fields"));
+        }
+        if let Some(m) = parts.first() {
+            params.movers = m
+                .parse::<f64>()
+                .ok()
+                .filter(|m| (0.0..=1.0).contains(m))
+                .ok_or_else(|| bad("MOVERS is a share from 0 to 1"))?;
+        }
+        if let Some(n) = parts.get(1) {
+            params.spawns = n.parse().map_err(|_| bad("SPAWNS is a count"))?;
+        }
+        if let Some(seed) = parts.get(2) {
+            params.seed = seed.parse().map_err(|_| bad("SEED is an integer"))?;
+        }
+    }
+    Ok((scene, Some(params)))
+}
+
+/// Loads the scene `spec` (without its motion, [`split_motion`]); with `clusters`, attaches
+/// its clusters: from the cache (`tilegraph_scene::clusters::cache_dir`), else built with
+/// meshoptimizer and cached.
 pub fn load_scene(spec: &str, clusters: bool) -> Result<Scene, CliError> {
+    let (spec, _) = split_motion(spec)?;
     let mut scene = tilegraph_scene::load(spec)?;
     if clusters {
         let (data, how) = tilegraph_scene::clusters::cached(&scene)?;

@@ -638,3 +638,48 @@ fn d16_depth_keeps_conservative_culling_exact() {
     assert!(ok, "{err}");
     assert!(plan.contains("D16_UNORM"), "{plan}");
 }
+
+/// A moving scene through the CLI (`SPEC@moving[:MOVERS[:SPAWNS[:SEED]]]`): cull-check moves
+/// it frame by frame for the oracle, the reference and the technique alike; render draws it;
+/// a malformed motion is a usage error naming the form.
+#[test]
+fn moving_scenes_are_checked_and_rendered_from_their_spec() {
+    let (ok, out, err) = tilegraph(
+        &[
+            "cull-check",
+            "city:600@moving:0.3:4:2",
+            "--culling",
+            "hiz-2phase",
+            "--size",
+            "160x90",
+            "--frames",
+            "8",
+            "--json",
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["totals"]["false_negatives"], 0, "{out}");
+    assert_eq!(v["totals"]["frames_image_equal"], 8, "{out}");
+    let png = std::env::temp_dir().join(format!("tilegraph-moving-{}.png", std::process::id()));
+    let (ok, _, err) = tilegraph(
+        &[
+            "render",
+            "city:600@moving",
+            "--size",
+            "64x36",
+            "--frames",
+            "3",
+            "--out",
+            png.to_str().unwrap(),
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "{err}");
+    assert!(png.exists());
+    std::fs::remove_file(&png).ok();
+    let (ok, _, err) = tilegraph(&["scene-info", "city:600@moving:2"], &[]);
+    assert!(!ok);
+    assert!(err.contains("MOVERS is a share from 0 to 1"), "{err}");
+}

@@ -11,7 +11,7 @@
 //! does not hold them.
 
 use serde::Serialize;
-use tilegraph_scene::{CameraPath, Scene};
+use tilegraph_scene::{CameraPath, Motion, MotionParams, Scene};
 use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
 use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::Context;
@@ -129,6 +129,9 @@ pub struct CheckExtras<'a> {
     pub on_failure: Option<OnFailure<'a>>,
     /// Called after each checked frame with (frames done, frames in all): a progress bar.
     pub on_frame: Option<&'a mut dyn FnMut(usize, usize)>,
+    /// The scene moves along the path ([`Motion`]): every renderer sees the scene each frame
+    /// brings, the oracle included, in the checked and in the timed passes alike.
+    pub motion: Option<MotionParams>,
     /// How long to render the path (from its start, again and again) before the timed pass:
     /// a GPU whose clocks dropped during the checked pass's readbacks brings them back to
     /// what the workload holds them at, so settings timed one after the other compare alike.
@@ -207,8 +210,11 @@ pub fn cull_check_options(
         auto,
         mut on_failure,
         mut on_frame,
+        motion,
         timing_warmup,
     } = extras;
+    let mut world = World::new(scene, path, motion);
+    let scene = world.scene();
     let size = (tested.width, tested.height);
     let oracle = SceneRenderer::new(
         ctx,
@@ -239,13 +245,12 @@ pub fn cull_check_options(
     let (tested, auto_review) = match auto {
         Some(trial) => {
             let timing = Timing {
-                scene,
                 path,
                 count,
                 aspect,
                 warmup: timing_warmup,
             };
-            match run_trial(ctx, &timing, tested, trial) {
+            match run_trial(ctx, &timing, &mut world, tested, trial) {
                 Ok((kept, why)) => (kept, Some(why)),
                 Err(e) => {
                     oracle.destroy(ctx);
@@ -257,7 +262,7 @@ pub fn cull_check_options(
         None => (tested, None),
     };
     let culling = tested.culling;
-    let tested = match SceneRenderer::new(ctx, scene, tested) {
+    let tested = match SceneRenderer::new(ctx, world.scene(), tested) {
         Ok(r) => r,
         Err(e) => {
             oracle.destroy(ctx);
@@ -271,7 +276,6 @@ pub fn cull_check_options(
         tested,
     };
     let run = Run {
-        scene,
         culling,
         path,
         size,
@@ -279,7 +283,13 @@ pub fn cull_check_options(
         auto_review,
         timing_warmup,
     };
-    let result = run.check(ctx, &mut renderers, &mut on_failure, &mut on_frame);
+    let result = run.check(
+        ctx,
+        &mut world,
+        &mut renderers,
+        &mut on_failure,
+        &mut on_frame,
+    );
     let Renderers {
         oracle,
         reference,
@@ -301,9 +311,45 @@ struct Renderers {
     tested: SceneRenderer,
 }
 
+/// The scene a check renders: as given, or moving — a copy its [`Motion`] brings to each frame.
+enum World<'a> {
+    Still(&'a Scene),
+    Moving { scene: Box<Scene>, motion: Motion },
+}
+
+impl<'a> World<'a> {
+    fn new(scene: &'a Scene, path: &CameraPath, motion: Option<MotionParams>) -> Self {
+        match motion {
+            None => World::Still(scene),
+            Some(params) => World::Moving {
+                scene: Box::new(scene.clone()),
+                motion: Motion::new(scene, path, params),
+            },
+        }
+    }
+
+    /// The scene as it stands.
+    fn scene(&self) -> &Scene {
+        match self {
+            World::Still(s) => s,
+            World::Moving { scene, .. } => scene,
+        }
+    }
+
+    /// The scene at frame `index` of the path.
+    fn at(&mut self, index: usize) -> Result<&Scene, RenderError> {
+        match self {
+            World::Still(s) => Ok(s),
+            World::Moving { scene, motion } => {
+                motion.apply(scene, index)?;
+                Ok(scene)
+            }
+        }
+    }
+}
+
 /// What a check runs.
 struct Run<'a> {
-    scene: &'a Scene,
     culling: Culling,
     path: &'a CameraPath,
     size: (u32, u32),
@@ -315,7 +361,6 @@ struct Run<'a> {
 
 /// What the warm-up and the trial render: the path's first `count` frames, again and again.
 struct Timing<'a> {
-    scene: &'a Scene,
     path: &'a CameraPath,
     count: usize,
     aspect: f32,
@@ -324,14 +369,19 @@ struct Timing<'a> {
 
 impl Timing<'_> {
     /// Renders with `renderer` for [`CheckExtras::timing_warmup`].
-    fn warm_up(&self, ctx: &Context, renderer: &mut SceneRenderer) -> Result<(), RenderError> {
+    fn warm_up(
+        &self,
+        ctx: &Context,
+        world: &mut World<'_>,
+        renderer: &mut SceneRenderer,
+    ) -> Result<(), RenderError> {
         let warm_until = std::time::Instant::now() + self.warmup;
         let mut index = 0;
         while self.count > 0 && std::time::Instant::now() < warm_until {
             let Some(frame) = self.path.frame(index % self.count, self.aspect) else {
                 break;
             };
-            renderer.render_frame(ctx, self.scene, &frame)?;
+            renderer.render_frame(ctx, world.at(index % self.count)?, &frame)?;
             index += 1;
         }
         Ok(())
@@ -347,12 +397,13 @@ impl Timing<'_> {
 fn run_trial(
     ctx: &Context,
     timing: &Timing<'_>,
+    world: &mut World<'_>,
     mut options: RenderOptions,
     mut trial: AutoTrial,
 ) -> Result<(RenderOptions, String), RenderError> {
     options.culling = trial.current();
-    let mut renderer = SceneRenderer::new(ctx, timing.scene, options.clone())?;
-    if let Err(e) = timing.warm_up(ctx, &mut renderer) {
+    let mut renderer = SceneRenderer::new(ctx, world.scene(), options.clone())?;
+    if let Err(e) = timing.warm_up(ctx, world, &mut renderer) {
         renderer.destroy(ctx);
         return Err(e);
     }
@@ -363,12 +414,19 @@ fn run_trial(
         else {
             break;
         };
-        if let Err(e) = renderer.render_frame(ctx, timing.scene, &frame) {
+        let scene = match world.at(index % timing.count.max(1)) {
+            Ok(s) => s,
+            Err(e) => {
+                renderer.destroy(ctx);
+                return Err(e);
+            }
+        };
+        if let Err(e) = renderer.render_frame(ctx, scene, &frame) {
             renderer.destroy(ctx);
             return Err(e);
         }
         // On an error the trial has destroyed the renderer.
-        let (next, decided) = trial.after_render(ctx, timing.scene, renderer, &mut options)?;
+        let (next, decided) = trial.after_render(ctx, scene, renderer, &mut options)?;
         renderer = next;
         if let Some(why) = decided {
             renderer.destroy(ctx);
@@ -390,12 +448,12 @@ impl Run<'_> {
     fn check(
         &self,
         ctx: &Context,
+        world: &mut World<'_>,
         r: &mut Renderers,
         on_failure: &mut Option<OnFailure<'_>>,
         on_frame: &mut Option<&mut dyn FnMut(usize, usize)>,
     ) -> Result<CullCheck, RenderError> {
         let Run {
-            scene,
             culling,
             path,
             size,
@@ -409,29 +467,34 @@ impl Run<'_> {
             tested,
         } = r;
         let aspect = size.0 as f32 / size.1 as f32;
-        let n = scene.instances().len();
-        let blended: Vec<bool> = scene
-            .instances()
-            .iter()
-            .map(|i| {
-                scene
-                    .instance_material(i)
-                    .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
-            })
-            .collect();
-        let tri = |i: usize| {
-            scene
-                .instances()
-                .get(i)
-                .and_then(|inst| scene.mesh(inst.mesh))
-                .map_or(0, |m| u64::from(m.triangle_count()))
-        };
         let count = max_frames.map_or(path.len(), |m| m.min(path.len()));
         let mut frames = Vec::with_capacity(count);
         let mut cpu_ms = Vec::with_capacity(count);
+        let mut compared = 0;
         for index in 0..count {
             let Some(frame) = path.frame(index, aspect) else {
                 break;
+            };
+            let scene = world.at(index)?;
+            // What the comparison covers: the drawn opaque and alpha-tested instances.
+            let n = scene.instances().len();
+            let compare: Vec<bool> = scene
+                .instances()
+                .iter()
+                .map(|i| {
+                    i.flags.is_drawn()
+                        && !scene.instance_material(i).is_some_and(|m| {
+                            matches!(m.class, tilegraph_scene::MaterialClass::Blended)
+                        })
+                })
+                .collect();
+            compared = compare.iter().filter(|c| **c).count();
+            let tri = |i: usize| {
+                scene
+                    .instances()
+                    .get(i)
+                    .and_then(|inst| scene.mesh(inst.mesh))
+                    .map_or(0, |m| u64::from(m.triangle_count()))
             };
             oracle.render_frame(ctx, scene, &frame)?;
             let ids = oracle.read_instance_ids(ctx)?.unwrap_or_default();
@@ -488,7 +551,7 @@ impl Run<'_> {
                     }
                 }
             }
-            for i in (0..n).filter(|&i| !blended[i]) {
+            for i in (0..n).filter(|&i| compare[i]) {
                 check.visible += usize::from(visible[i]);
                 if drawn[i] {
                     check.drawn += 1;
@@ -531,13 +594,12 @@ impl Run<'_> {
         // pass clears, loads and stores, barriers) counts in a frame, and timing each pass
         // costs time of its own (docs/ACCURACY.md, "What a frame time is").
         Timing {
-            scene,
             path,
             count: frames.len(),
             aspect,
             warmup: self.timing_warmup,
         }
-        .warm_up(ctx, tested)?;
+        .warm_up(ctx, world, tested)?;
         let checked_with = tested.options().gpu_timing;
         let mut timed = |timing: GpuTiming, cpu_ms: &mut Vec<f64>| {
             tested.finish(ctx)?;
@@ -547,6 +609,7 @@ impl Run<'_> {
                 let Some(frame) = path.frame(index, aspect) else {
                     break;
                 };
+                let scene = world.at(index)?;
                 let started = std::time::Instant::now();
                 tested.render_frame(ctx, scene, &frame)?;
                 cpu_ms.push(started.elapsed().as_secs_f64() * 1e3);
@@ -574,7 +637,7 @@ impl Run<'_> {
         };
         let totals = Totals {
             frames: frames.len(),
-            instances: blended.iter().filter(|b| !**b).count(),
+            instances: compared,
             visible: frames.iter().map(|f| f.visible).sum(),
             drawn: frames.iter().map(|f| f.drawn).sum(),
             false_negatives: frames.iter().map(|f| f.false_negatives).sum(),
@@ -612,7 +675,7 @@ impl Run<'_> {
         Ok(CullCheck {
             technique: culling.name().to_string(),
             auto_review: auto_switch,
-            scene: scene.name().to_string(),
+            scene: world.scene().name().to_string(),
             profile: ctx.profile().name.clone(),
             size: [size.0, size.1],
             frames,

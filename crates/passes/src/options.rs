@@ -54,6 +54,9 @@ pub enum RenderError {
     /// A check's `on_failure` callback failed (writing a failed frame's images).
     #[error("saving a failed frame: {0}")]
     Save(String),
+    /// A change to the scene was refused (a motion's step, say).
+    #[error("scene: {0}")]
+    Scene(#[from] tilegraph_scene::SceneError),
 }
 
 impl RenderError {

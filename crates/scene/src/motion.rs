@@ -154,6 +154,11 @@ impl Motion {
         self.movers.len()
     }
 
+    /// The instances that move (their slots).
+    pub fn mover_ids(&self) -> impl Iterator<Item = InstanceId> + '_ {
+        self.movers.iter().map(|m| m.handle.id())
+    }
+
     /// Instances spawned at some point of the path.
     pub fn spawns(&self) -> usize {
         self.spawns.len()

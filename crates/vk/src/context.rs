@@ -180,6 +180,7 @@ impl Context {
             queue_index,
             enabled,
             profile,
+            profile_forced_by,
         } = adopted;
         if device == vk::Device::null() {
             return Err(VkError::Invalid {
@@ -207,7 +208,10 @@ impl Context {
                 missing: unsupported.join(", "),
             });
         }
-        let selection = select_profile(&physical, profile.as_deref())?;
+        let mut selection = select_profile(&physical, profile.as_deref())?;
+        if let tilegraph_profile::MatchedBy::Forced { by, .. } = &mut selection.matched_by {
+            by.clone_from(&profile_forced_by);
+        }
         // SAFETY: the caller vouches that `device` was created from this instance.
         let device = unsafe { ash::Device::load(instance.raw.fp_v1_0(), device) };
         // SAFETY: the caller vouches that the queue exists.
@@ -495,6 +499,9 @@ pub struct AdoptedDevice {
     pub enabled: BTreeSet<Feature>,
     /// A profile forced by name (as `TILEGRAPH_PROFILE` does), else the device's own.
     pub profile: Option<String>,
+    /// What forced [`Self::profile`], as the selection reports it ("forced by {this} {name}"):
+    /// the engine's own setting, a C field (`TgAdoptInfo.profile`), a system property.
+    pub profile_forced_by: String,
 }
 
 /// What a device must be created with for a [`FeatureRequest`]: the features (the required

@@ -227,6 +227,7 @@ pub(crate) fn run_one(
         Some(frames as usize),
         tilegraph_passes::cullcheck::CheckExtras {
             auto: resolved.auto_trial(crate::run::auto_inputs(ctx)),
+            motion: crate::run::split_motion(&s.scene)?.1,
             timing_warmup: crate::run::TIMING_WARMUP,
             ..Default::default()
         },

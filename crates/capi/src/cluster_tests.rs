@@ -3,9 +3,9 @@
 
 use std::ffi::{CStr, CString};
 
-use tilegraph::scene::{tg_scene_attach_clusters, tg_scene_destroy, tg_scene_load};
-use tilegraph::status::tg_last_error;
-use tilegraph::{TgScene, TgStatus};
+use crate::scene::{tg_scene_attach_clusters, tg_scene_destroy, tg_scene_load};
+use crate::status::tg_last_error;
+use crate::{TgScene, TgStatus};
 
 fn load(spec: &str) -> TgScene {
     let spec = CString::new(spec).unwrap();

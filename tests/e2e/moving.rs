@@ -1,0 +1,180 @@
+//! A scene that moves while it is culled (lavapipe, validation on): movers slide out from
+//! behind buildings and back, thin upright ones swing like doors, instances spawn in front of
+//! the camera and despawn (tilegraph_scene::Motion). Every conservative technique — frustum,
+//! two-phase HiZ, raster occlusion, same-frame queries, and the cluster techniques — culls no
+//! visible instance and draws the unculled image bit for bit on every frame: with the camera
+//! still (every newly visible instance was revealed by motion: the frame an object leaves an
+//! occluder is the case two-phase culling exists for), and along a hard path of jumps and cuts.
+
+use tilegraph_e2e::{culling_features, gpu_with};
+use tilegraph_passes::cull::Culling;
+use tilegraph_passes::cullcheck::{cull_check_options, CheckExtras, CullCheck};
+use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
+use tilegraph_scene::{CameraPath, Motion, MotionParams, PathKey, Scene};
+
+const SIZE: (u32, u32) = (160, 90);
+
+const CONSERVATIVE: [Culling; 4] = [
+    Culling::Frustum,
+    Culling::HizTwoPhase,
+    Culling::RasterOcclusion,
+    Culling::OqConditional,
+];
+
+/// `frames` frames of one of the scene's path cameras, held still.
+fn still(scene: &Scene, key: usize, frames: usize) -> CameraPath {
+    let camera = scene.camera_path().keys()[key].camera;
+    let keys = (0..frames)
+        .map(|i| PathKey {
+            camera,
+            cut: i == 0,
+        })
+        .collect();
+    CameraPath::new("still camera", keys).unwrap()
+}
+
+/// The scene's path: its first frames one after another, then every 17th frame (jumps), with
+/// its cuts.
+fn walk(scene: &Scene, frames: usize) -> CameraPath {
+    let keys = scene.camera_path().keys();
+    let mut picks: Vec<usize> = (0..6.min(keys.len())).collect();
+    picks.extend((6..keys.len()).step_by(17));
+    picks.truncate(frames);
+    let selected = picks
+        .iter()
+        .map(|&i| PathKey {
+            camera: keys[i].camera,
+            cut: keys[i].cut && i > 0,
+        })
+        .collect();
+    CameraPath::new("walk with jumps", selected).unwrap()
+}
+
+fn motion() -> MotionParams {
+    MotionParams {
+        movers: 0.3,
+        spawns: 6,
+        seed: 7,
+    }
+}
+
+fn check(g: &tilegraph_e2e::Gpu, scene: &Scene, path: &CameraPath, culling: Culling) -> CullCheck {
+    let options = RenderOptions {
+        technique: Technique::Prepass,
+        culling,
+        width: SIZE.0,
+        height: SIZE.1,
+        ..Default::default()
+    };
+    let extras = CheckExtras {
+        motion: Some(motion()),
+        ..Default::default()
+    };
+    cull_check_options(g, scene, options, path, None, extras).unwrap()
+}
+
+fn assert_exact(what: &str, r: &CullCheck) {
+    for f in &r.frames {
+        assert_eq!(
+            f.false_negatives, 0,
+            "{what} {}: frame {} culled visible instances {:?}",
+            r.technique, f.frame, f.false_negative_ids
+        );
+        assert!(
+            f.image_equal,
+            "{what} {}: frame {} differs from the unculled image in {} pixels ({} owned by drawn instances)",
+            r.technique, f.frame, f.image_diff_pixels, f.image_diff_pixels_owner_drawn
+        );
+    }
+    let t = &r.totals;
+    println!(
+        "{what:<28} {:<16} frames {:>2}  visible {:>5}  drawn {:>5}  FN {}  images equal {}/{}",
+        r.technique,
+        t.frames,
+        t.visible,
+        t.drawn,
+        t.false_negatives,
+        t.frames_image_equal,
+        t.frames
+    );
+}
+
+/// Per frame of `path`, the instances that own a pixel (the visibility buffer of everything),
+/// with the scene moving; and the instances that move.
+fn visible_sets(
+    g: &tilegraph_e2e::Gpu,
+    scene: &Scene,
+    path: &CameraPath,
+) -> (Vec<Vec<u32>>, Vec<u32>) {
+    let mut world = scene.clone();
+    let mut motion = Motion::new(scene, path, motion());
+    let mut movers: Vec<u32> = motion.mover_ids().map(|i| i.0).collect();
+    movers.sort_unstable();
+    let options = RenderOptions {
+        technique: Technique::Visbuf,
+        capture_ids: true,
+        width: SIZE.0,
+        height: SIZE.1,
+        ..Default::default()
+    };
+    let mut oracle = SceneRenderer::new(g, &world, options).unwrap();
+    let mut sets = Vec::new();
+    for (i, frame) in path.frames(SIZE.0 as f32 / SIZE.1 as f32).enumerate() {
+        motion.apply(&mut world, i).unwrap();
+        oracle.render_frame(g, &world, &frame).unwrap();
+        let mut ids = oracle.read_instance_ids(g).unwrap().unwrap();
+        ids.sort_unstable();
+        ids.dedup();
+        ids.retain(|&i| i != u32::MAX);
+        sets.push(ids);
+    }
+    oracle.destroy(g);
+    (sets, movers)
+}
+
+#[test]
+fn objects_leaving_occluders_are_drawn_the_frame_they_appear() {
+    let g = gpu_with(None, culling_features()).unwrap();
+    let scene = tilegraph_scene::load("city:1500").unwrap();
+    // Street level, the camera still: whatever comes into view, motion brought.
+    let path = still(&scene, 0, 32);
+    let (sets, movers) = visible_sets(&g, &scene, &path);
+    let appeared: usize = sets
+        .windows(2)
+        .map(|w| {
+            w[1].iter()
+                .filter(|i| w[0].binary_search(i).is_err() && movers.binary_search(i).is_ok())
+                .count()
+        })
+        .sum();
+    assert!(
+        appeared >= 8,
+        "only {appeared} moving instances came into view: the motion shows too little"
+    );
+    println!("{appeared} moving instances came into view of a still camera over 32 frames");
+    for culling in CONSERVATIVE {
+        assert_exact("city, still camera", &check(&g, &scene, &path, culling));
+    }
+}
+
+#[test]
+fn conservative_techniques_stay_exact_along_a_walk_while_the_scene_moves() {
+    let g = gpu_with(None, culling_features()).unwrap();
+    for spec in ["city:1500", "interior:800"] {
+        let scene = tilegraph_scene::load(spec).unwrap();
+        let path = walk(&scene, 16);
+        for culling in CONSERVATIVE {
+            assert_exact(&format!("{spec}, walk"), &check(&g, &scene, &path, culling));
+        }
+    }
+}
+
+#[test]
+fn cluster_techniques_stay_exact_while_the_scene_moves() {
+    let g = gpu_with(None, culling_features()).unwrap();
+    let scene = tilegraph_e2e::closed_spheres(6, 6, true);
+    let path = walk(&scene, 10);
+    for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
+        assert_exact("closed spheres, walk", &check(&g, &scene, &path, culling));
+    }
+}
