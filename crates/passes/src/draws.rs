@@ -1,6 +1,6 @@
 //! Draw lists: instances grouped into one instanced draw per bucket of the scene (a mesh of
 //! one draw list, seed 002: batching and instancing), blended instances one by one back to
-//! front.
+//! front (runs of one mesh in that order drawn instanced).
 //!
 //! The vertex shaders read `draw_instances[gl_InstanceIndex]`; each draw's `first_instance` is
 //! its first entry in that list. Unculled, a draw is a bucket of the scene as it sits in the
@@ -216,14 +216,25 @@ impl DrawBuilder {
         // Farthest first; the id breaks ties, so the order is one.
         self.blended
             .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        // Consecutive instances of one mesh are one instanced draw: a draw's instances are
+        // drawn in instance order (primitive order), so the blend order is the same.
         for &(_, i) in &self.blended {
             let Some(inst) = scene.instances().get(i as usize) else {
                 continue;
             };
             let first = cpu_base + list.instances.len() as u32;
             list.instances.push(i);
-            if let Some(d) = draw_for(scene, inst.mesh.0, first, 1) {
-                list.blended.push(d);
+            match list.blended.last_mut() {
+                Some(d)
+                    if d.mesh == inst.mesh.0 && d.first_instance + d.instance_count == first =>
+                {
+                    d.instance_count += 1;
+                }
+                _ => {
+                    if let Some(d) = draw_for(scene, inst.mesh.0, first, 1) {
+                        list.blended.push(d);
+                    }
+                }
             }
         }
     }

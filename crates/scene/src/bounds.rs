@@ -96,18 +96,25 @@ pub(crate) fn transformed_bounds(
     let reach = local.min.abs().max(local.max.abs());
     let pad = (abs * reach) * (8.0 * f32::EPSILON / 2.0);
     let half = abs * e + pad;
-    let corners = [
-        Vec3::new(e.x, e.y, e.z),
-        Vec3::new(-e.x, e.y, e.z),
-        Vec3::new(e.x, -e.y, e.z),
-        Vec3::new(e.x, e.y, -e.z),
-    ];
-    let radius = corners
-        .iter()
-        .map(|&k| (linear * k).length_squared())
-        .fold(0.0f32, f32::max)
-        .sqrt()
-        + pad.length();
+    // |L k|^2 for the corners k = (±ex, ±ey, ±ez) is k' G k with G = L'L: a diagonal part
+    // every corner shares and cross terms whose signs are the corner's (four corners cover the
+    // eight: k and -k are as far). Cheaper than four transforms (a move of an instance pays it).
+    let (x, y, z) = (linear.x_axis, linear.y_axis, linear.z_axis);
+    let diagonal = x.length_squared() * e.x * e.x
+        + y.length_squared() * e.y * e.y
+        + z.length_squared() * e.z * e.z;
+    let (a, b, c2) = (
+        2.0 * x.dot(y) * e.x * e.y,
+        2.0 * x.dot(z) * e.x * e.z,
+        2.0 * y.dot(z) * e.y * e.z,
+    );
+    let cross = (a + b + c2)
+        .max(-a - b + c2)
+        .max(-a + b - c2)
+        .max(a - b - c2);
+    // Rounding can leave the sum an ulp or two below the exact farthest corner: the pad, a few
+    // ulps of |L| * reach, covers more than that.
+    let radius = (diagonal + cross).max(0.0).sqrt() * (1.0 + 4.0 * f32::EPSILON) + pad.length();
     (center, half, radius)
 }
 

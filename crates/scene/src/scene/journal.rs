@@ -69,17 +69,24 @@ impl Journal {
     /// Keeps at least `keep` changes (a reader one frame behind, moving every instance, still
     /// finds its changes; one further behind uploads everything).
     pub(crate) fn new(keep: usize) -> Self {
+        let keep = keep.max(1 << 16);
         Journal {
             id: Identity::fresh(),
             base: 0,
-            changes: Vec::new(),
-            keep: keep.max(1 << 16),
+            // Room for the most it holds (twice `keep`): pushing never reallocates.
+            changes: Vec::with_capacity(2 * keep),
+            keep,
         }
     }
 
     /// Keeps at least `keep` changes from now on.
     pub(crate) fn keep_at_least(&mut self, keep: usize) {
-        self.keep = self.keep.max(keep);
+        if keep > self.keep {
+            self.keep = keep.next_power_of_two();
+            let room = 2 * self.keep;
+            self.changes
+                .reserve(room.saturating_sub(self.changes.len()));
+        }
     }
 
     pub(crate) fn push(&mut self, change: Change) {
