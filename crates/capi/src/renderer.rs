@@ -34,6 +34,10 @@ pub struct TgRendererDesc {
     /// The engine's frames in flight: `TgEngineFrame::slot` is below it.
     pub frames_in_flight: u32,
     pub clear_color: [f32; 4],
+    /// Instance slots the renderer's buffers hold from the start (0: the scene's; rounded up to
+    /// a power of two). A scene that outgrows them gets new buffers at its next record, which
+    /// waits for the device: give the count the game will reach.
+    pub instance_capacity: u32,
 }
 
 /// An image's layout and last (or next) use.
@@ -181,6 +185,7 @@ pub unsafe extern "C" fn tg_renderer_create(
             width: desc.width,
             height: desc.height,
             clear_color: desc.clear_color,
+            instance_capacity: desc.instance_capacity,
             ..RenderOptions::default()
         };
         let renderer = registry::with2(

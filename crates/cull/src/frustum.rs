@@ -274,6 +274,17 @@ impl Frustum {
         Ok(self.test_box_planes(obb.center_f64(), obb.half_edges_f64()))
     }
 
+    /// The plane test of an axis-aligned box by its centre (relative to the frustum's origin)
+    /// and half extents, in f64: [`Frustum::test_aabb`] without the f32 box, for callers whose
+    /// values are finite by construction (a scene's bounds, checked when they were set) and who
+    /// test many boxes a frame.
+    pub fn test_box(&self, center: DVec3, half: DVec3) -> PlaneTest {
+        self.test_box_planes(
+            center,
+            [DVec3::X * half.x, DVec3::Y * half.y, DVec3::Z * half.z],
+        )
+    }
+
     fn test_box_planes(&self, c: DVec3, half_edges: [DVec3; 3]) -> PlaneTest {
         let mut all_inside = true;
         for (which, pl) in self.present() {

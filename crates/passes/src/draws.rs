@@ -14,7 +14,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 use tilegraph_profile::SortOrder;
-use tilegraph_scene::{DrawGroup, MaterialClass, Scene};
+use tilegraph_scene::{DrawGroup, GridMember, MaterialClass, Scene};
 
 /// One `vkCmdDrawIndexed`: a mesh, instanced over `instance_count` entries of the draw list
 /// starting at `first_instance`.
@@ -127,8 +127,8 @@ pub fn order_groups(scene: &Scene, eye: DVec3, order: SortOrder, out: &mut Vec<D
 /// blended instances.
 #[derive(Debug, Clone, Copy)]
 pub struct Visible<'a> {
-    pub opaque: Option<&'a [u32]>,
-    pub blended: &'a [u32],
+    pub opaque: Option<&'a [GridMember]>,
+    pub blended: &'a [GridMember],
 }
 
 /// Builds draw lists frame after frame without allocating: its sorting buffers, and the
@@ -140,8 +140,47 @@ pub struct DrawBuilder {
     listed: Vec<(u32, u32, u32)>,
     /// Each bucket's (list, mesh) place in the frame's order.
     ranks: HashMap<(u32, u32), u32>,
-    /// Visible blended instances with their distance.
-    blended: Vec<(f64, u32)>,
+    /// Visible blended instances as sort keys ([`blend_key`]), and the radix sort's scratch.
+    blended: Vec<u64>,
+    scratch: Vec<u64>,
+}
+
+/// The back-to-front sort key of a blended instance: the distance from the eye to its bounds'
+/// centre (squared, as f32 bits: their order is the numbers' order for positive values),
+/// inverted so that farther sorts first, then `index`, its place in the frame's visible list
+/// (the grid's order, which every renderer of the scene sees alike: ties broken one way).
+fn blend_key(distance_sq: f64, index: u32) -> u64 {
+    let d = (distance_sq as f32).to_bits();
+    (u64::from(!d) << 32) | u64::from(index)
+}
+
+/// Sorts `keys` ascending, least significant byte first; a byte every key shares is skipped
+/// (the high bytes of instance ids, say). O(n) per pass: a frame's thousands of visible
+/// blended instances sort in a fraction of a comparison sort's time.
+fn radix_sort(keys: &mut Vec<u64>, scratch: &mut Vec<u64>) {
+    scratch.clear();
+    scratch.resize(keys.len(), 0);
+    for shift in (0..64).step_by(8) {
+        let mut count = [0usize; 256];
+        for &k in keys.iter() {
+            count[((k >> shift) & 0xff) as usize] += 1;
+        }
+        if count.contains(&keys.len()) {
+            continue;
+        }
+        let mut at = 0;
+        for c in &mut count {
+            let n = *c;
+            *c = at;
+            at += n;
+        }
+        for &k in keys.iter() {
+            let digit = ((k >> shift) & 0xff) as usize;
+            scratch[count[digit]] = k;
+            count[digit] += 1;
+        }
+        std::mem::swap(keys, scratch);
+    }
 }
 
 impl DrawBuilder {
@@ -183,11 +222,10 @@ impl DrawBuilder {
                 }
                 self.listed.clear();
                 let ranks = &self.ranks;
-                self.listed.extend(ids.iter().filter_map(|&i| {
-                    let entry = buckets.entry(i)?;
-                    let mesh = scene.instances().get(i as usize)?.mesh.0;
-                    let rank = *ranks.get(&(entry / stride.max(1), mesh))?;
-                    Some((rank, entry, i))
+                self.listed.extend(ids.iter().filter_map(|m| {
+                    let entry = buckets.entry(m.instance)?;
+                    let rank = *ranks.get(&(entry / stride.max(1), m.mesh))?;
+                    Some((rank, entry, m.instance))
                 }));
                 self.listed.sort_unstable();
                 let mut k = 0;
@@ -209,29 +247,27 @@ impl DrawBuilder {
             }
         }
         self.blended.clear();
-        self.blended.extend(blended.iter().filter_map(|&i| {
-            let inst = scene.instances().get(i as usize)?;
-            Some(((inst.bounds.center - eye).length_squared(), i))
-        }));
+        self.blended.extend(
+            (0u32..)
+                .zip(blended)
+                .map(|(k, m)| blend_key((m.center - eye).length_squared(), k)),
+        );
         // Farthest first; the id breaks ties, so the order is one.
-        self.blended
-            .sort_unstable_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        radix_sort(&mut self.blended, &mut self.scratch);
         // Consecutive instances of one mesh are one instanced draw: a draw's instances are
         // drawn in instance order (primitive order), so the blend order is the same.
-        for &(_, i) in &self.blended {
-            let Some(inst) = scene.instances().get(i as usize) else {
+        for &key in &self.blended {
+            let Some(m) = blended.get(key as u32 as usize) else {
                 continue;
             };
             let first = cpu_base + list.instances.len() as u32;
-            list.instances.push(i);
+            list.instances.push(m.instance);
             match list.blended.last_mut() {
-                Some(d)
-                    if d.mesh == inst.mesh.0 && d.first_instance + d.instance_count == first =>
-                {
+                Some(d) if d.mesh == m.mesh && d.first_instance + d.instance_count == first => {
                     d.instance_count += 1;
                 }
                 _ => {
-                    if let Some(d) = draw_for(scene, inst.mesh.0, first, 1) {
+                    if let Some(d) = draw_for(scene, m.mesh, first, 1) {
                         list.blended.push(d);
                     }
                 }
@@ -265,4 +301,28 @@ fn draw_for(scene: &Scene, mesh: u32, first_instance: u32, instance_count: u32) 
         instance_count,
         double_sided,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn radix_sort_orders_back_to_front_with_ids_breaking_ties() {
+        let items = [
+            (4.0, 7),
+            (100.0, 3),
+            (4.0, 2),
+            (0.25, 9),
+            (1e6, 1),
+            (100.0, 0),
+        ];
+        let mut keys: Vec<u64> = items.iter().map(|&(d, i)| blend_key(d, i)).collect();
+        let mut expected = keys.clone();
+        expected.sort_unstable();
+        radix_sort(&mut keys, &mut Vec::new());
+        assert_eq!(keys, expected);
+        let order: Vec<u32> = keys.iter().map(|&k| k as u32).collect();
+        assert_eq!(order, [1, 0, 3, 2, 7, 9]);
+    }
 }

@@ -62,10 +62,10 @@ pub use motion::{Motion, MotionParams};
 pub use procedural::{generate, ProceduralKind, ProceduralParams};
 pub use scene::{
     BoundsInfo, Change, ClassCounts, DrawBuckets, DrawGroup, GltfCounts, GpuInstance, GpuMaterial,
-    GpuMesh, Instance, InstanceBounds, InstanceFlags, InstanceHandle, InstanceId, LooseGrid,
-    Material, MaterialClass, MaterialId, Mesh, MeshHandle, MeshId, Overlap, RelativeInstance,
-    Scene, SceneBuilder, SceneCursor, SceneInfo, SceneSource, SplitPoint, Transform, Vertex,
-    DRAW_LISTS,
+    GpuMesh, GridMember, Instance, InstanceBounds, InstanceFlags, InstanceHandle, InstanceId,
+    LooseGrid, Material, MaterialClass, MaterialId, Mesh, MeshHandle, MeshId, Overlap,
+    RelativeInstance, Scene, SceneBuilder, SceneCursor, SceneInfo, SceneSource, SplitPoint,
+    Transform, Vertex, DRAW_LISTS,
 };
 /// Shared with the culling references and the passes (tilegraph-types); re-exported so scene
 /// users name them from here as before.

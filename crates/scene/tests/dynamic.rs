@@ -197,7 +197,12 @@ impl Model {
         for (blended, grid) in [(false, s.opaque_grid()), (true, s.blended_grid())] {
             grid.visit(
                 |_| Overlap::Inside,
-                |m, _| assert!(in_grids.insert(m, blended).is_none()),
+                |m, _| {
+                    let inst = &s.instances()[m.instance as usize];
+                    assert_eq!(m.mesh, inst.mesh.0, "instance {}", m.instance);
+                    assert_eq!(m.center, inst.bounds.center, "instance {}", m.instance);
+                    assert!(in_grids.insert(m.instance, blended).is_none());
+                },
             );
         }
         let mut drawn = 0;

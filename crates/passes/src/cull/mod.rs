@@ -19,7 +19,7 @@
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
-use tilegraph_cull::{AabbExt, Frustum};
+use tilegraph_cull::Frustum;
 use tilegraph_graph::{
     AccessFlags, BufferId, Import, InitialContent, PassClass, PipelineStages, ResourceState,
     Retention,
@@ -510,49 +510,40 @@ pub fn gpu_planes(view_proj: Mat4, convention: DepthConvention) -> Result<[[f32;
 /// is visible. Used for blended geometry (the GPU lists leave it to the CPU to be sorted back
 /// to front) and for the lists the CPU decides.
 pub fn cpu_frustum_visible(
-    scene: &tilegraph_scene::Scene,
     grid: &tilegraph_scene::LooseGrid,
     m: &tilegraph_scene::FrameMatrices,
-    out: &mut Vec<u32>,
+    out: &mut Vec<tilegraph_scene::GridMember>,
 ) -> Result<(), VkError> {
-    let invalid = |e: tilegraph_cull::CullError| VkError::Invalid {
-        what: "frustum".into(),
-        reason: e.to_string(),
-    };
-    let frustum = Frustum::from_clip_from_world(&m.view_projection, m.depth).map_err(invalid)?;
-    let test = |b: &tilegraph_scene::DAabb| -> Result<tilegraph_cull::PlaneTest, VkError> {
-        let aabb = tilegraph_cull::Aabb::from_world_f64(b.min, b.max, m.eye).map_err(invalid)?;
-        frustum.test_aabb(&aabb).map_err(invalid)
-    };
+    let frustum = Frustum::from_clip_from_world(&m.view_projection, m.depth).map_err(|e| {
+        VkError::Invalid {
+            what: "frustum".into(),
+            reason: e.to_string(),
+        }
+    })?;
+    let eye = m.eye;
     out.clear();
-    let failed = std::cell::RefCell::new(None);
+    // Bounds are finite (the scene refuses anything else): the f64 test needs no checks.
     grid.visit(
-        |cell| match test(cell) {
-            Ok(tilegraph_cull::PlaneTest::Inside) => tilegraph_scene::Overlap::Inside,
-            Ok(tilegraph_cull::PlaneTest::Intersecting) => tilegraph_scene::Overlap::Partial,
-            Ok(tilegraph_cull::PlaneTest::Outside(_)) => tilegraph_scene::Overlap::Outside,
-            Err(e) => {
-                failed.borrow_mut().get_or_insert(e);
-                tilegraph_scene::Overlap::Outside
+        |cell| {
+            let center = (cell.min + cell.max) * 0.5 - eye;
+            match frustum.test_box(center, (cell.max - cell.min) * 0.5) {
+                tilegraph_cull::PlaneTest::Inside => tilegraph_scene::Overlap::Inside,
+                tilegraph_cull::PlaneTest::Intersecting => tilegraph_scene::Overlap::Partial,
+                tilegraph_cull::PlaneTest::Outside(_) => tilegraph_scene::Overlap::Outside,
             }
         },
-        |i, overlap| {
+        |member, overlap| {
             let inside = overlap == tilegraph_scene::Overlap::Inside
-                || scene.instances().get(i as usize).is_some_and(|inst| {
-                    match test(&inst.bounds.aabb()) {
-                        Ok(t) => !matches!(t, tilegraph_cull::PlaneTest::Outside(_)),
-                        Err(e) => {
-                            failed.borrow_mut().get_or_insert(e);
-                            false
-                        }
-                    }
-                });
+                || !matches!(
+                    frustum.test_box(member.center - eye, member.half_extents.as_dvec3()),
+                    tilegraph_cull::PlaneTest::Outside(_)
+                );
             if inside {
-                out.push(i);
+                out.push(*member);
             }
         },
     );
-    failed.into_inner().map_or(Ok(()), Err)
+    Ok(())
 }
 
 #[cfg(test)]

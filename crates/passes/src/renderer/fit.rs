@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use tilegraph_scene::{DrawGroup, Scene};
+use tilegraph_scene::{DrawGroup, GridMember, Scene};
 use tilegraph_vk::Context;
 
 use super::{create_resources, SceneRenderer};
@@ -18,8 +18,8 @@ use crate::setup::{FrameSetup, SceneContent};
 /// and the scene's buckets in the frame's draw order.
 #[derive(Debug, Default)]
 pub(super) struct CpuLists {
-    pub(super) visible: Vec<u32>,
-    pub(super) blended: Vec<u32>,
+    pub(super) visible: Vec<GridMember>,
+    pub(super) blended: Vec<GridMember>,
     pub(super) mask: Vec<bool>,
     /// The slots set in `mask` (cleared next frame: the cost follows what is visible).
     marked: Vec<u32>,
@@ -36,10 +36,10 @@ impl CpuLists {
         }
         self.mask.resize(slots, false);
         self.marked.clear();
-        for &i in &self.visible {
-            if let Some(m) = self.mask.get_mut(i as usize) {
+        for v in &self.visible {
+            if let Some(m) = self.mask.get_mut(v.instance as usize) {
                 *m = true;
-                self.marked.push(i);
+                self.marked.push(v.instance);
             }
         }
     }

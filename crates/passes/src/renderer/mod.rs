@@ -536,9 +536,9 @@ impl SceneRenderer {
         // occlusion tests against) frustum-cull it here too; unculled and GPU-culled frames draw
         // the scene's buckets as they are.
         let cpu_lists = culling.uses_queries() || culling == Culling::RasterOcclusion;
-        cpu_frustum_visible(scene, scene.blended_grid(), &m, &mut self.cpu.blended)?;
+        cpu_frustum_visible(scene.blended_grid(), &m, &mut self.cpu.blended)?;
         if cpu_lists {
-            cpu_frustum_visible(scene, scene.opaque_grid(), &m, &mut self.cpu.visible)?;
+            cpu_frustum_visible(scene.opaque_grid(), &m, &mut self.cpu.visible)?;
         }
         let slot = match slot {
             Some(s) => s,
@@ -565,10 +565,10 @@ impl SceneRenderer {
                 oq.prepare(slot, &m, h as f32, Some(&self.cpu.mask));
                 self.cpu
                     .visible
-                    .retain(|&i| passed.get(i as usize).copied().unwrap_or(true));
+                    .retain(|m| passed.get(m.instance as usize).copied().unwrap_or(true));
                 let mut drawn = self.last_drawn.take().unwrap_or_default();
                 drawn.clear();
-                drawn.extend_from_slice(&self.cpu.visible);
+                drawn.extend(self.cpu.visible.iter().map(|m| m.instance));
                 drawn.sort_unstable();
                 self.last_drawn = Some(drawn);
             }

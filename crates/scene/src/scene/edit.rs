@@ -136,10 +136,11 @@ impl Dynamic {
             if !inst.flags.is_drawn() {
                 continue;
             }
-            match placement(material_of(meshes, materials, inst.mesh), inst.mesh) {
-                Placement::List(..) => self.opaque_grid.insert(i as u32, inst.bounds.aabb()),
-                Placement::Blended => self.blended_grid.insert(i as u32, inst.bounds.aabb()),
-            }
+            let grid = match placement(material_of(meshes, materials, inst.mesh), inst.mesh) {
+                Placement::List(..) => &mut self.opaque_grid,
+                Placement::Blended => &mut self.blended_grid,
+            };
+            grid.insert(i as u32, inst.mesh.0, &inst.bounds);
         }
     }
 }
@@ -578,7 +579,7 @@ impl Scene {
             } else {
                 &mut d.opaque_grid
             };
-            grid.update(slot as u32, bounds.aabb());
+            grid.update(slot as u32, &bounds);
             d.buckets.moved(slot as u32, bounds.aabb());
         }
         d.journal.push(Change::Instance(slot as u32));
@@ -664,9 +665,9 @@ impl Scene {
                     &boxes,
                     &mut d.journal,
                 );
-                d.opaque_grid.insert(slot, inst.bounds.aabb());
+                d.opaque_grid.insert(slot, mesh, &inst.bounds);
             }
-            Placement::Blended => d.blended_grid.insert(slot, inst.bounds.aabb()),
+            Placement::Blended => d.blended_grid.insert(slot, inst.mesh.0, &inst.bounds),
         }
     }
 

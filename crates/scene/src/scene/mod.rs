@@ -26,7 +26,7 @@ pub use elements::{
     MaterialId, Mesh, MeshHandle, MeshId, Transform, Vertex,
 };
 pub use gpu::{GpuInstance, GpuMaterial, GpuMesh, RelativeInstance, SplitPoint};
-pub use grid::{LooseGrid, Overlap};
+pub use grid::{GridMember, LooseGrid, Overlap};
 pub use journal::{Change, SceneCursor};
 
 /// Where a scene came from.
