@@ -757,6 +757,12 @@ typedef struct {
    */
   uint32_t frames_in_flight;
   float clear_color[4];
+  /**
+   * Instance slots the renderer's buffers hold from the start (0: the scene's; rounded up to
+   * a power of two). A scene that outgrows them gets new buffers at its next record, which
+   * waits for the device: give the count the game will reach.
+   */
+  uint32_t instance_capacity;
 } TgRendererDesc;
 
 /**
