@@ -114,7 +114,9 @@ pub(crate) fn transformed_bounds(
         .max(a - b - c2);
     // Rounding can leave the sum an ulp or two below the exact farthest corner: the pad, a few
     // ulps of |L| * reach, covers more than that.
-    let radius = (diagonal + cross).max(0.0).sqrt() * (1.0 + 4.0 * f32::EPSILON) + pad.length();
+    // The pad's components summed: at least its length, and no second square root.
+    let radius =
+        (diagonal + cross).max(0.0).sqrt() * (1.0 + 4.0 * f32::EPSILON) + (pad.x + pad.y + pad.z);
     (center, half, radius)
 }
 

@@ -189,7 +189,8 @@ pub struct GpuScene {
     /// Frames written ([`Self::write_frame`] calls).
     frames_written: u64,
     /// Dedup of a frame's writes: the frame that last wrote each instance slot and entry.
-    instance_stamps: Vec<u64>,
+    record_stamps: Vec<u64>,
+    order_stamps: Vec<u64>,
     entry_stamps: Vec<u64>,
 }
 
@@ -289,7 +290,8 @@ impl GpuScene {
             staged: Vec::new(),
             retired: Vec::new(),
             frames_written: 0,
-            instance_stamps: vec![0; capacity.instances as usize],
+            record_stamps: vec![0; capacity.instances as usize],
+            order_stamps: vec![0; capacity.instances as usize],
             entry_stamps: vec![0; capacity.cpu_base() as usize],
         };
         match pool {

@@ -56,7 +56,8 @@ impl GpuScene {
         }
         let GpuScene {
             frames,
-            instance_stamps,
+            record_stamps,
+            order_stamps,
             entry_stamps,
             ..
         } = self;
@@ -72,20 +73,24 @@ impl GpuScene {
         } else if let Some(list) = changes {
             for &change in list {
                 match change {
+                    // Each piece is written once per frame, from the scene as it is: a record
+                    // whatever changed it, an instance's entry when it may have moved.
                     Change::Instance(i) => {
-                        if let Some(s) = instance_stamps.get_mut(i as usize) {
-                            if *s != serial {
-                                *s = serial;
-                                w.instance(scene, i);
-                            }
+                        if once(record_stamps, i, serial) {
+                            w.record(scene, i);
+                        }
+                        if once(order_stamps, i, serial) {
+                            w.order(scene, i);
+                        }
+                    }
+                    Change::Moved(i) => {
+                        if once(record_stamps, i, serial) {
+                            w.record(scene, i);
                         }
                     }
                     Change::Entry(e) => {
-                        if let Some(s) = entry_stamps.get_mut(e as usize) {
-                            if *s != serial {
-                                *s = serial;
-                                w.entry(scene, e);
-                            }
+                        if once(entry_stamps, e, serial) {
+                            w.entry(scene, e);
                         }
                     }
                     Change::Mesh(m) => w.mesh(scene, m),
@@ -156,6 +161,17 @@ pub(super) fn destroy_slot(ctx: &Context, f: SlotBuffers) {
     }
 }
 
+/// Whether item `i` is still to be written this frame (`serial`); marks it written.
+fn once(stamps: &mut [u64], i: u32, serial: u64) -> bool {
+    match stamps.get_mut(i as usize) {
+        Some(s) if *s != serial => {
+            *s = serial;
+            true
+        }
+        _ => false,
+    }
+}
+
 /// Writes into a slot's mapped buffers.
 struct SlotWriter<'a> {
     records: &'a mut [u8],
@@ -189,15 +205,25 @@ impl<'a> SlotWriter<'a> {
 
     /// An instance's record and its entry.
     fn instance(&mut self, scene: &Scene, i: u32) {
+        self.record(scene, i);
+        self.order(scene, i);
+    }
+
+    /// An instance's record.
+    fn record(&mut self, scene: &Scene, i: u32) {
         if let Some(inst) = scene.instances().get(i as usize) {
             put(
                 self.records,
                 i as usize,
                 bytemuck::bytes_of(&inst.gpu_record()),
             );
-            let entry = scene.buckets().entry(i).unwrap_or(NO_ENTRY);
-            put(self.order, i as usize, &entry.to_le_bytes());
         }
+    }
+
+    /// An instance's entry.
+    fn order(&mut self, scene: &Scene, i: u32) {
+        let entry = scene.buckets().entry(i).unwrap_or(NO_ENTRY);
+        put(self.order, i as usize, &entry.to_le_bytes());
     }
 
     fn entry(&mut self, scene: &Scene, e: u32) {

@@ -4,7 +4,9 @@
 
 use std::sync::Arc;
 
-use tilegraph_scene::{DrawGroup, GridMember, Scene};
+use tilegraph_scene::{
+    Change, DrawGroup, GridMember, LooseGrid, MaterialClass, Scene, SceneCursor,
+};
 use tilegraph_vk::Context;
 
 use super::{create_resources, SceneRenderer};
@@ -24,6 +26,66 @@ pub(super) struct CpuLists {
     /// The slots set in `mask` (cleared next frame: the cost follows what is visible).
     marked: Vec<u32>,
     pub(super) groups: Vec<DrawGroup>,
+    /// The opaque and alpha-tested instances in a grid, for techniques whose CPU lists draw
+    /// them (made at their first frame).
+    pub(super) opaque: Option<OpaqueGrid>,
+}
+
+/// A renderer's grid of the scene's drawn opaque and alpha-tested instances, refitted from the
+/// scene's changes before each frame: only the techniques that need it pay for it (the scene
+/// keeps no such grid, so a move costs the GPU-culled techniques nothing here).
+#[derive(Debug)]
+pub(super) struct OpaqueGrid {
+    pub(super) grid: LooseGrid,
+    cursor: Option<SceneCursor>,
+}
+
+impl OpaqueGrid {
+    pub(super) fn of(scene: &Scene) -> Self {
+        let mut g = OpaqueGrid {
+            grid: LooseGrid::new(scene.bounds(), 0),
+            cursor: None,
+        };
+        g.refit(scene);
+        g
+    }
+
+    /// Brings the grid up to `scene`: the instances that changed placed again, or (a cursor the
+    /// scene no longer follows, the world moved as a whole) every instance.
+    pub(super) fn refit(&mut self, scene: &Scene) {
+        match self.cursor.and_then(|c| scene.changes_since(c)) {
+            Some(changes) if !changes.contains(&Change::Everything) => {
+                for c in changes {
+                    if let Change::Instance(i) | Change::Moved(i) = c {
+                        self.place(scene, *i);
+                    }
+                }
+            }
+            _ => {
+                let n = scene.drawn_by_class();
+                self.grid = LooseGrid::new(scene.bounds(), (n.opaque + n.alpha_tested) as usize);
+                for i in 0..scene.instances().len() as u32 {
+                    self.place(scene, i);
+                }
+            }
+        }
+        self.cursor = Some(scene.cursor());
+    }
+
+    fn place(&mut self, scene: &Scene, i: u32) {
+        if self.grid.contains(i) {
+            self.grid.remove(i);
+        }
+        let Some(inst) = scene.instances().get(i as usize) else {
+            return;
+        };
+        let opaque = !scene
+            .instance_material(inst)
+            .is_some_and(|m| m.class == MaterialClass::Blended);
+        if inst.flags.is_drawn() && opaque {
+            self.grid.insert(i, inst.mesh.0, &inst.bounds);
+        }
+    }
 }
 
 impl CpuLists {
@@ -79,7 +141,7 @@ impl SceneRenderer {
             match self.oq_cursor.and_then(|c| scene.changes_since(c)) {
                 Some(changes) => {
                     for c in changes {
-                        if let tilegraph_scene::Change::Instance(i) = c {
+                        if let Change::Instance(i) | Change::Moved(i) = c {
                             oq.forget(*i);
                         }
                     }

@@ -538,7 +538,14 @@ impl SceneRenderer {
         let cpu_lists = culling.uses_queries() || culling == Culling::RasterOcclusion;
         cpu_frustum_visible(scene.blended_grid(), &m, &mut self.cpu.blended)?;
         if cpu_lists {
-            cpu_frustum_visible(scene.opaque_grid(), &m, &mut self.cpu.visible)?;
+            let opaque = match &mut self.cpu.opaque {
+                Some(g) => {
+                    g.refit(scene);
+                    g
+                }
+                None => self.cpu.opaque.insert(fit::OpaqueGrid::of(scene)),
+            };
+            cpu_frustum_visible(&opaque.grid, &m, &mut self.cpu.visible)?;
         }
         let slot = match slot {
             Some(s) => s,

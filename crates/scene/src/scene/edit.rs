@@ -39,8 +39,9 @@ pub(super) struct Dynamic {
     /// Local boxes an engine gave for instances it animates (skinned meshes).
     pub local_bounds: HashMap<u32, Aabb>,
     pub buckets: DrawBuckets,
-    /// Drawn opaque and alpha-tested instances, and drawn blended ones.
-    pub opaque_grid: LooseGrid,
+    /// The drawn blended instances (every frame sorts the visible ones back to front). The
+    /// opaque ones have no grid here: only the techniques whose CPU decides what is drawn look
+    /// for them, and such a renderer keeps its own (a move pays for no grid it does not use).
     pub blended_grid: LooseGrid,
     pub journal: Journal,
     /// Changes of which instances and meshes exist (not of where they are).
@@ -91,7 +92,6 @@ impl Dynamic {
             index_pool: RangePool::full(indices as u32),
             local_bounds: HashMap::new(),
             buckets: DrawBuckets::default(),
-            opaque_grid: LooseGrid::new(bounds, 0),
             blended_grid: LooseGrid::new(bounds, 0),
             journal: Journal::new(instances.len()),
             structure: 0,
@@ -111,7 +111,7 @@ impl Dynamic {
         bounds: crate::bounds::DAabb,
     ) {
         let mut lists = Vec::with_capacity(instances.len());
-        let (mut opaque, mut blended) = (0, 0);
+        let mut blended = 0;
         self.drawn = ClassCounts::default();
         for (i, inst) in instances.iter().enumerate() {
             if !inst.flags.is_drawn() {
@@ -122,25 +122,19 @@ impl Dynamic {
                 self.drawn.add(m.class);
             }
             match placement(material, inst.mesh) {
-                Placement::List(l, m) => {
-                    lists.push((i as u32, l, m, inst.bounds.aabb()));
-                    opaque += 1;
-                }
+                Placement::List(l, m) => lists.push((i as u32, l, m, inst.bounds.aabb())),
                 Placement::Blended => blended += 1,
             }
         }
         self.buckets = DrawBuckets::build(instances.len(), lists.into_iter());
-        self.opaque_grid = LooseGrid::new(bounds, opaque);
         self.blended_grid = LooseGrid::new(bounds, blended);
         for (i, inst) in instances.iter().enumerate() {
-            if !inst.flags.is_drawn() {
-                continue;
+            let material = material_of(meshes, materials, inst.mesh);
+            if inst.flags.is_drawn() && matches!(placement(material, inst.mesh), Placement::Blended)
+            {
+                self.blended_grid
+                    .insert(i as u32, inst.mesh.0, &inst.bounds);
             }
-            let grid = match placement(material_of(meshes, materials, inst.mesh), inst.mesh) {
-                Placement::List(..) => &mut self.opaque_grid,
-                Placement::Blended => &mut self.blended_grid,
-            };
-            grid.insert(i as u32, inst.mesh.0, &inst.bounds);
         }
     }
 }
@@ -255,11 +249,6 @@ impl Scene {
     /// The draw buckets of the drawn opaque and alpha-tested instances.
     pub fn buckets(&self) -> &DrawBuckets {
         &self.dynamic.buckets
-    }
-
-    /// The loose grid of the drawn opaque and alpha-tested instances.
-    pub fn opaque_grid(&self) -> &LooseGrid {
-        &self.dynamic.opaque_grid
     }
 
     /// The loose grid of the drawn blended instances.
@@ -571,18 +560,13 @@ impl Scene {
         let inst = &mut self.instances[slot];
         inst.transform = transform;
         inst.bounds = bounds;
-        let (drawn, blended) = (inst.flags.is_drawn(), self.is_blended(slot));
         let d = &mut self.dynamic;
-        if drawn {
-            let grid = if blended {
-                &mut d.blended_grid
-            } else {
-                &mut d.opaque_grid
-            };
-            grid.update(slot as u32, &bounds);
-            d.buckets.moved(slot as u32, bounds.aabb());
-        }
-        d.journal.push(Change::Instance(slot as u32));
+        // A blended instance is in the grid, an opaque or alpha-tested one in a bucket; each
+        // call does nothing for an instance not there.
+        let s = slot as u32;
+        d.blended_grid.update(s, &bounds);
+        d.buckets.moved(s, bounds.aabb());
+        d.journal.push(Change::Moved(s));
         self.bounds = self.bounds.union(bounds.aabb());
     }
 
@@ -633,13 +617,6 @@ impl Scene {
         }
     }
 
-    fn is_blended(&self, slot: usize) -> bool {
-        self.instances.get(slot).is_some_and(|i| {
-            material_of(&self.meshes, &self.materials, i.mesh)
-                .is_some_and(|m| m.class == MaterialClass::Blended)
-        })
-    }
-
     /// Puts a drawn instance into its bucket or the blended set, and its grid.
     fn place(&mut self, slot: u32) {
         let inst = self.instances[slot as usize];
@@ -665,7 +642,6 @@ impl Scene {
                     &boxes,
                     &mut d.journal,
                 );
-                d.opaque_grid.insert(slot, mesh, &inst.bounds);
             }
             Placement::Blended => d.blended_grid.insert(slot, inst.mesh.0, &inst.bounds),
         }
@@ -684,7 +660,6 @@ impl Scene {
             d.drawn.remove(m.class);
         }
         d.buckets.remove(slot, &mut d.journal);
-        d.opaque_grid.remove(slot);
         d.blended_grid.remove(slot);
     }
 }

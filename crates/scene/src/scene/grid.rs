@@ -1,7 +1,8 @@
-//! A loose grid over a scene's drawn instances: what the CPU must still look at every frame
-//! (blended geometry sorted back to front, the occlusion techniques' CPU lists) is found by
-//! testing cells, then the members of the cells the frustum cuts (seed 002: a spatial
-//! hierarchy, so the frame costs what is visible).
+//! A loose grid over drawn instances: what the CPU must still look at every frame (blended
+//! geometry sorted back to front — the scene keeps that grid —, the occlusion techniques' CPU
+//! lists — their renderer keeps one of the opaque instances, refitted from the scene's changes)
+//! is found by testing cells, then the members of the cells the frustum cuts (seed 002: a
+//! spatial hierarchy, so the frame costs what is visible).
 //!
 //! Each instance sits in the cell of its bounds' centre (clamped into the grid); a cell's bounds
 //! are the union of its members' boxes, grown as members arrive or move and reset when it
@@ -67,7 +68,7 @@ pub struct LooseGrid {
 impl LooseGrid {
     /// An empty grid over `bounds` with about one cell per 16 of `expected` instances (at most
     /// 2^20 cells): cubes, sized from the ground plane's area for flat worlds.
-    pub(crate) fn new(bounds: DAabb, expected: usize) -> Self {
+    pub fn new(bounds: DAabb, expected: usize) -> Self {
         let (min, extent) = if bounds.is_empty() {
             (DVec3::ZERO, DVec3::ONE)
         } else {
@@ -122,8 +123,15 @@ impl LooseGrid {
         (z * dy + y) * dx + x
     }
 
+    /// Whether `instance` is in the grid.
+    pub fn contains(&self, instance: u32) -> bool {
+        self.place
+            .get(instance as usize)
+            .is_some_and(|p| p.0 != NONE)
+    }
+
     /// Puts `instance` (not in the grid) of `mesh` into the cell of its bounds' centre.
-    pub(crate) fn insert(&mut self, instance: u32, mesh: u32, bounds: &InstanceBounds) {
+    pub fn insert(&mut self, instance: u32, mesh: u32, bounds: &InstanceBounds) {
         if self.place.len() <= instance as usize {
             self.place.resize(instance as usize + 1, (NONE, 0));
         }
@@ -142,7 +150,7 @@ impl LooseGrid {
     }
 
     /// Takes `instance` out of the grid (if in it).
-    pub(crate) fn remove(&mut self, instance: u32) {
+    pub fn remove(&mut self, instance: u32) {
         let Some(&(c, pos)) = self.place.get(instance as usize) else {
             return;
         };
@@ -160,13 +168,13 @@ impl LooseGrid {
         }
     }
 
-    /// `instance` (in the grid) now has `bounds`.
-    pub(crate) fn update(&mut self, instance: u32, bounds: &InstanceBounds) {
+    /// `instance` now has `bounds`; false when it is not in this grid.
+    pub fn update(&mut self, instance: u32, bounds: &InstanceBounds) -> bool {
         let Some(&(c, pos)) = self.place.get(instance as usize) else {
-            return;
+            return false;
         };
         if c == NONE {
-            return;
+            return false;
         }
         if self.cell_of(bounds.center) == c {
             let cell = &mut self.cells[c as usize];
@@ -183,6 +191,7 @@ impl LooseGrid {
             self.remove(instance);
             self.insert(instance, mesh, bounds);
         }
+        true
     }
 
     /// Calls `visit(member, overlap)` for every member of every cell `test` does not find

@@ -13,6 +13,8 @@ pub enum Change {
     /// An instance's record (transform, bounds, mesh, flags) or its draw-list entry changed;
     /// also an instance added or removed.
     Instance(u32),
+    /// An instance moved (or its bounds changed): its record, not its draw-list entry.
+    Moved(u32),
     /// Draw-list entry `e` ([`crate::DrawBuckets`]) holds another instance.
     Entry(u32),
     /// The draw lists were laid out anew: every entry, and every instance's entry, moved.
