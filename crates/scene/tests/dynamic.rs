@@ -196,18 +196,17 @@ impl Model {
                 assert!(in_buckets.insert(m, (g.list, g.mesh)).is_none());
             }
         }
+        // The blended grid holds the drawn blended instances, with their meshes and bounds.
         let mut in_grids: HashMap<u32, bool> = HashMap::new();
-        for (blended, grid) in [(true, s.blended_grid())] {
-            grid.visit(
-                |_| Overlap::Inside,
-                |m, _| {
-                    let inst = &s.instances()[m.instance as usize];
-                    assert_eq!(m.mesh, inst.mesh.0, "instance {}", m.instance);
-                    assert_eq!(m.center, inst.bounds.center, "instance {}", m.instance);
-                    assert!(in_grids.insert(m.instance, blended).is_none());
-                },
-            );
-        }
+        s.blended_grid().visit(
+            |_| Overlap::Inside,
+            |m, _| {
+                let inst = &s.instances()[m.instance as usize];
+                assert_eq!(m.mesh, inst.mesh.0, "instance {}", m.instance);
+                assert_eq!(m.center, inst.bounds.center, "instance {}", m.instance);
+                assert!(in_grids.insert(m.instance, true).is_none());
+            },
+        );
         let mut drawn = 0;
         for (&h, &(mesh, flags)) in &self.instances {
             let inst = s.instance(h).expect("a live handle");
