@@ -62,7 +62,7 @@ void main() {
             }
             Group group = groups[g];
             Mesh m = meshes[group.mesh];
-            uint at = list * cull.screen.z + k;
+            uint at = list * cull.commands.x + k;
             commands[5u * at + 0u] = m.index_count;
             commands[5u * at + 1u] = count;
             commands[5u * at + 2u] = m.first_index;

@@ -27,6 +27,7 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
     uvec4 clusters;        // x: draw id of cluster command 0, y: 1 = back-facing cone test, z: cluster instances
     uvec4 list_len;        // per list of a phase: its entries
     uvec4 cmd_base[2];     // per list (0-7): its first cluster command
+    uvec4 commands;        // x: command slots per list (the most draw groups a list holds)
 } cull;
 
 // A draw group: `len` consecutive entries of list `list` (of a phase) from `position`, all of

@@ -178,3 +178,75 @@ fn cluster_techniques_stay_exact_while_the_scene_moves() {
         assert_exact("closed spheres, walk", &check(&g, &scene, &path, culling));
     }
 }
+
+/// A million instances build, load, cull and render on lavapipe (small): two-phase HiZ draws
+/// the unculled image while a thousand instances move every frame, and culls most of the city.
+#[test]
+fn a_million_instances_move_cull_and_render() {
+    let g = gpu_with(None, culling_features()).unwrap();
+    let mut scene = tilegraph_scene::load("city:1M").unwrap();
+    assert_eq!(scene.instances().len(), 1_000_000);
+    let path = walk(&scene, 3);
+    let n = scene.instances().len();
+    let movers: Vec<_> = (0..1000)
+        .filter_map(|k| {
+            let id = tilegraph_scene::InstanceId((k * n / 1000) as u32);
+            Some((
+                scene.instance_handle(id)?,
+                scene.instances()[id.index()].transform,
+            ))
+        })
+        .collect();
+    let options = |culling| RenderOptions {
+        technique: Technique::Prepass,
+        culling,
+        width: 96,
+        height: 54,
+        ..Default::default()
+    };
+    let mut culled = SceneRenderer::new(&g, &scene, options(Culling::HizTwoPhase)).unwrap();
+    let mut unculled = SceneRenderer::new(&g, &scene, options(Culling::None)).unwrap();
+    let mut last = None;
+    for (i, frame) in path.frames(96.0 / 54.0).enumerate() {
+        let moves: Vec<_> = movers
+            .iter()
+            .map(|(h, t)| {
+                let mut t = *t;
+                t.translation.y += i as f64 * 0.5;
+                (*h, t)
+            })
+            .collect();
+        scene.set_transforms(&moves).unwrap();
+        last = Some(culled.render_frame(&g, &scene, &frame).unwrap());
+        unculled.render_frame(&g, &scene, &frame).unwrap();
+        assert!(
+            culled.read_image(&g).unwrap() == unculled.read_image(&g).unwrap(),
+            "frame {i}: the culled image differs"
+        );
+    }
+    culled.finish(&g).unwrap();
+    let drawn = culled.drawn_instances(&g).unwrap().unwrap().len();
+    println!("1M city, 96x54: two-phase HiZ drew {drawn} instances; {last:?}");
+    assert!(drawn > 0 && drawn < n / 10, "drew {drawn} of {n}");
+    culled.destroy(&g);
+    unculled.destroy(&g);
+}
+
+/// `scene-info`'s GPU memory is what a renderer allocates for the scene's buffers.
+#[test]
+fn the_memory_estimate_is_what_a_renderer_allocates() {
+    let g = gpu_with(None, culling_features()).unwrap();
+    let scene = tilegraph_scene::load("city:2k").unwrap();
+    let options = RenderOptions {
+        culling: Culling::HizTwoPhase,
+        width: 64,
+        height: 36,
+        ..Default::default()
+    };
+    let r = SceneRenderer::new(&g, &scene, options).unwrap();
+    let estimate =
+        tilegraph_passes::scene_memory(&scene, tilegraph_vk::frames::DEFAULT_FRAMES_IN_FLIGHT, 0);
+    assert_eq!(r.scene_memory(), estimate);
+    assert!(estimate.bytes_per_instance() > 96.0, "{estimate:?}");
+    r.destroy(&g);
+}

@@ -289,6 +289,10 @@ pub fn device_caveat(ctx: &tilegraph_vk::Context) -> Option<&'static str> {
     )
 }
 
+fn mib(bytes: u64) -> f64 {
+    bytes as f64 / (1024.0 * 1024.0)
+}
+
 fn scene_info(
     spec: &str,
     json: bool,
@@ -306,14 +310,38 @@ fn scene_info(
     } else {
         None
     };
+    // What a renderer of it holds on the GPU (two frames in flight, GPU culling's lists).
+    let memory =
+        tilegraph_passes::scene_memory(&scene, tilegraph_vk::frames::DEFAULT_FRAMES_IN_FLIGHT, 0);
     if json {
         let mut v = serde_json::to_value(&info)?;
-        if let (Some(c), Some(o)) = (&clusters, v.as_object_mut()) {
-            o.insert("clusters".into(), serde_json::to_value(c)?);
+        if let Some(o) = v.as_object_mut() {
+            if let Some(c) = &clusters {
+                o.insert("clusters".into(), serde_json::to_value(c)?);
+            }
+            let mut m = serde_json::to_value(memory)?;
+            if let Some(m) = m.as_object_mut() {
+                m.insert("total_bytes".into(), memory.total_bytes().into());
+                m.insert(
+                    "bytes_per_instance".into(),
+                    memory.bytes_per_instance().into(),
+                );
+            }
+            o.insert("gpu_memory".into(), m);
         }
         outln!("{v}")?;
     } else {
         outln!("{info}")?;
+        outln!(
+            "GPU memory         {:.1} MiB: geometry {:.1} MiB, {} frame slots of {:.1} MiB, culling lists {:.1} MiB; {:.0} B per instance slot ({} slots)",
+            mib(memory.total_bytes()),
+            mib(memory.geometry_bytes),
+            memory.frames_in_flight,
+            mib(memory.slot_bytes),
+            mib(memory.culling_bytes),
+            memory.bytes_per_instance(),
+            memory.instance_slots
+        )?;
         if let Some(c) = clusters {
             outln!(
                 "clusters           {} ({:.1} triangles each, {:.1} % with a back-facing cone), built in {:.1} ms, {:.2} MiB",

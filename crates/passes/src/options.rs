@@ -54,6 +54,13 @@ pub enum RenderError {
     /// A check's `on_failure` callback failed (writing a failed frame's images).
     #[error("saving a failed frame: {0}")]
     Save(String),
+    /// The scene's buffers would bind more than the device's `maxStorageBufferRange`.
+    #[error("a scene of {instances} instance slots needs a storage buffer of {needed_bytes} bytes; this device binds at most {limit_bytes} (maxStorageBufferRange)")]
+    SceneTooLarge {
+        instances: u32,
+        needed_bytes: u64,
+        limit_bytes: u64,
+    },
     /// A change to the scene was refused (a motion's step, say).
     #[error("scene: {0}")]
     Scene(#[from] tilegraph_scene::SceneError),

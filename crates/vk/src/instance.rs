@@ -55,6 +55,8 @@ pub struct DeviceLimits {
     pub max_color_attachments: u32,
     pub max_image_dimension_2d: u32,
     pub max_compute_work_group_invocations: u32,
+    /// The largest range of a storage buffer one descriptor may bind.
+    pub max_storage_buffer_range: u32,
     /// Granularity of flush/invalidate on non-coherent host memory.
     pub non_coherent_atom_size: u64,
     /// `bufferImageGranularity`: buffers and optimal-tiling images placed in one allocation must
@@ -426,6 +428,7 @@ impl Instance {
                 max_color_attachments: props.limits.max_color_attachments,
                 max_image_dimension_2d: props.limits.max_image_dimension2_d,
                 max_compute_work_group_invocations: props.limits.max_compute_work_group_invocations,
+                max_storage_buffer_range: props.limits.max_storage_buffer_range,
                 non_coherent_atom_size: props.limits.non_coherent_atom_size.max(1),
                 buffer_image_granularity: props.limits.buffer_image_granularity.max(1),
             },

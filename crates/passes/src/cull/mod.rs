@@ -406,6 +406,8 @@ pub struct CullParams {
     pub list_len: [u32; 4],
     /// Cluster culling: per list 0-7, its first command.
     pub cmd_base: [[u32; 4]; 2],
+    /// x: command slots per list (the most draw groups a list holds).
+    pub commands: [u32; 4],
 }
 
 /// The bounding volume culling tests an instance by (knob `cull_bounds`). Both are conservative

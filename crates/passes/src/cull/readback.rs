@@ -56,14 +56,14 @@ impl CullState {
             b.get(4 * i..4 * i + 4)
                 .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
         };
-        let stride = self.layout.stride.max(1) as usize;
+        let slots = self.capacity.groups.max(1) as usize;
         // Per list: where its commands start and how many it can hold.
         let place = |list: usize| match &self.clusters {
             Some(c) => (
                 c.layout.cmd_base.get(list).copied().unwrap_or(0) as usize,
                 c.layout.capacity.get(list % 4).copied().unwrap_or(0) as usize,
             ),
-            None => (list * stride, stride),
+            None => (list * slots, slots),
         };
         let lists = (0..LIST_COUNT as usize)
             .map(|list| {

@@ -132,6 +132,8 @@ pub const NO_ENTRY: u32 = u32::MAX;
 pub struct Capacity {
     pub instances: u32,
     pub stride: u32,
+    /// Draw buckets (the most draw groups, hence indirect commands, a list can hold).
+    pub groups: u32,
 }
 
 impl Capacity {
@@ -141,11 +143,13 @@ impl Capacity {
         let round = |n: u32| n.max(64).checked_next_power_of_two().unwrap_or(u32::MAX);
         let slots = u32::try_from(scene.instances().len()).unwrap_or(u32::MAX);
         let stride = scene.buckets().stride();
+        let buckets = u32::try_from(scene.buckets().bucket_count()).unwrap_or(u32::MAX);
         Capacity {
             instances: round(slots.max(instances)),
             // A list may hold every instance slot: then no growth of the scene's buckets
             // outgrows the stride before its instances outgrow the slots.
             stride: round(stride.max(slots.max(instances).saturating_add(64))),
+            groups: round(buckets),
         }
     }
 
@@ -153,6 +157,22 @@ impl Capacity {
     pub fn holds(&self, scene: &Scene) -> bool {
         scene.instances().len() as u64 <= u64::from(self.instances)
             && scene.buckets().stride() <= self.stride
+            && scene.buckets().bucket_count() as u64 <= u64::from(self.groups)
+    }
+
+    /// The largest storage buffer a renderer of this capacity binds, in bytes: what must fit
+    /// the device's `maxStorageBufferRange` (2^27 on many phones and on lavapipe).
+    pub fn largest_storage_buffer(&self) -> u64 {
+        let lists = 2 * DRAW_LISTS as u64;
+        [
+            u64::from(self.instances) * std::mem::size_of::<GpuInstance>() as u64,
+            self.entries() * 4,
+            u64::from(self.stride) * lists * 4,
+            u64::from(self.groups) * lists * 20,
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0)
     }
 
     /// The first entry of the frame's CPU lists (after the scene's lists).
@@ -205,6 +225,59 @@ fn buffer(
     ctx.create_buffer(name, size.max(16), usage, use_)
 }
 
+/// A frame slot's buffers for `capacity` and tables of `meshes` and `materials`: name, bytes,
+/// usage, memory (what [`GpuScene`] makes, and [`crate::scene_memory`] counts).
+pub(crate) fn slot_specs(
+    c: Capacity,
+    meshes: usize,
+    materials: usize,
+) -> [(&'static str, u64, vk::BufferUsageFlags, MemoryUse); 7] {
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let streaming = MemoryUse::Streaming;
+    [
+        (
+            "frame uniforms",
+            std::mem::size_of::<FrameUniforms>() as u64,
+            vk::BufferUsageFlags::UNIFORM_BUFFER,
+            streaming,
+        ),
+        (
+            "instance records",
+            u64::from(c.instances) * std::mem::size_of::<GpuInstance>() as u64,
+            storage,
+            streaming,
+        ),
+        (
+            "instance entries",
+            u64::from(c.instances) * 4,
+            storage,
+            streaming,
+        ),
+        ("draw entries", c.entries() * 4, storage, streaming),
+        (
+            "meshes",
+            grown(meshes as u64) * std::mem::size_of::<GpuMesh>() as u64,
+            storage,
+            streaming,
+        ),
+        (
+            "materials",
+            grown(materials as u64) * std::mem::size_of::<GpuMaterial>() as u64,
+            storage,
+            streaming,
+        ),
+        ("fragment counters", 16, storage, MemoryUse::Readback),
+    ]
+}
+
+/// The resident vertex and index buffers' sizes for `scene` (room to grow).
+pub(crate) fn geometry_sizes(scene: &Scene) -> [u64; 2] {
+    [
+        grown(scene.vertices().len() as u64) * 32,
+        grown(scene.indices().len() as u64) * 4,
+    ]
+}
+
 impl GpuScene {
     /// Uploads the scene's geometry and creates `frames_in_flight` sets of per-slot buffers
     /// with room for `capacity`.
@@ -214,18 +287,19 @@ impl GpuScene {
         frames_in_flight: usize,
         capacity: Capacity,
     ) -> Result<Self, VkError> {
+        let [vertex_bytes, index_bytes] = geometry_sizes(scene);
         let vertices = upload_sized(
             ctx,
             "scene vertices",
             bytemuck::cast_slice(scene.vertices()),
-            grown(scene.vertices().len() as u64) * 32,
+            vertex_bytes,
             vk::BufferUsageFlags::VERTEX_BUFFER | GEOMETRY_USAGE,
         )?;
         let indices = match upload_sized(
             ctx,
             "scene indices",
             bytemuck::cast_slice(scene.indices()),
-            grown(scene.indices().len() as u64) * 4,
+            index_bytes,
             vk::BufferUsageFlags::INDEX_BUFFER | GEOMETRY_USAGE,
         ) {
             Ok(b) => b,
@@ -314,43 +388,7 @@ impl GpuScene {
     }
 
     fn slot_buffers(&self, ctx: &Context, i: u32, scene: &Scene) -> Result<SlotBuffers, VkError> {
-        let c = self.capacity;
-        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let streaming = MemoryUse::Streaming;
-        let specs = [
-            (
-                "frame uniforms",
-                std::mem::size_of::<FrameUniforms>() as u64,
-                vk::BufferUsageFlags::UNIFORM_BUFFER,
-                streaming,
-            ),
-            (
-                "instance records",
-                u64::from(c.instances) * std::mem::size_of::<GpuInstance>() as u64,
-                storage,
-                streaming,
-            ),
-            (
-                "instance entries",
-                u64::from(c.instances) * 4,
-                storage,
-                streaming,
-            ),
-            ("draw entries", c.entries() * 4, storage, streaming),
-            (
-                "meshes",
-                grown(scene.meshes().len() as u64) * std::mem::size_of::<GpuMesh>() as u64,
-                storage,
-                streaming,
-            ),
-            (
-                "materials",
-                grown(scene.materials().len() as u64) * std::mem::size_of::<GpuMaterial>() as u64,
-                storage,
-                streaming,
-            ),
-            ("fragment counters", 16, storage, MemoryUse::Readback),
-        ];
+        let specs = slot_specs(self.capacity, scene.meshes().len(), scene.materials().len());
         let mut made: Vec<Buffer> = Vec::with_capacity(specs.len());
         for (name, size, usage, use_) in specs {
             match buffer(ctx, &format!("{name}[{i}]"), size, usage, use_) {
@@ -555,6 +593,7 @@ impl GpuScene {
                     &f.entries,
                     &f.meshes,
                     &f.materials,
+                    &f.counters,
                 ]
                 .iter()
                 .map(|b| b.size)

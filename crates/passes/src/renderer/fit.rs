@@ -173,6 +173,7 @@ impl SceneRenderer {
             .instance_capacity
             .max(self.resources.scene.capacity().instances);
         let capacity = Capacity::for_scene(scene, hint);
+        super::check_capacity(ctx, capacity)?;
         log::info!(
             "renderer: new buffers for {} instance slots, list stride {} ({:?})",
             scene.instances().len(),

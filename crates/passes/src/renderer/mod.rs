@@ -11,6 +11,7 @@
 //! caller declared — an engine's frame, the shipped passes and its own on one graph.
 
 mod fit;
+mod memory;
 mod readback;
 mod resources;
 
@@ -38,6 +39,7 @@ use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
 use crate::setup::{FrameSetup, SceneContent, Technique};
 use crate::targets::{create_target, destroy_target};
 use fit::{decide_setup, CpuLists};
+pub use memory::{scene_memory, SceneMemory};
 use resources::create_resources;
 
 /// An image the renderer keeps across frames, with its view.
@@ -147,6 +149,10 @@ impl SceneRenderer {
             return Err(e.into());
         }
         let capacity = Capacity::for_scene(scene, options.instance_capacity);
+        if let Err(e) = check_capacity(ctx, capacity) {
+            executor.destroy(ctx);
+            return Err(e);
+        }
         let parts = create_resources(ctx, scene, &options, executor.frames_in_flight(), capacity)
             .and_then(
                 |resources| match create_targets(ctx, &options, submission) {
@@ -695,6 +701,20 @@ impl SceneRenderer {
             destroy_target(ctx, ids);
         }
     }
+}
+
+/// Whether the buffers of `capacity` fit the device's storage buffer range.
+fn check_capacity(ctx: &Context, capacity: Capacity) -> Result<(), RenderError> {
+    let needed_bytes = capacity.largest_storage_buffer();
+    let limit_bytes = u64::from(ctx.physical.limits.max_storage_buffer_range);
+    if needed_bytes > limit_bytes {
+        return Err(RenderError::SceneTooLarge {
+            instances: capacity.instances,
+            needed_bytes,
+            limit_bytes,
+        });
+    }
+    Ok(())
 }
 
 /// The colour target, and the id target when the ids are captured.

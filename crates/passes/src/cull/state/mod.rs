@@ -19,6 +19,8 @@ use crate::frame::PassState;
 use crate::gpu_scene::Capacity;
 use crate::hiz::{HizState, PyramidInfo};
 
+mod sizes;
+
 /// What a frame's GPU culling drew, read back without waiting once its slot completed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GpuCullCounts {
@@ -125,9 +127,9 @@ pub struct CullState {
     pub clusters: Option<ClusterStage>,
 }
 
-const CULL_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cull.comp.spv");
-const COMPACT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cull_compact.comp.spv");
-const COMMANDS_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cull_commands.comp.spv");
+const CULL_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull.comp.spv");
+const COMPACT_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull_compact.comp.spv");
+const COMMANDS_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull_commands.comp.spv");
 
 /// The culling descriptor set's storage buffers (bindings 1-10).
 const STORAGE_BINDINGS: u32 = 10;
@@ -168,8 +170,6 @@ impl CullState {
             bounds,
             capacity,
         } = inputs;
-        let n = u64::from(capacity.instances.max(1));
-        let stride = u64::from(capacity.stride.max(1));
         // The cluster commands' draw ids follow the instance lists'.
         let cluster_commands = if culling.clusters() {
             let layout =
@@ -184,31 +184,7 @@ impl CullState {
         } else {
             0
         };
-        let lists = u64::from(LIST_COUNT);
-        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let indirect = vk::BufferUsageFlags::INDIRECT_BUFFER;
-        let src = vk::BufferUsageFlags::TRANSFER_SRC;
-        let dst = vk::BufferUsageFlags::TRANSFER_DST;
-        let specs = [
-            (
-                "cull commands",
-                stride * lists * 20,
-                storage | indirect | src,
-            ),
-            // Draw count, then instances drawn, per list.
-            ("cull counts", 2 * lists * 4, storage | indirect | src),
-            (
-                "cull draw ids",
-                (stride * lists + cluster_commands) * 4,
-                storage | src,
-            ),
-            ("visibility", n * 4, storage | dst),
-            ("cull entries", stride * lists * 4, storage),
-            // At most one group per instance and phase.
-            ("cull survivors", 2 * n * 4, storage),
-            // Bound as the pyramid without one: never written, never read (the levels say 0).
-            ("cull no pyramid", 16, storage),
-        ];
+        let specs = Self::buffer_specs(capacity, cluster_commands);
         let mut made: Vec<Buffer> = Vec::with_capacity(specs.len());
         for (name, size, usage) in specs {
             match ctx.create_buffer(name, size, usage, MemoryUse::GpuOnly) {
@@ -470,6 +446,7 @@ impl CullState {
                 clusters: cluster_info,
                 list_len,
                 cmd_base,
+                commands: [self.capacity.groups.max(1), 0, 0, 0],
             }
         };
         let first = match self.culling.base() {
@@ -580,7 +557,7 @@ impl CullState {
         if groups == 0 {
             return Ok(());
         }
-        let stride = u64::from(inputs.stride.max(1));
+        let slots = u64::from(self.capacity.groups.max(1));
         let (commands, counts, offset, groups) = match &self.clusters {
             // Cluster lists: the list's commands from its base, up to its capacity.
             Some(c) => {
@@ -595,13 +572,13 @@ impl CullState {
             None => (
                 &self.commands,
                 &self.counts,
-                u64::from(list) * stride * 20,
+                u64::from(list) * slots * 20,
                 groups,
             ),
         };
         let d = &ctx.device;
         // SAFETY (all three): inside a render pass with a pipeline, vertex/index buffers and
-        // sets bound; list `list` holds `stride` >= `groups` commands of 20 bytes from `offset`,
+        // sets bound; list `list` holds `slots` >= `groups` commands of 20 bytes from `offset`,
         // every one written by cull_commands.comp this frame.
         match self.draw_count {
             DrawCount::Gpu => unsafe {
@@ -735,22 +712,7 @@ impl CullState {
 impl SlotInputs {
     /// Frame slot `slot`'s parameter blocks and groups for up to `n` instances.
     fn new(ctx: &Context, slot: u32, n: u64) -> Result<Self, VkError> {
-        let uniform = vk::BufferUsageFlags::UNIFORM_BUFFER;
-        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let params_size = std::mem::size_of::<CullParams>() as u64;
-        let streaming = MemoryUse::Streaming;
-        let specs = [
-            ("params.early", params_size, uniform, streaming),
-            ("params.late", params_size, uniform, streaming),
-            // At most one group per instance.
-            ("groups", n * 20, storage, streaming),
-            (
-                "stats",
-                2 * u64::from(LIST_COUNT) * 4,
-                vk::BufferUsageFlags::TRANSFER_DST,
-                MemoryUse::Readback,
-            ),
-        ];
+        let specs = Self::specs(n);
         let mut made = Vec::with_capacity(specs.len());
         for (what, size, usage, memory) in specs {
             let name = format!("cull {what}[{slot}]");
