@@ -1,7 +1,7 @@
 //! Axis-aligned boxes and spheres: f32 [`Aabb`] (mesh-local, from tilegraph-types) and f64
 //! [`DAabb`], [`DSphere`] (world).
 
-use glam::{DVec3, Mat3, Vec3};
+use glam::{DVec3, Mat3, Mat3A, Vec3, Vec3A};
 use serde::Serialize;
 
 /// The f32 box (mesh-local bounds) is shared with the culling references, so it lives in
@@ -81,25 +81,23 @@ pub(crate) fn transformed_bounds(
     translation: DVec3,
     local: &Aabb,
 ) -> (DVec3, Vec3, f32) {
-    let c = local.center();
-    let e = local.half_extents();
-    let center = translation + (linear * c).as_dvec3();
-    let abs = Mat3::from_cols(
-        linear.x_axis.abs(),
-        linear.y_axis.abs(),
-        linear.z_axis.abs(),
-    );
+    // The same f32 operations as on Vec3, in SIMD lanes (a move of an instance pays this).
+    let l = Mat3A::from(linear);
+    let c = Vec3A::from(local.center());
+    let e = Vec3A::from(local.half_extents());
+    let center = translation + Vec3::from(l * c).as_dvec3();
+    let abs = Mat3A::from_cols(l.x_axis.abs(), l.y_axis.abs(), l.z_axis.abs());
     // Everything above is f32 arithmetic on local coordinates, and the GPU's own transform
     // (L * p) rounds too: each step is off by at most an ulp of |L| * |p|. Grow the bounds by a
     // few of those so they always enclose the drawn vertices, even for a mesh whose coordinates
     // sit far from its origin (10^4 m out, a box 0.25 m wide lost half a millimetre).
-    let reach = local.min.abs().max(local.max.abs());
+    let reach = Vec3A::from(local.min.abs().max(local.max.abs()));
     let pad = (abs * reach) * (8.0 * f32::EPSILON / 2.0);
-    let half = abs * e + pad;
+    let half = Vec3::from(abs * e + pad);
     // |L k|^2 for the corners k = (±ex, ±ey, ±ez) is k' G k with G = L'L: a diagonal part
     // every corner shares and cross terms whose signs are the corner's (four corners cover the
-    // eight: k and -k are as far). Cheaper than four transforms (a move of an instance pays it).
-    let (x, y, z) = (linear.x_axis, linear.y_axis, linear.z_axis);
+    // eight: k and -k are as far). Cheaper than four transforms.
+    let (x, y, z) = (l.x_axis, l.y_axis, l.z_axis);
     let diagonal = x.length_squared() * e.x * e.x
         + y.length_squared() * e.y * e.y
         + z.length_squared() * e.z * e.z;
@@ -115,8 +113,8 @@ pub(crate) fn transformed_bounds(
     // Rounding can leave the sum an ulp or two below the exact farthest corner: the pad, a few
     // ulps of |L| * reach, covers more than that.
     // The pad's components summed: at least its length, and no second square root.
-    let radius =
-        (diagonal + cross).max(0.0).sqrt() * (1.0 + 4.0 * f32::EPSILON) + (pad.x + pad.y + pad.z);
+    let radius = (diagonal + cross).max(0.0).sqrt() * (1.0 + 4.0 * f32::EPSILON)
+        + (pad.x + pad.y + pad.z);
     (center, half, radius)
 }
 
