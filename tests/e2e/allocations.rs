@@ -54,7 +54,10 @@ fn recording_and_stats_allocate_nothing_after_the_first_frames() {
         .step_by(10)
         .filter_map(|i| {
             let id = tilegraph_scene::InstanceId(i);
-            Some((scene.instance_handle(id)?, scene.instances()[i as usize].transform))
+            Some((
+                scene.instance_handle(id)?,
+                scene.instances()[i as usize].transform,
+            ))
         })
         .collect();
     assert!(movers.len() >= 150, "{} movers", movers.len());

@@ -113,8 +113,8 @@ pub(crate) fn transformed_bounds(
     // Rounding can leave the sum an ulp or two below the exact farthest corner: the pad, a few
     // ulps of |L| * reach, covers more than that.
     // The pad's components summed: at least its length, and no second square root.
-    let radius = (diagonal + cross).max(0.0).sqrt() * (1.0 + 4.0 * f32::EPSILON)
-        + (pad.x + pad.y + pad.z);
+    let radius =
+        (diagonal + cross).max(0.0).sqrt() * (1.0 + 4.0 * f32::EPSILON) + (pad.x + pad.y + pad.z);
     (center, half, radius)
 }
 
