@@ -23,8 +23,8 @@ layout(set = 1, binding = 7, std430) readonly buffer Order { uint order[]; };
 layout(set = 1, binding = 8, std430) readonly buffer Entries { uint entries[]; };
 layout(set = 1, binding = 13, std430) buffer ClusterVisibility { uint cluster_visible[]; };
 
-// How far inside the cone the camera must be: the cone comes from f32 normals and the camera's
-// local position from an f32 inverse; a triangle seen almost edge-on is never rejected.
+// How far inside the cone the eye must be beyond what snapping and rounding need: the cone's own
+// f32 rounding and the eye's local position (tilegraph_scene::cone::CONE_MARGIN).
 const float CONE_MARGIN = 1e-3;
 
 // Previous flag of each region (index 0: the last of the previous chunk) for counting runs.
@@ -34,26 +34,59 @@ shared uint starts0;
 shared uint starts1;
 
 // The cluster's box in the instance's camera-relative frame (as cull.comp's instance bounds),
-// grown by the f32 transform's rounding.
+// grown by the f32 transform's rounding: relative to the camera-relative result, to the
+// instance's translation and to the local coordinates (a one-mesh level's clusters lie far
+// from the mesh's origin, while the camera may stand beside them).
 Instance cluster_bounds(Instance inst, Cluster cl) {
     Instance b = inst;
     b.center = instance_transform(inst, cl.center);
     vec3 h = cl.half_extents;
+    vec3 t = vec3(inst.model_rows[0].w, inst.model_rows[1].w, inst.model_rows[2].w);
+    vec3 rows = vec3(length(inst.model_rows[0].xyz), length(inst.model_rows[1].xyz), length(inst.model_rows[2].xyz));
     b.half_extents = vec3(dot(abs(inst.model_rows[0].xyz), h), dot(abs(inst.model_rows[1].xyz), h),
                           dot(abs(inst.model_rows[2].xyz), h));
-    b.half_extents += 1e-6 * (length(b.center) + length(b.half_extents));
+    b.half_extents += 1e-6 * (length(b.center) + length(b.half_extents) + length(t))
+        + 1e-6 * rows * (length(cl.center) + length(h));
     b.radius = length(b.half_extents);
     return b;
 }
 
 // Whether every triangle of the cluster faces away from the camera (at the origin of the
-// camera-relative frame), tested in the mesh's local space.
-bool back_facing(Instance inst, Cluster cl, mat3 linear_inverse) {
+// camera-relative frame), whatever the snapping to the sub-pixel grid and the f32 transform do
+// to its vertices: the f32 twin of tilegraph_scene::cone::back_facing (its doc derives it), in
+// the mesh's local space. `steps`: sub-pixel steps per unit of lateral offset at distance 1.
+bool back_facing(Instance inst, Cluster cl, mat3 linear_inverse, float steps) {
+    if (cl.cone_cutoff >= 1.0) {
+        return false;
+    }
     vec3 t = vec3(inst.model_rows[0].w, inst.model_rows[1].w, inst.model_rows[2].w);
     vec3 eye = linear_inverse * -t;
     vec3 d = cl.cone_apex - eye;
     float len = length(d);
-    return len > 0.0 && dot(d, cl.cone_axis) >= (cl.cone_cutoff + CONE_MARGIN) * len;
+    if (!(len > cl.cone_reach)) {
+        return false;
+    }
+    float far = len + cl.cone_reach;
+    float rounding = 1e-6 * (length(cl.cone_apex) + cl.cone_reach + length(eye));
+    float nu = 1.5 * far / steps + rounding;
+    float sin_gamma = nu * (2.2 * cl.cone_thinness * far + 1.0) / len + CONE_MARGIN;
+    // The eye must lie within 90° - alpha - gamma of the axis: none left when gamma >= 90° - alpha.
+    float cos_alpha = sqrt(max(1.0 - cl.cone_cutoff * cl.cone_cutoff, 0.0));
+    if (!(sin_gamma < cos_alpha)) {
+        return false;
+    }
+    float threshold = cl.cone_cutoff * sqrt(1.0 - sin_gamma * sin_gamma) + cos_alpha * sin_gamma;
+    return dot(d, cl.cone_axis) >= threshold * len;
+}
+
+// Whether the instance's scale is uniform (a rotation times one scale, within rounding): the
+// cone test works in local space, where only then angles and the snapping margin carry over.
+bool uniform_scale(mat3 linear) {
+    mat3 g = transpose(linear) * linear;
+    float s = (g[0][0] + g[1][1] + g[2][2]) / 3.0;
+    float tol = 1e-4 * s;
+    return abs(g[0][0] - s) <= tol && abs(g[1][1] - s) <= tol && abs(g[2][2] - s) <= tol
+        && abs(g[0][1]) <= tol && abs(g[0][2]) <= tol && abs(g[1][2]) <= tol;
 }
 
 void main() {
@@ -85,10 +118,11 @@ void main() {
         return;
     }
     // The cone test: single-sided materials, perspective views, transforms that keep the
-    // winding (a mirrored instance's front faces are the other side).
+    // winding (a mirrored instance's front faces are the other side) and scale uniformly.
     mat3 linear = transpose(mat3(inst.model_rows[0].xyz, inst.model_rows[1].xyz, inst.model_rows[2].xyz));
+    float steps = uintBitsToFloat(cull.clusters.w);
     bool cone = cull.clusters.y == 1u && materials[meshes[inst.mesh].material].double_sided == 0u
-        && determinant(linear) > 0.0;
+        && determinant(linear) > 0.0 && uniform_scale(linear) && steps > 0.0;
     mat3 linear_inverse = cone ? inverse(linear) : mat3(1.0);
     uint base = cluster_base[id];
     if (t == 0u) {
@@ -106,7 +140,7 @@ void main() {
             uint k = base + c;
             Cluster cl = clusters[range.x + c];
             Instance b = cluster_bounds(inst, cl);
-            bool visible = frustum_visible_box(b) && !(cone && back_facing(inst, cl, linear_inverse));
+            bool visible = frustum_visible_box(b) && !(cone && back_facing(inst, cl, linear_inverse, steps));
             if (phase == 0u) {
                 f0 = visible ? 1u : 0u;
             } else if (phase == 2u) {

@@ -10,7 +10,9 @@
 #ifndef TILEGRAPH_CLUSTER_GLSL
 #define TILEGRAPH_CLUSTER_GLSL
 
-// tilegraph_scene::clusters::GpuCluster (64 bytes): local-space box, index range, normal cone.
+// tilegraph_scene::clusters::GpuCluster (80 bytes): local-space box, index range, back-facing
+// cone (tilegraph_scene::cone: apex, axis, sin of its half-angle, the farthest vertex from the
+// apex, the largest perimeter / area of its triangles).
 struct Cluster {
     vec3 center;
     uint first_index;
@@ -19,7 +21,11 @@ struct Cluster {
     vec3 cone_apex;
     float cone_cutoff;
     vec3 cone_axis;
-    uint pad;
+    float cone_reach;
+    float cone_thinness;
+    uint pad0;
+    uint pad1;
+    uint pad2;
 };
 
 layout(set = 1, binding = 9, std430) readonly buffer Clusters { Cluster clusters[]; };

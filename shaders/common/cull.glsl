@@ -24,7 +24,8 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
     vec4 hiz_proj;         // x, y: NDC per view unit (P00, P11); z: 1 perspective, 0 orthographic, -1 neither (test the box)
     vec4 hiz_depth;        // clip z = x * view z + y, clip w = z * view z + w
     // Cluster culling only (common/cluster.glsl):
-    uvec4 clusters;        // x: draw id of cluster command 0, y: 1 = back-facing cone test, z: cluster instances
+    uvec4 clusters;        // x: draw id of cluster command 0, y: 1 = back-facing cone test, z: cluster instances,
+                           // w: sub-pixel steps per unit of lateral offset at distance 1 (f32 bits; the cone's snapping margin)
     uvec4 list_len;        // per list of a phase: its entries
     uvec4 cmd_base[2];     // per list (0-7): its first cluster command
     uvec4 commands;        // x: command slots per list (the most draw groups a list holds)

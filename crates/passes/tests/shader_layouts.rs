@@ -160,3 +160,32 @@ fn instance_mesh_material_and_frame_match_rust() {
         false,
     );
 }
+
+#[test]
+fn cluster_matches_rust() {
+    use tilegraph_scene::clusters::GpuCluster;
+    let cull = include_bytes!("../../../shaders/spv/cluster_cull.comp.spv");
+    assert_eq!(size_of::<GpuCluster>(), 80);
+    let pad = offset_of!(GpuCluster, _pad);
+    assert_struct(
+        cull,
+        "cluster_cull.comp",
+        "Cluster",
+        &[
+            offset_of!(GpuCluster, center),
+            offset_of!(GpuCluster, first_index),
+            offset_of!(GpuCluster, half_extents),
+            offset_of!(GpuCluster, index_count),
+            offset_of!(GpuCluster, cone_apex),
+            offset_of!(GpuCluster, cone_cutoff),
+            offset_of!(GpuCluster, cone_axis),
+            offset_of!(GpuCluster, cone_reach),
+            offset_of!(GpuCluster, cone_thinness),
+            pad,
+            pad + 4,
+            pad + 8,
+        ],
+        size_of::<GpuCluster>(),
+        true,
+    );
+}

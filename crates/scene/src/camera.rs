@@ -462,6 +462,80 @@ impl CameraPath {
         }
     }
 
+    /// A walk through the scene at eye height (1.7 above the bounds' floor, or mid-height in a
+    /// scene lower than that): straight legs across the bounds, the view sweeping left and
+    /// right (±70° of yaw, a little pitch), and a hard cut to another place every 24 frames.
+    /// Deterministic in `seed`. Not an orbit: the camera stands inside the scene, among what
+    /// occludes, and turns faster than it moves — what a player does.
+    pub fn eye_height_walk(bounds: &DAabb, frames: usize, seed: u64) -> Self {
+        let (_, r, projection) = bounds_view(bounds);
+        let projection = match projection {
+            Projection::Perspective {
+                fov_y_rad, depth, ..
+            } => Projection::Perspective {
+                fov_y_rad,
+                near: (r * 1e-4).clamp(0.01, 0.1) as f32,
+                far: None,
+                depth,
+            },
+            other => other,
+        };
+        let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (lo, hi) = (bounds.min, bounds.max);
+        let height = (lo.y + 1.7).min(0.5 * (lo.y + hi.y));
+        let place = |next: &mut dyn FnMut() -> f64| {
+            DVec3::new(
+                lo.x + (0.1 + 0.8 * next()) * (hi.x - lo.x),
+                height,
+                lo.z + (0.1 + 0.8 * next()) * (hi.z - lo.z),
+            )
+        };
+        let step = 0.004 * (hi - lo).length().max(1e-3);
+        let (mut eye, mut heading) = (place(&mut next), next() * std::f64::consts::TAU);
+        let keys = (0..frames.max(1))
+            .map(|i| {
+                let cut = i > 0 && i % 24 == 0;
+                if cut {
+                    eye = place(&mut next);
+                    heading = next() * std::f64::consts::TAU;
+                } else if i > 0 {
+                    eye += DVec3::new(heading.cos(), 0.0, heading.sin()) * step;
+                    // Turn back at the edges of the bounds.
+                    if eye.x < lo.x || eye.x > hi.x || eye.z < lo.z || eye.z > hi.z {
+                        heading += std::f64::consts::PI;
+                        eye = eye.clamp(lo, hi);
+                    }
+                }
+                let yaw = heading + 1.2 * (i as f64 * 0.45).sin();
+                let pitch = 0.15 * (i as f64 * 0.23).sin();
+                let look = DVec3::new(
+                    yaw.cos() * pitch.cos(),
+                    pitch.sin(),
+                    yaw.sin() * pitch.cos(),
+                );
+                PathKey {
+                    camera: Camera {
+                        eye,
+                        target: eye + look,
+                        up: Vec3::Y,
+                        projection,
+                    },
+                    cut,
+                }
+            })
+            .collect();
+        CameraPath {
+            name: format!("eye-height walk {seed}"),
+            keys,
+        }
+    }
+
     /// This path followed by `next`, with a cut at the join.
     #[must_use]
     pub fn then_cut(mut self, next: CameraPath) -> Self {

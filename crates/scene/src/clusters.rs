@@ -21,13 +21,18 @@ use crate::error::SceneError;
 use crate::scene::Scene;
 pub use crate::scene::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VERTICES};
 
-const MAGIC: &[u8; 8] = b"TGCLUST1";
+const CLUSTER_BYTES: usize = std::mem::size_of::<GpuCluster>();
+
+/// Version 2: 80-byte clusters with the snapping-safe cone (`crate::cone`).
+const MAGIC: &[u8; 8] = b"TGCLUST2";
 
 impl ClusterData {
     /// Writes the data to `path` (little-endian: magic, fingerprint, counts, then the arrays).
     pub fn write(&self, path: &Path) -> Result<(), SceneError> {
         let mut out = Vec::with_capacity(
-            40 + self.indices.len() * 4 + self.clusters.len() * 64 + self.mesh_clusters.len() * 8,
+            40 + self.indices.len() * 4
+                + self.clusters.len() * CLUSTER_BYTES
+                + self.mesh_clusters.len() * 8,
         );
         out.extend_from_slice(MAGIC);
         out.extend_from_slice(&self.fingerprint.to_le_bytes());
@@ -68,7 +73,11 @@ impl ClusterData {
         let (Some(fingerprint), Some(ni), Some(nc), Some(nm)) = header else {
             return Err(bad("header cut short".into()));
         };
-        let sizes = [ni.checked_mul(4), nc.checked_mul(64), nm.checked_mul(8)];
+        let sizes = [
+            ni.checked_mul(4),
+            nc.checked_mul(CLUSTER_BYTES as u64),
+            nm.checked_mul(8),
+        ];
         let [Some(si), Some(sc), Some(sm)] = sizes.map(|s| s.and_then(|s| usize::try_from(s).ok()))
         else {
             return Err(bad("counts overflow".into()));
@@ -119,7 +128,8 @@ pub struct BuildStats {
 }
 
 /// Splits every mesh of `scene` into clusters with meshoptimizer (`meshopt_buildMeshlets`, cone
-/// weight 0.25) and computes each cluster's box and normal cone. Each mesh is built once,
+/// weight 0.25) and computes each cluster's box and its back-facing cone ([`crate::cone::Cone`],
+/// tilegraph's own: safe against snapping, none where a triangle is degenerate). Each mesh is built once,
 /// whatever number of instances draw it.
 #[cfg(feature = "meshopt")]
 pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
@@ -159,8 +169,8 @@ pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
                 meshopt::build_meshlets(indices, &adapter, MAX_VERTICES, MAX_TRIANGLES, 0.25);
             let mut at = first;
             for meshlet in meshlets.iter() {
-                let bounds = meshopt::compute_meshlet_bounds(meshlet, &adapter);
                 let begin = at;
+                let mut corners = Vec::with_capacity(meshlet.triangles.len());
                 let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
                 for &local in meshlet.triangles {
                     let Some(&v) = meshlet.vertices.get(usize::from(local)) else {
@@ -176,8 +186,14 @@ pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
                     if let Some(slot) = data.indices.get_mut(at) {
                         *slot = v;
                     }
+                    corners.push(p);
                     at += 1;
                 }
+                let triangles: Vec<[[f32; 3]; 3]> = corners
+                    .chunks_exact(3)
+                    .map(|t| [t[0], t[1], t[2]])
+                    .collect();
+                let cone = crate::cone::Cone::of_triangles(&triangles);
                 let center = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
                 let half = std::array::from_fn(|a| 0.5 * (hi[a] - lo[a]));
                 data.clusters.push(GpuCluster {
@@ -185,10 +201,12 @@ pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
                     first_index: begin as u32,
                     half_extents: half,
                     index_count: (at - begin) as u32,
-                    cone_apex: bounds.cone_apex,
-                    cone_cutoff: bounds.cone_cutoff,
-                    cone_axis: bounds.cone_axis,
-                    _pad: 0,
+                    cone_apex: cone.apex,
+                    cone_cutoff: cone.cutoff,
+                    cone_axis: cone.axis,
+                    cone_reach: cone.reach,
+                    cone_thinness: cone.thinness,
+                    _pad: [0; 3],
                 });
             }
             if at != range.end {

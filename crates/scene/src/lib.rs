@@ -40,6 +40,7 @@
 mod bounds;
 mod camera;
 pub mod clusters;
+pub mod cone;
 mod error;
 pub mod export;
 mod gltf_load;
@@ -109,8 +110,13 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
     load_with(spec, &LoadOptions::default())
 }
 
-/// Loads a scene from a spec: a glTF path, `kind[:size[:seed]]`, or `default`.
+/// Loads a scene from a spec: a glTF path, `kind[:size[:seed]]`, or `default`; with `@one-mesh`
+/// after it, baked into one mesh per material ([`Scene::one_mesh_per_material`]: a level as
+/// many engines export it).
 pub fn load_with(spec: &str, options: &LoadOptions) -> Result<Scene, SceneError> {
+    if let Some(level) = spec.strip_suffix("@one-mesh") {
+        return load_with(level, options)?.one_mesh_per_material();
+    }
     let mut scene = match parse_spec(spec, options)? {
         Spec::File(path) => load_gltf(Path::new(path), &options.limits)?,
         Spec::Procedural(kind, params) => generate(kind, params)?,

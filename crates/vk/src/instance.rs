@@ -62,6 +62,9 @@ pub struct DeviceLimits {
     /// `bufferImageGranularity`: buffers and optimal-tiling images placed in one allocation must
     /// not share a page of this size.
     pub buffer_image_granularity: u64,
+    /// `subPixelPrecisionBits`: the rasterizer snaps vertices to 1 / 2^bits of a pixel (what the
+    /// cluster cone test leaves room for).
+    pub sub_pixel_precision_bits: u32,
 }
 
 impl PhysicalDevice {
@@ -431,6 +434,7 @@ impl Instance {
                 max_storage_buffer_range: props.limits.max_storage_buffer_range,
                 non_coherent_atom_size: props.limits.non_coherent_atom_size.max(1),
                 buffer_image_granularity: props.limits.buffer_image_granularity.max(1),
+                sub_pixel_precision_bits: props.limits.sub_pixel_precision_bits,
             },
             extensions,
         };

@@ -343,3 +343,34 @@ impl ClusterStage {
         }
     }
 }
+
+/// The cone test's snapping scale (`CullParams::clusters.w`): sub-pixel steps per unit of
+/// lateral offset at distance 1 — the smaller focal length in pixels of `extent` (the one that
+/// turns a pixel into more of the world) times
+/// 2^`sub_pixel_bits` (`tilegraph_scene::cone::back_facing`). 0 (no cone test) for a projection
+/// without a focal length.
+pub(crate) fn cone_steps(projection: glam::Mat4, extent: (u32, u32), sub_pixel_bits: u32) -> f32 {
+    let fx = projection.x_axis.x.abs() * extent.0 as f32 * 0.5;
+    let fy = projection.y_axis.y.abs() * extent.1 as f32 * 0.5;
+    let steps = fx.min(fy) * (1u64 << sub_pixel_bits.min(16)) as f32;
+    if steps.is_finite() {
+        steps
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod cone_tests {
+    use super::cone_steps;
+
+    #[test]
+    fn cone_steps_are_the_focal_length_in_sub_pixel_steps() {
+        // 90° vertical field of view: P11 = 1, 1080 rows: 540 px per unit at distance 1.
+        let p = glam::Mat4::perspective_rh(std::f32::consts::FRAC_PI_2, 16.0 / 9.0, 0.1, 100.0);
+        let s = cone_steps(p, (1920, 1080), 8);
+        assert!((s - 540.0 * 256.0).abs() < 1.0, "{s}");
+        // Four bits (Vulkan's minimum): sixteen times coarser.
+        assert!((cone_steps(p, (1920, 1080), 4) - 540.0 * 16.0).abs() < 0.1);
+    }
+}

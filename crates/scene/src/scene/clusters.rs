@@ -8,7 +8,7 @@ pub const MAX_TRIANGLES: usize = 124;
 /// Most distinct vertices in a cluster.
 pub const MAX_VERTICES: usize = 64;
 
-/// One cluster as the culling shader reads it (`Cluster` of shaders/common/cluster.glsl; 64
+/// One cluster as the culling shader reads it (`Cluster` of shaders/common/cluster.glsl; 80
 /// bytes). Bounds and cone are in the mesh's local space.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -19,12 +19,29 @@ pub struct GpuCluster {
     pub first_index: u32,
     pub half_extents: [f32; 3],
     pub index_count: u32,
-    /// Back-facing cone (meshoptimizer): the cluster faces away from every camera position `p`
-    /// with `dot(normalize(apex - p), axis) >= cutoff`. A cutoff of 1 or more never rejects.
+    /// Back-facing cone ([`crate::cone::Cone`]): apex behind every triangle's plane, axis, and
+    /// cutoff = sin of the half-angle holding every normal; a cutoff of 1 or more never rejects.
     pub cone_apex: [f32; 3],
     pub cone_cutoff: f32,
     pub cone_axis: [f32; 3],
-    pub _pad: u32,
+    /// The farthest vertex from the apex.
+    pub cone_reach: f32,
+    /// The largest perimeter / area of the cluster's triangles: how far snapping can turn one.
+    pub cone_thinness: f32,
+    pub _pad: [u32; 3],
+}
+
+impl GpuCluster {
+    /// The cluster's cone as [`crate::cone::back_facing`] tests it.
+    pub fn cone(&self) -> crate::cone::Cone {
+        crate::cone::Cone {
+            apex: self.cone_apex,
+            axis: self.cone_axis,
+            cutoff: self.cone_cutoff,
+            reach: self.cone_reach,
+            thinness: self.cone_thinness,
+        }
+    }
 }
 
 /// A scene's clusters: the index buffer in cluster order, the clusters, and each mesh's range

@@ -17,6 +17,7 @@ mod elements;
 mod gpu;
 mod grid;
 mod journal;
+mod one_mesh;
 mod pool;
 
 pub use buckets::{DrawBuckets, DrawGroup, DRAW_LISTS};

@@ -9,7 +9,7 @@ use tilegraph_vk::executor::BufferHandle;
 use tilegraph_vk::pipeline::write_buffer_set;
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
 
-use super::clusters::{ClusterStage, Shared};
+use super::clusters::{cone_steps, ClusterStage, Shared};
 use super::compute::ComputeStage;
 use super::{
     gpu_planes, sphere_projection, CullBounds, CullParams, Culling, DrawCount, GpuLayout, Phase,
@@ -411,7 +411,17 @@ impl CullState {
                 let cone = u32::from(sphere_projection(m.projection).0[2] == 1.0);
                 let b = c.layout.cmd_base;
                 (
-                    [stride * LIST_COUNT, cone, c.layout.total, 0],
+                    [
+                        stride * LIST_COUNT,
+                        cone,
+                        c.layout.total,
+                        cone_steps(
+                            m.projection,
+                            extent,
+                            ctx.physical.limits.sub_pixel_precision_bits,
+                        )
+                        .to_bits(),
+                    ],
                     len,
                     [[b[0], b[1], b[2], b[3]], [b[4], b[5], b[6], b[7]]],
                 )
