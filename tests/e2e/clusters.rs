@@ -49,6 +49,8 @@ fn check_along(
     cull_check_options(&g, scene, options, path, None, CheckExtras::default()).unwrap()
 }
 
+/// FN 0 at instance and at cluster level (the oracle sees below the instance: a cluster
+/// technique's frames must carry its comparison), images equal.
 fn assert_exact(what: &str, r: &CullCheck) {
     for f in &r.frames {
         assert_eq!(
@@ -56,6 +58,20 @@ fn assert_exact(what: &str, r: &CullCheck) {
             "{what} {}: frame {} culled visible instances {:?}",
             r.technique, f.frame, f.false_negative_ids
         );
+        if r.technique.ends_with("-clusters") {
+            let c = f.clusters.unwrap_or_else(|| {
+                panic!(
+                    "{what} {}: frame {} has no cluster comparison",
+                    r.technique, f.frame
+                )
+            });
+            assert_eq!(
+                c.false_negatives, 0,
+                "{what} {}: frame {} culled {} visible clusters",
+                r.technique, f.frame, c.false_negatives
+            );
+            assert!(c.visible > 0 && c.drawn >= c.visible - c.false_negatives);
+        }
         assert!(
             f.image_equal,
             "{what} {}: frame {} differs from the unculled image in {} pixels ({} owned by drawn instances)",

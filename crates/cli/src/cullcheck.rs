@@ -117,26 +117,42 @@ fn print(
     if let Some(why) = &report.auto_review {
         outln!("  then {why}")?;
     }
+    // A cluster technique's frames also compare clusters (visible, drawn, FN, FP).
+    let clusters = report.frames.iter().any(|f| f.clusters.is_some());
+    let cluster_columns = |f: Option<&tilegraph_passes::cullcheck::ClusterCheck>| match f {
+        Some(c) => format!(
+            " {:>9} {:>9} {:>6} {:>8}",
+            c.visible, c.drawn, c.false_negatives, c.false_positives
+        ),
+        None if clusters => format!(" {:>9} {:>9} {:>6} {:>8}", "-", "-", "-", "-"),
+        None => String::new(),
+    };
     outln!(
-        "{:>6} {:>4} {:>8} {:>8} {:>6} {:>8} {:>12}",
+        "{:>6} {:>4} {:>8} {:>8} {:>6} {:>8} {:>12}{}",
         "frame",
         "cut",
         "visible",
         "drawn",
         "FN",
         "FP",
-        "image equal"
+        "image equal",
+        if clusters {
+            format!(" {:>9} {:>9} {:>6} {:>8}", "clusters", "drawn", "FN", "FP")
+        } else {
+            String::new()
+        }
     )?;
     for f in &report.frames {
         outln!(
-            "{:>6} {:>4} {:>8} {:>8} {:>6} {:>8} {:>12}",
+            "{:>6} {:>4} {:>8} {:>8} {:>6} {:>8} {:>12}{}",
             f.frame,
             if f.cut { "cut" } else { "" },
             f.visible,
             f.drawn,
             f.false_negatives,
             f.false_positives,
-            f.image_equal
+            f.image_equal,
+            cluster_columns(f.clusters.as_ref())
         )?;
     }
     let t = &report.totals;
@@ -144,6 +160,14 @@ fn print(
         "totals: visible {} drawn {} FN {} (in {} frames) FP {} (rate {:.3}); images equal {}/{}; triangles drawn {}; culling GPU {:.3} ms of {:.3} ms per frame (medians)",
         t.visible, t.drawn, t.false_negatives, t.frames_with_false_negatives, t.false_positives, t.false_positive_rate, t.frames_image_equal, t.frames, t.triangles_drawn, t.cull_gpu_ms, t.frame_gpu_ms
     )?;
+    if clusters {
+        outln!(
+            "clusters: FN {} (in {} frames) FP {}",
+            t.cluster_false_negatives,
+            t.frames_with_cluster_false_negatives,
+            t.cluster_false_positives
+        )?;
+    }
     if let Some(c) = caveat {
         outln!("{c}")?;
     }

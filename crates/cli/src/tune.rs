@@ -662,6 +662,7 @@ mod tests {
                 visible: 100,
                 drawn: 100,
                 false_negatives,
+                cluster_false_negatives: 0,
                 false_positives: 0,
                 fn_rate: false_negatives as f64 / 100.0,
                 fp_rate: 0.0,

@@ -52,6 +52,8 @@ pub enum RenderError {
     #[error("invalid render size {width}x{height}")]
     Size { width: u32, height: u32 },
     /// A check's `on_failure` callback failed (writing a failed frame's images).
+    #[error("cull-check: {what} read nothing back")]
+    MissingReadback { what: &'static str },
     #[error("saving a failed frame: {0}")]
     Save(String),
     /// The scene's buffers would bind more than the device's `maxStorageBufferRange`.

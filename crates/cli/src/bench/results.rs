@@ -60,7 +60,13 @@ pub struct TotalsRecord {
     pub frames: usize,
     pub visible: usize,
     pub drawn: usize,
+    /// Visible instances culled, plus visible clusters culled (cluster techniques: a cluster
+    /// missed is as wrong as an instance missed).
     pub false_negatives: usize,
+    /// Of those, clusters (0 for instance techniques and in results written before the cluster
+    /// oracle).
+    #[serde(default)]
+    pub cluster_false_negatives: usize,
     pub false_positives: usize,
     /// FN / visible over the path.
     pub fn_rate: f64,
@@ -128,15 +134,23 @@ impl RunRecord {
             frames: t.frames,
             visible: t.visible,
             drawn: t.drawn,
-            false_negatives: t.false_negatives,
+            false_negatives: t.false_negatives + t.cluster_false_negatives,
+            cluster_false_negatives: t.cluster_false_negatives,
             false_positives: t.false_positives,
+            // Instances only: a rate of visible instances missed.
             fn_rate: if t.visible == 0 {
                 0.0
             } else {
                 t.false_negatives as f64 / t.visible as f64
             },
             fp_rate: t.false_positive_rate,
-            frames_with_false_negatives: t.frames_with_false_negatives,
+            frames_with_false_negatives: check
+                .frames
+                .iter()
+                .filter(|f| {
+                    f.false_negatives > 0 || f.clusters.is_some_and(|c| c.false_negatives > 0)
+                })
+                .count(),
             frames_image_equal: t.frames_image_equal,
             triangles_drawn: t.triangles_drawn,
             frame_gpu_ms: t.frame_gpu_ms,
@@ -177,7 +191,9 @@ impl RunRecord {
                     frame: f.frame,
                     visible: f.visible,
                     drawn: f.drawn,
-                    false_negatives: f.false_negatives,
+                    // Visible instances and clusters culled, as in the totals.
+                    false_negatives: f.false_negatives
+                        + f.clusters.map_or(0, |c| c.false_negatives),
                     false_positives: f.false_positives,
                     triangles_drawn: f.triangles_drawn,
                     image_equal: f.image_equal,

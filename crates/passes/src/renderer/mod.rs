@@ -40,6 +40,7 @@ use crate::setup::{FrameSetup, SceneContent, Technique};
 use crate::targets::{create_target, destroy_target};
 use fit::{decide_setup, CpuLists};
 pub use memory::{scene_memory, SceneMemory};
+pub use readback::PixelOwners;
 use resources::create_resources;
 
 /// An image the renderer keeps across frames, with its view.

@@ -14,28 +14,44 @@ impl SceneRenderer {
     /// The instance owning each pixel of the last frame (`u32::MAX` for background), from the
     /// captured visibility buffer (`capture_ids`); waits for the GPU.
     pub fn read_instance_ids(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {
+        Ok(self.read_pixel_owners(ctx)?.map(|o| o.instances))
+    }
+
+    /// Each pixel's instance and, where the id has room for it (the scene's instance count and
+    /// largest mesh fit 32 bits, [`crate::gpu_scene::visbuf_instance_bits`]), its triangle in
+    /// the mesh's draw (waits; `None` without a visibility buffer).
+    pub fn read_pixel_owners(&mut self, ctx: &Context) -> Result<Option<PixelOwners>, RenderError> {
         self.executor.finish(ctx)?;
         let Some((_, h)) = &self.ids_target else {
             return Ok(None);
         };
         let bytes =
             tilegraph_vk::readback::read_image(ctx, h, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, 0)?;
+        let ids: Vec<u32> = bytes
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
         let tri_bits = 32 - self.instance_bits.unwrap_or(32);
-        Ok(Some(
-            bytes
-                .chunks_exact(4)
-                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .map(|id| {
-                    if id == u32::MAX {
-                        u32::MAX
-                    } else if tri_bits >= 32 {
-                        0
-                    } else {
-                        id >> tri_bits
-                    }
-                })
-                .collect(),
-        ))
+        let instances = ids
+            .iter()
+            .map(|&id| match id {
+                u32::MAX => u32::MAX,
+                _ if tri_bits >= 32 => 0,
+                _ => id >> tri_bits,
+            })
+            .collect();
+        let triangles = self.instance_bits.map(|_| {
+            let mask = if tri_bits >= 32 {
+                u32::MAX
+            } else {
+                (1u32 << tri_bits) - 1
+            };
+            ids.iter().map(|&id| id & mask).collect()
+        });
+        Ok(Some(PixelOwners {
+            instances,
+            triangles,
+        }))
     }
 
     /// The instances the last frame drew through GPU culling (waits), or `None` without culling.
@@ -92,4 +108,13 @@ impl SceneRenderer {
             pixels,
         })
     }
+}
+
+/// What the visibility buffer says of each pixel ([`SceneRenderer::read_pixel_owners`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PixelOwners {
+    /// The instance per pixel; `u32::MAX`: background.
+    pub instances: Vec<u32>,
+    /// The triangle of its mesh per pixel, where the ids hold it.
+    pub triangles: Option<Vec<u32>>,
 }

@@ -16,11 +16,15 @@ use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
 use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::Context;
 
-use crate::cull::Culling;
+use crate::cull::{Culling, LISTS_PER_PHASE};
 use crate::knobs::AutoTrial;
 use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
 use crate::setup::Technique;
+
+mod clusters;
+
+pub use clusters::{cluster_check, ClusterCheck};
 
 /// One frame's comparison.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -44,6 +48,9 @@ pub struct FrameCheck {
     pub triangles_drawn: u64,
     /// Up to 8 instance ids that were visible but culled (for debugging).
     pub false_negative_ids: Vec<u32>,
+    /// Below the instance, for a cluster technique: visible clusters culled are false
+    /// negatives too (`None`: not a cluster technique, or the oracle's ids hold no triangle).
+    pub clusters: Option<ClusterCheck>,
 }
 
 /// Totals over the path.
@@ -59,6 +66,12 @@ pub struct Totals {
     /// FP / drawn.
     pub false_positive_rate: f64,
     pub frames_with_false_negatives: usize,
+    /// Visible clusters culled, over the path (cluster techniques; 0 otherwise).
+    pub cluster_false_negatives: usize,
+    /// Frames with a visible cluster culled.
+    pub frames_with_cluster_false_negatives: usize,
+    /// Clusters drawn that owned no pixel (cluster techniques).
+    pub cluster_false_positives: usize,
     pub frames_image_equal: usize,
     pub triangles_drawn: u64,
     /// Median GPU milliseconds of the culling passes (culling compute, pyramid builds, query,
@@ -497,9 +510,14 @@ impl Run<'_> {
                     .map_or(0, |m| u64::from(m.triangle_count()))
             };
             oracle.render_frame(ctx, scene, &frame)?;
-            let ids = oracle.read_instance_ids(ctx)?.unwrap_or_default();
+            let owners = oracle
+                .read_pixel_owners(ctx)?
+                .ok_or(RenderError::MissingReadback {
+                    what: "the oracle's visibility buffer",
+                })?;
+            let ids = &owners.instances;
             let mut visible = vec![false; n];
-            for &id in &ids {
+            for &id in ids {
                 if let Some(v) = visible.get_mut(id as usize) {
                     *v = true;
                 }
@@ -508,11 +526,26 @@ impl Run<'_> {
             let want = reference.read_image(ctx)?;
             tested.render_frame(ctx, scene, &frame)?;
             let got = tested.read_image(ctx)?;
-            // Cluster techniques draw index ranges: their triangles are the colour lists'.
-            let cluster_triangles = match tested.gpu_lists(ctx)? {
-                Some(l) if tested.options().culling.clusters() => Some(l.colour_triangles()),
-                _ => None,
-            };
+            // Cluster techniques draw index ranges: their triangles are the colour lists', and
+            // their clusters are compared with the oracle's below the instance.
+            let mut cluster_triangles = None;
+            let mut clusters = None;
+            if tested.options().culling.clusters() {
+                let lists = tested.gpu_lists(ctx)?.ok_or(RenderError::MissingReadback {
+                    what: "the cluster technique's GPU lists",
+                })?;
+                cluster_triangles = Some(lists.colour_triangles());
+                let colour: Vec<_> = lists
+                    .lists
+                    .iter()
+                    .take(LISTS_PER_PHASE as usize)
+                    .flatten()
+                    .collect();
+                clusters = owners
+                    .triangles
+                    .as_deref()
+                    .and_then(|t| cluster_check(scene, ids, t, &compare, &colour));
+            }
             let mut drawn = vec![false; n];
             match tested.drawn_instances(ctx)? {
                 Some(list) => {
@@ -536,6 +569,7 @@ impl Run<'_> {
                 image_diff_pixels_owner_drawn: 0,
                 triangles_drawn: 0,
                 false_negative_ids: Vec::new(),
+                clusters,
             };
             for (p, (a, b)) in got
                 .pixels
@@ -572,12 +606,13 @@ impl Run<'_> {
                 check.triangles_drawn = t;
             }
             if let Some(save) = on_failure.as_mut() {
-                if check.false_negatives > 0 || !check.image_equal {
+                let cluster_fn = check.clusters.is_some_and(|c| c.false_negatives > 0);
+                if check.false_negatives > 0 || cluster_fn || !check.image_equal {
                     let failed = FailedFrame {
                         check: &check,
                         technique: &got,
                         reference: &want,
-                        diff: diff_image(&got, &want, &ids, &visible, &drawn),
+                        diff: diff_image(&got, &want, ids, &visible, &drawn),
                     };
                     save(&failed).map_err(RenderError::Save)?;
                 }
@@ -652,6 +687,20 @@ impl Run<'_> {
                 }
             },
             frames_with_false_negatives: frames.iter().filter(|f| f.false_negatives > 0).count(),
+            cluster_false_negatives: frames
+                .iter()
+                .filter_map(|f| f.clusters)
+                .map(|c| c.false_negatives)
+                .sum(),
+            frames_with_cluster_false_negatives: frames
+                .iter()
+                .filter(|f| f.clusters.is_some_and(|c| c.false_negatives > 0))
+                .count(),
+            cluster_false_positives: frames
+                .iter()
+                .filter_map(|f| f.clusters)
+                .map(|c| c.false_positives)
+                .sum(),
             frames_image_equal: frames.iter().filter(|f| f.image_equal).count(),
             triangles_drawn: frames.iter().map(|f| f.triangles_drawn).sum(),
             // Folded from +0.0: an empty f64 sum is -0.0, which prints as "-0.0 ms".

@@ -1,0 +1,211 @@
+//! The oracle below the instance: which clusters own a pixel, and which the technique drew.
+//!
+//! The oracle's visibility buffer holds each pixel's instance and triangle (the triangle's
+//! index in its mesh's draw, which with clusters attached is in cluster order), so a pixel's
+//! cluster is the one whose index range holds that triangle. A cluster technique's colour lists
+//! say what it drew: each command one instance's index range, whole clusters. A visible cluster
+//! not drawn is a false negative like a visible instance not drawn — on a level built as one
+//! mesh, the only kind there is.
+
+use serde::Serialize;
+use tilegraph_scene::Scene;
+
+use crate::cull::IndirectDraw;
+
+/// One frame's clusters: visible (owning a pixel in the oracle), drawn by the technique, and the
+/// differences, counted as (instance, cluster) pairs of the compared instances.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct ClusterCheck {
+    pub visible: usize,
+    pub drawn: usize,
+    pub false_negatives: usize,
+    pub false_positives: usize,
+}
+
+/// A pair as one sortable key.
+fn key(instance: u32, cluster: u32) -> u64 {
+    (u64::from(instance) << 32) | u64::from(cluster)
+}
+
+/// The clusters of `scene` (global indices) whose index ranges overlap `first..first + count`
+/// of mesh `mesh` (its clusters tile its range in order).
+fn clusters_in(scene: &Scene, mesh: u32, first: u32, count: u32) -> std::ops::Range<u32> {
+    let Some(c) = scene.clusters() else {
+        return 0..0;
+    };
+    let Some(&[base, _]) = c.mesh_clusters.get(mesh as usize) else {
+        return 0..0;
+    };
+    let own = c.of_mesh(mesh);
+    let end = first.saturating_add(count);
+    // The first cluster ending after `first`, up to the first starting at or after `end`.
+    let lo = own.partition_point(|cl| cl.first_index + cl.index_count <= first);
+    let hi = own.partition_point(|cl| cl.first_index < end);
+    base + lo as u32..base + hi.max(lo) as u32
+}
+
+/// Compares the oracle's pixels (`owners`: instance per pixel, `u32::MAX` for none;
+/// `triangles`: the triangle of its mesh per pixel) with the colour commands a cluster
+/// technique drew. `compare[i]`: instance `i` is in the comparison (drawn, not blended). `None`
+/// when the scene has no clusters.
+pub fn cluster_check(
+    scene: &Scene,
+    owners: &[u32],
+    triangles: &[u32],
+    compare: &[bool],
+    colour: &[&IndirectDraw],
+) -> Option<ClusterCheck> {
+    scene.clusters()?;
+    let mesh_of = |i: u32| scene.instances().get(i as usize).map(|inst| inst.mesh);
+    let compared = |i: u32| compare.get(i as usize).copied().unwrap_or(false);
+    let mut visible: Vec<u64> = owners
+        .iter()
+        .zip(triangles)
+        .filter(|(&i, _)| i != u32::MAX && compared(i))
+        .filter_map(|(&i, &t)| {
+            let mesh = scene.mesh(mesh_of(i)?)?;
+            let index = mesh.first_index.checked_add(t.checked_mul(3)?)?;
+            let c = clusters_in(scene, mesh_of(i)?.0, index, 1);
+            (!c.is_empty()).then(|| key(i, c.start))
+        })
+        .collect();
+    visible.sort_unstable();
+    visible.dedup();
+    let mut drawn: Vec<u64> = colour
+        .iter()
+        .flat_map(|d| d.instances.iter().map(move |&i| (i, *d)))
+        .filter(|(i, _)| compared(*i))
+        .filter_map(|(i, d)| {
+            let mesh = mesh_of(i)?;
+            Some(clusters_in(scene, mesh.0, d.first_index, d.index_count).map(move |c| key(i, c)))
+        })
+        .flatten()
+        .collect();
+    drawn.sort_unstable();
+    drawn.dedup();
+    let in_drawn = |k: &u64| drawn.binary_search(k).is_ok();
+    let in_visible = |k: &u64| visible.binary_search(k).is_ok();
+    Some(ClusterCheck {
+        visible: visible.len(),
+        drawn: drawn.len(),
+        false_negatives: visible.iter().filter(|k| !in_drawn(k)).count(),
+        false_positives: drawn.iter().filter(|k| !in_visible(k)).count(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tilegraph_scene::clusters::{ClusterData, GpuCluster};
+    use tilegraph_scene::{Material, SceneBuilder, Transform, Vertex};
+
+    /// One mesh of 6 triangles in three clusters of 2, drawn by instances 0 and 1.
+    fn scene() -> Scene {
+        let mut b = SceneBuilder::new("three clusters");
+        let m = b.add_material(Material::opaque([1.0; 4]));
+        let v = |x: f32| Vertex {
+            position: [x, 0.0, 0.0],
+            normal: [0.0, 0.0, 1.0],
+            uv: [0.0, 0.0],
+        };
+        let vertices: Vec<Vertex> = (0..8).map(|k| v(k as f32)).collect();
+        let mut vertices = vertices;
+        vertices
+            .iter_mut()
+            .enumerate()
+            .for_each(|(k, v)| v.position[1] = (k % 2) as f32);
+        let indices: Vec<u32> = (0..6u32).flat_map(|t| [t, t + 1, t + 2]).collect();
+        let mesh = b.add_mesh(&vertices, &indices, m).unwrap();
+        for x in [0.0, 20.0] {
+            b.add_instance(
+                Transform::new(glam::Mat3::IDENTITY, glam::DVec3::new(x, 0.0, 0.0)),
+                mesh,
+            )
+            .unwrap();
+        }
+        let mut scene = b.build(None).unwrap();
+        let cluster = |first: u32| GpuCluster {
+            first_index: first,
+            index_count: 6,
+            cone_cutoff: 2.0,
+            ..GpuCluster::default()
+        };
+        let data = ClusterData {
+            fingerprint: scene.geometry_fingerprint(),
+            indices: scene.indices().to_vec(),
+            clusters: vec![cluster(0), cluster(6), cluster(12)],
+            mesh_clusters: vec![[0, 3]],
+        };
+        scene.attach_clusters(data).unwrap();
+        scene
+    }
+
+    fn draw(first_index: u32, index_count: u32, instances: &[u32]) -> IndirectDraw {
+        IndirectDraw {
+            index_count,
+            first_index,
+            instances: instances.to_vec(),
+        }
+    }
+
+    #[test]
+    fn a_visible_cluster_left_out_is_a_false_negative() {
+        let s = scene();
+        // Pixels: instance 0 triangles 0 and 5 (clusters 0 and 2), instance 1 triangle 2
+        // (cluster 1), background.
+        let owners = [0, 0, 1, u32::MAX];
+        let triangles = [0, 5, 2, 0];
+        let compare = [true, true];
+        // Everything drawn: exact, and the unseen clusters are false positives.
+        let all = [draw(0, 18, &[0, 1])];
+        let c = cluster_check(
+            &s,
+            &owners,
+            &triangles,
+            &compare,
+            &all.iter().collect::<Vec<_>>(),
+        )
+        .unwrap();
+        assert_eq!(
+            c,
+            ClusterCheck {
+                visible: 3,
+                drawn: 6,
+                false_negatives: 0,
+                false_positives: 3
+            }
+        );
+        // Instance 0's last cluster culled (its run ends at index 12): one false negative.
+        let cut = [draw(0, 12, &[0]), draw(0, 18, &[1])];
+        let c = cluster_check(
+            &s,
+            &owners,
+            &triangles,
+            &compare,
+            &cut.iter().collect::<Vec<_>>(),
+        )
+        .unwrap();
+        assert_eq!(c.false_negatives, 1);
+        // Runs of single clusters cover exactly what they name.
+        let runs = [draw(0, 6, &[0]), draw(12, 6, &[0]), draw(6, 6, &[1])];
+        let c = cluster_check(
+            &s,
+            &owners,
+            &triangles,
+            &compare,
+            &runs.iter().collect::<Vec<_>>(),
+        )
+        .unwrap();
+        assert_eq!((c.false_negatives, c.false_positives, c.drawn), (0, 0, 3));
+        // An instance outside the comparison counts neither way.
+        let c = cluster_check(
+            &s,
+            &owners,
+            &triangles,
+            &[true, false],
+            &cut.iter().collect::<Vec<_>>(),
+        )
+        .unwrap();
+        assert_eq!((c.visible, c.false_negatives), (2, 1));
+    }
+}
