@@ -6,11 +6,17 @@
 // of runs of consecutive drawn clusters (cluster_scan.comp places them, cluster_emit.comp
 // writes one command per run).
 //
-// Phases (cull.info.y, as cull.comp): 0 frustum; 2 early: clusters visible last frame (and in
-// the frustum, not back-facing) of the instances the early phase draws; 3 late: every cluster
-// of an instance visible now, tested against the pyramid: what the early phase did not draw
-// goes to region 1 (the late depth pass), region 0 becomes the union (the colour pass), and
-// the result is next frame's cluster visibility.
+// Phases (cull.info.y, as cull.comp): 0 frustum; 2 early: of the instances the early phase
+// draws, the clusters in the frustum and not back-facing that were not found occluded last
+// frame; 3 late: every cluster of an instance visible now, tested against the pyramid: what
+// passes is the colour pass's (region 0), what of it the early phase did not draw goes to
+// region 1 (the late depth pass). An instance not visible now draws nothing in colour: it won
+// no pixel in the early depth, or its box would not lie behind that depth's pyramid.
+//
+// Next frame's cluster visibility: 0 only for a cluster the pyramid found occluded. One outside
+// the frustum or back-facing now was not tested against depth, so it is drawn early when it
+// comes into view: a camera that turns keeps the early depth, and so the pyramid, as complete
+// as instance culling's (which draws the whole of each instance visible last frame).
 #include "scene.glsl"
 #include "cull.glsl"
 #include "cull_tests.glsl"
@@ -109,10 +115,9 @@ void main() {
     if (!drawn || range.y == 0u) {
         barrier();
         if (t == 0u) {
+            runs[e] = 0u;
             if (late) {
-                runs[4u * stride + e] = 0u; // the union keeps what the early phase drew
-            } else {
-                runs[e] = 0u;
+                runs[4u * stride + e] = 0u;
             }
         }
         return;
@@ -151,8 +156,8 @@ void main() {
                 bool now = visible && hiz_visible_bounds(b, false);
                 bool early = early_runs != 0u && flags[k] != 0u;
                 f1 = now && !early ? 1u : 0u;
-                f0 = early || now ? 1u : 0u;
-                cluster_visible[k] = now ? 1u : 0u;
+                f0 = now ? 1u : 0u;
+                cluster_visible[k] = now || !visible ? 1u : 0u;
                 flags[region1 + k] = f1;
             }
             flags[k] = f0;

@@ -144,11 +144,26 @@ fn cluster_culling_never_culls_a_visible_pixel() {
 /// with everything else), on walks at eye height with yaw sweeps and hard cuts: both cluster
 /// techniques keep every frame's image equal to the unculled one, and draw no more triangles
 /// in any frame than the instance culling they refine.
+/// The Godot room (its objects instances, its walls one mesh) walks the same way.
 #[test]
 fn one_mesh_levels_on_eye_height_walks_stay_exact() {
-    for (spec, seed) in [("interior:700@one-mesh", 7), ("city:900@one-mesh", 3)] {
+    let mut specs = vec![
+        ("interior:700@one-mesh".to_string(), 7),
+        ("city:900@one-mesh".to_string(), 3),
+    ];
+    match tilegraph_e2e::test_data("bench/GodotRooms/room.gltf") {
+        Some(p) => specs.push((p.display().to_string(), 5)),
+        None => eprintln!(
+            "skipping the Godot room: {} not found",
+            tilegraph_e2e::test_data_dir().display()
+        ),
+    }
+    for (spec, seed) in &specs {
+        let (spec, seed) = (spec.as_str(), *seed);
         let scene = with_clusters(spec);
-        assert!(scene.instances().len() <= scene.materials().len());
+        if spec.ends_with("@one-mesh") {
+            assert!(scene.instances().len() <= scene.materials().len());
+        }
         let path = CameraPath::eye_height_walk(&scene.bounds(), 14, seed);
         for (instance, clusters) in [
             (Culling::Frustum, Culling::FrustumClusters),

@@ -41,7 +41,8 @@ pub struct RunArgs {
     /// Frame size, WxH.
     #[arg(long, value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Camera path JSON (docs/SCENES.md); the scene's own path when absent.
+    /// Camera path: a JSON file (docs/SCENES.md), or `walk[:SEED]` (240 frames at eye height
+    /// through the scene, sweeping the view, with cuts); the scene's own path when absent.
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
     /// Frames to render (at least 1).
@@ -130,11 +131,35 @@ impl RunArgs {
 
     /// The camera path: `--camera-path`, else the scene's own.
     pub fn camera_path(&self, scene: &Scene) -> Result<CameraPath, CliError> {
-        Ok(match &self.camera_path {
-            Some(p) => CameraPath::load_json(p)?,
-            None => scene.camera_path().clone(),
-        })
+        match &self.camera_path {
+            Some(p) => named_camera_path(&p.to_string_lossy(), scene),
+            None => Ok(scene.camera_path().clone()),
+        }
     }
+}
+
+/// Frames of a `walk` camera path.
+pub const WALK_FRAMES: usize = 240;
+
+/// A camera path by name: `walk[:SEED]` ([`CameraPath::eye_height_walk`] through the scene's
+/// bounds, [`WALK_FRAMES`] frames), else a JSON file.
+pub fn named_camera_path(spec: &str, scene: &Scene) -> Result<CameraPath, CliError> {
+    let seed = match spec.strip_prefix("walk") {
+        Some("") => Some(1),
+        Some(rest) => match rest.strip_prefix(':').map(str::parse::<u64>) {
+            Some(Ok(seed)) => Some(seed),
+            _ => {
+                return Err(CliError::Usage(format!(
+                    "camera path `{spec}`: `walk` or `walk:SEED` (SEED a whole number)"
+                )))
+            }
+        },
+        None => None,
+    };
+    Ok(match seed {
+        Some(seed) => CameraPath::eye_height_walk(&scene.bounds(), WALK_FRAMES, seed),
+        None => CameraPath::load_json(std::path::Path::new(spec))?,
+    })
 }
 
 /// Whether the culling `knobs` name culls clusters (the scene then needs them).

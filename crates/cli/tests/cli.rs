@@ -683,3 +683,46 @@ fn moving_scenes_are_checked_and_rendered_from_their_spec() {
     assert!(!ok);
     assert!(err.contains("MOVERS is a share from 0 to 1"), "{err}");
 }
+
+/// `--camera-path walk[:SEED]`: a walk at eye height through the scene (one-mesh levels too),
+/// checked like any path; a malformed seed is a usage error naming the form.
+#[test]
+fn walks_at_eye_height_are_named_camera_paths() {
+    let (ok, out, err) = tilegraph(
+        &[
+            "cull-check",
+            "interior:300@one-mesh",
+            "--camera-path",
+            "walk:4",
+            "--culling",
+            "hiz-2phase-clusters",
+            "--size",
+            "96x54",
+            "--frames",
+            "4",
+            "--json",
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["totals"]["false_negatives"], 0, "{out}");
+    assert_eq!(v["totals"]["cluster_false_negatives"], 0, "{out}");
+    assert_eq!(v["totals"]["frames_image_equal"], 4, "{out}");
+    assert!(
+        v["frames"][0]["clusters"]["visible"].as_u64().unwrap_or(0) > 0,
+        "{out}"
+    );
+    let (ok, _, err) = tilegraph(
+        &[
+            "cull-check",
+            "city:100",
+            "--camera-path",
+            "walk:x",
+            "--frames",
+            "1",
+        ],
+        &[],
+    );
+    assert!(!ok && err.contains("walk:SEED"), "{err}");
+}

@@ -49,7 +49,8 @@ pub struct BenchArgs {
     /// Frame sizes, WxH (default: 320x180).
     #[arg(long, value_delimiter = ',')]
     pub sizes: Vec<String>,
-    /// Camera paths: `own` (the scene's) or a JSON file (default: own).
+    /// Camera paths: `own` (the scene's), `walk[:SEED]` (at eye height through the scene) or a
+    /// JSON file (default: own).
     #[arg(long, value_delimiter = ',')]
     pub camera_paths: Vec<String>,
     /// One axis per knob: `--set oq_group=1,16` (repeatable).
@@ -196,7 +197,7 @@ pub(crate) fn run_one(
         None => {
             let p = match s.camera_path.as_deref() {
                 None => scene.camera_path().clone(),
-                Some(file) => CameraPath::load_json(Path::new(file))?,
+                Some(spec) => crate::run::named_camera_path(spec, scene)?,
             };
             paths.insert(s.camera_path_key(), p.clone());
             p

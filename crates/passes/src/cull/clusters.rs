@@ -241,13 +241,14 @@ impl ClusterStage {
         shared: &Shared<'_>,
         scene_set_layout: vk::DescriptorSetLayout,
     ) -> Result<(), VkError> {
-        // Nothing was visible before the first frame (as the instances' visibility).
+        // Nothing was found occluded before the first frame: every cluster of an instance
+        // visible last frame is a candidate for the early phase.
         let visibility = self.visibility.raw;
         ctx.submit_and_wait(|cb| {
             // SAFETY: outside a render pass; the buffer is new and a transfer destination.
             unsafe {
                 ctx.device
-                    .cmd_fill_buffer(cb, visibility, 0, vk::WHOLE_SIZE, 0)
+                    .cmd_fill_buffer(cb, visibility, 0, vk::WHOLE_SIZE, 1)
             };
             Ok(())
         })?;
