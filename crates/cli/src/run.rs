@@ -138,25 +138,27 @@ impl RunArgs {
     }
 }
 
+/// The seed of a `walk[:SEED]` camera path, `None` for a file; a malformed seed is an error.
+pub fn walk_seed(spec: &str) -> Result<Option<u64>, CliError> {
+    match spec.strip_prefix("walk") {
+        Some("") => Ok(Some(1)),
+        Some(rest) => match rest.strip_prefix(':').map(str::parse::<u64>) {
+            Some(Ok(seed)) => Ok(Some(seed)),
+            _ => Err(CliError::Usage(format!(
+                "camera path `{spec}`: `walk` or `walk:SEED` (SEED a whole number)"
+            ))),
+        },
+        None => Ok(None),
+    }
+}
+
 /// Frames of a `walk` camera path.
 pub const WALK_FRAMES: usize = 240;
 
 /// A camera path by name: `walk[:SEED]` ([`CameraPath::eye_height_walk`] through the scene's
 /// bounds, [`WALK_FRAMES`] frames), else a JSON file.
 pub fn named_camera_path(spec: &str, scene: &Scene) -> Result<CameraPath, CliError> {
-    let seed = match spec.strip_prefix("walk") {
-        Some("") => Some(1),
-        Some(rest) => match rest.strip_prefix(':').map(str::parse::<u64>) {
-            Some(Ok(seed)) => Some(seed),
-            _ => {
-                return Err(CliError::Usage(format!(
-                    "camera path `{spec}`: `walk` or `walk:SEED` (SEED a whole number)"
-                )))
-            }
-        },
-        None => None,
-    };
-    Ok(match seed {
+    Ok(match walk_seed(spec)? {
         Some(seed) => CameraPath::eye_height_walk(&scene.bounds(), WALK_FRAMES, seed),
         None => CameraPath::load_json(std::path::Path::new(spec))?,
     })

@@ -153,7 +153,7 @@ pub fn run(a: &TuneArgs) -> Result<(), CliError> {
     let size = a.size.unwrap_or((320, 180));
     let frames = a.frames.unwrap_or(24);
     let tune_path = match &a.camera_path {
-        Some(p) => CameraPath::load_json(p)?,
+        Some(p) => crate::run::named_camera_path(&p.to_string_lossy(), &scene)?,
         None => scene.camera_path().clone(),
     };
     let held_out = CameraPath::held_out(&scene.bounds(), frames as usize);

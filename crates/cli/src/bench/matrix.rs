@@ -155,8 +155,10 @@ impl Matrix {
             camera_paths.push(None);
         }
         for p in camera_paths.iter().flatten() {
-            // Parsed now, so a bad file stops the bench before it starts.
-            tilegraph_scene::CameraPath::load_json(Path::new(p))?;
+            // Parsed now, so a bad file or walk stops the bench before it starts.
+            if crate::run::walk_seed(p)?.is_none() {
+                tilegraph_scene::CameraPath::load_json(Path::new(p))?;
+            }
         }
         let mut axes: Vec<(String, Vec<KnobValue>)> = Vec::new();
         let from_cli = !args.set.is_empty();
