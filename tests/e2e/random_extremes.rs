@@ -5,7 +5,9 @@
 //! looking away, or out in the street, the world up to 10^6 m from the origin — and checks
 //! every conservative culling technique (frustum, two-phase HiZ with random pyramid knobs and
 //! bounds, same-frame queries, raster occlusion, and both cluster techniques on a scene of
-//! closed spheres, some mirrored or double-sided) for no visible instance culled and an image
+//! closed spheres, some mirrored or double-sided, or on a level built as one mesh of thin,
+//! near-degenerate, zero-area, edge-on and distant triangles, `fragile_level`) for no visible
+//! instance — and for the cluster techniques no visible cluster — culled and an image
 //! equal to the unculled one (the frustum and two-phase HiZ techniques, instance and cluster
 //! level, which draw in the unculled order), on a
 //! three-frame path whose last frame jumps elsewhere without a
@@ -64,6 +66,8 @@ struct Case {
     hiz_base_level: u32,
     sphere: bool,
     padded: bool,
+    /// The cluster techniques run on the fragile one-mesh level (else on closed spheres).
+    fragile: bool,
 }
 
 const INSTANCES: usize = 300;
@@ -105,7 +109,7 @@ fn case() -> impl Strategy<Value = Case> {
             prop_oneof![Just(0.0), -1.0e6..1.0e6f64],
         ),
         [view(), view()],
-        (0..=2u32, any::<bool>(), any::<bool>()),
+        (0..=2u32, any::<bool>(), any::<bool>(), any::<bool>()),
     )
         .prop_map(
             |(
@@ -113,7 +117,7 @@ fn case() -> impl Strategy<Value = Case> {
                 (ortho, log_near, fov_y_rad, finite_far),
                 offset,
                 views,
-                (hiz_base_level, sphere, padded),
+                (hiz_base_level, sphere, padded, fragile),
             )| Case {
                 size: (w, h),
                 reverse,
@@ -127,6 +131,7 @@ fn case() -> impl Strategy<Value = Case> {
                 hiz_base_level,
                 sphere,
                 padded,
+                fragile,
             },
         )
 }
@@ -233,6 +238,7 @@ fn conservative_culling_holds_at_random_extremes() {
     // Cluster culling on closed meshes (cones reject clusters; mirrored and double-sided
     // spheres must be left alone), viewed from the same kinds of placement.
     let spheres = tilegraph_e2e::closed_spheres(4, 5, true);
+    let fragile = tilegraph_e2e::fragile_level(11);
     let config = Config {
         cases: cases(),
         failure_persistence: Some(Box::new(FileFailurePersistence::Direct(concat!(
@@ -261,9 +267,13 @@ fn conservative_culling_holds_at_random_extremes() {
         } else {
             NpotMode::EdgeAware
         };
-        let mut spheres = spheres.clone();
-        spheres.translate(DVec3::new(case.offset.0, 0.0, case.offset.1));
-        let sphere_path = case.path(&spheres)?;
+        let mut clustered = if case.fragile {
+            fragile.clone()
+        } else {
+            spheres.clone()
+        };
+        clustered.translate(DVec3::new(case.offset.0, 0.0, case.offset.1));
+        let clustered_path = case.path(&clustered)?;
         let techniques = [
             (Culling::Frustum, 0, bounds, NpotMode::EdgeAware),
             (Culling::HizTwoPhase, case.hiz_base_level, bounds, mode),
@@ -274,7 +284,7 @@ fn conservative_culling_holds_at_random_extremes() {
         ];
         for (culling, base, bounds, mode) in techniques {
             let (scene, path) = if culling.clusters() {
-                (&spheres, &sphere_path)
+                (&clustered, &clustered_path)
             } else {
                 (&scene, &path)
             };
@@ -305,6 +315,23 @@ fn conservative_culling_holds_at_random_extremes() {
                     f.frame,
                     f.false_negative_ids
                 );
+                if culling.clusters() {
+                    let c = f.clusters.ok_or_else(|| {
+                        TestCaseError::fail(format!(
+                            "{} frame {}: no cluster comparison",
+                            culling.name(),
+                            f.frame
+                        ))
+                    })?;
+                    prop_assert_eq!(
+                        c.false_negatives,
+                        0,
+                        "{} on {} frame {} culled visible clusters",
+                        culling.name(),
+                        scene.name(),
+                        f.frame
+                    );
+                }
                 // Frustum and two-phase HiZ draw the survivors in the unculled order, so the
                 // image is the reference's bit for bit. The query and raster techniques draw
                 // last frame's visible set first; their images are compared by the fixed tests

@@ -253,3 +253,114 @@ pub fn stacked_walls(n: u32) -> tilegraph_scene::Scene {
         .expect("a valid path");
     b.build(Some(path)).expect("a scene")
 }
+
+/// A level built as one mesh out of what breaks culling below the instance: thin blades
+/// standing upright (edge-on from most views), long slivers on the ground, needles whose apex
+/// lies 1e-6 of their length off the base line, zero-area triangles, tiny distant pieces, and
+/// walls to occlude them — every triangle single-sided, counter-clockwise seen from its front,
+/// all of it one mesh, drawn once at the origin and once more turned and moved (so the level is
+/// one mesh and also an instance of it far from its origin). Clusters attached. Deterministic in
+/// `seed`.
+pub fn fragile_level(seed: u64) -> tilegraph_scene::Scene {
+    use glam::{DVec3, Mat3, Vec3};
+    use tilegraph_scene::{Material, SceneBuilder, Transform, Vertex};
+    let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut vertices: Vec<Vertex> = Vec::new();
+    let mut indices: Vec<u32> = Vec::new();
+    let mut tri = |a: Vec3, b: Vec3, c: Vec3| {
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        let base = vertices.len() as u32;
+        for p in [a, b, c] {
+            vertices.push(Vertex {
+                position: p.to_array(),
+                normal: n.to_array(),
+                uv: [0.0, 0.0],
+            });
+        }
+        indices.extend([base, base + 1, base + 2]);
+    };
+    let quad = |o: Vec3, u: Vec3, v: Vec3, tri: &mut dyn FnMut(Vec3, Vec3, Vec3)| {
+        tri(o, o + u, o + u + v);
+        tri(o, o + u + v, o + v);
+    };
+    // The ground, and walls in a grid with gaps (occluders with holes).
+    quad(
+        Vec3::new(-60.0, 0.0, 60.0),
+        Vec3::new(120.0, 0.0, 0.0),
+        Vec3::new(0.0, 0.0, -120.0),
+        &mut tri,
+    );
+    for k in 0..12 {
+        let x = -50.0 + 9.0 * k as f32;
+        let z = -40.0 + 80.0 * next();
+        // Both faces of a thin wall, each single-sided.
+        quad(
+            Vec3::new(x, 0.0, z),
+            Vec3::new(6.0, 0.0, 0.0),
+            Vec3::new(0.0, 4.0, 0.0),
+            &mut tri,
+        );
+        quad(
+            Vec3::new(x + 6.0, 0.0, z - 0.2),
+            Vec3::new(-6.0, 0.0, 0.0),
+            Vec3::new(0.0, 4.0, 0.0),
+            &mut tri,
+        );
+    }
+    for _ in 0..600 {
+        let p = Vec3::new(-55.0 + 110.0 * next(), 0.0, -55.0 + 110.0 * next());
+        let angle = std::f32::consts::TAU * next();
+        let side = Vec3::new(angle.cos(), 0.0, angle.sin());
+        match (next() * 5.0) as u32 {
+            // A blade: 1-3 m tall, 1 mm wide at its foot.
+            0 => tri(
+                p,
+                p + side * 1e-3,
+                p + Vec3::new(0.0, 1.0 + 2.0 * next(), 0.0),
+            ),
+            // A sliver on the ground: 10 m long, 2 cm wide, facing up.
+            1 => tri(
+                p + Vec3::Y * 0.01,
+                p + side * 10.0 + Vec3::Y * 0.01,
+                p + side.cross(Vec3::Y) * -0.02 + Vec3::Y * 0.01,
+            ),
+            // A needle: its apex 1e-6 of its length off the base line, standing.
+            2 => tri(
+                p + Vec3::Y * 0.5,
+                p + side * 2.0 + Vec3::Y * 0.5,
+                p + side + Vec3::new(0.0, 0.5 + 2e-6, 0.0),
+            ),
+            // Zero area: three points on a line.
+            3 => tri(p, p + side, p + side * 2.0),
+            // A small piece far away (a distant pixel or less).
+            _ => {
+                let far = p * 4.0 + Vec3::new(0.0, 2.0 + 5.0 * next(), 0.0);
+                tri(far, far + side * 0.05, far + Vec3::new(0.0, 0.05, 0.0));
+            }
+        }
+    }
+    let mut b = SceneBuilder::new(format!("fragile level {seed}"));
+    let material = b.add_material(Material::opaque([0.7, 0.6, 0.5, 1.0]));
+    let mesh = b
+        .add_mesh(&vertices, &indices, material)
+        .expect("a valid mesh");
+    b.add_instance(Transform::new(Mat3::IDENTITY, DVec3::ZERO), mesh)
+        .expect("a valid instance");
+    b.add_instance(
+        Transform::new(Mat3::from_rotation_y(2.0), DVec3::new(300.0, 0.0, -150.0)),
+        mesh,
+    )
+    .expect("a valid instance");
+    let mut scene = b.build(None).expect("a valid scene");
+    let (clusters, _) = tilegraph_scene::clusters::build(&scene).expect("clusters build");
+    scene
+        .attach_clusters(clusters)
+        .expect("clusters of this scene");
+    scene
+}
