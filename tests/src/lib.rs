@@ -210,12 +210,7 @@ pub fn closed_spheres(rows: u32, columns: u32, exempt: bool) -> tilegraph_scene:
                 .expect("a valid instance");
         }
     }
-    let mut scene = b.build(None).expect("a valid scene");
-    let (clusters, _) = tilegraph_scene::clusters::build(&scene).expect("clusters build");
-    scene
-        .attach_clusters(clusters)
-        .expect("clusters of this scene");
-    scene
+    built_with_clusters(b)
 }
 
 /// `n` opaque walls, each its own mesh (so each its own draw bucket), one behind the other in
@@ -357,6 +352,11 @@ pub fn fragile_level(seed: u64) -> tilegraph_scene::Scene {
         mesh,
     )
     .expect("a valid instance");
+    built_with_clusters(b)
+}
+
+/// The scene `b` builds (its default camera path), with clusters built and attached.
+fn built_with_clusters(b: tilegraph_scene::SceneBuilder) -> tilegraph_scene::Scene {
     let mut scene = b.build(None).expect("a valid scene");
     let (clusters, _) = tilegraph_scene::clusters::build(&scene).expect("clusters build");
     scene

@@ -671,6 +671,7 @@ mod tests {
                 triangles_drawn: 0,
                 frame_gpu_ms: 1.0,
                 frame_gpu_ms_p95: 1.0,
+                ideal_frame_gpu_ms: None,
                 passes_gpu_ms: 1.0,
                 cull_gpu_ms: 0.0,
                 cpu_ms: 0.0,

@@ -662,6 +662,8 @@ fn moving_scenes_are_checked_and_rendered_from_their_spec() {
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     assert_eq!(v["totals"]["false_negatives"], 0, "{out}");
     assert_eq!(v["totals"]["frames_image_equal"], 8, "{out}");
+    // No ideal frame for a moving scene (it would be copied whole every frame).
+    assert!(v["totals"]["ideal_frame_gpu_ms"].is_null(), "{out}");
     let png = std::env::temp_dir().join(format!("tilegraph-moving-{}.png", std::process::id()));
     let (ok, _, err) = tilegraph(
         &[
@@ -713,6 +715,11 @@ fn walks_at_eye_height_are_named_camera_paths() {
         v["frames"][0]["clusters"]["visible"].as_u64().unwrap_or(0) > 0,
         "{out}"
     );
+    // The ideal frame: the oracle's visible set drawn without culling work, and the technique's
+    // efficiency against it.
+    let ideal = v["totals"]["ideal_frame_gpu_ms"].as_f64().unwrap_or(0.0);
+    let efficiency = v["totals"]["efficiency"].as_f64().unwrap_or(0.0);
+    assert!(ideal > 0.0 && efficiency > 0.0 && efficiency.is_finite(), "{out}");
     let (ok, _, err) = tilegraph(
         &[
             "cull-check",

@@ -124,7 +124,7 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
 /// settings that failed.
 pub fn table(g: &Group<'_>, labels: &Labels) -> String {
     let mut md = String::new();
-    md.push_str("| setting | profile | frames | FN (frames) | FN rate | FP rate | images equal | culling ms | in passes ms | frame ms | p95 ms | CPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    md.push_str("| setting | profile | frames | FN (frames) | FN rate | FP rate | images equal | culling ms | in passes ms | frame ms | p95 ms | ideal ms (efficiency) | CPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     let mut measured = g.measured();
     measured.sort_by(|a, b| {
         let ms = |r: &RunRecord| r.totals.as_ref().map_or(f64::MAX, |t| t.frame_gpu_ms);
@@ -141,7 +141,7 @@ pub fn table(g: &Group<'_>, labels: &Labels) -> String {
         }
         let _ = writeln!(
                 md,
-                "| {label} | {} | {} | {} ({}) | {:.4} | {:.3} | {}/{} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} |",
+                "| {label} | {} | {} | {} ({}) | {:.4} | {:.3} | {}/{} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {:.2} |",
                 r.device.profile,
                 t.frames,
                 t.false_negatives,
@@ -154,6 +154,11 @@ pub fn table(g: &Group<'_>, labels: &Labels) -> String {
                 t.passes_gpu_ms,
                 t.frame_gpu_ms,
                 t.frame_gpu_ms_p95,
+                match t.ideal_frame_gpu_ms {
+                    Some(i) if t.frame_gpu_ms > 0.0 =>
+                        format!("{i:.3} ({:.2})", i / t.frame_gpu_ms),
+                    _ => "—".into(),
+                },
                 t.cpu_ms
             );
     }

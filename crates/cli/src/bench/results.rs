@@ -79,6 +79,10 @@ pub struct TotalsRecord {
     pub frame_gpu_ms: f64,
     /// 95th percentile of the same frames.
     pub frame_gpu_ms_p95: f64,
+    /// The ideal frame: the oracle's visible instances drawn with no culling work, timed whole
+    /// (absent for moving scenes and in results written before it).
+    #[serde(default)]
+    pub ideal_frame_gpu_ms: Option<f64>,
     /// Sum of the passes' medians (timed each, in a pass of their own along the path): the
     /// frame without what lies between its passes. (Format 1 had no such field, and its
     /// `frame_gpu_ms` was this sum.)
@@ -155,6 +159,7 @@ impl RunRecord {
             triangles_drawn: t.triangles_drawn,
             frame_gpu_ms: t.frame_gpu_ms,
             frame_gpu_ms_p95: t.frame_gpu_ms_p95,
+            ideal_frame_gpu_ms: t.ideal_frame_gpu_ms,
             passes_gpu_ms: t.passes_gpu_ms,
             cull_gpu_ms: t.cull_gpu_ms,
             cpu_ms: t.cpu_ms,

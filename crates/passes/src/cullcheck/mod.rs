@@ -84,6 +84,13 @@ pub struct Totals {
     pub frame_gpu_ms: f64,
     /// The 95th percentile of the same frames.
     pub frame_gpu_ms_p95: f64,
+    /// The **ideal frame**: the oracle's visible instances of each frame drawn with no culling
+    /// work (everything else hidden), timed whole like `frame_gpu_ms` — what a perfect culling
+    /// at instance level would cost on this GPU, the ceiling of every technique. `None` for a
+    /// moving scene.
+    pub ideal_frame_gpu_ms: Option<f64>,
+    /// `ideal_frame_gpu_ms / frame_gpu_ms`: 1 is as good as culling instances gets.
+    pub efficiency: Option<f64>,
     /// The passes' median GPU milliseconds summed (the second pass): the frame without what
     /// lies between its passes; `frame_gpu_ms - passes_gpu_ms` is that. On lavapipe it misses
     /// most rasterization, which runs when a render pass's tiles are flushed.
@@ -308,10 +315,27 @@ pub fn cull_check_options(
         reference,
         tested,
     } = renderers;
+    let tested_options = tested.options().clone();
     oracle.destroy(ctx);
     reference.destroy(ctx);
     tested.destroy(ctx);
-    result
+    let (mut check, visible) = result?;
+    // The ideal frame, in a renderer made after the others are gone (as the tested one was):
+    // a still scene only (a moving one would be copied whole every frame).
+    if let World::Still(scene) = world {
+        let timing = Timing {
+            path,
+            count: visible.len(),
+            aspect,
+            warmup: timing_warmup,
+        };
+        let ideal = ideal_frame(ctx, scene, tested_options, &timing, &visible)?;
+        check.totals.ideal_frame_gpu_ms = ideal;
+        check.totals.efficiency = ideal
+            .filter(|_| check.totals.frame_gpu_ms > 0.0)
+            .map(|i| i / check.totals.frame_gpu_ms);
+    }
+    Ok(check)
 }
 
 /// The three renderers of a check, on one device.
@@ -465,7 +489,7 @@ impl Run<'_> {
         r: &mut Renderers,
         on_failure: &mut Option<OnFailure<'_>>,
         on_frame: &mut Option<&mut dyn FnMut(usize, usize)>,
-    ) -> Result<CullCheck, RenderError> {
+    ) -> Result<(CullCheck, Vec<Vec<u32>>), RenderError> {
         let Run {
             culling,
             path,
@@ -482,6 +506,8 @@ impl Run<'_> {
         let aspect = size.0 as f32 / size.1 as f32;
         let count = max_frames.map_or(path.len(), |m| m.min(path.len()));
         let mut frames = Vec::with_capacity(count);
+        // Per frame, the compared instances the oracle saw (for the ideal frame).
+        let mut visible_sets = Vec::with_capacity(count);
         let mut cpu_ms = Vec::with_capacity(count);
         let mut compared = 0;
         for index in 0..count {
@@ -522,6 +548,11 @@ impl Run<'_> {
                     *v = true;
                 }
             }
+            visible_sets.push(
+                (0..n as u32)
+                    .filter(|&i| visible[i as usize] && compare[i as usize])
+                    .collect(),
+            );
             reference.render_frame(ctx, scene, &frame)?;
             let want = reference.read_image(ctx)?;
             tested.render_frame(ctx, scene, &frame)?;
@@ -710,6 +741,8 @@ impl Run<'_> {
                 .fold(0.0, |a, m| a + m.median_gpu_ms),
             frame_gpu_ms: frame.as_ref().map_or(0.0, |m| m.median_gpu_ms),
             frame_gpu_ms_p95: frame.as_ref().map_or(0.0, |m| m.p95_gpu_ms),
+            ideal_frame_gpu_ms: None,
+            efficiency: None,
             passes_gpu_ms: medians.iter().fold(0.0, |a, m| a + m.median_gpu_ms),
             cpu_ms: tilegraph_vk::queries::median(&cpu_ms).unwrap_or(0.0),
             passes: medians
@@ -721,16 +754,105 @@ impl Run<'_> {
                 })
                 .collect(),
         };
-        Ok(CullCheck {
-            technique: culling.name().to_string(),
-            auto_review: auto_switch,
-            scene: world.scene().name().to_string(),
-            profile: ctx.profile().name.clone(),
-            size: [size.0, size.1],
-            frames,
-            totals,
-        })
+        Ok((
+            CullCheck {
+                technique: culling.name().to_string(),
+                auto_review: auto_switch,
+                scene: world.scene().name().to_string(),
+                profile: ctx.profile().name.clone(),
+                size: [size.0, size.1],
+                frames,
+                totals,
+            },
+            visible_sets,
+        ))
     }
+}
+
+/// The ideal frame's median GPU milliseconds: `options` without culling, on a copy of `scene`
+/// in which each frame hides every compared instance the oracle did not see (`visible`: per
+/// frame, the ids it saw; blended and hidden instances as they are), timed whole, frames back
+/// to back after one untimed pass along the path (and the warm-up).
+fn ideal_frame(
+    ctx: &Context,
+    scene: &Scene,
+    options: RenderOptions,
+    timing: &Timing<'_>,
+    visible: &[Vec<u32>],
+) -> Result<Option<f64>, RenderError> {
+    let mut scene = scene.clone();
+    let compared: Vec<bool> = scene
+        .instances()
+        .iter()
+        .map(|i| {
+            i.flags.is_drawn()
+                && !scene
+                    .instance_material(i)
+                    .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
+        })
+        .collect();
+    let original: Vec<_> = scene.instances().iter().map(|i| i.flags).collect();
+    let mut renderer = SceneRenderer::new(
+        ctx,
+        &scene,
+        RenderOptions {
+            culling: Culling::None,
+            gpu_timing: GpuTiming::Frame,
+            ..options
+        },
+    )?;
+    let mut shown = vec![true; compared.len()];
+    let mut run = |renderer: &mut SceneRenderer, scene: &mut Scene| {
+        let mut want = vec![false; compared.len()];
+        for (index, ids) in visible.iter().enumerate() {
+            let Some(frame) = timing.path.frame(index, timing.aspect) else {
+                break;
+            };
+            want.iter_mut().for_each(|w| *w = false);
+            for &i in ids {
+                if let Some(w) = want.get_mut(i as usize) {
+                    *w = true;
+                }
+            }
+            for i in 0..compared.len() {
+                if !compared[i] || want[i] == shown[i] {
+                    continue;
+                }
+                let Some(h) = scene.instance_handle(tilegraph_scene::InstanceId(i as u32)) else {
+                    continue;
+                };
+                let bits = original[i].bits()
+                    | if want[i] {
+                        0
+                    } else {
+                        tilegraph_scene::InstanceFlags::HIDDEN.bits()
+                    };
+                let flags = tilegraph_scene::InstanceFlags::from_bits(bits)
+                    .unwrap_or(tilegraph_scene::InstanceFlags::HIDDEN);
+                scene.set_flags(h, flags)?;
+                shown[i] = want[i];
+            }
+            renderer.render_frame(ctx, scene, &frame)?;
+        }
+        renderer.finish(ctx)
+    };
+    let mut still = World::Still(&scene);
+    let warmed = timing.warm_up(ctx, &mut still, &mut renderer);
+    let result = warmed
+        .and_then(|()| run(&mut renderer, &mut scene))
+        .and_then(|()| {
+            renderer.clear_timings();
+            run(&mut renderer, &mut scene)
+        })
+        .map(|()| {
+            renderer
+                .medians()
+                .into_iter()
+                .find(|m| m.name == FRAME_TIMING)
+                .map(|m| m.median_gpu_ms)
+        });
+    renderer.destroy(ctx);
+    result
 }
 
 /// The diff image of a failed frame: the reference in dim grey, differing pixels red, pixels
