@@ -719,7 +719,10 @@ fn walks_at_eye_height_are_named_camera_paths() {
     // efficiency against it.
     let ideal = v["totals"]["ideal_frame_gpu_ms"].as_f64().unwrap_or(0.0);
     let efficiency = v["totals"]["efficiency"].as_f64().unwrap_or(0.0);
-    assert!(ideal > 0.0 && efficiency > 0.0 && efficiency.is_finite(), "{out}");
+    assert!(
+        ideal > 0.0 && efficiency > 0.0 && efficiency.is_finite(),
+        "{out}"
+    );
     let (ok, _, err) = tilegraph(
         &[
             "cull-check",
