@@ -11,7 +11,7 @@
 //! does not hold them.
 
 use serde::Serialize;
-use tilegraph_scene::{CameraPath, Motion, MotionParams, Scene};
+use tilegraph_scene::{CameraPath, MotionParams, Scene};
 use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
 use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::Context;
@@ -23,6 +23,11 @@ use crate::renderer::SceneRenderer;
 use crate::setup::Technique;
 
 mod clusters;
+mod ideal;
+mod world;
+
+use ideal::ideal_frame;
+use world::{run_trial, Timing, World};
 
 pub use clusters::{cluster_check, ClusterCheck};
 
@@ -149,7 +154,7 @@ pub struct CheckExtras<'a> {
     pub on_failure: Option<OnFailure<'a>>,
     /// Called after each checked frame with (frames done, frames in all): a progress bar.
     pub on_frame: Option<&'a mut dyn FnMut(usize, usize)>,
-    /// The scene moves along the path ([`Motion`]): every renderer sees the scene each frame
+    /// The scene moves along the path ([`Motion`](tilegraph_scene::Motion)): every renderer sees the scene each frame
     /// brings, the oracle included, in the checked and in the timed passes alike.
     pub motion: Option<MotionParams>,
     /// How long to render the path (from its start, again and again) before the timed pass:
@@ -348,43 +353,6 @@ struct Renderers {
     tested: SceneRenderer,
 }
 
-/// The scene a check renders: as given, or moving — a copy its [`Motion`] brings to each frame.
-enum World<'a> {
-    Still(&'a Scene),
-    Moving { scene: Box<Scene>, motion: Motion },
-}
-
-impl<'a> World<'a> {
-    fn new(scene: &'a Scene, path: &CameraPath, motion: Option<MotionParams>) -> Self {
-        match motion {
-            None => World::Still(scene),
-            Some(params) => World::Moving {
-                scene: Box::new(scene.clone()),
-                motion: Motion::new(scene, path, params),
-            },
-        }
-    }
-
-    /// The scene as it stands.
-    fn scene(&self) -> &Scene {
-        match self {
-            World::Still(s) => s,
-            World::Moving { scene, .. } => scene,
-        }
-    }
-
-    /// The scene at frame `index` of the path.
-    fn at(&mut self, index: usize) -> Result<&Scene, RenderError> {
-        match self {
-            World::Still(s) => Ok(s),
-            World::Moving { scene, motion } => {
-                motion.apply(scene, index)?;
-                Ok(scene)
-            }
-        }
-    }
-}
-
 /// What a check runs.
 struct Run<'a> {
     culling: Culling,
@@ -394,91 +362,6 @@ struct Run<'a> {
     /// What `auto`'s trial timed and kept (`None`: the culling was given).
     auto_review: Option<String>,
     timing_warmup: std::time::Duration,
-}
-
-/// What the warm-up and the trial render: the path's first `count` frames, again and again.
-struct Timing<'a> {
-    path: &'a CameraPath,
-    count: usize,
-    aspect: f32,
-    warmup: std::time::Duration,
-}
-
-impl Timing<'_> {
-    /// Renders with `renderer` for [`CheckExtras::timing_warmup`].
-    fn warm_up(
-        &self,
-        ctx: &Context,
-        world: &mut World<'_>,
-        renderer: &mut SceneRenderer,
-    ) -> Result<(), RenderError> {
-        let warm_until = std::time::Instant::now() + self.warmup;
-        let mut index = 0;
-        while self.count > 0 && std::time::Instant::now() < warm_until {
-            let Some(frame) = self.path.frame(index % self.count, self.aspect) else {
-                break;
-            };
-            renderer.render_frame(ctx, world.at(index % self.count)?, &frame)?;
-            index += 1;
-        }
-        Ok(())
-    }
-}
-
-/// `auto`'s trial, as an engine runs it: a renderer of its own rendering frames back to back
-/// along the path (from its start again where the path is shorter than the trial), after the
-/// warm-up. Returns `options` with the culling it kept and what it timed. Its renderer is gone
-/// before the check makes the one it checks and times, which is then made like any other
-/// check's: a renderer made while another still held its memory timed every pass 3–17 %
-/// slower on an H100 than one of the same options made fresh.
-fn run_trial(
-    ctx: &Context,
-    timing: &Timing<'_>,
-    world: &mut World<'_>,
-    mut options: RenderOptions,
-    mut trial: AutoTrial,
-) -> Result<(RenderOptions, String), RenderError> {
-    options.culling = trial.current();
-    let mut renderer = SceneRenderer::new(ctx, world.scene(), options.clone())?;
-    if let Err(e) = timing.warm_up(ctx, world, &mut renderer) {
-        renderer.destroy(ctx);
-        return Err(e);
-    }
-    for index in 0..=trial.frames() {
-        let Some(frame) = timing
-            .path
-            .frame(index % timing.count.max(1), timing.aspect)
-        else {
-            break;
-        };
-        let scene = match world.at(index % timing.count.max(1)) {
-            Ok(s) => s,
-            Err(e) => {
-                renderer.destroy(ctx);
-                return Err(e);
-            }
-        };
-        if let Err(e) = renderer.render_frame(ctx, scene, &frame) {
-            renderer.destroy(ctx);
-            return Err(e);
-        }
-        // On an error the trial has destroyed the renderer.
-        let (next, decided) = trial.after_render(ctx, scene, renderer, &mut options)?;
-        renderer = next;
-        if let Some(why) = decided {
-            renderer.destroy(ctx);
-            return Ok((options, why));
-        }
-    }
-    renderer.destroy(ctx);
-    Ok((
-        options,
-        format!(
-            "auto: the trial did not finish in {} frames; ran {}",
-            trial.frames() + 1,
-            trial.current().name()
-        ),
-    ))
 }
 
 impl Run<'_> {
@@ -767,92 +650,6 @@ impl Run<'_> {
             visible_sets,
         ))
     }
-}
-
-/// The ideal frame's median GPU milliseconds: `options` without culling, on a copy of `scene`
-/// in which each frame hides every compared instance the oracle did not see (`visible`: per
-/// frame, the ids it saw; blended and hidden instances as they are), timed whole, frames back
-/// to back after one untimed pass along the path (and the warm-up).
-fn ideal_frame(
-    ctx: &Context,
-    scene: &Scene,
-    options: RenderOptions,
-    timing: &Timing<'_>,
-    visible: &[Vec<u32>],
-) -> Result<Option<f64>, RenderError> {
-    let mut scene = scene.clone();
-    let compared: Vec<bool> = scene
-        .instances()
-        .iter()
-        .map(|i| {
-            i.flags.is_drawn()
-                && !scene
-                    .instance_material(i)
-                    .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
-        })
-        .collect();
-    let original: Vec<_> = scene.instances().iter().map(|i| i.flags).collect();
-    let mut renderer = SceneRenderer::new(
-        ctx,
-        &scene,
-        RenderOptions {
-            culling: Culling::None,
-            gpu_timing: GpuTiming::Frame,
-            ..options
-        },
-    )?;
-    let mut shown = vec![true; compared.len()];
-    let mut run = |renderer: &mut SceneRenderer, scene: &mut Scene| {
-        let mut want = vec![false; compared.len()];
-        for (index, ids) in visible.iter().enumerate() {
-            let Some(frame) = timing.path.frame(index, timing.aspect) else {
-                break;
-            };
-            want.iter_mut().for_each(|w| *w = false);
-            for &i in ids {
-                if let Some(w) = want.get_mut(i as usize) {
-                    *w = true;
-                }
-            }
-            for i in 0..compared.len() {
-                if !compared[i] || want[i] == shown[i] {
-                    continue;
-                }
-                let Some(h) = scene.instance_handle(tilegraph_scene::InstanceId(i as u32)) else {
-                    continue;
-                };
-                let bits = original[i].bits()
-                    | if want[i] {
-                        0
-                    } else {
-                        tilegraph_scene::InstanceFlags::HIDDEN.bits()
-                    };
-                let flags = tilegraph_scene::InstanceFlags::from_bits(bits)
-                    .unwrap_or(tilegraph_scene::InstanceFlags::HIDDEN);
-                scene.set_flags(h, flags)?;
-                shown[i] = want[i];
-            }
-            renderer.render_frame(ctx, scene, &frame)?;
-        }
-        renderer.finish(ctx)
-    };
-    let mut still = World::Still(&scene);
-    let warmed = timing.warm_up(ctx, &mut still, &mut renderer);
-    let result = warmed
-        .and_then(|()| run(&mut renderer, &mut scene))
-        .and_then(|()| {
-            renderer.clear_timings();
-            run(&mut renderer, &mut scene)
-        })
-        .map(|()| {
-            renderer
-                .medians()
-                .into_iter()
-                .find(|m| m.name == FRAME_TIMING)
-                .map(|m| m.median_gpu_ms)
-        });
-    renderer.destroy(ctx);
-    result
 }
 
 /// The diff image of a failed frame: the reference in dim grey, differing pixels red, pixels

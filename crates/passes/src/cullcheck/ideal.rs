@@ -1,0 +1,97 @@
+//! The ideal frame: the oracle's visible set drawn with no culling work, every technique's
+//! ceiling.
+
+use tilegraph_scene::Scene;
+use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
+use tilegraph_vk::Context;
+
+use super::world::{Timing, World};
+use crate::cull::Culling;
+use crate::options::{RenderError, RenderOptions};
+use crate::renderer::SceneRenderer;
+
+/// The ideal frame's median GPU milliseconds: `options` without culling, on a copy of `scene`
+/// in which each frame hides every compared instance the oracle did not see (`visible`: per
+/// frame, the ids it saw; blended and hidden instances as they are), timed whole, frames back
+/// to back after one untimed pass along the path (and the warm-up).
+pub(super) fn ideal_frame(
+    ctx: &Context,
+    scene: &Scene,
+    options: RenderOptions,
+    timing: &Timing<'_>,
+    visible: &[Vec<u32>],
+) -> Result<Option<f64>, RenderError> {
+    let mut scene = scene.clone();
+    let compared: Vec<bool> = scene
+        .instances()
+        .iter()
+        .map(|i| {
+            i.flags.is_drawn()
+                && !scene
+                    .instance_material(i)
+                    .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
+        })
+        .collect();
+    let original: Vec<_> = scene.instances().iter().map(|i| i.flags).collect();
+    let mut renderer = SceneRenderer::new(
+        ctx,
+        &scene,
+        RenderOptions {
+            culling: Culling::None,
+            gpu_timing: GpuTiming::Frame,
+            ..options
+        },
+    )?;
+    let mut shown = vec![true; compared.len()];
+    let mut run = |renderer: &mut SceneRenderer, scene: &mut Scene| {
+        let mut want = vec![false; compared.len()];
+        for (index, ids) in visible.iter().enumerate() {
+            let Some(frame) = timing.path.frame(index, timing.aspect) else {
+                break;
+            };
+            want.iter_mut().for_each(|w| *w = false);
+            for &i in ids {
+                if let Some(w) = want.get_mut(i as usize) {
+                    *w = true;
+                }
+            }
+            for i in 0..compared.len() {
+                if !compared[i] || want[i] == shown[i] {
+                    continue;
+                }
+                let Some(h) = scene.instance_handle(tilegraph_scene::InstanceId(i as u32)) else {
+                    continue;
+                };
+                let bits = original[i].bits()
+                    | if want[i] {
+                        0
+                    } else {
+                        tilegraph_scene::InstanceFlags::HIDDEN.bits()
+                    };
+                let flags = tilegraph_scene::InstanceFlags::from_bits(bits)
+                    .unwrap_or(tilegraph_scene::InstanceFlags::HIDDEN);
+                scene.set_flags(h, flags)?;
+                shown[i] = want[i];
+            }
+            renderer.render_frame(ctx, scene, &frame)?;
+        }
+        renderer.finish(ctx)
+    };
+    let mut still = World::Still(&scene);
+    let warmed = timing.warm_up(ctx, &mut still, &mut renderer);
+    let result = warmed
+        .and_then(|()| run(&mut renderer, &mut scene))
+        .and_then(|()| {
+            renderer.clear_timings();
+            run(&mut renderer, &mut scene)
+        })
+        .map(|()| {
+            renderer
+                .medians()
+                .into_iter()
+                .find(|m| m.name == FRAME_TIMING)
+                .map(|m| m.median_gpu_ms)
+        });
+    renderer.destroy(ctx);
+    result
+}
