@@ -66,8 +66,6 @@ struct Case {
     hiz_base_level: u32,
     sphere: bool,
     padded: bool,
-    /// The cluster techniques run on the fragile one-mesh level (else on closed spheres).
-    fragile: bool,
 }
 
 const INSTANCES: usize = 300;
@@ -109,7 +107,7 @@ fn case() -> impl Strategy<Value = Case> {
             prop_oneof![Just(0.0), -1.0e6..1.0e6f64],
         ),
         [view(), view()],
-        (0..=2u32, any::<bool>(), any::<bool>(), any::<bool>()),
+        (0..=2u32, any::<bool>(), any::<bool>()),
     )
         .prop_map(
             |(
@@ -117,7 +115,7 @@ fn case() -> impl Strategy<Value = Case> {
                 (ortho, log_near, fov_y_rad, finite_far),
                 offset,
                 views,
-                (hiz_base_level, sphere, padded, fragile),
+                (hiz_base_level, sphere, padded),
             )| Case {
                 size: (w, h),
                 reverse,
@@ -131,12 +129,18 @@ fn case() -> impl Strategy<Value = Case> {
                 hiz_base_level,
                 sphere,
                 padded,
-                fragile,
             },
         )
 }
 
 impl Case {
+    /// Whether the cluster techniques run on the fragile one-mesh level (else on the closed
+    /// spheres): half the cases, by the viewport's parity — derived, not drawn, so that the
+    /// seeds in the regressions file keep making the cases they were saved for.
+    fn fragile(&self) -> bool {
+        (self.size.0 + self.size.1) % 2 == 1
+    }
+
     fn projection(&self) -> Projection {
         let depth = if self.reverse {
             DepthConvention::Reverse
@@ -267,7 +271,7 @@ fn conservative_culling_holds_at_random_extremes() {
         } else {
             NpotMode::EdgeAware
         };
-        let mut clustered = if case.fragile {
+        let mut clustered = if case.fragile() {
             fragile.clone()
         } else {
             spheres.clone()
