@@ -5,6 +5,7 @@ use tilegraph_scene::Scene;
 use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
 use tilegraph_vk::Context;
 
+use super::compared_instances;
 use super::world::{Timing, World};
 use crate::cull::Culling;
 use crate::options::{RenderError, RenderOptions};
@@ -22,16 +23,7 @@ pub(super) fn ideal_frame(
     visible: &[Vec<u32>],
 ) -> Result<Option<f64>, RenderError> {
     let mut scene = scene.clone();
-    let compared: Vec<bool> = scene
-        .instances()
-        .iter()
-        .map(|i| {
-            i.flags.is_drawn()
-                && !scene
-                    .instance_material(i)
-                    .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
-        })
-        .collect();
+    let compared = compared_instances(&scene);
     let original: Vec<_> = scene.instances().iter().map(|i| i.flags).collect();
     let mut renderer = SceneRenderer::new(
         ctx,

@@ -400,16 +400,7 @@ impl Run<'_> {
             let scene = world.at(index)?;
             // What the comparison covers: the drawn opaque and alpha-tested instances.
             let n = scene.instances().len();
-            let compare: Vec<bool> = scene
-                .instances()
-                .iter()
-                .map(|i| {
-                    i.flags.is_drawn()
-                        && !scene.instance_material(i).is_some_and(|m| {
-                            matches!(m.class, tilegraph_scene::MaterialClass::Blended)
-                        })
-                })
-                .collect();
+            let compare = compared_instances(scene);
             compared = compare.iter().filter(|c| **c).count();
             let tri = |i: usize| {
                 scene
@@ -650,6 +641,22 @@ impl Run<'_> {
             visible_sets,
         ))
     }
+}
+
+/// Per instance slot, whether the comparison covers it: drawn (not hidden, not a free slot),
+/// opaque or alpha-tested (blended instances are sorted on the CPU by every technique, and the
+/// visibility buffer does not hold them).
+fn compared_instances(scene: &Scene) -> Vec<bool> {
+    scene
+        .instances()
+        .iter()
+        .map(|i| {
+            i.flags.is_drawn()
+                && !scene
+                    .instance_material(i)
+                    .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
+        })
+        .collect()
 }
 
 /// The diff image of a failed frame: the reference in dim grey, differing pixels red, pixels
