@@ -11,6 +11,7 @@ const LIMITS: Limits = Limits {
     max_vertices: 1 << 20,
     max_indices: 1 << 22,
     max_instances: 1 << 20,
+    max_texture_pixels: 1 << 20,
 };
 
 fuzz_target!(|data: &[u8]| {

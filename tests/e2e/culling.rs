@@ -416,6 +416,7 @@ fn culling_a_scene_of_only_blended_geometry_renders() {
         base_color: [0.2, 0.5, 1.0, 0.5],
         class: MaterialClass::Blended,
         double_sided: true,
+        base_color_texture: None,
     });
     let v = |x: f32, y: f32| Vertex {
         position: [x, y, 0.0],

@@ -173,6 +173,7 @@ pub(crate) fn material(index: usize, m: &TgMaterial) -> Result<Material, Failure
         base_color: m.base_color,
         class,
         double_sided: m.double_sided != 0,
+        base_color_texture: None,
     })
 }
 

@@ -136,7 +136,7 @@ fn instance_mesh_material_and_frame_match_rust() {
             offset_of!(GpuMaterial, class),
             offset_of!(GpuMaterial, alpha_cutoff),
             offset_of!(GpuMaterial, double_sided),
-            offset_of!(GpuMaterial, _pad),
+            offset_of!(GpuMaterial, texture),
         ],
         size_of::<GpuMaterial>(),
         true,

@@ -65,6 +65,14 @@ pub enum SceneError {
         reason: String,
     },
 
+    /// A texture's image is missing, of an undecoded format, corrupt or too large.
+    #[error("{file}: {pointer}: image: {reason}")]
+    Image {
+        file: String,
+        pointer: String,
+        reason: String,
+    },
+
     /// An accessor or buffer view reaches past the end of what contains it.
     #[error("{file}: {pointer}: out of bounds: {reason}")]
     OutOfBounds {
@@ -170,6 +178,7 @@ impl SceneError {
             SceneError::Invalid { pointer, .. }
             | SceneError::UnresolvedReference { pointer, .. }
             | SceneError::Buffer { pointer, .. }
+            | SceneError::Image { pointer, .. }
             | SceneError::OutOfBounds { pointer, .. }
             | SceneError::IndexOutOfRange { pointer, .. }
             | SceneError::NonFinite { pointer, .. }
@@ -199,6 +208,7 @@ impl SceneError {
             SceneError::Invalid { .. } => "invalid",
             SceneError::UnresolvedReference { .. } => "unresolved-reference",
             SceneError::Buffer { .. } => "buffer",
+            SceneError::Image { .. } => "image",
             SceneError::OutOfBounds { .. } => "out-of-bounds",
             SceneError::IndexOutOfRange { .. } => "index-out-of-range",
             SceneError::NonFinite { .. } => "non-finite",

@@ -47,6 +47,7 @@ mod gltf_load;
 pub mod motion;
 pub mod procedural;
 mod scene;
+pub mod texture;
 
 use std::path::Path;
 
@@ -68,6 +69,7 @@ pub use scene::{
     RelativeInstance, Scene, SceneBuilder, SceneCursor, SceneInfo, SceneSource, SplitPoint,
     Transform, Vertex, DRAW_LISTS,
 };
+pub use texture::{Texture, TextureId};
 /// Shared with the culling references and the passes (tilegraph-types); re-exported so scene
 /// users name them from here as before.
 pub use tilegraph_types::{DepthConvention, Projection};

@@ -68,8 +68,10 @@ fn read_report(path: &Path) -> Option<Report> {
 }
 
 /// Whether a validator pointer lies in a part of the document the loader reads. The loader
-/// ignores images, textures, samplers, cameras, animations, skins, root extensions and
-/// extensionsUsed, and the texture references inside materials.
+/// ignores cameras, animations, skins, root extensions and extensionsUsed, and the texture
+/// references inside materials but the base colour's. Images, textures and samplers it reads
+/// only where a material's base colour reaches them: the validator's image and texture assets
+/// reference theirs from no material, so a pointer there counts as unread.
 fn used_by_loader(pointer: &str) -> bool {
     let first = pointer
         .trim_start_matches('/')
@@ -80,7 +82,7 @@ fn used_by_loader(pointer: &str) -> bool {
         "" => true, // the document or the GLB container itself
         "asset" | "buffers" | "bufferViews" | "accessors" | "meshes" | "nodes" | "scenes"
         | "scene" | "extensionsRequired" => true,
-        "materials" => !pointer.contains("Texture"),
+        "materials" => !pointer.contains("Texture") || pointer.contains("/baseColorTexture"),
         _ => false,
     }
 }
@@ -174,7 +176,9 @@ fn judge(file: &str, report: &Report, verdict: &LoaderVerdict) -> (bool, String)
                     .map(|(_, p)| {
                         let first = p.trim_start_matches('/').split('/').next().unwrap_or("");
                         if first == "materials" {
-                            format!("{p} (a texture reference; textures are ignored)")
+                            format!(
+                                "{p} (a texture reference other than the base colour's, ignored)"
+                            )
                         } else {
                             format!("/{first}")
                         }
@@ -385,4 +389,7 @@ fn pointer_matching() {
     assert!(used_by_loader("/bufferViews/0/byteStride"));
     assert!(!used_by_loader("/images/0/uri"));
     assert!(!used_by_loader("/materials/0/normalTexture/index"));
+    assert!(used_by_loader(
+        "/materials/0/pbrMetallicRoughness/baseColorTexture/index"
+    ));
 }

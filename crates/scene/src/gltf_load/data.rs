@@ -20,7 +20,7 @@ pub(crate) enum BufferData<'a> {
 }
 
 /// `true` for a URI with a scheme (`http:`, `file:`), which this loader does not fetch.
-fn has_scheme(uri: &str) -> Result<bool, String> {
+pub(super) fn has_scheme(uri: &str) -> Result<bool, String> {
     let Some(colon) = uri.find(':') else {
         return Ok(false);
     };
@@ -66,8 +66,31 @@ fn percent_decode_bytes(s: &str) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
-/// Decodes `data:[<media type>][;base64],<data>`.
-fn decode_data_uri(uri: &str) -> Result<Vec<u8>, String> {
+/// A relative URI reference, percent-decoded, that stays in the glTF's directory tree: no
+/// absolute path, no `..` (a file must not make the loader read /dev/zero or ~/.ssh).
+pub(super) fn relative_path(uri: &str) -> Result<String, String> {
+    let path = percent_decode(uri)?;
+    let escapes = path.starts_with(['/', '\\'])
+        || std::path::Path::new(&path).is_absolute()
+        || path.split(['/', '\\']).any(|part| part == "..");
+    if escapes {
+        return Err(format!(
+            "`{path}` is not a relative path inside the file's directory"
+        ));
+    }
+    Ok(path)
+}
+
+/// Decodes a buffer's `data:[<media type>][;base64],<data>`.
+pub(super) fn decode_data_uri(uri: &str) -> Result<Vec<u8>, String> {
+    decode_data_uri_of(
+        uri,
+        &["application/octet-stream", "application/gltf-buffer"],
+    )
+}
+
+/// Decodes `data:[<media type>][;base64],<data>` whose media type is one of `media_types`.
+pub(super) fn decode_data_uri_of(uri: &str, media_types: &[&str]) -> Result<Vec<u8>, String> {
     let rest = &uri["data:".len()..];
     let Some((header, payload)) = rest.split_once(',') else {
         return Err("data URI without ','".into());
@@ -83,9 +106,10 @@ fn decode_data_uri(uri: &str) -> Result<Vec<u8>, String> {
     let media = media.split(';').next().unwrap_or_default();
     // Media types compare case-insensitively (RFC 2045); glTF allows these two for buffers.
     let media = media.to_ascii_lowercase();
-    if media != "application/octet-stream" && media != "application/gltf-buffer" {
+    if !media_types.contains(&media.as_str()) {
         return Err(format!(
-            "data URI media type `{media}` must be application/octet-stream or application/gltf-buffer"
+            "data URI media type `{media}` must be {}",
+            media_types.join(" or ")
         ));
     }
     if base64 {
@@ -126,18 +150,7 @@ pub(crate) fn resolve_buffers<'a>(
                     continue;
                 }
                 let path =
-                    percent_decode(uri).map_err(|r| ctx.buffer(format!("{pointer}/uri"), r))?;
-                // A relative reference stays in the glTF's directory tree: no absolute path,
-                // no `..` (a file must not make the loader read /dev/zero or ~/.ssh).
-                let escapes = path.starts_with(['/', '\\'])
-                    || std::path::Path::new(&path).is_absolute()
-                    || path.split(['/', '\\']).any(|part| part == "..");
-                if escapes {
-                    return Err(ctx.buffer(
-                        format!("{pointer}/uri"),
-                        format!("`{path}` is not a relative path inside the file's directory"),
-                    ));
-                }
+                    relative_path(uri).map_err(|r| ctx.buffer(format!("{pointer}/uri"), r))?;
                 resolver.read_prefix(&path, declared).map_err(|e| {
                     ctx.buffer(
                         format!("{pointer}/uri"),
@@ -571,7 +584,7 @@ impl<'d, 'a> Reader<'d, 'a> {
         self.accessors.get(index).and_then(|s| s.as_ref().ok())
     }
 
-    fn bytes(&self, buffer: usize, user: &str) -> Result<&[u8], SceneError> {
+    pub fn bytes(&self, buffer: usize, user: &str) -> Result<&[u8], SceneError> {
         match self.buffers.get(buffer) {
             Some(BufferData::Bytes(b)) => Ok(b),
             Some(BufferData::Unavailable(why)) => Err(self.ctx.buffer(

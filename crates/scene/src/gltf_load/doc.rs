@@ -3,8 +3,9 @@
 //! Why not `gltf::json::Root::from_slice` for the whole file: one bad element anywhere (an image,
 //! a sampler) would fail the whole document, and serde's message would not say which element.
 //! Deserializing each element of the collections the loader uses on its own gives an error
-//! pointing at `/accessors/3`, and leaves the collections it does not use (images, textures,
-//! samplers, cameras, animations, skins) unread, as they should be for a geometry loader.
+//! pointing at `/accessors/3`, and leaves the collections it does not use (cameras, animations,
+//! skins) unread. Textures, images and samplers are kept as JSON and read element by element
+//! only where a material's base colour reaches them (`images.rs`).
 
 use gltf::json;
 use serde::de::DeserializeOwned;
@@ -46,6 +47,11 @@ pub(crate) struct Doc {
     pub scenes: Vec<SceneDef>,
     pub scene: Option<u64>,
     pub quantized: bool,
+    /// Raw `textures`, `images` and `samplers`: read element by element, only those a
+    /// material's base colour reaches ([`element`]).
+    pub textures: Vec<Value>,
+    pub images: Vec<Value>,
+    pub samplers: Vec<Value>,
     /// Per material: `KHR_materials_transmission` with a factor above 0 (glass). Read before
     /// the extensions are dropped: light passes through it, so it must not hide what is behind.
     pub transmissive: Vec<bool>,
@@ -86,6 +92,33 @@ fn normalize(v: &mut Value) {
             }
         }
         _ => {}
+    }
+}
+
+/// One element of a raw collection (at `pointer`), normalized and deserialized.
+pub(crate) fn element<T: DeserializeOwned>(
+    raw: &Value,
+    pointer: &str,
+    ctx: &Ctx,
+) -> Result<T, SceneError> {
+    if !raw.is_object() {
+        return Err(ctx.invalid(pointer.to_string(), "must be a JSON object".into()));
+    }
+    let mut item = raw.clone();
+    normalize(&mut item);
+    serde_json::from_value(item).map_err(|e| ctx.invalid(pointer.to_string(), e.to_string()))
+}
+
+/// A top-level array kept as JSON values. Anything else counts as empty (with a warning): it
+/// is an error only if a material reaches into it, and then the reference is unresolved.
+fn raw_collection(root: &mut Map<String, Value>, name: &str, ctx: &Ctx) -> Vec<Value> {
+    match root.remove(name) {
+        None => Vec::new(),
+        Some(Value::Array(items)) => items,
+        Some(_) => {
+            log::warn!("{}: /{name} is not an array: read as empty", ctx.file);
+            Vec::new()
+        }
     }
 }
 
@@ -215,6 +248,12 @@ fn check_extensions(root: &Map<String, Value>, ctx: &Ctx) -> Result<bool, SceneE
             });
         }
     }
+    if used.iter().any(|n| n == "KHR_texture_transform") {
+        log::warn!(
+            "{}: KHR_texture_transform is not applied: textures are sampled with the UVs as stored",
+            ctx.file
+        );
+    }
     for name in used.iter().filter(|n| !required.contains(n)) {
         log::debug!("{}: optional extension {name} ignored", ctx.file);
     }
@@ -279,6 +318,9 @@ pub(crate) fn parse(json_bytes: &[u8], ctx: &Ctx) -> Result<Doc, SceneError> {
         meshes: collection(&mut root, "meshes", ctx)?,
         nodes: collection(&mut root, "nodes", ctx)?,
         scenes: collection(&mut root, "scenes", ctx)?,
+        textures: raw_collection(&mut root, "textures", ctx),
+        images: raw_collection(&mut root, "images", ctx),
+        samplers: raw_collection(&mut root, "samplers", ctx),
         scene,
         quantized,
         transmissive,

@@ -26,10 +26,10 @@ pub(super) struct Flatten<'x, 'd, 'a> {
     pub(super) mesh_cache: Vec<Option<Vec<MeshId>>>,
     /// Mesh -> its copy with reversed winding, for mirroring nodes (made on first use).
     pub(super) mirrored: HashMap<MeshId, MeshId>,
-    /// (POSITION, NORMAL, TEXCOORD_0) accessors -> (vertex offset, count): primitives that share
+    /// (POSITION, NORMAL, TEXCOORD_n) accessors -> (vertex offset, count): primitives that share
     /// vertex accessors share vertices.
     pub(super) vertex_cache: HashMap<(usize, usize, Option<usize>), (u32, u32)>,
-    /// (POSITION, TEXCOORD_0) accessors -> their vertices, for primitives without normals (each
+    /// (POSITION, TEXCOORD_n) accessors -> their vertices, for primitives without normals (each
     /// is de-indexed into flat-shaded corners; the source is read once however many share it).
     pub(super) flat_source_cache: HashMap<(usize, Option<usize>), std::rc::Rc<Vec<Vertex>>>,
     /// Vertices read from accessors so far: bounded like the vertices kept, so a small file
@@ -374,7 +374,7 @@ impl Flatten<'_, '_, '_> {
         let uvs = match uv {
             Some(a) => {
                 let v = self.reader.read_f32(a, 2)?;
-                self.check_finite(&v, 2, a, "TEXCOORD_0", pp)?;
+                self.check_finite(&v, 2, a, "TEXCOORD", pp)?;
                 Some(v)
             }
             None => None,

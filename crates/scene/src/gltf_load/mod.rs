@@ -17,6 +17,7 @@ mod data;
 mod doc;
 mod flatten;
 pub(crate) mod glb;
+mod images;
 mod nodes;
 
 use std::borrow::Cow;
@@ -127,16 +128,20 @@ pub struct Limits {
     pub max_vertices: usize,
     pub max_indices: usize,
     pub max_instances: usize,
+    /// Pixels of one texture image (checked from its header, before decoding).
+    pub max_texture_pixels: usize,
 }
 
 impl Default for Limits {
     /// 2^26 vertices (2 GiB of vertex data), 2^28 indices (1 GiB), 2^24 instances (about
-    /// 2 GiB of instances: a 1 MB file can instance a 10k-primitive mesh from 10k nodes).
+    /// 2 GiB of instances: a 1 MB file can instance a 10k-primitive mesh from 10k nodes),
+    /// 2^26 pixels per texture (8192 x 8192, 341 MiB with mips).
     fn default() -> Self {
         Limits {
             max_vertices: 1 << 26,
             max_indices: 1 << 28,
             max_instances: 1 << 24,
+            max_texture_pixels: 1 << 26,
         }
     }
 }
@@ -149,6 +154,13 @@ pub(crate) struct Ctx {
 impl Ctx {
     pub fn invalid(&self, pointer: String, reason: String) -> SceneError {
         SceneError::Invalid {
+            file: self.file.clone(),
+            pointer,
+            reason,
+        }
+    }
+    pub fn image(&self, pointer: String, reason: String) -> SceneError {
+        SceneError::Image {
             file: self.file.clone(),
             pointer,
             reason,
@@ -263,7 +275,8 @@ pub fn load_gltf_bytes(
     builder.set_source(SceneSource::Gltf {
         path: name.to_string(),
     });
-    add_materials(&doc, &mut builder, &ctx)?;
+    let mut images = images::Images::new(&doc, &views, &reader, resolver, limits, &ctx);
+    add_materials(&doc, &mut images, &mut builder, &ctx)?;
     let prims = check_meshes(&doc, &accessors, &ctx)?;
     let parents = check_hierarchy(&doc, &ctx)?;
     let roots = scene_roots(&doc, &parents, &ctx)?;
@@ -307,7 +320,12 @@ pub fn load_gltf_bytes(
     builder.build(None)
 }
 
-fn add_materials(doc: &Doc, builder: &mut SceneBuilder, ctx: &Ctx) -> Result<(), SceneError> {
+fn add_materials(
+    doc: &Doc,
+    images: &mut images::Images<'_, '_>,
+    builder: &mut SceneBuilder,
+    ctx: &Ctx,
+) -> Result<(), SceneError> {
     for (i, m) in doc.materials.iter().enumerate() {
         let p = format!("/materials/{i}");
         let color = m.pbr_metallic_roughness.base_color_factor.0;
@@ -347,10 +365,19 @@ fn add_materials(doc: &Doc, builder: &mut SceneBuilder, ctx: &Ctx) -> Result<(),
             }
             other => (other, color),
         };
+        let base_color_texture = match &m.pbr_metallic_roughness.base_color_texture {
+            Some(info) => images.base_color(
+                info,
+                &format!("{p}/pbrMetallicRoughness/baseColorTexture"),
+                builder,
+            )?,
+            None => None,
+        };
         builder.add_material(Material {
             base_color: color,
             class,
             double_sided: m.double_sided,
+            base_color_texture,
         });
     }
     Ok(())
@@ -385,6 +412,12 @@ fn check_meshes(doc: &Doc, accessors: &[Slot], ctx: &Ctx) -> Result<Vec<Vec<Prim
             if prim.attributes.is_empty() {
                 return Err(ctx.invalid(format!("{pp}/attributes"), "no attributes".into()));
             }
+            // The UV set the material's base-colour texture names (the vertex keeps one).
+            let uv_set = prim
+                .material
+                .and_then(|m| doc.materials.get(m.value()))
+                .and_then(|m| m.pbr_metallic_roughness.base_color_texture.as_ref())
+                .map_or(0, |t| t.tex_coord);
             let mut count: Option<(usize, String)> = None;
             let mut p = Prim {
                 position: None,
@@ -443,12 +476,12 @@ fn check_meshes(doc: &Doc, accessors: &[Slot], ctx: &Ctx) -> Result<Vec<Vec<Prim
                         }
                         p.normal = Some(ai);
                     }
-                    Checked::Valid(Semantic::TexCoords(0)) => {
+                    Checked::Valid(Semantic::TexCoords(n)) if *n == uv_set => {
                         let ok = float_or(a, true, &[ComponentType::U8, ComponentType::U16], true);
                         if a.ty != Type::Vec2 || !ok {
                             return Err(ctx.invalid(
                                 ap,
-                                "TEXCOORD_0 must be a VEC2 of floats or normalized unsigned bytes/shorts".into(),
+                                format!("{name} must be a VEC2 of floats or normalized unsigned bytes/shorts"),
                             ));
                         }
                         p.uv = Some(ai);

@@ -47,6 +47,7 @@ pub(super) fn generate(g: &mut Gen, size: usize) -> Result<CameraPath, SceneErro
         base_color: [0.6, 0.8, 0.9, 0.35],
         class: MaterialClass::Blended,
         double_sided: true,
+        base_color_texture: None,
     });
 
     let box_data = shapes::unit_box();

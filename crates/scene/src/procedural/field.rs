@@ -31,6 +31,7 @@ pub(super) fn generate(g: &mut Gen, size: usize) -> Result<CameraPath, SceneErro
         base_color: [0.25, 0.5, 0.15, 1.0],
         class: MaterialClass::AlphaTested { cutoff: 0.5 },
         double_sided: true,
+        base_color_texture: None,
     });
 
     let ground = g.mesh(&shapes::ground_quad(), grass);

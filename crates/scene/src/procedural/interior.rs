@@ -47,11 +47,13 @@ pub(super) fn generate(g: &mut Gen, size: usize) -> Result<CameraPath, SceneErro
         base_color: [0.7, 0.85, 0.9, 0.3],
         class: MaterialClass::Blended,
         double_sided: true,
+        base_color_texture: None,
     });
     let leaves = g.builder.add_material(Material {
         base_color: [0.2, 0.5, 0.2, 1.0],
         class: MaterialClass::AlphaTested { cutoff: 0.5 },
         double_sided: true,
+        base_color_texture: None,
     });
 
     let box_data = shapes::unit_box();

@@ -287,6 +287,16 @@ impl Scene {
                 what: "material".into(),
             });
         }
+        if let Some(t) = material
+            .base_color_texture
+            .filter(|t| t.index() >= self.textures.len())
+        {
+            return Err(SceneError::Invalid {
+                file: self.name.clone(),
+                pointer: format!("/materials/{}/baseColorTexture", self.materials.len()),
+                reason: format!("texture {} of {}", t.0, self.textures.len()),
+            });
+        }
         let id = MaterialId(self.materials.len() as u32);
         self.materials.push(material);
         self.dynamic.journal.push(Change::Material(id.0));

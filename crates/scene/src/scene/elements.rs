@@ -6,6 +6,7 @@ use glam::{DAffine3, DVec3, Mat3, Mat4, Vec3};
 use serde::Serialize;
 
 use crate::bounds::{Aabb, DAabb, DSphere};
+use crate::texture::TextureId;
 
 use super::gpu::{GpuInstance, GpuMaterial, GpuMesh, SplitPoint};
 
@@ -73,6 +74,9 @@ pub struct Material {
     pub base_color: [f32; 4],
     pub class: MaterialClass,
     pub double_sided: bool,
+    /// Multiplies `base_color` (glTF baseColorTexture, sampled with the mesh's UVs); its alpha
+    /// is what an alpha-tested material tests.
+    pub base_color_texture: Option<TextureId>,
 }
 
 impl Material {
@@ -81,6 +85,7 @@ impl Material {
             base_color,
             class: MaterialClass::Opaque,
             double_sided: false,
+            base_color_texture: None,
         }
     }
 }
@@ -130,7 +135,9 @@ impl Material {
                 _ => 0.0,
             },
             double_sided: u32::from(self.double_sided),
-            _pad: 0,
+            texture: self
+                .base_color_texture
+                .map_or(GpuMaterial::NO_TEXTURE, |t| t.0),
         }
     }
 }

@@ -133,5 +133,11 @@ pub struct GpuMaterial {
     pub class: u32,
     pub alpha_cutoff: f32,
     pub double_sided: u32,
-    pub _pad: u32,
+    /// The base-colour texture's index in the scene's textures, [`GpuMaterial::NO_TEXTURE`]
+    /// when it has none.
+    pub texture: u32,
+}
+
+impl GpuMaterial {
+    pub const NO_TEXTURE: u32 = u32::MAX;
 }

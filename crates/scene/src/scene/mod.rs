@@ -1,7 +1,7 @@
 //! The scene as flat, GPU-ready arrays: one vertex buffer, one index buffer, a mesh table, a
 //! material table and instances with world bounds.
 
-use std::fmt;
+use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
 use serde::Serialize;
@@ -9,6 +9,7 @@ use serde::Serialize;
 use crate::bounds::{transformed_bounds, Aabb, DAabb};
 use crate::camera::CameraPath;
 use crate::error::SceneError;
+use crate::texture::{Texture, TextureId};
 
 mod buckets;
 mod clusters;
@@ -16,6 +17,7 @@ mod edit;
 mod elements;
 mod gpu;
 mod grid;
+mod info;
 mod journal;
 mod one_mesh;
 mod pool;
@@ -28,6 +30,7 @@ pub use elements::{
 };
 pub use gpu::{GpuInstance, GpuMaterial, GpuMesh, RelativeInstance, SplitPoint};
 pub use grid::{GridMember, LooseGrid, Overlap};
+pub use info::{BoundsInfo, ClassCounts, SceneInfo};
 pub use journal::{Change, SceneCursor};
 
 /// Where a scene came from.
@@ -72,6 +75,8 @@ pub struct Scene {
     indices: Vec<u32>,
     meshes: Vec<Mesh>,
     materials: Vec<Material>,
+    /// Shared between clones: a scene's textures are large and never change after build.
+    textures: Arc<[Texture]>,
     instances: Vec<Instance>,
     bounds: DAabb,
     gltf_counts: Option<GltfCounts>,
@@ -105,6 +110,14 @@ impl Scene {
     }
     pub fn instances(&self) -> &[Instance] {
         &self.instances
+    }
+    /// The textures materials sample ([`Material::base_color_texture`]).
+    pub fn textures(&self) -> &[Texture] {
+        &self.textures
+    }
+    /// Bytes of every texture's mip chain: what the GPU copies hold.
+    pub fn texture_bytes(&self) -> u64 {
+        self.textures.iter().map(|t| t.byte_size() as u64).sum()
     }
     pub fn mesh(&self, id: MeshId) -> Option<&Mesh> {
         self.meshes.get(id.index())
@@ -237,47 +250,6 @@ impl Scene {
             .index_all(&self.instances, &self.meshes, &self.materials, self.bounds);
         self.dynamic.journal.push(Change::Everything);
     }
-
-    /// The counts the CLI prints (`tilegraph scene info`).
-    pub fn info(&self) -> SceneInfo {
-        let mut materials = ClassCounts::default();
-        for m in &self.materials {
-            materials.add(m.class);
-        }
-        let mut instances_by_class = ClassCounts::default();
-        for i in self.instances.iter().filter(|i| !i.flags.is_free()) {
-            if let Some(m) = self.instance_material(i) {
-                instances_by_class.add(m.class);
-            }
-        }
-        let (min, max) = if self.bounds.is_empty() {
-            ([0.0; 3], [0.0; 3])
-        } else {
-            (self.bounds.min.to_array(), self.bounds.max.to_array())
-        };
-        SceneInfo {
-            name: self.name.clone(),
-            source: self.source.clone(),
-            instances: self.live_instances() as u64,
-            meshes: self.meshes.iter().filter(|m| m.index_count > 0).count() as u64,
-            triangles: self.triangles_drawn(),
-            bounds: BoundsInfo { min, max },
-            materials,
-            instances_by_class,
-            unique_triangles: self
-                .meshes
-                .iter()
-                .map(|m| u64::from(m.triangle_count()))
-                .sum(),
-            vertices: self.vertices.len() as u64,
-            indices: self.indices.len() as u64,
-            material_count: self.materials.len() as u64,
-            nodes: self.gltf_counts.map(|c| c.nodes as u64),
-            gltf_meshes: self.gltf_counts.map(|c| c.meshes as u64),
-            primitives: self.gltf_counts.map(|c| c.primitives as u64),
-            camera_path_frames: self.camera_path.len() as u64,
-        }
-    }
 }
 
 /// Checks `data` against `scene` (each mesh's clusters tile its index range in order, every
@@ -392,115 +364,6 @@ fn check_mesh(
     Ok(())
 }
 
-/// Counts per material class.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-pub struct ClassCounts {
-    pub opaque: u64,
-    pub alpha_tested: u64,
-    pub blended: u64,
-}
-
-impl ClassCounts {
-    fn add(&mut self, class: MaterialClass) {
-        *self.of(class) += 1;
-    }
-
-    fn remove(&mut self, class: MaterialClass) {
-        let n = self.of(class);
-        *n = n.saturating_sub(1);
-    }
-
-    fn of(&mut self, class: MaterialClass) -> &mut u64 {
-        match class {
-            MaterialClass::Opaque => &mut self.opaque,
-            MaterialClass::AlphaTested { .. } => &mut self.alpha_tested,
-            MaterialClass::Blended => &mut self.blended,
-        }
-    }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct BoundsInfo {
-    pub min: [f64; 3],
-    pub max: [f64; 3],
-}
-
-/// What `tilegraph scene info` prints, as JSON (serde) or as a table (`Display`).
-///
-/// `triangles` counts triangles drawn over all instances; `unique_triangles` counts them once per
-/// mesh. `materials` counts materials per class; `instances_by_class` counts instances.
-/// `nodes`, `gltf_meshes` and `primitives` are glTF document counts and are absent for
-/// procedural scenes.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct SceneInfo {
-    pub name: String,
-    pub source: SceneSource,
-    pub instances: u64,
-    pub meshes: u64,
-    pub triangles: u64,
-    pub bounds: BoundsInfo,
-    pub materials: ClassCounts,
-    pub instances_by_class: ClassCounts,
-    pub unique_triangles: u64,
-    pub vertices: u64,
-    pub indices: u64,
-    pub material_count: u64,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub nodes: Option<u64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub gltf_meshes: Option<u64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub primitives: Option<u64>,
-    pub camera_path_frames: u64,
-}
-
-impl fmt::Display for SceneInfo {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let [x0, y0, z0] = self.bounds.min;
-        let [x1, y1, z1] = self.bounds.max;
-        writeln!(f, "scene              {}", self.name)?;
-        match &self.source {
-            SceneSource::Gltf { path } => writeln!(f, "source             glTF {path}")?,
-            SceneSource::Procedural { name, size, seed } => writeln!(
-                f,
-                "source             procedural {name} size={size} seed={seed}"
-            )?,
-            SceneSource::Built => writeln!(f, "source             built in code")?,
-        }
-        if let (Some(n), Some(m), Some(p)) = (self.nodes, self.gltf_meshes, self.primitives) {
-            writeln!(
-                f,
-                "glTF               {n} nodes, {m} meshes, {p} primitives"
-            )?;
-        }
-        writeln!(f, "instances          {}", self.instances)?;
-        writeln!(f, "meshes             {}", self.meshes)?;
-        writeln!(
-            f,
-            "triangles          {} drawn ({} unique)",
-            self.triangles, self.unique_triangles
-        )?;
-        writeln!(f, "vertices / indices {} / {}", self.vertices, self.indices)?;
-        writeln!(
-            f,
-            "materials          {} opaque, {} alpha-tested, {} blended",
-            self.materials.opaque, self.materials.alpha_tested, self.materials.blended
-        )?;
-        writeln!(
-            f,
-            "instances by class {} opaque, {} alpha-tested, {} blended",
-            self.instances_by_class.opaque,
-            self.instances_by_class.alpha_tested,
-            self.instances_by_class.blended
-        )?;
-        writeln!(
-            f,
-            "bounds             [{x0:.3}, {y0:.3}, {z0:.3}] .. [{x1:.3}, {y1:.3}, {z1:.3}]"
-        )?;
-        write!(f, "camera path        {} frames", self.camera_path_frames)
-    }
-}
-
 /// Builds a [`Scene`] from meshes, materials and instances; checks what it is given.
 ///
 /// The glTF loader and the procedural generators use it; tests in other crates can too.
@@ -512,6 +375,7 @@ pub struct SceneBuilder {
     indices: Vec<u32>,
     meshes: Vec<Mesh>,
     materials: Vec<Material>,
+    textures: Vec<Texture>,
     instances: Vec<Instance>,
     gltf_counts: Option<GltfCounts>,
 }
@@ -525,6 +389,7 @@ impl SceneBuilder {
             indices: Vec::new(),
             meshes: Vec::new(),
             materials: Vec::new(),
+            textures: Vec::new(),
             instances: Vec::new(),
             gltf_counts: None,
         }
@@ -545,6 +410,11 @@ impl SceneBuilder {
     pub fn add_material(&mut self, material: Material) -> MaterialId {
         self.materials.push(material);
         MaterialId((self.materials.len() - 1) as u32)
+    }
+
+    pub fn add_texture(&mut self, texture: Texture) -> TextureId {
+        self.textures.push(texture);
+        TextureId((self.textures.len() - 1) as u32)
     }
 
     fn error(&self, pointer: String, reason: String) -> SceneError {
@@ -744,6 +614,17 @@ impl SceneBuilder {
                 what: "scene bounds".into(),
             });
         }
+        for (i, m) in self.materials.iter().enumerate() {
+            if let Some(t) = m
+                .base_color_texture
+                .filter(|t| t.index() >= self.textures.len())
+            {
+                return Err(self.error(
+                    format!("/materials/{i}/baseColorTexture"),
+                    format!("texture {} of {}", t.0, self.textures.len()),
+                ));
+            }
+        }
         let camera_path = match camera_path {
             Some(p) => p,
             None => CameraPath::orbit_bounds(&bounds),
@@ -763,6 +644,7 @@ impl SceneBuilder {
             indices: self.indices,
             meshes: self.meshes,
             materials: self.materials,
+            textures: self.textures.into(),
             instances: self.instances,
             bounds,
             gltf_counts: self.gltf_counts,
