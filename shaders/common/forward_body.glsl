@@ -1,5 +1,6 @@
 // Body of the forward colour shaders (forward.frag, forward_early.frag).
 #include "scene.glsl"
+#include "textures.glsl"
 
 #ifdef COUNT_FRAGMENTS
 layout(set = 0, binding = 7, std430) buffer Counters { uint shaded[4]; } counters;
@@ -14,17 +15,13 @@ layout(location = 0) out vec4 o_color;
 
 void main() {
     Material m = materials[v_material];
-    float alpha = m.base_color.a;
-    if (MATERIAL_CLASS == 1u) {
-        alpha = leaf_alpha(v_uv, m.base_color.a);
-        if (alpha < m.alpha_cutoff) {
-            discard;
-        }
-        alpha = 1.0;
+    vec4 base = material_color(m, v_uv);
+    if (MATERIAL_CLASS == 1u && base.a < m.alpha_cutoff) {
+        discard;
     }
     vec3 n = gl_FrontFacing ? v_normal : -v_normal;
-    vec3 c = shade(m.base_color.rgb, n, frame.params.x);
-    o_color = vec4(c, MATERIAL_CLASS == 2u ? alpha : 1.0);
+    vec3 c = shade(base.rgb, n, frame.params.x);
+    o_color = vec4(c, MATERIAL_CLASS == 2u ? base.a : 1.0);
 #ifdef COUNT_FRAGMENTS
     atomicAdd(counters.shaded[MATERIAL_CLASS], 1u);
 #endif

@@ -37,13 +37,14 @@ struct Mesh {
     uint pad1;
 };
 
-// tilegraph_scene::GpuMaterial (32 bytes). class: 0 opaque, 1 alpha-tested, 2 blended.
+// tilegraph_scene::GpuMaterial (32 bytes). class: 0 opaque, 1 alpha-tested, 2 blended;
+// texture: the base colour's (textures.glsl), 0xFFFFFFFF for none.
 struct Material {
     vec4 base_color;
     uint class_code;
     float alpha_cutoff;
     uint double_sided;
-    uint pad;
+    uint texture;
 };
 
 // tilegraph_passes::FrameUniforms (std140).
@@ -101,8 +102,8 @@ vec3 instance_normal(Instance inst, vec3 n) {
     return normalize(transpose(inverse(linear)) * n);
 }
 
-// Textures are not shipped, so alpha-tested materials get their coverage from a procedural
-// leaf mask on the UVs: a lobed disc. The same function runs in the pre-pass and in the colour
+// Alpha-tested materials without a texture (the procedural scenes' leaves) get their coverage
+// from a procedural leaf mask on the UVs: a lobed disc. The same function runs in the pre-pass and in the colour
 // pass, so both discard exactly the same fragments (EQUAL depth test stays exact).
 float leaf_alpha(vec2 uv, float base_alpha) {
     vec2 p = uv * 2.0 - 1.0;

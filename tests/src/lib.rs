@@ -104,6 +104,7 @@ pub fn test_data(relative: &str) -> Option<std::path::PathBuf> {
     p.exists().then_some(p)
 }
 pub mod golden;
+pub mod textured;
 
 /// A scene of closed meshes for cluster and cone culling: rows of UV spheres (1,280 triangles,
 /// about a dozen clusters each) on a ground slab, so that spheres hide spheres and every sphere

@@ -281,6 +281,14 @@ enum TgFeature
    * VkPhysicalDeviceFeatures.geometryShader.
    */
   TG_FEATURE_GEOMETRY_SHADER = (1 << 12),
+  /**
+   * VkPhysicalDeviceFeatures.shaderSampledImageArrayDynamicIndexing.
+   */
+  TG_FEATURE_SAMPLED_IMAGE_ARRAY_DYNAMIC_INDEXING = (1 << 13),
+  /**
+   * VkPhysicalDeviceVulkan12Features.shaderSampledImageArrayNonUniformIndexing.
+   */
+  TG_FEATURE_SAMPLED_IMAGE_ARRAY_NON_UNIFORM_INDEXING = (1 << 14),
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

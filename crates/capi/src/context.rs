@@ -88,9 +88,13 @@ pub enum TgFeature {
     DepthClamp = 1 << 11,
     /// VkPhysicalDeviceFeatures.geometryShader.
     GeometryShader = 1 << 12,
+    /// VkPhysicalDeviceFeatures.shaderSampledImageArrayDynamicIndexing.
+    SampledImageArrayDynamicIndexing = 1 << 13,
+    /// VkPhysicalDeviceVulkan12Features.shaderSampledImageArrayNonUniformIndexing.
+    SampledImageArrayNonUniformIndexing = 1 << 14,
 }
 
-const FEATURE_BITS: [(Feature, TgFeature); 13] = [
+const FEATURE_BITS: [(Feature, TgFeature); 15] = [
     (Feature::Synchronization2, TgFeature::Synchronization2),
     (Feature::DynamicRendering, TgFeature::DynamicRendering),
     (Feature::DrawIndirectCount, TgFeature::DrawIndirectCount),
@@ -119,6 +123,14 @@ const FEATURE_BITS: [(Feature, TgFeature); 13] = [
     ),
     (Feature::DepthClamp, TgFeature::DepthClamp),
     (Feature::GeometryShader, TgFeature::GeometryShader),
+    (
+        Feature::SampledImageArrayDynamicIndexing,
+        TgFeature::SampledImageArrayDynamicIndexing,
+    ),
+    (
+        Feature::SampledImageArrayNonUniformIndexing,
+        TgFeature::SampledImageArrayNonUniformIndexing,
+    ),
 ];
 
 fn feature_bits(features: impl IntoIterator<Item = Feature>) -> u32 {

@@ -265,6 +265,7 @@ fn demo(out: &std::path::Path, size: (u32, u32), frames: u32) -> Result<(), CliE
         camera_path: None,
         frames: Some(frames),
         json: false,
+        texture_binding: None,
         technique: None,
         oq_group: None,
         raster_occlusion_scale: None,
@@ -333,9 +334,10 @@ fn scene_info(
     } else {
         outln!("{info}")?;
         outln!(
-            "GPU memory         {:.1} MiB: geometry {:.1} MiB, {} frame slots of {:.1} MiB, culling lists {:.1} MiB; {:.0} B per instance slot ({} slots)",
+            "GPU memory         {:.1} MiB: geometry {:.1} MiB, textures {:.1} MiB, {} frame slots of {:.1} MiB, culling lists {:.1} MiB; {:.0} B per instance slot ({} slots)",
             mib(memory.total_bytes()),
             mib(memory.geometry_bytes),
+            mib(memory.texture_bytes),
             memory.frames_in_flight,
             mib(memory.slot_bytes),
             mib(memory.culling_bytes),

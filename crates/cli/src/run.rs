@@ -51,6 +51,10 @@ pub struct RunArgs {
     /// Machine-readable output on standard output.
     #[arg(long)]
     pub json: bool,
+    /// How textures are bound: `indexed` (one descriptor each, where the device can index
+    /// them) or `layers` (resampled into one array image); default: the profile's `[textures]`.
+    #[arg(long, value_parser = parse_texture_binding)]
+    pub texture_binding: Option<tilegraph_profile::TextureBinding>,
     /// Deprecated: `--shading` in `render`, `--culling` in `cull-check`.
     #[arg(long, hide = true)]
     pub technique: Option<String>,
@@ -136,6 +140,14 @@ impl RunArgs {
             None => Ok(scene.camera_path().clone()),
         }
     }
+}
+
+fn parse_texture_binding(s: &str) -> Result<tilegraph_profile::TextureBinding, String> {
+    use tilegraph_profile::TextureBinding;
+    [TextureBinding::Indexed, TextureBinding::Layers]
+        .into_iter()
+        .find(|b| b.name() == s)
+        .ok_or_else(|| format!("`{s}`: indexed or layers"))
 }
 
 /// The seed of a `walk[:SEED]` camera path, `None` for a file; a malformed seed is an error.

@@ -175,6 +175,55 @@ fn render_writes_the_image_and_the_timing_table() {
     std::fs::remove_file(&out).ok();
 }
 
+/// `tilegraph render` of a textured glTF (the tests' gallery written to disk: PNG and JPEG
+/// files beside the .gltf, one image a data URI) draws its base-colour textures, checked
+/// against tests/golden/textured-gallery-render.png; `scene-info` reports the textures.
+#[test]
+fn render_of_a_textured_gltf_matches_its_golden_image() {
+    let dir = std::env::temp_dir().join(format!("tilegraph-gallery-{}", std::process::id()));
+    let gltf = tilegraph_e2e::textured::textured_gallery()
+        .write_to(&dir)
+        .unwrap();
+    let out = dir.join("frame.png");
+    let camera = dir.join("gallery-camera.json");
+    let (ok, _, err) = tilegraph(
+        &[
+            "render",
+            gltf.to_str().unwrap(),
+            "--camera-path",
+            camera.to_str().unwrap(),
+            "--profile",
+            "lavapipe",
+            "--size",
+            "160x90",
+            "--frames",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    assert!(ok, "{err}");
+    let img = tilegraph_e2e::golden::read_png(&out).unwrap();
+    let golden = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/golden/textured-gallery-render.png");
+    if std::env::var_os("TILEGRAPH_BLESS").is_some() {
+        tilegraph_e2e::golden::write_png(&golden, &img).unwrap();
+    } else {
+        tilegraph_e2e::golden::compare(&golden, &img, 2).unwrap();
+    }
+    let (ok, info, err) = tilegraph(&["scene-info", gltf.to_str().unwrap(), "--json"], &[]);
+    assert!(ok, "{err}");
+    let info: serde_json::Value = serde_json::from_str(&info).unwrap();
+    assert_eq!(info["textures"], 4, "{info}");
+    // Four images of 64x64, 48x40, 32x32 and 16x16, RGBA8 with full mip chains.
+    assert!(
+        info["texture_bytes"].as_u64().unwrap() > 4 * (64 * 64 + 48 * 40),
+        "{info}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn devices_json_reports_the_state_rules_with_their_sources() {
     let devices = devices_json(&[("TILEGRAPH_PROFILE", "mali-valhall")]);

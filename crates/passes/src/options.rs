@@ -134,6 +134,10 @@ pub struct RenderOptions {
     /// frame, after the frames in flight are waited for: an engine that knows how many
     /// instances it will spawn says so here.
     pub instance_capacity: u32,
+    /// Overrides the profile's texture binding (`[textures] binding`): `layers` forces the
+    /// one-image fallback on any device; `indexed` still falls back where the device lacks
+    /// the indexing features.
+    pub texture_binding: Option<tilegraph_profile::TextureBinding>,
 }
 
 impl Default for RenderOptions {
@@ -159,6 +163,7 @@ impl Default for RenderOptions {
             raster_occlusion_scale: 1,
             gpu_timing: GpuTiming::PassStatistics,
             instance_capacity: 0,
+            texture_binding: None,
         }
     }
 }

@@ -16,6 +16,7 @@ use std::sync::Arc;
 
 use tilegraph_graph::PassId;
 use tilegraph_profile::lint::DrawState;
+use tilegraph_profile::TextureBinding;
 use tilegraph_scene::DepthConvention;
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::{PassContext, RenderPassRef};
@@ -51,6 +52,23 @@ mod spv {
         include_bytes!("../../../shaders/spv/visbuf_resolve_input.frag.spv");
     pub const RESOLVE_SAMPLED_FS: &[u8] =
         include_bytes!("../../../shaders/spv/visbuf_resolve_sampled.frag.spv");
+    // The same with the textures as layers of one image (TEXTURE_LAYERS).
+    pub const DEPTH_ALPHA_LAYERS_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/depth_alpha_layers.frag.spv");
+    pub const FORWARD_LAYERS_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_layers.frag.spv");
+    pub const FORWARD_EARLY_LAYERS_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_early_layers.frag.spv");
+    pub const FORWARD_COUNT_LAYERS_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_count_layers.frag.spv");
+    pub const FORWARD_COUNT_LATE_LAYERS_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/forward_count_late_layers.frag.spv");
+    pub const VISBUF_LAYERS_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/visbuf_layers.frag.spv");
+    pub const RESOLVE_INPUT_LAYERS_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/visbuf_resolve_input_layers.frag.spv");
+    pub const RESOLVE_SAMPLED_LAYERS_FS: &[u8] =
+        include_bytes!("../../../shaders/spv/visbuf_resolve_sampled_layers.frag.spv");
     pub const OQ_BOX_VS: &[u8] = include_bytes!("../../../shaders/spv/oq_box.vert.spv");
     pub const RASTER_VS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.vert.spv");
     pub const RASTER_FS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.frag.spv");
@@ -129,6 +147,9 @@ pub struct Pipelines {
     pruned_below: u64,
     /// Count fragments in the colour passes (`forward_count*.frag`).
     count_fragments: bool,
+    /// How the scene's textures are bound (which build of each fragment shader), and the
+    /// descriptors of the binding: `TEXTURE_SLOTS` (specialization 1) of the indexed builds.
+    textures: (TextureBinding, u32),
     /// Set 0: the scene (`GpuScene::set_layout`, owned by the scene).
     pub scene_layout: vk::PipelineLayout,
     /// Set 1 of the resolve: the ids as an input attachment, or sampled.
@@ -144,12 +165,14 @@ impl Pipelines {
         ctx: &Context,
         scene_set_layout: vk::DescriptorSetLayout,
         count_fragments: bool,
+        textures: (TextureBinding, u32),
     ) -> Result<Self, VkError> {
         let mut p = Pipelines {
             cache: HashMap::new(),
             trace: None,
             pruned_below: 0,
             count_fragments,
+            textures,
             scene_layout: vk::PipelineLayout::null(),
             input_set_layout: vk::DescriptorSetLayout::null(),
             sampled_set_layout: vk::DescriptorSetLayout::null(),
@@ -253,16 +276,16 @@ impl Pipelines {
         };
         let layouts = (self.scene_layout, self.input_layout, self.sampled_layout);
         let count_fragments = self.count_fragments;
+        let textures = self.textures;
         self.get_or_create(pc, key, |target| {
             let target = with_colors(target, color_count);
             scene_pipeline(
                 pc,
                 target,
                 layouts,
-                variant,
-                double_sided,
-                depth,
+                (variant, double_sided, depth),
                 count_fragments,
+                textures,
             )
         })
     }
@@ -467,11 +490,21 @@ fn scene_pipeline(
         vk::PipelineLayout,
         vk::PipelineLayout,
     ),
-    variant: Variant,
-    double_sided: bool,
-    depth: DepthConvention,
+    (variant, double_sided, depth): (Variant, bool, DepthConvention),
     count_fragments: bool,
+    (texture_binding, texture_slots): (TextureBinding, u32),
 ) -> Result<DescribedPipeline, VkError> {
+    // Specialization 1 of every fragment shader: TEXTURE_SLOTS (textures.glsl, ignored by the
+    // layers builds); 0 is the variant's own where it has one.
+    let slots_spec = [(1, texture_slots)];
+    let layers = texture_binding == TextureBinding::Layers;
+    let pick = |indexed: &'static [u8], with_layers: &'static [u8]| {
+        if layers {
+            with_layers
+        } else {
+            indexed
+        }
+    };
     let write = DepthState {
         test: true,
         write: true,
@@ -481,7 +514,7 @@ fn scene_pipeline(
     let pos_only = [POSITION];
     let pos_uv = [POSITION, UV];
     let all = [POSITION, NORMAL, UV];
-    let class_spec: [(u32, u32); 1];
+    let class_spec: [(u32, u32); 2];
     let (vs, fs, attrs, depth_state, blend, layout): VariantState<'_> = match variant {
         Variant::DepthOpaque => (
             stage("depth.vert", spv::DEPTH_VS),
@@ -493,7 +526,11 @@ fn scene_pipeline(
         ),
         Variant::DepthAlpha => (
             stage("depth_alpha.vert", spv::DEPTH_ALPHA_VS),
-            Some(stage("depth_alpha.frag", spv::DEPTH_ALPHA_FS)),
+            Some(Stage {
+                name: "depth_alpha.frag",
+                spirv: pick(spv::DEPTH_ALPHA_FS, spv::DEPTH_ALPHA_LAYERS_FS),
+                specialization: &slots_spec,
+            }),
             &pos_uv,
             write,
             Blend::NoColorWrites,
@@ -503,7 +540,7 @@ fn scene_pipeline(
             class,
             depth: colour_depth,
         } => {
-            class_spec = [(0, class.index())];
+            class_spec = [(0, class.index()), (1, texture_slots)];
             let depth_state = match (class, colour_depth) {
                 (DrawClass::Blended, _) => DepthState {
                     test: true,
@@ -534,10 +571,25 @@ fn scene_pipeline(
             // tested without a pre-pass): seed 003, discard disables early-Z.
             let late = class == DrawClass::AlphaTested && colour_depth != ColourDepth::Equal;
             let (fs_name, fs) = match (late, count_fragments) {
-                (true, true) => ("forward_count_late.frag", spv::FORWARD_COUNT_LATE_FS),
-                (true, false) => ("forward.frag", spv::FORWARD_FS),
-                (false, true) => ("forward_count.frag", spv::FORWARD_COUNT_FS),
-                (false, false) => ("forward_early.frag", spv::FORWARD_EARLY_FS),
+                (true, true) => (
+                    "forward_count_late.frag",
+                    pick(
+                        spv::FORWARD_COUNT_LATE_FS,
+                        spv::FORWARD_COUNT_LATE_LAYERS_FS,
+                    ),
+                ),
+                (true, false) => (
+                    "forward.frag",
+                    pick(spv::FORWARD_FS, spv::FORWARD_LAYERS_FS),
+                ),
+                (false, true) => (
+                    "forward_count.frag",
+                    pick(spv::FORWARD_COUNT_FS, spv::FORWARD_COUNT_LAYERS_FS),
+                ),
+                (false, false) => (
+                    "forward_early.frag",
+                    pick(spv::FORWARD_EARLY_FS, spv::FORWARD_EARLY_LAYERS_FS),
+                ),
             };
             (
                 stage("forward.vert", spv::FORWARD_VS),
@@ -553,12 +605,12 @@ fn scene_pipeline(
             )
         }
         Variant::Visbuf { alpha } => {
-            class_spec = [(0, u32::from(alpha))];
+            class_spec = [(0, u32::from(alpha)), (1, texture_slots)];
             (
                 stage("visbuf.vert", spv::VISBUF_VS),
                 Some(Stage {
                     name: "visbuf.frag",
-                    spirv: spv::VISBUF_FS,
+                    spirv: pick(spv::VISBUF_FS, spv::VISBUF_LAYERS_FS),
                     specialization: &class_spec,
                 }),
                 &pos_uv,
@@ -569,7 +621,11 @@ fn scene_pipeline(
         }
         Variant::ResolveInput => (
             stage("fullscreen.vert", spv::FULLSCREEN_VS),
-            Some(stage("visbuf_resolve_input.frag", spv::RESOLVE_INPUT_FS)),
+            Some(Stage {
+                name: "visbuf_resolve_input.frag",
+                spirv: pick(spv::RESOLVE_INPUT_FS, spv::RESOLVE_INPUT_LAYERS_FS),
+                specialization: &slots_spec,
+            }),
             &[],
             DepthState::OFF,
             Blend::Opaque,
@@ -577,10 +633,11 @@ fn scene_pipeline(
         ),
         Variant::ResolveSampled => (
             stage("fullscreen.vert", spv::FULLSCREEN_VS),
-            Some(stage(
-                "visbuf_resolve_sampled.frag",
-                spv::RESOLVE_SAMPLED_FS,
-            )),
+            Some(Stage {
+                name: "visbuf_resolve_sampled.frag",
+                spirv: pick(spv::RESOLVE_SAMPLED_FS, spv::RESOLVE_SAMPLED_LAYERS_FS),
+                specialization: &slots_spec,
+            }),
             &[],
             DepthState::OFF,
             Blend::Opaque,

@@ -51,6 +51,49 @@ pub struct Profile {
     /// ([`knobs::KNOBS`]); a knob not set here takes its built-in default.
     #[serde(default)]
     pub knobs: knobs::KnobSettings,
+    /// How material textures are bound; built-in defaults where the profile says nothing.
+    #[serde(default)]
+    pub textures: TexturePolicy,
+}
+
+/// How the scene's material textures are bound to the shading passes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TexturePolicy {
+    pub binding: TextureBinding,
+    /// The most textures bound as an array of descriptors (also capped by the device's
+    /// per-stage sampler limits); a scene with more falls back to [`TextureBinding::Layers`].
+    pub max_indexed: u32,
+}
+
+impl Default for TexturePolicy {
+    fn default() -> Self {
+        TexturePolicy {
+            binding: TextureBinding::Indexed,
+            max_indexed: 256,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TextureBinding {
+    /// One descriptor per texture, indexed by the material's texture id (per draw in the
+    /// forward passes, per pixel in the visibility-buffer resolve): needs the device's sampled
+    /// image array indexing features, else falls back to `layers`.
+    Indexed,
+    /// Every texture resampled to one size as a layer of one array image: one descriptor,
+    /// works on every device, costs the resampling (and memory where sizes differ).
+    Layers,
+}
+
+impl TextureBinding {
+    pub const fn name(self) -> &'static str {
+        match self {
+            TextureBinding::Indexed => "indexed",
+            TextureBinding::Layers => "layers",
+        }
+    }
 }
 
 impl Profile {

@@ -41,10 +41,17 @@ pub enum Feature {
     /// The `geometryShader` feature: what Vulkan asks for before a fragment shader may read
     /// `gl_PrimitiveID` (the visibility buffer's triangle id), even with no geometry shader.
     GeometryShader,
+    /// An array of textures indexed by a value uniform over a draw (the forward passes' material
+    /// texture).
+    SampledImageArrayDynamicIndexing,
+    /// An array of textures indexed per pixel (core 1.2 feature, from descriptor indexing): the
+    /// visibility-buffer resolve's material texture. Without it, textures go into one array
+    /// image (`TextureBinding::Layers`).
+    SampledImageArrayNonUniformIndexing,
 }
 
 impl Feature {
-    pub const ALL: [Feature; 13] = [
+    pub const ALL: [Feature; 15] = [
         Feature::Synchronization2,
         Feature::DynamicRendering,
         Feature::DrawIndirectCount,
@@ -58,6 +65,8 @@ impl Feature {
         Feature::FragmentStoresAndAtomics,
         Feature::DepthClamp,
         Feature::GeometryShader,
+        Feature::SampledImageArrayDynamicIndexing,
+        Feature::SampledImageArrayNonUniformIndexing,
     ];
 }
 
@@ -98,12 +107,17 @@ impl FeatureRequest {
         self.optional.extend(f);
         self
     }
-    /// What the executor itself needs (barriers, dynamic rendering), and the pipeline
-    /// statistics it reports per pass where the device has them.
+    /// What the executor itself needs (barriers, dynamic rendering), the pipeline statistics it
+    /// reports per pass where the device has them, and the texture array indexing the scene
+    /// passes use where the device has it (else textures are layers of one image).
     pub fn executor() -> Self {
         Self::default()
             .require([Feature::Synchronization2, Feature::DynamicRendering])
-            .want([Feature::PipelineStatisticsQuery])
+            .want([
+                Feature::PipelineStatisticsQuery,
+                Feature::SampledImageArrayDynamicIndexing,
+                Feature::SampledImageArrayNonUniformIndexing,
+            ])
     }
 }
 
@@ -178,6 +192,12 @@ impl FeatureTargets<'_> {
             }
             Feature::DepthClamp => set(&mut self.core, CORE, |s| s.depth_clamp = t),
             Feature::GeometryShader => set(&mut self.core, CORE, |s| s.geometry_shader = t),
+            Feature::SampledImageArrayDynamicIndexing => set(&mut self.core, CORE, |s| {
+                s.shader_sampled_image_array_dynamic_indexing = t
+            }),
+            Feature::SampledImageArrayNonUniformIndexing => set(&mut self.v12, V12, |s| {
+                s.shader_sampled_image_array_non_uniform_indexing = t
+            }),
         }
     }
 }
@@ -219,6 +239,12 @@ impl FeatureStructs {
             Feature::FragmentStoresAndAtomics => b(self.core.fragment_stores_and_atomics),
             Feature::DepthClamp => b(self.core.depth_clamp),
             Feature::GeometryShader => b(self.core.geometry_shader),
+            Feature::SampledImageArrayDynamicIndexing => {
+                b(self.core.shader_sampled_image_array_dynamic_indexing)
+            }
+            Feature::SampledImageArrayNonUniformIndexing => {
+                b(self.v12.shader_sampled_image_array_non_uniform_indexing)
+            }
         }
     }
 

@@ -65,6 +65,12 @@ pub struct DeviceLimits {
     /// `subPixelPrecisionBits`: the rasterizer snaps vertices to 1 / 2^bits of a pixel (what the
     /// cluster cone test leaves room for).
     pub sub_pixel_precision_bits: u32,
+    /// The fewest of `maxPerStageDescriptorSamplers` / `...SampledImages` and
+    /// `maxDescriptorSetSamplers` / `...SampledImages`: how many combined image samplers one
+    /// shader stage may bind (16 on some phones).
+    pub max_sampled_images: u32,
+    /// `maxImageArrayLayers`.
+    pub max_image_array_layers: u32,
 }
 
 impl PhysicalDevice {
@@ -435,6 +441,16 @@ impl Instance {
                 non_coherent_atom_size: props.limits.non_coherent_atom_size.max(1),
                 buffer_image_granularity: props.limits.buffer_image_granularity.max(1),
                 sub_pixel_precision_bits: props.limits.sub_pixel_precision_bits,
+                max_sampled_images: [
+                    props.limits.max_per_stage_descriptor_samplers,
+                    props.limits.max_per_stage_descriptor_sampled_images,
+                    props.limits.max_descriptor_set_samplers,
+                    props.limits.max_descriptor_set_sampled_images,
+                ]
+                .into_iter()
+                .min()
+                .unwrap_or(0),
+                max_image_array_layers: props.limits.max_image_array_layers,
             },
             extensions,
         };

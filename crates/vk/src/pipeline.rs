@@ -383,18 +383,27 @@ pub fn create_compute_pipeline(
     Ok(p)
 }
 
-/// A descriptor-set layout from (binding, type, stages) triples.
+/// A descriptor-set layout from (binding, type, stages) triples, one descriptor each.
 pub fn create_set_layout(
     ctx: &Context,
     bindings: &[(u32, vk::DescriptorType, vk::ShaderStageFlags)],
 ) -> Result<vk::DescriptorSetLayout, VkError> {
+    let counted: Vec<_> = bindings.iter().map(|&(b, t, s)| (b, t, s, 1)).collect();
+    create_set_layout_counted(ctx, &counted)
+}
+
+/// A descriptor-set layout from (binding, type, stages, descriptor count).
+pub fn create_set_layout_counted(
+    ctx: &Context,
+    bindings: &[(u32, vk::DescriptorType, vk::ShaderStageFlags, u32)],
+) -> Result<vk::DescriptorSetLayout, VkError> {
     let b: Vec<vk::DescriptorSetLayoutBinding> = bindings
         .iter()
-        .map(|&(binding, ty, stages)| {
+        .map(|&(binding, ty, stages, count)| {
             vk::DescriptorSetLayoutBinding::default()
                 .binding(binding)
                 .descriptor_type(ty)
-                .descriptor_count(1)
+                .descriptor_count(count)
                 .stage_flags(stages)
         })
         .collect();

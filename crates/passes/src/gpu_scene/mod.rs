@@ -22,16 +22,18 @@ use tilegraph_scene::{
     DepthConvention, GpuInstance, GpuMaterial, GpuMesh, Scene, SceneCursor, SplitPoint, DRAW_LISTS,
 };
 use tilegraph_vk::ash;
-use tilegraph_vk::pipeline::{allocate_set, create_set_layout, write_buffer_set};
+use tilegraph_vk::pipeline::{allocate_set, create_set_layout_counted, write_buffer_set};
 use tilegraph_vk::{Buffer, Context, VkError};
 
 mod geometry;
 mod slots;
+pub mod textures;
 
 pub(crate) use geometry::upload;
 pub use geometry::GeometryUpload;
 use geometry::{grown, upload_sized, Copy, GEOMETRY_USAGE};
 use slots::{destroy_slot, SlotBuffers};
+use textures::{GpuTextures, TEXTURE_BINDING};
 
 /// `Frame` uniform block of `shaders/common/scene.glsl` (std140, 240 bytes).
 #[repr(C)]
@@ -190,6 +192,8 @@ impl Capacity {
 pub struct GpuScene {
     pub vertices: Buffer,
     pub indices: Buffer,
+    /// The materials' textures (binding 8), uploaded once.
+    pub textures: GpuTextures,
     frames: Vec<SlotBuffers>,
     pub set_layout: vk::DescriptorSetLayout,
     pool: vk::DescriptorPool,
@@ -279,13 +283,14 @@ pub(crate) fn geometry_sizes(scene: &Scene) -> [u64; 2] {
 }
 
 impl GpuScene {
-    /// Uploads the scene's geometry and creates `frames_in_flight` sets of per-slot buffers
-    /// with room for `capacity`.
+    /// Uploads the scene's geometry and textures (bound as `textures` asks, where the device
+    /// can) and creates `frames_in_flight` sets of per-slot buffers with room for `capacity`.
     pub fn new(
         ctx: &Context,
         scene: &Scene,
         frames_in_flight: usize,
         capacity: Capacity,
+        textures: tilegraph_profile::TexturePolicy,
     ) -> Result<Self, VkError> {
         let [vertex_bytes, index_bytes] = geometry_sizes(scene);
         let vertices = upload_sized(
@@ -308,26 +313,33 @@ impl GpuScene {
                 return Err(e);
             }
         };
+        let textures = match GpuTextures::new(ctx, scene, textures) {
+            Ok(t) => t,
+            Err(e) => {
+                ctx.destroy_buffer(vertices);
+                ctx.destroy_buffer(indices);
+                return Err(e);
+            }
+        };
+        let slots = textures.slot_count();
         let all = vk::ShaderStageFlags::VERTEX
             | vk::ShaderStageFlags::FRAGMENT
             | vk::ShaderStageFlags::COMPUTE;
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
-        let set_layout = create_set_layout(
-            ctx,
-            &[
-                (0, vk::DescriptorType::UNIFORM_BUFFER, all),
-                (1, ssbo, all),
-                (2, ssbo, all),
-                (3, ssbo, all),
-                (4, ssbo, all),
-                (5, ssbo, all),
-                (6, ssbo, all),
-                (7, ssbo, all),
-            ],
-        );
-        let set_layout = match set_layout {
+        let sampler = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
+        let mut bindings = vec![(0, vk::DescriptorType::UNIFORM_BUFFER, all, 1)];
+        bindings.extend((1..=7).map(|b| (b, ssbo, all, 1)));
+        bindings.push((
+            TEXTURE_BINDING,
+            sampler,
+            vk::ShaderStageFlags::FRAGMENT,
+            slots,
+        ));
+        let set_layout = match create_set_layout_counted(ctx, &bindings) {
             Ok(l) => l,
             Err(e) => {
+                let mut textures = textures;
+                textures.destroy(ctx);
                 ctx.destroy_buffer(vertices);
                 ctx.destroy_buffer(indices);
                 return Err(e);
@@ -343,6 +355,10 @@ impl GpuScene {
                 ty: ssbo,
                 descriptor_count: 2 * 7 * n,
             },
+            vk::DescriptorPoolSize {
+                ty: sampler,
+                descriptor_count: 2 * slots * n,
+            },
         ];
         let pool_info = vk::DescriptorPoolCreateInfo::default()
             .max_sets(2 * n)
@@ -353,6 +369,7 @@ impl GpuScene {
         let mut gs = GpuScene {
             vertices,
             indices,
+            textures,
             frames: Vec::new(),
             set_layout,
             pool: vk::DescriptorPool::null(),
@@ -471,6 +488,14 @@ impl GpuScene {
                     (7, ssbo, slot.counters.raw),
                 ],
             );
+            let images = self.textures.image_infos();
+            let write = [vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(TEXTURE_BINDING)
+                .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                .image_info(&images)];
+            // SAFETY: live views and samplers; the set is idle (the caller's guarantee).
+            unsafe { ctx.device.update_descriptor_sets(&write, &[]) };
         }
     }
 
@@ -604,7 +629,8 @@ impl GpuScene {
         self.vertices.size + self.indices.size + slots
     }
 
-    pub fn destroy(self, ctx: &Context) {
+    pub fn destroy(mut self, ctx: &Context) {
+        self.textures.destroy(ctx);
         for f in self.frames {
             destroy_slot(ctx, f);
         }

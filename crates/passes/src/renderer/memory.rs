@@ -19,19 +19,25 @@ pub struct SceneMemory {
     pub slot_bytes: u64,
     /// GPU culling's lists (the instance techniques'; clusters and pyramids not counted).
     pub culling_bytes: u64,
+    /// The materials' textures with their mip chains (RGBA8; as the scene holds them, which is
+    /// what the indexed binding uploads; the layers binding resamples to one size).
+    pub texture_bytes: u64,
 }
 
 impl SceneMemory {
-    /// Every byte: the geometry, every slot's buffers, the culling lists.
+    /// Every byte: the geometry, every slot's buffers, the culling lists, the textures.
     pub fn total_bytes(&self) -> u64 {
         self.geometry_bytes
             + self.slot_bytes * u64::from(self.frames_in_flight)
             + self.culling_bytes
+            + self.texture_bytes
     }
 
-    /// What an instance slot costs, the geometry left out (it is per mesh).
+    /// What an instance slot costs, the geometry and textures left out (they are per mesh and
+    /// per material).
     pub fn bytes_per_instance(&self) -> f64 {
-        (self.total_bytes() - self.geometry_bytes) as f64 / f64::from(self.instance_slots.max(1))
+        (self.total_bytes() - self.geometry_bytes - self.texture_bytes) as f64
+            / f64::from(self.instance_slots.max(1))
     }
 }
 
@@ -49,10 +55,17 @@ pub fn scene_memory(scene: &Scene, frames_in_flight: usize, instance_capacity: u
         geometry_bytes: geometry_sizes(scene).iter().map(|b| b.max(&4)).sum(),
         slot_bytes,
         culling_bytes: CullState::list_bytes(capacity, frames_in_flight),
+        texture_bytes: scene.texture_bytes(),
     }
 }
 
 impl SceneRenderer {
+    /// How the scene's textures are bound on this device (the profile's choice, or layers where
+    /// the device cannot index them), and the bytes their images take.
+    pub fn texture_binding(&self) -> tilegraph_profile::TextureBinding {
+        self.resources.scene.textures.binding
+    }
+
     /// Device memory of the scene's buffers as they are now (geometry, every slot's records,
     /// entries and tables, the instance lists of GPU culling), in the shape
     /// [`scene_memory`] estimates before a renderer exists.
@@ -71,6 +84,7 @@ impl SceneRenderer {
             geometry_bytes: geometry,
             slot_bytes: (scene.memory_bytes() - geometry) / u64::from(slots.max(1)),
             culling_bytes: culling,
+            texture_bytes: scene.textures.bytes(),
         }
     }
 }

@@ -24,8 +24,17 @@ pub(super) fn create_resources(
     frames_in_flight: usize,
     capacity: Capacity,
 ) -> Result<SceneResources, RenderError> {
-    let gpu = GpuScene::new(ctx, scene, frames_in_flight, capacity)?;
-    let pipelines = match Pipelines::new(ctx, gpu.set_layout, options.count_fragments) {
+    let mut textures = ctx.profile().textures;
+    if let Some(b) = options.texture_binding {
+        textures.binding = b;
+    }
+    let gpu = GpuScene::new(ctx, scene, frames_in_flight, capacity, textures)?;
+    let pipelines = match Pipelines::new(
+        ctx,
+        gpu.set_layout,
+        options.count_fragments,
+        (gpu.textures.binding, gpu.textures.slot_count()),
+    ) {
         Ok(p) => p,
         Err(e) => {
             gpu.destroy(ctx);
