@@ -16,8 +16,12 @@ layout(location = 0) out vec4 o_color;
 void main() {
     Material m = materials[v_material];
     vec4 base = material_color(m, v_uv);
-    if (MATERIAL_CLASS == 1u && base.a < m.alpha_cutoff) {
-        discard;
+    // Nested, not `&&`: a branch on the specialization constant alone, which specialization
+    // (and the state lint reading the SPIR-V) removes with the discard for other classes.
+    if (MATERIAL_CLASS == 1u) {
+        if (base.a < m.alpha_cutoff) {
+            discard;
+        }
     }
     vec3 n = gl_FrontFacing ? v_normal : -v_normal;
     vec3 c = shade(base.rgb, n, frame.params.x);
