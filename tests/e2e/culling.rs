@@ -417,6 +417,7 @@ fn culling_a_scene_of_only_blended_geometry_renders() {
         class: MaterialClass::Blended,
         double_sided: true,
         base_color_texture: None,
+        engine_material: None,
     });
     let v = |x: f32, y: f32| Vertex {
         position: [x, y, 0.0],

@@ -174,6 +174,7 @@ pub(crate) fn material(index: usize, m: &TgMaterial) -> Result<Material, Failure
         class,
         double_sided: m.double_sided != 0,
         base_color_texture: None,
+        engine_material: None,
     })
 }
 

@@ -34,6 +34,16 @@ pub struct FrameData {
     /// The camera's depth convention: the depth compare of every pipeline and the reduction of
     /// the HiZ pyramid follow it.
     pub depth: DepthConvention,
+    /// Per mesh: the engine material of its material (`Material::engine_material`); empty
+    /// while the engine registered none.
+    pub engine_of_mesh: Vec<Option<u32>>,
+}
+
+impl FrameData {
+    /// The engine material of `mesh`'s material, if any.
+    pub fn engine_of(&self, mesh: u32) -> Option<u32> {
+        self.engine_of_mesh.get(mesh as usize).copied().flatten()
+    }
 }
 
 /// What the passes record with, kept by the renderer across frames and handed to every

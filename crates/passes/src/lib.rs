@@ -25,6 +25,7 @@ pub mod gpu_scene;
 pub mod hiz;
 pub mod knobs;
 pub mod lint;
+pub mod materials;
 pub mod occlusion;
 pub mod options;
 pub mod pipelines;

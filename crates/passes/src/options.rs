@@ -66,6 +66,14 @@ pub enum RenderError {
     /// A change to the scene was refused (a motion's step, say).
     #[error("scene: {0}")]
     Scene(#[from] tilegraph_scene::SceneError),
+    #[error("material {material} names engine material {engine}, and the renderer has {registered} registered (SceneRenderer::add_material)")]
+    UnknownEngineMaterial {
+        material: u32,
+        engine: u32,
+        registered: usize,
+    },
+    #[error("culling {culling} culls clusters; engine materials are drawn with instance culling (none, frustum, hiz, hiz-2phase, reproject, the query techniques)")]
+    EngineMaterialsWithClusters { culling: &'static str },
 }
 
 impl RenderError {

@@ -27,6 +27,7 @@ use tilegraph_vk::pipeline::{
 use tilegraph_vk::{Context, VkError};
 
 use crate::draws::DrawClass;
+use crate::materials::{EngineMaterial, MaterialPass, MaterialShaders};
 
 /// How far occlusion proxies are pulled toward the eye, in units of the depth format (a D32
 /// float's ulp at the box's largest depth, 1/65535 for D16): a few, against interpolation and
@@ -97,6 +98,16 @@ pub enum Variant {
     ResolveSampled,
 }
 
+/// The engine-material pass kind a variant belongs to; `None` for the visibility buffer's
+/// passes, which engine materials do not take part in yet (its resolve is tilegraph's).
+pub fn material_pass(variant: Variant) -> Option<MaterialPass> {
+    match variant {
+        Variant::DepthOpaque | Variant::DepthAlpha => Some(MaterialPass::Depth),
+        Variant::Forward { .. } => Some(MaterialPass::Color),
+        Variant::Visbuf { .. } | Variant::ResolveInput | Variant::ResolveSampled => None,
+    }
+}
+
 /// The occlusion proxies: a bounding box drawn against the frame's depth.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Proxy {
@@ -115,6 +126,8 @@ pub enum PipelineKey {
         variant: Variant,
         double_sided: bool,
         reverse_z: bool,
+        /// The engine material whose shaders it runs (`None`: tilegraph's).
+        engine: Option<u32>,
     },
     Proxy {
         proxy: Proxy,
@@ -150,6 +163,8 @@ pub struct Pipelines {
     /// How the scene's textures are bound (which build of each fragment shader), and the
     /// descriptors of the binding: `TEXTURE_SLOTS` (specialization 1) of the indexed builds.
     textures: (TextureBinding, u32),
+    /// The engine's materials (`SceneRenderer::add_material`), by id.
+    materials: Vec<EngineMaterial>,
     /// Set 0: the scene (`GpuScene::set_layout`, owned by the scene).
     pub scene_layout: vk::PipelineLayout,
     /// Set 1 of the resolve: the ids as an input attachment, or sampled.
@@ -173,6 +188,7 @@ impl Pipelines {
             pruned_below: 0,
             count_fragments,
             textures,
+            materials: Vec::new(),
             scene_layout: vk::PipelineLayout::null(),
             input_set_layout: vk::DescriptorSetLayout::null(),
             sampled_set_layout: vk::DescriptorSetLayout::null(),
@@ -259,12 +275,57 @@ impl Pipelines {
         self.trace.take()
     }
 
+    /// Registers an engine material; its id.
+    pub fn add_material(&mut self, material: EngineMaterial) -> u32 {
+        self.materials.push(material);
+        (self.materials.len() - 1) as u32
+    }
+
+    /// Engine materials registered.
+    pub fn material_count(&self) -> usize {
+        self.materials.len()
+    }
+
+    /// The engine material that draws `variant` for scene material `engine` (its
+    /// `engine_material`): `None` when it has none, or no shaders for that pass kind.
+    pub fn engine_for(&self, engine: Option<u32>, variant: Variant) -> Option<u32> {
+        let pass = material_pass(variant)?;
+        engine.filter(|&k| {
+            self.materials
+                .get(k as usize)
+                .is_some_and(|m| m.shaders(pass).is_some())
+        })
+    }
+
+    /// The pipeline layout set 0 is bound with for `engine`'s pipelines (tilegraph's own for
+    /// `None`).
+    pub fn layout_for(&self, engine: Option<u32>) -> vk::PipelineLayout {
+        engine
+            .and_then(|k| self.materials.get(k as usize))
+            .map_or(self.scene_layout, |m| m.layout)
+    }
+
+    /// Lets engine material `engine` bind its own sets for `variant`'s pass.
+    pub fn bind_material(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        engine: u32,
+        variant: Variant,
+    ) {
+        if let (Some(m), Some(pass)) = (self.materials.get(engine as usize), material_pass(variant))
+        {
+            (m.bind)(ctx, cb, pass);
+        }
+    }
+
     /// A scene pipeline for the subpass `pc` records into: `color_count` colour attachments,
-    /// depth compared in `depth`'s direction.
+    /// depth compared in `depth`'s direction; running engine material `engine`'s shaders
+    /// (from [`Self::engine_for`]) or tilegraph's.
     pub fn scene(
         &mut self,
         pc: &PassContext<'_>,
-        variant: Variant,
+        (variant, engine): (Variant, Option<u32>),
         double_sided: bool,
         color_count: u32,
         depth: DepthConvention,
@@ -273,10 +334,17 @@ impl Pipelines {
             variant,
             double_sided,
             reverse_z: depth == DepthConvention::Reverse,
+            engine,
         };
         let layouts = (self.scene_layout, self.input_layout, self.sampled_layout);
         let count_fragments = self.count_fragments;
         let textures = self.textures;
+        let material = engine.and_then(|k| self.materials.get(k as usize));
+        let shaders = material.and_then(|m| {
+            material_pass(variant)
+                .and_then(|p| m.shaders(p))
+                .map(|s| (s.clone(), m.layout))
+        });
         self.get_or_create(pc, key, |target| {
             let target = with_colors(target, color_count);
             scene_pipeline(
@@ -286,6 +354,7 @@ impl Pipelines {
                 (variant, double_sided, depth),
                 count_fragments,
                 textures,
+                shaders.as_ref(),
             )
         })
     }
@@ -493,6 +562,7 @@ fn scene_pipeline(
     (variant, double_sided, depth): (Variant, bool, DepthConvention),
     count_fragments: bool,
     (texture_binding, texture_slots): (TextureBinding, u32),
+    engine: Option<&(MaterialShaders, vk::PipelineLayout)>,
 ) -> Result<DescribedPipeline, VkError> {
     // Specialization 1 of every fragment shader: TEXTURE_SLOTS (textures.glsl, ignored by the
     // layers builds); 0 is the variant's own where it has one.
@@ -643,6 +713,35 @@ fn scene_pipeline(
             Blend::Opaque,
             sampled_layout,
         ),
+    };
+    // An engine material runs its shaders, with its layout, in this variant's fixed-function
+    // state; its vertex shader gets every attribute.
+    let (vs, fs, attrs, layout) = match engine {
+        None => (vs, fs, attrs, layout),
+        Some((shaders, engine_layout)) => {
+            if shaders.fragment.is_none()
+                && (variant == Variant::DepthAlpha || matches!(variant, Variant::Forward { .. }))
+            {
+                return Err(VkError::Invalid {
+                    what: format!("engine material shaders {:?}", shaders.vertex.name),
+                    reason: "a colour or alpha-tested depth pass needs a fragment shader".into(),
+                });
+            }
+            (
+                Stage {
+                    name: &shaders.vertex.name,
+                    spirv: &shaders.vertex.spirv,
+                    specialization: &[],
+                },
+                shaders.fragment.as_ref().map(|f| Stage {
+                    name: &f.name,
+                    spirv: &f.spirv,
+                    specialization: &[],
+                }),
+                &all[..],
+                *engine_layout,
+            )
+        }
     };
     let vertex_layout = (!attrs.is_empty()).then_some(VertexLayout {
         stride: VERTEX_STRIDE,

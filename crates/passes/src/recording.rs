@@ -3,6 +3,9 @@
 //! shader's lists as indirect draws with a GPU count. Single- and double-sided draws take two
 //! pipelines; blended draws keep their back-to-front order and switch where the sidedness
 //! changes, the others are grouped by pipeline (their order only helps early depth rejection).
+//! A draw whose material is an engine's (crate::materials) binds that material's pipeline, set 0
+//! with its layout and then the engine's own sets; GPU lists then draw in runs of groups of one
+//! pipeline, in the list's order.
 
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::PassContext;
@@ -12,15 +15,16 @@ use crate::cull::{list_index, CullState};
 use crate::draws::DrawClass;
 use crate::frame::{DrawSource, SceneResources};
 use crate::occlusion::OqState;
-use crate::pipelines::Variant;
+use crate::pipelines::{Pipelines, Variant};
+use tilegraph_scene::DepthConvention;
 
 /// Binds the scene's vertex and index buffers and set 0 (`culled`: the set whose draw list is
-/// the culling shader's), and sets the viewport.
+/// the culling shader's), and sets the viewport; the set bound.
 pub fn bind_geometry(
     pc: &PassContext<'_>,
     res: &SceneResources,
     culled: bool,
-) -> Result<(), VkError> {
+) -> Result<vk::DescriptorSet, VkError> {
     let slot = pc.frame_slot;
     let set = if culled {
         res.scene.culled_set(slot)
@@ -49,6 +53,47 @@ pub fn bind_geometry(
             &[],
         );
     }
+    Ok(set)
+}
+
+/// What a recording loop has bound: the sidedness and the engine material of its pipeline.
+type Bound = Option<(bool, Option<u32>)>;
+
+/// Binds the pipeline of `variant` for (`sided`, `engine`) unless `bound` already is it; around
+/// an engine material's pipeline, set 0 again with the matching layout and the engine's sets.
+fn bind_pipeline(
+    pc: &PassContext<'_>,
+    pipelines: &mut Pipelines,
+    (variant, colors, depth): (Variant, u32, DepthConvention),
+    (sided, engine): (bool, Option<u32>),
+    set: vk::DescriptorSet,
+    bound: &mut Bound,
+) -> Result<(), VkError> {
+    if *bound == Some((sided, engine)) {
+        return Ok(());
+    }
+    let was_engine = bound.is_some_and(|(_, e)| e.is_some());
+    let p = pipelines.scene(pc, (variant, engine), sided, colors, depth)?;
+    let d = &pc.ctx.device;
+    // SAFETY: inside the subpass; the pipeline and set are live, and the layout's set 0 is
+    // the scene's (an engine material's layout must be made with it).
+    unsafe {
+        d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p);
+        if engine.is_some() || was_engine {
+            d.cmd_bind_descriptor_sets(
+                pc.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                pipelines.layout_for(engine),
+                0,
+                &[set],
+                &[],
+            );
+        }
+    }
+    if let Some(k) = engine {
+        pipelines.bind_material(pc.ctx, pc.cb, k, variant);
+    }
+    *bound = Some((sided, engine));
     Ok(())
 }
 
@@ -96,7 +141,7 @@ fn record_cpu(
     if res.frame.draws.of(class).is_empty() {
         return Ok(());
     }
-    bind_geometry(pc, res, false)?;
+    let set = bind_geometry(pc, res, false)?;
     let SceneResources {
         pipelines, frame, ..
     } = res;
@@ -107,18 +152,22 @@ fn record_cpu(
     } else {
         &[Some(false), Some(true)]
     };
+    let state = (variant, colors, frame.depth);
     for &group in groups {
-        let mut bound: Option<bool> = None;
+        let mut bound: Bound = None;
         for draw in draws
             .iter()
             .filter(|d| group.is_none_or(|sided| d.double_sided == sided))
         {
-            if bound != Some(draw.double_sided) {
-                let p = pipelines.scene(pc, variant, draw.double_sided, colors, frame.depth)?;
-                // SAFETY: inside the subpass; the pipeline is live.
-                unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
-                bound = Some(draw.double_sided);
-            }
+            let engine = pipelines.engine_for(frame.engine_of(draw.mesh), variant);
+            bind_pipeline(
+                pc,
+                pipelines,
+                state,
+                (draw.double_sided, engine),
+                set,
+                &mut bound,
+            )?;
             // SAFETY: the draw's ranges lie inside the scene's buffers (built from the scene).
             unsafe {
                 d.cmd_draw_indexed(
@@ -149,7 +198,7 @@ fn record_conditional(
     if res.frame.draws.of(class).is_empty() {
         return Ok(());
     }
-    bind_geometry(pc, res, false)?;
+    let set = bind_geometry(pc, res, false)?;
     let SceneResources {
         pipelines,
         frame,
@@ -170,20 +219,17 @@ fn record_conditional(
         });
     };
     let d = &pc.ctx.device;
+    let state = (variant, colors, frame.depth);
     for sided in [false, true] {
-        let mut bound = false;
+        let mut bound: Bound = None;
         for draw in frame
             .draws
             .of(class)
             .iter()
             .filter(|d| d.double_sided == sided)
         {
-            if !bound {
-                let p = pipelines.scene(pc, variant, sided, colors, frame.depth)?;
-                // SAFETY: inside the subpass; the pipeline is live.
-                unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
-                bound = true;
-            }
+            let engine = pipelines.engine_for(frame.engine_of(draw.mesh), variant);
+            bind_pipeline(pc, pipelines, state, (sided, engine), set, &mut bound)?;
             // Runs of consecutive instances under one query draw instanced, predicated once
             // (query groups hold one mesh's instances, so a group's members often follow each
             // other in the draw's distance order).
@@ -247,7 +293,7 @@ fn record_indirect(
     phase: u32,
     colors: u32,
 ) -> Result<(), VkError> {
-    bind_geometry(pc, res, true)?;
+    let set = bind_geometry(pc, res, true)?;
     let SceneResources {
         pipelines,
         frame,
@@ -255,17 +301,35 @@ fn record_indirect(
         ..
     } = res;
     let culling = states.require::<CullState>(pc.pass_name)?;
-    let d = &pc.ctx.device;
+    let state = (variant, colors, frame.depth);
     for sided in [false, true] {
-        let p = pipelines.scene(pc, variant, sided, colors, frame.depth)?;
-        // SAFETY: inside the subpass; the pipeline is live.
-        unsafe { d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, p) };
-        culling.record_draws(
-            pc.ctx,
-            pc.cb,
-            pc.frame_slot,
-            list_index(class.index(), sided, phase),
-        )?;
+        let list = list_index(class.index(), sided, phase);
+        let mut bound: Bound = None;
+        let meshes = culling.group_meshes(pc.frame_slot, list)?;
+        let engine_of = |p: &Pipelines, g: &u32| p.engine_for(frame.engine_of(*g), variant);
+        if !meshes.iter().any(|g| engine_of(pipelines, g).is_some()) {
+            bind_pipeline(pc, pipelines, state, (sided, None), set, &mut bound)?;
+            culling.record_draws(pc.ctx, pc.cb, pc.frame_slot, list)?;
+            continue;
+        }
+        // Runs of consecutive groups of one pipeline.
+        let mut first = 0;
+        while first < meshes.len() {
+            let engine = engine_of(pipelines, &meshes[first]);
+            let len = meshes[first..]
+                .iter()
+                .take_while(|g| engine_of(pipelines, g) == engine)
+                .count();
+            bind_pipeline(pc, pipelines, state, (sided, engine), set, &mut bound)?;
+            culling.record_group_run(
+                pc.ctx,
+                pc.cb,
+                pc.frame_slot,
+                list,
+                (first as u32, len as u32),
+            )?;
+            first += len;
+        }
     }
     Ok(())
 }

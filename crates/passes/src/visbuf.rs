@@ -142,7 +142,7 @@ fn record_resolve(
     };
     let pipeline = res
         .pipelines
-        .scene(pc, variant, false, 1, res.frame.depth)?;
+        .scene(pc, (variant, None), false, 1, res.frame.depth)?;
     let scene_set = scene_set(pc, res)?;
     let (set_layout, layout) = if input {
         (res.pipelines.input_set_layout, res.pipelines.input_layout)

@@ -35,12 +35,14 @@ fn base() -> Scene {
         class: MaterialClass::AlphaTested { cutoff: 0.5 },
         double_sided: true,
         base_color_texture: None,
+        engine_material: None,
     });
     let glass = b.add_material(Material {
         base_color: [0.0, 0.0, 1.0, 0.5],
         class: MaterialClass::Blended,
         double_sided: false,
         base_color_texture: None,
+        engine_material: None,
     });
     let (v, i) = quad(1.0);
     let meshes: Vec<_> = [opaque, leaves, glass]

@@ -11,6 +11,7 @@
 //! caller declared — an engine's frame, the shipped passes and its own on one graph.
 
 mod fit;
+mod materials;
 mod memory;
 mod readback;
 mod resources;
@@ -534,6 +535,7 @@ impl SceneRenderer {
         slot: Option<usize>,
     ) -> Result<(), RenderError> {
         self.fit(ctx, scene)?;
+        self.prepare_materials(scene)?;
         let (w, h) = (self.options.width, self.options.height);
         self.last_camera = Some(frame.camera);
         let m = frame.current;

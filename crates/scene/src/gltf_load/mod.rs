@@ -378,6 +378,7 @@ fn add_materials(
             class,
             double_sided: m.double_sided,
             base_color_texture,
+            engine_material: None,
         });
     }
     Ok(())

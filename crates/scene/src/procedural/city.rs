@@ -48,6 +48,7 @@ pub(super) fn generate(g: &mut Gen, size: usize) -> Result<CameraPath, SceneErro
         class: MaterialClass::Blended,
         double_sided: true,
         base_color_texture: None,
+        engine_material: None,
     });
 
     let box_data = shapes::unit_box();

@@ -32,6 +32,7 @@ pub(super) fn generate(g: &mut Gen, size: usize) -> Result<CameraPath, SceneErro
         class: MaterialClass::AlphaTested { cutoff: 0.5 },
         double_sided: true,
         base_color_texture: None,
+        engine_material: None,
     });
 
     let ground = g.mesh(&shapes::ground_quad(), grass);

@@ -29,12 +29,14 @@ pub(super) fn generate(g: &mut Gen, size: usize) -> Result<CameraPath, SceneErro
         class: MaterialClass::AlphaTested { cutoff: 0.5 },
         double_sided: true,
         base_color_texture: None,
+        engine_material: None,
     });
     let undergrowth = g.builder.add_material(Material {
         base_color: [0.3, 0.55, 0.2, 1.0],
         class: MaterialClass::AlphaTested { cutoff: 0.35 },
         double_sided: true,
         base_color_texture: None,
+        engine_material: None,
     });
 
     let trunk = g.mesh(&shapes::trunk(), bark);

@@ -48,12 +48,14 @@ pub(super) fn generate(g: &mut Gen, size: usize) -> Result<CameraPath, SceneErro
         class: MaterialClass::Blended,
         double_sided: true,
         base_color_texture: None,
+        engine_material: None,
     });
     let leaves = g.builder.add_material(Material {
         base_color: [0.2, 0.5, 0.2, 1.0],
         class: MaterialClass::AlphaTested { cutoff: 0.5 },
         double_sided: true,
         base_color_texture: None,
+        engine_material: None,
     });
 
     let box_data = shapes::unit_box();

@@ -303,6 +303,27 @@ impl Scene {
         Ok(id)
     }
 
+    /// Sets which engine material draws material `id` (`None`: tilegraph's shaders). Nothing
+    /// else of the material changes: its class, and so every draw list, stay as they are.
+    pub fn set_engine_material(
+        &mut self,
+        id: MaterialId,
+        engine: Option<u32>,
+    ) -> Result<(), SceneError> {
+        let count = self.materials.len();
+        let m = self
+            .materials
+            .get_mut(id.index())
+            .ok_or_else(|| SceneError::Invalid {
+                file: self.name.clone(),
+                pointer: format!("/materials/{}", id.0),
+                reason: format!("material {} of {count}", id.0),
+            })?;
+        m.engine_material = engine;
+        self.dynamic.journal.push(Change::Material(id.0));
+        Ok(())
+    }
+
     /// Adds a mesh: its vertices and indices go into free ranges of the shared arrays (or at
     /// their end). Refused on a scene with clusters attached (a new mesh would have none).
     pub fn add_mesh(

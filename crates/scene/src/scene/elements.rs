@@ -77,6 +77,9 @@ pub struct Material {
     /// Multiplies `base_color` (glTF baseColorTexture, sampled with the mesh's UVs); its alpha
     /// is what an alpha-tested material tests.
     pub base_color_texture: Option<TextureId>,
+    /// The engine's own shaders for this material: the id the renderer gave them when the
+    /// engine registered them (`SceneRenderer::add_material`); `None` draws with tilegraph's.
+    pub engine_material: Option<u32>,
 }
 
 impl Material {
@@ -86,6 +89,7 @@ impl Material {
             class: MaterialClass::Opaque,
             double_sided: false,
             base_color_texture: None,
+            engine_material: None,
         }
     }
 }

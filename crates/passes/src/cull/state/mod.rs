@@ -19,6 +19,7 @@ use crate::frame::PassState;
 use crate::gpu_scene::Capacity;
 use crate::hiz::{HizState, PyramidInfo};
 
+mod runs;
 mod sizes;
 
 /// What a frame's GPU culling drew, read back without waiting once its slot completed.
@@ -49,6 +50,11 @@ struct SlotInputs {
     stats: Buffer,
     /// The frame whose counts `stats` will hold, and the instances it culled on the GPU.
     pending: Option<(u64, u32)>,
+    /// The mesh of each draw group, list by list as `group_start` / `group_count` say, and
+    /// whether the frame kept a command per group (`runs.rs`: engine materials' runs).
+    group_meshes: Vec<u32>,
+    group_start: [u32; 4],
+    kept_every_group: bool,
 }
 
 /// The pyramid the culling shaders test against: its buffer and its level table (a
@@ -125,6 +131,9 @@ pub struct CullState {
     sets: Vec<vk::DescriptorSet>,
     /// The cluster stage of the cluster techniques.
     pub clusters: Option<ClusterStage>,
+    /// Keep a command per draw group this frame (engine materials draw runs of groups with
+    /// their own pipelines: [`CullState::record_group_run`]).
+    pub group_runs: bool,
 }
 
 const CULL_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull.comp.spv");
@@ -231,6 +240,7 @@ impl CullState {
             compute: ComputeStage::EMPTY,
             sets: Vec::new(),
             clusters: None,
+            group_runs: false,
         };
         // A new renderer's visibility starts empty, not as whatever the memory held (another
         // renderer's last frame, say): two-phase culling's first early phase draws nothing and
@@ -393,7 +403,10 @@ impl CullState {
         let n = self.instances;
         let layout = &self.layout;
         let total = layout.groups.len() as u32;
-        let keep_empty = u32::from(matches!(self.draw_count, DrawCount::Fixed { .. }));
+        // A command per group, culled ones empty: the fixed draw count, and frames whose lists
+        // engine materials draw in runs of groups (runs.rs).
+        let keep_empty =
+            u32::from(matches!(self.draw_count, DrawCount::Fixed { .. }) || self.group_runs);
         let spheres = u32::from(self.bounds == CullBounds::Sphere);
         let d16 =
             u32::from(pyramid.is_some_and(|p| p.format == tilegraph_cull::DepthFormat::D16Unorm));
@@ -501,7 +514,13 @@ impl CullState {
         ctx.write_mapped(early_params, 0, bytemuck::bytes_of(&first))?;
         ctx.write_mapped(late_params, 0, bytemuck::bytes_of(&late))?;
         inputs.group_count = group_count;
+        inputs.group_start = layout.group_start;
         inputs.group_total = total;
+        inputs.group_meshes.clear();
+        inputs
+            .group_meshes
+            .extend(layout.groups.iter().map(|g| g[2]));
+        inputs.kept_every_group = keep_empty == 1;
         inputs.pending = Some((self.frames_written, entries));
         self.frames_written += 1;
         Ok(())
@@ -743,6 +762,9 @@ impl SlotInputs {
                 group_total: 0,
                 stats,
                 pending: None,
+                group_meshes: Vec::new(),
+                group_start: [0; 4],
+                kept_every_group: false,
             }),
             Err(made) => {
                 destroy_buffers(ctx, made);

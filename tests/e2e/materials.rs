@@ -1,0 +1,244 @@
+//! An engine's own material drawing tilegraph's culled lists (lavapipe, validation on): shaders
+//! of its own through `shaders/include/tilegraph_instance.glsl` (test_engine.vert/.frag), a
+//! pipeline layout with tilegraph's scene set as set 0 and a set of its own bound by its bind
+//! callback. The city through `none` and `hiz-2phase` gives equal images frame by frame, with the
+//! engine's depth pre-pass shaders and without (tilegraph's pre-pass, then the engine's colour
+//! testing EQUAL against it), and the engine's shading really is what is drawn.
+
+use std::rc::Rc;
+
+use tilegraph_e2e::gpu_with;
+use tilegraph_passes::materials::{EngineMaterial, MaterialShaders, ShaderCode};
+use tilegraph_passes::{RenderOptions, SceneRenderer};
+use tilegraph_profile::MemoryUse;
+use tilegraph_scene::{MaterialClass, MaterialId, Scene};
+use tilegraph_vk::ash::vk;
+use tilegraph_vk::pipeline::{allocate_set, create_pipeline_layout, create_set_layout};
+use tilegraph_vk::readback::RgbaImage;
+use tilegraph_vk::{Buffer, Context};
+
+const VS: &[u8] = include_bytes!("../../shaders/spv/test_engine.vert.spv");
+const FS: &[u8] = include_bytes!("../../shaders/spv/test_engine.frag.spv");
+
+/// What the engine owns for its material: set 1's layout, pool, set and uniform buffer, and
+/// the pipeline layout.
+struct EngineSide {
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    pool: vk::DescriptorPool,
+    set: vk::DescriptorSet,
+    tint: Buffer,
+}
+
+impl EngineSide {
+    fn new(ctx: &Context, scene_set_layout: vk::DescriptorSetLayout) -> EngineSide {
+        let set_layout = create_set_layout(
+            ctx,
+            &[(
+                0,
+                vk::DescriptorType::UNIFORM_BUFFER,
+                vk::ShaderStageFlags::FRAGMENT,
+            )],
+        )
+        .unwrap();
+        let layout = create_pipeline_layout(ctx, &[scene_set_layout, set_layout], None).unwrap();
+        let sizes = [vk::DescriptorPoolSize {
+            ty: vk::DescriptorType::UNIFORM_BUFFER,
+            descriptor_count: 1,
+        }];
+        let info = vk::DescriptorPoolCreateInfo::default()
+            .max_sets(1)
+            .pool_sizes(&sizes);
+        // SAFETY: valid create info.
+        let pool = unsafe { ctx.device.create_descriptor_pool(&info, None) }.unwrap();
+        let set = allocate_set(ctx, pool, set_layout).unwrap();
+        let mut tint = ctx
+            .create_buffer(
+                "engine tint",
+                16,
+                vk::BufferUsageFlags::UNIFORM_BUFFER,
+                MemoryUse::Streaming,
+            )
+            .unwrap();
+        let rgba: [f32; 4] = [1.0, 0.85, 0.7, 1.0];
+        ctx.write_mapped(&mut tint, 0, bytemuck_bytes(&rgba))
+            .unwrap();
+        tilegraph_vk::pipeline::write_buffer_set(
+            ctx,
+            set,
+            &[(0, vk::DescriptorType::UNIFORM_BUFFER, tint.raw)],
+        );
+        EngineSide {
+            set_layout,
+            layout,
+            pool,
+            set,
+            tint,
+        }
+    }
+
+    fn destroy(self, ctx: &Context) {
+        // SAFETY: the GPU is idle; the renderer that used them is destroyed.
+        unsafe {
+            ctx.device.destroy_descriptor_pool(self.pool, None);
+            ctx.device.destroy_pipeline_layout(self.layout, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.set_layout, None);
+        }
+        ctx.destroy_buffer(self.tint);
+    }
+}
+
+fn bytemuck_bytes(v: &[f32; 4]) -> &[u8] {
+    // SAFETY: f32s are plain bytes; the slice covers exactly the array.
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), 16) }
+}
+
+fn code(name: &str, spirv: &[u8]) -> ShaderCode {
+    ShaderCode {
+        name: name.into(),
+        spirv: spirv.to_vec(),
+    }
+}
+
+/// The engine's material: colour always, depth pre-pass shaders when `depth`.
+fn material(side: &EngineSide, depth: bool) -> EngineMaterial {
+    let (layout, set) = (side.layout, side.set);
+    let binds = Rc::new(std::cell::Cell::new(0u32));
+    let counter = Rc::clone(&binds);
+    EngineMaterial {
+        name: "toon".into(),
+        layout,
+        depth: depth.then(|| MaterialShaders {
+            vertex: code("test_engine.vert", VS),
+            fragment: None,
+        }),
+        color: Some(MaterialShaders {
+            vertex: code("test_engine.vert", VS),
+            fragment: Some(code("test_engine.frag", FS)),
+        }),
+        bind: Box::new(move |ctx, cb, _pass| {
+            counter.set(counter.get() + 1);
+            // SAFETY: recording; the set and layout live until the renderer is destroyed.
+            unsafe {
+                ctx.device.cmd_bind_descriptor_sets(
+                    cb,
+                    vk::PipelineBindPoint::GRAPHICS,
+                    layout,
+                    1,
+                    &[set],
+                    &[],
+                )
+            };
+        }),
+    }
+}
+
+/// The city with its opaque materials drawn by engine material 0.
+fn city_with_engine_materials() -> Scene {
+    let mut scene = tilegraph_scene::load("city:400").unwrap();
+    let opaque: Vec<MaterialId> = scene
+        .materials()
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.class == MaterialClass::Opaque)
+        .map(|(i, _)| MaterialId(i as u32))
+        .collect();
+    assert!(!opaque.is_empty());
+    for id in opaque {
+        scene.set_engine_material(id, Some(0)).unwrap();
+    }
+    scene
+}
+
+/// Frames of the city's path (every 40th of its first 200) under `culling`, with the engine's
+/// material registered (`engine`) or not.
+fn frames(
+    scene: &Scene,
+    culling: tilegraph_passes::cull::Culling,
+    engine: Option<bool>,
+) -> Vec<RgbaImage> {
+    let options = RenderOptions {
+        width: 160,
+        height: 90,
+        culling,
+        ..Default::default()
+    };
+    let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, scene, options).unwrap();
+    let side = EngineSide::new(&g, r.scene_set_layout());
+    if let Some(depth) = engine {
+        assert_eq!(r.add_material(material(&side, depth)), 0);
+    }
+    let mut images = Vec::new();
+    for i in (0..200).step_by(40) {
+        let cam = scene.camera_path().camera(i).unwrap();
+        r.render(&g, scene, &cam).unwrap();
+        images.push(r.read_image(&g).unwrap());
+    }
+    r.destroy(&g);
+    side.destroy(&g);
+    images
+}
+
+#[test]
+fn an_engine_material_draws_the_culled_city_as_it_draws_the_unculled_one() {
+    use tilegraph_passes::cull::Culling;
+    let scene = city_with_engine_materials();
+    let tilegraph_only = frames(&scene, Culling::None, None);
+    for depth in [false, true] {
+        let none = frames(&scene, Culling::None, Some(depth));
+        let two_phase = frames(&scene, Culling::HizTwoPhase, Some(depth));
+        for (k, (a, b)) in none.iter().zip(&two_phase).enumerate() {
+            assert!(
+                a == b,
+                "frame {k} (engine depth shaders: {depth}): hiz-2phase differs from none"
+            );
+        }
+        let changed = none
+            .iter()
+            .zip(&tilegraph_only)
+            .map(|(a, b)| {
+                a.pixels
+                    .chunks_exact(4)
+                    .zip(b.pixels.chunks_exact(4))
+                    .filter(|(p, q)| p != q)
+                    .count()
+            })
+            .sum::<usize>();
+        println!("engine depth shaders {depth}: {changed} pixels of 5 frames differ from tilegraph's shading");
+        assert!(
+            changed > 5 * 160 * 90 / 4,
+            "the engine's shading is not what was drawn ({changed} pixels differ from tilegraph's)"
+        );
+    }
+}
+
+/// A scene naming an engine material the renderer does not have is a typed error.
+#[test]
+fn an_unregistered_engine_material_is_a_typed_error() {
+    let scene = city_with_engine_materials();
+    let options = RenderOptions {
+        width: 64,
+        height: 36,
+        ..Default::default()
+    };
+    let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+    let side = EngineSide::new(&g, r.scene_set_layout());
+    // One registered (id 0), so the table is built; the scene also names id 3.
+    r.add_material(material(&side, false));
+    let mut scene = scene;
+    scene.set_engine_material(MaterialId(0), Some(3)).unwrap();
+    let cam = scene.camera_path().camera(0).unwrap();
+    match r.render(&g, &scene, &cam) {
+        Err(tilegraph_passes::RenderError::UnknownEngineMaterial {
+            engine: 3,
+            registered: 1,
+            ..
+        }) => {}
+        other => panic!("expected UnknownEngineMaterial, got {other:?}"),
+    }
+    r.destroy(&g);
+    side.destroy(&g);
+}
