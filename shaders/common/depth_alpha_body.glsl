@@ -9,7 +9,7 @@ layout(location = 1) flat in uint v_material;
 
 void main() {
     Material m = materials[v_material];
-    if (material_color(m, v_uv).a < m.alpha_cutoff) {
+    if (alpha_coverage(m, v_uv, material_color(m, v_uv).a) < m.alpha_cutoff) {
         discard;
     }
 }

@@ -19,7 +19,7 @@ void main() {
     // Nested, not `&&`: a branch on the specialization constant alone, which specialization
     // (and the state lint reading the SPIR-V) removes with the discard for other classes.
     if (MATERIAL_CLASS == 1u) {
-        if (base.a < m.alpha_cutoff) {
+        if (alpha_coverage(m, v_uv, base.a) < m.alpha_cutoff) {
             discard;
         }
     }

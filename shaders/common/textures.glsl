@@ -36,17 +36,11 @@ vec4 sample_texture_grad(uint t, vec2 uv, vec2 duv_dx, vec2 duv_dy) {
 }
 #endif
 
-// The base colour of a material without a texture; an alpha-tested one's coverage is then the
-// procedural leaf mask.
-vec4 untextured_color(Material m, vec2 uv) {
-    float a = m.class_code == 1u ? leaf_alpha(uv, m.base_color.a) : m.base_color.a;
-    return vec4(m.base_color.rgb, a);
-}
-
-// The material's base colour at `uv` (implicit derivatives: the raster passes).
+// The material's base colour at `uv`, the factor times the texture (implicit derivatives: the
+// raster passes); alpha likewise. An untextured material reads no texture at all.
 vec4 material_color(Material m, vec2 uv) {
     if (m.texture == NO_TEXTURE) {
-        return untextured_color(m, uv);
+        return m.base_color;
     }
     return m.base_color * sample_texture(m.texture, uv);
 }
@@ -55,9 +49,16 @@ vec4 material_color(Material m, vec2 uv) {
 // no neighbouring fragments of the same triangle to difference).
 vec4 material_color_grad(Material m, vec2 uv, vec2 duv_dx, vec2 duv_dy) {
     if (m.texture == NO_TEXTURE) {
-        return untextured_color(m, uv);
+        return m.base_color;
     }
     return m.base_color * sample_texture_grad(m.texture, uv, duv_dx, duv_dy);
+}
+
+// An alpha-tested material's coverage at `uv`, given its colour's alpha: that alpha where it
+// has a texture, the procedural leaf mask where not. Called only by alpha-tested shaders (the
+// mask's atan and cos are not paid by anything else).
+float alpha_coverage(Material m, vec2 uv, float alpha) {
+    return m.texture == NO_TEXTURE ? leaf_alpha(uv, m.base_color.a) : alpha;
 }
 
 #endif

@@ -14,7 +14,7 @@ layout(location = 0) out uint o_id;
 void main() {
     if (ALPHA_TESTED == 1u) {
         Material m = materials[meshes[records[v_instance].mesh].material];
-        if (material_color(m, v_uv).a < m.alpha_cutoff) {
+        if (alpha_coverage(m, v_uv, material_color(m, v_uv).a) < m.alpha_cutoff) {
             discard;
         }
     }

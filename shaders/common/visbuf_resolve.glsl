@@ -74,12 +74,12 @@ void resolve(uint id) {
     vec3 d = unproject(ndc, frame.depth_params.y) - o;
     vec3 bc = ray_barycentrics(o, d, p0, p1, p2);
     vec3 n_obj = v0.n * bc.x + v1.n * bc.y + v2.n * bc.z;
-    vec2 uv = v0.uv * bc.x + v1.uv * bc.y + v2.uv * bc.z;
     Material m = materials[mesh.material];
     vec4 color;
     if (m.texture == NO_TEXTURE) {
         color = m.base_color;
     } else {
+        vec2 uv = v0.uv * bc.x + v1.uv * bc.y + v2.uv * bc.z;
         // Difference this triangle's UV across the pixel's own 2x2 quad (its row pair and its
         // column pair), as fine derivatives do in a forward quad, whose helper pixels extend
         // the triangle's plane the same way.

@@ -516,10 +516,13 @@ impl CullState {
         inputs.group_count = group_count;
         inputs.group_start = layout.group_start;
         inputs.group_total = total;
+        // Kept only for engine materials' runs: a frame without them allocates nothing here.
         inputs.group_meshes.clear();
-        inputs
-            .group_meshes
-            .extend(layout.groups.iter().map(|g| g[2]));
+        if self.group_runs {
+            inputs
+                .group_meshes
+                .extend(layout.groups.iter().map(|g| g[2]));
+        }
         inputs.kept_every_group = keep_empty == 1;
         inputs.pending = Some((self.frames_written, entries));
         self.frames_written += 1;
