@@ -32,6 +32,11 @@
 #define TG_INSTANCE_CASTS_SHADOWS 2
 
 /**
+ * A scene material drawn by tilegraph's own shaders (`tg_scene_set_engine_material`).
+ */
+#define TG_ENGINE_MATERIAL_NONE UINT32_MAX
+
+/**
  * What a call did. `TG_STATUS_OK` is zero; every other value leaves a message for
  * `tg_last_error`.
  */
@@ -426,6 +431,31 @@ typedef uint32_t TgPassClass;
 #endif // __cplusplus
 
 /**
+ * The pass an engine material's bind callback is called for.
+ */
+enum TgMaterialPass
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * The depth pre-pass.
+   */
+  TG_MATERIAL_PASS_DEPTH = 0,
+  /**
+   * The forward colour passes (opaque, alpha-tested, blended).
+   */
+  TG_MATERIAL_PASS_COLOR = 1,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum TgMaterialPass TgMaterialPass;
+#else
+typedef uint32_t TgMaterialPass;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
  * A scene.
  */
 typedef struct {
@@ -639,6 +669,74 @@ typedef struct {
 } TgPlan;
 
 /**
+ * A renderer: one scene, drawn frame after frame into the engine's target.
+ */
+typedef struct {
+  uint64_t raw;
+} TgRenderer;
+
+/**
+ * One shader stage's SPIR-V; `code` null: the stage is absent.
+ */
+typedef struct {
+  /**
+   * A name for validation messages and the lint's findings (may be null).
+   */
+  const char *name;
+  /**
+   * SPIR-V words (4-byte aligned).
+   */
+  const uint32_t *code;
+  /**
+   * Its size in bytes (a multiple of 4).
+   */
+  uintptr_t code_size;
+} TgShader;
+
+/**
+ * Binds the engine's own descriptor sets (set 1 and up) and push constants into
+ * `command_buffer` (a VkCommandBuffer), after tilegraph bound the material's pipeline and set
+ * 0, before the material's draws; `pass` is a TgMaterialPass. Called while
+ * `tg_renderer_record` runs, on its thread; it must not call tilegraph.
+ */
+typedef void (*TgBindMaterial)(void *user, void *command_buffer, uint32_t pass);
+
+/**
+ * What an engine registers for a material.
+ */
+typedef struct {
+  /**
+   * The material's name (for logs and messages).
+   */
+  const char *name;
+  /**
+   * VkPipelineLayout, owned by the engine and alive until the renderer is destroyed: set 0
+   * is the renderer's scene set layout, the engine's sets and push constants follow.
+   */
+  uint64_t layout;
+  /**
+   * Depth pre-pass shaders; a null vertex shader: tilegraph's pre-pass draws the
+   * material's instances. An opaque material's fragment shader may be absent.
+   */
+  TgShader depth_vertex;
+  TgShader depth_fragment;
+  /**
+   * Colour shaders; a null vertex shader: tilegraph's colour passes draw them. With a
+   * vertex shader, a fragment shader is required.
+   */
+  TgShader color_vertex;
+  TgShader color_fragment;
+  /**
+   * Called before the material's draws in each pass (may be null: nothing to bind).
+   */
+  TgBindMaterial bind;
+  /**
+   * Passed to `bind` unchanged.
+   */
+  void *user;
+} TgEngineMaterialDesc;
+
+/**
  * A plan's overview.
  */
 typedef struct {
@@ -772,13 +870,6 @@ typedef struct {
    */
   uint32_t instance_capacity;
 } TgRendererDesc;
-
-/**
- * A renderer: one scene, drawn frame after frame into the engine's target.
- */
-typedef struct {
-  uint64_t raw;
-} TgRenderer;
 
 /**
  * A camera: f64 eye and target, a perspective projection.
@@ -1260,6 +1351,60 @@ TgStatus tg_pass_use(TgGraph graph, uint32_t pass, uint32_t resource, uint32_t u
  * `profile` is a NUL-terminated string; `out_plan` is writable.
  */
 TgStatus tg_graph_compile(TgGraph graph, const char *profile, TgPlan *out_plan);
+
+/**
+ * The layout of set 0 (the scene's) that an engine material's pipeline layout starts with:
+ * a VkDescriptorSetLayout owned by the renderer.
+ *
+ * # Safety
+ * `out_layout` is writable.
+ */
+TgStatus tg_renderer_scene_set_layout(TgRenderer renderer, uint64_t *out_layout);
+
+/**
+ * Registers an engine material on a renderer; its id (0, 1, ... per renderer) goes to
+ * `out_engine_material`. Scene materials given that id (`tg_scene_set_engine_material`) are
+ * drawn with its shaders in the passes it has shaders for, from the next record. The shaders
+ * are copied; the layout and `user` stay the engine's. Instance culling only: a renderer with
+ * a cluster culling refuses to record a scene that uses engine materials.
+ *
+ * # Safety
+ * `desc` is valid (its shaders and name as `TgShader` says); `out_engine_material` writable.
+ */
+TgStatus tg_material_register(TgRenderer renderer,
+                              const TgEngineMaterialDesc *desc,
+                              uint32_t *out_engine_material);
+
+/**
+ * Draws scene material `material_index` with engine material `engine_material` (an id from
+ * `tg_material_register`, the same on every renderer that draws the scene), or with
+ * tilegraph's own shaders again (TG_ENGINE_MATERIAL_NONE). Applies at the renderers' next
+ * record; a renderer without that engine material refuses to record (TG_STATUS_INVALID_ARGUMENT
+ * naming both).
+ */
+TgStatus tg_scene_set_engine_material(TgScene scene,
+                                      uint32_t material_index,
+                                      uint32_t engine_material);
+
+/**
+ * The number of the scene's materials.
+ *
+ * # Safety
+ * `out_count` is writable.
+ */
+TgStatus tg_scene_material_count(TgScene scene, uint32_t *out_count);
+
+/**
+ * Scene material `material_index` as a TgMaterial (its class, colour, cutoff, sides) and the
+ * engine material that draws it (TG_ENGINE_MATERIAL_NONE: tilegraph's shaders).
+ *
+ * # Safety
+ * `out_material` is writable; `out_engine_material` writable or null.
+ */
+TgStatus tg_scene_material(TgScene scene,
+                           uint32_t material_index,
+                           TgMaterial *out_material,
+                           uint32_t *out_engine_material);
 
 /**
  * Destroys a plan. A zero handle is a no-op.

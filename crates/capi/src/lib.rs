@@ -13,6 +13,7 @@
 //! - `scene.rs`: scenes from plain arrays or a glTF file, cameras;
 //! - `changes.rs`: a scene a game changes every frame, by handle (meshes, instances, batched
 //!   transforms, flags, animated bounds);
+//! - `materials.rs`: the engine's own shaders drawing tilegraph's culled lists;
 //! - `renderer.rs`: recording a scene's frame into the engine's command buffer, statistics;
 //! - `graph.rs`, `plan.rs`: the compiler alone — declare, compile, walk the plan;
 //! - `features.rs`: tilegraph's features set in the engine's own feature structs.
@@ -21,6 +22,7 @@ pub mod changes;
 pub mod context;
 pub mod features;
 pub mod graph;
+pub mod materials;
 pub mod plan;
 mod registry;
 pub mod renderer;
@@ -36,6 +38,9 @@ pub use context::{
 };
 pub use features::TgFeatureStructs;
 pub use graph::{TgGraph, TgPassClass, TgUse};
+pub use materials::{
+    TgBindMaterial, TgEngineMaterialDesc, TgMaterialPass, TgShader, TG_ENGINE_MATERIAL_NONE,
+};
 pub use plan::{
     TgAttachment, TgBarrier, TgPlan, TgPlanSummary, TgResidency, TgStep, TgStepKind, TgSubpass,
 };

@@ -129,7 +129,7 @@ pub struct TgPassTime {
 }
 
 pub(crate) struct RendererObject {
-    renderer: SceneRenderer,
+    pub(crate) renderer: SceneRenderer,
     context: u64,
     scene: u64,
     aspect: f32,

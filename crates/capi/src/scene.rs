@@ -178,6 +178,21 @@ pub(crate) fn material(index: usize, m: &TgMaterial) -> Result<Material, Failure
     })
 }
 
+/// A scene material as C sees it.
+pub(crate) fn material_desc(m: &Material) -> TgMaterial {
+    let (material_class, alpha_cutoff) = match m.class {
+        MaterialClass::Opaque => (TgMaterialClass::Opaque, 0.0),
+        MaterialClass::AlphaTested { cutoff } => (TgMaterialClass::AlphaTested, cutoff),
+        MaterialClass::Blended => (TgMaterialClass::Blended, 0.0),
+    };
+    TgMaterial {
+        base_color: m.base_color,
+        material_class: material_class as u32,
+        alpha_cutoff,
+        double_sided: u32::from(m.double_sided),
+    }
+}
+
 /// The scene `desc` describes, checked element by element.
 fn build(desc: &TgSceneDesc) -> Result<Scene, Failure> {
     // SAFETY: the caller's contract (tg_scene_create).

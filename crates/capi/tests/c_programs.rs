@@ -5,6 +5,9 @@
 //!   image, through its own command buffers; its pixels equal the Rust path's, bit for bit;
 //! - `moving.c` moves, spawns and removes instances every frame through the C ABI before
 //!   recording; its pixels equal the same changes made through the Rust API, bit for bit;
+//! - `materials.c` registers an engine material of its own shaders (through the shipped
+//!   include), layout and bind callback; the city through `none` and `hiz-2phase` gives equal
+//!   images, which differ from tilegraph's own shading;
 //! - `errors.c` drives every error status and checks each message, faults included.
 //!
 //! `cargo xtask test` builds the static library first (`cargo build --profile test -p
@@ -229,4 +232,51 @@ fn the_c_error_test_drives_every_status() {
     let exe = compile("errors");
     let log = run(&exe, &[]);
     assert!(log.trim_end().ends_with("ok"), "{log}");
+}
+
+/// The C engine's frames in `mode` (`none`, `hiz-2phase`, `tilegraph`), as RGBA8 images.
+fn c_material_frames(exe: &Path, mode: &str) -> Vec<Vec<u8>> {
+    let spv = root().join("shaders/spv");
+    let prefix = target_dir().join(format!("capi-materials-{mode}"));
+    let log = run(
+        exe,
+        &[
+            spv.join("test_engine.vert.spv").to_str().unwrap(),
+            spv.join("test_engine.frag.spv").to_str().unwrap(),
+            mode,
+            prefix.to_str().unwrap(),
+        ],
+    );
+    assert!(log.starts_with("ok"), "{log}");
+    (0..5)
+        .map(|k| std::fs::read(format!("{}-{k}.rgba", prefix.display())).unwrap())
+        .collect()
+}
+
+#[test]
+fn the_c_engine_material_draws_the_culled_city_as_the_unculled_one() {
+    let exe = compile("materials");
+    let none = c_material_frames(&exe, "none");
+    let two_phase = c_material_frames(&exe, "hiz-2phase");
+    let tilegraph = c_material_frames(&exe, "tilegraph");
+    for (k, (a, b)) in none.iter().zip(&two_phase).enumerate() {
+        assert!(
+            a.len() == 160 * 90 * 4 && a == b,
+            "frame {k}: hiz-2phase differs from none"
+        );
+    }
+    let changed: usize = none
+        .iter()
+        .zip(&tilegraph)
+        .map(|(a, b)| {
+            a.chunks_exact(4)
+                .zip(b.chunks_exact(4))
+                .filter(|(p, q)| p != q)
+                .count()
+        })
+        .sum();
+    assert!(
+        changed > 5 * 160 * 90 / 4,
+        "the engine's shading is not what was drawn ({changed} pixels differ from tilegraph's)"
+    );
 }
