@@ -6,6 +6,12 @@
 
 const uint VISBUF_BACKGROUND = 0xFFFFFFFFu;
 
+// Material classification (visbuf_classify.comp) tracks materials below this
+// (tilegraph_passes::visbuf::MAX_CLASSIFIED_MATERIALS); scenes with more resolve in one pass.
+const uint MAX_CLASSIFIED_MATERIALS = 256u;
+// RESOLVE_MATERIAL of the über-resolve: every material.
+const uint ALL_MATERIALS = 0xFFFFFFFFu;
+
 uint visbuf_pack(uint instance, uint triangle) {
     uint tri_bits = 32u - frame.params.y;
     return (instance << tri_bits) | triangle;

@@ -13,6 +13,12 @@
 layout(set = 0, binding = 5, std430) readonly buffer Vertices { float vertex_data[]; }; // 8 floats each
 layout(set = 0, binding = 6, std430) readonly buffer Indices { uint index_data[]; };
 
+// Specialization 2: ALL_MATERIALS shades every pixel (the über-resolve); a material index
+// shades that material's pixels only and discards the others' (the per-material resolves, over
+// the full screen or over the material's tiles after classification) — the same arithmetic, so
+// the same colours.
+layout(constant_id = 2) const uint RESOLVE_MATERIAL = ALL_MATERIALS;
+
 layout(location = 0) out vec4 o_color;
 
 struct Vtx { vec3 p; vec3 n; vec2 uv; };
@@ -60,8 +66,11 @@ void resolve(uint id) {
         discard;
     }
     uvec2 it = visbuf_unpack(id);
+    Mesh mesh = meshes[records[it.x].mesh];
+    if (RESOLVE_MATERIAL != ALL_MATERIALS && mesh.material != RESOLVE_MATERIAL) {
+        discard;
+    }
     Instance inst = instance_at(it.x);
-    Mesh mesh = meshes[inst.mesh];
     uint base = mesh.first_index + 3u * it.y;
     Vtx v0 = load_vertex(uint(int(index_data[base]) + mesh.vertex_offset));
     Vtx v1 = load_vertex(uint(int(index_data[base + 1u]) + mesh.vertex_offset));

@@ -26,7 +26,7 @@ use crate::pipelines::ColourDepth;
 use crate::prepass::{add_depth_prepass, add_depth_prepass_of_last_visible};
 use crate::setup::{FrameSetup, PassKind};
 use crate::targets::SceneTargets;
-use crate::visbuf::{add_visbuf_resolve, add_visbuf_write};
+use crate::visbuf::{add_visbuf_resolve, add_visbuf_write, ResolvePlan};
 
 /// What the scene's declaration depends on besides the renderer's options: when it is the same
 /// as the last frame's, the declared payloads and the compiled plan are reused.
@@ -40,6 +40,9 @@ pub(crate) struct DeclarationKey {
     /// The colour target: its format, the state it starts the frame in and the state the
     /// frame leaves it in (an engine's target says; the renderer's own follows `first_frame`).
     pub color: ColorTarget,
+    /// The scene's materials where the visibility buffer resolves per material (their
+    /// resolves and tile lists), else 0.
+    pub materials: u32,
 }
 
 /// The colour target as the frame declares it.
@@ -368,7 +371,10 @@ impl<'a> Composition<'a> {
         let culling = self.culling();
         let (g, t) = (&mut self.g, &mut self.t);
         if let (true, Some(ids)) = (setup.includes(PassKind::VisbufResolve), t.ids) {
-            add_visbuf_resolve(g, t, ids, self.spec.profile.is_tiler());
+            let (mode, tile) = self.spec.options.visbuf_resolve(self.spec.profile);
+            let input = self.spec.profile.is_tiler();
+            let plan = ResolvePlan::new(mode, input, self.spec.key.materials, tile);
+            add_visbuf_resolve(g, t, ids, plan);
         }
         if setup.includes(PassKind::Transparent) {
             add_transparent(g, t);

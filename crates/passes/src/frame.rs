@@ -37,6 +37,8 @@ pub struct FrameData {
     /// Per mesh: the engine material of its material (`Material::engine_material`); empty
     /// while the engine registered none.
     pub engine_of_mesh: Vec<Option<u32>>,
+    /// The scene's materials this frame (the per-material resolves draw each).
+    pub material_count: u32,
 }
 
 impl FrameData {

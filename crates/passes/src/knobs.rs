@@ -19,7 +19,7 @@ use tilegraph_vk::Context;
 use crate::cull::{CullBounds, Culling};
 use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
-use crate::setup::{SceneContent, Technique};
+use crate::setup::{SceneContent, Technique, VisbufResolve};
 
 /// Below this many instances `auto` draws everything: culling has a fixed cost (six dispatches
 /// and a pyramid, 0.1 ms on the H100 at 1080p) that a small level's whole frame does not reach
@@ -413,6 +413,21 @@ pub fn resolve(
                 continue;
             }
         }
+        if let Applies::WithShading(shadings) = k.applies {
+            if !shadings.contains(&technique.name()) {
+                if origin == Origin::Run {
+                    return Err(KnobUseError::NotForScene {
+                        name: k.name,
+                        why: format!(
+                            "it applies to shading {} only, and the run shades {}",
+                            shadings.join(", "),
+                            technique.name()
+                        ),
+                    });
+                }
+                continue;
+            }
+        }
         if k.name == "depth_prepass" {
             let inert = match technique {
                 Technique::Visbuf => {
@@ -508,6 +523,10 @@ impl Resolved {
             "sphere" => CullBounds::Sphere,
             _ => CullBounds::Aabb,
         };
+        options.visbuf_resolve = VisbufResolve::parse(name("visbuf_resolve"));
+        if let Some(t) = self.get("classify_tile").and_then(KnobValue::as_integer) {
+            options.classify_tile = Some(t);
+        }
         if let Some(g) = self.get("oq_group").and_then(KnobValue::as_integer) {
             options.oq_group = g as usize;
         }
@@ -575,6 +594,8 @@ mod tests {
                     "hiz_npot" => ["edge-aware", "pad-to-pow2"].contains(&s.as_str()),
                     "hiz_resolution" => ["full", "half", "quarter"].contains(&s.as_str()),
                     "cull_bounds" => ["aabb", "sphere"].contains(&s.as_str()),
+                    "visbuf_resolve" => VisbufResolve::parse(&s).is_some(),
+                    "classify_tile" => matches!(k.domain, Domain::Integers(_)),
                     "oq_group" | "raster_occlusion_scale" | "occlusion_recheck" => {
                         matches!(k.domain, Domain::Integers(_))
                     }

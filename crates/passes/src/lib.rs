@@ -39,6 +39,8 @@ pub mod visbuf;
 pub use frame::{DrawSource, FrameData, FrameGraph, Payload, SceneResources};
 pub use options::{FrameReport, RenderError, RenderOptions, WantedBy};
 pub use renderer::{scene_memory, EngineTarget, SceneMemory, SceneRenderer};
-pub use setup::{decide, FrameSetup, PassDecision, PassKind, SceneContent, Technique};
+pub use setup::{
+    decide, FrameSetup, PassDecision, PassKind, SceneContent, Technique, VisbufResolve,
+};
 pub use targets::SceneTargets;
 pub use tilegraph_vk::queries::GpuTiming;

@@ -14,7 +14,7 @@ use crate::cull::{CullBounds, CullState, Culling, GpuCullCounts};
 use crate::gpu_scene::{visbuf_instance_bits, Lighting};
 use crate::lint::FrameLint;
 use crate::occlusion::OqState;
-use crate::setup::{FrameSetup, Technique};
+use crate::setup::{FrameSetup, Technique, VisbufResolve};
 
 /// Errors of rendering a scene: each names what failed.
 #[derive(Debug, thiserror::Error)]
@@ -146,6 +146,34 @@ pub struct RenderOptions {
     /// one-image fallback on any device; `indexed` still falls back where the device lacks
     /// the indexing features.
     pub texture_binding: Option<tilegraph_profile::TextureBinding>,
+    /// The visibility buffer's resolve (knob `visbuf_resolve`); `None`: the profile's knob,
+    /// else the über-resolve.
+    pub visbuf_resolve: Option<VisbufResolve>,
+    /// Material classification's tile side in pixels, 8, 16 or 32 (knob `classify_tile`);
+    /// `None`: the profile's knob, else 16.
+    pub classify_tile: Option<u32>,
+}
+
+impl RenderOptions {
+    /// The resolve and classification tile this run uses: its own choice, else `profile`'s
+    /// knobs, else the über-resolve and 16-pixel tiles.
+    pub fn visbuf_resolve(&self, profile: &tilegraph_profile::Profile) -> (VisbufResolve, u32) {
+        let knob = |name: &str| profile.knobs.get(name);
+        let resolve = self
+            .visbuf_resolve
+            .or_else(|| {
+                knob("visbuf_resolve")
+                    .and_then(|v| v.as_name())
+                    .and_then(VisbufResolve::parse)
+            })
+            .unwrap_or(VisbufResolve::Uber);
+        let tile = self
+            .classify_tile
+            .or_else(|| knob("classify_tile").and_then(|v| v.as_integer()))
+            .filter(|t| [8, 16, 32].contains(t))
+            .unwrap_or(16);
+        (resolve, tile)
+    }
 }
 
 impl Default for RenderOptions {
@@ -172,6 +200,8 @@ impl Default for RenderOptions {
             gpu_timing: GpuTiming::PassStatistics,
             instance_capacity: 0,
             texture_binding: None,
+            visbuf_resolve: None,
+            classify_tile: None,
         }
     }
 }

@@ -135,6 +135,13 @@ pub enum PipelineKey {
     },
     /// A pass's own pipeline, named by the pass.
     Named(&'static str),
+    /// The visibility buffer's resolve of one material (`visbuf::classify`): over the screen
+    /// (`tile` 0; the ids an input attachment or sampled) or over its tiles of `tile` pixels.
+    Resolve {
+        material: u32,
+        input: bool,
+        tile: u32,
+    },
 }
 
 const POSITION: (u32, vk::Format, u32) = (0, vk::Format::R32G32B32_SFLOAT, 0);
@@ -273,6 +280,26 @@ impl Pipelines {
     /// The binds recorded since [`Self::start_trace`], in recording order; tracing stops.
     pub fn take_trace(&mut self) -> Option<Vec<TracedBind>> {
         self.trace.take()
+    }
+
+    /// The resolve's fragment shader in the build the scene's textures need: reading the ids
+    /// as an input attachment or sampling them.
+    pub fn resolve_fragment(&self, input: bool) -> (&'static str, &'static [u8]) {
+        let layers = self.textures.0 == TextureBinding::Layers;
+        match (input, layers) {
+            (true, false) => ("visbuf_resolve_input.frag", spv::RESOLVE_INPUT_FS),
+            (true, true) => ("visbuf_resolve_input.frag", spv::RESOLVE_INPUT_LAYERS_FS),
+            (false, false) => ("visbuf_resolve_sampled.frag", spv::RESOLVE_SAMPLED_FS),
+            (false, true) => (
+                "visbuf_resolve_sampled.frag",
+                spv::RESOLVE_SAMPLED_LAYERS_FS,
+            ),
+        }
+    }
+
+    /// `TEXTURE_SLOTS` (specialization 1 of the fragment shaders).
+    pub fn texture_slots(&self) -> u32 {
+        self.textures.1
     }
 
     /// Registers an engine material; its id.
@@ -496,7 +523,10 @@ fn stage(name: &'static str, spirv: &'static [u8]) -> Stage<'static> {
     }
 }
 
-fn with_colors(target: RenderTarget<'static>, color_count: u32) -> RenderTarget<'static> {
+pub(crate) fn with_colors(
+    target: RenderTarget<'static>,
+    color_count: u32,
+) -> RenderTarget<'static> {
     match target {
         RenderTarget::Subpass {
             render_pass,

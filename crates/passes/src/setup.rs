@@ -37,6 +37,40 @@ impl Technique {
     }
 }
 
+/// How the visibility buffer's resolve covers the scene's materials (knob `visbuf_resolve`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum VisbufResolve {
+    /// One full-screen pass shading every material (one shader; tilers keep it a subpass of
+    /// the id pass, the ids never leaving tile memory).
+    Uber,
+    /// One full-screen pass per material, each discarding the other materials' pixels: what
+    /// classification is measured against.
+    PerMaterial,
+    /// A compute pass sorts the screen's tiles by the materials they show; each material's
+    /// resolve draws its own tiles only (indirect). The ids are stored for it.
+    Classified,
+}
+
+impl VisbufResolve {
+    pub fn parse(s: &str) -> Option<VisbufResolve> {
+        match s {
+            "uber" => Some(VisbufResolve::Uber),
+            "per-material" => Some(VisbufResolve::PerMaterial),
+            "classified" => Some(VisbufResolve::Classified),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            VisbufResolve::Uber => "uber",
+            VisbufResolve::PerMaterial => "per-material",
+            VisbufResolve::Classified => "classified",
+        }
+    }
+}
+
 /// Which culling a frame runs before drawing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "kebab-case")]

@@ -72,6 +72,8 @@ pub enum Applies {
     WithCulling(&'static [&'static str]),
     /// Only for scenes with alpha-tested geometry.
     AlphaTestedScene,
+    /// Only with these shading techniques.
+    WithShading(&'static [&'static str]),
 }
 
 /// One knob.
@@ -209,6 +211,20 @@ pub const KNOBS: &[KnobSpec] = &[
         default: DefaultValue::Integer(1),
         applies: Applies::WithCulling(&["raster-occlusion"]),
         help: "raster occlusion against a conservative 1/N-resolution depth: cheaper, more drawn",
+    },
+    KnobSpec {
+        name: "visbuf_resolve",
+        domain: Domain::Choice(&["uber", "per-material", "classified"]),
+        default: DefaultValue::Name("uber"),
+        applies: Applies::WithShading(&["visbuf"]),
+        help: "the visibility buffer's resolve: one shader for every material, one full-screen pass per material discarding the others' pixels, or per material over the screen tiles classification found it in (the ids leave tile memory)",
+    },
+    KnobSpec {
+        name: "classify_tile",
+        domain: Domain::Integers(&[8, 16, 32]),
+        default: DefaultValue::Integer(16),
+        applies: Applies::WithShading(&["visbuf"]),
+        help: "side in pixels of the screen tiles material classification sorts: smaller tiles shade fewer other materials' pixels, cost more classification work and tile quads",
     },
 ];
 

@@ -112,12 +112,29 @@ pub fn load(spec: &str) -> Result<Scene, SceneError> {
     load_with(spec, &LoadOptions::default())
 }
 
+/// The most materials `@materials:N` spreads a scene over.
+pub const MAX_SPREAD_MATERIALS: u32 = 4096;
+
 /// Loads a scene from a spec: a glTF path, `kind[:size[:seed]]`, or `default`; with `@one-mesh`
 /// after it, baked into one mesh per material ([`Scene::one_mesh_per_material`]: a level as
-/// many engines export it).
+/// many engines export it); with `@materials:N`, its opaque instances spread over `N` materials
+/// ([`Scene::with_spread_materials`]: what material classification is measured on).
 pub fn load_with(spec: &str, options: &LoadOptions) -> Result<Scene, SceneError> {
     if let Some(level) = spec.strip_suffix("@one-mesh") {
         return load_with(level, options)?.one_mesh_per_material();
+    }
+    if let Some((base, n)) = spec.rsplit_once("@materials:") {
+        let count = n
+            .parse::<u32>()
+            .ok()
+            .filter(|c| (1..=MAX_SPREAD_MATERIALS).contains(c))
+            .ok_or_else(|| SceneError::BadSpec {
+                spec: spec.to_string(),
+                reason: format!(
+                    "@materials:{n}: a material count from 1 to {MAX_SPREAD_MATERIALS}"
+                ),
+            })?;
+        return load_with(base, options)?.with_spread_materials(count);
     }
     let mut scene = match parse_spec(spec, options)? {
         Spec::File(path) => load_gltf(Path::new(path), &options.limits)?,

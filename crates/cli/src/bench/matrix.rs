@@ -275,6 +275,7 @@ fn applies(k: &str, culling: &str, shading: &str, content: SceneContent) -> bool
         Applies::Always => true,
         // `auto` decides on the device: its knobs are the profile's.
         Applies::WithCulling(list) => list.contains(&culling),
+        Applies::WithShading(list) => list.contains(&shading),
         Applies::AlphaTestedScene => {
             culling != PROFILE_CHOICE
                 && shading != PROFILE_CHOICE

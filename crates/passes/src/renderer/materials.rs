@@ -24,11 +24,24 @@ impl SceneRenderer {
         self.resources.pipelines.add_material(material)
     }
 
+    /// The materials the visibility buffer resolves one by one this frame (its declaration
+    /// depends on them): the scene's, where the resolve is per material; else 0.
+    pub(super) fn resolve_materials(&self, ctx: &tilegraph_vk::Context) -> u32 {
+        let per_material = self.options.technique == crate::Technique::Visbuf
+            && self.options.visbuf_resolve(ctx.profile()).0 != crate::VisbufResolve::Uber;
+        if per_material {
+            self.resources.frame.material_count
+        } else {
+            0
+        }
+    }
+
     /// Brings the frame's mesh -> engine material table up to `scene` and tells GPU culling
     /// whether this frame's lists are drawn in runs of pipelines. Nothing is done (or allocated)
     /// while no engine material is registered.
     pub(super) fn prepare_materials(&mut self, scene: &Scene) -> Result<(), RenderError> {
         let res = &mut self.resources;
+        res.frame.material_count = scene.materials().len() as u32;
         let registered = res.pipelines.material_count();
         if registered == 0 {
             return Ok(());

@@ -337,6 +337,7 @@ impl SceneRenderer {
             // frame (the colour target's import is in `color`).
             first_frame: self.frames == 0 && self.ids_target.is_some(),
             color,
+            materials: self.resolve_materials(ctx),
         };
         let declare = self.declared.as_ref().is_none_or(|d| d.key != key);
         if declare {

@@ -11,7 +11,8 @@ use crate::hiz::{HizState, ReprojectState};
 use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{RenderError, RenderOptions};
 use crate::pipelines::Pipelines;
-use crate::setup::Technique;
+use crate::setup::{Technique, VisbufResolve};
+use crate::visbuf::classify::ClassifyState;
 use crate::visbuf::ResolveSets;
 
 /// The GPU side of a renderer: the scene uploaded with room for `capacity`, the pipelines'
@@ -164,6 +165,10 @@ fn add_states(
     }
     if options.technique == Technique::Visbuf {
         res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);
+        if options.visbuf_resolve(ctx.profile()).0 == VisbufResolve::Classified {
+            res.states
+                .insert(ClassifyState::new(ctx, set_layout, frames_in_flight)?);
+        }
     }
     Ok(())
 }

@@ -21,6 +21,7 @@ mod info;
 mod journal;
 mod one_mesh;
 mod pool;
+mod variants;
 
 pub use buckets::{DrawBuckets, DrawGroup, DRAW_LISTS};
 pub use clusters::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VERTICES};

@@ -2,7 +2,10 @@
 //! (one raster pass, depth tested and written), and a full-screen resolve shades each pixel once
 //! from its id. On a tiler the resolve reads the id as an input attachment, so it can be a
 //! subpass of the id pass's render pass and the ids never leave tile memory; on immediate GPUs
-//! it samples them.
+//! it samples them. The resolve is one shader for every material, or one per material over
+//! the screen or over the tiles material classification found it in ([`classify`]).
+
+pub mod classify;
 
 use std::collections::HashMap;
 
@@ -16,6 +19,7 @@ use crate::draws::DrawClass;
 use crate::frame::{scene_set, DrawSource, FrameGraph, PassState, Payload, SceneResources};
 use crate::pipelines::Variant;
 use crate::recording::{record_class, Predicate};
+use crate::setup::VisbufResolve;
 use crate::targets::SceneTargets;
 
 /// Declares an id pass named `name` of phase `phase` (0 clears the ids; two-phase culling's
@@ -58,15 +62,62 @@ pub fn add_visbuf_write(
     ids
 }
 
+/// How a frame resolves the visibility buffer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ResolvePlan {
+    pub mode: VisbufResolve,
+    /// Read the ids as an input attachment (tilers; not with classification, which stores
+    /// them).
+    pub input: bool,
+    /// The scene's materials (the per-material resolves' count).
+    pub materials: u32,
+    /// Classification's tile side in pixels.
+    pub tile: u32,
+}
+
+impl ResolvePlan {
+    /// `mode` for a scene of `materials` materials, as the device can run it: classification
+    /// needs the materials to fit its tile masks, else the über-resolve runs (logged).
+    pub fn new(mode: VisbufResolve, input: bool, materials: u32, tile: u32) -> Self {
+        let mode = if mode == VisbufResolve::Classified
+            && materials > classify::MAX_CLASSIFIED_MATERIALS
+        {
+            log::warn!(
+                "visbuf_resolve classified: the scene has {materials} materials, more than the {} classification tracks; resolving in one pass",
+                classify::MAX_CLASSIFIED_MATERIALS
+            );
+            VisbufResolve::Uber
+        } else {
+            mode
+        };
+        ResolvePlan {
+            mode,
+            input: input && mode != VisbufResolve::Classified,
+            materials,
+            tile,
+        }
+    }
+}
+
 /// Declares the resolve: shades every pixel of the colour target from `ids`, read as an input
-/// attachment (`input`, tilers) or sampled.
+/// attachment (`plan.input`, tilers) or sampled, in one pass for every material or per
+/// material (over the screen, or over the material's tiles after classification).
 pub fn add_visbuf_resolve(
     g: &mut FrameGraph,
     targets: &mut SceneTargets,
     ids: ImageId,
-    input: bool,
+    plan: ResolvePlan,
 ) -> PassId {
-    let record: Payload = Box::new(move |pc, res| record_resolve(pc, res, ids, input));
+    let per_material = match plan.mode {
+        VisbufResolve::Classified => {
+            return classify::add_classified_resolve(g, targets, ids, plan.materials, plan.tile)
+        }
+        VisbufResolve::PerMaterial => Some(plan.materials),
+        VisbufResolve::Uber => None,
+    };
+    let input = plan.input;
+    let record: Payload =
+        Box::new(move |pc, res| record_resolve(pc, res, (ids, input), per_material));
     let mut p = g.raster_pass("visbuf-resolve", PassClass::Opaque, record);
     if input {
         p.input(ids);
@@ -129,20 +180,26 @@ impl PassState for ResolveSets {
     }
 }
 
+/// The resolve over the screen: one draw of the über-resolve, or one per material of its
+/// own resolve (`per_material`: the scene's materials).
 fn record_resolve(
     pc: &mut PassContext<'_>,
     res: &mut SceneResources,
-    ids: ImageId,
-    input: bool,
+    (ids, input): (ImageId, bool),
+    per_material: Option<u32>,
 ) -> Result<(), VkError> {
     let variant = if input {
         Variant::ResolveInput
     } else {
         Variant::ResolveSampled
     };
-    let pipeline = res
-        .pipelines
-        .scene(pc, (variant, None), false, 1, res.frame.depth)?;
+    let uber = match per_material {
+        None => Some(
+            res.pipelines
+                .scene(pc, (variant, None), false, 1, res.frame.depth)?,
+        ),
+        Some(_) => None,
+    };
     let scene_set = scene_set(pc, res)?;
     let (set_layout, layout) = if input {
         (res.pipelines.input_set_layout, res.pipelines.input_layout)
@@ -185,7 +242,6 @@ fn record_resolve(
     // recording inside the resolve subpass.
     unsafe {
         d.update_descriptor_sets(&[write], &[]);
-        d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
         d.cmd_bind_descriptor_sets(
             pc.cb,
             vk::PipelineBindPoint::GRAPHICS,
@@ -194,7 +250,20 @@ fn record_resolve(
             &[scene_set, set],
             &[],
         );
-        d.cmd_draw(pc.cb, 3, 1, 0, 0);
+        if let Some(pipeline) = uber {
+            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            d.cmd_draw(pc.cb, 3, 1, 0, 0);
+        }
+    }
+    for m in 0..per_material.unwrap_or(0) {
+        let coverage = classify::Coverage::Screen { input, layout };
+        let pipeline = classify::material_resolve(pc, res, m, coverage)?;
+        let d = &pc.ctx.device;
+        // SAFETY: as above; set 1 stays bound (the same layout).
+        unsafe {
+            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+            d.cmd_draw(pc.cb, 3, 1, 0, 0);
+        }
     }
     Ok(())
 }
