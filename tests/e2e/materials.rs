@@ -8,7 +8,9 @@
 use std::rc::Rc;
 
 use tilegraph_e2e::gpu_with;
-use tilegraph_passes::materials::{EngineMaterial, MaterialShaders, ShaderCode};
+use tilegraph_passes::materials::{
+    EngineMaterial, EngineResolve, MaterialPass, MaterialShaders, ShaderCode,
+};
 use tilegraph_passes::{RenderOptions, SceneRenderer};
 use tilegraph_profile::MemoryUse;
 use tilegraph_scene::{MaterialClass, MaterialId, Scene};
@@ -19,19 +21,23 @@ use tilegraph_vk::{Buffer, Context};
 
 const VS: &[u8] = include_bytes!("../../shaders/spv/test_engine.vert.spv");
 const FS: &[u8] = include_bytes!("../../shaders/spv/test_engine.frag.spv");
+const RS: &[u8] = include_bytes!("../../shaders/spv/test_engine_resolve.frag.spv");
 
-/// What the engine owns for its material: set 1's layout, pool, set and uniform buffer, and
-/// the pipeline layout.
+/// What the engine owns for its material: its set's layout, pool, set and uniform buffer, and
+/// the pipeline layouts (raster: the scene set, then its set; resolve, with a visibility
+/// buffer: the scene set, tilegraph's resolve set, then its set).
 struct EngineSide {
     set_layout: vk::DescriptorSetLayout,
     layout: vk::PipelineLayout,
+    resolve_layout: Option<vk::PipelineLayout>,
     pool: vk::DescriptorPool,
     set: vk::DescriptorSet,
     tint: Buffer,
 }
 
 impl EngineSide {
-    fn new(ctx: &Context, scene_set_layout: vk::DescriptorSetLayout) -> EngineSide {
+    fn new(ctx: &Context, r: &SceneRenderer) -> EngineSide {
+        let scene_set_layout = r.scene_set_layout();
         let set_layout = create_set_layout(
             ctx,
             &[(
@@ -42,6 +48,9 @@ impl EngineSide {
         )
         .unwrap();
         let layout = create_pipeline_layout(ctx, &[scene_set_layout, set_layout], None).unwrap();
+        let resolve_layout = r.resolve_set_layout().map(|resolve_set| {
+            create_pipeline_layout(ctx, &[scene_set_layout, resolve_set, set_layout], None).unwrap()
+        });
         let sizes = [vk::DescriptorPoolSize {
             ty: vk::DescriptorType::UNIFORM_BUFFER,
             descriptor_count: 1,
@@ -71,6 +80,7 @@ impl EngineSide {
         EngineSide {
             set_layout,
             layout,
+            resolve_layout,
             pool,
             set,
             tint,
@@ -82,6 +92,9 @@ impl EngineSide {
         unsafe {
             ctx.device.destroy_descriptor_pool(self.pool, None);
             ctx.device.destroy_pipeline_layout(self.layout, None);
+            if let Some(l) = self.resolve_layout {
+                ctx.device.destroy_pipeline_layout(l, None);
+            }
             ctx.device
                 .destroy_descriptor_set_layout(self.set_layout, None);
         }
@@ -101,9 +114,10 @@ fn code(name: &str, spirv: &[u8]) -> ShaderCode {
     }
 }
 
-/// The engine's material: colour always, depth pre-pass shaders when `depth`.
+/// The engine's material: colour always, depth pre-pass shaders when `depth`, its resolve when
+/// the renderer has a visibility buffer.
 fn material(side: &EngineSide, depth: bool) -> EngineMaterial {
-    let (layout, set) = (side.layout, side.set);
+    let (layout, set, resolve_layout) = (side.layout, side.set, side.resolve_layout);
     let binds = Rc::new(std::cell::Cell::new(0u32));
     let counter = Rc::clone(&binds);
     EngineMaterial {
@@ -117,15 +131,24 @@ fn material(side: &EngineSide, depth: bool) -> EngineMaterial {
             vertex: code("test_engine.vert", VS),
             fragment: Some(code("test_engine.frag", FS)),
         }),
-        bind: Box::new(move |ctx, cb, _pass| {
+        resolve: resolve_layout.map(|layout| EngineResolve {
+            fragment: code("test_engine_resolve.frag", RS),
+            layout,
+        }),
+        bind: Box::new(move |ctx, cb, pass| {
             counter.set(counter.get() + 1);
+            // In a resolve the engine's set is set 2 (set 1 is tilegraph's).
+            let (layout, index) = match (pass, resolve_layout) {
+                (MaterialPass::Resolve, Some(l)) => (l, 2),
+                _ => (layout, 1),
+            };
             // SAFETY: recording; the set and layout live until the renderer is destroyed.
             unsafe {
                 ctx.device.cmd_bind_descriptor_sets(
                     cb,
                     vk::PipelineBindPoint::GRAPHICS,
                     layout,
-                    1,
+                    index,
                     &[set],
                     &[],
                 )
@@ -164,9 +187,14 @@ fn frames(
         culling,
         ..Default::default()
     };
+    frames_with(scene, options, engine)
+}
+
+/// As [`frames`], under `options`.
+fn frames_with(scene: &Scene, options: RenderOptions, engine: Option<bool>) -> Vec<RgbaImage> {
     let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
     let mut r = SceneRenderer::new(&g, scene, options).unwrap();
-    let side = EngineSide::new(&g, r.scene_set_layout());
+    let side = EngineSide::new(&g, &r);
     if let Some(depth) = engine {
         assert_eq!(r.add_material(material(&side, depth)), 0);
     }
@@ -214,6 +242,78 @@ fn an_engine_material_draws_the_culled_city_as_it_draws_the_unculled_one() {
     }
 }
 
+/// Pixels of `a` and `b` that differ, over all frames.
+fn differing(a: &[RgbaImage], b: &[RgbaImage]) -> usize {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| {
+            x.pixels
+                .chunks_exact(4)
+                .zip(y.pixels.chunks_exact(4))
+                .filter(|(p, q)| p != q)
+                .count()
+        })
+        .sum()
+}
+
+/// The engine's resolve shader (`test_engine_resolve.frag`, through
+/// `shaders/include/tilegraph_visbuf.glsl`) shades its materials' pixels of the classified
+/// visibility buffer: the culled city equals the unculled one, the toon is the engine's (its
+/// forward colour shader's within the pixels where interpolation moves a band or stripe edge),
+/// and without classification the renderer says what is missing.
+#[test]
+fn an_engine_resolve_shades_the_classified_visibility_buffer() {
+    use tilegraph_passes::cull::Culling;
+    use tilegraph_passes::{Technique, VisbufResolve};
+    let scene = city_with_engine_materials();
+    let visbuf = |culling| RenderOptions {
+        width: 160,
+        height: 90,
+        culling,
+        technique: Technique::Visbuf,
+        visbuf_resolve: Some(VisbufResolve::Classified),
+        ..Default::default()
+    };
+    let none = frames_with(&scene, visbuf(Culling::None), Some(false));
+    let two_phase = frames_with(&scene, visbuf(Culling::HizTwoPhase), Some(false));
+    for (k, (a, b)) in none.iter().zip(&two_phase).enumerate() {
+        assert!(a == b, "frame {k}: hiz-2phase differs from none");
+    }
+    let tilegraph = frames_with(&scene, visbuf(Culling::None), None);
+    let forward = frames(&scene, Culling::None, Some(false));
+    let total = 5 * 160 * 90;
+    let engine_shaded = differing(&none, &tilegraph);
+    let off_forward = differing(&none, &forward);
+    println!(
+        "engine resolve: {engine_shaded} of {total} pixels differ from tilegraph's resolve, {off_forward} from the engine's forward shading"
+    );
+    assert!(
+        engine_shaded > total / 2,
+        "{engine_shaded} pixels are the engine's"
+    );
+    assert!(
+        off_forward < total / 500,
+        "{off_forward} pixels differ from forward"
+    );
+
+    // The über-resolve cannot run the engine's shader: a typed error, not tilegraph's shading.
+    let options = RenderOptions {
+        visbuf_resolve: Some(VisbufResolve::Uber),
+        ..visbuf(Culling::None)
+    };
+    let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+    let side = EngineSide::new(&g, &r);
+    r.add_material(material(&side, false));
+    let cam = scene.camera_path().camera(0).unwrap();
+    match r.render(&g, &scene, &cam) {
+        Err(tilegraph_passes::RenderError::EngineResolveNeedsClassification { .. }) => {}
+        other => panic!("expected EngineResolveNeedsClassification, got {other:?}"),
+    }
+    r.destroy(&g);
+    side.destroy(&g);
+}
+
 /// A scene naming an engine material the renderer does not have is a typed error.
 #[test]
 fn an_unregistered_engine_material_is_a_typed_error() {
@@ -225,7 +325,7 @@ fn an_unregistered_engine_material_is_a_typed_error() {
     };
     let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
     let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
-    let side = EngineSide::new(&g, r.scene_set_layout());
+    let side = EngineSide::new(&g, &r);
     // One registered (id 0), so the table is built; the scene also names id 3.
     r.add_material(material(&side, false));
     let mut scene = scene;

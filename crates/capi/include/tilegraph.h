@@ -446,6 +446,10 @@ enum TgMaterialPass
    * The forward colour passes (opaque, alpha-tested, blended).
    */
   TG_MATERIAL_PASS_COLOR = 1,
+  /**
+   * The visibility buffer's resolve, after material classification.
+   */
+  TG_MATERIAL_PASS_RESOLVE = 2,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -727,6 +731,15 @@ typedef struct {
   TgShader color_vertex;
   TgShader color_fragment;
   /**
+   * The visibility buffer's resolve (a fragment shader through
+   * `shaders/include/tilegraph_visbuf.glsl`; null code: tilegraph's resolve shades the
+   * material's pixels) and its VkPipelineLayout: set 0 the scene set layout, set 1
+   * `tg_renderer_resolve_set_layout`'s, the engine's own sets from 2. Runs with
+   * `visbuf_resolve = classified` (set in the profile's knobs).
+   */
+  TgShader resolve_fragment;
+  uint64_t resolve_layout;
+  /**
    * Called before the material's draws in each pass (may be null: nothing to bind).
    */
   TgBindMaterial bind;
@@ -869,6 +882,12 @@ typedef struct {
    * waits for the device: give the count the game will reach.
    */
   uint32_t instance_capacity;
+  /**
+   * TG_TECHNIQUE_VISBUF's resolve: 0 the profile's knob `visbuf_resolve`, 1 one shader for
+   * every material, 2 a full-screen pass per material, 3 material classification (what an
+   * engine material's resolve shader needs).
+   */
+  uint32_t visbuf_resolve;
 } TgRendererDesc;
 
 /**
@@ -1360,6 +1379,16 @@ TgStatus tg_graph_compile(TgGraph graph, const char *profile, TgPlan *out_plan);
  * `out_layout` is writable.
  */
 TgStatus tg_renderer_scene_set_layout(TgRenderer renderer, uint64_t *out_layout);
+
+/**
+ * The layout of set 1 of an engine material's resolve pipeline layout (a
+ * VkDescriptorSetLayout owned by the renderer): the ids and the classification's lists.
+ * TG_STATUS_INVALID_ARGUMENT unless the renderer shades with the visibility buffer.
+ *
+ * # Safety
+ * `out_layout` is writable.
+ */
+TgStatus tg_renderer_resolve_set_layout(TgRenderer renderer, uint64_t *out_layout);
 
 /**
  * Registers an engine material on a renderer; its id (0, 1, ... per renderer) goes to

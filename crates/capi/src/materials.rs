@@ -11,7 +11,9 @@
 
 use std::ffi::{c_char, c_void};
 
-use tilegraph_passes::materials::{EngineMaterial, MaterialPass, MaterialShaders, ShaderCode};
+use tilegraph_passes::materials::{
+    EngineMaterial, EngineResolve, MaterialPass, MaterialShaders, ShaderCode,
+};
 use tilegraph_scene::{MaterialId, Scene};
 use tilegraph_vk::ash::vk::{self, Handle};
 
@@ -31,6 +33,8 @@ pub enum TgMaterialPass {
     Depth = 0,
     /// The forward colour passes (opaque, alpha-tested, blended).
     Color = 1,
+    /// The visibility buffer's resolve, after material classification.
+    Resolve = 2,
 }
 
 /// One shader stage's SPIR-V; `code` null: the stage is absent.
@@ -69,6 +73,13 @@ pub struct TgEngineMaterialDesc {
     /// vertex shader, a fragment shader is required.
     pub color_vertex: TgShader,
     pub color_fragment: TgShader,
+    /// The visibility buffer's resolve (a fragment shader through
+    /// `shaders/include/tilegraph_visbuf.glsl`; null code: tilegraph's resolve shades the
+    /// material's pixels) and its VkPipelineLayout: set 0 the scene set layout, set 1
+    /// `tg_renderer_resolve_set_layout`'s, the engine's own sets from 2. Runs with
+    /// `visbuf_resolve = classified` (set in the profile's knobs).
+    pub resolve_fragment: TgShader,
+    pub resolve_layout: u64,
     /// Called before the material's draws in each pass (may be null: nothing to bind).
     pub bind: TgBindMaterial,
     /// Passed to `bind` unchanged.
@@ -160,6 +171,38 @@ pub unsafe extern "C" fn tg_renderer_scene_set_layout(
     })
 }
 
+/// The layout of set 1 of an engine material's resolve pipeline layout (a
+/// VkDescriptorSetLayout owned by the renderer): the ids and the classification's lists.
+/// TG_STATUS_INVALID_ARGUMENT unless the renderer shades with the visibility buffer.
+///
+/// # Safety
+/// `out_layout` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn tg_renderer_resolve_set_layout(
+    renderer: TgRenderer,
+    out_layout: *mut u64,
+) -> TgStatus {
+    boundary("tg_renderer_resolve_set_layout", || {
+        // SAFETY: the caller's contract.
+        let out_layout = unsafe { out(out_layout, "out_layout") }?;
+        *out_layout = 0;
+        let layout = registry::with(
+            renderer.raw,
+            Kind::Renderer,
+            "renderer",
+            |r: &RendererObject| Ok(r.renderer.resolve_set_layout()),
+        )?;
+        *out_layout = layout
+            .ok_or_else(|| {
+                Failure::invalid(
+                    "the renderer does not shade with the visibility buffer (TG_TECHNIQUE_VISBUF)",
+                )
+            })?
+            .as_raw();
+        Ok(())
+    })
+}
+
 /// Registers an engine material on a renderer; its id (0, 1, ... per renderer) goes to
 /// `out_engine_material`. Scene materials given that id (`tg_scene_set_engine_material`) are
 /// drawn with its shaders in the passes it has shaders for, from the next record. The shaders
@@ -199,7 +242,21 @@ pub unsafe extern "C" fn tg_material_register(
                 pass_shaders(&desc.color_vertex, &desc.color_fragment, "color", true)?,
             )
         };
-        if depth.is_none() && color.is_none() {
+        // SAFETY: as above.
+        let resolve = match unsafe { shader(&desc.resolve_fragment, "resolve_fragment") }? {
+            None => None,
+            Some(_) if desc.resolve_layout == 0 => {
+                return Err(Failure::new(
+                    TgStatus::NullPointer,
+                    "`desc->resolve_layout` is VK_NULL_HANDLE but a resolve shader is given",
+                ))
+            }
+            Some(fragment) => Some(EngineResolve {
+                fragment,
+                layout: vk::PipelineLayout::from_raw(desc.resolve_layout),
+            }),
+        };
+        if depth.is_none() && color.is_none() && resolve.is_none() {
             return Err(Failure::invalid(format!(
                 "engine material {name:?} has no shaders (give depth or colour shaders)"
             )));
@@ -210,11 +267,13 @@ pub unsafe extern "C" fn tg_material_register(
             layout: vk::PipelineLayout::from_raw(desc.layout),
             depth,
             color,
+            resolve,
             bind: Box::new(move |_ctx, cb, pass| {
                 if let Some(f) = callback {
                     let pass = match pass {
                         MaterialPass::Depth => TgMaterialPass::Depth,
                         MaterialPass::Color => TgMaterialPass::Color,
+                        MaterialPass::Resolve => TgMaterialPass::Resolve,
                     };
                     // SAFETY: the engine's callback, called as its contract says: during the
                     // record, with the command buffer it gave and its own `user`.

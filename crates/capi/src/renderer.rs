@@ -4,7 +4,9 @@
 use std::ffi::{c_char, c_void, CString};
 
 use tilegraph_graph::{AccessFlags, Layout, PipelineStages, ResourceState};
-use tilegraph_passes::{EngineTarget, FrameReport, GpuTiming, RenderOptions, SceneRenderer};
+use tilegraph_passes::{
+    EngineTarget, FrameReport, GpuTiming, RenderOptions, SceneRenderer, VisbufResolve,
+};
 use tilegraph_scene::{Camera, CameraFrame, Scene};
 use tilegraph_vk::ash::vk::{self, Handle};
 use tilegraph_vk::executor::{EngineFrame, ImageHandle};
@@ -38,6 +40,10 @@ pub struct TgRendererDesc {
     /// a power of two). A scene that outgrows them gets new buffers at its next record, which
     /// waits for the device: give the count the game will reach.
     pub instance_capacity: u32,
+    /// TG_TECHNIQUE_VISBUF's resolve: 0 the profile's knob `visbuf_resolve`, 1 one shader for
+    /// every material, 2 a full-screen pass per material, 3 material classification (what an
+    /// engine material's resolve shader needs).
+    pub visbuf_resolve: u32,
 }
 
 /// An image's layout and last (or next) use.
@@ -186,6 +192,17 @@ pub unsafe extern "C" fn tg_renderer_create(
             height: desc.height,
             clear_color: desc.clear_color,
             instance_capacity: desc.instance_capacity,
+            visbuf_resolve: match desc.visbuf_resolve {
+                0 => None,
+                1 => Some(VisbufResolve::Uber),
+                2 => Some(VisbufResolve::PerMaterial),
+                3 => Some(VisbufResolve::Classified),
+                v => {
+                    return Err(Failure::invalid(format!(
+                        "`desc->visbuf_resolve` {v} is not 0 to 3"
+                    )))
+                }
+            },
             ..RenderOptions::default()
         };
         let renderer = registry::with2(

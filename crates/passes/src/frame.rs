@@ -39,9 +39,20 @@ pub struct FrameData {
     pub engine_of_mesh: Vec<Option<u32>>,
     /// The scene's materials this frame (the per-material resolves draw each).
     pub material_count: u32,
+    /// Per scene material: the engine material whose resolve shades its pixels (after
+    /// classification); empty while the engine registered no material with a resolve.
+    pub engine_resolve: Vec<Option<u32>>,
 }
 
 impl FrameData {
+    /// The engine material resolving scene material `material`'s pixels, if any.
+    pub fn engine_resolve_of(&self, material: u32) -> Option<u32> {
+        self.engine_resolve
+            .get(material as usize)
+            .copied()
+            .flatten()
+    }
+
     /// The engine material of `mesh`'s material, if any.
     pub fn engine_of(&self, mesh: u32) -> Option<u32> {
         self.engine_of_mesh.get(mesh as usize).copied().flatten()

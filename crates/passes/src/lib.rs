@@ -33,6 +33,7 @@ pub mod prepass;
 pub mod recording;
 pub mod renderer;
 pub mod setup;
+pub(crate) mod spv;
 pub mod targets;
 pub mod visbuf;
 

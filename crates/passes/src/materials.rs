@@ -23,6 +23,10 @@ pub enum MaterialPass {
     /// colour pass tests EQUAL: the vertex shader must compute positions as the pre-pass does
     /// (`tilegraph_clip_position`, `invariant gl_Position`).
     Color,
+    /// The visibility buffer's resolve of the material's pixels, after material classification
+    /// (`visbuf_resolve = classified`): the engine's fragment shader
+    /// (`shaders/include/tilegraph_visbuf.glsl`) over tilegraph's tile quads.
+    Resolve,
 }
 
 /// One shader stage: a name (for the lint's findings and debug labels) and its SPIR-V.
@@ -44,6 +48,15 @@ pub struct MaterialShaders {
 /// bound the material's pipeline and set 0, before its draws.
 pub type BindMaterial = Box<dyn Fn(&Context, vk::CommandBuffer, MaterialPass)>;
 
+/// The engine's visibility-buffer resolve of a material: a fragment shader and its pipeline
+/// layout — set 0 the renderer's scene set layout, set 1 its resolve set layout
+/// ([`crate::SceneRenderer::resolve_set_layout`]), the engine's own sets from 2.
+#[derive(Debug, Clone)]
+pub struct EngineResolve {
+    pub fragment: ShaderCode,
+    pub layout: vk::PipelineLayout,
+}
+
 /// What an engine registers for a material ([`crate::SceneRenderer::add_material`]).
 pub struct EngineMaterial {
     pub name: String,
@@ -54,15 +67,18 @@ pub struct EngineMaterial {
     pub depth: Option<MaterialShaders>,
     /// Its colour shaders; `None`: tilegraph's colour passes draw its instances.
     pub color: Option<MaterialShaders>,
+    /// Its visibility-buffer resolve; `None`: tilegraph's resolve shades its pixels.
+    pub resolve: Option<EngineResolve>,
     pub bind: BindMaterial,
 }
 
 impl EngineMaterial {
-    /// Its shaders for `pass`.
+    /// Its raster shaders for `pass` (`None` for the resolve: [`Self::resolve`]).
     pub fn shaders(&self, pass: MaterialPass) -> Option<&MaterialShaders> {
         match pass {
             MaterialPass::Depth => self.depth.as_ref(),
             MaterialPass::Color => self.color.as_ref(),
+            MaterialPass::Resolve => None,
         }
     }
 }
@@ -74,6 +90,7 @@ impl std::fmt::Debug for EngineMaterial {
             .field("layout", &self.layout)
             .field("depth", &self.depth.as_ref().map(|s| &s.vertex.name))
             .field("color", &self.color.as_ref().map(|s| &s.vertex.name))
+            .field("resolve", &self.resolve.as_ref().map(|r| &r.fragment.name))
             .finish()
     }
 }

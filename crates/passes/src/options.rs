@@ -74,6 +74,8 @@ pub enum RenderError {
     },
     #[error("culling {culling} culls clusters; engine materials are drawn with instance culling (none, frustum, hiz, hiz-2phase, reproject, the query techniques)")]
     EngineMaterialsWithClusters { culling: &'static str },
+    #[error("material {material} is resolved by engine material {engine}'s shader, which runs after material classification: set the knob visbuf_resolve = classified (RenderOptions::visbuf_resolve)")]
+    EngineResolveNeedsClassification { material: u32, engine: u32 },
 }
 
 impl RenderError {

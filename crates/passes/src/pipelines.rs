@@ -12,6 +12,7 @@
 //! [`Pipelines::get_or_create`].
 
 use std::collections::HashMap;
+use std::rc::Rc;
 use std::sync::Arc;
 
 use tilegraph_graph::PassId;
@@ -28,52 +29,12 @@ use tilegraph_vk::{Context, VkError};
 
 use crate::draws::DrawClass;
 use crate::materials::{EngineMaterial, MaterialPass, MaterialShaders};
+use crate::spv;
 
 /// How far occlusion proxies are pulled toward the eye, in units of the depth format (a D32
 /// float's ulp at the box's largest depth, 1/65535 for D16): a few, against interpolation and
 /// rounding differences between a box and the surface it encloses.
 pub const PROXY_DEPTH_BIAS: i32 = 4;
-
-mod spv {
-    pub const DEPTH_VS: &[u8] = include_bytes!("../../../shaders/spv/depth.vert.spv");
-    pub const DEPTH_ALPHA_VS: &[u8] = include_bytes!("../../../shaders/spv/depth_alpha.vert.spv");
-    pub const DEPTH_ALPHA_FS: &[u8] = include_bytes!("../../../shaders/spv/depth_alpha.frag.spv");
-    pub const FORWARD_VS: &[u8] = include_bytes!("../../../shaders/spv/forward.vert.spv");
-    pub const FORWARD_FS: &[u8] = include_bytes!("../../../shaders/spv/forward.frag.spv");
-    pub const FORWARD_EARLY_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/forward_early.frag.spv");
-    pub const FORWARD_COUNT_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/forward_count.frag.spv");
-    pub const FORWARD_COUNT_LATE_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/forward_count_late.frag.spv");
-    pub const VISBUF_VS: &[u8] = include_bytes!("../../../shaders/spv/visbuf.vert.spv");
-    pub const VISBUF_FS: &[u8] = include_bytes!("../../../shaders/spv/visbuf.frag.spv");
-    pub const FULLSCREEN_VS: &[u8] = include_bytes!("../../../shaders/spv/fullscreen.vert.spv");
-    pub const RESOLVE_INPUT_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/visbuf_resolve_input.frag.spv");
-    pub const RESOLVE_SAMPLED_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/visbuf_resolve_sampled.frag.spv");
-    // The same with the textures as layers of one image (TEXTURE_LAYERS).
-    pub const DEPTH_ALPHA_LAYERS_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/depth_alpha_layers.frag.spv");
-    pub const FORWARD_LAYERS_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/forward_layers.frag.spv");
-    pub const FORWARD_EARLY_LAYERS_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/forward_early_layers.frag.spv");
-    pub const FORWARD_COUNT_LAYERS_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/forward_count_layers.frag.spv");
-    pub const FORWARD_COUNT_LATE_LAYERS_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/forward_count_late_layers.frag.spv");
-    pub const VISBUF_LAYERS_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/visbuf_layers.frag.spv");
-    pub const RESOLVE_INPUT_LAYERS_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/visbuf_resolve_input_layers.frag.spv");
-    pub const RESOLVE_SAMPLED_LAYERS_FS: &[u8] =
-        include_bytes!("../../../shaders/spv/visbuf_resolve_sampled_layers.frag.spv");
-    pub const OQ_BOX_VS: &[u8] = include_bytes!("../../../shaders/spv/oq_box.vert.spv");
-    pub const RASTER_VS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.vert.spv");
-    pub const RASTER_FS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.frag.spv");
-}
 
 /// `fullscreen.vert`: one triangle covering the render area, no vertex input.
 pub const FULLSCREEN_VS: &[u8] = spv::FULLSCREEN_VS;
@@ -98,8 +59,9 @@ pub enum Variant {
     ResolveSampled,
 }
 
-/// The engine-material pass kind a variant belongs to; `None` for the visibility buffer's
-/// passes, which engine materials do not take part in yet (its resolve is tilegraph's).
+/// The engine-material raster pass kind a variant belongs to; `None` for the visibility
+/// buffer's passes: its id pass is tilegraph's, and an engine's resolve shader runs per
+/// material after classification (`visbuf::classify`), not through a variant.
 pub fn material_pass(variant: Variant) -> Option<MaterialPass> {
     match variant {
         Variant::DepthOpaque | Variant::DepthAlpha => Some(MaterialPass::Depth),
@@ -137,10 +99,12 @@ pub enum PipelineKey {
     Named(&'static str),
     /// The visibility buffer's resolve of one material (`visbuf::classify`): over the screen
     /// (`tile` 0; the ids an input attachment or sampled) or over its tiles of `tile` pixels.
+    /// With `engine`, engine material `engine`'s resolve shader.
     Resolve {
         material: u32,
         input: bool,
         tile: u32,
+        engine: Option<u32>,
     },
 }
 
@@ -170,8 +134,9 @@ pub struct Pipelines {
     /// How the scene's textures are bound (which build of each fragment shader), and the
     /// descriptors of the binding: `TEXTURE_SLOTS` (specialization 1) of the indexed builds.
     textures: (TextureBinding, u32),
-    /// The engine's materials (`SceneRenderer::add_material`), by id.
-    materials: Vec<EngineMaterial>,
+    /// The engine's materials (`SceneRenderer::add_material`), by id (shared with the
+    /// pipeline descriptions that read their shaders).
+    materials: Vec<Rc<EngineMaterial>>,
     /// Set 0: the scene (`GpuScene::set_layout`, owned by the scene).
     pub scene_layout: vk::PipelineLayout,
     /// Set 1 of the resolve: the ids as an input attachment, or sampled.
@@ -304,7 +269,7 @@ impl Pipelines {
 
     /// Registers an engine material; its id.
     pub fn add_material(&mut self, material: EngineMaterial) -> u32 {
-        self.materials.push(material);
+        self.materials.push(Rc::new(material));
         (self.materials.len() - 1) as u32
     }
 
@@ -330,6 +295,11 @@ impl Pipelines {
         engine
             .and_then(|k| self.materials.get(k as usize))
             .map_or(self.scene_layout, |m| m.layout)
+    }
+
+    /// Engine material `engine`.
+    pub fn engine_material(&self, engine: u32) -> Option<&Rc<EngineMaterial>> {
+        self.materials.get(engine as usize)
     }
 
     /// Lets engine material `engine` bind its own sets for `variant`'s pass.
@@ -366,14 +336,14 @@ impl Pipelines {
         let layouts = (self.scene_layout, self.input_layout, self.sampled_layout);
         let count_fragments = self.count_fragments;
         let textures = self.textures;
-        let material = engine.and_then(|k| self.materials.get(k as usize));
-        let shaders = material.and_then(|m| {
-            material_pass(variant)
-                .and_then(|p| m.shaders(p))
-                .map(|s| (s.clone(), m.layout))
-        });
+        let material = engine.and_then(|k| self.materials.get(k as usize).cloned());
         self.get_or_create(pc, key, |target| {
             let target = with_colors(target, color_count);
+            let shaders = material.as_deref().and_then(|m| {
+                material_pass(variant)
+                    .and_then(|p| m.shaders(p))
+                    .map(|s| (s, m.layout))
+            });
             scene_pipeline(
                 pc,
                 target,
@@ -381,7 +351,7 @@ impl Pipelines {
                 (variant, double_sided, depth),
                 count_fragments,
                 textures,
-                shaders.as_ref(),
+                shaders,
             )
         })
     }
@@ -592,7 +562,7 @@ fn scene_pipeline(
     (variant, double_sided, depth): (Variant, bool, DepthConvention),
     count_fragments: bool,
     (texture_binding, texture_slots): (TextureBinding, u32),
-    engine: Option<&(MaterialShaders, vk::PipelineLayout)>,
+    engine: Option<(&MaterialShaders, vk::PipelineLayout)>,
 ) -> Result<DescribedPipeline, VkError> {
     // Specialization 1 of every fragment shader: TEXTURE_SLOTS (textures.glsl, ignored by the
     // layers builds); 0 is the variant's own where it has one.
@@ -769,7 +739,7 @@ fn scene_pipeline(
                     specialization: &[],
                 }),
                 &all[..],
-                *engine_layout,
+                engine_layout,
             )
         }
     };

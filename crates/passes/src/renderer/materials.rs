@@ -24,6 +24,16 @@ impl SceneRenderer {
         self.resources.pipelines.add_material(material)
     }
 
+    /// The layout of set 1 of an engine material's visibility-buffer resolve (the ids and the
+    /// classification's lists; `shaders/include/tilegraph_visbuf.glsl`): `None` unless the
+    /// renderer shades with the visibility buffer.
+    pub fn resolve_set_layout(&self) -> Option<vk::DescriptorSetLayout> {
+        self.resources
+            .states
+            .get::<crate::visbuf::classify::ClassifyState>()
+            .map(|c| c.set_layout())
+    }
+
     /// The materials the visibility buffer resolves one by one this frame (its declaration
     /// depends on them): the scene's, where the resolve is per material; else 0.
     pub(super) fn resolve_materials(&self, ctx: &tilegraph_vk::Context) -> u32 {
@@ -39,7 +49,13 @@ impl SceneRenderer {
     /// Brings the frame's mesh -> engine material table up to `scene` and tells GPU culling
     /// whether this frame's lists are drawn in runs of pipelines. Nothing is done (or allocated)
     /// while no engine material is registered.
-    pub(super) fn prepare_materials(&mut self, scene: &Scene) -> Result<(), RenderError> {
+    pub(super) fn prepare_materials(
+        &mut self,
+        ctx: &tilegraph_vk::Context,
+        scene: &Scene,
+    ) -> Result<(), RenderError> {
+        let classified = self.options.technique == crate::Technique::Visbuf
+            && self.options.visbuf_resolve(ctx.profile()).0 == crate::VisbufResolve::Classified;
         let res = &mut self.resources;
         res.frame.material_count = scene.materials().len() as u32;
         let registered = res.pipelines.material_count();
@@ -64,6 +80,25 @@ impl SceneRenderer {
                 any = true;
             }
             table.push(engine);
+        }
+        // Which scene materials an engine resolve shades (after classification only).
+        let resolves = &mut res.frame.engine_resolve;
+        resolves.clear();
+        for (i, m) in scene.materials().iter().enumerate() {
+            let engine = m.engine_material.filter(|&k| {
+                res.pipelines
+                    .engine_material(k)
+                    .is_some_and(|e| e.resolve.is_some())
+            });
+            if let (Some(k), false) = (engine, classified) {
+                if self.options.technique == crate::Technique::Visbuf {
+                    return Err(RenderError::EngineResolveNeedsClassification {
+                        material: i as u32,
+                        engine: k,
+                    });
+                }
+            }
+            resolves.push(engine);
         }
         if let Some(cull) = res.states.get_mut::<CullState>() {
             if any && cull.clusters.is_some() {

@@ -536,7 +536,7 @@ impl SceneRenderer {
         slot: Option<usize>,
     ) -> Result<(), RenderError> {
         self.fit(ctx, scene)?;
-        self.prepare_materials(scene)?;
+        self.prepare_materials(ctx, scene)?;
         let (w, h) = (self.options.width, self.options.height);
         self.last_camera = Some(frame.camera);
         let m = frame.current;

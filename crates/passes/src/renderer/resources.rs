@@ -11,7 +11,7 @@ use crate::hiz::{HizState, ReprojectState};
 use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{RenderError, RenderOptions};
 use crate::pipelines::Pipelines;
-use crate::setup::{Technique, VisbufResolve};
+use crate::setup::Technique;
 use crate::visbuf::classify::ClassifyState;
 use crate::visbuf::ResolveSets;
 
@@ -165,10 +165,11 @@ fn add_states(
     }
     if options.technique == Technique::Visbuf {
         res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);
-        if options.visbuf_resolve(ctx.profile()).0 == VisbufResolve::Classified {
-            res.states
-                .insert(ClassifyState::new(ctx, set_layout, frames_in_flight)?);
-        }
+        // Also where the resolve is not classified: its set layout is what an engine's
+        // resolve layout is made with (`SceneRenderer::resolve_set_layout`); the compute
+        // pipeline is made on first use.
+        res.states
+            .insert(ClassifyState::new(ctx, set_layout, frames_in_flight)?);
     }
     Ok(())
 }

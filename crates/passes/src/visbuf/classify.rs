@@ -22,15 +22,14 @@ use tilegraph_vk::{Context, Feature, VkError};
 
 use crate::cull::zero_fill;
 use crate::frame::{scene_set, FrameGraph, PassState, Payload, SceneResources};
+use crate::materials::MaterialPass;
 use crate::pipelines::{with_colors, PipelineKey};
+use crate::spv;
 use crate::targets::SceneTargets;
 
 /// Materials classification tracks: a scene with more resolves in one pass (its materials'
 /// bits would not fit a tile's mask; `MAX_CLASSIFIED_MATERIALS` in `shaders/common/visbuf.glsl`).
 pub const MAX_CLASSIFIED_MATERIALS: u32 = 256;
-
-const CLASSIFY_CS: &[u8] = include_bytes!("../../../../shaders/spv/visbuf_classify.comp.spv");
-const TILE_VS: &[u8] = include_bytes!("../../../../shaders/spv/visbuf_tile.vert.spv");
 
 /// The screen's tiles of `tile` pixels: columns and rows.
 pub fn tile_grid(width: u32, height: u32, tile: u32) -> (u32, u32) {
@@ -118,6 +117,11 @@ impl ClassifyState {
         Ok(())
     }
 
+    /// Set 1's layout (an engine resolve's pipeline layout has it as set 1).
+    pub fn set_layout(&self) -> vk::DescriptorSetLayout {
+        self.set_layout
+    }
+
     /// The classification pipeline for tiles of `tile` pixels (made on first use).
     fn compute_pipeline(&mut self, ctx: &Context, tile: u32) -> Result<vk::Pipeline, VkError> {
         if let Some((_, p)) = self.compute.iter().find(|(t, _)| *t == tile) {
@@ -128,7 +132,7 @@ impl ClassifyState {
             ctx,
             &Stage {
                 name: "visbuf_classify.comp",
-                spirv: CLASSIFY_CS,
+                spirv: spv::CLASSIFY_CS,
                 specialization: &spec,
             },
             self.layout,
@@ -291,13 +295,36 @@ fn record_classified(
     // command buffer reuses the earlier count buffer.)
     let counted = pc.ctx.has_feature(Feature::DrawIndirectCount);
     for m in 0..materials {
-        let pipeline = material_resolve(pc, res, m, Coverage::Tiles { tile, layout })?;
+        let engine = res.frame.engine_resolve_of(m);
+        let coverage = Coverage::Tiles { tile, layout };
+        let pipeline = material_resolve(pc, res, m, coverage, engine)?;
         let d = &pc.ctx.device;
         let at = u64::from(m) * 16;
         // SAFETY: as above; the draw's command was written by the classification; the count
         // variant only where the device enabled drawIndirectCount.
         unsafe {
             d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
+        }
+        if let Some(material) = engine.and_then(|k| res.pipelines.engine_material(k)) {
+            if let Some(r) = &material.resolve {
+                // Sets 0 and 1 again with the engine's layout (its push constants may make it
+                // incompatible with the classification's), then the engine's own.
+                // SAFETY: as above.
+                unsafe {
+                    d.cmd_bind_descriptor_sets(
+                        pc.cb,
+                        vk::PipelineBindPoint::GRAPHICS,
+                        r.layout,
+                        0,
+                        &[set, own],
+                        &[],
+                    )
+                };
+                (material.bind)(pc.ctx, pc.cb, MaterialPass::Resolve);
+            }
+        }
+        // SAFETY: as above.
+        unsafe {
             if counted {
                 d.cmd_draw_indirect_count(pc.cb, commands, at, commands, at + 4, 1, 16);
             } else {
@@ -324,12 +351,14 @@ pub(super) enum Coverage {
     },
 }
 
-/// The resolve of material `material` alone for the subpass `pc` records into.
+/// The resolve of material `material` alone for the subpass `pc` records into: tilegraph's,
+/// or engine material `engine`'s (over tiles only: its layout has the classification's set 1).
 pub(super) fn material_resolve(
     pc: &PassContext<'_>,
     res: &mut SceneResources,
     material: u32,
     coverage: Coverage,
+    engine: Option<u32>,
 ) -> Result<vk::Pipeline, VkError> {
     let (input, tile, layout) = match coverage {
         Coverage::Screen { input, layout } => (input, 0, layout),
@@ -339,10 +368,20 @@ pub(super) fn material_resolve(
         material,
         input,
         tile,
+        engine,
     };
     let (name, fragment_spirv) = res.pipelines.resolve_fragment(input);
     let slots = res.pipelines.texture_slots();
+    let own = engine
+        .and_then(|k| res.pipelines.engine_material(k))
+        .filter(|m| m.resolve.is_some())
+        .cloned();
     res.pipelines.get_or_create(pc, key, |target| {
+        let engine_resolve = own.as_deref().and_then(|m| m.resolve.as_ref());
+        let (name, fragment_spirv, layout) = match engine_resolve {
+            Some(r) => (r.fragment.name.as_str(), &r.fragment.spirv[..], r.layout),
+            None => (name, fragment_spirv, layout),
+        };
         let fragment_spec = [(1, slots), (2, material)];
         let tile_spec = [(2, material), (3, tile)];
         let vertex = if tile == 0 {
@@ -354,7 +393,7 @@ pub(super) fn material_resolve(
         } else {
             Stage {
                 name: "visbuf_tile.vert",
-                spirv: TILE_VS,
+                spirv: spv::TILE_VS,
                 specialization: &tile_spec,
             }
         };

@@ -257,7 +257,7 @@ fn record_resolve(
     }
     for m in 0..per_material.unwrap_or(0) {
         let coverage = classify::Coverage::Screen { input, layout };
-        let pipeline = classify::material_resolve(pc, res, m, coverage)?;
+        let pipeline = classify::material_resolve(pc, res, m, coverage, None)?;
         let d = &pc.ctx.device;
         // SAFETY: as above; set 1 stays bound (the same layout).
         unsafe {
