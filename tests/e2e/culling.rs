@@ -162,7 +162,8 @@ fn reprojected_depth_culls_and_its_misses_are_counted() {
 }
 
 /// Extremes on the GPU path: a world 10^6 m from the origin (camera-relative transforms), odd
-/// and tiny viewports (non-power-of-two pyramids down to 1x1) — no visible instance culled.
+/// and tiny viewports (non-power-of-two pyramids down to 1x1) — no visible instance culled, and
+/// every frame equals the unculled one.
 #[test]
 fn extremes_keep_two_phase_culling_conservative() {
     let features = FeatureRequest::default().require([
@@ -216,10 +217,10 @@ fn extremes_keep_two_phase_culling_conservative() {
                 "{size:?} {mode:?}: frame {} culled {:?}",
                 f.frame, f.false_negative_ids
             );
-            assert_eq!(
-                f.image_diff_pixels, f.image_diff_pixels_owner_drawn,
-                "{size:?} {mode:?}: frame {} has a hole",
-                f.frame
+            assert!(
+                f.image_equal,
+                "{size:?} {mode:?}: frame {} differs from the unculled image in {} pixels ({} owned by drawn instances)",
+                f.frame, f.image_diff_pixels, f.image_diff_pixels_owner_drawn
             );
         }
         if size == SIZE {
@@ -283,10 +284,10 @@ fn pyramid_resolution_and_sphere_bounds_stay_conservative() {
                 "{what}: frame {} culled {:?}",
                 f.frame, f.false_negative_ids
             );
-            assert_eq!(
-                f.image_diff_pixels, f.image_diff_pixels_owner_drawn,
-                "{what}: frame {} has a hole",
-                f.frame
+            assert!(
+                f.image_equal,
+                "{what}: frame {} differs from the unculled image in {} pixels ({} owned by drawn instances)",
+                f.frame, f.image_diff_pixels, f.image_diff_pixels_owner_drawn
             );
         }
         (r.totals.drawn, format!("{what}: {}", summary(&r)))

@@ -179,6 +179,14 @@ fn ensure_rust_components() -> Result<(), String> {
 }
 
 fn test(rest: &[String]) -> Result<(), String> {
+    // A leaked TILEGRAPH_BLESS would rewrite the golden images and the header instead of
+    // comparing them, and every test would pass.
+    if std::env::var_os("TILEGRAPH_BLESS").is_some() {
+        return Err(
+            "TILEGRAPH_BLESS is set: `cargo xtask test` compares golden images and the C header, it never rewrites them (unset it; `cargo xtask bless` regenerates the goldens)"
+                .into(),
+        );
+    }
     ensure_rust_components()?;
     run(
         "cargo fmt --all --check",
