@@ -2,8 +2,9 @@
 //! and every technique on the shipped scenes:
 //!
 //! - the state lint of the shipped passes: a finding is either fixed or listed, with its
-//!   reason, in docs/PROFILES.md's "Accepted lint findings" table — and a listed finding that
-//!   no frame produces any more is an error too, so the table stays true;
+//!   reason, in `config/accepted_findings.toml` (shown in docs/PROFILES.md's "Accepted lint
+//!   findings") — and a listed finding that no frame produces any more is an error too, so the
+//!   table stays true;
 //! - the promises the profile makes about the compiled plan: occlusion queries in a render
 //!   pass of their own, after a flush, where it says so (and no flush where it does not) —
 //!   raster occlusion's boxes are of the same class and follow the same rule; passes in the
@@ -18,7 +19,7 @@ use tilegraph_graph::{FlushReason, PassClass, Plan, Residency, Step, UseKind};
 use tilegraph_passes::cull::Culling;
 use tilegraph_passes::lint::FrameLint;
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
-use tilegraph_profile::lint::Finding;
+use tilegraph_profile::accepted::AcceptedFinding;
 use tilegraph_profile::{Profile, ProfileSet};
 
 /// The frames linted: every shading technique unculled, and every culling technique with the
@@ -57,24 +58,6 @@ fn frame_features() -> tilegraph_vk::FeatureRequest {
     features
 }
 
-/// One row of the accepted-findings table.
-#[derive(Debug)]
-struct Accepted {
-    rule: String,
-    /// A prefix of the pipeline's name.
-    pipeline: String,
-    /// Profile names, or `all`.
-    profiles: Vec<String>,
-}
-
-impl Accepted {
-    fn covers(&self, f: &Finding) -> bool {
-        self.rule == f.rule.name()
-            && f.pipeline.starts_with(&self.pipeline)
-            && (self.profiles.iter().any(|p| p == "all" || *p == f.profile))
-    }
-}
-
 /// The rows of the table under `## {section}` in docs/PROFILES.md that start with a name in
 /// backticks.
 fn table_rows(section: &str) -> Vec<String> {
@@ -91,23 +74,11 @@ fn table_rows(section: &str) -> Vec<String> {
         .collect()
 }
 
-/// The table under "## Accepted lint findings" in docs/PROFILES.md: `| rule | pipeline |
-/// profiles | reason |`, names in backticks.
-fn accepted() -> Vec<Accepted> {
-    let unquote = |s: &str| s.trim().trim_matches('`').to_string();
-    table_rows("Accepted lint findings")
-        .iter()
-        .map(|l| {
-            let cells: Vec<&str> = l.trim_matches('|').split('|').collect();
-            assert!(cells.len() >= 4, "row {l:?}");
-            assert!(!cells[3].trim().is_empty(), "row without a reason: {l:?}");
-            Accepted {
-                rule: unquote(cells[0]),
-                pipeline: unquote(cells[1]),
-                profiles: cells[2].split(',').map(unquote).collect(),
-            }
-        })
-        .collect()
+/// The accepted findings: `config/accepted_findings.toml`, compiled into tilegraph-profile
+/// (docs/PROFILES.md's "Accepted lint findings" shows the same rows; a test of that crate keeps
+/// them equal).
+fn accepted() -> Vec<AcceptedFinding> {
+    tilegraph_profile::accepted::accepted_findings().unwrap()
 }
 
 /// What shapes a frame's passes and render passes: profiles that agree on it record the same
@@ -194,7 +165,7 @@ fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
         "findings neither fixed nor accepted in docs/PROFILES.md:\n{}",
         unaccepted.join("\n")
     );
-    let stale: Vec<&Accepted> = accepted
+    let stale: Vec<&AcceptedFinding> = accepted
         .iter()
         .zip(&used)
         .filter(|(_, u)| !**u)

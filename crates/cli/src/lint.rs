@@ -58,6 +58,8 @@ fn print(
             "shading": o.technique.name(),
             "render_passes": lint.render_passes,
             "findings": lint.findings,
+            "accepted_findings": lint.accepted_count(),
+            "open_findings": lint.findings.len() - lint.accepted_count(),
         });
         outln!("{}", serde_json::to_string_pretty(&value)?)?;
         return Ok(());
@@ -97,8 +99,14 @@ fn print(
     if lint.findings.is_empty() {
         outln!("no findings")?;
     }
-    for f in &lint.findings {
+    // Findings to act on first; the accepted ones after, each with why the state is intended.
+    for f in lint.findings.iter().filter(|f| f.accepted.is_none()) {
         outln!("{f}")?;
+    }
+    for f in &lint.findings {
+        if let Some(reason) = &f.accepted {
+            outln!("accepted: {f}\n    why: {reason}")?;
+        }
     }
     outln!("{}", lint.summary())
 }

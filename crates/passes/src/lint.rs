@@ -6,6 +6,7 @@
 
 use serde::Serialize;
 use tilegraph_graph::Plan;
+use tilegraph_profile::accepted::{accepted_findings, accepted_reason};
 use tilegraph_profile::lint::{lint, Finding, LintDraw, LintRenderPass};
 use tilegraph_profile::Profile;
 
@@ -30,15 +31,35 @@ impl FrameLint {
                 self.render_passes.len()
             );
         }
-        let mut rules: Vec<&str> = self.findings.iter().map(|f| f.rule.name()).collect();
+        let accepted = self.accepted_count();
+        let open = self.findings.len() - accepted;
+        if open == 0 {
+            return format!(
+                "lint ({}): clean but {accepted} accepted findings (the passes' intended state; `tilegraph lint` says why), {draws} pipeline binds",
+                self.profile
+            );
+        }
+        let mut rules: Vec<&str> = self
+            .findings
+            .iter()
+            .filter(|f| f.accepted.is_none())
+            .map(|f| f.rule.name())
+            .collect();
         rules.sort_unstable();
         rules.dedup();
         format!(
-            "lint ({}): {} findings over {draws} pipeline binds ({}); `tilegraph lint` lists them",
+            "lint ({}): {open} findings over {draws} pipeline binds ({}), {accepted} more accepted; `tilegraph lint` lists them",
             self.profile,
-            self.findings.len(),
             rules.join(", ")
         )
+    }
+
+    /// Findings `config/accepted_findings.toml` accepts (the pass's intended state).
+    pub fn accepted_count(&self) -> usize {
+        self.findings
+            .iter()
+            .filter(|f| f.accepted.is_some())
+            .count()
     }
 }
 
@@ -67,7 +88,13 @@ pub fn lint_frame(profile: &Profile, plan: &Plan, trace: &[TracedBind]) -> Frame
         }
     }
     render_passes.retain(|rp| !rp.draws.is_empty());
-    let findings = lint(profile, &render_passes);
+    let mut findings = lint(profile, &render_passes);
+    // The compiled-in table parses (a unit test of tilegraph-profile holds it); were it not to,
+    // every finding would simply show as one to act on.
+    let accepted = accepted_findings().unwrap_or_default();
+    for f in &mut findings {
+        f.accepted = accepted_reason(&accepted, f).map(str::to_string);
+    }
     FrameLint {
         profile: profile.name.clone(),
         render_passes,

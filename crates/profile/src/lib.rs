@@ -10,6 +10,7 @@
 //! This crate never touches Vulkan; `tilegraph-vk` builds the [`DeviceIdentity`].
 //! Every rule in the TOML files cites its source in `docs/PROFILES.md`.
 
+pub mod accepted;
 mod error;
 mod identity;
 pub mod knobs;

@@ -209,6 +209,9 @@ pub struct Finding {
     pub note: String,
     /// Where the rule comes from (a key of docs/PROFILES.md's sources, or `unsourced`).
     pub source: String,
+    /// Why the state is intended, where `config/accepted_findings.toml` accepts it for this
+    /// pipeline and profile ([`crate::accepted`]); `None`: a finding to act on.
+    pub accepted: Option<String>,
 }
 
 impl fmt::Display for Finding {
@@ -289,5 +292,6 @@ fn finding(
         later_draws,
         note: rule.note.clone(),
         source: rule.source.clone(),
+        accepted: None,
     }
 }

@@ -318,8 +318,18 @@ pub fn glob_match(pattern: &str, text: &str) -> bool {
 
 /// Parses and validates one profile file. Errors name the file, the line and the key.
 pub(crate) fn parse_profile(text: &str, file: &str) -> Result<Profile, ProfileError> {
+    let profile: Profile = parse_toml(text, file)?;
+    validate(&profile, file)?;
+    Ok(profile)
+}
+
+/// Parses a TOML file of this crate's; errors name the file, the line and the key.
+pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(
+    text: &str,
+    file: &str,
+) -> Result<T, ProfileError> {
     let de = toml::Deserializer::new(text);
-    let profile: Profile = serde_path_to_error::deserialize(de).map_err(|e| {
+    serde_path_to_error::deserialize(de).map_err(|e| {
         let key = match e.path().to_string() {
             p if p == "." || p.is_empty() => "<root>".to_string(),
             p => p,
@@ -337,9 +347,7 @@ pub(crate) fn parse_profile(text: &str, file: &str) -> Result<Profile, ProfileEr
             key,
             message: inner.message().to_string(),
         }
-    })?;
-    validate(&profile, file)?;
-    Ok(profile)
+    })
 }
 
 fn line_col(text: &str, offset: usize) -> (usize, usize) {
