@@ -8,6 +8,8 @@
 //! - `materials.c` registers an engine material of its own shaders (through the shipped
 //!   include), layout and bind callback; the city through `none` and `hiz-2phase` gives equal
 //!   images, which differ from tilegraph's own shading;
+//! - `plan.c` compiles a deferred frame's graph for three profiles and walks every plan whole
+//!   (steps, attachments, subpasses, barriers): its text equals the Rust plan's, line for line;
 //! - `errors.c` drives every error status and checks each message, faults included.
 //!
 //! `cargo xtask test` builds the static library first (`cargo build --profile test -p
@@ -39,6 +41,10 @@ fn newest_source(dir: &Path, newest: &mut SystemTime) {
     for e in entries.flatten() {
         let p = e.path();
         if p.is_dir() {
+            // Tests and benchmarks are not built into the library.
+            if p.file_name().is_some_and(|n| n == "tests" || n == "benches") {
+                continue;
+            }
             newest_source(&p, newest);
         } else if p
             .extension()
@@ -278,5 +284,212 @@ fn the_c_engine_material_draws_the_culled_city_as_the_unculled_one() {
     assert!(
         changed > 5 * 160 * 90 / 4,
         "the engine's shading is not what was drawn ({changed} pixels differ from tilegraph's)"
+    );
+}
+
+/// `tests/capi/plan.c`'s graph through the Rust API, each plan written as the C walk writes it.
+fn rust_plan_walk() -> String {
+    use std::fmt::Write;
+    use tilegraph_graph::{
+        AccessFlags, ClearColor, ClearDepthStencil, Extent2d, Format, GraphBuilder, ImageDesc,
+        Import, InitialContent, Layout, PassClass, PipelineStages, Residency, ResourceState, Step,
+    };
+    let (w, h) = (320, 180);
+    let desc = |format| ImageDesc::new(Extent2d::new(w, h), format);
+    let mut g: GraphBuilder<()> = GraphBuilder::new();
+    let albedo = g.create_image("albedo", desc(Format::R8G8B8A8_UNORM));
+    let normal = g.create_image("normal", desc(Format::R16G16B16A16_SFLOAT));
+    let depth = g.create_image("depth", desc(Format::D32_SFLOAT));
+    let ao = g.create_buffer("ao", u64::from(w * h * 4));
+    let hdr = g.create_image("hdr", desc(Format::R16G16B16A16_SFLOAT));
+    let target = g.import_image(
+        "target",
+        desc(Format::R8G8B8A8_UNORM),
+        Import {
+            initial: ResourceState::UNDEFINED,
+            content: InitialContent::Discard,
+            final_state: ResourceState::image(
+                Layout::TransferSrc,
+                PipelineStages::COPY,
+                AccessFlags::TRANSFER_READ,
+            ),
+        },
+    );
+    let scratch = g.create_image("scratch", desc(Format::R8G8B8A8_UNORM));
+    let black = ClearColor::Float([0.0, 0.0, 0.0, 1.0]);
+    g.compute_pass("occlusion", PassClass::Compute, ())
+        .storage_write(ao);
+    g.raster_pass("gbuffer", PassClass::Opaque, ())
+        .color_clear(albedo, black)
+        .color_clear(normal, black)
+        .depth_stencil_clear(
+            depth,
+            ClearDepthStencil {
+                depth: 1.0,
+                stencil: 0,
+            },
+        );
+    g.raster_pass("lighting", PassClass::Opaque, ())
+        .input(albedo)
+        .input(normal)
+        .storage_read(ao)
+        .color(hdr);
+    g.raster_pass("post", PassClass::Post, ())
+        .sampled(hdr)
+        .color(target);
+    g.raster_pass("debug", PassClass::Post, ())
+        .sampled(hdr)
+        .color_clear(scratch, black);
+    g.export(target);
+
+    let profiles = tilegraph_profile::ProfileSet::embedded().unwrap();
+    let mut out = String::new();
+    for name in ["mali-valhall", "adreno-7xx", "desktop-nvidia"] {
+        let profile = profiles.get(name).unwrap();
+        let plan = g
+            .clone()
+            .compile(profile)
+            .unwrap()
+            .into_plan_and_payloads()
+            .0;
+        let pass_name = |id: tilegraph_graph::PassId| {
+            plan.passes
+                .iter()
+                .find(|p| p.id == id)
+                .map_or(String::new(), |p| p.name.clone())
+        };
+        let bytes = |b: &tilegraph_graph::TrafficBreakdown| {
+            b.attachment_read_bytes + b.attachment_write_bytes + b.resolve_write_bytes
+        };
+        writeln!(
+            out,
+            "profile {name}: {} steps, {} render passes, {} barriers, {} passes, {} pruned, {} transient, traffic {} of {}",
+            plan.steps.len(),
+            plan.render_passes().count(),
+            plan.barrier_count(),
+            plan.passes.len(),
+            plan.pruned.len(),
+            plan.resources
+                .iter()
+                .filter(|r| r.residency == Residency::Transient)
+                .count(),
+            bytes(&plan.traffic.planned),
+            bytes(&plan.traffic.naive)
+        )
+        .unwrap();
+        for (i, step) in plan.steps.iter().enumerate() {
+            let (kind, pass, barriers, rp) = match step {
+                Step::Barriers(b) => (0, String::new(), b.len(), None),
+                Step::RenderPass(rp) => (1, pass_name(rp.subpasses[0].pass), 0, Some(rp)),
+                Step::Compute { pass } => (2, pass_name(*pass), 0, None),
+                Step::Transfer { pass } => (3, pass_name(*pass), 0, None),
+                Step::Flush(_) => (4, String::new(), 0, None),
+            };
+            let (subpasses, attachments, area) = rp.map_or((0, 0, (0, 0)), |rp| {
+                (
+                    rp.subpasses.len(),
+                    rp.attachments.len(),
+                    (rp.render_area_px.width_px, rp.render_area_px.height_px),
+                )
+            });
+            writeln!(
+                out,
+                "step {i} kind {kind} pass {pass} barriers {barriers} subpasses {subpasses} attachments {attachments} area {}x{}",
+                area.0, area.1
+            )
+            .unwrap();
+            if let Some(rp) = rp {
+                for (a, at) in rp.attachments.iter().enumerate() {
+                    let residency = match at.residency {
+                        Residency::Imported => 0,
+                        Residency::Exported => 1,
+                        Residency::FrameLocal => 2,
+                        Residency::Transient => 3,
+                        Residency::Unused => 4,
+                    };
+                    writeln!(
+                        out,
+                        "  attachment {a} resource {} format {} ops {}/{} stencil {}/{} layouts {}->{} residency {residency}",
+                        at.resource.0,
+                        at.format.vk_raw(),
+                        at.load_op.vk_raw(),
+                        at.store_op.vk_raw(),
+                        at.stencil_load_op.vk_raw(),
+                        at.stencil_store_op.vk_raw(),
+                        at.initial_layout.vk_raw(),
+                        at.final_layout.vk_raw()
+                    )
+                    .unwrap();
+                }
+                for (p, sp) in rp.subpasses.iter().enumerate() {
+                    writeln!(
+                        out,
+                        "  subpass {p} pass {} colors {} inputs {} depth {}",
+                        pass_name(sp.pass),
+                        sp.colors.len(),
+                        sp.inputs.len(),
+                        sp.depth_stencil.map_or(-1, |d| d.attachment.0 as i32)
+                    )
+                    .unwrap();
+                }
+            }
+            if let Step::Barriers(b) = step {
+                let images = b.images.iter().map(|x| {
+                    (
+                        x.resource.0,
+                        1,
+                        (x.src_stages.bits(), x.src_access.bits()),
+                        (x.dst_stages.bits(), x.dst_access.bits()),
+                        (x.old_layout.vk_raw(), x.new_layout.vk_raw()),
+                    )
+                });
+                let buffers = b.buffers.iter().map(|x| {
+                    (
+                        x.resource.0,
+                        0,
+                        (x.src_stages.bits(), x.src_access.bits()),
+                        (x.dst_stages.bits(), x.dst_access.bits()),
+                        (0, 0),
+                    )
+                });
+                for (k, (res, image, src, dst, layouts)) in images.chain(buffers).enumerate() {
+                    writeln!(
+                        out,
+                        "  barrier {k} resource {res} image {image} src {:#x}/{:#x} dst {:#x}/{:#x} layouts {}->{}",
+                        src.0, src.1, dst.0, dst.1, layouts.0, layouts.1
+                    )
+                    .unwrap();
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn the_c_plan_walk_sees_the_rust_plan() {
+    let exe = compile("plan");
+    let out = target_dir().join("capi-plan.txt");
+    let log = run(&exe, &[out.to_str().unwrap()]);
+    assert!(log.trim_end().ends_with("ok"), "{log}");
+    let c = std::fs::read_to_string(&out).unwrap();
+    let rust = rust_plan_walk();
+    // The walk saw what a plan holds: merged subpasses on the tilers, transient attachments,
+    // barriers, the pruned debug pass.
+    for needle in [
+        "subpass 1 pass lighting",
+        "residency 3",
+        "barrier 0",
+        "1 pruned",
+    ] {
+        assert!(c.contains(needle), "{needle:?} not in the C walk:\n{c}");
+    }
+    for (i, (a, b)) in c.lines().zip(rust.lines()).enumerate() {
+        assert_eq!(a, b, "line {i} of the walk: C against Rust");
+    }
+    assert_eq!(
+        c.lines().count(),
+        rust.lines().count(),
+        "C:\n{c}\nRust:\n{rust}"
     );
 }
