@@ -1,7 +1,8 @@
 //! GPU culling against the exact oracle (lavapipe, validation on): for the conservative
 //! techniques (frustum, two-phase HiZ) no visible instance is ever culled and the image equals
-//! the unculled one on every frame; single-phase HiZ's false negatives after fast motion are
-//! measured, not hidden.
+//! the unculled one on every frame; single-phase HiZ's and reprojection's false negatives after
+//! fast motion are measured, not hidden, and held to bounds on walks (and to none on a still
+//! camera).
 
 use tilegraph_e2e::gpu_with;
 use tilegraph_passes::cull::{CullBounds, Culling, DrawCount, GpuLists, IndirectDraw};
@@ -602,5 +603,101 @@ fn frame_reports_carry_the_gpu_culling_counts_without_waiting() {
         assert_eq!((last.instances + last.culled) as usize, gpu_instances);
         assert!(last.culled > 0, "{culling:?} culls part of the city");
         r.destroy(&g);
+    }
+}
+
+/// The techniques that may miss — single-phase HiZ and depth reprojection, which test against
+/// last frame's depth — are bounded, not only measured: along walks at eye height with yaw
+/// sweeps and hard cuts (city and interior) their false-negative rate stays under bounds set
+/// from measured rates with headroom ([`fn_bounds`]), no frame misses more
+/// than a share of what it sees, the first frame and the frames after cuts miss nothing; and on
+/// a still camera they converge: from the second frame on nothing is missed and every image
+/// equals the unculled one.
+#[test]
+fn techniques_that_may_miss_are_bounded_and_converge() {
+    let features = FeatureRequest::default().require([
+        Feature::GeometryShader,
+        Feature::DrawIndirectCount,
+        Feature::MultiDrawIndirect,
+    ]);
+    let mut lines = Vec::new();
+    for spec in ["city:1500", "interior:800"] {
+        let scene = tilegraph_scene::load(spec).unwrap();
+        let walk = CameraPath::eye_height_walk(&scene.bounds(), 24, 5);
+        let keys = scene.camera_path().keys();
+        let still = CameraPath::new(
+            format!("{spec} still"),
+            vec![
+                PathKey {
+                    camera: keys[keys.len() / 3].camera,
+                    cut: false,
+                };
+                4
+            ],
+        )
+        .unwrap();
+        for culling in [Culling::Hiz, Culling::Reproject] {
+            let g = gpu_with(None, features.clone()).unwrap();
+            let edge = tilegraph_cull::NpotMode::EdgeAware;
+            let r = cull_check(&g, &scene, culling, &walk, SIZE, None, edge).unwrap();
+            let t = &r.totals;
+            let rate = t.false_negatives as f64 / t.visible.max(1) as f64;
+            let worst = r
+                .frames
+                .iter()
+                .map(|f| f.false_negatives as f64 / f.visible.max(1) as f64)
+                .fold(0.0, f64::max);
+            lines.push(format!(
+                "{spec} walk {}: FN rate {rate:.4} ({} of {} visible), worst frame {worst:.3}",
+                culling.name(),
+                t.false_negatives,
+                t.visible
+            ));
+            let (rate_bound, frame_bound) = fn_bounds(spec, culling);
+            assert!(
+                rate <= rate_bound,
+                "{} (bound {rate_bound})",
+                lines.last().unwrap()
+            );
+            assert!(
+                worst <= frame_bound,
+                "{} (bound {frame_bound})",
+                lines.last().unwrap()
+            );
+            for f in r.frames.iter().filter(|f| f.cut || f.frame == 0) {
+                assert_eq!(
+                    f.false_negatives, 0,
+                    "{spec} {culling:?}: frame {}",
+                    f.frame
+                );
+            }
+            let s = cull_check(&g, &scene, culling, &still, SIZE, None, edge).unwrap();
+            for f in s.frames.iter().skip(1) {
+                assert_eq!(
+                    f.false_negatives, 0,
+                    "{spec} {culling:?} still camera: frame {} culled {:?}",
+                    f.frame, f.false_negative_ids
+                );
+                assert!(
+                    f.image_equal,
+                    "{spec} {culling:?} still camera: frame {} differs in {} pixels",
+                    f.frame, f.image_diff_pixels
+                );
+            }
+        }
+    }
+    println!("{}", lines.join("\n"));
+}
+
+/// Bounds of [`techniques_that_may_miss_are_bounded_and_converge`]: over the walk, the share of
+/// visible instances missed, and the largest share one frame misses — about twice what lavapipe
+/// measured at `5deef50` (city: 1 of 712 visible missed by each, worst frames 0.032 and 0.027;
+/// interior: `hiz` 13 of 101, worst frame 0.625 of a frame that sees 8; `reproject` none). The
+/// frames are deterministic on lavapipe: a change in what is missed shows here first.
+fn fn_bounds(spec: &str, culling: Culling) -> (f64, f64) {
+    match (spec.starts_with("city"), culling) {
+        (true, _) => (0.005, 0.08),
+        (false, Culling::Hiz) => (0.25, 0.8),
+        (false, _) => (0.03, 0.25),
     }
 }

@@ -42,7 +42,9 @@ fn newest_source(dir: &Path, newest: &mut SystemTime) {
         let p = e.path();
         if p.is_dir() {
             // Tests and benchmarks are not built into the library.
-            if p.file_name().is_some_and(|n| n == "tests" || n == "benches") {
+            if p.file_name()
+                .is_some_and(|n| n == "tests" || n == "benches")
+            {
                 continue;
             }
             newest_source(&p, newest);
