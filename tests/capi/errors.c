@@ -192,15 +192,31 @@ static void device_errors(void) {
     TG_CHECK(tg_renderer_destroy(second));
 
     /* Injected faults: one frame fails, the next records and runs. */
-    TG_CHECK(tg_context_inject_fault(context, VK_ERROR_DEVICE_LOST));
-    expect(frame(&e, &s, renderer, scene, &img, 1, &first), TG_STATUS_DEVICE_LOST,
-           "device was lost", "injected device loss");
     TG_CHECK(tg_context_inject_fault(context, VK_ERROR_UNKNOWN));
-    expect(frame(&e, &s, renderer, scene, &img, 2, &first), TG_STATUS_VULKAN, "injected fault",
+    expect(frame(&e, &s, renderer, scene, &img, 1, &first), TG_STATUS_VULKAN, "injected fault",
            "injected Vulkan error");
     expect(tg_context_inject_fault(context, VK_SUCCESS), TG_STATUS_INVALID_ARGUMENT,
            "not an error code", "injecting success");
-    TG_CHECK(frame(&e, &s, renderer, scene, &img, 3, &first));
+    TG_CHECK(frame(&e, &s, renderer, scene, &img, 2, &first));
+    /* Inside a frame: a new renderer's first frame makes its pipelines, and fails there; its
+     * next frame makes them and runs. */
+    TgRenderer third;
+    desc.culling = TG_CULLING_NONE;
+    TG_CHECK(tg_renderer_create(context, scene, &desc, &third));
+    TG_CHECK(tg_context_inject_fault_at(context, TG_FAULT_SITE_PIPELINE_CREATION,
+                                        VK_ERROR_OUT_OF_DEVICE_MEMORY));
+    int third_first = 1;
+    expect(frame(&e, &s, third, scene, &img, 0, &third_first), TG_STATUS_OUT_OF_MEMORY,
+           "vkCreateGraphicsPipelines (injected fault)", "injected at pipeline creation");
+    TG_CHECK(frame(&e, &s, third, scene, &img, 1, &third_first));
+    TG_CHECK(tg_renderer_destroy(third));
+    expect(tg_context_inject_fault_at(context, 99, VK_ERROR_UNKNOWN), TG_STATUS_INVALID_ARGUMENT,
+           "fault site 99", "unknown fault site");
+    /* Device lost, last: the contract is to destroy the renderers, the context, then the
+     * device, and record nothing more on any of them. */
+    TG_CHECK(tg_context_inject_fault(context, VK_ERROR_DEVICE_LOST));
+    expect(frame(&e, &s, renderer, scene, &img, 3, &first), TG_STATUS_DEVICE_LOST,
+           "device was lost", "injected device loss");
     VK_CHECK(vkQueueWaitIdle(e.queue));
 
     TG_CHECK(tg_renderer_destroy(renderer));

@@ -460,6 +460,44 @@ typedef uint32_t TgMaterialPass;
 #endif // __cplusplus
 
 /**
+ * Where `tg_context_inject_fault_at` makes a call fail.
+ */
+enum TgFaultSite
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * The start of the next frame's recording (what `tg_context_inject_fault` injects).
+   */
+  TG_FAULT_SITE_FRAME_START = 0,
+  /**
+   * The frame's submission — by tilegraph's own executor; an engine submits its frames
+   * itself, so its renderers never reach this site.
+   */
+  TG_FAULT_SITE_SUBMIT = 1,
+  /**
+   * The wait for a frame slot's fence (tilegraph's own executor, likewise).
+   */
+  TG_FAULT_SITE_FENCE_WAIT = 2,
+  /**
+   * A graphics pipeline's creation (a renderer's first frames, or after its plan changes).
+   */
+  TG_FAULT_SITE_PIPELINE_CREATION = 3,
+  /**
+   * A memory allocation (a frame's resources, a grown buffer).
+   */
+  TG_FAULT_SITE_ALLOCATION = 4,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum TgFaultSite TgFaultSite;
+#else
+typedef uint32_t TgFaultSite;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
  * A scene.
  */
 typedef struct {
@@ -1239,6 +1277,14 @@ TgStatus tg_context_set_memory_budget(TgContext context, uint64_t bytes);
  * `out_bytes` is writable.
  */
 TgStatus tg_context_memory(TgContext context, uint64_t *out_bytes);
+
+/**
+ * Fault injection at a site inside a frame: the next call that reaches `site` (a
+ * TgFaultSite) fails as if its Vulkan call had returned `vk_result`, with the statuses of
+ * `tg_context_inject_fault`. The frame then fails: reset its command buffer, do not submit it;
+ * the next frame records as if the fault had not been.
+ */
+TgStatus tg_context_inject_fault_at(TgContext context, uint32_t site, int32_t vk_result);
 
 /**
  * Fault injection for the engine's tests of its error paths: the next frame recorded on the

@@ -6,7 +6,7 @@ use std::ffi::{c_char, c_void, CString};
 use tilegraph_passes::cull::Culling;
 use tilegraph_passes::{RenderOptions, Technique};
 use tilegraph_vk::ash::vk::{self, Handle};
-use tilegraph_vk::{AdoptedDevice, Context, DeviceConfig, Feature, Instance};
+use tilegraph_vk::{AdoptedDevice, Context, DeviceConfig, FaultSite, Feature, Instance};
 
 use crate::registry::{self, Kind};
 use crate::status::{arg, boundary, optional_string, out, Failure, TgStatus};
@@ -466,6 +466,67 @@ pub unsafe extern "C" fn tg_context_memory(context: TgContext, out_bytes: *mut u
     })
 }
 
+/// Where `tg_context_inject_fault_at` makes a call fail.
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TgFaultSite {
+    /// The start of the next frame's recording (what `tg_context_inject_fault` injects).
+    FrameStart = 0,
+    /// The frame's submission — by tilegraph's own executor; an engine submits its frames
+    /// itself, so its renderers never reach this site.
+    Submit = 1,
+    /// The wait for a frame slot's fence (tilegraph's own executor, likewise).
+    FenceWait = 2,
+    /// A graphics pipeline's creation (a renderer's first frames, or after its plan changes).
+    PipelineCreation = 3,
+    /// A memory allocation (a frame's resources, a grown buffer).
+    Allocation = 4,
+}
+
+/// Fault injection at a site inside a frame: the next call that reaches `site` (a
+/// TgFaultSite) fails as if its Vulkan call had returned `vk_result`, with the statuses of
+/// `tg_context_inject_fault`. The frame then fails: reset its command buffer, do not submit it;
+/// the next frame records as if the fault had not been.
+#[no_mangle]
+pub extern "C" fn tg_context_inject_fault_at(
+    context: TgContext,
+    site: u32,
+    vk_result: i32,
+) -> TgStatus {
+    boundary("tg_context_inject_fault_at", || {
+        let site = match site {
+            0 => FaultSite::FrameStart,
+            1 => FaultSite::Submit,
+            2 => FaultSite::FenceWait,
+            3 => FaultSite::PipelineCreation,
+            4 => FaultSite::Allocation,
+            other => {
+                return Err(Failure::invalid(format!(
+                    "fault site {other} is no TgFaultSite"
+                )))
+            }
+        };
+        inject(context, site, vk_result)
+    })
+}
+
+fn inject(context: TgContext, site: FaultSite, vk_result: i32) -> Result<(), Failure> {
+    if vk_result >= 0 {
+        return Err(Failure::invalid(format!(
+            "VkResult {vk_result} is not an error code"
+        )));
+    }
+    registry::with(
+        context.raw,
+        Kind::Context,
+        "context",
+        |c: &ContextObject| {
+            c.ctx.inject_fault_at(site, vk::Result::from_raw(vk_result));
+            Ok(())
+        },
+    )
+}
+
 /// Fault injection for the engine's tests of its error paths: the next frame recorded on the
 /// context fails, after it began, as if a Vulkan call had returned `vk_result` (a negative
 /// VkResult: VK_ERROR_DEVICE_LOST is TG_STATUS_DEVICE_LOST, VK_ERROR_OUT_OF_DEVICE_MEMORY
@@ -474,19 +535,6 @@ pub unsafe extern "C" fn tg_context_memory(context: TgContext, out_bytes: *mut u
 #[no_mangle]
 pub extern "C" fn tg_context_inject_fault(context: TgContext, vk_result: i32) -> TgStatus {
     boundary("tg_context_inject_fault", || {
-        if vk_result >= 0 {
-            return Err(Failure::invalid(format!(
-                "VkResult {vk_result} is not an error code"
-            )));
-        }
-        registry::with(
-            context.raw,
-            Kind::Context,
-            "context",
-            |c: &ContextObject| {
-                c.ctx.inject_fault(vk::Result::from_raw(vk_result));
-                Ok(())
-            },
-        )
+        inject(context, FaultSite::FrameStart, vk_result)
     })
 }

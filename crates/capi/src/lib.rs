@@ -34,7 +34,8 @@ mod cluster_tests;
 
 pub use changes::{TgInstanceDesc, TgTransform, TG_INSTANCE_CASTS_SHADOWS, TG_INSTANCE_HIDDEN};
 pub use context::{
-    TgAdoptInfo, TgContext, TgCulling, TgDeviceQuery, TgDeviceRequirements, TgFeature, TgTechnique,
+    TgAdoptInfo, TgContext, TgCulling, TgDeviceQuery, TgDeviceRequirements, TgFaultSite, TgFeature,
+    TgTechnique,
 };
 pub use features::TgFeatureStructs;
 pub use graph::{TgGraph, TgPassClass, TgUse};

@@ -17,6 +17,21 @@ use crate::features::{Feature, FeatureRequest, FeatureStructs};
 use crate::instance::{Instance, PhysicalDevice, MIN_API_VERSION};
 use crate::validation::Validation;
 
+/// Where [`Context::inject_fault_at`] makes a call fail.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum FaultSite {
+    /// The start of the next frame's recording, before anything is recorded.
+    FrameStart,
+    /// The frame's `vkQueueSubmit` (the executor's own submission).
+    Submit,
+    /// The wait for a frame slot's fence before the slot is reused.
+    FenceWait,
+    /// `vkCreateGraphicsPipelines` (a pipeline made while a frame records).
+    PipelineCreation,
+    /// A memory allocation (resources built while a frame records, buffers grown).
+    Allocation,
+}
+
 /// How to build a [`Context`].
 #[derive(Debug, Clone)]
 pub struct ContextOptions {
@@ -95,8 +110,9 @@ pub struct Context {
     /// externally synchronized (one thread at a time). Still `Send`.
     /// The NUL-terminated name of the debug label being opened (kept: labels allocate nothing).
     pub(crate) label_scratch: std::cell::RefCell<Vec<u8>>,
-    /// A failure the next frame reports ([`Context::inject_fault`]).
-    injected_fault: std::cell::Cell<Option<vk::Result>>,
+    /// A failure injected at a site ([`Context::inject_fault_at`]), taken by the first call
+    /// that reaches the site.
+    injected_fault: std::cell::Cell<Option<(FaultSite, vk::Result)>>,
     _one_thread: std::marker::PhantomData<std::cell::Cell<()>>,
 }
 
@@ -332,14 +348,28 @@ impl Context {
     /// `result` (`ERROR_DEVICE_LOST`, `ERROR_OUT_OF_DEVICE_MEMORY`, ...), after the frame
     /// began: fault injection, for tests of an engine's error paths and of tilegraph's.
     pub fn inject_fault(&self, result: vk::Result) {
-        self.injected_fault.set(Some(result));
+        self.inject_fault_at(FaultSite::FrameStart, result);
     }
 
-    /// The injected fault, once, as the error of `call`.
-    pub(crate) fn injected_fault(&self, call: &'static str) -> Result<(), VkError> {
-        match self.injected_fault.take() {
-            Some(result) => Err(VkError::call(call, result)),
-            None => Ok(()),
+    /// Makes the next call that reaches `site` fail as if its Vulkan call had returned
+    /// `result`: a frame's start, its submission, the wait for a frame slot's fence, a graphics
+    /// pipeline's creation, a memory allocation. One fault at a time; a new one replaces it.
+    pub fn inject_fault_at(&self, site: FaultSite, result: vk::Result) {
+        self.injected_fault.set(Some((site, result)));
+    }
+
+    /// The fault injected at `site`, once, as the error of `call`.
+    pub(crate) fn injected_fault_at(
+        &self,
+        site: FaultSite,
+        call: &'static str,
+    ) -> Result<(), VkError> {
+        match self.injected_fault.get() {
+            Some((at, result)) if at == site => {
+                self.injected_fault.set(None);
+                Err(VkError::call(call, result))
+            }
+            _ => Ok(()),
         }
     }
 

@@ -10,7 +10,7 @@
 use ash::vk;
 
 use crate::error::{VkError, VkResultExt};
-use crate::Context;
+use crate::{Context, FaultSite};
 
 /// Default number of frames in flight.
 pub const DEFAULT_FRAMES_IN_FLIGHT: usize = 2;
@@ -183,6 +183,7 @@ impl FrameRing {
         let slot = self.next_slot();
         let s = &mut self.slots[slot];
         if s.in_flight {
+            ctx.injected_fault_at(FaultSite::FenceWait, "vkWaitForFences (injected fault)")?;
             // SAFETY: the fence was submitted with this slot's last frame.
             unsafe { ctx.device.wait_for_fences(&[s.fence], true, u64::MAX) }
                 .vk("vkWaitForFences")?;
@@ -308,6 +309,7 @@ impl FrameRing {
             unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
             let cbs = [token.cb];
             let submit = vk::SubmitInfo::default().command_buffers(&cbs);
+            ctx.injected_fault_at(FaultSite::Submit, "vkQueueSubmit (injected fault)")?;
             // SAFETY: executable command buffer, unsignalled fence.
             unsafe { ctx.device.queue_submit(ctx.queue, &[submit], fence) }.vk("vkQueueSubmit")
         })();

@@ -24,7 +24,7 @@ pub mod shader_facts;
 mod validation;
 
 pub use ash;
-pub use context::{AdoptedDevice, Context, ContextOptions, DeviceConfig};
+pub use context::{AdoptedDevice, Context, ContextOptions, DeviceConfig, FaultSite};
 pub use error::VkError;
 pub use features::{Feature, FeatureRequest, FeatureTargets};
 pub use instance::{DeviceLimits, Instance, PhysicalDevice, MIN_API_VERSION};

@@ -90,6 +90,10 @@ impl Context {
         use_: MemoryUse,
         linear: bool,
     ) -> Result<(Allocation, MemoryChoice), VkError> {
+        self.injected_fault_at(
+            crate::FaultSite::Allocation,
+            "vkAllocateMemory (injected fault)",
+        )?;
         let budget = self.memory_budget.load(Ordering::Relaxed);
         if self.allocated_bytes().saturating_add(requirements.size) > budget {
             log::warn!(

@@ -236,6 +236,10 @@ pub fn create_graphics_pipeline(
                 info = info.render_pass(render_pass).subpass(subpass);
             }
         }
+        ctx.injected_fault_at(
+            crate::FaultSite::PipelineCreation,
+            "vkCreateGraphicsPipelines (injected fault)",
+        )?;
         // SAFETY: every referenced state struct outlives the call.
         let pipelines = unsafe {
             ctx.device

@@ -31,7 +31,7 @@ use resources::build_resources;
 use crate::error::VkError;
 use crate::frames::{FrameRing, FrameToken, DEFAULT_FRAMES_IN_FLIGHT};
 use crate::queries::{FrameTimings, GpuTiming, PassMedian, QueryRing, TimingHistory};
-use crate::{Context, Feature};
+use crate::{Context, FaultSite, Feature};
 
 /// Statistics of one executed frame.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -332,7 +332,10 @@ impl Executor {
         callbacks: Callbacks<'_, '_, '_>,
     ) -> Result<(), VkError> {
         let Callbacks { prologue, record } = callbacks;
-        ctx.injected_fault("recording the frame (injected fault)")?;
+        ctx.injected_fault_at(
+            FaultSite::FrameStart,
+            "recording the frame (injected fault)",
+        )?;
         if token.completed_frame.is_some() {
             self.collect_slot(ctx, token.slot)?;
         }
