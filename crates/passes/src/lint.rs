@@ -34,8 +34,9 @@ impl FrameLint {
         let accepted = self.accepted_count();
         let open = self.findings.len() - accepted;
         if open == 0 {
+            let s = if accepted == 1 { "" } else { "s" };
             return format!(
-                "lint ({}): clean but {accepted} accepted findings (the passes' intended state; `tilegraph lint` says why), {draws} pipeline binds",
+                "lint ({}): clean but {accepted} accepted finding{s} (the passes' intended state; `tilegraph lint` says why), {draws} pipeline binds",
                 self.profile
             );
         }
