@@ -27,6 +27,7 @@ pub mod frustum;
 pub mod hiz;
 pub mod oracle;
 pub mod project;
+pub mod reference;
 pub mod screen;
 
 pub use bounds::{Aabb, AabbExt, Obb, Sphere};

@@ -5,10 +5,8 @@
 //! `cargo test -p tilegraph-cull --test extremes -- --nocapture` prints the table that
 //! docs/CULLING.md reproduces.
 
-mod support;
-
 use glam::{DVec3, Mat4, Vec3};
-use support::{look, render_boxes, Render};
+use tilegraph_cull::reference::{look, render_boxes, Render};
 use tilegraph_cull::{
     project_aabb, project_sphere, Aabb, AabbExt, DepthConvention, DepthFormat, Extent2d, ExtentExt,
     Frustum, FrustumPlane, HizOutcome, HizPyramid, NpotMode, PlaneTest, Projection, SatTest,

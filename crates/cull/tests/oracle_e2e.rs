@@ -3,13 +3,11 @@
 //! test and HiZ (built from that same depth, so every visible object's own pixels are in it).
 //! No visible object may be culled (FN = 0), in either NPOT fix, convention or depth format.
 
-mod support;
-
 use glam::{EulerRot, Mat4, Quat, Vec3};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
-use support::{render_boxes, BACKGROUND_ID};
+use tilegraph_cull::reference::{render_boxes, BACKGROUND_ID};
 use tilegraph_cull::{
     project_aabb, visible_set_from_id_buffer, Aabb, AabbExt, CullStats, DepthConvention,
     DepthFormat, Extent2d, ExtentExt, Frustum, HizPyramid, InstanceSet, NpotMode, Projection,

@@ -1,11 +1,10 @@
-//! Test support: a tiny ray caster that renders boxes into a depth buffer and an id buffer the
-//! way a rasterizer with depth clipping at the near plane and no back-face culling would
-//! (one sample at each pixel centre), so tests can compare culling with the exact visible set.
+//! The CPU reference of what a frame shows: a ray caster that renders axis-aligned boxes into a
+//! depth buffer and an id buffer the way a rasterizer with depth clipping at the near plane and
+//! no back-face culling would (one sample at each pixel centre, in f64), so tests can compare
+//! culling — and the GPU oracle itself — with the exact visible set.
 
-#![allow(dead_code)]
-
+use crate::{Aabb, DepthFormat, Extent2d, ExtentExt, Projection};
 use glam::{DMat4, DVec3, Mat4, Vec3};
-use tilegraph_cull::{Aabb, DepthFormat, Extent2d, ExtentExt, Projection};
 
 pub const BACKGROUND_ID: u32 = u32::MAX;
 
