@@ -91,17 +91,17 @@ pub mod frames;
 
 /// `$TILEGRAPH_TEST_DATA` or `../shared/data` beside the repository.
 pub fn test_data_dir() -> std::path::PathBuf {
-    std::env::var_os("TILEGRAPH_TEST_DATA")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| {
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
-        })
+    tilegraph_scene::test_data::dir()
 }
 
-/// A file of the test data, if the data directory is there.
+/// A file of the test data, if the data directory is there; otherwise the skip is recorded
+/// (`tilegraph_scene::test_data`: printed, logged for `cargo xtask test`'s summary, or a
+/// failure with `TILEGRAPH_REQUIRE_DATA=1`).
 pub fn test_data(relative: &str) -> Option<std::path::PathBuf> {
-    let p = test_data_dir().join(relative);
-    p.exists().then_some(p)
+    tilegraph_scene::test_data::find(
+        relative,
+        &format!("the part of a test that reads {relative}"),
+    )
 }
 pub mod golden;
 pub mod textured;

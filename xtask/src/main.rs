@@ -243,16 +243,42 @@ fn test(rest: &[String]) -> Result<(), String> {
         "cargo build --profile test -p tilegraph-capi (libtilegraph.a for the C tests)",
         cargo().args(["build", "--profile", "test", "-p", "tilegraph-capi"]),
     )?;
+    // Every skip of the run (test data absent) is appended here and listed at the end.
+    let skips = root().join("target").join("test-skips.log");
+    let _ = std::fs::remove_file(&skips);
     // The shader check (staleness + spirv-val) is xtask's own unit test, run by cargo test below.
     // Every GPU test requires the validation layer (with synchronization validation).
-    run(
+    let tests = run(
         "cargo test --workspace",
         cargo()
             .args(["test", "--workspace"])
             .args(rest)
-            .env("TILEGRAPH_VALIDATION", "required"),
-    )?;
-    best_practices_per_vendor()
+            .env("TILEGRAPH_VALIDATION", "required")
+            .env("TILEGRAPH_SKIP_LOG", &skips),
+    )
+    .and_then(|()| best_practices_per_vendor());
+    report_skips(&skips);
+    tests
+}
+
+/// Prints what the run did not run (`tilegraph_scene::test_data` records each skip), or that
+/// nothing was skipped.
+fn report_skips(log: &Path) {
+    let text = std::fs::read_to_string(log).unwrap_or_default();
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines.sort_unstable();
+    lines.dedup();
+    if lines.is_empty() {
+        println!("==> skips: none (every test ran in full)");
+    } else {
+        println!(
+            "==> skips: {} (set TILEGRAPH_TEST_DATA, or TILEGRAPH_REQUIRE_DATA=1 to fail on them)",
+            lines.len()
+        );
+        for l in lines {
+            println!("    {l}");
+        }
+    }
 }
 
 /// The vendor best-practices checks, each in a process of its own: on layer 1.3.239 they are

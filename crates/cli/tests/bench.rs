@@ -18,22 +18,9 @@ fn tilegraph(args: &[String]) -> (bool, String, String) {
     )
 }
 
-/// `$TILEGRAPH_TEST_DATA` or `../shared/data` beside the repository.
+/// `relative` under the test data, or `None` (recorded as a skip).
 fn test_data(relative: &str) -> Option<PathBuf> {
-    let dir = std::env::var_os("TILEGRAPH_TEST_DATA").map_or_else(
-        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
-        PathBuf::from,
-    );
-    let p = dir.join(relative);
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!(
-            "skipping {relative} in the smoke bench: {} not found",
-            p.display()
-        );
-        None
-    }
+    tilegraph_scene::test_data::find(relative, &format!("{relative} in the smoke bench"))
 }
 
 const CULLINGS: [&str; 7] = [

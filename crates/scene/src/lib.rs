@@ -47,6 +47,7 @@ mod gltf_load;
 pub mod motion;
 pub mod procedural;
 mod scene;
+pub mod test_data;
 pub mod texture;
 
 use std::path::Path;

@@ -4,24 +4,10 @@
 
 use std::path::PathBuf;
 
-/// `$TILEGRAPH_TEST_DATA`, or `<repo>/../shared/data`. `None` (with a message naming the path)
-/// when it does not exist, so a fresh clone without the data stays green.
+/// `sub` under the test data (`tilegraph_scene::test_data`): `None`, recorded as a skip, when it
+/// is absent, so a fresh clone without the data stays green and says what it did not run.
 pub fn test_data(sub: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("TILEGRAPH_TEST_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data"))
-        });
-    let dir = base.join(sub);
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "SKIPPED: test data directory {} not found (set TILEGRAPH_TEST_DATA)",
-            dir.display()
-        );
-        None
-    }
+    tilegraph_scene::test_data::find(sub, &format!("the tests of {sub}"))
 }
 
 /// Runs `f`, turning a panic into an `Err` with its message, so a test can report which input
