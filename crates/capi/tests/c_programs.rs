@@ -293,8 +293,8 @@ fn the_c_engine_material_draws_the_culled_city_as_the_unculled_one() {
 fn rust_plan_walk() -> String {
     use std::fmt::Write;
     use tilegraph_graph::{
-        AccessFlags, ClearColor, ClearDepthStencil, Extent2d, Format, GraphBuilder, ImageDesc,
-        Import, InitialContent, Layout, PassClass, PipelineStages, Residency, ResourceState, Step,
+        ClearColor, ClearDepthStencil, Extent2d, Format, GraphBuilder, ImageDesc, PassClass,
+        Residency, Step,
     };
     let (w, h) = (320, 180);
     let desc = |format| ImageDesc::new(Extent2d::new(w, h), format);
@@ -304,18 +304,11 @@ fn rust_plan_walk() -> String {
     let depth = g.create_image("depth", desc(Format::D32_SFLOAT));
     let ao = g.create_buffer("ao", u64::from(w * h * 4));
     let hdr = g.create_image("hdr", desc(Format::R16G16B16A16_SFLOAT));
+    // Found UNDEFINED, left in TRANSFER_SRC: as plan.c imports it.
     let target = g.import_image(
         "target",
         desc(Format::R8G8B8A8_UNORM),
-        Import {
-            initial: ResourceState::UNDEFINED,
-            content: InitialContent::Discard,
-            final_state: ResourceState::image(
-                Layout::TransferSrc,
-                PipelineStages::COPY,
-                AccessFlags::TRANSFER_READ,
-            ),
-        },
+        tilegraph_e2e::frames::target_import(),
     );
     let scratch = g.create_image("scratch", desc(Format::R8G8B8A8_UNORM));
     let black = ClearColor::Float([0.0, 0.0, 0.0, 1.0]);
