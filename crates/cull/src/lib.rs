@@ -29,6 +29,7 @@ pub mod oracle;
 pub mod project;
 pub mod reference;
 pub mod screen;
+pub mod shadow;
 
 pub use bounds::{Aabb, AabbExt, Obb, Sphere};
 pub use camera::{view_look_at, Projection, ProjectionExt};
