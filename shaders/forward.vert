@@ -11,10 +11,13 @@ layout(location = 2) in vec2 in_uv;
 layout(location = 0) out vec3 v_normal;
 layout(location = 1) out vec2 v_uv;
 layout(location = 2) flat out uint v_material;
+layout(location = 3) out vec3 v_position; // camera-relative (shadow lookups)
 
 void main() {
     Instance inst = instance_at(draw_instances[gl_InstanceIndex]);
-    gl_Position = frame.view_proj * vec4(instance_transform(inst, in_position), 1.0);
+    vec3 p = instance_transform(inst, in_position);
+    gl_Position = frame.view_proj * vec4(p, 1.0);
+    v_position = p;
     v_normal = instance_normal(inst, in_normal);
     v_uv = in_uv;
     v_material = meshes[inst.mesh].material;

@@ -1,6 +1,7 @@
 // Body of the forward colour shaders (forward.frag, forward_early.frag).
 #include "scene.glsl"
 #include "textures.glsl"
+#include "shadow.glsl"
 
 #ifdef COUNT_FRAGMENTS
 layout(set = 0, binding = 7, std430) buffer Counters { uint shaded[4]; } counters;
@@ -11,6 +12,7 @@ layout(constant_id = 0) const uint MATERIAL_CLASS = 0u;
 layout(location = 0) in vec3 v_normal;
 layout(location = 1) in vec2 v_uv;
 layout(location = 2) flat in uint v_material;
+layout(location = 3) in vec3 v_position;
 layout(location = 0) out vec4 o_color;
 
 void main() {
@@ -24,7 +26,7 @@ void main() {
         }
     }
     vec3 n = gl_FrontFacing ? v_normal : -v_normal;
-    vec3 c = shade(base.rgb, n, frame.params.x);
+    vec3 c = shade_lit(base.rgb, n, shadow_factor(v_position, n), frame.params.x);
     o_color = vec4(c, MATERIAL_CLASS == 2u ? base.a : 1.0);
 #ifdef COUNT_FRAGMENTS
     atomicAdd(counters.shaded[MATERIAL_CLASS], 1u);

@@ -58,7 +58,21 @@ layout(set = 0, binding = 0, std140) uniform Frame {
     vec4 depth_params;     // x: depth of the near plane (1 reverse-Z, 0 standard), y: mid depth
     vec4 eye_high;         // xyz: the eye's world position, high part
     vec4 eye_low;          // xyz: its low part
+    vec4 view_forward;     // xyz: the camera's unit view direction (picks a pixel's cascade)
+    // The directional light's cascaded shadow maps (tilegraph_passes::shadow; shadow.glsl).
+    mat4 shadow_clip[4];   // per cascade: camera-relative position to the cascade's clip space
+    vec4 shadow_far;       // per cascade: the view distance its receivers end at
+    vec4 shadow_texel;     // per cascade: a texel's side in metres
+    vec4 shadow_params;    // x: normal offset in texels, y: a cascade's side in texels, z: 1 / y
+    uvec4 shadow_info;     // x: cascades (0: no shadows), y, z: the atlas's columns and rows,
+                           // w: PCF taps either side
+    // Per cascade, MAX_CASTER_PLANES planes (n.xyz, d; camera-relative) that cull its casters
+    // (shadow_cull.comp), and how many are in use.
+    vec4 caster_planes[80];
+    uvec4 caster_counts;
 } frame;
+
+const uint MAX_CASTER_PLANES = 20u;
 
 layout(set = 0, binding = 1, std430) readonly buffer Instances { InstanceRecord records[]; };
 // Draw list: gl_InstanceIndex (which includes firstInstance) indexes this to get the instance id.
@@ -114,14 +128,19 @@ float leaf_alpha(vec2 uv, float base_alpha) {
 
 // Lambert + ambient with a directional light, plus `iterations` of ALU work that cannot be
 // optimised away (models an expensive material; the result is scaled to ~0 contribution).
-vec3 shade(vec3 base, vec3 n, uint iterations) {
-    float ndl = max(dot(normalize(n), frame.light_dir.xyz), 0.0);
+// `lit`: how much of the light reaches the surface (1 unshadowed, shadow.glsl's factor).
+vec3 shade_lit(vec3 base, vec3 n, float lit, uint iterations) {
+    float ndl = max(dot(normalize(n), frame.light_dir.xyz), 0.0) * lit;
     vec3 c = base * (frame.light_dir.w + ndl * frame.light_color.rgb);
     float acc = 0.0;
     for (uint i = 0u; i < iterations; ++i) {
         acc = fract(sin(acc * 12.9898 + float(i) * 78.233 + n.x) * 43758.5453);
     }
     return c + vec3(acc * 1e-6);
+}
+
+vec3 shade(vec3 base, vec3 n, uint iterations) {
+    return shade_lit(base, n, 1.0, iterations);
 }
 
 // Occlusion proxies (query boxes, raster-occlusion boxes) coincide with the surfaces they bound

@@ -4,6 +4,7 @@
 // analytic derivatives.
 #include "visbuf_surface.glsl"
 #include "textures.glsl"
+#include "shadow.glsl"
 
 // Specialization 2: ALL_MATERIALS shades every pixel (the über-resolve); a material index
 // shades that material's pixels only and discards the others' (the per-material resolves, over
@@ -32,5 +33,7 @@ void resolve(uint id) {
         surface_uv_grad(s, gl_FragCoord.xy, uv, duv_dx, duv_dy);
         color = material_color_grad(m, uv, duv_dx, duv_dy);
     }
-    o_color = vec4(shade(color.rgb, surface_normal(s), frame.params.x), 1.0);
+    vec3 n = surface_normal(s);
+    vec3 p = s.p0 * s.bc.x + s.p1 * s.bc.y + s.p2 * s.bc.z;
+    o_color = vec4(shade_lit(color.rgb, n, shadow_factor(p, n), frame.params.x), 1.0);
 }

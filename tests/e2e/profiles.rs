@@ -8,34 +8,42 @@
 //! - the promises the profile makes about the compiled plan: occlusion queries in a render
 //!   pass of their own, after a flush, where it says so (and no flush where it does not) —
 //!   raster occlusion's boxes are of the same class and follow the same rule; passes in the
-//!   profile's class order unless a dependency puts them otherwise;
+//!   profile's class order unless a dependency puts them otherwise (a pass feeding one of an
+//!   earlier class takes that class's rank); the light's cascades one render pass, stored,
+//!   before whatever samples them;
 //!   next-frame queries after all drawing; attachments whose whole life is one render pass
 //!   transient exactly where the profile keeps data on chip.
 
 use std::collections::BTreeMap;
 
 use tilegraph_e2e::gpu_with;
-use tilegraph_graph::{FlushReason, PassClass, Plan, Residency, Step, UseKind};
+use tilegraph_graph::{FlushReason, LoadOp, PassClass, Plan, Residency, Step, StoreOp, UseKind};
 use tilegraph_passes::cull::Culling;
 use tilegraph_passes::lint::FrameLint;
+use tilegraph_passes::shadow::ShadowOptions;
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
 use tilegraph_profile::accepted::AcceptedFinding;
 use tilegraph_profile::{Profile, ProfileSet};
 
 /// The frames linted: every shading technique unculled, and every culling technique with the
-/// shading it is most often paired with (raster occlusion at full and half resolution).
-const FRAMES: &[(Technique, Culling, u32)] = &[
-    (Technique::Forward, Culling::None, 1),
-    (Technique::Prepass, Culling::None, 1),
-    (Technique::Visbuf, Culling::None, 1),
-    (Technique::Forward, Culling::Frustum, 1),
-    (Technique::Forward, Culling::Hiz, 1),
-    (Technique::Prepass, Culling::HizTwoPhase, 1),
-    (Technique::Visbuf, Culling::HizTwoPhase, 1),
-    (Technique::Forward, Culling::Oq, 1),
-    (Technique::Forward, Culling::OqConditional, 1),
-    (Technique::Prepass, Culling::RasterOcclusion, 1),
-    (Technique::Prepass, Culling::RasterOcclusion, 2),
+/// shading it is most often paired with (raster occlusion at full and half resolution); the
+/// last field is the light's shadow cascades.
+const FRAMES: &[(Technique, Culling, u32, u32)] = &[
+    (Technique::Forward, Culling::None, 1, 0),
+    (Technique::Prepass, Culling::None, 1, 0),
+    (Technique::Visbuf, Culling::None, 1, 0),
+    (Technique::Forward, Culling::Frustum, 1, 0),
+    (Technique::Forward, Culling::Hiz, 1, 0),
+    (Technique::Prepass, Culling::HizTwoPhase, 1, 0),
+    (Technique::Visbuf, Culling::HizTwoPhase, 1, 0),
+    (Technique::Forward, Culling::Oq, 1, 0),
+    (Technique::Forward, Culling::OqConditional, 1, 0),
+    (Technique::Prepass, Culling::RasterOcclusion, 1, 0),
+    (Technique::Prepass, Culling::RasterOcclusion, 2, 0),
+    // The light's three cascades under each shading.
+    (Technique::Forward, Culling::None, 1, 3),
+    (Technique::Prepass, Culling::HizTwoPhase, 1, 3),
+    (Technique::Visbuf, Culling::HizTwoPhase, 1, 3),
 ];
 
 /// The shipped procedural scenes: opaque, alpha-tested (forest, field, interior) and blended
@@ -45,10 +53,11 @@ const SCENES: &[&str] = &["interior:100", "city:100", "forest:100", "field:100"]
 /// The device features every frame of [`FRAMES`] needs.
 fn frame_features() -> tilegraph_vk::FeatureRequest {
     let mut features = tilegraph_vk::FeatureRequest::default();
-    for &(technique, culling, _) in FRAMES {
+    for &(technique, culling, _, cascades) in FRAMES {
         let f = RenderOptions {
             technique,
             culling,
+            shadows: shadows(cascades),
             ..Default::default()
         }
         .device_features();
@@ -114,7 +123,7 @@ fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
     for profiles in shapes.values() {
         let recording = profiles[0];
         let g = gpu_with(Some(&recording.name), frame_features()).unwrap();
-        for ((name, scene, camera), &(technique, culling, scale)) in scenes
+        for ((name, scene, camera), &(technique, culling, scale, cascades)) in scenes
             .iter()
             .flat_map(|s| FRAMES.iter().map(move |f| (s, f)))
         {
@@ -124,6 +133,7 @@ fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
                 raster_occlusion_scale: scale,
                 width: 64,
                 height: 36,
+                shadows: shadows(cascades),
                 ..Default::default()
             };
             let mut r = SceneRenderer::new(&g, scene, options).unwrap();
@@ -132,13 +142,14 @@ fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
             r.finish(&g).unwrap();
             r.destroy(&g);
             let frame = format!(
-                "{name} {} / {} / {}",
+                "{name} {} / {} / {} / {cascades} cascades",
                 technique.name(),
                 culling.name(),
                 scale
             );
             for p in profiles {
                 check_promises(p, &report.plan, culling, &frame);
+                check_shadow_promises(p, &report.plan, cascades, &frame);
             }
             let recorded: &FrameLint = report.lint.as_deref().expect("the frame was linted");
             assert!(!recorded.render_passes.is_empty());
@@ -175,6 +186,66 @@ fn every_profile_keeps_its_plan_promises_and_lints_clean_but_the_accepted() {
         stale.is_empty(),
         "accepted findings no frame produces any more: {stale:#?}"
     );
+}
+
+/// `cascades` cascades of 256 texels (none for 0).
+fn shadows(cascades: u32) -> ShadowOptions {
+    ShadowOptions {
+        cascades,
+        resolution: 256,
+        ..ShadowOptions::default()
+    }
+}
+
+/// A frame with shadows: the cascades are one render pass of their own (the atlas its one
+/// attachment, cleared and stored — what a tiler writes out once), before every pass that
+/// samples the atlas; the atlas is never transient. A frame without has no shadow pass.
+fn check_shadow_promises(p: &Profile, plan: &Plan, cascades: u32, frame: &str) {
+    let at = format!("{} {frame}\n{plan}", p.name);
+    let shadow = plan.passes.iter().find(|q| q.class == PassClass::Shadow);
+    let Some(shadow) = shadow else {
+        assert_eq!(cascades, 0, "no shadow pass: {at}");
+        return;
+    };
+    assert!(cascades > 0, "a shadow pass without shadows: {at}");
+    let atlas = plan.resources.iter().find(|r| r.name == "shadow-atlas");
+    let Some(atlas) = atlas else {
+        panic!("no atlas: {at}");
+    };
+    assert_ne!(atlas.residency, Residency::Transient, "{at}");
+    let Some(Step::RenderPass(rp)) = plan.steps.get(shadow.step.0 as usize) else {
+        panic!("the shadow pass is in no render pass: {at}");
+    };
+    assert_eq!(
+        rp.subpasses.len(),
+        1,
+        "the cascades share a render pass: {at}"
+    );
+    assert_eq!(rp.attachments.len(), 1, "{at}");
+    let a = &rp.attachments[0];
+    assert_eq!(a.resource, atlas.id, "{at}");
+    assert_eq!(
+        (a.load_op, a.store_op),
+        (LoadOp::Clear, StoreOp::Store),
+        "{at}"
+    );
+    let samplers: Vec<_> = plan
+        .passes
+        .iter()
+        .filter(|q| {
+            q.uses
+                .iter()
+                .any(|u| u.resource == atlas.id && u.kind == UseKind::Sampled)
+        })
+        .collect();
+    assert!(!samplers.is_empty(), "nothing samples the atlas: {at}");
+    for q in samplers {
+        assert!(
+            q.step.0 > shadow.step.0,
+            "{} before the cascades: {at}",
+            q.name
+        );
+    }
 }
 
 /// The profile's promises on one compiled frame (see the module doc).
@@ -276,9 +347,23 @@ fn check_promises(p: &Profile, plan: &Plan, culling: Culling, frame: &str) {
         }
         depends.push(row);
     }
+    // A pass takes the rank of the most urgent pass that waits on it (the scheduler's
+    // effective rank): the early depth of two-phase culling feeds the pyramid's compute, so it
+    // may run before a shadow pass.
+    let effective: Vec<usize> = (0..plan.passes.len())
+        .map(|k| {
+            let own = p.passes.class_rank(plan.passes[k].class);
+            depends
+                .iter()
+                .enumerate()
+                .filter(|(_, row)| row[k])
+                .map(|(j, _)| p.passes.class_rank(plan.passes[j].class))
+                .fold(own, usize::min)
+        })
+        .collect();
     for (b, row) in plan.passes.iter().zip(&depends) {
-        for (a, depends_on_a) in plan.passes.iter().zip(row) {
-            let out_of_order = p.passes.class_rank(a.class) > p.passes.class_rank(b.class);
+        for ((a, depends_on_a), &urgency) in plan.passes.iter().zip(row).zip(&effective) {
+            let out_of_order = urgency > p.passes.class_rank(b.class);
             if a.step.0 < b.step.0 || (a.step == b.step && a.subpass < b.subpass) {
                 assert!(
                     !out_of_order || *depends_on_a,
@@ -324,13 +409,14 @@ fn every_technique_passes_best_practices_under_the_vendors_profile() {
     let scene = tilegraph_scene::load("interior:100").unwrap();
     let path = scene.camera_path();
     let g = gpu_with(Some(&profile), frame_features()).unwrap();
-    for &(technique, culling, scale) in FRAMES {
+    for &(technique, culling, scale, cascades) in FRAMES {
         let options = RenderOptions {
             technique,
             culling,
             raster_occlusion_scale: scale,
             width: 64,
             height: 36,
+            shadows: shadows(cascades),
             ..Default::default()
         };
         let mut r = SceneRenderer::new(&g, &scene, options).unwrap();

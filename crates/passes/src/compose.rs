@@ -25,6 +25,7 @@ use crate::options::RenderOptions;
 use crate::pipelines::ColourDepth;
 use crate::prepass::{add_depth_prepass, add_depth_prepass_of_last_visible};
 use crate::setup::{FrameSetup, PassKind};
+use crate::shadow::{add_shadow_culling, add_shadow_maps, import_shadows, ShadowState};
 use crate::targets::SceneTargets;
 use crate::visbuf::{add_visbuf_resolve, add_visbuf_write, ResolvePlan};
 
@@ -86,6 +87,8 @@ pub(crate) struct SceneFrame<'a> {
     /// The renderer's colour target, and its id target when it keeps the ids.
     pub target: &'a ImageHandle,
     pub ids_target: Option<&'a ImageHandle>,
+    /// The light's shadow atlas (imported when the renderer has shadows).
+    pub atlas: &'a crate::gpu_scene::shadow_atlas::ShadowAtlas,
 }
 
 /// One geometry pass to declare: which, in which culling phase (0: early or only), drawing
@@ -112,6 +115,13 @@ pub(crate) struct DeclaredScene {
 /// functions in the order the technique needs, and the physical resources of its imports.
 pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
     let mut c = Composition::import(spec);
+    // The light's cascades first: every colour pass samples them.
+    if let Some(state) = spec.states.get::<ShadowState>() {
+        let ids = import_shadows(&mut c.g, &mut c.externals, spec.atlas, state);
+        add_shadow_culling(&mut c.g, ids);
+        add_shadow_maps(&mut c.g, ids);
+        c.t.shadow = Some(ids.atlas);
+    }
     let culling = c.culling();
     let two_phase = culling.base() == Culling::HizTwoPhase;
     // Reprojection: last frame's depth moved into this frame's view, before the culling that

@@ -542,6 +542,18 @@ impl Resolved {
         {
             options.raster_occlusion_scale = s;
         }
+        let integer = |k: &str| self.get(k).and_then(KnobValue::as_integer);
+        let shadows = &mut options.shadows;
+        if let Some(n) = integer("shadow_cascades") {
+            shadows.cascades = n;
+        }
+        if let Some(r) = integer("shadow_resolution") {
+            shadows.resolution = r;
+        }
+        shadows.format = crate::shadow::parse_format(name("shadow_format"));
+        if let Some(c) = tilegraph_cull::shadow::CasterCulling::parse(name("shadow_culling")) {
+            shadows.culling = c;
+        }
     }
 
     /// One line per knob: `name = value (origin)`, and `auto`'s reason.
@@ -596,6 +608,11 @@ mod tests {
                     "cull_bounds" => ["aabb", "sphere"].contains(&s.as_str()),
                     "visbuf_resolve" => VisbufResolve::parse(&s).is_some(),
                     "classify_tile" => matches!(k.domain, Domain::Integers(_)),
+                    "shadow_cascades" | "shadow_resolution" => {
+                        matches!(k.domain, Domain::Integers(_))
+                    }
+                    "shadow_format" => s == "profile" || crate::shadow::parse_format(&s).is_some(),
+                    "shadow_culling" => tilegraph_cull::shadow::CasterCulling::parse(&s).is_some(),
                     "oq_group" | "raster_occlusion_scale" | "occlusion_recheck" => {
                         matches!(k.domain, Domain::Integers(_))
                     }

@@ -154,6 +154,8 @@ pub struct RenderOptions {
     /// Material classification's tile side in pixels, 8, 16 or 32 (knob `classify_tile`);
     /// `None`: the profile's knob, else 16.
     pub classify_tile: Option<u32>,
+    /// The directional light's cascaded shadow maps (off by default).
+    pub shadows: crate::shadow::ShadowOptions,
 }
 
 impl RenderOptions {
@@ -204,6 +206,7 @@ impl Default for RenderOptions {
             texture_binding: None,
             visbuf_resolve: None,
             classify_tile: None,
+            shadows: crate::shadow::ShadowOptions::default(),
         }
     }
 }
@@ -286,12 +289,17 @@ impl RenderOptions {
     /// its own device asks for this first (`tilegraph_vk::DeviceConfig::new` turns it into
     /// extensions and feature structs for the physical device).
     pub fn device_features(&self) -> FeatureRequest {
-        let request = FeatureRequest::executor().require(self.needs().into_iter().map(|(f, _)| f));
-        if self.culling.uses_gpu_lists() {
-            request.want(CullState::wanted_features())
-        } else {
-            request
+        let mut request =
+            FeatureRequest::executor().require(self.needs().into_iter().map(|(f, _)| f));
+        // Shadow casters are culled into indirect lists too; their pipelines clamp depth
+        // (casters nearer the light than the cascade's top) where the device can.
+        if self.culling.uses_gpu_lists() || self.shadows.enabled() {
+            request = request.want(CullState::wanted_features());
         }
+        if self.shadows.enabled() {
+            request = request.want([tilegraph_vk::Feature::DepthClamp]);
+        }
+        request
     }
 }
 

@@ -262,6 +262,16 @@ impl Pipelines {
         }
     }
 
+    /// The alpha-tested depth pass's fragment shader (`depth_alpha.frag`) in the build the
+    /// scene's textures need.
+    pub fn depth_alpha_fragment(&self) -> (&'static str, &'static [u8]) {
+        if self.textures.0 == TextureBinding::Layers {
+            ("depth_alpha.frag", spv::DEPTH_ALPHA_LAYERS_FS)
+        } else {
+            ("depth_alpha.frag", spv::DEPTH_ALPHA_FS)
+        }
+    }
+
     /// `TEXTURE_SLOTS` (specialization 1 of the fragment shaders).
     pub fn texture_slots(&self) -> u32 {
         self.textures.1
@@ -420,6 +430,8 @@ impl Pipelines {
                         } else {
                             -PROXY_DEPTH_BIAS
                         },
+                        slope_bias: 0.0,
+                        clamp: false,
                     },
                     blend: Blend::NoColorWrites,
                     // The box triangles wind counter-clockwise seen from outside, as glTF's do.
@@ -580,6 +592,8 @@ fn scene_pipeline(
         write: true,
         compare: nearer(depth),
         bias: 0,
+        slope_bias: 0.0,
+        clamp: false,
     };
     let pos_only = [POSITION];
     let pos_uv = [POSITION, UV];
@@ -617,18 +631,24 @@ fn scene_pipeline(
                     write: false,
                     compare: nearer(depth),
                     bias: 0,
+                    slope_bias: 0.0,
+                    clamp: false,
                 },
                 (_, ColourDepth::Equal) => DepthState {
                     test: true,
                     write: false,
                     compare: vk::CompareOp::EQUAL,
                     bias: 0,
+                    slope_bias: 0.0,
+                    clamp: false,
                 },
                 (_, ColourDepth::WriteOrEqual) => DepthState {
                     test: true,
                     write: true,
                     compare: nearer_or_equal(depth),
                     bias: 0,
+                    slope_bias: 0.0,
+                    clamp: false,
                 },
                 (_, ColourDepth::Write) => write,
             };

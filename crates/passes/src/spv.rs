@@ -36,3 +36,6 @@ pub const RASTER_VS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusi
 pub const RASTER_FS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.frag.spv");
 pub const CLASSIFY_CS: &[u8] = include_bytes!("../../../shaders/spv/visbuf_classify.comp.spv");
 pub const TILE_VS: &[u8] = include_bytes!("../../../shaders/spv/visbuf_tile.vert.spv");
+pub const SHADOW_VS: &[u8] = include_bytes!("../../../shaders/spv/shadow.vert.spv");
+pub const SHADOW_ALPHA_VS: &[u8] = include_bytes!("../../../shaders/spv/shadow_alpha.vert.spv");
+pub const SHADOW_CULL_CS: &[u8] = include_bytes!("../../../shaders/spv/shadow_cull.comp.spv");

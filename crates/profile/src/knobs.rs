@@ -226,6 +226,34 @@ pub const KNOBS: &[KnobSpec] = &[
         applies: Applies::WithShading(&["visbuf"]),
         help: "side in pixels of the screen tiles material classification sorts: smaller tiles shade fewer other materials' pixels, cost more classification work and tile quads",
     },
+    KnobSpec {
+        name: "shadow_cascades",
+        domain: Domain::Integers(&[0, 1, 2, 3, 4]),
+        default: DefaultValue::Integer(0),
+        applies: Applies::Always,
+        help: "cascaded shadow maps of the directional light: 0 (none) to 4 cascades in one depth atlas",
+    },
+    KnobSpec {
+        name: "shadow_resolution",
+        domain: Domain::Integers(&[256, 512, 1024, 2048]),
+        default: DefaultValue::Integer(1024),
+        applies: Applies::Always,
+        help: "texels on a side of each cascade: sharper shadows for more depth writes and memory",
+    },
+    KnobSpec {
+        name: "shadow_format",
+        domain: Domain::Choice(&["profile", "d16", "d32"]),
+        default: DefaultValue::Name("profile"),
+        applies: Applies::Always,
+        help: "the shadow atlas's depth format: D16 halves its bandwidth and tile memory (the default on tilers), D32 keeps float precision",
+    },
+    KnobSpec {
+        name: "shadow_culling",
+        domain: Domain::Choice(&["none", "cascade", "receivers"]),
+        default: DefaultValue::Name("receivers"),
+        applies: Applies::Always,
+        help: "which casters each cascade draws: all, those in its box, or those whose shadow can reach the camera's view slice (all exact)",
+    },
 ];
 
 /// The knob named `name`.

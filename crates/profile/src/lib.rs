@@ -221,6 +221,8 @@ pub enum SortOrder {
 pub enum PassClass {
     /// Culling, pyramid builds and other compute that feeds drawing.
     Compute,
+    /// Shadow maps: depth from a light, sampled by the colour passes after it.
+    Shadow,
     DepthPrepass,
     Opaque,
     AlphaTested,
@@ -235,6 +237,7 @@ impl PassClass {
     pub const fn name(self) -> &'static str {
         match self {
             PassClass::Compute => "compute",
+            PassClass::Shadow => "shadow",
             PassClass::DepthPrepass => "depth_prepass",
             PassClass::Opaque => "opaque",
             PassClass::AlphaTested => "alpha_tested",

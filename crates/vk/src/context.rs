@@ -435,6 +435,18 @@ impl Context {
         None
     }
 
+    /// What the device does with optimally tiled images of `format`
+    /// (`vkGetPhysicalDeviceFormatProperties`).
+    pub fn format_features(&self, format: vk::Format) -> vk::FormatFeatureFlags {
+        // SAFETY: valid physical device of this instance.
+        unsafe {
+            self.instance
+                .raw
+                .get_physical_device_format_properties(self.physical.raw, format)
+        }
+        .optimal_tiling_features
+    }
+
     pub fn has_feature(&self, f: Feature) -> bool {
         self.enabled.contains(&f)
     }

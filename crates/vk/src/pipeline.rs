@@ -36,7 +36,7 @@ pub enum Blend {
     NoColorWrites,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DepthState {
     pub test: bool,
     pub write: bool,
@@ -45,6 +45,12 @@ pub struct DepthState {
     /// primitive's largest depth, 1/65535 for D16; spec "Depth Bias"), applied after clipping;
     /// 0 leaves it off.
     pub bias: i32,
+    /// Depth bias per unit of the primitive's depth slope (shadow maps: the steeper a caster's
+    /// surface seen from the light, the more it is pushed back); 0 leaves it off.
+    pub slope_bias: f32,
+    /// Clamp depth to the viewport's range instead of clipping at the near and far planes
+    /// (`depthClamp`; shadow maps: casters nearer the light than the near plane still write).
+    pub clamp: bool,
 }
 
 impl DepthState {
@@ -53,6 +59,8 @@ impl DepthState {
         write: false,
         compare: vk::CompareOp::ALWAYS,
         bias: 0,
+        slope_bias: 0.0,
+        clamp: false,
     };
 }
 
@@ -176,8 +184,10 @@ pub fn create_graphics_pipeline(
             .polygon_mode(vk::PolygonMode::FILL)
             .cull_mode(desc.cull)
             .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
-            .depth_bias_enable(desc.depth.bias != 0)
+            .depth_clamp_enable(desc.depth.clamp)
+            .depth_bias_enable(desc.depth.bias != 0 || desc.depth.slope_bias != 0.0)
             .depth_bias_constant_factor(desc.depth.bias as f32)
+            .depth_bias_slope_factor(desc.depth.slope_bias)
             .line_width(1.0);
         let multisample =
             vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(desc.samples);
@@ -517,6 +527,8 @@ mod tests {
                 write: true,
                 compare: vk::CompareOp::GREATER,
                 bias: 0,
+                slope_bias: 0.0,
+                clamp: false,
             },
             blend,
             cull: vk::CullModeFlags::BACK,

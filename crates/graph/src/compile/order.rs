@@ -23,8 +23,9 @@ use super::dataflow::Dataflow;
 const NONE: u32 = u32::MAX;
 
 /// Every class, to look up the profile's rank once per class rather than once per pass.
-const CLASSES: [PassClass; 9] = [
+const CLASSES: [PassClass; 10] = [
     PassClass::Compute,
+    PassClass::Shadow,
     PassClass::DepthPrepass,
     PassClass::Opaque,
     PassClass::AlphaTested,

@@ -17,6 +17,7 @@
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, Mat4, Vec3};
+use tilegraph_cull::shadow::{MAX_CASCADES, MAX_CASTER_PLANES};
 use tilegraph_profile::MemoryUse;
 use tilegraph_scene::{
     DepthConvention, GpuInstance, GpuMaterial, GpuMesh, Scene, SceneCursor, SplitPoint, DRAW_LISTS,
@@ -26,6 +27,7 @@ use tilegraph_vk::pipeline::{allocate_set, create_set_layout_counted, write_buff
 use tilegraph_vk::{Buffer, Context, VkError};
 
 mod geometry;
+pub mod shadow_atlas;
 mod slots;
 pub mod textures;
 
@@ -35,9 +37,11 @@ use geometry::{grown, upload_sized, Copy, GEOMETRY_USAGE};
 use slots::{destroy_slot, SlotBuffers};
 use textures::{GpuTextures, TEXTURE_BINDING};
 
-/// `Frame` uniform block of `shaders/common/scene.glsl` (std140, 240 bytes).
+use shadow_atlas::{AtlasDesc, ShadowAtlas, SHADOW_BINDING};
+
+/// `Frame` uniform block of `shaders/common/scene.glsl` (std140, 1872 bytes).
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct FrameUniforms {
     pub view_proj: [[f32; 4]; 4],
     pub light_dir: [f32; 4],
@@ -52,6 +56,19 @@ pub struct FrameUniforms {
     /// The eye's world position split high + low ([`SplitPoint`]; w unused).
     pub eye_high: [f32; 4],
     pub eye_low: [f32; 4],
+    /// xyz: the camera's unit view direction.
+    pub view_forward: [f32; 4],
+    /// The light's cascades ([`crate::shadow::ShadowFrame`]; zero without shadows).
+    pub shadow_clip: [[[f32; 4]; 4]; MAX_CASCADES],
+    pub shadow_far: [f32; 4],
+    pub shadow_texel: [f32; 4],
+    /// x: normal offset in texels, y: a cascade's side in texels, z: its reciprocal.
+    pub shadow_params: [f32; 4],
+    /// x: cascades, y/z: the atlas's columns and rows, w: PCF taps either side.
+    pub shadow_info: [u32; 4],
+    /// Per cascade, [`MAX_CASTER_PLANES`] caster-culling planes (camera-relative).
+    pub caster_planes: [[f32; 4]; MAX_CASCADES * MAX_CASTER_PLANES],
+    pub caster_counts: [u32; 4],
 }
 
 /// Per-frame shading parameters.
@@ -110,6 +127,7 @@ impl FrameUniforms {
             depth_params: [near, 0.5, 0.0, 0.0],
             eye_high: eye.high.extend(0.0).to_array(),
             eye_low: eye.low.extend(0.0).to_array(),
+            ..Zeroable::zeroed()
         }
     }
 }
@@ -194,6 +212,8 @@ pub struct GpuScene {
     pub indices: Buffer,
     /// The materials' textures (binding 8), uploaded once.
     pub textures: GpuTextures,
+    /// The light's shadow atlas (binding 9).
+    pub shadow_atlas: ShadowAtlas,
     frames: Vec<SlotBuffers>,
     pub set_layout: vk::DescriptorSetLayout,
     pool: vk::DescriptorPool,
@@ -291,6 +311,7 @@ impl GpuScene {
         frames_in_flight: usize,
         capacity: Capacity,
         textures: tilegraph_profile::TexturePolicy,
+        shadows: AtlasDesc,
     ) -> Result<Self, VkError> {
         let [vertex_bytes, index_bytes] = geometry_sizes(scene);
         let vertices = upload_sized(
@@ -321,6 +342,16 @@ impl GpuScene {
                 return Err(e);
             }
         };
+        let shadow_atlas = match ShadowAtlas::new(ctx, shadows) {
+            Ok(a) => a,
+            Err(e) => {
+                let mut textures = textures;
+                textures.destroy(ctx);
+                ctx.destroy_buffer(vertices);
+                ctx.destroy_buffer(indices);
+                return Err(e);
+            }
+        };
         let slots = textures.slot_count();
         let all = vk::ShaderStageFlags::VERTEX
             | vk::ShaderStageFlags::FRAGMENT
@@ -335,11 +366,13 @@ impl GpuScene {
             vk::ShaderStageFlags::FRAGMENT,
             slots,
         ));
+        bindings.push((SHADOW_BINDING, sampler, vk::ShaderStageFlags::FRAGMENT, 1));
         let set_layout = match create_set_layout_counted(ctx, &bindings) {
             Ok(l) => l,
             Err(e) => {
                 let mut textures = textures;
                 textures.destroy(ctx);
+                shadow_atlas.destroy(ctx);
                 ctx.destroy_buffer(vertices);
                 ctx.destroy_buffer(indices);
                 return Err(e);
@@ -357,7 +390,7 @@ impl GpuScene {
             },
             vk::DescriptorPoolSize {
                 ty: sampler,
-                descriptor_count: 2 * slots * n,
+                descriptor_count: 2 * (slots + 1) * n,
             },
         ];
         let pool_info = vk::DescriptorPoolCreateInfo::default()
@@ -370,6 +403,7 @@ impl GpuScene {
             vertices,
             indices,
             textures,
+            shadow_atlas,
             frames: Vec::new(),
             set_layout,
             pool: vk::DescriptorPool::null(),
@@ -489,11 +523,19 @@ impl GpuScene {
                 ],
             );
             let images = self.textures.image_infos();
-            let write = [vk::WriteDescriptorSet::default()
-                .dst_set(set)
-                .dst_binding(TEXTURE_BINDING)
-                .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-                .image_info(&images)];
+            let atlas = [self.shadow_atlas.descriptor()];
+            let write = [
+                vk::WriteDescriptorSet::default()
+                    .dst_set(set)
+                    .dst_binding(TEXTURE_BINDING)
+                    .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                    .image_info(&images),
+                vk::WriteDescriptorSet::default()
+                    .dst_set(set)
+                    .dst_binding(SHADOW_BINDING)
+                    .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                    .image_info(&atlas),
+            ];
             // SAFETY: live views and samplers; the set is idle (the caller's guarantee).
             unsafe { ctx.device.update_descriptor_sets(&write, &[]) };
         }
@@ -631,6 +673,7 @@ impl GpuScene {
 
     pub fn destroy(mut self, ctx: &Context) {
         self.textures.destroy(ctx);
+        self.shadow_atlas.destroy(ctx);
         for f in self.frames {
             destroy_slot(ctx, f);
         }

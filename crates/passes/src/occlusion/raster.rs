@@ -402,6 +402,8 @@ impl RasterOcclusion {
                             write: true,
                             compare: vk::CompareOp::ALWAYS,
                             bias: 0,
+                            slope_bias: 0.0,
+                            clamp: false,
                         },
                         blend: Blend::NoColorWrites,
                         cull: vk::CullModeFlags::NONE,

@@ -38,6 +38,7 @@ use crate::lint::lint_frame;
 use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
 use crate::setup::{FrameSetup, SceneContent, Technique};
+use crate::shadow::{write_shadow_uniforms, ShadowState};
 use crate::targets::{create_target, destroy_target};
 use fit::{decide_setup, CpuLists};
 pub use memory::{scene_memory, SceneMemory};
@@ -208,6 +209,11 @@ impl SceneRenderer {
         self.options.lighting.heavy_iterations = iterations;
     }
 
+    /// Points the directional light (and its shadows) along `to_light` from the next frame.
+    pub fn set_light_direction(&mut self, to_light: glam::Vec3) {
+        self.options.lighting.direction = to_light;
+    }
+
     /// Which passes this renderer's frames have.
     pub fn setup(&self) -> &FrameSetup {
         &self.setup
@@ -351,6 +357,7 @@ impl SceneRenderer {
                 states: &self.resources.states,
                 target: image,
                 ids_target: self.ids_target.as_ref().map(|(_, h)| h),
+                atlas: &self.resources.scene.shadow_atlas,
             });
             let (plan, payloads) = declared.graph.compile(profile)?.into_plan_and_payloads();
             self.declared = Some(DeclaredFrame {
@@ -618,7 +625,7 @@ impl SceneRenderer {
                 max_triangles: scene.max_mesh_triangles(),
             });
         }
-        let uniforms = FrameUniforms::new(
+        let mut uniforms = FrameUniforms::new(
             m.view_projection,
             m.depth,
             (w, h),
@@ -626,6 +633,18 @@ impl SceneRenderer {
             instance_bits.unwrap_or(32),
             m.eye,
         );
+        write_shadow_uniforms(
+            &mut uniforms,
+            &frame.camera,
+            w as f32 / h.max(1) as f32,
+            scene,
+            self.options.lighting.direction,
+            &self.options.shadows,
+            res.scene.shadow_atlas.desc,
+        );
+        if let Some(s) = res.states.get_mut::<ShadowState>() {
+            s.set_instances(scene.instances().len() as u32);
+        }
         self.instance_bits = instance_bits;
         res.scene
             .write_frame(ctx, slot, scene, &uniforms, &res.frame.draws.instances)?;

@@ -9,8 +9,24 @@ use super::SceneRenderer;
 use crate::cull::{CullState, GpuLists};
 use crate::occlusion::OqState;
 use crate::options::RenderError;
+use crate::shadow::ShadowState;
+use tilegraph_cull::shadow::MAX_CASCADES;
 
 impl SceneRenderer {
+    /// Shadow casters the last frame drew into each cascade (opaque and alpha-tested; waits
+    /// for the GPU). `None` without shadows, or where the lists keep a fixed draw count.
+    pub fn read_shadow_casters(
+        &mut self,
+        ctx: &Context,
+    ) -> Result<Option<[u32; MAX_CASCADES]>, RenderError> {
+        self.executor.finish(ctx)?;
+        Ok(self
+            .resources
+            .states
+            .get::<ShadowState>()
+            .and_then(ShadowState::casters_drawn))
+    }
+
     /// The instance owning each pixel of the last frame (`u32::MAX` for background), from the
     /// captured visibility buffer (`capture_ids`); waits for the GPU.
     pub fn read_instance_ids(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {

@@ -12,6 +12,7 @@ use crate::occlusion::{OqState, RasterOcclusion};
 use crate::options::{RenderError, RenderOptions};
 use crate::pipelines::Pipelines;
 use crate::setup::Technique;
+use crate::shadow::ShadowState;
 use crate::visbuf::classify::ClassifyState;
 use crate::visbuf::ResolveSets;
 
@@ -29,7 +30,8 @@ pub(super) fn create_resources(
     if let Some(b) = options.texture_binding {
         textures.binding = b;
     }
-    let gpu = GpuScene::new(ctx, scene, frames_in_flight, capacity, textures)?;
+    let atlas = options.shadows.atlas(ctx.profile());
+    let gpu = GpuScene::new(ctx, scene, frames_in_flight, capacity, textures, atlas)?;
     let pipelines = match Pipelines::new(
         ctx,
         gpu.set_layout,
@@ -69,6 +71,11 @@ fn add_states(
     let culling = options.culling;
     let instances = capacity.instances;
     let set_layout = res.scene.set_layout;
+    if options.shadows.enabled() {
+        let atlas = res.scene.shadow_atlas.desc;
+        res.states
+            .insert(ShadowState::new(ctx, set_layout, atlas, instances)?);
+    }
     if culling.uses_pyramid() {
         let depth = scene
             .camera_path()

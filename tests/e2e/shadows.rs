@@ -1,0 +1,262 @@
+//! Cascaded shadow maps on lavapipe (validation on): the city and the interior with three
+//! cascades under forward, forward with pre-passes and the visibility buffer match their golden
+//! images; shadows only take light away (no pixel brighter than the unshadowed frame) and take
+//! a good part of it; and caster culling by cascade and by receivers is exact — every frame of
+//! the city's path, a light turning over the city, and walks at eye height through the city and
+//! the interior equals the frame that draws every caster — while drawing fewer casters.
+
+use glam::Vec3;
+use tilegraph_cull::shadow::CasterCulling;
+use tilegraph_e2e::gpu_with;
+use tilegraph_passes::shadow::ShadowOptions;
+use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
+use tilegraph_scene::{CameraFrame, CameraPath, Scene};
+use tilegraph_vk::readback::RgbaImage;
+
+const W: u32 = 160;
+const H: u32 = 90;
+
+fn shadows(culling: CasterCulling) -> ShadowOptions {
+    ShadowOptions {
+        cascades: 3,
+        resolution: 256,
+        culling,
+        ..ShadowOptions::default()
+    }
+}
+
+fn options(technique: Technique, prepass: bool, shadows: ShadowOptions) -> RenderOptions {
+    RenderOptions {
+        technique,
+        width: W,
+        height: H,
+        depth_prepass: Some(prepass),
+        alpha_prepass: Some(prepass),
+        shadows,
+        ..Default::default()
+    }
+}
+
+/// One rendered frame: the image and the casters drawn per cascade.
+struct Shot {
+    image: RgbaImage,
+    casters: Option<[u32; 4]>,
+}
+
+/// Renders `frames` of `path` (light along `light(frame)`) with `options` on one renderer.
+fn render_path(
+    scene: &Scene,
+    options: RenderOptions,
+    path: &CameraPath,
+    frames: &[usize],
+    light: impl Fn(usize) -> Option<Vec3>,
+) -> Vec<Shot> {
+    let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, scene, options).unwrap();
+    let aspect = W as f32 / H as f32;
+    let mut out = Vec::new();
+    let mut previous = None;
+    for &i in frames {
+        let key = path.keys()[i];
+        let before = if key.cut { None } else { previous.as_ref() };
+        let frame = CameraFrame::new(i, key.camera, before, aspect);
+        if let Some(l) = light(i) {
+            r.set_light_direction(l);
+        }
+        r.render_frame(&g, scene, &frame).unwrap();
+        let casters = r.read_shadow_casters(&g).unwrap();
+        out.push(Shot {
+            image: r.read_image(&g).unwrap(),
+            casters,
+        });
+        previous = Some(key.camera);
+    }
+    r.destroy(&g);
+    out
+}
+
+fn first_frames(path: &CameraPath, n: usize) -> Vec<usize> {
+    (0..n.min(path.len())).collect()
+}
+
+fn city() -> Scene {
+    tilegraph_scene::load("city:300").unwrap()
+}
+
+fn interior() -> Scene {
+    tilegraph_scene::load("interior").unwrap()
+}
+
+/// (pixels darker than `unshadowed`, pixels brighter by more than a level).
+fn darkening(shadowed: &RgbaImage, unshadowed: &RgbaImage) -> (usize, usize) {
+    shadowed
+        .pixels
+        .chunks_exact(4)
+        .zip(unshadowed.pixels.chunks_exact(4))
+        .fold((0, 0), |(dark, bright), (s, u)| {
+            let darker = (0..3).any(|c| s[c] < u[c]);
+            let brighter = (0..3).any(|c| s[c] > u[c].saturating_add(1));
+            (dark + usize::from(darker), bright + usize::from(brighter))
+        })
+}
+
+#[test]
+fn three_cascades_match_their_golden_images_and_only_take_light_away() {
+    let bless = std::env::var_os("TILEGRAPH_BLESS").is_some();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("golden");
+    let mut failures = Vec::new();
+    for (name, scene) in [("city", city()), ("interior", interior())] {
+        let path = scene.camera_path().clone();
+        let frame = [0];
+        let lit = |_| None;
+        let off = ShadowOptions::default();
+        let on = shadows(CasterCulling::Receivers);
+        let mut images = Vec::new();
+        for (shading, technique, prepass) in [
+            ("forward", Technique::Forward, false),
+            ("prepass", Technique::Forward, true),
+            ("visbuf", Technique::Visbuf, false),
+        ] {
+            let unshadowed = options(technique, prepass, off);
+            let unshadowed = render_path(&scene, unshadowed, &path, &frame, lit);
+            let shot = render_path(&scene, options(technique, prepass, on), &path, &frame, lit);
+            let image = &shot[0].image;
+            let (dark, bright) = darkening(image, &unshadowed[0].image);
+            println!(
+                "{name} {shading}: {dark} of {} pixels in shadow, {bright} brighter",
+                W * H
+            );
+            assert_eq!(
+                bright, 0,
+                "{name} {shading}: a shadow made a pixel brighter"
+            );
+            assert!(
+                dark >= (W * H / 20) as usize,
+                "{name} {shading}: only {dark} pixels in shadow"
+            );
+            let golden = dir.join(format!("shadows-{name}-{shading}.png"));
+            if bless {
+                tilegraph_e2e::golden::write_png(&golden, image).unwrap();
+            } else if let Err(e) = tilegraph_e2e::golden::compare(&golden, image, 2) {
+                failures.push(format!("{name} {shading}: {e}"));
+            }
+            images.push((unshadowed[0].image.clone(), shot[0].image.clone()));
+        }
+        // The pre-pass changes no lookup: where it draws what forward draws, shadows and all.
+        if images[0].0 == images[1].0 {
+            assert!(
+                images[0].1 == images[1].1,
+                "{name}: pre-pass frame differs from forward"
+            );
+        } else {
+            println!("{name}: the pre-pass frame differs from forward without shadows too");
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "golden mismatches (TILEGRAPH_BLESS=1 regenerates):\n{}",
+        failures.join("\n")
+    );
+}
+
+/// Renders `frames` under every caster culling; asserts the images equal the unculled ones and
+/// the casters drawn shrink from none to cascade to receivers; (cascade, receivers, none)
+/// casters summed over the frames.
+fn culled_equals_unculled(
+    what: &str,
+    scene: &Scene,
+    technique: Technique,
+    path: &CameraPath,
+    frames: &[usize],
+    light: impl Fn(usize) -> Option<Vec3> + Copy,
+) -> [u64; 3] {
+    let run = |c| {
+        render_path(
+            scene,
+            options(technique, false, shadows(c)),
+            path,
+            frames,
+            light,
+        )
+    };
+    let none = run(CasterCulling::None);
+    let mut totals = [0u64; 3];
+    for (k, culling) in [CasterCulling::Cascade, CasterCulling::Receivers]
+        .into_iter()
+        .enumerate()
+    {
+        let culled = run(culling);
+        for (i, (a, b)) in culled.iter().zip(&none).enumerate() {
+            assert!(
+                a.image == b.image,
+                "{what}, {} culling, frame {i}: the image differs from drawing every caster",
+                culling.name()
+            );
+            let (Some(ca), Some(cb)) = (a.casters, b.casters) else {
+                continue; // a fixed draw count keeps no counts
+            };
+            for c in 0..3 {
+                assert!(
+                    ca[c] <= cb[c],
+                    "{what} frame {i} cascade {c}: {ca:?} > {cb:?}"
+                );
+            }
+            totals[k] += ca.iter().map(|&n| u64::from(n)).sum::<u64>();
+            if k == 0 {
+                totals[2] += cb.iter().map(|&n| u64::from(n)).sum::<u64>();
+            }
+        }
+    }
+    println!(
+        "{what}: casters drawn over {} frames: none {}, cascade {}, receivers {}",
+        frames.len(),
+        totals[2],
+        totals[0],
+        totals[1]
+    );
+    totals
+}
+
+#[test]
+fn caster_culling_is_exact_along_the_city_path_and_under_a_turning_light() {
+    let scene = city();
+    let path = scene.camera_path().clone();
+    let frames = first_frames(&path, 5);
+    let [cascade, receivers, none] = culled_equals_unculled(
+        "city path",
+        &scene,
+        Technique::Forward,
+        &path,
+        &frames,
+        |_| None,
+    );
+    assert!(
+        receivers < cascade && cascade < none,
+        "{receivers} {cascade} {none}"
+    );
+    // The light turns 40 degrees a frame round the vertical, 35 degrees up, over a still camera.
+    let still = CameraPath::new("still", vec![path.keys()[2]; 9]).unwrap();
+    let turning = |i: usize| {
+        let (a, e) = ((40.0 * i as f32).to_radians(), 35f32.to_radians());
+        Some(Vec3::new(a.cos() * e.cos(), e.sin(), a.sin() * e.cos()))
+    };
+    let frames: Vec<usize> = (0..9).collect();
+    culled_equals_unculled(
+        "turning light",
+        &scene,
+        Technique::Visbuf,
+        &still,
+        &frames,
+        turning,
+    );
+}
+
+#[test]
+fn caster_culling_is_exact_on_walks_through_the_city_and_the_interior() {
+    for (name, scene) in [("city", city()), ("interior", interior())] {
+        let walk = CameraPath::eye_height_walk(&scene.bounds(), 48, 38);
+        // Walking frames, a yaw sweep, both sides of the cut at 24.
+        let frames = [0, 1, 2, 9, 17, 23, 24, 25, 40];
+        culled_equals_unculled(name, &scene, Technique::Forward, &walk, &frames, |_| None);
+    }
+}
