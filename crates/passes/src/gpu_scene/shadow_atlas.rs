@@ -138,7 +138,7 @@ impl ShadowAtlas {
             .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
             .compare_enable(true)
             .compare_op(vk::CompareOp::LESS_OR_EQUAL)
-            .max_lod(0.0);
+            .max_lod(vk::LOD_CLAMP_NONE);
         // SAFETY: valid create info.
         self.sampler = unsafe { ctx.device.create_sampler(&info, None) }
             .map_err(|r| VkError::call("vkCreateSampler", r))?;
