@@ -136,18 +136,29 @@ bool project_sphere(Instance inst, out Projected p) {
     return true;
 }
 
+bool hiz_rect_visible(Projected p, uint ulps);
+
 // Conservative HiZ test of the instance's bounds (the sphere when `sphere` and the projection
 // allows, else the box) against the pyramid.
 bool hiz_visible_bounds(Instance inst, bool sphere) {
     if (cull.info.z == 0u) {
         return true;
     }
-    bool reverse = cull.info.w == 1u;
     Projected p;
     bool projected = sphere && cull.hiz_proj.z > -0.5 ? project_sphere(inst, p) : project_box(inst, p);
     if (!projected) {
         return true;
     }
+    // Rounding margin: move the nearest depth 4 ulps towards the camera (8 for a sphere, whose
+    // depth comes from one more product).
+    return hiz_rect_visible(p, sphere ? 8u : 4u);
+}
+
+// The conservative HiZ test of a projected volume: visible unless its nearest depth, moved
+// `ulps` towards the camera, lies strictly behind every texel of the pyramid level its rect
+// covers in 2x2 texels.
+bool hiz_rect_visible(Projected p, uint ulps) {
+    bool reverse = cull.info.w == 1u;
     vec2 size = vec2(cull.screen.xy);
     // Clamped to [-1, size] before the conversion: a corner just past the near plane can land
     // billions of pixels away, beyond what an int holds (the conversion is then undefined).
@@ -160,9 +171,6 @@ bool hiz_visible_bounds(Instance inst, bool sphere) {
     }
     uvec2 a = uvec2(clamp(pmin, ivec2(0), smax));
     uvec2 b = uvec2(clamp(pmax, ivec2(0), smax));
-    // Rounding margin: move the nearest depth 4 ulps towards the camera (8 for a sphere, whose
-    // depth comes from one more product).
-    uint ulps = sphere ? 8u : 4u;
     float nearest = uintBitsToFloat(reverse ? floatBitsToUint(p.nearest) + ulps : max(floatBitsToUint(p.nearest), ulps) - ulps);
     if (cull.groups.z == 1u) {
         nearest = toward_near_d16(nearest, reverse);

@@ -70,6 +70,11 @@ layout(set = 0, binding = 0, std140) uniform Frame {
     // (shadow_cull.comp), and how many are in use.
     vec4 caster_planes[80];
     uvec4 caster_counts;
+    // Per cascade (receivers-hiz): the height towards the light, camera-relative, a caster's
+    // shadow can reach down to (the slice's lowest receiver less the reach), and what a lookup
+    // reaches past a receiver, metres.
+    vec4 caster_floor;
+    vec4 caster_reach;
 } frame;
 
 const uint MAX_CASTER_PLANES = 20u;

@@ -47,6 +47,8 @@ struct RenderJson<'a> {
     naive_traffic_bytes: u64,
     draws: usize,
     triangles: u64,
+    /// Shadow casters the last frame drew per cascade (with shadows and a GPU draw count).
+    shadow_casters: Option<[u32; 4]>,
     lint_findings: usize,
     gpu_ms: Vec<TimingJson>,
     /// Median of the whole frame (timed with two timestamps, no per-pass queries).
@@ -160,7 +162,7 @@ fn render_with(
             last = Some(report);
         }
         let image = renderer.read_image(ctx)?;
-        renderer.finish(ctx)?;
+        let casters = renderer.read_shadow_casters(ctx)?;
         // The same frames again with two timestamps each and no per-pass queries: the frame
         // time, with what lies between the passes (clears, stores, barriers).
         let passes = Timed {
@@ -186,9 +188,9 @@ fn render_with(
                 .map(|m| m.median_gpu_ms),
             ..passes
         };
-        Ok::<_, CliError>((last, lint, image, timed))
+        Ok::<_, CliError>((last, lint, image, timed, casters))
     })();
-    let (report, lint, image, timed) = match result {
+    let (report, lint, image, timed, casters) = match result {
         Ok(v) => v,
         Err(e) => {
             renderer.destroy(ctx);
@@ -234,6 +236,7 @@ fn render_with(
                     .map_or(0, |r| r.plan.traffic.naive.total_bytes()),
                 draws: report.as_ref().map_or(0, |r| r.draws),
                 triangles: report.as_ref().map_or(0, |r| r.triangles),
+                shadow_casters: casters,
                 lint_findings: lint.as_ref().map_or(0, |l| l.findings.len()),
                 frame_gpu_ms: timed.frame_ms.unwrap_or(0.0),
                 passes_gpu_ms: medians.iter().map(|m| m.median_gpu_ms).sum(),
@@ -286,6 +289,14 @@ fn render_with(
                 bytes(r.plan.traffic.naive.total_bytes()),
                 r.draws,
                 r.triangles
+            )?;
+        }
+        if let Some(c) = casters {
+            let cascades = ropts.shadows.cascades as usize;
+            outln!(
+                "shadow casters drawn per cascade ({}): {:?}",
+                ropts.shadows.culling.name(),
+                &c[..cascades.min(4)]
             )?;
         }
         if let Some(l) = &lint {

@@ -44,13 +44,19 @@ pub enum CasterCulling {
     Cascade,
     /// The cascade's box and the camera's frustum slice extruded towards the light.
     Receivers,
+    /// `Receivers`, then (on the GPU, where the frame has this frame's camera depth pyramid
+    /// before its colour: two-phase culling with a pre-pass or the visibility buffer) the
+    /// volume a caster's shadow can darken tested against the pyramid: a caster whose shadow
+    /// falls only on what the camera cannot see is dropped (seed 004's second pass).
+    ReceiversHiz,
 }
 
 impl CasterCulling {
-    pub const ALL: [CasterCulling; 3] = [
+    pub const ALL: [CasterCulling; 4] = [
         CasterCulling::None,
         CasterCulling::Cascade,
         CasterCulling::Receivers,
+        CasterCulling::ReceiversHiz,
     ];
 
     pub const fn name(self) -> &'static str {
@@ -58,6 +64,7 @@ impl CasterCulling {
             CasterCulling::None => "none",
             CasterCulling::Cascade => "cascade",
             CasterCulling::Receivers => "receivers",
+            CasterCulling::ReceiversHiz => "receivers-hiz",
         }
     }
 
@@ -211,6 +218,8 @@ pub struct Cascades {
     pub count: usize,
     pub items: [Cascade; MAX_CASCADES],
     pub basis: Option<LightBasis>,
+    /// The lowest height (towards the light) of the scene's bounds: no receiver lies below.
+    pub scene_floor: f64,
 }
 
 impl Cascades {
@@ -255,10 +264,9 @@ pub fn fit_cascades(
     if distance.is_nan() || distance <= near {
         return out;
     }
-    let top_of_scene = corners
-        .iter()
-        .map(|c| basis.to_light(*c).z)
-        .fold(f64::MIN, f64::max);
+    let heights = corners.map(|c| basis.to_light(c).z);
+    let top_of_scene = heights.iter().copied().fold(f64::MIN, f64::max);
+    out.scene_floor = heights.iter().copied().fold(f64::MAX, f64::min);
     let border = settings.border_texels();
     out.basis = Some(basis);
     let mut a = near;
@@ -411,15 +419,12 @@ pub fn caster_planes(
     if culling == CasterCulling::Cascade {
         return out;
     }
-    // What a lookup may reach past a receiver, metres: the PCF kernel (its taps and their
-    // bilinear texels), a texel's coverage, the normal offset.
-    let normal_offset = settings.normal_offset_texels * c.texel;
-    let reach = (f64::from(settings.pcf_radius) + 3.0) * c.texel + normal_offset;
+    let reach = lookup_reach(c, settings);
     let points: [DVec2; 8] = std::array::from_fn(|i| {
         let p = basis.to_light(c.corners[i]);
         DVec2::new(p.x, p.y)
     });
-    let lowest = c.corners.iter().map(|p| p.dot(l)).fold(f64::MAX, f64::min);
+    let lowest = lowest_receiver(cascades, index);
     let mut hull = [DVec2::ZERO; 9];
     let n = convex_hull(&points, &mut hull);
     for i in 0..n {
@@ -441,6 +446,26 @@ pub fn caster_planes(
     out.push(-v, hi.y + reach);
     out.push(l, reach - lowest);
     out
+}
+
+/// What a lookup may reach past a receiver in cascade `c`, metres: the PCF kernel (its taps
+/// and their bilinear texels), a texel's coverage, the normal offset.
+pub fn lookup_reach(c: &Cascade, settings: &CascadeSettings) -> f64 {
+    let normal_offset = settings.normal_offset_texels * c.texel;
+    (f64::from(settings.pcf_radius) + 3.0) * c.texel + normal_offset
+}
+
+/// The height (towards the light) below which cascade `index` has no receiver: the lowest
+/// point of its slice, or of the scene where that is higher.
+pub fn lowest_receiver(cascades: &Cascades, index: usize) -> f64 {
+    let (Some(basis), Some(c)) = (cascades.basis, cascades.as_slice().get(index)) else {
+        return f64::MAX;
+    };
+    c.corners
+        .iter()
+        .map(|p| p.dot(basis.l))
+        .fold(f64::MAX, f64::min)
+        .max(cascades.scene_floor)
 }
 
 /// The convex hull of `points` counter-clockwise into `out` (Andrew's monotone chain); its

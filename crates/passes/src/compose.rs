@@ -28,6 +28,7 @@ use crate::setup::{FrameSetup, PassKind};
 use crate::shadow::{add_shadow_culling, add_shadow_maps, import_shadows, ShadowState};
 use crate::targets::SceneTargets;
 use crate::visbuf::{add_visbuf_resolve, add_visbuf_write, ResolvePlan};
+use tilegraph_cull::shadow::CasterCulling;
 
 /// What the scene's declaration depends on besides the renderer's options: when it is the same
 /// as the last frame's, the declared payloads and the compiled plan are reused.
@@ -115,15 +116,23 @@ pub(crate) struct DeclaredScene {
 /// functions in the order the technique needs, and the physical resources of its imports.
 pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
     let mut c = Composition::import(spec);
-    // The light's cascades first: every colour pass samples them.
-    if let Some(state) = spec.states.get::<ShadowState>() {
-        let ids = import_shadows(&mut c.g, &mut c.externals, spec.atlas, state);
-        add_shadow_culling(&mut c.g, ids);
-        add_shadow_maps(&mut c.g, ids);
-        c.t.shadow = Some(ids.atlas);
-    }
     let culling = c.culling();
     let two_phase = culling.base() == Culling::HizTwoPhase;
+    // The light's cascades, before every colour pass (which samples them): first — or, for
+    // `receivers-hiz` where the colour follows a depth phase, after this frame's pyramid.
+    let shadows = spec.states.get::<ShadowState>().map(|state| {
+        let ids = import_shadows(&mut c.g, &mut c.externals, spec.atlas, state);
+        c.t.shadow = Some(ids.atlas);
+        (ids, state.has_hiz())
+    });
+    let after_pyramid = shadows.is_some_and(|(_, hiz)| hiz)
+        && spec.options.shadows.culling == CasterCulling::ReceiversHiz
+        && two_phase
+        && (c.split_depth() || spec.setup.includes(PassKind::VisbufWrite));
+    if let (Some((ids, _)), false) = (shadows, after_pyramid) {
+        add_shadow_culling(&mut c.g, ids, None);
+        add_shadow_maps(&mut c.g, ids);
+    }
     // Reprojection: last frame's depth moved into this frame's view, before the culling that
     // tests against it.
     if let (Some(r), Some(previous)) = (c.reprojected, c.lists.and_then(|l| l.pyramid)) {
@@ -136,6 +145,13 @@ pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
     for phase in if two_phase { 0..2 } else { 0..1 } {
         if phase == 1 {
             c.pyramid_and_late_culling();
+            if let (Some((ids, _)), true) = (shadows, after_pyramid) {
+                // The pyramid is this frame's only where the early phase wrote depth.
+                let pyramid = c.lists.and_then(|l| l.pyramid);
+                let pyramid = pyramid.filter(|_| c.t.depth_written());
+                add_shadow_culling(&mut c.g, ids, pyramid);
+                add_shadow_maps(&mut c.g, ids);
+            }
         }
         c.geometry_phase(phase, two_phase);
     }

@@ -39,3 +39,5 @@ pub const TILE_VS: &[u8] = include_bytes!("../../../shaders/spv/visbuf_tile.vert
 pub const SHADOW_VS: &[u8] = include_bytes!("../../../shaders/spv/shadow.vert.spv");
 pub const SHADOW_ALPHA_VS: &[u8] = include_bytes!("../../../shaders/spv/shadow_alpha.vert.spv");
 pub const SHADOW_CULL_CS: &[u8] = include_bytes!("../../../shaders/spv/shadow_cull.comp.spv");
+pub const SHADOW_CULL_HIZ_CS: &[u8] =
+    include_bytes!("../../../shaders/spv/shadow_cull_hiz.comp.spv");

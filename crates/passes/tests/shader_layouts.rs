@@ -163,6 +163,8 @@ fn instance_mesh_material_and_frame_match_rust() {
             offset_of!(FrameUniforms, shadow_info),
             offset_of!(FrameUniforms, caster_planes),
             offset_of!(FrameUniforms, caster_counts),
+            offset_of!(FrameUniforms, caster_floor),
+            offset_of!(FrameUniforms, caster_reach),
         ],
         size_of::<FrameUniforms>(),
         false,

@@ -249,10 +249,10 @@ pub const KNOBS: &[KnobSpec] = &[
     },
     KnobSpec {
         name: "shadow_culling",
-        domain: Domain::Choice(&["none", "cascade", "receivers"]),
+        domain: Domain::Choice(&["none", "cascade", "receivers", "receivers-hiz"]),
         default: DefaultValue::Name("receivers"),
         applies: Applies::Always,
-        help: "which casters each cascade draws: all, those in its box, or those whose shadow can reach the camera's view slice (all exact)",
+        help: "which casters each cascade draws: all, those in its box, those whose shadow can reach the camera's view slice, or of those the ones whose shadow falls on something the camera sees (this frame's pyramid: two-phase culling with a pre-pass or the visibility buffer); all exact",
     },
 ];
 

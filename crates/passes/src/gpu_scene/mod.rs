@@ -39,7 +39,7 @@ use textures::{GpuTextures, TEXTURE_BINDING};
 
 use shadow_atlas::{AtlasDesc, ShadowAtlas, SHADOW_BINDING};
 
-/// `Frame` uniform block of `shaders/common/scene.glsl` (std140, 1872 bytes).
+/// `Frame` uniform block of `shaders/common/scene.glsl` (std140, 1904 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct FrameUniforms {
@@ -69,6 +69,10 @@ pub struct FrameUniforms {
     /// Per cascade, [`MAX_CASTER_PLANES`] caster-culling planes (camera-relative).
     pub caster_planes: [[f32; 4]; MAX_CASCADES * MAX_CASTER_PLANES],
     pub caster_counts: [u32; 4],
+    /// Per cascade: how low (towards the light, camera-relative) a caster's shadow reaches,
+    /// and what a lookup reaches past a receiver (`receivers-hiz`).
+    pub caster_floor: [f32; 4],
+    pub caster_reach: [f32; 4],
 }
 
 /// Per-frame shading parameters.

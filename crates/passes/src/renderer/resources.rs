@@ -15,6 +15,7 @@ use crate::setup::Technique;
 use crate::shadow::ShadowState;
 use crate::visbuf::classify::ClassifyState;
 use crate::visbuf::ResolveSets;
+use tilegraph_cull::shadow::CasterCulling;
 
 /// The GPU side of a renderer: the scene uploaded with room for `capacity`, the pipelines'
 /// layouts, and the state of the culling technique. Whatever was created is destroyed again
@@ -71,11 +72,7 @@ fn add_states(
     let culling = options.culling;
     let instances = capacity.instances;
     let set_layout = res.scene.set_layout;
-    if options.shadows.enabled() {
-        let atlas = res.scene.shadow_atlas.desc;
-        res.states
-            .insert(ShadowState::new(ctx, set_layout, atlas, instances)?);
-    }
+
     if culling.uses_pyramid() {
         let depth = scene
             .camera_path()
@@ -169,6 +166,16 @@ fn add_states(
         )?;
         oq.set_recheck_interval(options.occlusion_recheck);
         res.states.insert(oq);
+    }
+    if options.shadows.enabled() {
+        let atlas = res.scene.shadow_atlas.desc;
+        // `receivers-hiz` reads the camera's pyramid through the GPU culling's sets.
+        let cull_sets = match (options.shadows.culling, res.states.get::<CullState>()) {
+            (CasterCulling::ReceiversHiz, Some(c)) => Some(c.phase_set_layout()),
+            _ => None,
+        };
+        let shadows = ShadowState::new(ctx, set_layout, cull_sets, atlas, instances)?;
+        res.states.insert(shadows);
     }
     if options.technique == Technique::Visbuf {
         res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);

@@ -18,8 +18,8 @@
 use ash::vk;
 use glam::Mat4;
 use tilegraph_cull::shadow::{
-    caster_planes, fit_cascades, CascadeSettings, Cascades, CasterCulling, ShadowCamera,
-    MAX_CASCADES, MAX_CASTER_PLANES,
+    caster_planes, fit_cascades, lookup_reach, lowest_receiver, CascadeSettings, Cascades,
+    CasterCulling, ShadowCamera, MAX_CASCADES, MAX_CASTER_PLANES,
 };
 use tilegraph_cull::DepthFormat;
 use tilegraph_graph::{
@@ -159,6 +159,12 @@ pub fn write_shadow_uniforms(
             uniforms.caster_planes[i * MAX_CASTER_PLANES + k] = p.as_vec4().to_array();
         }
         uniforms.caster_counts[i] = planes.count as u32;
+        if let Some(basis) = cascades.basis {
+            let reach = lookup_reach(c, &settings);
+            let floor = lowest_receiver(&cascades, i) - reach - basis.l.dot(eye);
+            uniforms.caster_floor[i] = floor as f32;
+            uniforms.caster_reach[i] = reach as f32;
+        }
     }
     let res = settings.resolution as f32;
     uniforms.shadow_params = [settings.normal_offset_texels as f32, res, 1.0 / res, 0.0];
@@ -186,6 +192,10 @@ pub struct ShadowState {
     set: vk::DescriptorSet,
     cull_layout: vk::PipelineLayout,
     cull_pipeline: vk::Pipeline,
+    /// `receivers-hiz`: the culling that also reads the camera's pyramid through the GPU
+    /// culling's late-phase set (set 1; the lists move to set 2).
+    hiz_layout: vk::PipelineLayout,
+    hiz_pipeline: vk::Pipeline,
     draw_layout: vk::PipelineLayout,
     depth_clamp: bool,
 }
@@ -198,10 +208,12 @@ impl PassState for ShadowState {
 
 impl ShadowState {
     /// The lists for `capacity` instance slots and the atlas `atlas`, over the scene's set 0
-    /// layout.
+    /// layout; with `cull_set_layout` (the GPU culling's phase sets), the `receivers-hiz`
+    /// culling too.
     pub fn new(
         ctx: &Context,
         scene_set_layout: vk::DescriptorSetLayout,
+        cull_set_layout: Option<vk::DescriptorSetLayout>,
         atlas: AtlasDesc,
         capacity: u32,
     ) -> Result<Self, VkError> {
@@ -246,10 +258,12 @@ impl ShadowState {
             set: vk::DescriptorSet::null(),
             cull_layout: vk::PipelineLayout::null(),
             cull_pipeline: vk::Pipeline::null(),
+            hiz_layout: vk::PipelineLayout::null(),
+            hiz_pipeline: vk::Pipeline::null(),
             draw_layout: vk::PipelineLayout::null(),
             depth_clamp: ctx.has_feature(Feature::DepthClamp),
         };
-        match s.init(ctx, scene_set_layout) {
+        match s.init(ctx, scene_set_layout, cull_set_layout) {
             Ok(()) => Ok(s),
             Err(e) => {
                 s.destroy_all(ctx);
@@ -262,6 +276,7 @@ impl ShadowState {
         &mut self,
         ctx: &Context,
         scene_set_layout: vk::DescriptorSetLayout,
+        cull_set_layout: Option<vk::DescriptorSetLayout>,
     ) -> Result<(), VkError> {
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
         let c = vk::ShaderStageFlags::COMPUTE;
@@ -305,6 +320,19 @@ impl ShadowState {
             },
             self.cull_layout,
         )?;
+        if let Some(cull) = cull_set_layout {
+            let sets = [scene_set_layout, cull, self.set_layout];
+            self.hiz_layout = create_pipeline_layout(ctx, &sets, Some(push(c, 12)))?;
+            self.hiz_pipeline = create_compute_pipeline(
+                ctx,
+                &Stage {
+                    name: "shadow_cull_hiz.comp",
+                    spirv: spv::SHADOW_CULL_HIZ_CS,
+                    specialization: &[],
+                },
+                self.hiz_layout,
+            )?;
+        }
         Ok(())
     }
 
@@ -313,6 +341,8 @@ impl ShadowState {
         unsafe {
             ctx.device.destroy_pipeline(self.cull_pipeline, None);
             ctx.device.destroy_pipeline_layout(self.cull_layout, None);
+            ctx.device.destroy_pipeline(self.hiz_pipeline, None);
+            ctx.device.destroy_pipeline_layout(self.hiz_layout, None);
             ctx.device.destroy_pipeline_layout(self.draw_layout, None);
             ctx.device.destroy_descriptor_pool(self.pool, None);
             ctx.device
@@ -351,27 +381,42 @@ impl ShadowState {
         Some(out)
     }
 
-    fn record_cull(&self, pc: &PassContext<'_>, set0: vk::DescriptorSet) {
+    /// Whether `receivers-hiz` can run here (the GPU culling's sets were there to build on).
+    pub fn has_hiz(&self) -> bool {
+        self.hiz_pipeline != vk::Pipeline::null()
+    }
+
+    /// Records the culling; with `cull_set` (the GPU culling's late-phase set of this slot)
+    /// against the camera's pyramid too.
+    fn record_cull(
+        &self,
+        pc: &PassContext<'_>,
+        set0: vk::DescriptorSet,
+        cull_set: Option<vk::DescriptorSet>,
+    ) {
         if self.instances == 0 {
             return;
         }
         let fixed = u32::from(!matches!(self.draw_count, DrawCount::Gpu));
         let push = [self.instances, self.capacity, fixed];
+        let (pipeline, layout) = match cull_set {
+            Some(_) => (self.hiz_pipeline, self.hiz_layout),
+            None => (self.cull_pipeline, self.cull_layout),
+        };
+        let with_pyramid = cull_set.map(|c| [set0, c, self.set]);
+        let plain = [set0, self.set];
+        let sets: &[vk::DescriptorSet] = match &with_pyramid {
+            Some(s) => s,
+            None => &plain,
+        };
         let d = &pc.ctx.device;
         // SAFETY: recording outside a render pass; pipeline, layout and sets are live.
         unsafe {
-            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::COMPUTE, self.cull_pipeline);
-            d.cmd_bind_descriptor_sets(
-                pc.cb,
-                vk::PipelineBindPoint::COMPUTE,
-                self.cull_layout,
-                0,
-                &[set0, self.set],
-                &[],
-            );
+            d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::COMPUTE, pipeline);
+            d.cmd_bind_descriptor_sets(pc.cb, vk::PipelineBindPoint::COMPUTE, layout, 0, sets, &[]);
             d.cmd_push_constants(
                 pc.cb,
-                self.cull_layout,
+                layout,
                 vk::ShaderStageFlags::COMPUTE,
                 0,
                 bytemuck::cast_slice(&push),
@@ -482,8 +527,9 @@ pub fn import_shadows(
     ids
 }
 
-/// Declares the casters' culling: the counts zeroed (GPU count), then `shadow_cull.comp`.
-pub fn add_shadow_culling(g: &mut FrameGraph, ids: ShadowIds) {
+/// Declares the casters' culling: the counts zeroed (GPU count), then `shadow_cull.comp` —
+/// or, given this frame's camera pyramid (`receivers-hiz`), `shadow_cull_hiz.comp`.
+pub fn add_shadow_culling(g: &mut FrameGraph, ids: ShadowIds, pyramid: Option<BufferId>) {
     if ids.gpu_count {
         let counts = ids.counts;
         let clear: Payload = Box::new(move |pc, res| {
@@ -500,16 +546,32 @@ pub fn add_shadow_culling(g: &mut FrameGraph, ids: ShadowIds) {
         g.transfer_pass("shadow-counts", PassClass::Compute, clear)
             .transfer_dst(counts);
     }
+    let with_pyramid = pyramid.is_some();
     let cull: Payload = Box::new(move |pc, res| {
         let set0 = scene_set(pc, res)?;
+        let cull_set = if with_pyramid {
+            let late = res
+                .states
+                .require::<CullState>(pc.pass_name)?
+                .phase_set(pc.frame_slot, 1);
+            Some(late.ok_or_else(|| VkError::Invalid {
+                what: pc.pass_name.into(),
+                reason: format!("no culling set for frame slot {}", pc.frame_slot),
+            })?)
+        } else {
+            None
+        };
         let state = res.states.require::<ShadowState>(pc.pass_name)?;
-        state.record_cull(pc, set0);
+        state.record_cull(pc, set0, cull_set);
         Ok(())
     });
     let mut p = g.compute_pass("shadow-cull", PassClass::Compute, cull);
     p.storage_write(ids.commands).storage_write(ids.casters);
     if ids.gpu_count {
         p.storage_read_write(ids.counts);
+    }
+    if let Some(pyramid) = pyramid {
+        p.storage_read(pyramid);
     }
 }
 

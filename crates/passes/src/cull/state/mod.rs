@@ -529,6 +529,17 @@ impl CullState {
         Ok(())
     }
 
+    /// The layout of the phases' descriptor sets (binding 0 the phase's parameters, 5 and 6
+    /// the pyramid and its levels: what `cull_tests.glsl` reads).
+    pub fn phase_set_layout(&self) -> vk::DescriptorSetLayout {
+        self.compute.set_layout
+    }
+
+    /// Frame slot `slot`'s set of phase `which` (0 early or only, 1 late).
+    pub fn phase_set(&self, slot: usize, which: usize) -> Option<vk::DescriptorSet> {
+        self.sets.get(2 * slot + which).copied()
+    }
+
     /// Records dispatch `step` of phase `which` (0 early or only, 1 late); the graph put the
     /// barriers around it.
     pub(super) fn record_dispatch(
