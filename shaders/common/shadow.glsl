@@ -1,7 +1,7 @@
 // The directional light's cascaded shadow maps (tilegraph_passes::shadow): one depth atlas of
 // frame.shadow_info.y x .z cascades, each a square of frame.shadow_params.y texels, sampled
 // with hardware depth compares (LESS_OR_EQUAL: 1 where the receiver is nearer the light than
-// the stored caster) in a (2r + 1)^2 grid of bilinear taps (PCF).
+// the stored caster), filtered over the (2r + 1)^2 texels around the lookup (PCF).
 #ifndef TILEGRAPH_SHADOW_GLSL
 #define TILEGRAPH_SHADOW_GLSL
 
@@ -32,16 +32,18 @@ float shadow_factor(vec3 p, vec3 n) {
     uint cols = frame.shadow_info.y;
     vec2 cell = vec2(float(c % cols), float(c / cols));
     vec2 grid = vec2(float(cols), float(frame.shadow_info.z));
+    // (2r)^2 bilinear compare taps half a texel off the texel grid: together they weigh the
+    // (2r + 1)^2 texels around the lookup (4 taps for r = 1 instead of 9 point taps).
     int r = int(frame.shadow_info.w);
     float sum = 0.0;
-    for (int y = -r; y <= r; ++y) {
-        for (int x = -r; x <= r; ++x) {
-            vec2 at = (uv + vec2(float(x), float(y)) * frame.shadow_params.z + cell) / grid;
+    for (int y = 0; y < 2 * r; ++y) {
+        for (int x = 0; x < 2 * r; ++x) {
+            vec2 offset = vec2(float(x - r) + 0.5, float(y - r) + 0.5);
+            vec2 at = (uv + offset * frame.shadow_params.z + cell) / grid;
             sum += texture(shadow_atlas, vec3(at, clip.z));
         }
     }
-    float taps = float((2 * r + 1) * (2 * r + 1));
-    return sum / taps;
+    return sum / float(4 * r * r);
 }
 
 #endif

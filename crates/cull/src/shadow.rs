@@ -85,7 +85,8 @@ pub struct CascadeSettings {
     pub distance: f64,
     /// The splits' blend of logarithmic (1) and uniform (0) spacing.
     pub split_lambda: f64,
-    /// PCF taps either side of the lookup, in texels (1: 3x3 bilinear taps).
+    /// PCF reach either side of the lookup, in texels (1: the 3x3 texels around it, read as
+    /// 2x2 bilinear compare taps).
     pub pcf_radius: u32,
     /// How far along its normal a receiver's lookup moves, in texels of its cascade.
     pub normal_offset_texels: f64,
