@@ -1,7 +1,7 @@
 /*
  * The C sample: a C engine with its own Vulkan instance and device (validation and
  * synchronization validation on, every message counted) hands them to tilegraph, renders the
- * city with two-phase HiZ culling into its own image — recording into its own command
+ * city with two-phase HiZ culling and three shadow cascades of its sun into its own image — recording into its own command
  * buffers, two frames in flight, submitting itself — reads the pixels back, and writes them
  * to the file named by argv[1] (raw RGBA8) for the test to compare with the Rust path's.
  *
@@ -36,9 +36,21 @@ int main(int argc, char **argv) {
                            .width = WIDTH,
                            .height = HEIGHT,
                            .frames_in_flight = SLOTS,
-                           .clear_color = {0.55f, 0.65f, 0.78f, 1.0f}};
+                           .clear_color = {0.55f, 0.65f, 0.78f, 1.0f},
+                           .shadow_cascades = 3,
+                           .shadow_resolution = 512,
+                           .shadow_culling = TG_SHADOW_CULLING_RECEIVERS_HIZ};
     TgRenderer renderer;
     TG_CHECK(tg_renderer_create(context, scene, &desc, &renderer));
+    /* The sun low in the west-south-west, a little warm: the cascades follow it. */
+    const float to_light[3] = {-0.8f, 0.45f, 0.35f};
+    const float sun[3] = {0.9f, 0.85f, 0.75f};
+    TG_CHECK(tg_renderer_set_light(renderer, to_light, sun));
+    /* A light that points nowhere is refused, and the renderer keeps its light. */
+    const float nowhere[3] = {0.0f, 0.0f, 0.0f};
+    CHECK(tg_renderer_set_light(renderer, nowhere, NULL) == TG_STATUS_INVALID_ARGUMENT,
+          "a zero light direction was accepted");
+    CHECK(strstr(tg_last_error(), "to_light") != NULL, "error: %s", tg_last_error());
 
     EngineImage target = engine_image(&e, WIDTH, HEIGHT);
     EngineSlot slots[SLOTS] = {engine_slot(&e), engine_slot(&e)};

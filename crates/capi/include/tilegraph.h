@@ -421,6 +421,10 @@ enum TgPassClass
   TG_PASS_CLASS_POST = 6,
   TG_PASS_CLASS_TRANSFER = 7,
   TG_PASS_CLASS_OTHER = 8,
+  /**
+   * Shadow maps: depth from a light, sampled by the colour passes after it.
+   */
+  TG_PASS_CLASS_SHADOW = 9,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -494,6 +498,41 @@ enum TgFaultSite
 typedef enum TgFaultSite TgFaultSite;
 #else
 typedef uint32_t TgFaultSite;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
+ * Which shadow casters each cascade draws (docs/CULLING.md, "Shadow casters"). All exact.
+ */
+enum TgShadowCulling
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : uint32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * Those whose shadow can reach the camera's view (the default).
+   */
+  TG_SHADOW_CULLING_RECEIVERS = 0,
+  /**
+   * Every caster into every cascade.
+   */
+  TG_SHADOW_CULLING_NONE = 1,
+  /**
+   * Those in the cascade's box.
+   */
+  TG_SHADOW_CULLING_CASCADE = 2,
+  /**
+   * Of `Receivers`, those whose shadow falls on something the camera sees (this frame's
+   * depth pyramid: TG_CULLING_HIZ_TWO_PHASE with a pre-pass or the visibility buffer; else
+   * it is `Receivers`).
+   */
+  TG_SHADOW_CULLING_RECEIVERS_HIZ = 3,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum TgShadowCulling TgShadowCulling;
+#else
+typedef uint32_t TgShadowCulling;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
@@ -926,6 +965,20 @@ typedef struct {
    * engine material's resolve shader needs).
    */
   uint32_t visbuf_resolve;
+  /**
+   * The directional light's cascaded shadow maps (`tg_renderer_set_light` points the
+   * light): 0 none, 1 to 4 cascades in one depth atlas, drawn and sampled by the renderer's
+   * passes (docs/CULLING.md, "Shadow casters").
+   */
+  uint32_t shadow_cascades;
+  /**
+   * Texels on a side of each cascade, 64 to 4096 (0: 1024).
+   */
+  uint32_t shadow_resolution;
+  /**
+   * A TgShadowCulling: which casters each cascade draws (every choice gives the same image).
+   */
+  uint32_t shadow_culling;
 } TgRendererDesc;
 
 /**
@@ -1590,6 +1643,16 @@ TgStatus tg_renderer_stats(TgRenderer renderer, TgFrameStats *out_stats);
  * `out_time` is writable.
  */
 TgStatus tg_renderer_pass_time(TgRenderer renderer, uint32_t index, TgPassTime *out_time);
+
+/**
+ * Points the renderer's directional light along `to_light` (three floats: the direction
+ * towards the light, any length but zero), and gives it `color` (three floats, linear RGB;
+ * NULL keeps it), from the next frame recorded. Shading and shadows follow.
+ *
+ * # Safety
+ * `to_light` points to three floats; `color` is NULL or points to three floats.
+ */
+TgStatus tg_renderer_set_light(TgRenderer renderer, const float *to_light, const float *color);
 
 /**
  * Sets what the GPU queries of the renderer's next frames measure (a `TgGpuTiming`). A

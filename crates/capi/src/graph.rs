@@ -48,6 +48,7 @@ fn pass_class_of(raw: u32) -> Result<PassClass, Failure> {
         6 => PassClass::Post,
         7 => PassClass::Transfer,
         8 => PassClass::Other,
+        9 => PassClass::Shadow,
         _ => {
             return Err(Failure::invalid(format!(
                 "pass class {raw} is no TgPassClass"
@@ -69,6 +70,8 @@ pub enum TgPassClass {
     Post = 6,
     Transfer = 7,
     Other = 8,
+    /// Shadow maps: depth from a light, sampled by the colour passes after it.
+    Shadow = 9,
 }
 
 pub(crate) struct GraphObject {

@@ -4,6 +4,7 @@
 use std::ffi::{c_char, c_void, CString};
 
 use tilegraph_graph::{AccessFlags, Layout, PipelineStages, ResourceState};
+use tilegraph_passes::shadow::{CasterCulling, ShadowOptions};
 use tilegraph_passes::{
     EngineTarget, FrameReport, GpuTiming, RenderOptions, SceneRenderer, VisbufResolve,
 };
@@ -44,6 +45,30 @@ pub struct TgRendererDesc {
     /// every material, 2 a full-screen pass per material, 3 material classification (what an
     /// engine material's resolve shader needs).
     pub visbuf_resolve: u32,
+    /// The directional light's cascaded shadow maps (`tg_renderer_set_light` points the
+    /// light): 0 none, 1 to 4 cascades in one depth atlas, drawn and sampled by the renderer's
+    /// passes (docs/CULLING.md, "Shadow casters").
+    pub shadow_cascades: u32,
+    /// Texels on a side of each cascade, 64 to 4096 (0: 1024).
+    pub shadow_resolution: u32,
+    /// A TgShadowCulling: which casters each cascade draws (every choice gives the same image).
+    pub shadow_culling: u32,
+}
+
+/// Which shadow casters each cascade draws (docs/CULLING.md, "Shadow casters"). All exact.
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TgShadowCulling {
+    /// Those whose shadow can reach the camera's view (the default).
+    Receivers = 0,
+    /// Every caster into every cascade.
+    None = 1,
+    /// Those in the cascade's box.
+    Cascade = 2,
+    /// Of `Receivers`, those whose shadow falls on something the camera sees (this frame's
+    /// depth pyramid: TG_CULLING_HIZ_TWO_PHASE with a pre-pass or the visibility buffer; else
+    /// it is `Receivers`).
+    ReceiversHiz = 3,
 }
 
 /// An image's layout and last (or next) use.
@@ -203,6 +228,7 @@ pub unsafe extern "C" fn tg_renderer_create(
                     )))
                 }
             },
+            shadows: shadows(desc)?,
             ..RenderOptions::default()
         };
         let renderer = registry::with2(
@@ -442,6 +468,90 @@ fn gpu_timing(raw: u32) -> Result<GpuTiming, Failure> {
                 "gpu timing {raw} is no TgGpuTiming"
             )))
         }
+    })
+}
+
+/// The shadow options of `desc`, or what is wrong with them.
+fn shadows(desc: &TgRendererDesc) -> Result<ShadowOptions, Failure> {
+    if desc.shadow_cascades > 4 {
+        return Err(Failure::invalid(format!(
+            "`desc->shadow_cascades` {} is not 0 to 4",
+            desc.shadow_cascades
+        )));
+    }
+    let resolution = match desc.shadow_resolution {
+        0 => 1024,
+        r @ 64..=4096 => r,
+        r => {
+            return Err(Failure::invalid(format!(
+                "`desc->shadow_resolution` {r} is not 0 or 64 to 4096"
+            )))
+        }
+    };
+    let culling = match desc.shadow_culling {
+        0 => CasterCulling::Receivers,
+        1 => CasterCulling::None,
+        2 => CasterCulling::Cascade,
+        3 => CasterCulling::ReceiversHiz,
+        c => {
+            return Err(Failure::invalid(format!(
+                "`desc->shadow_culling` {c} is no TgShadowCulling"
+            )))
+        }
+    };
+    Ok(ShadowOptions {
+        cascades: desc.shadow_cascades,
+        resolution,
+        culling,
+        ..ShadowOptions::default()
+    })
+}
+
+/// Points the renderer's directional light along `to_light` (three floats: the direction
+/// towards the light, any length but zero), and gives it `color` (three floats, linear RGB;
+/// NULL keeps it), from the next frame recorded. Shading and shadows follow.
+///
+/// # Safety
+/// `to_light` points to three floats; `color` is NULL or points to three floats.
+#[no_mangle]
+pub unsafe extern "C" fn tg_renderer_set_light(
+    renderer: TgRenderer,
+    to_light: *const f32,
+    color: *const f32,
+) -> TgStatus {
+    boundary("tg_renderer_set_light", || {
+        // SAFETY: the caller's contract (three floats).
+        let dir = unsafe { arg(to_light.cast::<[f32; 3]>(), "to_light") }?;
+        let dir = glam::Vec3::from_array(*dir);
+        if !dir.is_finite() || dir.length_squared() == 0.0 {
+            return Err(Failure::invalid(format!(
+                "`to_light` {dir:?} must be finite and not zero"
+            )));
+        }
+        let color = if color.is_null() {
+            None
+        } else {
+            // SAFETY: as above, where not NULL.
+            let c = glam::Vec3::from_array(*unsafe { arg(color.cast::<[f32; 3]>(), "color") }?);
+            if !c.is_finite() || c.min_element() < 0.0 {
+                return Err(Failure::invalid(format!(
+                    "`color` {c:?} must be finite and not negative"
+                )));
+            }
+            Some(c)
+        };
+        registry::with_mut(
+            renderer.raw,
+            Kind::Renderer,
+            "renderer",
+            |r: &mut RendererObject| {
+                r.renderer.set_light_direction(dir.normalize());
+                if let Some(c) = color {
+                    r.renderer.set_light_color(c);
+                }
+                Ok(())
+            },
+        )
     })
 }
 

@@ -21,6 +21,7 @@ use std::time::SystemTime;
 
 use tilegraph_e2e::gpu_with;
 use tilegraph_passes::cull::Culling;
+use tilegraph_passes::shadow::{CasterCulling, ShadowOptions};
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
 
 fn root() -> PathBuf {
@@ -119,10 +120,18 @@ fn rust_reference() -> Vec<u8> {
         culling: Culling::HizTwoPhase,
         width: 160,
         height: 90,
+        shadows: ShadowOptions {
+            cascades: 3,
+            resolution: 512,
+            culling: CasterCulling::ReceiversHiz,
+            ..ShadowOptions::default()
+        },
         ..Default::default()
     };
     let g = gpu_with(Some("mali-valhall"), options.device_features()).unwrap();
     let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+    r.set_light_direction(glam::Vec3::new(-0.8, 0.45, 0.35).normalize());
+    r.set_light_color(glam::Vec3::new(0.9, 0.85, 0.75));
     for frame in scene.camera_path().frames(160.0 / 90.0).take(6) {
         r.render_frame(&g, &scene, &frame).unwrap();
     }

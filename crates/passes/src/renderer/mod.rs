@@ -214,6 +214,11 @@ impl SceneRenderer {
         self.options.lighting.direction = to_light;
     }
 
+    /// Gives the directional light `color` (linear RGB) from the next frame.
+    pub fn set_light_color(&mut self, color: glam::Vec3) {
+        self.options.lighting.color = color;
+    }
+
     /// Which passes this renderer's frames have.
     pub fn setup(&self) -> &FrameSetup {
         &self.setup

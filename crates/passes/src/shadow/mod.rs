@@ -19,7 +19,7 @@ use ash::vk;
 use glam::Mat4;
 use tilegraph_cull::shadow::{
     caster_planes, fit_cascades, lookup_reach, lowest_receiver, CascadeSettings, Cascades,
-    CasterCulling, ShadowCamera, MAX_CASCADES, MAX_CASTER_PLANES,
+    ShadowCamera, MAX_CASCADES, MAX_CASTER_PLANES,
 };
 use tilegraph_cull::DepthFormat;
 use tilegraph_graph::{
@@ -35,6 +35,8 @@ use tilegraph_vk::pipeline::{
     create_set_layout, write_buffer_set, Blend, DepthState, GraphicsDesc, Stage, VertexLayout,
 };
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
+
+pub use tilegraph_cull::shadow::CasterCulling;
 
 use crate::cull::{CullState, DrawCount};
 use crate::frame::{scene_set, FrameGraph, PassState, Payload, SceneResources};
