@@ -10,7 +10,7 @@ use tilegraph_cull::shadow::CasterCulling;
 use tilegraph_e2e::gpu_with;
 use tilegraph_passes::shadow::ShadowOptions;
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
-use tilegraph_scene::{CameraFrame, CameraPath, Scene};
+use tilegraph_scene::{CameraFrame, CameraPath, Motion, MotionParams, PathKey, Scene};
 use tilegraph_vk::readback::RgbaImage;
 
 const W: u32 = 160;
@@ -51,6 +51,22 @@ fn render_path(
     frames: &[usize],
     light: impl Fn(usize) -> Option<Vec3>,
 ) -> Vec<Shot> {
+    render_moving(scene, options, path, frames, light, None)
+}
+
+/// [`render_path`] with the scene moving (`motion`: movers slide and swing, instances spawn
+/// and despawn; `tilegraph_scene::Motion`), brought to each frame before it renders.
+fn render_moving(
+    scene: &Scene,
+    options: RenderOptions,
+    path: &CameraPath,
+    frames: &[usize],
+    light: impl Fn(usize) -> Option<Vec3>,
+    motion: Option<MotionParams>,
+) -> Vec<Shot> {
+    let mut scene = scene.clone();
+    let mut motion = motion.map(|m| Motion::new(&scene, path, m));
+    let scene = &mut scene;
     let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
     let mut r = SceneRenderer::new(&g, scene, options).unwrap();
     let aspect = W as f32 / H as f32;
@@ -62,6 +78,9 @@ fn render_path(
         let frame = CameraFrame::new(i, key.camera, before, aspect);
         if let Some(l) = light(i) {
             r.set_light_direction(l);
+        }
+        if let Some(m) = &mut motion {
+            m.apply(scene, i).unwrap();
         }
         r.render_frame(&g, scene, &frame).unwrap();
         let casters = r.read_shadow_casters(&g).unwrap();
@@ -171,12 +190,24 @@ fn culled_equals_unculled(
     frames: &[usize],
     light: impl Fn(usize) -> Option<Vec3> + Copy,
 ) -> [u64; 4] {
+    moving_culled_equals_unculled(what, scene, base, (path, frames), light, None)
+}
+
+/// [`culled_equals_unculled`] with the scene moving.
+fn moving_culled_equals_unculled(
+    what: &str,
+    scene: &Scene,
+    base: &RenderOptions,
+    (path, frames): (&CameraPath, &[usize]),
+    light: impl Fn(usize) -> Option<Vec3> + Copy,
+    motion: Option<MotionParams>,
+) -> [u64; 4] {
     let run = |c| {
         let o = RenderOptions {
             shadows: shadows(c),
             ..base.clone()
         };
-        render_path(scene, o, path, frames, light)
+        render_moving(scene, o, path, frames, light, motion)
     };
     let runs: Vec<Vec<Shot>> = CasterCulling::ALL.into_iter().map(run).collect();
     let mut totals = [0u64; 4];
@@ -250,5 +281,34 @@ fn caster_culling_is_exact_on_walks_through_the_city_and_the_interior() {
         let frames = [0, 1, 2, 9, 17, 23, 24, 25, 40];
         let base = two_phase(Technique::Forward);
         culled_equals_unculled(name, &scene, &base, &walk, &frames, |_| None);
+    }
+}
+
+/// Movers slide out from behind buildings and back under a still camera, instances spawn and
+/// despawn (the frames two-phase culling exists for): every caster culling, `receivers-hiz`
+/// against the pyramid of this frame's early depth included, still draws the image of every
+/// caster.
+#[test]
+fn caster_culling_is_exact_while_the_scene_moves() {
+    let scene = tilegraph_scene::load("city:1500").unwrap();
+    let camera = scene.camera_path().keys()[0].camera;
+    let keys = (0..10)
+        .map(|i| PathKey {
+            camera,
+            cut: i == 0,
+        })
+        .collect();
+    let still = CameraPath::new("still camera", keys).unwrap();
+    let frames: Vec<usize> = (0..10).collect();
+    let motion = MotionParams {
+        movers: 0.3,
+        spawns: 6,
+        seed: 7,
+    };
+    for technique in [Technique::Forward, Technique::Visbuf] {
+        let base = two_phase(technique);
+        let what = format!("moving city, {technique:?}");
+        let run = (&still, frames.as_slice());
+        moving_culled_equals_unculled(&what, &scene, &base, run, |_| None, Some(motion));
     }
 }

@@ -241,6 +241,13 @@ pub const KNOBS: &[KnobSpec] = &[
         help: "texels on a side of each cascade: sharper shadows for more depth writes and memory",
     },
     KnobSpec {
+        name: "shadow_distance",
+        domain: Domain::Integers(&[0, 50, 100, 200, 400, 1000]),
+        default: DefaultValue::Integer(0),
+        applies: Applies::Always,
+        help: "metres from the eye that receive shadows (0: the scene's extent): shorter puts the cascades' texels on what is near",
+    },
+    KnobSpec {
         name: "shadow_format",
         domain: Domain::Choice(&["profile", "d16", "d32"]),
         default: DefaultValue::Name("profile"),
