@@ -173,6 +173,12 @@ fn print(
             t.cluster_false_positives
         )?;
     }
+    if let (Some(drawn), Some(all)) = (t.shadow_casters, t.shadow_casters_all) {
+        outln!(
+            "shadow casters: {drawn} drawn of {all} (every caster into every cascade, the reference's); shadow passes {:.3} ms",
+            t.shadow_gpu_ms
+        )?;
+    }
     if let Some(c) = caveat {
         outln!("{c}")?;
     }

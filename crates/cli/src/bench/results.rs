@@ -44,6 +44,10 @@ pub struct FrameRecord {
     pub false_positives: usize,
     pub triangles_drawn: u64,
     pub image_equal: bool,
+    /// With shadows: the casters drawn into the cascades, summed (absent without shadows and
+    /// in results written before them).
+    #[serde(default)]
+    pub shadow_casters: Option<u32>,
 }
 
 /// One pass's GPU time over a run.
@@ -89,6 +93,14 @@ pub struct TotalsRecord {
     pub passes_gpu_ms: f64,
     pub cull_gpu_ms: f64,
     pub cpu_ms: f64,
+    /// With shadows: casters drawn over the path, every caster into every cascade over the
+    /// path (what `shadow_culling = none` draws), and the shadow passes' GPU ms.
+    #[serde(default)]
+    pub shadow_casters: Option<u64>,
+    #[serde(default)]
+    pub shadow_casters_all: Option<u64>,
+    #[serde(default)]
+    pub shadow_gpu_ms: f64,
 }
 
 /// One run: its setting, where it ran, what it measured — or why it failed.
@@ -163,6 +175,9 @@ impl RunRecord {
             passes_gpu_ms: t.passes_gpu_ms,
             cull_gpu_ms: t.cull_gpu_ms,
             cpu_ms: t.cpu_ms,
+            shadow_casters: t.shadow_casters,
+            shadow_casters_all: t.shadow_casters_all,
+            shadow_gpu_ms: t.shadow_gpu_ms,
         };
         RunRecord {
             key: s.key(),
@@ -202,6 +217,7 @@ impl RunRecord {
                     false_positives: f.false_positives,
                     triangles_drawn: f.triangles_drawn,
                     image_equal: f.image_equal,
+                    shadow_casters: f.shadow_casters,
                 })
                 .collect(),
             totals: Some(totals),

@@ -21,6 +21,7 @@ use crate::knobs::AutoTrial;
 use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
 use crate::setup::Technique;
+use crate::shadow::{CasterCulling, ShadowOptions};
 
 mod clusters;
 mod ideal;
@@ -56,6 +57,11 @@ pub struct FrameCheck {
     /// Below the instance, for a cluster technique: visible clusters culled are false
     /// negatives too (`None`: not a cluster technique, or the oracle's ids hold no triangle).
     pub clusters: Option<ClusterCheck>,
+    /// With shadows: the casters the technique drew into its cascades (summed), and those
+    /// the reference drew — every caster into every cascade, so the image comparison checks
+    /// the caster culling too (`None` without shadows or a GPU draw count).
+    pub shadow_casters: Option<u32>,
+    pub shadow_casters_all: Option<u32>,
 }
 
 /// Totals over the path.
@@ -89,6 +95,11 @@ pub struct Totals {
     pub frame_gpu_ms: f64,
     /// The 95th percentile of the same frames.
     pub frame_gpu_ms_p95: f64,
+    /// With shadows: casters the technique drew, and every caster into every cascade, summed
+    /// over the path; the shadow passes' medians (culling and cascades), summed.
+    pub shadow_casters: Option<u64>,
+    pub shadow_casters_all: Option<u64>,
+    pub shadow_gpu_ms: f64,
     /// The **ideal frame**: the oracle's visible instances of each frame drawn with no culling
     /// work (everything else hidden), timed whole like `frame_gpu_ms` — what a perfect culling
     /// at instance level would cost on this GPU, the ceiling of every technique. `None` for a
@@ -251,11 +262,18 @@ pub fn cull_check_options(
             opaque_order: None,
             alpha_prepass: None,
             depth_prepass: None,
+            shadows: ShadowOptions::default(),
             ..tested.clone()
         },
     )?;
+    // Every caster into every cascade: the technique's caster culling is checked with its
+    // instance culling.
     let reference = RenderOptions {
         culling: Culling::None,
+        shadows: ShadowOptions {
+            culling: CasterCulling::None,
+            ..tested.shadows
+        },
         ..tested.clone()
     };
     let reference = match SceneRenderer::new(ctx, scene, reference) {
@@ -429,8 +447,10 @@ impl Run<'_> {
             );
             reference.render_frame(ctx, scene, &frame)?;
             let want = reference.read_image(ctx)?;
+            let casters_all = reference.read_shadow_casters(ctx)?;
             tested.render_frame(ctx, scene, &frame)?;
             let got = tested.read_image(ctx)?;
+            let casters = tested.read_shadow_casters(ctx)?;
             // Cluster techniques draw index ranges: their triangles are the colour lists', and
             // their clusters are compared with the oracle's below the instance.
             let mut cluster_triangles = None;
@@ -475,6 +495,8 @@ impl Run<'_> {
                 triangles_drawn: 0,
                 false_negative_ids: Vec::new(),
                 clusters,
+                shadow_casters: casters.map(|c| c.iter().sum()),
+                shadow_casters_all: casters_all.map(|c| c.iter().sum()),
             };
             for (p, (a, b)) in got
                 .pixels
@@ -615,6 +637,12 @@ impl Run<'_> {
                 .fold(0.0, |a, m| a + m.median_gpu_ms),
             frame_gpu_ms: frame.as_ref().map_or(0.0, |m| m.median_gpu_ms),
             frame_gpu_ms_p95: frame.as_ref().map_or(0.0, |m| m.p95_gpu_ms),
+            shadow_casters: summed(frames.iter().map(|f| f.shadow_casters)),
+            shadow_casters_all: summed(frames.iter().map(|f| f.shadow_casters_all)),
+            shadow_gpu_ms: medians
+                .iter()
+                .filter(|m| m.name.starts_with("shadow"))
+                .fold(0.0, |a, m| a + m.median_gpu_ms),
             ideal_frame_gpu_ms: None,
             efficiency: None,
             passes_gpu_ms: medians.iter().fold(0.0, |a, m| a + m.median_gpu_ms),
@@ -694,4 +722,9 @@ fn diff_image(
         height: want.height,
         pixels,
     }
+}
+
+/// The sum of per-frame counts, `None` when a frame has none.
+fn summed(counts: impl Iterator<Item = Option<u32>>) -> Option<u64> {
+    counts.map(|c| c.map(u64::from)).sum()
 }

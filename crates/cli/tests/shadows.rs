@@ -1,0 +1,93 @@
+//! Shadows through the CLI (lavapipe, validation required): `cull-check` compares the
+//! technique's frame — its instance culling and its caster culling — with a reference that
+//! draws every caster into every cascade, and reports both counts; `render --json` reports the
+//! casters drawn per cascade.
+
+use std::process::Command;
+
+fn tilegraph(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_tilegraph"))
+        .args(args)
+        .env_remove("TILEGRAPH_PROFILE")
+        .env("TILEGRAPH_VALIDATION", "required")
+        .output()
+        .expect("run tilegraph");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+const SHADOWS: [&str; 6] = [
+    "--set",
+    "shadow_cascades=3",
+    "--set",
+    "shadow_culling=receivers-hiz",
+    "--set",
+    "shadow_resolution=256",
+];
+
+#[test]
+fn cull_check_holds_caster_culling_to_the_image_of_every_caster() {
+    let mut args = vec![
+        "cull-check",
+        "city:300",
+        "--culling",
+        "hiz-2phase",
+        "--shading",
+        "prepass",
+        "--size",
+        "160x90",
+        "--frames",
+        "4",
+        "--json",
+    ];
+    args.extend(SHADOWS);
+    let (ok, out, err) = tilegraph(&args);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let t = &v["totals"];
+    assert_eq!(t["frames_image_equal"], t["frames"], "{out}");
+    let drawn = t["shadow_casters"].as_u64().unwrap();
+    let all = t["shadow_casters_all"].as_u64().unwrap();
+    println!("casters drawn {drawn} of {all}");
+    assert!(0 < drawn && drawn < all, "{out}");
+    assert!(t["shadow_gpu_ms"].as_f64().unwrap() > 0.0, "{out}");
+    for f in v["frames"].as_array().unwrap() {
+        assert!(f["shadow_casters"].as_u64().unwrap() > 0, "{f}");
+    }
+}
+
+#[test]
+fn render_reports_the_casters_of_each_cascade() {
+    let out_png =
+        std::env::temp_dir().join(format!("tilegraph-shadows-{}.png", std::process::id()));
+    let out_arg = out_png.to_str().unwrap().to_string();
+    let mut args = vec![
+        "render", "city:300", "--size", "160x90", "--frames", "2", "--json", "--out", &out_arg,
+    ];
+    args.extend(SHADOWS);
+    let (ok, out, err) = tilegraph(&args);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let casters: Vec<u64> = v["shadow_casters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_u64().unwrap())
+        .collect();
+    assert_eq!(casters.len(), 4, "{out}");
+    assert!(
+        casters[..3].iter().all(|&c| c > 0) && casters[3] == 0,
+        "{casters:?}"
+    );
+    let passes: Vec<&str> = v["gpu_ms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|p| p["pass"].as_str())
+        .collect();
+    assert!(passes.contains(&"shadow-cascades"), "{passes:?}");
+    std::fs::remove_file(&out_png).ok();
+}
