@@ -33,8 +33,12 @@ float shadow_factor(vec3 p, vec3 n) {
     vec2 cell = vec2(float(c % cols), float(c / cols));
     vec2 grid = vec2(float(cols), float(frame.shadow_info.z));
     // (2r)^2 bilinear compare taps half a texel off the texel grid: together they weigh the
-    // (2r + 1)^2 texels around the lookup (4 taps for r = 1 instead of 9 point taps).
+    // (2r + 1)^2 texels around the lookup (4 taps for r = 1 instead of 9 point taps); r = 0 is
+    // one bilinear tap at the lookup (its 2x2 texels).
     int r = int(frame.shadow_info.w);
+    if (r == 0) {
+        return texture(shadow_atlas, vec3((uv + cell) / grid, clip.z));
+    }
     float sum = 0.0;
     for (int y = 0; y < 2 * r; ++y) {
         for (int x = 0; x < 2 * r; ++x) {

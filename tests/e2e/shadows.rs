@@ -312,3 +312,38 @@ fn caster_culling_is_exact_while_the_scene_moves() {
         moving_culled_equals_unculled(&what, &scene, &base, run, |_| None, Some(motion));
     }
 }
+
+/// The filter's width (knob `shadow_pcf`) changes the image and not the exactness: with one
+/// bilinear compare and with the 5x5 texels, receiver culling still draws every caster's image.
+#[test]
+fn every_filter_width_keeps_caster_culling_exact() {
+    let scene = city();
+    let path = scene.camera_path().clone();
+    let frames = first_frames(&path, 3);
+    let base = two_phase(Technique::Forward);
+    let mut images = Vec::new();
+    for pcf in [0, 1, 2] {
+        let run = |culling| {
+            let o = RenderOptions {
+                shadows: ShadowOptions {
+                    pcf,
+                    ..shadows(culling)
+                },
+                ..base.clone()
+            };
+            render_path(&scene, o, &path, &frames, |_| None)
+        };
+        let (all, culled) = (run(CasterCulling::None), run(CasterCulling::ReceiversHiz));
+        for (i, (a, b)) in culled.iter().zip(&all).enumerate() {
+            assert!(
+                a.image == b.image,
+                "pcf {pcf}, frame {i}: culled casters show"
+            );
+        }
+        images.push(all.into_iter().next().map(|s| s.image));
+    }
+    assert!(
+        images[0] != images[1] && images[1] != images[2],
+        "the filter changed nothing"
+    );
+}

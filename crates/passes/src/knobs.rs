@@ -553,6 +553,9 @@ impl Resolved {
         if let Some(d) = integer("shadow_distance") {
             shadows.distance = d as f32;
         }
+        if let Some(p) = integer("shadow_pcf") {
+            shadows.pcf = p;
+        }
         shadows.format = crate::shadow::parse_format(name("shadow_format"));
         if let Some(c) = tilegraph_cull::shadow::CasterCulling::parse(name("shadow_culling")) {
             shadows.culling = c;
@@ -611,7 +614,7 @@ mod tests {
                     "cull_bounds" => ["aabb", "sphere"].contains(&s.as_str()),
                     "visbuf_resolve" => VisbufResolve::parse(&s).is_some(),
                     "classify_tile" => matches!(k.domain, Domain::Integers(_)),
-                    "shadow_cascades" | "shadow_resolution" | "shadow_distance" => {
+                    "shadow_cascades" | "shadow_resolution" | "shadow_distance" | "shadow_pcf" => {
                         matches!(k.domain, Domain::Integers(_))
                     }
                     "shadow_format" => s == "profile" || crate::shadow::parse_format(&s).is_some(),

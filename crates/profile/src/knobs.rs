@@ -248,6 +248,13 @@ pub const KNOBS: &[KnobSpec] = &[
         help: "metres from the eye that receive shadows (0: the scene's extent): shorter puts the cascades' texels on what is near",
     },
     KnobSpec {
+        name: "shadow_pcf",
+        domain: Domain::Integers(&[0, 1, 2]),
+        default: DefaultValue::Integer(1),
+        applies: Applies::Always,
+        help: "texels either side of a shadow lookup that its filter weighs: 0 one bilinear compare (2x2 texels), 1 the 3x3 around it (4 taps), 2 the 5x5 (16 taps)",
+    },
+    KnobSpec {
         name: "shadow_format",
         domain: Domain::Choice(&["profile", "d16", "d32"]),
         default: DefaultValue::Name("profile"),

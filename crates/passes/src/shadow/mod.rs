@@ -59,6 +59,8 @@ pub struct ShadowOptions {
     pub culling: CasterCulling,
     /// How far from the eye receivers get shadows, metres; 0: the scene's extent.
     pub distance: f32,
+    /// Texels either side of a lookup its filter weighs (knob `shadow_pcf`, 0 to 2).
+    pub pcf: u32,
 }
 
 impl Default for ShadowOptions {
@@ -69,6 +71,7 @@ impl Default for ShadowOptions {
             format: None,
             culling: CasterCulling::Receivers,
             distance: 0.0,
+            pcf: 1,
         }
     }
 }
@@ -103,6 +106,7 @@ impl ShadowOptions {
             count: self.cascades.clamp(1, MAX_CASCADES as u32),
             resolution: self.resolution.clamp(64, 4096),
             distance: f64::from(self.distance),
+            pcf_radius: self.pcf.min(2),
             ..CascadeSettings::default()
         }
     }
