@@ -67,16 +67,6 @@ impl AtlasDesc {
             (cascade / cols) * self.resolution,
         )
     }
-
-    /// Bytes of the atlas.
-    pub fn bytes(&self) -> u64 {
-        let (w, h) = self.extent();
-        let texel = match self.format {
-            DepthFormat::D16Unorm => 2,
-            DepthFormat::D32Float => 4,
-        };
-        u64::from(w) * u64::from(h) * texel
-    }
 }
 
 /// The atlas: its image and view, and the comparison sampler the shading reads it with.
