@@ -104,24 +104,22 @@ struct Geometry<'n> {
     name: &'n str,
 }
 
-/// A scene frame declared: the graph, the physical resources of its imports, and which
-/// of them is the colour target (an engine's target changes from frame to frame).
-pub(crate) struct DeclaredScene {
-    pub graph: FrameGraph,
-    pub externals: Externals,
-    pub color: ImageId,
-}
-
-/// Declares the scene's frame: the frame setup's passes, composed from the `add_*`
-/// functions in the order the technique needs, and the physical resources of its imports.
-pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
-    let mut c = Composition::import(spec);
+/// Declares one view of the scene's frame on `g`: the frame setup's passes, composed from the
+/// `add_*` functions in the order the technique needs, and the physical resources of its
+/// imports into `externals`. Returns its colour target (an engine's target changes from frame
+/// to frame).
+pub(crate) fn declare_scene(
+    g: &mut FrameGraph,
+    externals: &mut Externals,
+    spec: &SceneFrame<'_>,
+) -> ImageId {
+    let mut c = Composition::import(g, externals, spec);
     let culling = c.culling();
     let two_phase = culling.base() == Culling::HizTwoPhase;
     // The light's cascades, before every colour pass (which samples them): first — or, for
     // `receivers-hiz` where the colour follows a depth phase, after this frame's pyramid.
     let shadows = spec.states.get::<ShadowState>().map(|state| {
-        let ids = import_shadows(&mut c.g, &mut c.externals, spec.atlas, state);
+        let ids = import_shadows(c.g, c.externals, spec.atlas, state);
         c.t.shadow = Some(ids.atlas);
         (ids, state.has_hiz())
     });
@@ -130,17 +128,17 @@ pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
         && two_phase
         && (c.split_depth() || spec.setup.includes(PassKind::VisbufWrite));
     if let (Some((ids, _)), false) = (shadows, after_pyramid) {
-        add_shadow_culling(&mut c.g, ids, None);
-        add_shadow_maps(&mut c.g, ids);
+        add_shadow_culling(c.g, ids, None);
+        add_shadow_maps(c.g, ids);
     }
     // Reprojection: last frame's depth moved into this frame's view, before the culling that
     // tests against it.
     if let (Some(r), Some(previous)) = (c.reprojected, c.lists.and_then(|l| l.pyramid)) {
-        add_reprojection(&mut c.g, previous, r);
+        add_reprojection(c.g, previous, r);
     }
     // GPU culling of the early (or only) phase; raster occlusion culls after its boxes.
     if let (Some(lists), false) = (c.lists, culling == Culling::RasterOcclusion) {
-        add_cull(&mut c.g, lists, culling);
+        add_cull(c.g, lists, culling);
     }
     for phase in if two_phase { 0..2 } else { 0..1 } {
         if phase == 1 {
@@ -149,8 +147,8 @@ pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
                 // The pyramid is this frame's only where the early phase wrote depth.
                 let pyramid = c.lists.and_then(|l| l.pyramid);
                 let pyramid = pyramid.filter(|_| c.t.depth_written());
-                add_shadow_culling(&mut c.g, ids, pyramid);
-                add_shadow_maps(&mut c.g, ids);
+                add_shadow_culling(c.g, ids, pyramid);
+                add_shadow_maps(c.g, ids);
             }
         }
         c.geometry_phase(phase, two_phase);
@@ -164,8 +162,8 @@ pub(crate) fn declare_scene(spec: &SceneFrame<'_>) -> DeclaredScene {
 /// targets, and what the culling technique has declared so far.
 struct Composition<'a> {
     spec: &'a SceneFrame<'a>,
-    g: FrameGraph,
-    externals: Externals,
+    g: &'a mut FrameGraph,
+    externals: &'a mut Externals,
     t: SceneTargets,
     /// The culling buffers, with GPU culling.
     lists: Option<CullLists>,
@@ -183,7 +181,11 @@ struct Composition<'a> {
 impl<'a> Composition<'a> {
     /// Imports the targets (the renderer's colour, the ids it keeps) and the technique's
     /// buffers, and creates the depth.
-    fn import(spec: &'a SceneFrame<'a>) -> Self {
+    fn import(
+        g: &'a mut FrameGraph,
+        externals: &'a mut Externals,
+        spec: &'a SceneFrame<'a>,
+    ) -> Self {
         let SceneFrame {
             options,
             key,
@@ -193,8 +195,6 @@ impl<'a> Composition<'a> {
             ..
         } = *spec;
         let extent = Extent2d::new(options.width, options.height);
-        let mut g = FrameGraph::new();
-        let mut externals = Externals::new();
         let color = g.import_image(
             "color",
             ImageDesc::new(extent, key.color.format),
@@ -219,13 +219,13 @@ impl<'a> Composition<'a> {
         }
         let hiz = states.get::<HizState>();
         let reprojected = states.get::<ReprojectState>().map(|r| {
-            let ids = import_reprojection(&mut g, r);
+            let ids = import_reprojection(g, r);
             externals.insert(ids.keys, External::Buffer(r.keys_handle()));
             externals.insert(ids.pyramid, External::Buffer(r.handle()));
             ids
         });
         let lists = states.get::<CullState>().map(|c| {
-            let lists = import_cull_buffers(&mut g, c, hiz, reprojected.map(|r| r.pyramid));
+            let lists = import_cull_buffers(g, c, hiz, reprojected.map(|r| r.pyramid));
             for (id, buffer) in [
                 (lists.commands, &c.commands),
                 (lists.counts, &c.counts),
@@ -255,7 +255,7 @@ impl<'a> Composition<'a> {
         });
         let results = match (options.culling, states.get::<OqState>()) {
             (Culling::OqConditional, Some(q)) => q.conditions.as_ref().map(|buffer| {
-                let id = import_query_results(&mut g, buffer.size);
+                let id = import_query_results(g, buffer.size);
                 externals.insert(id, External::Buffer(CullState::handle(buffer)));
                 id
             }),
@@ -292,9 +292,9 @@ impl<'a> Composition<'a> {
     fn pyramid_and_late_culling(&mut self) {
         if let (Some(lists), true) = (self.lists, self.t.depth_written()) {
             if let Some(pyramid) = lists.pyramid {
-                add_hiz_build(&mut self.g, self.t.depth, pyramid);
+                add_hiz_build(self.g, self.t.depth, pyramid);
             }
-            add_cull_late(&mut self.g, lists);
+            add_cull_late(self.g, lists);
         }
     }
 
@@ -350,17 +350,17 @@ impl<'a> Composition<'a> {
     fn before_colour(&mut self) {
         let culling = self.culling();
         if culling.conditional() && self.conditions.is_none() && self.t.depth_written() {
-            self.conditions = add_occlusion_queries(&mut self.g, self.t.depth, self.results);
+            self.conditions = add_occlusion_queries(self.g, self.t.depth, self.results);
         }
         if culling == Culling::RasterOcclusion && !self.flags_declared {
             match (self.lists, self.t.depth_written()) {
                 (Some(lists), true) => {
                     let scale = self.spec.options.raster_occlusion_scale.max(1);
-                    add_raster_occlusion(&mut self.g, &self.t, lists, scale);
+                    add_raster_occlusion(self.g, &self.t, lists, scale);
                 }
                 // No pre-pass depth (nothing opaque): no boxes to test; the lists still get
                 // written.
-                (Some(lists), false) => add_cull(&mut self.g, lists, Culling::RasterOcclusion),
+                (Some(lists), false) => add_cull(self.g, lists, Culling::RasterOcclusion),
                 (None, _) => {}
             }
             self.flags_declared = true;
@@ -395,7 +395,7 @@ impl<'a> Composition<'a> {
     fn after_geometry(&mut self) {
         let setup = self.spec.setup;
         let culling = self.culling();
-        let (g, t) = (&mut self.g, &mut self.t);
+        let (g, t) = (&mut *self.g, &mut self.t);
         if let (true, Some(ids)) = (setup.includes(PassKind::VisbufResolve), t.ids) {
             let (mode, tile) = self.spec.options.visbuf_resolve(self.spec.profile);
             let input = self.spec.profile.is_tiler();
@@ -418,18 +418,14 @@ impl<'a> Composition<'a> {
         }
     }
 
-    fn finish(mut self) -> DeclaredScene {
+    fn finish(self) -> ImageId {
         self.g.export(self.t.color);
-        DeclaredScene {
-            graph: self.g,
-            externals: self.externals,
-            color: self.t.color,
-        }
+        self.t.color
     }
 
     /// One geometry pass of the frame setup.
     fn geometry(&mut self, geometry: Geometry<'_>) {
-        declare_geometry(&mut self.g, &mut self.t, self.spec.setup, geometry);
+        declare_geometry(self.g, &mut self.t, self.spec.setup, geometry);
     }
 }
 

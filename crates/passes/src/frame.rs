@@ -62,17 +62,100 @@ impl FrameData {
 /// What the passes record with, kept by the renderer across frames and handed to every
 /// payload: the scene's buffers, the pipelines, this frame's draw lists, and the state of each
 /// technique in use (the culling buffers, the pyramid, the query pools...).
+///
+/// A frame may render several views (cameras with their own targets and culling). The scene's
+/// buffers and the pipelines are shared; the draw lists, the depth convention, the techniques'
+/// states and the scene's sets 0 are the **current view's**: the renderer makes a pass's view
+/// current ([`Self::enter_view`]) before its payload records, so a pass records the same way
+/// whichever view it belongs to.
 pub struct SceneResources {
     pub scene: GpuScene,
     pub pipelines: Pipelines,
     pub frame: FrameData,
     pub states: States,
+    /// Per view, its draw lists and states while another view is current (the current view's
+    /// entry holds empty ones).
+    parked: Vec<ViewParts>,
+}
+
+/// A view's own part of the resources.
+#[derive(Default)]
+struct ViewParts {
+    draws: DrawList,
+    depth: DepthConvention,
+    states: States,
+}
+
+impl ViewParts {
+    /// Swaps these parts with the current ones of `frame` and `states`.
+    fn swap(&mut self, frame: &mut FrameData, states: &mut States) {
+        std::mem::swap(&mut self.draws, &mut frame.draws);
+        std::mem::swap(&mut self.depth, &mut frame.depth);
+        std::mem::swap(&mut self.states, states);
+    }
 }
 
 impl SceneResources {
+    /// Resources for the views `scene` has sets for, view 0 current.
+    pub fn new(scene: GpuScene, pipelines: Pipelines) -> Self {
+        let views = scene.views().max(1);
+        SceneResources {
+            scene,
+            pipelines,
+            frame: FrameData::default(),
+            states: States::default(),
+            parked: (0..views).map(|_| ViewParts::default()).collect(),
+        }
+    }
+
+    /// The views the resources hold.
+    pub fn views(&self) -> usize {
+        self.parked.len()
+    }
+
+    /// The current view.
+    pub fn view(&self) -> usize {
+        self.scene.current_view()
+    }
+
+    /// View `view`'s states, current or not (`None`: no such view).
+    pub fn view_states(&self, view: usize) -> Option<&States> {
+        if view == self.scene.current_view() {
+            Some(&self.states)
+        } else {
+            self.parked.get(view).map(|p| &p.states)
+        }
+    }
+
+    /// Makes `view` current: its draw lists, states and sets are the ones the passes see. An
+    /// unknown view leaves the current one.
+    pub fn enter_view(&mut self, view: usize) {
+        let current = self.scene.current_view();
+        if view == current || view >= self.parked.len() {
+            return;
+        }
+        let SceneResources {
+            frame,
+            states,
+            parked,
+            scene,
+            ..
+        } = self;
+        if let Some(p) = parked.get_mut(current) {
+            p.swap(frame, states);
+        }
+        if let Some(p) = parked.get_mut(view) {
+            p.swap(frame, states);
+        }
+        scene.enter_view(view);
+    }
+
     /// Destroys everything; the GPU must be idle.
     pub fn destroy(self, ctx: &Context) {
         self.states.destroy(ctx);
+        for p in self.parked {
+            p.states.destroy(ctx);
+        }
         self.pipelines.destroy(ctx);
         self.scene.destroy(ctx);
     }

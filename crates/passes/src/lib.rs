@@ -41,7 +41,7 @@ pub mod visbuf;
 
 pub use frame::{DrawSource, FrameData, FrameGraph, Payload, SceneResources};
 pub use options::{FrameReport, RenderError, RenderOptions, WantedBy};
-pub use renderer::{scene_memory, EngineTarget, SceneMemory, SceneRenderer};
+pub use renderer::{scene_memory, EngineTarget, SceneMemory, SceneRenderer, ViewId};
 pub use setup::{
     decide, FrameSetup, PassDecision, PassKind, SceneContent, Technique, VisbufResolve,
 };

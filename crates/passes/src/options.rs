@@ -76,6 +76,12 @@ pub enum RenderError {
     EngineMaterialsWithClusters { culling: &'static str },
     #[error("material {material} is resolved by engine material {engine}'s shader, which runs after material classification: set the knob visbuf_resolve = classified (RenderOptions::visbuf_resolve)")]
     EngineResolveNeedsClassification { material: u32, engine: u32 },
+    #[error("camera: {field}: {reason}")]
+    Camera { field: &'static str, reason: String },
+    #[error("view {0} is not a further view of this renderer (SceneRenderer::add_view)")]
+    UnknownView(u32),
+    #[error("more views than a frame can declare")]
+    TooManyViews,
 }
 
 impl RenderError {

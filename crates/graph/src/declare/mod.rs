@@ -265,6 +265,18 @@ impl<P> GraphBuilder<P> {
         self.resources.len()
     }
 
+    /// Prefixes the names of the passes from index `passes_from` and of the resources from
+    /// `resources_from` with `prefix`: a composition declared twice on one graph (a frame's
+    /// second view) keeps names a reader — and the per-pass timings — can tell apart.
+    pub fn prefix_names(&mut self, passes_from: usize, resources_from: usize, prefix: &str) {
+        for p in self.passes.iter_mut().skip(passes_from) {
+            p.name.insert_str(0, prefix);
+        }
+        for r in self.resources.iter_mut().skip(resources_from) {
+            r.name.insert_str(0, prefix);
+        }
+    }
+
     fn push_resource(&mut self, name: String, desc: ResourceDesc, origin: Origin) -> ResourceId {
         // u32 handles: 4 billion resources is beyond any frame; saturate rather than wrap so an
         // absurd graph fails validation instead of aliasing handles.

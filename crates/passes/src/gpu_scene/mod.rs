@@ -23,19 +23,21 @@ use tilegraph_scene::{
     DepthConvention, GpuInstance, GpuMaterial, GpuMesh, Scene, SceneCursor, SplitPoint, DRAW_LISTS,
 };
 use tilegraph_vk::ash;
-use tilegraph_vk::pipeline::{allocate_set, create_set_layout_counted, write_buffer_set};
+use tilegraph_vk::pipeline::{create_set_layout_counted, write_buffer_set};
 use tilegraph_vk::{Buffer, Context, VkError};
 
 mod geometry;
 pub mod shadow_atlas;
 mod slots;
 pub mod textures;
+mod views;
 
 pub(crate) use geometry::upload;
 pub use geometry::GeometryUpload;
 use geometry::{grown, upload_sized, Copy, GEOMETRY_USAGE};
 use slots::{destroy_slot, SlotBuffers};
 use textures::{GpuTextures, TEXTURE_BINDING};
+use views::ViewBuffers;
 
 use shadow_atlas::{AtlasDesc, ShadowAtlas, SHADOW_BINDING};
 
@@ -158,6 +160,8 @@ pub struct Capacity {
     pub stride: u32,
     /// Draw buckets (the most draw groups, hence indirect commands, a list can hold).
     pub groups: u32,
+    /// The views a frame renders (each has a CPU list of its own in the entry buffer).
+    pub views: u32,
 }
 
 impl Capacity {
@@ -174,6 +178,15 @@ impl Capacity {
             // outgrows the stride before its instances outgrow the slots.
             stride: round(stride.max(slots.max(instances).saturating_add(64))),
             groups: round(buckets),
+            views: 1,
+        }
+    }
+
+    /// This capacity for a frame of `views` views (at least one).
+    pub fn with_views(self, views: usize) -> Self {
+        Capacity {
+            views: u32::try_from(views.max(1)).unwrap_or(u32::MAX),
+            ..self
         }
     }
 
@@ -204,26 +217,42 @@ impl Capacity {
         DRAW_LISTS as u32 * self.stride
     }
 
-    /// Entries of a slot's entry buffer: the lists, then room for a CPU list of every slot.
+    /// The first entry of view `view`'s CPU list (each view has room for every slot).
+    pub fn cpu_base_of(&self, view: usize) -> u32 {
+        let offset = u64::from(self.instances) * view as u64;
+        self.cpu_base()
+            .saturating_add(u32::try_from(offset).unwrap_or(u32::MAX))
+    }
+
+    /// Entries of a slot's entry buffer: the lists, then room for a CPU list of every slot per
+    /// view.
     pub fn entries(&self) -> u64 {
-        u64::from(self.cpu_base()) + u64::from(self.instances)
+        u64::from(self.cpu_base()) + u64::from(self.instances) * u64::from(self.views.max(1))
     }
 }
 
-/// Everything the scene passes bind: set 0 of `scene.glsl`.
+/// Everything the scene passes bind: set 0 of `scene.glsl`, one per view and frame slot.
+///
+/// The scene's data (geometry, textures, records, lists, tables) is one copy shared by every
+/// view; a view has its own camera uniforms, fragment counters, shadow atlas, CPU list region
+/// and culled draw list, hence its own sets. The passes of a view bind the sets of the
+/// **current** view ([`Self::enter_view`]; the renderer makes a pass's view current before
+/// it records).
 pub struct GpuScene {
     pub vertices: Buffer,
     pub indices: Buffer,
     /// The materials' textures (binding 8), uploaded once.
     pub textures: GpuTextures,
-    /// The light's shadow atlas (binding 9).
-    pub shadow_atlas: ShadowAtlas,
+    /// Per view, the light's shadow atlas (binding 9).
+    atlases: Vec<ShadowAtlas>,
     frames: Vec<SlotBuffers>,
     pub set_layout: vk::DescriptorSetLayout,
     pool: vk::DescriptorPool,
     capacity: Capacity,
-    /// The culling shader's draw list, bound by the culled sets.
-    culled_draw_ids: Option<vk::Buffer>,
+    /// Per view, the culling shader's draw list, bound by its culled sets.
+    culled_draw_ids: Vec<Option<vk::Buffer>>,
+    /// The view whose sets [`Self::set`] and [`Self::culled_set`] give.
+    view: usize,
     /// The scene as the resident geometry holds it.
     geometry_cursor: Option<SceneCursor>,
     /// Bumped whenever the geometry buffers are replaced.
@@ -253,22 +282,15 @@ fn buffer(
     ctx.create_buffer(name, size.max(16), usage, use_)
 }
 
-/// A frame slot's buffers for `capacity` and tables of `meshes` and `materials`: name, bytes,
-/// usage, memory (what [`GpuScene`] makes, and [`crate::scene_memory`] counts).
-pub(crate) fn slot_specs(
-    c: Capacity,
-    meshes: usize,
-    materials: usize,
-) -> [(&'static str, u64, vk::BufferUsageFlags, MemoryUse); 7] {
+/// A buffer spec: name, bytes, usage, memory.
+pub(crate) type BufferSpec = (&'static str, u64, vk::BufferUsageFlags, MemoryUse);
+
+/// A frame slot's scene buffers for `capacity` and tables of `meshes` and `materials` (what
+/// [`GpuScene`] makes, and [`crate::scene_memory`] counts).
+pub(crate) fn slot_specs(c: Capacity, meshes: usize, materials: usize) -> [BufferSpec; 5] {
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let streaming = MemoryUse::Streaming;
     [
-        (
-            "frame uniforms",
-            std::mem::size_of::<FrameUniforms>() as u64,
-            vk::BufferUsageFlags::UNIFORM_BUFFER,
-            streaming,
-        ),
         (
             "instance records",
             u64::from(c.instances) * std::mem::size_of::<GpuInstance>() as u64,
@@ -294,7 +316,24 @@ pub(crate) fn slot_specs(
             storage,
             streaming,
         ),
-        ("fragment counters", 16, storage, MemoryUse::Readback),
+    ]
+}
+
+/// A view's buffers in a frame slot: its camera uniforms and its fragment counters.
+pub(crate) fn view_specs() -> [BufferSpec; 2] {
+    [
+        (
+            "frame uniforms",
+            std::mem::size_of::<FrameUniforms>() as u64,
+            vk::BufferUsageFlags::UNIFORM_BUFFER,
+            MemoryUse::Streaming,
+        ),
+        (
+            "fragment counters",
+            16,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryUse::Readback,
+        ),
     ]
 }
 
@@ -308,15 +347,17 @@ pub(crate) fn geometry_sizes(scene: &Scene) -> [u64; 2] {
 
 impl GpuScene {
     /// Uploads the scene's geometry and textures (bound as `textures` asks, where the device
-    /// can) and creates `frames_in_flight` sets of per-slot buffers with room for `capacity`.
+    /// can) and creates `frames_in_flight` sets of per-slot buffers with room for `capacity`,
+    /// for views with the shadow atlases `atlases` (one per view; `capacity.views` of them).
     pub fn new(
         ctx: &Context,
         scene: &Scene,
         frames_in_flight: usize,
         capacity: Capacity,
         textures: tilegraph_profile::TexturePolicy,
-        shadows: AtlasDesc,
+        atlases: &[AtlasDesc],
     ) -> Result<Self, VkError> {
+        debug_assert_eq!(atlases.len(), capacity.views.max(1) as usize);
         let [vertex_bytes, index_bytes] = geometry_sizes(scene);
         let vertices = upload_sized(
             ctx,
@@ -346,17 +387,47 @@ impl GpuScene {
                 return Err(e);
             }
         };
-        let shadow_atlas = match ShadowAtlas::new(ctx, shadows) {
-            Ok(a) => a,
-            Err(e) => {
-                let mut textures = textures;
-                textures.destroy(ctx);
-                ctx.destroy_buffer(vertices);
-                ctx.destroy_buffer(indices);
-                return Err(e);
-            }
-        };
         let slots = textures.slot_count();
+        let mut gs = GpuScene {
+            vertices,
+            indices,
+            textures,
+            atlases: Vec::with_capacity(atlases.len()),
+            frames: Vec::new(),
+            set_layout: vk::DescriptorSetLayout::null(),
+            pool: vk::DescriptorPool::null(),
+            capacity,
+            culled_draw_ids: vec![None; atlases.len()],
+            view: 0,
+            geometry_cursor: Some(scene.cursor()),
+            geometry_serial: 0,
+            copies: Vec::new(),
+            staged: Vec::new(),
+            retired: Vec::new(),
+            frames_written: 0,
+            record_stamps: vec![0; capacity.instances as usize],
+            order_stamps: vec![0; capacity.instances as usize],
+            entry_stamps: vec![0; capacity.cpu_base() as usize],
+        };
+        if let Err(e) = gs.create_sets(ctx, scene, frames_in_flight, atlases, slots) {
+            gs.destroy(ctx);
+            return Err(e);
+        }
+        Ok(gs)
+    }
+
+    /// The atlases, the set layout, the pool, and every slot's buffers and sets.
+    fn create_sets(
+        &mut self,
+        ctx: &Context,
+        scene: &Scene,
+        frames_in_flight: usize,
+        atlases: &[AtlasDesc],
+        texture_slots: u32,
+    ) -> Result<(), VkError> {
+        for desc in atlases {
+            self.atlases.push(ShadowAtlas::new(ctx, *desc)?);
+        }
         let all = vk::ShaderStageFlags::VERTEX
             | vk::ShaderStageFlags::FRAGMENT
             | vk::ShaderStageFlags::COMPUTE;
@@ -368,78 +439,37 @@ impl GpuScene {
             TEXTURE_BINDING,
             sampler,
             vk::ShaderStageFlags::FRAGMENT,
-            slots,
+            texture_slots,
         ));
         bindings.push((SHADOW_BINDING, sampler, vk::ShaderStageFlags::FRAGMENT, 1));
-        let set_layout = match create_set_layout_counted(ctx, &bindings) {
-            Ok(l) => l,
-            Err(e) => {
-                let mut textures = textures;
-                textures.destroy(ctx);
-                shadow_atlas.destroy(ctx);
-                ctx.destroy_buffer(vertices);
-                ctx.destroy_buffer(indices);
-                return Err(e);
-            }
-        };
-        let n = frames_in_flight.max(1) as u32;
+        self.set_layout = create_set_layout_counted(ctx, &bindings)?;
+        // Two sets (plain and culled) per view and slot.
+        let n = 2 * frames_in_flight.max(1) as u32 * atlases.len().max(1) as u32;
         let sizes = [
             vk::DescriptorPoolSize {
                 ty: vk::DescriptorType::UNIFORM_BUFFER,
-                descriptor_count: 2 * n,
+                descriptor_count: n,
             },
             vk::DescriptorPoolSize {
                 ty: ssbo,
-                descriptor_count: 2 * 7 * n,
+                descriptor_count: 7 * n,
             },
             vk::DescriptorPoolSize {
                 ty: sampler,
-                descriptor_count: 2 * (slots + 1) * n,
+                descriptor_count: (texture_slots + 1) * n,
             },
         ];
         let pool_info = vk::DescriptorPoolCreateInfo::default()
-            .max_sets(2 * n)
+            .max_sets(n)
             .pool_sizes(&sizes);
         // SAFETY: valid create info.
-        let pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
-            .map_err(|r| VkError::call("vkCreateDescriptorPool", r));
-        let mut gs = GpuScene {
-            vertices,
-            indices,
-            textures,
-            shadow_atlas,
-            frames: Vec::new(),
-            set_layout,
-            pool: vk::DescriptorPool::null(),
-            capacity,
-            culled_draw_ids: None,
-            geometry_cursor: Some(scene.cursor()),
-            geometry_serial: 0,
-            copies: Vec::new(),
-            staged: Vec::new(),
-            retired: Vec::new(),
-            frames_written: 0,
-            record_stamps: vec![0; capacity.instances as usize],
-            order_stamps: vec![0; capacity.instances as usize],
-            entry_stamps: vec![0; capacity.cpu_base() as usize],
-        };
-        match pool {
-            Ok(p) => gs.pool = p,
-            Err(e) => {
-                gs.destroy(ctx);
-                return Err(e);
-            }
+        self.pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
+            .map_err(|r| VkError::call("vkCreateDescriptorPool", r))?;
+        for i in 0..frames_in_flight.max(1) as u32 {
+            let slot = self.slot_buffers(ctx, i, scene)?;
+            self.frames.push(slot);
         }
-        for i in 0..n {
-            match gs.slot_buffers(ctx, i, scene) {
-                Ok(fb) => gs.frames.push(fb),
-                Err(e) => {
-                    gs.destroy(ctx);
-                    return Err(e);
-                }
-            }
-        }
-        Ok(gs)
+        Ok(())
     }
 
     fn slot_buffers(&self, ctx: &Context, i: u32, scene: &Scene) -> Result<SlotBuffers, VkError> {
@@ -457,23 +487,8 @@ impl GpuScene {
             }
         }
         let mut it = made.into_iter();
-        let (
-            Some(uniforms),
-            Some(records),
-            Some(order),
-            Some(entries),
-            Some(meshes),
-            Some(materials),
-            Some(counters),
-        ) = (
-            it.next(),
-            it.next(),
-            it.next(),
-            it.next(),
-            it.next(),
-            it.next(),
-            it.next(),
-        )
+        let (Some(records), Some(order), Some(entries), Some(meshes), Some(materials)) =
+            (it.next(), it.next(), it.next(), it.next(), it.next())
         else {
             return Err(VkError::Invalid {
                 what: "scene buffers".into(),
@@ -481,90 +496,74 @@ impl GpuScene {
             });
         };
         let mut slot = SlotBuffers {
-            uniforms,
             records,
             order,
             entries,
             meshes,
             materials,
-            counters,
+            views: Vec::with_capacity(self.atlases.len()),
             staging: None,
-            set: vk::DescriptorSet::null(),
-            culled_set: None,
             cursor: None,
             geometry_serial: self.geometry_serial,
         };
-        match allocate_set(ctx, self.pool, self.set_layout) {
-            Ok(set) => slot.set = set,
-            Err(e) => {
-                destroy_slot(ctx, slot);
-                return Err(e);
+        for view in 0..self.atlases.len() {
+            match self.view_buffers(ctx, i, view) {
+                Ok(v) => slot.views.push(v),
+                Err(e) => {
+                    destroy_slot(ctx, slot);
+                    return Err(e);
+                }
             }
         }
         self.write_sets(ctx, &slot);
         Ok(slot)
     }
 
-    /// Writes a slot's sets over its buffers and the resident geometry.
+    /// Writes a slot's sets, every view's, over its buffers and the resident geometry.
     fn write_sets(&self, ctx: &Context, slot: &SlotBuffers) {
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
-        let sets = [(slot.set, slot.entries.raw)]
-            .into_iter()
-            .chain(slot.culled_set.zip(self.culled_draw_ids));
-        for (set, draw_list) in sets {
-            write_buffer_set(
-                ctx,
-                set,
-                &[
-                    (0, vk::DescriptorType::UNIFORM_BUFFER, slot.uniforms.raw),
-                    (1, ssbo, slot.records.raw),
-                    (2, ssbo, draw_list),
-                    (3, ssbo, slot.meshes.raw),
-                    (4, ssbo, slot.materials.raw),
-                    (5, ssbo, self.vertices.raw),
-                    (6, ssbo, self.indices.raw),
-                    (7, ssbo, slot.counters.raw),
-                ],
-            );
-            let images = self.textures.image_infos();
-            let atlas = [self.shadow_atlas.descriptor()];
-            let write = [
-                vk::WriteDescriptorSet::default()
-                    .dst_set(set)
-                    .dst_binding(TEXTURE_BINDING)
-                    .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-                    .image_info(&images),
-                vk::WriteDescriptorSet::default()
-                    .dst_set(set)
-                    .dst_binding(SHADOW_BINDING)
-                    .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
-                    .image_info(&atlas),
-            ];
-            // SAFETY: live views and samplers; the set is idle (the caller's guarantee).
-            unsafe { ctx.device.update_descriptor_sets(&write, &[]) };
+        for (view, v) in slot.views.iter().enumerate() {
+            let culled = self.culled_draw_ids.get(view).copied().flatten();
+            let sets = [(v.set, slot.entries.raw)]
+                .into_iter()
+                .chain(v.culled_set.zip(culled));
+            // Every view has its atlas (made with the views).
+            let Some(atlas) = self.atlases.get(view) else {
+                continue;
+            };
+            let atlas = [atlas.descriptor()];
+            for (set, draw_list) in sets {
+                write_buffer_set(
+                    ctx,
+                    set,
+                    &[
+                        (0, vk::DescriptorType::UNIFORM_BUFFER, v.uniforms.raw),
+                        (1, ssbo, slot.records.raw),
+                        (2, ssbo, draw_list),
+                        (3, ssbo, slot.meshes.raw),
+                        (4, ssbo, slot.materials.raw),
+                        (5, ssbo, self.vertices.raw),
+                        (6, ssbo, self.indices.raw),
+                        (7, ssbo, v.counters.raw),
+                    ],
+                );
+                let images = self.textures.image_infos();
+                let write = [
+                    vk::WriteDescriptorSet::default()
+                        .dst_set(set)
+                        .dst_binding(TEXTURE_BINDING)
+                        .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                        .image_info(&images),
+                    vk::WriteDescriptorSet::default()
+                        .dst_set(set)
+                        .dst_binding(SHADOW_BINDING)
+                        .descriptor_type(vk::DescriptorType::COMBINED_IMAGE_SAMPLER)
+                        .image_info(&atlas),
+                ];
+                // SAFETY: live views and samplers; the set is idle (the caller's guarantee).
+                unsafe { ctx.device.update_descriptor_sets(&write, &[]) };
+            }
         }
-    }
-
-    /// Creates, per frame slot, the set that GPU-culled draws bind: the same as the plain one
-    /// but with the draw list the culling shader writes (`draw_ids`).
-    pub fn add_culled_sets(&mut self, ctx: &Context, draw_ids: vk::Buffer) -> Result<(), VkError> {
-        self.culled_draw_ids = Some(draw_ids);
-        for i in 0..self.frames.len() {
-            let set = allocate_set(ctx, self.pool, self.set_layout)?;
-            self.frames[i].culled_set = Some(set);
-            self.write_sets(ctx, &self.frames[i]);
-        }
-        Ok(())
-    }
-
-    /// The culled-draw set of a frame slot (after [`Self::add_culled_sets`]).
-    pub fn culled_set(&self, slot: usize) -> Option<vk::DescriptorSet> {
-        self.frames.get(slot).and_then(|f| f.culled_set)
-    }
-
-    /// The descriptor set (set 0) of a frame slot.
-    pub fn set(&self, slot: usize) -> Option<vk::DescriptorSet> {
-        self.frames.get(slot).map(|f| f.set)
     }
 
     /// The instance entries (`order`) of a frame slot, which the culling shader reads.
@@ -577,22 +576,17 @@ impl GpuScene {
         self.capacity
     }
 
-    /// Brings `slot`'s buffers up to `scene` (what changed since the slot's last frame), writes
-    /// this frame's uniforms and CPU lists (`cpu_entries`: instance ids from
-    /// [`Capacity::cpu_base`]), and stages the geometry the scene added since the last frame
-    /// (the caller guarantees the GPU finished the slot's previous frame, and records
-    /// [`Self::record_upload`] before the frame's passes).
+    /// Brings `slot`'s buffers up to `scene` (what changed since the slot's last frame) and
+    /// stages the geometry the scene added since the last frame (the caller guarantees the GPU
+    /// finished the slot's previous frame, and records [`Self::record_upload`] before the
+    /// frame's passes). Each view's uniforms and CPU list follow ([`Self::write_view`]).
     pub fn write_frame(
         &mut self,
         ctx: &Context,
         slot: usize,
         scene: &Scene,
-        uniforms: &FrameUniforms,
-        cpu_entries: &[u32],
     ) -> Result<(), VkError> {
-        if !self.capacity.holds(scene)
-            || cpu_entries.len() as u64 > u64::from(self.capacity.instances)
-        {
+        if !self.capacity.holds(scene) {
             return Err(VkError::Invalid {
                 what: "scene buffers".into(),
                 reason: format!(
@@ -606,32 +600,11 @@ impl GpuScene {
         self.frames_written += 1;
         self.destroy_retired(ctx);
         self.sync_geometry(ctx, slot, scene)?;
-        self.sync_slot(ctx, slot, scene)?;
-        let base = self.capacity.cpu_base() as usize * 4;
-        let f = self.frames.get_mut(slot).ok_or_else(|| no_slot(slot))?;
-        ctx.write_mapped(&mut f.uniforms, 0, bytemuck::bytes_of(uniforms))?;
-        ctx.write_mapped(&mut f.entries, base, bytemuck::cast_slice(cpu_entries))?;
-        ctx.write_mapped(&mut f.counters, 0, &[0u8; 16])?;
-        Ok(())
+        self.sync_slot(ctx, slot, scene)
     }
 }
 
 impl GpuScene {
-    /// Fragments shaded per material class (opaque, alpha-tested, blended) by the frame last
-    /// recorded into `slot`, when it counted them (`forward_count.frag`). Call after the frame
-    /// completed.
-    pub fn fragment_counts(&self, ctx: &Context, slot: usize) -> Result<[u32; 3], VkError> {
-        let f = self.frames.get(slot).ok_or_else(|| no_slot(slot))?;
-        ctx.invalidate_mapped(&f.counters)?;
-        let m = f.counters.mapped().ok_or_else(|| VkError::Invalid {
-            what: "fragment counters".into(),
-            reason: "not host-visible".into(),
-        })?;
-        let word =
-            |i: usize| u32::from_le_bytes([m[4 * i], m[4 * i + 1], m[4 * i + 2], m[4 * i + 3]]);
-        Ok([word(0), word(1), word(2)])
-    }
-
     /// The instance entries (`order`) of the frame last written into `slot`, for its first
     /// `instances` slots (tests and tools; call once that frame completed).
     pub fn read_order(
@@ -651,24 +624,20 @@ impl GpuScene {
     }
 
     /// Device memory of the scene on the GPU, in bytes: the resident geometry, and each
-    /// slot's records, entries, tables and staging.
+    /// slot's records, entries, tables, staging and views' uniforms and counters.
     pub fn memory_bytes(&self) -> u64 {
         let slots: u64 = self
             .frames
             .iter()
             .map(|f| {
-                [
-                    &f.uniforms,
-                    &f.records,
-                    &f.order,
-                    &f.entries,
-                    &f.meshes,
-                    &f.materials,
-                    &f.counters,
-                ]
-                .iter()
-                .map(|b| b.size)
-                .sum::<u64>()
+                [&f.records, &f.order, &f.entries, &f.meshes, &f.materials]
+                    .iter()
+                    .map(|b| b.size)
+                    .sum::<u64>()
+                    + f.views
+                        .iter()
+                        .map(|v| v.uniforms.size + v.counters.size)
+                        .sum::<u64>()
                     + f.staging.as_ref().map_or(0, |s| s.size)
             })
             .sum();
@@ -677,7 +646,9 @@ impl GpuScene {
 
     pub fn destroy(mut self, ctx: &Context) {
         self.textures.destroy(ctx);
-        self.shadow_atlas.destroy(ctx);
+        for a in self.atlases {
+            a.destroy(ctx);
+        }
         for f in self.frames {
             destroy_slot(ctx, f);
         }

@@ -7,23 +7,19 @@ use tilegraph_scene::{Change, GpuMaterial, GpuMesh, Scene, SceneCursor};
 use tilegraph_vk::ash;
 use tilegraph_vk::{Buffer, Context, VkError};
 
-use super::{buffer, grown, no_slot, Capacity, GpuScene, NO_ENTRY};
+use super::{buffer, grown, no_slot, Capacity, GpuScene, ViewBuffers, NO_ENTRY};
 
-/// A frame slot's buffers.
+/// A frame slot's buffers: the scene's (shared by the views), then each view's.
 pub(super) struct SlotBuffers {
-    pub(super) uniforms: Buffer,
     pub(super) records: Buffer,
     pub(super) order: Buffer,
     pub(super) entries: Buffer,
     pub(super) meshes: Buffer,
     pub(super) materials: Buffer,
-    /// `Counters` of `forward_count.frag`: fragments shaded per material class.
-    pub(super) counters: Buffer,
+    /// Per view: its uniforms, counters and sets.
+    pub(super) views: Vec<ViewBuffers>,
     /// Geometry copies of this slot's frame read from here (made when first needed).
     pub(super) staging: Option<Buffer>,
-    pub(super) set: vk::DescriptorSet,
-    /// Set 0 for GPU-culled draws (binding 2 = the culling shader's draw list).
-    pub(super) culled_set: Option<vk::DescriptorSet>,
     /// The scene as the slot's buffers hold it (`None`: nothing yet).
     pub(super) cursor: Option<SceneCursor>,
     /// The geometry buffers its sets name ([`GpuScene::geometry_serial`]).
@@ -145,16 +141,11 @@ impl GpuScene {
 }
 
 pub(super) fn destroy_slot(ctx: &Context, f: SlotBuffers) {
-    for b in [
-        f.uniforms,
-        f.records,
-        f.order,
-        f.entries,
-        f.meshes,
-        f.materials,
-        f.counters,
-    ] {
+    for b in [f.records, f.order, f.entries, f.meshes, f.materials] {
         ctx.destroy_buffer(b);
+    }
+    for v in f.views {
+        v.destroy(ctx);
     }
     if let Some(s) = f.staging {
         ctx.destroy_buffer(s);

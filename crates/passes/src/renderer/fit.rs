@@ -132,66 +132,79 @@ impl SceneRenderer {
     /// instances come or go; query groups when a quarter of the instances changed), and the
     /// frame's passes decided again when a material class appears or disappears.
     pub(super) fn fit(&mut self, ctx: &Context, scene: &Scene) -> Result<(), RenderError> {
-        let culling = self.options.culling;
         let mut rebuild = !self.resources.scene.capacity().holds(scene);
-        if culling.clusters() && self.structure != scene.structure_version() {
+        let clusters = self.views.iter().any(|v| v.options.culling.clusters());
+        if clusters && self.structure != scene.structure_version() {
             rebuild = true;
         }
-        if let Some(oq) = self.resources.states.get_mut::<OqState>() {
-            match self.oq_cursor.and_then(|c| scene.changes_since(c)) {
-                Some(changes) => {
-                    for c in changes {
-                        if let Change::Instance(i) | Change::Moved(i) = c {
-                            oq.forget(*i);
+        for k in 0..self.views.len() {
+            let (Some(view), res) = (self.views.get_mut(k), &mut self.resources) else {
+                continue;
+            };
+            res.enter_view(k);
+            if let Some(oq) = res.states.get_mut::<OqState>() {
+                match view.oq_cursor.and_then(|c| scene.changes_since(c)) {
+                    Some(changes) => {
+                        for c in changes {
+                            if let Change::Instance(i) | Change::Moved(i) = c {
+                                oq.forget(*i);
+                            }
                         }
+                        rebuild |= oq.forgotten() * 4 > scene.live_instances().max(64);
                     }
-                    rebuild |= oq.forgotten() * 4 > scene.live_instances().max(64);
+                    None => rebuild = true,
                 }
-                None => rebuild = true,
             }
+            view.oq_cursor = Some(scene.cursor());
         }
+        self.resources.enter_view(0);
         if rebuild {
             self.rebuild(ctx, scene)?;
         }
         self.structure = scene.structure_version();
-        self.oq_cursor = Some(scene.cursor());
         let content = SceneContent::of(scene);
         if content.presence() != self.content.presence() {
-            self.setup = Arc::new(decide_setup(&self.options, ctx, content));
+            for v in self.views.iter_mut() {
+                v.setup = Arc::new(decide_setup(&v.options, ctx, content));
+            }
             self.declared = None;
         }
         self.content = content;
         Ok(())
     }
 
-    /// New buffers and technique states for `scene` (the frames in flight are waited for; the
-    /// old ones go), and the frame declared again.
-    fn rebuild(&mut self, ctx: &Context, scene: &Scene) -> Result<(), RenderError> {
+    /// New buffers and technique states for `scene` and every view (the frames in flight are
+    /// waited for; the old ones go), and the frame declared again.
+    pub(super) fn rebuild(&mut self, ctx: &Context, scene: &Scene) -> Result<(), RenderError> {
         self.executor.finish(ctx)?;
         let hint = self
-            .options
+            .options()
             .instance_capacity
             .max(self.resources.scene.capacity().instances);
-        let capacity = Capacity::for_scene(scene, hint);
+        let capacity = Capacity::for_scene(scene, hint).with_views(self.views.len());
         super::check_capacity(ctx, capacity)?;
         log::info!(
-            "renderer: new buffers for {} instance slots, list stride {} ({:?})",
+            "renderer: new buffers for {} instance slots, list stride {}, {} views ({:?})",
             scene.instances().len(),
             scene.buckets().stride(),
+            self.views.len(),
             capacity
         );
+        let options: Vec<&RenderOptions> = self.views.iter().map(|v| &v.options).collect();
         let fresh = create_resources(
             ctx,
             scene,
-            &self.options,
+            &options,
             self.executor.frames_in_flight(),
             capacity,
         )?;
         self.declared = None;
         let old = std::mem::replace(&mut self.resources, fresh);
         old.destroy(ctx);
-        self.last_drawn = None;
-        self.gpu_counts = None;
+        for v in self.views.iter_mut() {
+            v.last_drawn = None;
+            v.gpu_counts = None;
+        }
         Ok(())
     }
 }

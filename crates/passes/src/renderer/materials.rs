@@ -34,11 +34,16 @@ impl SceneRenderer {
             .map(|c| c.set_layout())
     }
 
-    /// The materials the visibility buffer resolves one by one this frame (its declaration
-    /// depends on them): the scene's, where the resolve is per material; else 0.
-    pub(super) fn resolve_materials(&self, ctx: &tilegraph_vk::Context) -> u32 {
-        let per_material = self.options.technique == crate::Technique::Visbuf
-            && self.options.visbuf_resolve(ctx.profile()).0 != crate::VisbufResolve::Uber;
+    /// The materials the visibility buffer resolves one by one this frame in a view of
+    /// `options` (its declaration depends on them): the scene's, where the resolve is per
+    /// material; else 0.
+    pub(super) fn resolve_materials(
+        &self,
+        ctx: &tilegraph_vk::Context,
+        options: &crate::RenderOptions,
+    ) -> u32 {
+        let per_material = options.technique == crate::Technique::Visbuf
+            && options.visbuf_resolve(ctx.profile()).0 != crate::VisbufResolve::Uber;
         if per_material {
             self.resources.frame.material_count
         } else {
@@ -46,16 +51,19 @@ impl SceneRenderer {
         }
     }
 
-    /// Brings the frame's mesh -> engine material table up to `scene` and tells GPU culling
-    /// whether this frame's lists are drawn in runs of pipelines. Nothing is done (or allocated)
-    /// while no engine material is registered.
+    /// Brings the frame's mesh -> engine material table up to `scene` and tells each view's
+    /// GPU culling whether this frame's lists are drawn in runs of pipelines. Nothing is done
+    /// (or allocated) while no engine material is registered.
     pub(super) fn prepare_materials(
         &mut self,
         ctx: &tilegraph_vk::Context,
         scene: &Scene,
     ) -> Result<(), RenderError> {
-        let classified = self.options.technique == crate::Technique::Visbuf
-            && self.options.visbuf_resolve(ctx.profile()).0 == crate::VisbufResolve::Classified;
+        // A visibility buffer that resolves without classifying cannot run an engine resolve.
+        let unclassified_visbuf = self.views.iter().any(|v| {
+            v.options.technique == crate::Technique::Visbuf
+                && v.options.visbuf_resolve(ctx.profile()).0 != crate::VisbufResolve::Classified
+        });
         let res = &mut self.resources;
         res.frame.material_count = scene.materials().len() as u32;
         let registered = res.pipelines.material_count();
@@ -90,24 +98,27 @@ impl SceneRenderer {
                     .engine_material(k)
                     .is_some_and(|e| e.resolve.is_some())
             });
-            if let (Some(k), false) = (engine, classified) {
-                if self.options.technique == crate::Technique::Visbuf {
-                    return Err(RenderError::EngineResolveNeedsClassification {
-                        material: i as u32,
-                        engine: k,
-                    });
-                }
+            if let (Some(k), true) = (engine, unclassified_visbuf) {
+                return Err(RenderError::EngineResolveNeedsClassification {
+                    material: i as u32,
+                    engine: k,
+                });
             }
             resolves.push(engine);
         }
-        if let Some(cull) = res.states.get_mut::<CullState>() {
-            if any && cull.clusters.is_some() {
-                return Err(RenderError::EngineMaterialsWithClusters {
-                    culling: cull.culling.name(),
-                });
+        let mut result = Ok(());
+        for k in 0..res.views() {
+            res.enter_view(k);
+            if let Some(cull) = res.states.get_mut::<CullState>() {
+                if any && cull.clusters.is_some() {
+                    result = Err(RenderError::EngineMaterialsWithClusters {
+                        culling: cull.culling.name(),
+                    });
+                }
+                cull.group_runs = any;
             }
-            cull.group_runs = any;
         }
-        Ok(())
+        res.enter_view(0);
+        result
     }
 }

@@ -5,7 +5,7 @@ use tilegraph_scene::Scene;
 
 use super::SceneRenderer;
 use crate::cull::CullState;
-use crate::gpu_scene::{geometry_sizes, slot_specs, Capacity};
+use crate::gpu_scene::{geometry_sizes, slot_specs, view_specs, Capacity};
 
 /// Device memory of a renderer's scene buffers for `scene`, by what holds it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -47,6 +47,7 @@ pub fn scene_memory(scene: &Scene, frames_in_flight: usize, instance_capacity: u
     let capacity = Capacity::for_scene(scene, instance_capacity);
     let slot_bytes = slot_specs(capacity, scene.meshes().len(), scene.materials().len())
         .iter()
+        .chain(&view_specs())
         .map(|s| s.1.max(16))
         .sum();
     SceneMemory {
@@ -67,17 +68,18 @@ impl SceneRenderer {
     }
 
     /// Device memory of the scene's buffers as they are now (geometry, every slot's records,
-    /// entries and tables, the instance lists of GPU culling), in the shape
+    /// entries, tables and views' uniforms, every view's instance lists of GPU culling), in the shape
     /// [`scene_memory`] estimates before a renderer exists.
     pub fn scene_memory(&self) -> SceneMemory {
         let scene = &self.resources.scene;
         let slots = self.executor.frames_in_flight() as u32;
         let geometry = scene.vertices.size + scene.indices.size;
-        let culling = self
-            .resources
-            .states
-            .get::<CullState>()
-            .map_or(0, CullState::memory_bytes);
+        // Every view's culling lists.
+        let culling = (0..self.resources.views())
+            .filter_map(|k| self.resources.view_states(k))
+            .filter_map(|s| s.get::<CullState>())
+            .map(CullState::memory_bytes)
+            .sum();
         SceneMemory {
             instance_slots: scene.capacity().instances,
             frames_in_flight: slots,

@@ -15,11 +15,12 @@ mod materials;
 mod memory;
 mod readback;
 mod resources;
+mod views;
 
 use std::sync::Arc;
 
 use tilegraph_graph::{Format, ImageId, Import, Plan, PlanCache, ResourceState};
-use tilegraph_scene::{Camera, CameraFrame, DepthConvention, Scene, SceneCursor};
+use tilegraph_scene::{Camera, CameraFrame, Scene};
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::{
     EngineFrame, Executor, External, Externals, FrameStats, ImageHandle, PassContext, Submission,
@@ -29,33 +30,33 @@ use tilegraph_vk::queries::{GpuTiming, PassMedian};
 use tilegraph_vk::{Context, Image, VkError};
 
 use crate::compose::{declare_scene, kept_import, ColorTarget, DeclarationKey, SceneFrame};
-use crate::cull::{cpu_frustum_visible, CullState, Culling, FrameLists, GpuCullCounts};
-use crate::draws::{order_groups, DrawBuilder, Visible};
+use crate::draws::DrawBuilder;
 use crate::frame::{FrameGraph, Payload, SceneResources};
-use crate::gpu_scene::{visbuf_instance_bits, Capacity, FrameUniforms};
-use crate::hiz::{HizState, ReprojectState};
+use crate::gpu_scene::Capacity;
 use crate::lint::lint_frame;
-use crate::occlusion::{OqState, RasterOcclusion};
-use crate::options::{check_device, FrameReport, RenderError, RenderOptions};
-use crate::setup::{FrameSetup, SceneContent, Technique};
-use crate::shadow::{write_shadow_uniforms, ShadowState};
-use crate::targets::{create_target, destroy_target};
-use fit::{decide_setup, CpuLists};
+use crate::options::{FrameReport, RenderError, RenderOptions};
+use crate::setup::{FrameSetup, SceneContent};
 pub use memory::{scene_memory, SceneMemory};
 pub use readback::PixelOwners;
 use resources::create_resources;
+pub use views::ViewId;
+use views::{View, Views};
 
 /// An image the renderer keeps across frames, with its view.
 type Target = (Image, ImageHandle);
 
 /// The scene's frame as declared and compiled.
 struct DeclaredFrame {
-    key: DeclarationKey,
+    /// Per view, what its declaration depended on.
+    keys: Vec<DeclarationKey>,
     plan: Arc<Plan>,
     /// Indexed by `PassId`; `None` for pruned passes.
     payloads: Vec<Option<Payload>>,
+    /// Indexed by `PassId`: the view the pass belongs to.
+    view_of_pass: Vec<usize>,
     externals: Externals,
-    /// The colour target's id (its image may change from frame to frame: an engine's).
+    /// The main view's colour target's id (its image may change from frame to frame: an
+    /// engine's).
     color: ImageId,
 }
 
@@ -74,37 +75,21 @@ pub struct EngineTarget<'a> {
     pub final_state: ResourceState,
 }
 
-/// Renders one scene frame after frame.
+/// Renders one scene frame after frame: a main view, and the further views an engine adds
+/// ([`SceneRenderer::add_view`]), on one graph.
 pub struct SceneRenderer {
-    options: RenderOptions,
-    /// The passes of this renderer's frames, decided once from the scene and the profile.
-    setup: Arc<FrameSetup>,
+    views: Views,
     executor: Executor,
     resources: SceneResources,
-    /// The colour target the renderer keeps (`None` when it renders into an engine's).
-    target: Option<Target>,
-    /// The captured id image (with `capture_ids`).
-    ids_target: Option<Target>,
-    instance_bits: Option<u32>,
     frames: u64,
     last_slot: usize,
     /// Instance slots of the scene the last frame drew.
     last_instances: usize,
-    /// What the CPU decides per frame, kept from frame to frame (no allocation per frame).
-    cpu: CpuLists,
     draw_builder: DrawBuilder,
     /// The scene's structure version the per-instance layouts were made for.
     structure: u64,
-    /// Where the occlusion queries' groups stand in the scene's changes.
-    oq_cursor: Option<SceneCursor>,
     /// The drawn instances per class the frame setup was decided for.
     content: SceneContent,
-    /// Occlusion queries: the opaque and alpha-tested instances the last frame drew.
-    last_drawn: Option<Vec<u32>>,
-    /// The newest completed frame's GPU culling counts (read without waiting).
-    gpu_counts: Option<GpuCullCounts>,
-    /// The camera of the last frame rendered.
-    last_camera: Option<Camera>,
     declared: Option<DeclaredFrame>,
     /// Plans of graphs declared by the caller ([`Self::execute_graph`]).
     plan_cache: PlanCache,
@@ -142,86 +127,84 @@ impl SceneRenderer {
         submission: Submission,
         frames_in_flight: usize,
     ) -> Result<Self, RenderError> {
-        let instance_bits = check_device(ctx, &options, scene)?;
-        let mut executor = match submission {
-            Submission::Owned => Executor::with_frames(ctx, frames_in_flight, 256)?,
-            Submission::Engine => Executor::for_engine(ctx, frames_in_flight)?,
+        let content = SceneContent::of(scene);
+        let main = View::new(ctx, scene, options, content, submission)?;
+        let options = &main.options;
+        let executor = match submission {
+            Submission::Owned => Executor::with_frames(ctx, frames_in_flight, 256),
+            Submission::Engine => Executor::for_engine(ctx, frames_in_flight),
         };
-        if let Err(e) = executor.set_timing(ctx, options.gpu_timing) {
-            executor.destroy(ctx);
-            return Err(e.into());
-        }
+        let mut executor = match executor {
+            Ok(e) => e,
+            Err(e) => {
+                main.destroy(ctx);
+                return Err(e.into());
+            }
+        };
         let capacity = Capacity::for_scene(scene, options.instance_capacity);
-        if let Err(e) = check_capacity(ctx, capacity) {
-            executor.destroy(ctx);
-            return Err(e);
-        }
-        let parts = create_resources(ctx, scene, &options, executor.frames_in_flight(), capacity)
-            .and_then(
-                |resources| match create_targets(ctx, &options, submission) {
-                    Ok(targets) => Ok((resources, targets)),
-                    Err(e) => {
-                        resources.destroy(ctx);
-                        Err(e)
-                    }
-                },
-            );
-        let (resources, (target, ids_target)) = match parts {
-            Ok(p) => p,
+        let made = executor
+            .set_timing(ctx, options.gpu_timing)
+            .map_err(RenderError::from)
+            .and_then(|()| check_capacity(ctx, capacity))
+            .and_then(|()| {
+                create_resources(
+                    ctx,
+                    scene,
+                    &[options],
+                    executor.frames_in_flight(),
+                    capacity,
+                )
+            });
+        let resources = match made {
+            Ok(r) => r,
             Err(e) => {
                 executor.destroy(ctx);
+                main.destroy(ctx);
                 return Err(e);
             }
         };
-        let content = SceneContent::of(scene);
-        let setup = decide_setup(&options, ctx, content);
         Ok(SceneRenderer {
-            options,
-            setup: Arc::new(setup),
+            views: Views {
+                main,
+                further: Vec::new(),
+            },
             executor,
             resources,
-            target,
-            ids_target,
-            instance_bits,
             frames: 0,
             last_slot: 0,
             last_instances: scene.instances().len(),
-            cpu: CpuLists::default(),
             draw_builder: DrawBuilder::default(),
             structure: scene.structure_version(),
-            oq_cursor: Some(scene.cursor()),
             content,
-            last_drawn: None,
-            gpu_counts: None,
-            last_camera: None,
             declared: None,
             plan_cache: PlanCache::new(),
             lint_armed: false,
         })
     }
 
+    /// The main view's options (their scene-wide fields are every view's).
     pub fn options(&self) -> &RenderOptions {
-        &self.options
+        &self.views.main.options
     }
 
     /// Sets the heavy-material ALU iterations for the next frames.
     pub fn set_heavy_iterations(&mut self, iterations: u32) {
-        self.options.lighting.heavy_iterations = iterations;
+        self.views.main.options.lighting.heavy_iterations = iterations;
     }
 
     /// Points the directional light (and its shadows) along `to_light` from the next frame.
     pub fn set_light_direction(&mut self, to_light: glam::Vec3) {
-        self.options.lighting.direction = to_light;
+        self.views.main.options.lighting.direction = to_light;
     }
 
     /// Gives the directional light `color` (linear RGB) from the next frame.
     pub fn set_light_color(&mut self, color: glam::Vec3) {
-        self.options.lighting.color = color;
+        self.views.main.options.lighting.color = color;
     }
 
-    /// Which passes this renderer's frames have.
+    /// Which passes the main view's frames have.
     pub fn setup(&self) -> &FrameSetup {
-        &self.setup
+        &self.views.main.setup
     }
 
     /// Lints the next frame: every pipeline it binds is traced and checked against the
@@ -243,7 +226,7 @@ impl SceneRenderer {
     /// The colour target every frame ends in (`TRANSFER_SRC_OPTIMAL` after a frame); `None`
     /// for a renderer that draws into an engine's target.
     pub fn target(&self) -> Option<&ImageHandle> {
-        self.target.as_ref().map(|(_, h)| h)
+        self.views.main.target.as_ref().map(|(_, h)| h)
     }
 
     /// Renders one frame from a lone `camera`: a still camera when it is the last frame's
@@ -254,11 +237,12 @@ impl SceneRenderer {
         scene: &Scene,
         camera: &Camera,
     ) -> Result<FrameReport, RenderError> {
-        let m = camera.matrices(self.options.width as f32 / self.options.height as f32);
+        let main = &self.views.main;
+        let m = camera.matrices(main.aspect());
         let frame = CameraFrame {
             index: 0,
             camera: *camera,
-            cut: self.last_camera != Some(*camera),
+            cut: main.last_camera != Some(*camera),
             current: m,
             previous: m,
             reproject: m.view_projection,
@@ -273,16 +257,16 @@ impl SceneRenderer {
         scene: &Scene,
         frame: &CameraFrame,
     ) -> Result<FrameReport, RenderError> {
-        let Some((_, handle)) = &self.target else {
+        let Some((_, handle)) = &self.views.main.target else {
             return Err(RenderError::EngineSubmits);
         };
         let handle = handle.clone();
         self.prepare_frame(ctx, scene, frame)?;
         let color = ColorTarget {
             format: Format::R8G8B8A8_UNORM,
-            import: kept_import(self.frames == 0),
+            import: kept_import(self.views.main.frames == 0),
         };
-        self.run_scene(ctx, frame.current.depth, color, &handle, None)
+        self.run_scene(ctx, color, &handle, None)
     }
 
     /// Records one frame of a camera path into the engine's command buffer and colour target
@@ -300,12 +284,12 @@ impl SceneRenderer {
     ) -> Result<FrameReport, RenderError> {
         let color = self.check_target(target)?;
         self.prepare_frame_in_slot(ctx, scene, frame, engine.slot)?;
-        self.run_scene(ctx, frame.current.depth, color, target.image, Some(engine))
+        self.run_scene(ctx, color, target.image, Some(engine))
     }
 
     /// The engine's target as the frame declares it, or what is wrong with it.
     fn check_target(&self, target: &EngineTarget<'_>) -> Result<ColorTarget, RenderError> {
-        let (w, h) = (self.options.width, self.options.height);
+        let (w, h) = (self.options().width, self.options().height);
         let extent = target.image.extent;
         if (extent.width, extent.height) != (w, h) {
             return Err(RenderError::Target(format!(
@@ -331,47 +315,105 @@ impl SceneRenderer {
         })
     }
 
-    /// Declares the scene's frame when what it depends on changed, and records it: submitted
-    /// by the executor, or into the engine's command buffer.
+    /// View `k`'s declaration key this frame (`color`: the main view's target).
+    fn view_key(&self, ctx: &Context, k: usize, color: ColorTarget) -> Option<DeclarationKey> {
+        let view = self.views.get(k)?;
+        let first = view.frames == 0;
+        Some(DeclarationKey {
+            depth: view.depth,
+            // Only the id target the renderer keeps is imported differently on the first
+            // frame (the colour target's import is in `color`).
+            first_frame: first && view.ids_target.is_some(),
+            color: match k {
+                0 => color,
+                _ => ColorTarget {
+                    format: Format::R8G8B8A8_UNORM,
+                    import: kept_import(first),
+                },
+            },
+            materials: self.resolve_materials(ctx, &view.options),
+        })
+    }
+
+    /// Declares every view's passes on one graph (the further views' names prefixed
+    /// `view<k>/`) and compiles it for the profile.
+    fn declare(
+        &self,
+        ctx: &Context,
+        color: ColorTarget,
+        image: &ImageHandle,
+    ) -> Result<DeclaredFrame, RenderError> {
+        let profile = ctx.profile();
+        let mut graph = FrameGraph::new();
+        let mut externals = Externals::new();
+        let mut keys = Vec::with_capacity(self.views.len());
+        let mut view_of_pass = Vec::new();
+        let mut main_color = None;
+        for (k, view) in self.views.iter().enumerate() {
+            let Some(key) = self.view_key(ctx, k, color) else {
+                continue;
+            };
+            let target = match (k, &view.target) {
+                (0, _) => image,
+                (_, Some((_, h))) => h,
+                (_, None) => return Err(RenderError::UnknownView(k as u32)),
+            };
+            let unknown = || RenderError::UnknownView(k as u32);
+            let atlas = self.resources.scene.atlas(k).ok_or_else(unknown)?;
+            let states = self.resources.view_states(k).ok_or_else(unknown)?;
+            let (passes, resources) = (graph.pass_count(), graph.resource_count());
+            let color_id = declare_scene(
+                &mut graph,
+                &mut externals,
+                &SceneFrame {
+                    options: &view.options,
+                    setup: &view.setup,
+                    profile,
+                    key,
+                    states,
+                    target,
+                    ids_target: view.ids_target.as_ref().map(|(_, h)| h),
+                    atlas,
+                },
+            );
+            if k > 0 {
+                graph.prefix_names(passes, resources, &format!("view{k}/"));
+            }
+            view_of_pass.resize(graph.pass_count(), k);
+            main_color.get_or_insert(color_id);
+            keys.push(key);
+        }
+        let color = main_color.ok_or(RenderError::UnknownView(0))?;
+        let (plan, payloads) = graph.compile(profile)?.into_plan_and_payloads();
+        Ok(DeclaredFrame {
+            keys,
+            plan: Arc::new(plan),
+            payloads,
+            view_of_pass,
+            externals,
+            color,
+        })
+    }
+
+    /// Declares the scene's frame (every view's passes on one graph) when what it depends on
+    /// changed, and records it: submitted by the executor, or into the engine's command buffer.
     fn run_scene(
         &mut self,
         ctx: &Context,
-        depth: DepthConvention,
         color: ColorTarget,
         image: &ImageHandle,
         engine: Option<EngineFrame>,
     ) -> Result<FrameReport, RenderError> {
         self.arm_trace();
-        let key = DeclarationKey {
-            depth,
-            // Only the id target the renderer keeps is imported differently on the first
-            // frame (the colour target's import is in `color`).
-            first_frame: self.frames == 0 && self.ids_target.is_some(),
-            color,
-            materials: self.resolve_materials(ctx),
-        };
-        let declare = self.declared.as_ref().is_none_or(|d| d.key != key);
+        let n = self.views.len();
+        let same = self.declared.as_ref().is_some_and(|d| {
+            d.keys.len() == n
+                && (0..n).all(|k| self.view_key(ctx, k, color).as_ref() == d.keys.get(k))
+        });
+        let declare = !same;
         if declare {
             self.declared = None;
-            let profile = ctx.profile();
-            let declared = declare_scene(&SceneFrame {
-                options: &self.options,
-                setup: &self.setup,
-                profile,
-                key,
-                states: &self.resources.states,
-                target: image,
-                ids_target: self.ids_target.as_ref().map(|(_, h)| h),
-                atlas: &self.resources.scene.shadow_atlas,
-            });
-            let (plan, payloads) = declared.graph.compile(profile)?.into_plan_and_payloads();
-            self.declared = Some(DeclaredFrame {
-                key,
-                plan: Arc::new(plan),
-                payloads,
-                externals: declared.externals,
-                color: declared.color,
-            });
+            self.declared = Some(self.declare(ctx, color, image)?);
         }
         let SceneRenderer {
             executor,
@@ -394,21 +436,24 @@ impl SceneRenderer {
             plan,
             payloads,
             externals,
+            view_of_pass,
             ..
         } = declared;
         let upload = resources.scene.take_upload();
         let mut prologue = |ctx: &Context, cb: vk::CommandBuffer| upload.record(ctx, cb);
-        let mut record = |id: tilegraph_graph::PassId, pc: &mut PassContext<'_>| match payloads
-            .get_mut(id.index())
-            .and_then(Option::as_mut)
-        {
-            Some(p) => p(pc, resources),
-            None => Ok(()),
+        let mut record = |id: tilegraph_graph::PassId, pc: &mut PassContext<'_>| {
+            // A pass records with its view's lists, states and sets.
+            resources.enter_view(view_of_pass.get(id.index()).copied().unwrap_or(0));
+            match payloads.get_mut(id.index()).and_then(Option::as_mut) {
+                Some(p) => p(pc, resources),
+                None => Ok(()),
+            }
         };
         let stats = match engine {
             None => executor.execute_with(ctx, plan, externals, &mut prologue, &mut record),
             Some(f) => executor.record_with(ctx, plan, externals, f, &mut prologue, &mut record),
         };
+        resources.enter_view(0);
         resources.scene.end_upload(upload, stats.is_ok());
         let stats = stats?;
         let plan = Arc::clone(plan);
@@ -488,6 +533,9 @@ impl SceneRenderer {
             .pipelines
             .prune(ctx, self.executor.render_pass_serial_floor());
         self.frames += 1;
+        for v in self.views.iter_mut() {
+            v.frames += 1;
+        }
         let lint = self
             .resources
             .pipelines
@@ -496,13 +544,13 @@ impl SceneRenderer {
         let draws = &self.resources.frame.draws;
         Ok(FrameReport {
             lint,
-            setup: Arc::clone(&self.setup),
+            setup: Arc::clone(&self.views.main.setup),
             plan,
             stats,
             declared,
             draws: draws.opaque.len() + draws.alpha_tested.len() + draws.blended.len(),
             triangles: draws.triangles(),
-            gpu_culling: self.gpu_counts,
+            gpu_culling: self.views.main.gpu_counts,
         })
     }
 
@@ -549,128 +597,38 @@ impl SceneRenderer {
     ) -> Result<(), RenderError> {
         self.fit(ctx, scene)?;
         self.prepare_materials(ctx, scene)?;
-        let (w, h) = (self.options.width, self.options.height);
-        self.last_camera = Some(frame.camera);
-        let m = frame.current;
-        let culling = self.options.culling;
-        // Blended geometry is frustum-culled here and sorted back to front by every technique.
-        // Techniques whose CPU lists draw opaque geometry (queries, and the pre-pass that raster
-        // occlusion tests against) frustum-cull it here too; unculled and GPU-culled frames draw
-        // the scene's buckets as they are.
-        let cpu_lists = culling.uses_queries() || culling == Culling::RasterOcclusion;
-        cpu_frustum_visible(scene.blended_grid(), &m, &mut self.cpu.blended)?;
-        if cpu_lists {
-            let opaque = match &mut self.cpu.opaque {
-                Some(g) => {
-                    g.refit(scene);
-                    g
-                }
-                None => self.cpu.opaque.insert(fit::OpaqueGrid::of(scene)),
-            };
-            cpu_frustum_visible(&opaque.grid, &m, &mut self.cpu.visible)?;
+        // Every view's camera: the main view's is the frame's, a further view's the last one
+        // set (still when none was set since).
+        for k in 1..self.views.len() {
+            if let Some(v) = self.views.get_mut(k) {
+                let still = v
+                    .last_camera
+                    .map(|c| CameraFrame::new(0, c, Some(&c), v.aspect()));
+                v.current = v.next.take().or(still);
+            }
+        }
+        self.views.main.current = Some(*frame);
+        // The CPU's culling first; then the slot, waiting for its previous frame if need be.
+        for k in 0..self.views.len() {
+            if let Some(f) = self.views.get(k).and_then(|v| v.current) {
+                self.cull_view_on_cpu(scene, k, &f)?;
+            }
         }
         let slot = match slot {
             Some(s) => s,
             None => self.executor.acquire_slot(ctx)?,
         };
-        if let Some(cull) = self.resources.states.get_mut::<CullState>() {
-            // The slot's frame has completed: its counts are there to read.
-            if let Some(counts) = cull.collect(ctx, slot)? {
-                self.gpu_counts = Some(counts);
+        self.resources.scene.write_frame(ctx, slot, scene)?;
+        let written = (0..self.views.len()).try_for_each(|k| {
+            match self.views.get(k).and_then(|v| v.current) {
+                Some(f) => self.write_view(ctx, scene, k, &f, slot),
+                None => Ok(()),
             }
-        }
-        if let Some(oq) = self.resources.states.get_mut::<OqState>() {
-            // Occlusion queries: the newest complete frame's results select what this frame
-            // draws (read now, never waited for: the acquired slot's frame has completed).
-            oq.collect(ctx, slot)?;
-            self.cpu.mark_visible(scene.instances().len());
-            if culling.conditional() {
-                // Same-frame results on the GPU; reading the slot only recycles its pool.
-                oq.prepare(slot, &m, h as f32, Some(&self.cpu.mask));
-            } else {
-                let passed = oq.mask();
-                // Every instance in the frustum is queried, drawn or not: a hidden one must be
-                // able to come back.
-                oq.prepare(slot, &m, h as f32, Some(&self.cpu.mask));
-                self.cpu
-                    .visible
-                    .retain(|m| passed.get(m.instance as usize).copied().unwrap_or(true));
-                let mut drawn = self.last_drawn.take().unwrap_or_default();
-                drawn.clear();
-                drawn.extend(self.cpu.visible.iter().map(|m| m.instance));
-                drawn.sort_unstable();
-                self.last_drawn = Some(drawn);
-            }
-        }
-        let profile = ctx.profile();
-        let order = self
-            .options
-            .opaque_order
-            .unwrap_or(profile.passes.opaque_sort);
-        order_groups(scene, m.eye, order, &mut self.cpu.groups);
-        let res = &mut self.resources;
-        let capacity = res.scene.capacity();
-        self.draw_builder.build_into(
-            scene,
-            m.eye,
-            &self.cpu.groups,
-            Visible {
-                opaque: cpu_lists.then_some(self.cpu.visible.as_slice()),
-                blended: &self.cpu.blended,
-            },
-            capacity.cpu_base(),
-            &mut res.frame.draws,
-        );
-        res.frame.depth = m.depth;
-        let instance_bits =
-            visbuf_instance_bits(capacity.instances as usize, scene.max_mesh_triangles());
-        if self.options.technique == Technique::Visbuf && instance_bits.is_none() {
-            return Err(RenderError::VisbufIdOverflow {
-                instances: capacity.instances as usize,
-                max_triangles: scene.max_mesh_triangles(),
-            });
-        }
-        let mut uniforms = FrameUniforms::new(
-            m.view_projection,
-            m.depth,
-            (w, h),
-            &self.options.lighting,
-            instance_bits.unwrap_or(32),
-            m.eye,
-        );
-        write_shadow_uniforms(
-            &mut uniforms,
-            &frame.camera,
-            w as f32 / h.max(1) as f32,
-            scene,
-            self.options.lighting.direction,
-            &self.options.shadows,
-            res.scene.shadow_atlas.desc,
-        );
-        if let Some(s) = res.states.get_mut::<ShadowState>() {
-            s.set_instances(scene.instances().len() as u32);
-        }
-        self.instance_bits = instance_bits;
-        res.scene
-            .write_frame(ctx, slot, scene, &uniforms, &res.frame.draws.instances)?;
+        });
+        self.resources.enter_view(0);
+        written?;
         self.last_slot = slot;
         self.last_instances = scene.instances().len();
-        let pyramid = res.states.get::<HizState>().map(HizState::info);
-        if let Some(cull) = res.states.get_mut::<CullState>() {
-            let lists = FrameLists {
-                groups: &self.cpu.groups,
-                stride: scene.buckets().stride(),
-                instance_slots: scene.instances().len() as u32,
-            };
-            cull.write_frame(ctx, slot, frame, lists, (w, h), pyramid)?;
-        }
-        let recheck = res.states.get::<CullState>().map(CullState::recheck);
-        if let (Some(r), Some(recheck)) = (res.states.get_mut::<RasterOcclusion>(), recheck) {
-            r.set_recheck(recheck);
-        }
-        if let Some(r) = res.states.get_mut::<ReprojectState>() {
-            r.write_frame(frame, pyramid.and_then(|p| p.built_from));
-        }
         Ok(())
     }
 
@@ -705,7 +663,7 @@ impl SceneRenderer {
     /// change waits for the frames in flight and forgets the timings so far.
     pub fn set_gpu_timing(&mut self, ctx: &Context, timing: GpuTiming) -> Result<(), RenderError> {
         self.executor.set_timing(ctx, timing)?;
-        self.options.gpu_timing = timing;
+        self.views.main.options.gpu_timing = timing;
         Ok(())
     }
 
@@ -713,8 +671,7 @@ impl SceneRenderer {
         let SceneRenderer {
             executor,
             resources,
-            target,
-            ids_target,
+            views,
             declared,
             ..
         } = self;
@@ -722,12 +679,7 @@ impl SceneRenderer {
         // The payloads only hold handles; dropped before what they name.
         drop(declared);
         resources.destroy(ctx);
-        if let Some(target) = target {
-            destroy_target(ctx, target);
-        }
-        if let Some(ids) = ids_target {
-            destroy_target(ctx, ids);
-        }
+        views.destroy(ctx);
     }
 }
 
@@ -743,29 +695,4 @@ fn check_capacity(ctx: &Context, capacity: Capacity) -> Result<(), RenderError> 
         });
     }
     Ok(())
-}
-
-/// The colour target, and the id target when the ids are captured.
-fn create_targets(
-    ctx: &Context,
-    options: &RenderOptions,
-    submission: Submission,
-) -> Result<(Option<Target>, Option<Target>), RenderError> {
-    let size = (options.width, options.height);
-    let target = match submission {
-        Submission::Owned => Some(create_target(ctx, size, vk::Format::R8G8B8A8_UNORM)?),
-        Submission::Engine => None,
-    };
-    if !(options.capture_ids && options.technique == Technique::Visbuf) {
-        return Ok((target, None));
-    }
-    match create_target(ctx, size, vk::Format::R32_UINT) {
-        Ok(ids) => Ok((target, Some(ids))),
-        Err(e) => {
-            if let Some(target) = target {
-                destroy_target(ctx, target);
-            }
-            Err(e.into())
-        }
-    }
 }

@@ -38,7 +38,7 @@ impl SceneRenderer {
     /// the mesh's draw (waits; `None` without a visibility buffer).
     pub fn read_pixel_owners(&mut self, ctx: &Context) -> Result<Option<PixelOwners>, RenderError> {
         self.executor.finish(ctx)?;
-        let Some((_, h)) = &self.ids_target else {
+        let Some((_, h)) = &self.views.main.ids_target else {
             return Ok(None);
         };
         let bytes =
@@ -47,7 +47,7 @@ impl SceneRenderer {
             .chunks_exact(4)
             .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .collect();
-        let tri_bits = 32 - self.instance_bits.unwrap_or(32);
+        let tri_bits = 32 - self.views.main.instance_bits.unwrap_or(32);
         let instances = ids
             .iter()
             .map(|&id| match id {
@@ -56,7 +56,7 @@ impl SceneRenderer {
                 _ => id >> tri_bits,
             })
             .collect();
-        let triangles = self.instance_bits.map(|_| {
+        let triangles = self.views.main.instance_bits.map(|_| {
             let mask = if tri_bits >= 32 {
                 u32::MAX
             } else {
@@ -73,7 +73,7 @@ impl SceneRenderer {
     /// The instances the last frame drew through GPU culling (waits), or `None` without culling.
     pub fn drawn_instances(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {
         self.executor.finish(ctx)?;
-        if let Some(d) = &self.last_drawn {
+        if let Some(d) = &self.views.main.last_drawn {
             return Ok(Some(d.clone()));
         }
         if let Some(oq) = self.resources.states.get::<OqState>() {
@@ -102,13 +102,16 @@ impl SceneRenderer {
     /// (with `count_fragments`; waits for the GPU).
     pub fn fragment_counts(&mut self, ctx: &Context) -> Result<[u32; 3], RenderError> {
         self.executor.finish(ctx)?;
-        Ok(self.resources.scene.fragment_counts(ctx, self.last_slot)?)
+        Ok(self
+            .resources
+            .scene
+            .fragment_counts(ctx, self.last_slot, 0)?)
     }
 
     /// Reads the last frame's image (waits for the GPU); not for a renderer that draws into
     /// an engine's target.
     pub fn read_image(&mut self, ctx: &Context) -> Result<RgbaImage, RenderError> {
-        let Some((_, target)) = &self.target else {
+        let Some((_, target)) = &self.views.main.target else {
             return Err(RenderError::EngineSubmits);
         };
         self.executor.finish(ctx)?;
@@ -119,8 +122,8 @@ impl SceneRenderer {
             0,
         )?;
         Ok(RgbaImage {
-            width: self.options.width,
-            height: self.options.height,
+            width: self.options().width,
+            height: self.options().height,
             pixels,
         })
     }

@@ -5,7 +5,7 @@ use tilegraph_scene::{DepthConvention, Scene};
 use tilegraph_vk::{Context, VkError};
 
 use crate::cull::{CullState, Culling, Occluder};
-use crate::frame::{FrameData, SceneResources, States};
+use crate::frame::SceneResources;
 use crate::gpu_scene::{Capacity, GpuScene};
 use crate::hiz::{HizState, ReprojectState};
 use crate::occlusion::{OqState, RasterOcclusion};
@@ -18,25 +18,35 @@ use crate::visbuf::ResolveSets;
 use tilegraph_cull::shadow::CasterCulling;
 
 /// The GPU side of a renderer: the scene uploaded with room for `capacity`, the pipelines'
-/// layouts, and the state of the culling technique. Whatever was created is destroyed again
-/// when a later step fails.
+/// layouts, and per view (`views`, the main view first) the states of its techniques.
+/// Whatever was created is destroyed again when a later step fails.
 pub(super) fn create_resources(
     ctx: &Context,
     scene: &Scene,
-    options: &RenderOptions,
+    views: &[&RenderOptions],
     frames_in_flight: usize,
     capacity: Capacity,
 ) -> Result<SceneResources, RenderError> {
+    let Some(main) = views.first() else {
+        return Err(RenderError::Vk(VkError::Invalid {
+            what: "scene renderer".into(),
+            reason: "no view".into(),
+        }));
+    };
     let mut textures = ctx.profile().textures;
-    if let Some(b) = options.texture_binding {
+    if let Some(b) = main.texture_binding {
         textures.binding = b;
     }
-    let atlas = options.shadows.atlas(ctx.profile());
-    let gpu = GpuScene::new(ctx, scene, frames_in_flight, capacity, textures, atlas)?;
+    let atlases: Vec<_> = views
+        .iter()
+        .map(|o| o.shadows.atlas(ctx.profile()))
+        .collect();
+    let capacity = capacity.with_views(views.len());
+    let gpu = GpuScene::new(ctx, scene, frames_in_flight, capacity, textures, &atlases)?;
     let pipelines = match Pipelines::new(
         ctx,
         gpu.set_layout,
-        options.count_fragments,
+        main.count_fragments,
         (gpu.textures.binding, gpu.textures.slot_count()),
     ) {
         Ok(p) => p,
@@ -45,19 +55,16 @@ pub(super) fn create_resources(
             return Err(e.into());
         }
     };
-    let mut res = SceneResources {
-        scene: gpu,
-        pipelines,
-        frame: FrameData::default(),
-        states: States::default(),
-    };
-    match add_states(ctx, scene, options, frames_in_flight, capacity, &mut res) {
-        Ok(()) => Ok(res),
-        Err(e) => {
+    let mut res = SceneResources::new(gpu, pipelines);
+    for (view, options) in views.iter().enumerate() {
+        res.enter_view(view);
+        if let Err(e) = add_states(ctx, scene, options, frames_in_flight, capacity, &mut res) {
             res.destroy(ctx);
-            Err(e.into())
+            return Err(e.into());
         }
     }
+    res.enter_view(0);
+    Ok(res)
 }
 
 /// The states of `options`' techniques.
@@ -168,7 +175,15 @@ fn add_states(
         res.states.insert(oq);
     }
     if options.shadows.enabled() {
-        let atlas = res.scene.shadow_atlas.desc;
+        let view = res.view();
+        let atlas = res
+            .scene
+            .atlas(view)
+            .map(|a| a.desc)
+            .ok_or_else(|| VkError::Invalid {
+                what: "shadows".into(),
+                reason: format!("no shadow atlas for view {view}"),
+            })?;
         // `receivers-hiz` reads the camera's pyramid through the GPU culling's sets.
         let cull_sets = match (options.shadows.culling, res.states.get::<CullState>()) {
             (CasterCulling::ReceiversHiz, Some(c)) => Some(c.phase_set_layout()),
