@@ -109,6 +109,20 @@ static TgGetInstanceProcAddr engine_gipa(void) {
  * feature structs (the engine could set its own there too), enables the extensions, and
  * creates the device. `features_override` non-zero: the device gets only those TgFeature bits
  * instead (a device that lacks what tilegraph would ask for). */
+/* The features (TgFeature bits) tilegraph needs for `technique` with `culling`: an engine
+ * whose frames have several views enables the union of theirs. */
+static inline uint32_t engine_features(const Engine *e, uint32_t technique, uint32_t culling) {
+    TgDeviceQuery query = {.get_instance_proc_addr = engine_gipa(),
+                           .instance = e->instance,
+                           .physical_device = e->physical,
+                           .queue_family = e->family,
+                           .technique = technique,
+                           .culling = culling};
+    TgDeviceRequirements req;
+    TG_CHECK(tg_device_requirements(&query, &req));
+    return req.features;
+}
+
 static void engine_create_device(Engine *e, uint32_t technique, uint32_t culling,
                                  uint32_t features_override) {
     TgDeviceQuery query = {.get_instance_proc_addr = engine_gipa(),

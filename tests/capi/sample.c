@@ -1,15 +1,20 @@
 /*
  * The C sample: a C engine with its own Vulkan instance and device (validation and
  * synchronization validation on, every message counted) hands them to tilegraph, renders the
- * city with two-phase HiZ culling and three shadow cascades of its sun into its own image — recording into its own command
- * buffers, two frames in flight, submitting itself — reads the pixels back, and writes them
- * to the file named by argv[1] (raw RGBA8) for the test to compare with the Rust path's.
+ * city with two-phase HiZ culling and three shadow cascades of its sun into its own image, and
+ * in the same frames a second camera further along the path (the visibility buffer, HiZ, two
+ * cascades of its own) into an image of tilegraph's — recording into its own command buffers,
+ * two frames in flight, submitting itself — reads both back, and writes them to the files
+ * named by argv[1] and argv[1] + ".view" (raw RGBA8) for the test to compare with the Rust
+ * path's.
  *
  * Usage: sample OUT.rgba [PROFILE]. Exits non-zero on any failure or validation message.
  */
 #include "engine.h"
 
 enum { WIDTH = 160, HEIGHT = 90, FRAMES = 6, SLOTS = 2, WHOLE_FROM = 3 };
+/* The second camera: its image's size, and how far along the path it looks from. */
+enum { VIEW_WIDTH = 96, VIEW_HEIGHT = 64, VIEW_AHEAD = 20 };
 
 int main(int argc, char **argv) {
     CHECK(argc >= 2, "usage: sample OUT.rgba [PROFILE]");
@@ -17,7 +22,10 @@ int main(int argc, char **argv) {
 
     Engine e;
     engine_start(&e);
-    engine_create_device(&e, TG_TECHNIQUE_PREPASS, TG_CULLING_HIZ_TWO_PHASE, 0);
+    /* The device serves both cameras: the main one's features and the second one's. */
+    uint32_t features = engine_features(&e, TG_TECHNIQUE_PREPASS, TG_CULLING_HIZ_TWO_PHASE) |
+                        engine_features(&e, TG_TECHNIQUE_VISBUF, TG_CULLING_HIZ);
+    engine_create_device(&e, TG_TECHNIQUE_PREPASS, TG_CULLING_HIZ_TWO_PHASE, features);
 
     TgContext context;
     TG_CHECK(engine_adopt(&e, profile, &context));
@@ -52,6 +60,27 @@ int main(int argc, char **argv) {
           "a zero light direction was accepted");
     CHECK(strstr(tg_last_error(), "to_light") != NULL, "error: %s", tg_last_error());
 
+    /* A second camera, further along the path, drawn in the same frames into its own image. */
+    TgCamera view_camera;
+    uint32_t view_cut;
+    TG_CHECK(tg_scene_path_camera(scene, VIEW_AHEAD, &view_camera, &view_cut));
+    TgViewDesc view_desc = {.technique = TG_TECHNIQUE_VISBUF,
+                            .culling = TG_CULLING_HIZ,
+                            .width = VIEW_WIDTH,
+                            .height = VIEW_HEIGHT,
+                            .clear_color = {0.1f, 0.2f, 0.3f, 1.0f},
+                            .shadow_cascades = 2,
+                            .shadow_resolution = 256,
+                            .shadow_culling = TG_SHADOW_CULLING_RECEIVERS};
+    uint32_t view;
+    TG_CHECK(tg_renderer_add_view(renderer, &view_desc, &view_camera, &view));
+    CHECK(view == 1, "the first further view is %u, not 1", view);
+    /* A view the renderer does not have is refused. */
+    CHECK(tg_renderer_set_view_camera(renderer, 7, &view_camera, 0) ==
+              TG_STATUS_INVALID_ARGUMENT,
+          "view 7 was accepted");
+    CHECK(strstr(tg_last_error(), "view 7") != NULL, "error: %s", tg_last_error());
+
     EngineImage target = engine_image(&e, WIDTH, HEIGHT);
     EngineSlot slots[SLOTS] = {engine_slot(&e), engine_slot(&e)};
     for (uint32_t i = 0; i < FRAMES; i++) {
@@ -73,6 +102,8 @@ int main(int argc, char **argv) {
              * frames before keep the default, a time per pass). */
             TG_CHECK(tg_renderer_set_gpu_timing(renderer, TG_GPU_TIMING_FRAME));
         }
+        TG_CHECK(tg_scene_path_camera(scene, VIEW_AHEAD + i, &view_camera, &view_cut));
+        TG_CHECK(tg_renderer_set_view_camera(renderer, view, &view_camera, view_cut));
         TG_CHECK(tg_renderer_record(renderer, &camera, cut, &frame, &t));
         engine_submit(&e, s);
 
@@ -104,6 +135,17 @@ int main(int argc, char **argv) {
     }
     VK_CHECK(vkQueueWaitIdle(e.queue));
     engine_read_back(&e, &target, WIDTH, HEIGHT, argv[1]);
+    /* The view's image: left TRANSFER_SRC_OPTIMAL, its writes visible to copies. */
+    TgViewImage view_image;
+    TG_CHECK(tg_renderer_view_image(renderer, view, &view_image));
+    CHECK(view_image.width == VIEW_WIDTH && view_image.height == VIEW_HEIGHT &&
+              view_image.layout == VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+          "view image %ux%u in layout %d", view_image.width, view_image.height,
+          view_image.layout);
+    char view_path[1024];
+    snprintf(view_path, sizeof view_path, "%s.view", argv[1]);
+    EngineImage view_target = {.image = (VkImage)(uintptr_t)view_image.image};
+    engine_read_back(&e, &view_target, VIEW_WIDTH, VIEW_HEIGHT, view_path);
 
     TG_CHECK(tg_renderer_destroy(renderer));
     TG_CHECK(tg_scene_destroy(scene));

@@ -220,16 +220,16 @@ fn unknown_views_are_refused() {
     let mut r = SceneRenderer::new(&g, &scene, map_options()).unwrap();
     let camera = scene.camera_path().keys()[0].camera;
     let v = r.add_view(&g, &scene, map_options(), &camera).unwrap();
-    assert!(r.set_view_camera(v, &camera).is_ok());
+    assert!(r.set_view_camera(v, &camera, false).is_ok());
     let mut bad = camera;
     bad.eye = DVec3::splat(f64::NAN);
-    assert!(r.set_view_camera(v, &bad).is_err());
+    assert!(r.set_view_camera(v, &bad, true).is_err());
     let mut other = SceneRenderer::new(&g, &scene, map_options()).unwrap();
     // A view of another renderer, past this one's views.
     let w = other.add_view(&g, &scene, map_options(), &camera).unwrap();
     let w2 = other.add_view(&g, &scene, map_options(), &camera).unwrap();
     assert_eq!(w.index(), 1);
-    assert!(r.set_view_camera(w2, &camera).is_err());
+    assert!(r.set_view_camera(w2, &camera, false).is_err());
     assert!(r.read_view_image(&g, w2).is_err());
     other.destroy(&g);
     r.destroy(&g);

@@ -982,25 +982,31 @@ typedef struct {
 } TgRendererDesc;
 
 /**
- * A camera: f64 eye and target, a perspective projection.
+ * A camera: f64 eye and target, a perspective or (`ortho_half_height` non-zero) an
+ * orthographic projection.
  */
 typedef struct {
   double eye[3];
   double target[3];
   float up[3];
   /**
-   * Vertical field of view, radians.
+   * Vertical field of view, radians (perspective).
    */
   float fov_y;
   float near_plane;
   /**
-   * 0: an infinite far plane.
+   * 0: an infinite far plane (perspective only; an orthographic camera needs one).
    */
   float far_plane;
   /**
    * Non-zero: reverse-Z (near at depth 1), tilegraph's default; zero: standard depth.
    */
   uint32_t reverse_z;
+  /**
+   * Non-zero: an orthographic camera seeing this many metres above and below its axis (the
+   * width follows the target's aspect; `fov_y` is ignored).
+   */
+  float ortho_half_height;
 } TgCamera;
 
 /**
@@ -1156,6 +1162,68 @@ typedef struct {
   const TgInstance *instances;
   uint32_t instance_count;
 } TgSceneDesc;
+
+/**
+ * A further view: what it draws and how (the scene-wide choices — light, GPU timing,
+ * instance capacity — are the renderer's).
+ */
+typedef struct {
+  /**
+   * A TgTechnique.
+   */
+  uint32_t technique;
+  /**
+   * A TgCulling.
+   */
+  uint32_t culling;
+  /**
+   * The size of the view's image.
+   */
+  uint32_t width;
+  uint32_t height;
+  float clear_color[4];
+  /**
+   * As `TgRendererDesc::visbuf_resolve`.
+   */
+  uint32_t visbuf_resolve;
+  /**
+   * The view's own shadow cascades of the renderer's light, as in `TgRendererDesc` (0: the
+   * view draws no shadows).
+   */
+  uint32_t shadow_cascades;
+  uint32_t shadow_resolution;
+  /**
+   * A TgShadowCulling.
+   */
+  uint32_t shadow_culling;
+} TgViewDesc;
+
+/**
+ * The image a view renders into, kept by the renderer. After each recorded frame it is in
+ * `VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL`, its last writes made visible to transfer reads
+ * (`VK_PIPELINE_STAGE_2_COPY_BIT`, `VK_ACCESS_2_TRANSFER_READ_BIT`): copy it, or move it to
+ * a shader read with a barrier of the engine's and back before the next frame.
+ */
+typedef struct {
+  /**
+   * VkImage.
+   */
+  uint64_t image;
+  /**
+   * VkImageView.
+   */
+  uint64_t view;
+  /**
+   * VkFormat.
+   */
+  int32_t format;
+  uint32_t width;
+  uint32_t height;
+  /**
+   * VkImageLayout after a frame.
+   */
+  int32_t layout;
+} TgViewImage;
 
 #define TgStatus_ALL { TgStatus_Ok, TgStatus_NullPointer, TgStatus_InvalidHandle, TgStatus_InvalidArgument, TgStatus_Misaligned, TgStatus_InUse, TgStatus_MissingFeature, TgStatus_OutOfMemory, TgStatus_DeviceLost, TgStatus_Vulkan, TgStatus_Scene, TgStatus_Graph, TgStatus_Profile, TgStatus_Internal, }
 
@@ -1743,6 +1811,40 @@ const char *tg_status_name(uint32_t status);
  * cannot catch panics and aborts here instead of returning.
  */
 TgStatus tg_check_panic_boundary(void);
+
+/**
+ * Adds a view to the renderer's frames from the next recorded one: `camera` seen as `desc`
+ * says, into an image of the renderer's (`tg_renderer_view_image`). Waits for the device and
+ * makes the renderer's buffers again (add views before the first frame where that matters).
+ * `out_view` receives the view's index (1, 2, ...; the renderer's own camera is view 0).
+ *
+ * # Safety
+ * `desc` and `camera` are valid; `out_view` is writable.
+ */
+TgStatus tg_renderer_add_view(TgRenderer renderer,
+                              const TgViewDesc *desc,
+                              const TgCamera *camera,
+                              uint32_t *out_view);
+
+/**
+ * `view`'s camera for the next recorded frame; `cut` non-zero: the camera jumped (nothing of
+ * the view's last frame applies). A view keeps its camera until this is called again.
+ *
+ * # Safety
+ * `camera` is valid.
+ */
+TgStatus tg_renderer_set_view_camera(TgRenderer renderer,
+                                     uint32_t view,
+                                     const TgCamera *camera,
+                                     uint32_t cut);
+
+/**
+ * The image `view` renders into.
+ *
+ * # Safety
+ * `out_image` is writable.
+ */
+TgStatus tg_renderer_view_image(TgRenderer renderer, uint32_t view, TgViewImage *out_image);
 
 #ifdef __cplusplus
 }  // extern "C"

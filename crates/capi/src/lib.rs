@@ -28,6 +28,7 @@ mod registry;
 pub mod renderer;
 pub mod scene;
 pub mod status;
+pub mod views;
 
 #[cfg(test)]
 mod cluster_tests;

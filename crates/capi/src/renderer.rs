@@ -161,8 +161,8 @@ pub struct TgPassTime {
 
 pub(crate) struct RendererObject {
     pub(crate) renderer: SceneRenderer,
-    context: u64,
-    scene: u64,
+    pub(crate) context: u64,
+    pub(crate) scene: u64,
     aspect: f32,
     previous: Option<Camera>,
     frames: usize,
@@ -217,18 +217,12 @@ pub unsafe extern "C" fn tg_renderer_create(
             height: desc.height,
             clear_color: desc.clear_color,
             instance_capacity: desc.instance_capacity,
-            visbuf_resolve: match desc.visbuf_resolve {
-                0 => None,
-                1 => Some(VisbufResolve::Uber),
-                2 => Some(VisbufResolve::PerMaterial),
-                3 => Some(VisbufResolve::Classified),
-                v => {
-                    return Err(Failure::invalid(format!(
-                        "`desc->visbuf_resolve` {v} is not 0 to 3"
-                    )))
-                }
-            },
-            shadows: shadows(desc)?,
+            visbuf_resolve: visbuf_resolve(desc.visbuf_resolve)?,
+            shadows: shadows(
+                desc.shadow_cascades,
+                desc.shadow_resolution,
+                desc.shadow_culling,
+            )?,
             ..RenderOptions::default()
         };
         let renderer = registry::with2(
@@ -471,15 +465,33 @@ fn gpu_timing(raw: u32) -> Result<GpuTiming, Failure> {
     })
 }
 
-/// The shadow options of `desc`, or what is wrong with them.
-fn shadows(desc: &TgRendererDesc) -> Result<ShadowOptions, Failure> {
-    if desc.shadow_cascades > 4 {
+/// The visibility buffer's resolve of a desc's `visbuf_resolve`, or what is wrong with it.
+pub(crate) fn visbuf_resolve(raw: u32) -> Result<Option<VisbufResolve>, Failure> {
+    Ok(match raw {
+        0 => None,
+        1 => Some(VisbufResolve::Uber),
+        2 => Some(VisbufResolve::PerMaterial),
+        3 => Some(VisbufResolve::Classified),
+        v => {
+            return Err(Failure::invalid(format!(
+                "`desc->visbuf_resolve` {v} is not 0 to 3"
+            )))
+        }
+    })
+}
+
+/// The shadow options of a desc's `shadow_*` fields, or what is wrong with them.
+pub(crate) fn shadows(
+    cascades: u32,
+    resolution: u32,
+    culling: u32,
+) -> Result<ShadowOptions, Failure> {
+    if cascades > 4 {
         return Err(Failure::invalid(format!(
-            "`desc->shadow_cascades` {} is not 0 to 4",
-            desc.shadow_cascades
+            "`desc->shadow_cascades` {cascades} is not 0 to 4"
         )));
     }
-    let resolution = match desc.shadow_resolution {
+    let resolution = match resolution {
         0 => 1024,
         r @ 64..=4096 => r,
         r => {
@@ -488,7 +500,7 @@ fn shadows(desc: &TgRendererDesc) -> Result<ShadowOptions, Failure> {
             )))
         }
     };
-    let culling = match desc.shadow_culling {
+    let culling = match culling {
         0 => CasterCulling::Receivers,
         1 => CasterCulling::None,
         2 => CasterCulling::Cascade,
@@ -500,7 +512,7 @@ fn shadows(desc: &TgRendererDesc) -> Result<ShadowOptions, Failure> {
         }
     };
     Ok(ShadowOptions {
-        cascades: desc.shadow_cascades,
+        cascades,
         resolution,
         culling,
         ..ShadowOptions::default()

@@ -92,44 +92,75 @@ pub struct TgSceneDesc {
     pub instance_count: u32,
 }
 
-/// A camera: f64 eye and target, a perspective projection.
+/// A camera: f64 eye and target, a perspective or (`ortho_half_height` non-zero) an
+/// orthographic projection.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct TgCamera {
     pub eye: [f64; 3],
     pub target: [f64; 3],
     pub up: [f32; 3],
-    /// Vertical field of view, radians.
+    /// Vertical field of view, radians (perspective).
     pub fov_y: f32,
     pub near_plane: f32,
-    /// 0: an infinite far plane.
+    /// 0: an infinite far plane (perspective only; an orthographic camera needs one).
     pub far_plane: f32,
     /// Non-zero: reverse-Z (near at depth 1), tilegraph's default; zero: standard depth.
     pub reverse_z: u32,
+    /// Non-zero: an orthographic camera seeing this many metres above and below its axis (the
+    /// width follows the target's aspect; `fov_y` is ignored).
+    pub ortho_half_height: f32,
 }
 
 impl TgCamera {
-    pub(crate) fn from_camera(c: &Camera) -> Result<Self, Failure> {
-        let Projection::Perspective {
-            fov_y_rad,
-            near,
-            far,
-            depth,
-        } = c.projection
-        else {
-            return Err(Failure::invalid(
-                "the camera is orthographic; TgCamera holds perspective cameras",
-            ));
+    pub(crate) fn from_camera(c: &Camera) -> Self {
+        let (fov_y, near_plane, far_plane, depth, ortho_half_height) = match c.projection {
+            Projection::Perspective {
+                fov_y_rad,
+                near,
+                far,
+                depth,
+            } => (fov_y_rad, near, far.unwrap_or(0.0), depth, 0.0),
+            Projection::Orthographic {
+                half_height,
+                near,
+                far,
+                depth,
+            } => (0.0, near, far, depth, half_height),
         };
-        Ok(TgCamera {
+        TgCamera {
             eye: c.eye.to_array(),
             target: c.target.to_array(),
             up: c.up.to_array(),
-            fov_y: fov_y_rad,
-            near_plane: near,
-            far_plane: far.unwrap_or(0.0),
+            fov_y,
+            near_plane,
+            far_plane,
             reverse_z: u32::from(depth == DepthConvention::Reverse),
-        })
+            ortho_half_height,
+        }
+    }
+
+    fn projection(&self) -> Projection {
+        let depth = if self.reverse_z != 0 {
+            DepthConvention::Reverse
+        } else {
+            DepthConvention::Standard
+        };
+        if self.ortho_half_height != 0.0 {
+            Projection::Orthographic {
+                half_height: self.ortho_half_height,
+                near: self.near_plane,
+                far: self.far_plane,
+                depth,
+            }
+        } else {
+            Projection::Perspective {
+                fov_y_rad: self.fov_y,
+                near: self.near_plane,
+                far: (self.far_plane != 0.0).then_some(self.far_plane),
+                depth,
+            }
+        }
     }
 
     /// The camera, checked (finite, a view direction, a valid projection).
@@ -138,16 +169,7 @@ impl TgCamera {
             eye: DVec3::from_array(self.eye),
             target: DVec3::from_array(self.target),
             up: Vec3::from_array(self.up),
-            projection: Projection::Perspective {
-                fov_y_rad: self.fov_y,
-                near: self.near_plane,
-                far: (self.far_plane != 0.0).then_some(self.far_plane),
-                depth: if self.reverse_z != 0 {
-                    DepthConvention::Reverse
-                } else {
-                    DepthConvention::Standard
-                },
-            },
+            projection: self.projection(),
         };
         camera
             .validate()
@@ -392,7 +414,7 @@ pub unsafe extern "C" fn tg_scene_path_camera(
                     keys.len()
                 ))
             })?;
-            *out_camera = TgCamera::from_camera(&key.camera)?;
+            *out_camera = TgCamera::from_camera(&key.camera);
             if !out_cut.is_null() {
                 // SAFETY: the caller's contract.
                 unsafe { *out(out_cut, "out_cut")? = u32::from(key.cut || index == 0) };

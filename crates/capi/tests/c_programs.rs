@@ -23,6 +23,7 @@ use tilegraph_e2e::gpu_with;
 use tilegraph_passes::cull::Culling;
 use tilegraph_passes::shadow::{CasterCulling, ShadowOptions};
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
+use tilegraph_scene::CameraFrame;
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -112,8 +113,9 @@ fn run(exe: &Path, args: &[&str]) -> String {
     stdout
 }
 
-/// The Rust path: tilegraph's own device and submission, the same frames.
-fn rust_reference() -> Vec<u8> {
+/// The Rust path: tilegraph's own device and submission, the same frames — the main camera's
+/// image, and the second camera's rendered alone (on a device with the same features).
+fn rust_reference() -> (Vec<u8>, Vec<u8>) {
     let scene = tilegraph_scene::load("city:300").unwrap();
     let options = RenderOptions {
         technique: Technique::Prepass,
@@ -128,16 +130,47 @@ fn rust_reference() -> Vec<u8> {
         },
         ..Default::default()
     };
-    let g = gpu_with(Some("mali-valhall"), options.device_features()).unwrap();
+    let view = RenderOptions {
+        technique: Technique::Visbuf,
+        culling: Culling::Hiz,
+        width: 96,
+        height: 64,
+        clear_color: [0.1, 0.2, 0.3, 1.0],
+        shadows: ShadowOptions {
+            cascades: 2,
+            resolution: 256,
+            culling: CasterCulling::Receivers,
+            ..ShadowOptions::default()
+        },
+        ..Default::default()
+    };
+    let mut features = options.device_features();
+    features.required.extend(view.device_features().required);
+    features.optional.extend(view.device_features().optional);
+    let g = gpu_with(Some("mali-valhall"), features).unwrap();
+    let light = glam::Vec3::new(-0.8, 0.45, 0.35).normalize();
+    let sun = glam::Vec3::new(0.9, 0.85, 0.75);
     let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
-    r.set_light_direction(glam::Vec3::new(-0.8, 0.45, 0.35).normalize());
-    r.set_light_color(glam::Vec3::new(0.9, 0.85, 0.75));
+    r.set_light_direction(light);
+    r.set_light_color(sun);
     for frame in scene.camera_path().frames(160.0 / 90.0).take(6) {
         r.render_frame(&g, &scene, &frame).unwrap();
     }
     let image = r.read_image(&g).unwrap();
     r.destroy(&g);
-    image.pixels
+    let mut r = SceneRenderer::new(&g, &scene, view).unwrap();
+    r.set_light_direction(light);
+    r.set_light_color(sun);
+    let keys = scene.camera_path().keys();
+    for i in 0..6 {
+        let key = keys[20 + i];
+        let previous = (i > 0 && !key.cut).then(|| keys[19 + i].camera);
+        let frame = CameraFrame::new(i, key.camera, previous.as_ref(), 96.0 / 64.0);
+        r.render_frame(&g, &scene, &frame).unwrap();
+    }
+    let view_image = r.read_image(&g).unwrap();
+    r.destroy(&g);
+    (image.pixels, view_image.pixels)
 }
 
 #[test]
@@ -149,19 +182,22 @@ fn the_c_sample_renders_the_rust_paths_image() {
     assert!(log.contains("GPU times of frame"), "{log}");
     // Timed per pass first, then (tg_renderer_set_gpu_timing) as a whole frame.
     assert!(log.contains("  depth-prepass"), "{log}");
+    assert!(log.contains("  view1/visbuf"), "{log}");
     assert!(log.lines().any(|l| l.starts_with("  frame ")), "{log}");
-    let pixels = std::fs::read(&out).unwrap();
-    let reference = rust_reference();
-    assert_eq!(pixels.len(), reference.len());
-    let differing = pixels
-        .iter()
-        .zip(&reference)
-        .filter(|(a, b)| a != b)
-        .count();
-    assert_eq!(
-        differing, 0,
-        "{differing} bytes differ from the Rust path's image"
-    );
+    let (reference, view_reference) = rust_reference();
+    let view_out = target_dir().join("capi-sample.rgba.view");
+    for (what, path, reference) in [
+        ("main camera", &out, &reference),
+        ("second camera", &view_out, &view_reference),
+    ] {
+        let pixels = std::fs::read(path).unwrap();
+        assert_eq!(pixels.len(), reference.len(), "{what}");
+        let differing = pixels.iter().zip(reference).filter(|(a, b)| a != b).count();
+        assert_eq!(
+            differing, 0,
+            "{what}: {differing} bytes differ from the Rust path's image"
+        );
+    }
 }
 
 /// The Rust path of `tests/capi/moving.c`: the same changes before the same frames.

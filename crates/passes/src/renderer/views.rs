@@ -34,6 +34,11 @@ use crate::targets::{create_target, destroy_target};
 pub struct ViewId(pub(crate) u32);
 
 impl ViewId {
+    /// The view of index `index` (what [`Self::index`] gave: from the C ABI).
+    pub fn new(index: u32) -> Self {
+        ViewId(index)
+    }
+
     /// The view's index among the frame's views (the main view is 0, so a `ViewId` is ≥ 1).
     pub fn index(self) -> usize {
         self.0 as usize
@@ -226,13 +231,18 @@ impl SceneRenderer {
         self.views.len()
     }
 
-    /// `view`'s camera for the next frame, continuing from its last one (single-phase
-    /// occlusion culling reuses what the last frame saw: use [`Self::set_view_frame`] with a
-    /// cut where the camera jumps).
-    pub fn set_view_camera(&mut self, view: ViewId, camera: &Camera) -> Result<(), RenderError> {
+    /// `view`'s camera for the next frame: continuing from its last one, or after a `cut`
+    /// (the camera jumped: nothing of the view's last frame applies — single-phase occlusion
+    /// culling reuses what the last frame saw).
+    pub fn set_view_camera(
+        &mut self,
+        view: ViewId,
+        camera: &Camera,
+        cut: bool,
+    ) -> Result<(), RenderError> {
         let v = self.further_view(view)?;
-        let index = v.next.map_or(0, |f| f.index + 1);
-        let frame = CameraFrame::new(index, *camera, v.last_camera.as_ref(), v.aspect());
+        let previous = if cut { None } else { v.last_camera.as_ref() };
+        let frame = CameraFrame::new(v.frames as usize, *camera, previous, v.aspect());
         self.set_view_frame(view, &frame)
     }
 
