@@ -347,3 +347,110 @@ fn every_filter_width_keeps_caster_culling_exact() {
         "the filter changed nothing"
     );
 }
+
+/// The caster oracle's positive control: a caster the frame needs, taken out of the shadows
+/// (its `CASTS_SHADOWS` cleared, as a culling that missed it would draw), changes the image,
+/// and the oracle attributes the differing pixels to it: a caster false negative. With every
+/// caster drawn the same oracle reports none, and every caster it needs was drawn.
+#[test]
+fn the_caster_oracle_names_a_needed_caster_left_out() {
+    use tilegraph_passes::cullcheck::casters::{self, OracleFrame};
+    use tilegraph_scene::{InstanceFlags, InstanceId};
+
+    let scene = city();
+    let options = options(Technique::Forward, false, shadows(CasterCulling::None));
+    let mut features = options.device_features();
+    features
+        .required
+        .extend(tilegraph_e2e::culling_features().required);
+    let g = gpu_with(Some("lavapipe"), features).unwrap();
+    let frame = scene
+        .camera_path()
+        .frames(W as f32 / H as f32)
+        .next()
+        .unwrap();
+    let mut oracle = SceneRenderer::new(
+        &g,
+        &scene,
+        RenderOptions {
+            technique: Technique::Visbuf,
+            capture_ids: true,
+            shadows: ShadowOptions::default(),
+            ..options.clone()
+        },
+    )
+    .unwrap();
+    oracle.render_frame(&g, &scene, &frame).unwrap();
+    let owners = oracle.read_pixel_owners(&g).unwrap().unwrap();
+    oracle.destroy(&g);
+    let triangles = owners.triangles.clone().unwrap();
+    let all_casters = casters::casters(&scene);
+    let cascades = tilegraph_passes::shadow::frame_cascades(
+        &frame.camera,
+        W as f32 / H as f32,
+        &scene,
+        options.lighting.direction,
+        &options.shadows,
+        options.shadows.atlas(g.profile()),
+    );
+    let render = |scene: &Scene| {
+        let mut r = SceneRenderer::new(&g, scene, options.clone()).unwrap();
+        r.render_frame(&g, scene, &frame).unwrap();
+        let image = r.read_image(&g).unwrap();
+        let drawn = r.read_shadow_caster_ids(&g).unwrap().unwrap();
+        r.destroy(&g);
+        (image, drawn)
+    };
+    let needs_with = |differing: &[bool]| {
+        let oracle_frame = OracleFrame {
+            frame: &frame,
+            size: (W, H),
+            instances: &owners.instances,
+            triangles: &triangles,
+            differing,
+        };
+        casters::needed_casters(
+            &scene,
+            &oracle_frame,
+            &cascades,
+            &options.shadows.settings(),
+            &all_casters,
+        )
+    };
+    let (reference, drawn_all) = render(&scene);
+    let none_differ = vec![false; (W * H) as usize];
+    let needs = needs_with(&none_differ);
+    let whole = casters::check(&needs, &drawn_all);
+    assert!(whole.needed > 0, "{whole:?}");
+    assert_eq!(
+        (whole.false_negatives, whole.needed_culled),
+        (0, 0),
+        "{whole:?}"
+    );
+    // The nearest cascade's needed casters, one at a time, until one's shadow shows.
+    let candidates: Vec<u32> = (0..scene.instances().len() as u32)
+        .filter(|&i| needs.needed[0][i as usize])
+        .take(12)
+        .collect();
+    for x in candidates {
+        let mut without = scene.clone();
+        let h = without.instance_handle(InstanceId(x)).unwrap();
+        without.set_flags(h, InstanceFlags::NONE).unwrap();
+        let (image, drawn) = render(&without);
+        let differing: Vec<bool> = image
+            .pixels
+            .chunks_exact(4)
+            .zip(reference.pixels.chunks_exact(4))
+            .map(|(a, b)| a != b)
+            .collect();
+        if !differing.contains(&true) {
+            continue;
+        }
+        let check = casters::check(&needs_with(&differing), &drawn);
+        println!("caster {x} left out: {check:?}");
+        assert!(check.false_negatives >= 1, "{check:?}");
+        assert!(drawn.iter().all(|c| c.binary_search(&x).is_err()));
+        return;
+    }
+    panic!("no needed caster of the nearest cascade changed the image when left out");
+}

@@ -179,6 +179,15 @@ fn print(
             t.shadow_gpu_ms
         )?;
     }
+    if let (Some(needed), Some(fp), Some(fn_)) = (
+        t.shadow_casters_needed,
+        t.shadow_caster_false_positives,
+        t.shadow_caster_false_negatives,
+    ) {
+        outln!(
+            "shadow casters against the oracle: {needed} needed by visible pixels; FP {fp} (drawn, none needed); FN {fn_} (needed and culled where the image differs)"
+        )?;
+    }
     if let Some(c) = caveat {
         outln!("{c}")?;
     }

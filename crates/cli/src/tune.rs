@@ -7,7 +7,8 @@
 //! (`hiz_npot`, `hiz_resolution`, `cull_bounds`, `oq_group`, `occlusion_recheck`,
 //! `raster_occlusion_scale`) under
 //! the profile's shading and draw order; then, with the best of those fixed, every shading ×
-//! draw order (× alpha pre-pass where the scene has alpha-tested geometry). Both stages' runs are kept in `results.json`, so an
+//! draw order (× alpha pre-pass where the scene has alpha-tested geometry; × caster culling
+//! where the profile has shadows). Both stages' runs are kept in `results.json`, so an
 //! interrupted tune resumes, and `report.md` and the plots are written as `bench` writes them.
 
 use std::collections::HashMap;
@@ -265,7 +266,9 @@ fn tune_on(
                     key: s.key(),
                     label: labels.label(s),
                     frame_gpu_ms: t.frame_gpu_ms,
-                    false_negatives: t.false_negatives,
+                    // A caster culled where the image differs is a false negative too.
+                    false_negatives: t.false_negatives
+                        + t.shadow_caster_false_negatives.unwrap_or(0) as usize,
                     fn_rate: t.fn_rate,
                     fp_rate: t.fp_rate,
                     changes,
@@ -301,6 +304,13 @@ fn tune_on(
     )];
     for name in ["depth_prepass", "alpha_prepass"] {
         if let Some(k) = tilegraph_profile::knobs::spec(name) {
+            axes.push((k.name.into(), k.domain.values()));
+        }
+    }
+    // With shadows (the profile's `shadow_cascades`), every caster culling: each is held to
+    // the image of every caster (and its FN counted), so the fastest that holds wins.
+    if profile_value("shadow_cascades").is_some_and(|v| v.to_string() != "0") {
+        if let Some(k) = tilegraph_profile::knobs::spec("shadow_culling") {
             axes.push((k.name.into(), k.domain.values()));
         }
     }
@@ -678,6 +688,9 @@ mod tests {
                 shadow_casters: None,
                 shadow_casters_all: None,
                 shadow_gpu_ms: 0.0,
+                shadow_casters_needed: None,
+                shadow_caster_false_positives: None,
+                shadow_caster_false_negatives: None,
             }),
             passes: Vec::new(),
             frames: Vec::new(),

@@ -1,6 +1,7 @@
 //! Shadows through the CLI (lavapipe, validation required): `cull-check` compares the
 //! technique's frame — its instance culling and its caster culling — with a reference that
-//! draws every caster into every cascade, and reports both counts; `render --json` reports the
+//! draws every caster into every cascade, reports both counts, and the casters against the
+//! oracle's (needed, FP, FN); `render --json` reports the
 //! casters drawn per cascade.
 
 use std::process::Command;
@@ -57,6 +58,17 @@ fn cull_check_holds_caster_culling_to_the_image_of_every_caster() {
     for f in v["frames"].as_array().unwrap() {
         assert!(f["shadow_casters"].as_u64().unwrap() > 0, "{f}");
     }
+    // Against the oracle: the casters the visible pixels need were all drawn (an exact
+    // culling), so the false positives are the rest of what was drawn, and no caster is a
+    // false negative.
+    let needed = t["shadow_casters_needed"].as_u64().unwrap();
+    let fp = t["shadow_caster_false_positives"].as_u64().unwrap();
+    assert_eq!(t["shadow_caster_false_negatives"], 0, "{out}");
+    assert!(0 < needed && needed <= drawn, "{out}");
+    assert_eq!(fp, drawn - needed, "{out}");
+    for f in v["frames"].as_array().unwrap() {
+        assert_eq!(f["casters"]["needed_culled"], 0, "{f}");
+    }
 }
 
 #[test]
@@ -90,4 +102,55 @@ fn render_reports_the_casters_of_each_cascade() {
         .collect();
     assert!(passes.contains(&"shadow-cascades"), "{passes:?}");
     std::fs::remove_file(&out_png).ok();
+}
+
+#[test]
+fn bench_reports_and_plots_the_casters_of_each_caster_culling() {
+    let out = std::env::temp_dir().join(format!("tilegraph-shadow-bench-{}", std::process::id()));
+    let out_arg = out.to_str().unwrap().to_string();
+    let args = [
+        "bench",
+        "--scenes",
+        "city:300",
+        "--culling",
+        "frustum",
+        "--set",
+        "shadow_cascades=2",
+        "--set",
+        "shadow_resolution=256",
+        "--set",
+        "shadow_culling=none,receivers",
+        "--sizes",
+        "160x90",
+        "--frames",
+        "2",
+        "--out",
+        &out_arg,
+    ];
+    let (ok, _, err) = tilegraph(&args);
+    assert!(ok, "{err}");
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let runs = results["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2, "{results}");
+    // Both draw every caster the oracle needs; `receivers` draws fewer, so fewer FP.
+    let fp: Vec<u64> = runs
+        .iter()
+        .map(|r| {
+            let t = &r["totals"];
+            assert_eq!(t["shadow_caster_false_negatives"], 0, "{t}");
+            let needed = t["shadow_casters_needed"].as_u64().unwrap();
+            assert!(
+                needed > 0 && needed <= t["shadow_casters"].as_u64().unwrap(),
+                "{t}"
+            );
+            t["shadow_caster_false_positives"].as_u64().unwrap()
+        })
+        .collect();
+    assert!(fp.iter().min() < fp.iter().max(), "{fp:?}");
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("| casters drawn / frame |"), "{report}");
+    let svg = std::fs::read_to_string(out.join("casters-city-300-160x90.svg")).unwrap();
+    assert!(svg.contains("needed by the visible pixels"), "{svg}");
+    std::fs::remove_dir_all(&out).ok();
 }

@@ -257,6 +257,9 @@ pub(crate) fn write_outputs(
     for group in report::groups(&runs) {
         written.push(plot::pareto(out, &group, &labels)?);
         written.push(plot::passes(out, &group, &labels)?);
+        if group.has_shadows() {
+            written.push(plot::casters(out, &group, &labels)?);
+        }
     }
     let report_path = out.join("report.md");
     results::write_atomically(&report_path, report::markdown(&runs, &labels).as_bytes())?;

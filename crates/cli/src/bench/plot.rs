@@ -109,6 +109,101 @@ pub fn pareto(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, Cli
     Ok(path)
 }
 
+/// `casters-<scene>-<WxH>.svg`: per setting with shadows, x the shadow passes' GPU ms, y the
+/// casters drawn per frame (filled; the front of (ms, casters) joined) and the caster FN per
+/// frame (crosses, 0 for an exact culling); the oracle's needed casters per frame — what a
+/// perfect caster culling would draw — a dashed line.
+pub fn casters(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, CliError> {
+    let path = out.join(format!("casters-{}.svg", g.stem()));
+    let err = write_err(&path);
+    let points: Vec<_> = g
+        .measured()
+        .into_iter()
+        .filter_map(|(r, _)| {
+            let t = r.totals.as_ref()?;
+            let frames = t.frames.max(1) as f64;
+            let per_frame = |v: Option<u64>| v.map(|v| v as f64 / frames);
+            Some((
+                labels.label(&r.settings),
+                t.shadow_gpu_ms,
+                per_frame(t.shadow_casters)?,
+                per_frame(t.shadow_casters_needed)?,
+                per_frame(t.shadow_caster_false_negatives).unwrap_or(0.0),
+            ))
+        })
+        .collect();
+    let max_ms = points.iter().map(|p| p.1).fold(1e-3, f64::max) * 1.15;
+    let max_casters = points.iter().map(|p| p.2.max(p.4)).fold(1.0, f64::max) * 1.15;
+    let needed = points.iter().map(|p| p.3).fold(0.0, f64::max);
+    let height = 420 + 18 * points.len() as u32;
+    {
+        let root = SVGBackend::new(&path, (900, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                format!(
+                    "{} {}x{}: shadow casters drawn (filled), caster FN (x) and needed (dashed) per frame against shadow GPU ms",
+                    g.scene, g.size[0], g.size[1]
+                ),
+                ("sans-serif", 16),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(64)
+            .build_cartesian_2d(0.0..max_ms, 0.0..max_casters)
+            .map_err(|e| err(e.to_string()))?;
+        chart
+            .configure_mesh()
+            .x_desc("shadow passes GPU ms (median)")
+            .y_desc("casters per frame")
+            .draw()
+            .map_err(|e| err(e.to_string()))?;
+        chart
+            .draw_series(DashedLineSeries::new(
+                [(0.0, needed), (max_ms, needed)],
+                6,
+                4,
+                BLACK.stroke_width(1),
+            ))
+            .map_err(|e| err(e.to_string()))?
+            .label(format!("needed by the visible pixels ({needed:.1})"))
+            .legend(|(x, y)| PathElement::new([(x - 8, y), (x + 8, y)], BLACK));
+        for (i, (label, ms, drawn, _, fn_)) in points.iter().enumerate() {
+            let c = colour(i);
+            chart
+                .draw_series([Circle::new((*ms, *drawn), 6, c.filled())])
+                .map_err(|e| err(e.to_string()))?
+                .label(format!("{label}: {drawn:.1} drawn, FN {fn_:.1}"))
+                .legend(move |(x, y)| Circle::new((x, y), 5, c.filled()));
+            chart
+                .draw_series([Cross::new((*ms, *fn_), 5, c.stroke_width(2))])
+                .map_err(|e| err(e.to_string()))?;
+        }
+        let mut front: Vec<(f64, f64)> = points
+            .iter()
+            .filter(|p| {
+                !points
+                    .iter()
+                    .any(|o| o.1 <= p.1 && o.2 <= p.2 && (o.1 < p.1 || o.2 < p.2))
+            })
+            .map(|p| (p.1, p.2))
+            .collect();
+        front.sort_by(|a, b| a.0.total_cmp(&b.0));
+        chart
+            .draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
+            .map_err(|e| err(e.to_string()))?;
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| err(e.to_string()))?;
+        root.present().map_err(|e| err(e.to_string()))?;
+    }
+    Ok(path)
+}
+
 /// `passes-<scene>-<WxH>.svg`: one bar per setting, a segment per pass (median GPU ms).
 pub fn passes(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, CliError> {
     let path = out.join(format!("passes-{}.svg", g.stem()));

@@ -26,6 +26,15 @@ impl Group<'_> {
         format!("{scene}-{}x{}", self.size[0], self.size[1])
     }
 
+    /// Whether a run measured shadow casters against the oracle.
+    pub fn has_shadows(&self) -> bool {
+        self.runs.iter().any(|r| {
+            r.totals
+                .as_ref()
+                .is_some_and(|t| t.shadow_casters_needed.is_some())
+        })
+    }
+
     /// The runs that measured something, each with whether it is on the Pareto front of
     /// (frame GPU ms, FN rate): no other run is at least as fast and at least as accurate and
     /// better in one.
@@ -116,6 +125,38 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
         );
         md.push_str(&table(&g, labels));
         md.push('\n');
+        if g.has_shadows() {
+            let _ = writeln!(md, "![Shadow casters](casters-{}.svg)\n", g.stem());
+            md.push_str(&caster_table(&g, labels));
+            md.push('\n');
+        }
+    }
+    md
+}
+
+/// One group's shadow casters: per setting with shadows, the casters drawn and needed per
+/// frame (the oracle's: those whose shadow can reach a visible pixel), drawn but not needed
+/// (FP) and needed but culled where the image differed (FN), the shadow passes' GPU ms.
+pub fn caster_table(g: &Group<'_>, labels: &Labels) -> String {
+    let mut md = String::from(
+        "| setting | casters drawn / frame | needed / frame | caster FP | caster FN | shadow ms |\n|---|---|---|---|---|---|\n",
+    );
+    for (r, _) in g.measured() {
+        let Some(t) = &r.totals else { continue };
+        let (Some(drawn), Some(needed)) = (t.shadow_casters, t.shadow_casters_needed) else {
+            continue;
+        };
+        let frames = t.frames.max(1) as f64;
+        let _ = writeln!(
+            md,
+            "| {} | {:.1} | {:.1} | {} | {} | {:.3} |",
+            labels.label(&r.settings),
+            drawn as f64 / frames,
+            needed as f64 / frames,
+            t.shadow_caster_false_positives.unwrap_or(0),
+            t.shadow_caster_false_negatives.unwrap_or(0),
+            t.shadow_gpu_ms
+        );
     }
     md
 }

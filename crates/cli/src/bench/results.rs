@@ -48,6 +48,14 @@ pub struct FrameRecord {
     /// in results written before them).
     #[serde(default)]
     pub shadow_casters: Option<u32>,
+    /// With shadows: the casters the oracle needed, drawn casters none needed, needed ones
+    /// culled where the image differed (absent in results written before them).
+    #[serde(default)]
+    pub shadow_casters_needed: Option<u32>,
+    #[serde(default)]
+    pub shadow_caster_false_positives: Option<u32>,
+    #[serde(default)]
+    pub shadow_caster_false_negatives: Option<u32>,
 }
 
 /// One pass's GPU time over a run.
@@ -101,6 +109,15 @@ pub struct TotalsRecord {
     pub shadow_casters_all: Option<u64>,
     #[serde(default)]
     pub shadow_gpu_ms: f64,
+    /// With shadows, over the path: the casters the oracle needed (a perfect caster culling's
+    /// draws), drawn casters none needed (FP) and needed ones culled where the image differed
+    /// (FN).
+    #[serde(default)]
+    pub shadow_casters_needed: Option<u64>,
+    #[serde(default)]
+    pub shadow_caster_false_positives: Option<u64>,
+    #[serde(default)]
+    pub shadow_caster_false_negatives: Option<u64>,
 }
 
 /// One run: its setting, where it ran, what it measured — or why it failed.
@@ -178,6 +195,9 @@ impl RunRecord {
             shadow_casters: t.shadow_casters,
             shadow_casters_all: t.shadow_casters_all,
             shadow_gpu_ms: t.shadow_gpu_ms,
+            shadow_casters_needed: t.shadow_casters_needed,
+            shadow_caster_false_positives: t.shadow_caster_false_positives,
+            shadow_caster_false_negatives: t.shadow_caster_false_negatives,
         };
         RunRecord {
             key: s.key(),
@@ -218,6 +238,9 @@ impl RunRecord {
                     triangles_drawn: f.triangles_drawn,
                     image_equal: f.image_equal,
                     shadow_casters: f.shadow_casters,
+                    shadow_casters_needed: f.casters.map(|c| c.needed as u32),
+                    shadow_caster_false_positives: f.casters.map(|c| c.false_positives as u32),
+                    shadow_caster_false_negatives: f.casters.map(|c| c.false_negatives as u32),
                 })
                 .collect(),
             totals: Some(totals),

@@ -23,6 +23,7 @@ use crate::renderer::SceneRenderer;
 use crate::setup::Technique;
 use crate::shadow::{CasterCulling, ShadowOptions};
 
+pub mod casters;
 mod clusters;
 mod ideal;
 mod world;
@@ -30,6 +31,7 @@ mod world;
 use ideal::ideal_frame;
 use world::{run_trial, Timing, World};
 
+pub use casters::CasterCheck;
 pub use clusters::{cluster_check, ClusterCheck};
 
 /// One frame's comparison.
@@ -62,6 +64,10 @@ pub struct FrameCheck {
     /// the caster culling too (`None` without shadows or a GPU draw count).
     pub shadow_casters: Option<u32>,
     pub shadow_casters_all: Option<u32>,
+    /// With shadows, the casters against the oracle's: needed by the visible pixels, drawn
+    /// but not needed (FP), needed and culled where the image differs (FN) — summed over the
+    /// cascades (`casters.rs`). `None` without shadows or a GPU draw count.
+    pub casters: Option<CasterCheck>,
 }
 
 /// Totals over the path.
@@ -100,6 +106,12 @@ pub struct Totals {
     pub shadow_casters: Option<u64>,
     pub shadow_casters_all: Option<u64>,
     pub shadow_gpu_ms: f64,
+    /// With shadows: the casters the oracle's frames needed (a perfect caster culling's
+    /// draws, at box level), the drawn casters none needed (FP) and the needed ones culled where
+    /// the image differed (FN), summed over the path.
+    pub shadow_casters_needed: Option<u64>,
+    pub shadow_caster_false_positives: Option<u64>,
+    pub shadow_caster_false_negatives: Option<u64>,
     /// The **ideal frame**: the oracle's visible instances of each frame drawn with no culling
     /// work (everything else hidden), timed whole like `frame_gpu_ms` — what a perfect culling
     /// at instance level would cost on this GPU, the ceiling of every technique. `None` for a
@@ -451,6 +463,41 @@ impl Run<'_> {
             tested.render_frame(ctx, scene, &frame)?;
             let got = tested.read_image(ctx)?;
             let casters = tested.read_shadow_casters(ctx)?;
+            let caster_check = match (tested.read_shadow_caster_ids(ctx)?, &owners.triangles) {
+                (Some(drawn), Some(triangles)) => {
+                    let differing: Vec<bool> = got
+                        .pixels
+                        .chunks_exact(4)
+                        .zip(want.pixels.chunks_exact(4))
+                        .map(|(a, b)| a != b)
+                        .collect();
+                    let oracle_frame = casters::OracleFrame {
+                        frame: &frame,
+                        size,
+                        instances: ids,
+                        triangles,
+                        differing: &differing,
+                    };
+                    let options = tested.options();
+                    let cascades = crate::shadow::frame_cascades(
+                        &frame.camera,
+                        aspect,
+                        scene,
+                        options.lighting.direction,
+                        &options.shadows,
+                        options.shadows.atlas(ctx.profile()),
+                    );
+                    let needs = casters::needed_casters(
+                        scene,
+                        &oracle_frame,
+                        &cascades,
+                        &options.shadows.settings(),
+                        &casters::casters(scene),
+                    );
+                    Some(casters::check(&needs, &drawn))
+                }
+                _ => None,
+            };
             // Cluster techniques draw index ranges: their triangles are the colour lists', and
             // their clusters are compared with the oracle's below the instance.
             let mut cluster_triangles = None;
@@ -497,6 +544,7 @@ impl Run<'_> {
                 clusters,
                 shadow_casters: casters.map(|c| c.iter().sum()),
                 shadow_casters_all: casters_all.map(|c| c.iter().sum()),
+                casters: caster_check,
             };
             for (p, (a, b)) in got
                 .pixels
@@ -534,7 +582,8 @@ impl Run<'_> {
             }
             if let Some(save) = on_failure.as_mut() {
                 let cluster_fn = check.clusters.is_some_and(|c| c.false_negatives > 0);
-                if check.false_negatives > 0 || cluster_fn || !check.image_equal {
+                let caster_fn = check.casters.is_some_and(|c| c.false_negatives > 0);
+                if check.false_negatives > 0 || cluster_fn || caster_fn || !check.image_equal {
                     let failed = FailedFrame {
                         check: &check,
                         technique: &got,
@@ -643,6 +692,9 @@ impl Run<'_> {
                 .iter()
                 .filter(|m| m.name.starts_with("shadow"))
                 .fold(0.0, |a, m| a + m.median_gpu_ms),
+            shadow_casters_needed: summed_casters(&frames, |c| c.needed),
+            shadow_caster_false_positives: summed_casters(&frames, |c| c.false_positives),
+            shadow_caster_false_negatives: summed_casters(&frames, |c| c.false_negatives),
             ideal_frame_gpu_ms: None,
             efficiency: None,
             passes_gpu_ms: medians.iter().fold(0.0, |a, m| a + m.median_gpu_ms),
@@ -669,6 +721,15 @@ impl Run<'_> {
             visible_sets,
         ))
     }
+}
+
+/// `field` of the frames' caster checks summed (`None` when no frame has one).
+fn summed_casters(frames: &[FrameCheck], field: impl Fn(&CasterCheck) -> usize) -> Option<u64> {
+    frames
+        .iter()
+        .filter_map(|f| f.casters.as_ref())
+        .map(|c| field(c) as u64)
+        .reduce(|a, b| a + b)
 }
 
 /// Per instance slot, whether the comparison covers it: drawn (not hidden, not a free slot),

@@ -27,6 +27,20 @@ impl SceneRenderer {
             .and_then(ShadowState::casters_drawn))
     }
 
+    /// The casters (instance ids, sorted) the last frame drew into each of the main view's
+    /// cascades (waits for the GPU; copies the lists out). `None` without shadows, or where
+    /// the lists keep a fixed draw count.
+    pub fn read_shadow_caster_ids(
+        &mut self,
+        ctx: &Context,
+    ) -> Result<Option<Vec<Vec<u32>>>, RenderError> {
+        self.executor.finish(ctx)?;
+        match self.resources.states.get::<ShadowState>() {
+            Some(s) => Ok(s.read_caster_ids(ctx)?),
+            None => Ok(None),
+        }
+    }
+
     /// The instance owning each pixel of the last frame (`u32::MAX` for background), from the
     /// captured visibility buffer (`capture_ids`); waits for the GPU.
     pub fn read_instance_ids(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {

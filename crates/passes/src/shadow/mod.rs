@@ -178,6 +178,28 @@ pub fn write_shadow_uniforms(
     cascades
 }
 
+/// The cascades [`write_shadow_uniforms`] fits for a frame, without the uniforms (tools: the
+/// caster oracle, `cullcheck::casters`).
+pub fn frame_cascades(
+    camera: &Camera,
+    aspect: f32,
+    scene: &Scene,
+    to_light: glam::Vec3,
+    options: &ShadowOptions,
+    atlas: AtlasDesc,
+) -> Cascades {
+    let mut uniforms = bytemuck::Zeroable::zeroed();
+    write_shadow_uniforms(
+        &mut uniforms,
+        camera,
+        aspect,
+        scene,
+        to_light,
+        options,
+        atlas,
+    )
+}
+
 /// The slope-scaled depth bias of the casters (units of the depth slope): with the normal
 /// offset of the lookup, what keeps a lit surface from shadowing itself.
 const SLOPE_BIAS: f32 = 2.0;
@@ -243,7 +265,9 @@ impl ShadowState {
                 return Err(e);
             }
         };
-        let casters = match ctx.create_buffer("shadow casters", slots * 4, storage, gpu) {
+        // Tools copy the caster ids out after the frame (`read_caster_ids`).
+        let casters_usage = storage | vk::BufferUsageFlags::TRANSFER_SRC;
+        let casters = match ctx.create_buffer("shadow casters", slots * 4, casters_usage, gpu) {
             Ok(b) => b,
             Err(e) => {
                 ctx.destroy_buffer(commands);
@@ -367,24 +391,58 @@ impl ShadowState {
     /// Casters drawn into each cascade by the last completed frame (opaque plus alpha-tested;
     /// GPU count only, read after the frames in flight are done).
     pub fn casters_drawn(&self) -> Option<[u32; MAX_CASCADES]> {
+        let counts = self.list_counts()?;
+        let mut out = [0; MAX_CASCADES];
+        for (c, pair) in counts.chunks_exact(2).enumerate().take(MAX_CASCADES) {
+            out[c] = pair[0] + pair[1];
+        }
+        Some(out)
+    }
+
+    /// The casters (instance ids, sorted) the last completed frame drew into each cascade:
+    /// opaque and alpha-tested lists together. GPU count only; copies the lists out (waits
+    /// for the GPU: tools).
+    pub fn read_caster_ids(&self, ctx: &Context) -> Result<Option<Vec<Vec<u32>>>, VkError> {
+        let Some(counts) = self.list_counts() else {
+            return Ok(None);
+        };
+        let bytes = tilegraph_vk::readback::read_buffer(ctx, CullState::handle(&self.casters))?;
+        let word = |k: usize| {
+            bytes
+                .get(k * 4..k * 4 + 4)
+                .map_or(u32::MAX, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+        };
+        let capacity = self.capacity as usize;
+        let cascades = self.atlas.cascades as usize;
+        let mut out = vec![Vec::new(); cascades];
+        for (list, &count) in counts.iter().enumerate().take(cascades * 2) {
+            let ids = &mut out[list / 2];
+            let start = list * capacity;
+            ids.extend((start..start + (count as usize).min(capacity)).map(word));
+        }
+        for ids in &mut out {
+            ids.sort_unstable();
+            ids.dedup();
+        }
+        Ok(Some(out))
+    }
+
+    /// The draws in each list (cascade * 2 + class) of the last completed frame (GPU count).
+    fn list_counts(&self) -> Option<Vec<u32>> {
         if !matches!(self.draw_count, DrawCount::Gpu) {
             return None;
         }
         let bytes = self.counts.mapped()?;
-        let mut out = [0; MAX_CASCADES];
-        for (c, o) in out
-            .iter_mut()
-            .enumerate()
-            .take(self.atlas.cascades as usize)
-        {
-            let word = |k: usize| {
-                bytes
-                    .get(k * 4..k * 4 + 4)
-                    .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-            };
-            *o = word(c * 2) + word(c * 2 + 1);
-        }
-        Some(out)
+        let lists = self.atlas.cascades as usize * 2;
+        Some(
+            (0..lists)
+                .map(|k| {
+                    bytes
+                        .get(k * 4..k * 4 + 4)
+                        .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+                })
+                .collect(),
+        )
     }
 
     /// Whether `receivers-hiz` can run here (the GPU culling's sets were there to build on).
