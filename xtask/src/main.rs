@@ -261,6 +261,24 @@ fn test(rest: &[String]) -> Result<(), String> {
     tests
 }
 
+/// Appends a skip to `$TILEGRAPH_SKIP_LOG` (the format `tilegraph_scene::test_data::skipped`
+/// writes), for the run's summary.
+fn log_skip(what: &str, why: &str) {
+    let line = format!("skipped {what}: {why}");
+    eprintln!("{line}");
+    if let Some(log) = std::env::var_os("TILEGRAPH_SKIP_LOG") {
+        use std::io::Write as _;
+        let written = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&log)
+            .and_then(|mut f| writeln!(f, "{line}"));
+        if let Err(e) = written {
+            eprintln!("(could not append to TILEGRAPH_SKIP_LOG: {e})");
+        }
+    }
+}
+
 /// Prints what the run did not run (`tilegraph_scene::test_data` records each skip), or that
 /// nothing was skipped.
 fn report_skips(log: &Path) {
@@ -625,6 +643,11 @@ fn check_shaders(root: &Path) -> Result<(), String> {
         println!(
             "note: committed modules were made by\n{recorded}\nthis machine has\n{current}\nstaleness is not compared byte for byte"
         );
+        // Not silent: the run's summary lists it with the other skips.
+        log_skip(
+            "byte-for-byte shader staleness",
+            &format!("this glslc is not the one that made the committed modules ({recorded})"),
+        );
     }
     for src in &sources {
         let committed = spv_path(root, src);
@@ -702,7 +725,10 @@ mod tests {
                 "glslc/spirv-val not on PATH: `cargo xtask deps` installs them \
                  (TILEGRAPH_ALLOW_MISSING_TOOLS=1 skips this check on a machine without them)"
             );
-            eprintln!("skipped (TILEGRAPH_ALLOW_MISSING_TOOLS=1): glslc/spirv-val not on PATH");
+            log_skip(
+                "the shader check",
+                "glslc/spirv-val not on PATH (TILEGRAPH_ALLOW_MISSING_TOOLS=1)",
+            );
             return;
         }
         if let Err(e) = check_shaders(&root()) {

@@ -297,7 +297,18 @@ fn the_plan_dot_renders_with_graphviz() {
         .stderr(std::process::Stdio::piped())
         .spawn();
     let Ok(mut child) = spawned else {
-        eprintln!("skipping: Graphviz `dot` is not installed (cargo xtask deps installs it)");
+        // `cargo xtask test` installs Graphviz: a missing `dot` fails there, unless the
+        // machine is declared to lack the tools; the skip is recorded either way.
+        let allowed = std::env::var_os("TILEGRAPH_ALLOW_MISSING_TOOLS").is_some_and(|v| v == "1");
+        tilegraph_scene::test_data::skipped(
+            "the plan's Graphviz rendering",
+            "Graphviz `dot` is not on PATH (cargo xtask deps installs it)",
+        );
+        assert!(
+            allowed,
+            "Graphviz `dot` is not on PATH: `cargo xtask deps` installs it \
+             (TILEGRAPH_ALLOW_MISSING_TOOLS=1 skips this check on a machine without it)"
+        );
         return;
     };
     {
