@@ -234,3 +234,104 @@ fn unknown_views_are_refused() {
     other.destroy(&g);
     r.destroy(&g);
 }
+
+/// A scene that outgrows the renderer's buffers mid-path (new buffers for every view, their
+/// states made again) and moves every frame: the main view and a second camera still equal
+/// rendering each alone through the same changes.
+#[test]
+fn views_follow_a_scene_that_grows_and_moves() {
+    use tilegraph_scene::{InstanceFlags, MeshId};
+    let base = tilegraph_scene::load("city:300").unwrap();
+    let path = base.camera_path().clone();
+    let n = 6.min(path.len());
+    let main = RenderOptions {
+        culling: Culling::HizTwoPhase,
+        shadows: shadows(2, CasterCulling::Receivers),
+        ..main_options()
+    };
+    let second = RenderOptions {
+        culling: Culling::Hiz,
+        ..second_options()
+    };
+    let main_frames: Vec<_> = (0..n)
+        .map(|i| path_frame(&path, i, 0, aspect(&main)))
+        .collect();
+    let second_frames: Vec<_> = (0..n)
+        .map(|i| path_frame(&path, i, 3, aspect(&second)))
+        .collect();
+    // Frame i's scene: from frame 2, twice the instance slots (copies of the first mesh along
+    // the street the path looks down), every copy slid by i.
+    let scene_at = |scene: &mut Scene, i: usize, spawned: &mut Vec<_>| {
+        let slots = base.instances().len();
+        if i == 2 {
+            let mesh = scene.mesh_handle(MeshId(0)).unwrap();
+            let at = base.instances()[0].transform;
+            for k in 0..2 * slots {
+                let mut t = at;
+                t.translation.x += (k % 40) as f64 * 3.0;
+                t.translation.z += (k / 40) as f64 * 3.0;
+                spawned.push(
+                    scene
+                        .add_instance(mesh, t, InstanceFlags::default())
+                        .unwrap(),
+                );
+            }
+        }
+        let moved: Vec<_> = spawned
+            .iter()
+            .map(|&h| {
+                let mut t = scene.instance(h).unwrap().transform;
+                t.translation.y += 0.25;
+                (h, t)
+            })
+            .collect();
+        scene.set_transforms(&moved).unwrap();
+    };
+
+    let mut features = main.device_features();
+    features.required.extend(second.device_features().required);
+    features.optional.extend(second.device_features().optional);
+    let g = gpu_with(Some("lavapipe"), features).unwrap();
+    let mut scene = base.clone();
+    let mut spawned = Vec::new();
+    let mut r = SceneRenderer::new(&g, &scene, main.clone()).unwrap();
+    let v = r
+        .add_view(&g, &scene, second.clone(), &second_frames[0].camera)
+        .unwrap();
+    let mut together = Vec::new();
+    for i in 0..n {
+        scene_at(&mut scene, i, &mut spawned);
+        r.set_view_frame(v, &second_frames[i]).unwrap();
+        r.render_frame(&g, &scene, &main_frames[i]).unwrap();
+        together.push((r.read_image(&g).unwrap(), r.read_view_image(&g, v).unwrap()));
+    }
+    assert!(scene.instances().len() >= 3 * base.instances().len());
+    r.destroy(&g);
+
+    for (which, options, frames) in [(0, &main, &main_frames), (1, &second, &second_frames)] {
+        let mut scene = base.clone();
+        let mut spawned = Vec::new();
+        let mut alone = SceneRenderer::new(&g, &scene, options.clone()).unwrap();
+        for (i, f) in frames.iter().enumerate() {
+            scene_at(&mut scene, i, &mut spawned);
+            alone.render_frame(&g, &scene, f).unwrap();
+            let image = alone.read_image(&g).unwrap();
+            let got = if which == 0 {
+                &together[i].0
+            } else {
+                &together[i].1
+            };
+            assert_same(
+                if which == 0 {
+                    "main view"
+                } else {
+                    "second camera"
+                },
+                i,
+                got,
+                &image,
+            );
+        }
+        alone.destroy(&g);
+    }
+}
