@@ -39,3 +39,28 @@ pub fn write_png(path: &Path, img: &RgbaImage) -> Result<(), CliError> {
         .map_err(|e| err(e.to_string()))?;
     writer.finish().map_err(|e| err(e.to_string()))
 }
+
+/// Reads an 8-bit RGBA PNG (a golden image).
+pub fn read_png(path: &Path) -> Result<RgbaImage, CliError> {
+    let bad = |reason: String| CliError::Usage(format!("{}: {reason}", path.display()));
+    let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .map_err(|e| bad(e.to_string()))?;
+    let mut pixels = vec![0; reader.output_buffer_size()];
+    let info = reader
+        .next_frame(&mut pixels)
+        .map_err(|e| bad(e.to_string()))?;
+    if info.color_type != png::ColorType::Rgba || info.bit_depth != png::BitDepth::Eight {
+        return Err(bad(format!(
+            "{:?} {:?}, not 8-bit RGBA",
+            info.color_type, info.bit_depth
+        )));
+    }
+    pixels.truncate(info.buffer_size());
+    Ok(RgbaImage {
+        width: info.width,
+        height: info.height,
+        pixels,
+    })
+}

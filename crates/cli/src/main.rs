@@ -21,6 +21,7 @@ mod lint;
 mod render;
 mod run;
 mod tune;
+mod validate;
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -127,6 +128,11 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Check a game's scenes in its CI: for each scene, forced profile, shading and culling,
+    /// the validation layers, the profile's state lint, culling exactness against the oracle
+    /// and images against goldens kept in DIR (`--bless` writes them); JUnit XML, a JSON
+    /// summary and a Markdown report; the exit status says pass or fail (docs/VALIDATING.md).
+    Validate(validate::ValidateArgs),
     /// Instance, mesh and triangle counts, bounds and material classes of a scene.
     SceneInfo {
         /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
@@ -236,6 +242,7 @@ fn main() -> ExitCode {
         Command::Graph { run, dot } => graph::run(&run, dot),
         Command::BenchDoc(args) => bench::doc::run(&args),
         Command::Tune(args) => tune::run(&args),
+        Command::Validate(args) => validate::run(&args),
         Command::Knobs {
             profile,
             scene,
