@@ -1,10 +1,13 @@
 #version 450
-// Cluster culling (seed 000's cluster and cone culling): one workgroup per instance, run after
-// the instance culling of a phase. For every cluster of a drawn instance: the frustum test of
-// its box, the back-facing cone test, and in two-phase culling's late phase the HiZ test
-// against the pyramid of the early depth. Writes each cluster's flags and the entry's number
-// of runs of consecutive drawn clusters (cluster_scan.comp places them, cluster_emit.comp
-// writes one command per run).
+// Cluster culling (seed 000's cluster and cone culling): one workgroup per chunk of 64 clusters
+// of an instance (common/cluster.glsl), run after the instance culling of a phase — an
+// instance of many clusters (a level baked into one mesh) is culled by as many workgroups as
+// it has chunks. For every cluster of a drawn instance: the frustum test of its box, the
+// back-facing cone test, and in two-phase culling's late phase the HiZ test against the pyramid
+// of the early depth. Writes each cluster's flags and the chunk's number of runs of consecutive
+// drawn clusters (a run ends at the chunk's end: chunks are independent, and a run split in two
+// draws the same triangles in the same order); cluster_scan.comp places them,
+// cluster_emit.comp writes one command per run.
 //
 // Phases (cull.info.y, as cull.comp): 0 frustum; 2 early: of the instances the early phase
 // draws, the clusters in the frustum and not back-facing that were not found occluded last
@@ -33,7 +36,8 @@ layout(set = 1, binding = 13, std430) buffer ClusterVisibility { uint cluster_vi
 // f32 rounding and the eye's local position (tilegraph_scene::cone::CONE_MARGIN).
 const float CONE_MARGIN = 1e-3;
 
-// Previous flag of each region (index 0: the last of the previous chunk) for counting runs.
+// Previous flag of each region (index 0: none, a run starts at the chunk's first cluster) for
+// counting runs.
 shared uint prev0[65];
 shared uint prev1[65];
 shared uint starts0;
@@ -96,29 +100,34 @@ bool uniform_scale(mat3 linear) {
 }
 
 void main() {
-    uint id = workgroup_instance();
+    uint w = workgroup_chunk();
     uint t = gl_LocalInvocationID.x;
-    if (id >= cull.info.x || order[id] == 0xFFFFFFFFu) {
+    if (w >= chunk_count()) {
         return;
     }
-    uint stride = cull.screen.z;
+    uint id = chunk_instance(w);
+    if (id >= cull.info.x || order[id] == 0xFFFFFFFFu) {
+        if (t == 0u) {
+            runs[chunk_slot(0u, w)] = 0u;
+            runs[chunk_slot(1u, w)] = 0u;
+        }
+        return;
+    }
     uint e = order[id];
     uint phase = cull.info.y;
     bool late = phase == 3u;
     uint region1 = cull.clusters.z;
     // Late: how many runs the early phase drew (0: none of its clusters, whatever its flags
-    // hold from older frames). Read by every thread before thread 0 rewrites it below.
+    // hold from older frames; the early scan wrote it).
     uint early_runs = late ? runs[e] : 0u;
     bool drawn = late ? visible_last[id] != 0u : entries[e] != 0u;
     Instance inst = instance_at(id);
     uvec2 range = mesh_clusters[inst.mesh];
-    if (!drawn || range.y == 0u) {
-        barrier();
+    uint first = (w - chunk_first(id)) * 64u;
+    if (!drawn || first >= range.y) {
         if (t == 0u) {
-            runs[e] = 0u;
-            if (late) {
-                runs[4u * stride + e] = 0u;
-            }
+            runs[chunk_slot(0u, w)] = 0u;
+            runs[chunk_slot(1u, w)] = 0u;
         }
         return;
     }
@@ -137,51 +146,42 @@ void main() {
         starts1 = 0u;
     }
     barrier();
-    for (uint chunk = 0u; chunk < range.y; chunk += 64u) {
-        uint c = chunk + t;
-        uint f0 = 0u;
-        uint f1 = 0u;
-        if (c < range.y) {
-            uint k = base + c;
-            Cluster cl = clusters[range.x + c];
-            Instance b = cluster_bounds(inst, cl);
-            bool visible = frustum_visible_box(b) && !(cone && back_facing(inst, cl, linear_inverse, steps));
-            if (phase == 0u) {
-                f0 = visible ? 1u : 0u;
-            } else if (phase == 2u) {
-                f0 = visible && cluster_visible[k] != 0u ? 1u : 0u;
-            } else if (phase == 1u) {
-                f0 = visible && hiz_visible_bounds(b, false) ? 1u : 0u;
-            } else {
-                bool now = visible && hiz_visible_bounds(b, false);
-                bool early = early_runs != 0u && flags[k] != 0u;
-                f1 = now && !early ? 1u : 0u;
-                f0 = now ? 1u : 0u;
-                cluster_visible[k] = now || !visible ? 1u : 0u;
-                flags[region1 + k] = f1;
-            }
-            flags[k] = f0;
+    uint c = first + t;
+    uint f0 = 0u;
+    uint f1 = 0u;
+    if (c < range.y) {
+        uint k = base + c;
+        Cluster cl = clusters[range.x + c];
+        Instance b = cluster_bounds(inst, cl);
+        bool visible = frustum_visible_box(b) && !(cone && back_facing(inst, cl, linear_inverse, steps));
+        if (phase == 0u) {
+            f0 = visible ? 1u : 0u;
+        } else if (phase == 2u) {
+            f0 = visible && cluster_visible[k] != 0u ? 1u : 0u;
+        } else if (phase == 1u) {
+            f0 = visible && hiz_visible_bounds(b, false) ? 1u : 0u;
+        } else {
+            bool now = visible && hiz_visible_bounds(b, false);
+            bool early = early_runs != 0u && flags[k] != 0u;
+            f1 = now && !early ? 1u : 0u;
+            f0 = now ? 1u : 0u;
+            cluster_visible[k] = now || !visible ? 1u : 0u;
+            flags[region1 + k] = f1;
         }
-        prev0[t + 1u] = f0;
-        prev1[t + 1u] = f1;
-        barrier();
-        if (f0 == 1u && prev0[t] == 0u) {
-            atomicAdd(starts0, 1u);
-        }
-        if (f1 == 1u && prev1[t] == 0u) {
-            atomicAdd(starts1, 1u);
-        }
-        barrier();
-        if (t == 0u) {
-            prev0[0] = prev0[64];
-            prev1[0] = prev1[64];
-        }
-        barrier();
+        flags[k] = f0;
     }
+    prev0[t + 1u] = f0;
+    prev1[t + 1u] = f1;
+    barrier();
+    if (f0 == 1u && prev0[t] == 0u) {
+        atomicAdd(starts0, 1u);
+    }
+    if (f1 == 1u && prev1[t] == 0u) {
+        atomicAdd(starts1, 1u);
+    }
+    barrier();
     if (t == 0u) {
-        runs[e] = starts0;
-        if (late) {
-            runs[4u * stride + e] = starts1;
-        }
+        runs[chunk_slot(0u, w)] = starts0;
+        runs[chunk_slot(1u, w)] = late ? starts1 : 0u;
     }
 }

@@ -7,6 +7,10 @@
 // per region: region 0 the early (or only) phase's draws, which the late phase turns into the
 // union of both phases; region 1 the late phase's. Per list entry e (cull.glsl's entries), the
 // runs of its flags and their place among the list's commands.
+//
+// An instance's clusters come in chunks of 64, each culled and emitted by a workgroup of its
+// own (a run never crosses a chunk's end): per chunk and region, its runs and its first
+// command's place, after the entries' in the same buffers.
 #ifndef TILEGRAPH_CLUSTER_GLSL
 #define TILEGRAPH_CLUSTER_GLSL
 
@@ -41,9 +45,29 @@ layout(set = 1, binding = 15, std430) buffer Offsets { uint offsets[]; };
 // The frame's draw groups (cull.glsl), in draw order.
 layout(set = 1, binding = 16, std430) readonly buffer ClusterGroups { Group cluster_groups[]; };
 
-// The instance a workgroup handles: dispatches are (min(n, 65535), ceil(n / 65535)).
-uint workgroup_instance() {
+// The chunk a workgroup handles: dispatches are (min(n, 65535), ceil(n / 65535)).
+uint workgroup_chunk() {
     return gl_WorkGroupID.x + gl_WorkGroupID.y * 65535u;
+}
+
+// The chunks (cull.commands: y where the first chunk of each instance is kept in
+// cluster_base's buffer, z where each chunk's instance is, w how many chunks there are).
+uint chunk_count() {
+    return cull.commands.w;
+}
+
+// Instance `id`'s first chunk (its chunks end where instance id + 1's begin).
+uint chunk_first(uint id) {
+    return cluster_base[cull.commands.y + id];
+}
+
+uint chunk_instance(uint w) {
+    return cluster_base[cull.commands.z + w];
+}
+
+// Where chunk w's runs (Runs) and first command (Offsets) of region r are kept.
+uint chunk_slot(uint r, uint w) {
+    return 8u * cull.screen.z + r * chunk_count() + w;
 }
 
 #endif

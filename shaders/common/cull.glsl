@@ -28,7 +28,8 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
                            // w: sub-pixel steps per unit of lateral offset at distance 1 (f32 bits; the cone's snapping margin)
     uvec4 list_len;        // per list of a phase: its entries
     uvec4 cmd_base[2];     // per list (0-7): its first cluster command
-    uvec4 commands;        // x: command slots per list (the most draw groups a list holds)
+    uvec4 commands;        // x: command slots per list (the most draw groups a list holds); clusters:
+                           // y first chunks in cluster_base, z chunk instances there, w chunks
 } cull;
 
 // A draw group: `len` consecutive entries of list `list` (of a phase) from `position`, all of

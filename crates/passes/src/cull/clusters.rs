@@ -4,8 +4,11 @@
 //! indexed indirect command per run of consecutive surviving clusters, in the unculled order.
 //!
 //! Three dispatches per phase (shaders `cluster_cull.comp`, `cluster_scan.comp`,
-//! `cluster_emit.comp`): flags and runs per instance, the runs placed per list (a prefix sum in
-//! entry order), then the commands. The scene's index buffer is in cluster order
+//! `cluster_emit.comp`): flags and runs per chunk of 64 clusters of an instance (a workgroup
+//! each, so a level baked into one mesh is culled by as many workgroups as it has chunks, not
+//! by one), the runs placed per list (a prefix sum in entry order, each entry's chunks in
+//! order), then the commands, a workgroup per chunk. A run ends at its chunk's end: a run split
+//! in two draws the same index ranges in the same order. The scene's index buffer is in cluster order
 //! (`tilegraph_scene::Scene::attach_clusters`), so a run is one index range and the frame draws
 //! the surviving triangles in the unculled order: images stay bit-equal.
 
@@ -38,19 +41,32 @@ pub struct ClusterLayout {
     pub capacity: [u32; 4],
     /// Per list 0-7: its first command.
     pub cmd_base: [u32; 8],
+    /// Per instance, its first chunk of [`CHUNK`] clusters, and the chunks' end: the
+    /// instance's chunks are `chunk_base[i]..chunk_base[i + 1]`.
+    pub chunk_base: Vec<u32>,
+    /// Per chunk, its instance.
+    pub chunk_instance: Vec<u32>,
 }
+
+/// Clusters a workgroup of the cull and emit dispatches handles.
+pub const CHUNK: u32 = 64;
 
 impl ClusterLayout {
     /// The layout of `scene`'s clusters, or `None` when it has none attached.
     pub fn of(scene: &Scene) -> Option<Self> {
         let clusters = scene.clusters()?;
         let mut base = Vec::with_capacity(scene.instances().len());
+        let mut chunk_base = Vec::with_capacity(scene.instances().len() + 1);
+        let mut chunk_instance = Vec::new();
         let mut total = 0u32;
         let mut capacity = [0u32; 4];
-        for inst in scene.instances() {
+        for (i, inst) in scene.instances().iter().enumerate() {
             base.push(total);
             let count = clusters.of_mesh(inst.mesh.0).len() as u32;
             total += count;
+            chunk_base.push(chunk_instance.len() as u32);
+            let chunks = count.div_ceil(CHUNK) as usize;
+            chunk_instance.extend(std::iter::repeat_n(i as u32, chunks));
             let material = scene.instance_material(inst);
             let class = match material.map(|m| m.class) {
                 Some(MaterialClass::Blended) => continue,
@@ -62,6 +78,7 @@ impl ClusterLayout {
                 *c += count;
             }
         }
+        chunk_base.push(chunk_instance.len() as u32);
         let mut cmd_base = [0u32; 8];
         let mut at = 0;
         for (list, b) in cmd_base.iter_mut().enumerate() {
@@ -73,7 +90,32 @@ impl ClusterLayout {
             total,
             capacity,
             cmd_base,
+            chunk_base,
+            chunk_instance,
         })
+    }
+
+    /// Chunks of [`CHUNK`] clusters over every instance.
+    pub fn chunks(&self) -> u32 {
+        self.chunk_instance.len() as u32
+    }
+
+    /// The base buffer's words: each instance's first cluster instance, then (from
+    /// [`Self::chunk_base_at`]) its first chunk and the chunks' end, then (from
+    /// [`Self::chunk_instance_at`]) each chunk's instance.
+    pub fn base_words(&self) -> Vec<u32> {
+        let mut words = self.base.clone();
+        words.extend(&self.chunk_base);
+        words.extend(&self.chunk_instance);
+        words
+    }
+
+    pub fn chunk_base_at(&self) -> u32 {
+        self.base.len() as u32
+    }
+
+    pub fn chunk_instance_at(&self) -> u32 {
+        (self.base.len() + self.chunk_base.len()) as u32
     }
 
     /// Commands of both phases' lists.
@@ -132,7 +174,9 @@ fn make_buffers(
 ) -> Result<[Buffer; 9], VkError> {
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let total = u64::from(layout.total.max(1));
-    let entries = u64::from(stride.max(1)) * u64::from(LIST_COUNT);
+    // Per entry of the lists, then per region and chunk (cluster.glsl's chunk_slot).
+    let entries = u64::from(stride.max(1)) * u64::from(LIST_COUNT) + 2 * u64::from(layout.chunks());
+    let base_words = layout.base_words();
     let src = vk::BufferUsageFlags::TRANSFER_SRC;
     let dst = vk::BufferUsageFlags::TRANSFER_DST;
     let indirect = vk::BufferUsageFlags::INDIRECT_BUFFER;
@@ -143,7 +187,7 @@ fn make_buffers(
             "mesh clusters",
             bytemuck::cast_slice(&clusters.mesh_clusters),
         ),
-        Spec::Upload("cluster base", bytemuck::cast_slice(&layout.base)),
+        Spec::Upload("cluster base", bytemuck::cast_slice(&base_words)),
         Spec::Empty("cluster flags", 2 * total * 4, storage),
         Spec::Empty("cluster visibility", total * 4, storage | dst),
         Spec::Empty("cluster runs", entries * 4, storage),
@@ -304,7 +348,7 @@ impl ClusterStage {
         which: usize,
         step: ClusterStep,
     ) -> Result<(), VkError> {
-        let instances = self.layout.base.len() as u32;
+        let chunks = self.layout.chunks();
         let set = *self
             .sets
             .get(2 * slot + which)
@@ -312,8 +356,8 @@ impl ClusterStage {
                 what: "cluster culling".into(),
                 reason: format!("no set for slot {slot}"),
             })?;
-        // One workgroup per instance, in rows of 65,535 (the least maxComputeWorkGroupCount).
-        let rows = (instances.min(65_535), instances.div_ceil(65_535));
+        // One workgroup per chunk, in rows of 65,535 (the least maxComputeWorkGroupCount).
+        let rows = (chunks.clamp(1, 65_535), chunks.div_ceil(65_535).max(1));
         let (pipeline, (x, y)) = match step {
             ClusterStep::Cull => (self.compute.pipelines[0], rows),
             ClusterStep::Scan => (

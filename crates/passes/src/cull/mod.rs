@@ -277,7 +277,8 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Scan)),
     )
-    .storage_read(c.runs)
+    // It sums each entry's chunks into the entry's runs (which the late culling reads).
+    .storage_read_write(c.runs)
     .storage_write(c.offsets)
     .storage_write(c.counts);
     if c.clear {
@@ -406,7 +407,9 @@ pub struct CullParams {
     pub list_len: [u32; 4],
     /// Cluster culling: per list 0-7, its first command.
     pub cmd_base: [[u32; 4]; 2],
-    /// x: command slots per list (the most draw groups a list holds).
+    /// x: command slots per list (the most draw groups a list holds); cluster culling: y where
+    /// the instances' first chunks are kept in the cluster base buffer, z where the chunks'
+    /// instances are, w the chunks.
     pub commands: [u32; 4],
 }
 
