@@ -6,8 +6,8 @@
 // back-facing cone test, and in two-phase culling's late phase the HiZ test against the pyramid
 // of the early depth. Writes each cluster's flags and the chunk's number of runs of consecutive
 // drawn clusters (a run ends at the chunk's end: chunks are independent, and a run split in two
-// draws the same triangles in the same order); cluster_scan.comp places them,
-// cluster_emit.comp writes one command per run.
+// draws the same triangles in the same order), added to its entry's (cluster_scan.comp places
+// the entries', cluster_emit.comp writes one command per run and zeroes the entries').
 //
 // Phases (cull.info.y, as cull.comp): 0 frustum; 2 early: of the instances the early phase
 // draws, the clusters in the frustum and not back-facing that were not found occluded last
@@ -117,9 +117,9 @@ void main() {
     uint phase = cull.info.y;
     bool late = phase == 3u;
     uint region1 = cull.clusters.z;
-    // Late: how many runs the early phase drew (0: none of its clusters, whatever its flags
-    // hold from older frames; the early scan wrote it).
-    uint early_runs = late ? runs[e] : 0u;
+    // Late: how many runs the early phase drew in this chunk (0: none of its clusters, whatever
+    // its flags hold from older frames). Read by every thread before thread 0 rewrites it.
+    uint early_runs = late ? runs[chunk_slot(0u, w)] : 0u;
     bool drawn = late ? visible_last[id] != 0u : entries[e] != 0u;
     Instance inst = instance_at(id);
     uvec2 range = mesh_clusters[inst.mesh];
@@ -183,5 +183,12 @@ void main() {
     if (t == 0u) {
         runs[chunk_slot(0u, w)] = starts0;
         runs[chunk_slot(1u, w)] = late ? starts1 : 0u;
+        // The entry's runs, summed over its chunks (zero since the last scan).
+        if (starts0 != 0u) {
+            atomicAdd(runs[e], starts0);
+        }
+        if (late && starts1 != 0u) {
+            atomicAdd(runs[4u * cull.screen.z + e], starts1);
+        }
     }
 }

@@ -1,8 +1,8 @@
 #version 450
 // Cluster culling, last step: one workgroup per chunk of 64 clusters of an instance writes one
 // indexed indirect command per run of consecutive drawn clusters of each region the chunk has
-// runs in (a run ends at the chunk's end), at the place cluster_scan.comp gave the chunk, in
-// cluster order: the frame draws the surviving index ranges in the unculled order (instance by
+// runs in (a run ends at the chunk's end), at its entry's place (cluster_scan.comp) after the
+// runs of the instance's chunks before it, in cluster order: the frame draws the surviving index ranges in the unculled order (instance by
 // instance, as the unculled instanced draw). Each command draws one instance whose id it
 // stores in the draw list (firstInstance points at it).
 #include "scene.glsl"
@@ -19,6 +19,29 @@ layout(set = 1, binding = 7, std430) readonly buffer Order { uint order[]; };
 
 shared uint scan[64];
 
+// The runs of region r in the chunks of the instance before chunk w (from its first, `from`).
+uint runs_before(uint r, uint from, uint w) {
+    if (w == from) {
+        return 0u; // the instance's first chunk (most instances' only one)
+    }
+    uint t = gl_LocalInvocationID.x;
+    uint mine = 0u;
+    for (uint k = from + t; k < w; k += 64u) {
+        mine += runs[chunk_slot(r, k)];
+    }
+    scan[t] = mine;
+    barrier();
+    for (uint d = 32u; d > 0u; d >>= 1u) {
+        if (t < d) {
+            scan[t] += scan[t + d];
+        }
+        barrier();
+    }
+    uint total = scan[0];
+    barrier();
+    return total;
+}
+
 // Flag of cluster c of the chunk [first, end) in region r of an instance whose first cluster
 // instance is `base`; 0 outside the chunk.
 uint flag(uint r, uint base, uint c, uint first, uint end) {
@@ -32,7 +55,8 @@ void emit(uint r, uint w, uint id, uint e, Instance inst, uvec2 range, uint base
         return;
     }
     uint list = 4u * r + e / cull.screen.z;
-    uint first_cmd = cull.cmd_base[list / 4u][list % 4u] + offsets[chunk_slot(r, w)];
+    uint before = runs_before(r, chunk_first(id), w);
+    uint first_cmd = cull.cmd_base[list / 4u][list % 4u] + offsets[r * 4u * cull.screen.z + e] + before;
     Mesh m = meshes[inst.mesh];
     uint end = min(first + 64u, range.y);
     uint c = first + t;
@@ -87,6 +111,14 @@ void main() {
     uvec2 range = mesh_clusters[inst.mesh];
     uint base = cluster_base[id];
     uint first = (w - chunk_first(id)) * 64u;
+    // The entry's runs are placed (the scan read them): zero them for the next culling to add
+    // to (by the first chunk's workgroup; only this phase's regions were added to).
+    if (gl_LocalInvocationID.x == 0u && first == 0u) {
+        runs[e] = 0u;
+        if (cull.info.y == 3u) {
+            runs[4u * cull.screen.z + e] = 0u;
+        }
+    }
     emit(0u, w, id, e, inst, range, base, first);
     if (cull.info.y == 3u) {
         emit(1u, w, id, e, inst, range, base, first);

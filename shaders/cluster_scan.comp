@@ -2,11 +2,9 @@
 // Cluster culling, second step: one workgroup per list places each entry's runs among the
 // list's commands (an exclusive prefix sum over the entries in the unculled draw order: the
 // list's groups in the frame's order, each group's entries in entry order) and writes the
-// list's draw count. An entry's runs are its instance's chunks' (cluster_cull.comp), summed
-// here; each chunk gets the place of its first run, in chunk order after the entry's. Workgroup
-// w is list w: the early (or only) dispatch runs lists 0-3 and empties the late lists' counts,
-// the late one 0-7.
-#include "scene.glsl"
+// list's draw count. The entries' runs are their chunks' (cluster_cull.comp adds them;
+// cluster_emit.comp zeroes them for the next culling to add to). Workgroup w is list w: the
+// early (or only) dispatch runs lists 0-3 and empties the late lists' counts, the late one 0-7.
 #include "cull.glsl"
 #include "cluster.glsl"
 
@@ -46,26 +44,8 @@ uint entry_at(uint list, uint g, uint i) {
     return list * cull.screen.z + group.position + (i - group.first);
 }
 
-// The chunks [first, end) of the instance of entry `e` of region `r`'s lists (the scene's
-// entry: the list within the phase, then the position).
-uvec2 chunks_of(uint r, uint e) {
-    uint id = draw_instances[e - r * 4u * cull.screen.z];
-    return uvec2(chunk_first(id), chunk_first(id + 1u));
-}
-
-// The runs of the chunks of entry `e` (region `r`).
-uint entry_runs(uint r, uint e) {
-    uvec2 k = chunks_of(r, e);
-    uint n = 0u;
-    for (uint w = k.x; w < k.y; ++w) {
-        n += runs[chunk_slot(r, w)];
-    }
-    return n;
-}
-
 void main() {
     uint list = gl_WorkGroupID.x;
-    uint r = list / 4u;
     uint n = cull.list_len[list % 4u];
     uint g0 = cull.group_start[list % 4u];
     uint groups = cull.group_count[list % 4u];
@@ -80,10 +60,7 @@ void main() {
             while (i >= cluster_groups[g].first + cluster_groups[g].len) {
                 g += 1u;
             }
-            uint e = entry_at(list, g, i);
-            uint entry_total = entry_runs(r, e);
-            runs[e] = entry_total;
-            mine += entry_total;
+            mine += runs[entry_at(list, g, i)];
         }
         scan[t] = mine;
         barrier();
@@ -101,11 +78,7 @@ void main() {
             }
             uint e = entry_at(list, g, i);
             offsets[e] = at;
-            uvec2 k = chunks_of(r, e);
-            for (uint w = k.x; w < k.y; ++w) {
-                offsets[chunk_slot(r, w)] = at;
-                at += runs[chunk_slot(r, w)];
-            }
+            at += runs[e];
         }
         placed += scan[THREADS - 1u];
         barrier();

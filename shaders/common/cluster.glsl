@@ -9,8 +9,8 @@
 // runs of its flags and their place among the list's commands.
 //
 // An instance's clusters come in chunks of 64, each culled and emitted by a workgroup of its
-// own (a run never crosses a chunk's end): per chunk and region, its runs and its first
-// command's place, after the entries' in the same buffers.
+// own (a run never crosses a chunk's end): per chunk and region, its runs, after the entries'
+// in the same buffer.
 #ifndef TILEGRAPH_CLUSTER_GLSL
 #define TILEGRAPH_CLUSTER_GLSL
 
@@ -65,7 +65,7 @@ uint chunk_instance(uint w) {
     return cluster_base[cull.commands.z + w];
 }
 
-// Where chunk w's runs (Runs) and first command (Offsets) of region r are kept.
+// Where chunk w's runs of region r are kept (Runs).
 uint chunk_slot(uint r, uint w) {
     return 8u * cull.screen.z + r * chunk_count() + w;
 }

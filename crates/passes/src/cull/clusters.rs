@@ -6,8 +6,9 @@
 //! Three dispatches per phase (shaders `cluster_cull.comp`, `cluster_scan.comp`,
 //! `cluster_emit.comp`): flags and runs per chunk of 64 clusters of an instance (a workgroup
 //! each, so a level baked into one mesh is culled by as many workgroups as it has chunks, not
-//! by one), the runs placed per list (a prefix sum in entry order, each entry's chunks in
-//! order), then the commands, a workgroup per chunk. A run ends at its chunk's end: a run split
+//! by one), added to the instance's entry; the entries' runs placed per list (a prefix sum in
+//! entry order); then the commands, a workgroup per chunk, after its instance's earlier
+//! chunks' runs (and the entries' runs zeroed for the next culling). A run ends at its chunk's end: a run split
 //! in two draws the same index ranges in the same order. The scene's index buffer is in cluster order
 //! (`tilegraph_scene::Scene::attach_clusters`), so a run is one index range and the frame draws
 //! the surviving triangles in the unculled order: images stay bit-equal.
@@ -175,7 +176,9 @@ fn make_buffers(
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let total = u64::from(layout.total.max(1));
     // Per entry of the lists, then per region and chunk (cluster.glsl's chunk_slot).
-    let entries = u64::from(stride.max(1)) * u64::from(LIST_COUNT) + 2 * u64::from(layout.chunks());
+    let entries = u64::from(stride.max(1)) * u64::from(LIST_COUNT);
+    // Runs per entry of the lists, then per region and chunk (cluster.glsl's chunk_slot).
+    let runs = entries + 2 * u64::from(layout.chunks());
     let base_words = layout.base_words();
     let src = vk::BufferUsageFlags::TRANSFER_SRC;
     let dst = vk::BufferUsageFlags::TRANSFER_DST;
@@ -190,7 +193,7 @@ fn make_buffers(
         Spec::Upload("cluster base", bytemuck::cast_slice(&base_words)),
         Spec::Empty("cluster flags", 2 * total * 4, storage),
         Spec::Empty("cluster visibility", total * 4, storage | dst),
-        Spec::Empty("cluster runs", entries * 4, storage),
+        Spec::Empty("cluster runs", runs * 4, storage | dst),
         Spec::Empty("cluster offsets", entries * 4, storage),
         Spec::Empty(
             "cluster commands",
@@ -286,13 +289,15 @@ impl ClusterStage {
         scene_set_layout: vk::DescriptorSetLayout,
     ) -> Result<(), VkError> {
         // Nothing was found occluded before the first frame: every cluster of an instance
-        // visible last frame is a candidate for the early phase.
-        let visibility = self.visibility.raw;
+        // visible last frame is a candidate for the early phase. The entries' runs start at
+        // zero (each emit zeroes them once placed, for the next culling to add to).
+        let (visibility, runs) = (self.visibility.raw, self.runs.raw);
         ctx.submit_and_wait(|cb| {
-            // SAFETY: outside a render pass; the buffer is new and a transfer destination.
+            // SAFETY: outside a render pass; the buffers are new and transfer destinations.
             unsafe {
                 ctx.device
-                    .cmd_fill_buffer(cb, visibility, 0, vk::WHOLE_SIZE, 1)
+                    .cmd_fill_buffer(cb, visibility, 0, vk::WHOLE_SIZE, 1);
+                ctx.device.cmd_fill_buffer(cb, runs, 0, vk::WHOLE_SIZE, 0);
             };
             Ok(())
         })?;

@@ -277,8 +277,7 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Scan)),
     )
-    // It sums each entry's chunks into the entry's runs (which the late culling reads).
-    .storage_read_write(c.runs)
+    .storage_read(c.runs)
     .storage_write(c.offsets)
     .storage_write(c.counts);
     if c.clear {
@@ -292,7 +291,8 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Emit)),
     )
-    .storage_read(c.runs)
+    // It zeroes the entries' runs once placed, for the next culling to add to.
+    .storage_read_write(c.runs)
     .storage_read(c.offsets)
     .storage_read(c.flags)
     .storage_read_write(c.commands)
