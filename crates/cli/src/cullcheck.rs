@@ -79,7 +79,7 @@ pub fn check(
         bar.set_position(done as u64);
     };
     let extras = CheckExtras {
-        auto: resolved.auto_trial(crate::run::auto_inputs(ctx)),
+        auto: resolved.auto_trial(crate::run::auto_inputs(ctx, scene)),
         on_failure: save_frames.map(|_| &mut save as OnFailure<'_>),
         on_frame: Some(&mut progress),
         motion: crate::run::split_motion(&a.scene)?.1,

@@ -135,7 +135,7 @@ fn render_with(
     let mut renderer = SceneRenderer::new(ctx, scene, ropts.clone())?;
     let mut trial_reason = None;
     // `auto`: time every candidate on this device first, keep the fastest.
-    if let Some(mut trial) = resolved.auto_trial(crate::run::auto_inputs(ctx)) {
+    if let Some(mut trial) = resolved.auto_trial(crate::run::auto_inputs(ctx, scene)) {
         while trial_reason.is_none() {
             let drawn = world
                 .next()

@@ -128,7 +128,7 @@ impl RunArgs {
         run: &KnobSettings,
         options: &mut RenderOptions,
     ) -> Result<Resolved, CliError> {
-        let resolved = knobs::resolve(ctx.profile(), run, scene, auto_inputs(ctx))?;
+        let resolved = knobs::resolve(ctx.profile(), run, scene, auto_inputs(ctx, scene))?;
         resolved.apply(options);
         Ok(resolved)
     }
@@ -176,12 +176,26 @@ pub fn named_camera_path(spec: &str, scene: &Scene) -> Result<CameraPath, CliErr
     })
 }
 
-/// Whether the culling `knobs` name culls clusters (the scene then needs them).
-pub fn wants_clusters(knobs: &KnobSettings) -> bool {
-    knobs
-        .get("culling")
-        .and_then(|v| Culling::parse(&v.to_string()))
-        .is_some_and(Culling::clusters)
+/// Whether a scene is loaded with its clusters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Clusters {
+    No,
+    Yes,
+    /// Where `auto` would try cluster culling on it (`knobs::auto_wants_clusters`).
+    ForAuto,
+}
+
+/// The clusters the culling `knobs` name needs: a cluster technique, them; `auto` (named, or
+/// left to the profile), them where it would try cluster culling.
+pub fn wants_clusters(knobs: &KnobSettings) -> Clusters {
+    match knobs.get("culling").map(|v| v.to_string()) {
+        None => Clusters::ForAuto,
+        Some(name) => match Culling::parse(&name) {
+            Some(c) if c.clusters() => Clusters::Yes,
+            Some(_) => Clusters::No,
+            None => Clusters::ForAuto,
+        },
+    }
 }
 
 /// A scene spec's motion: `SPEC@moving[:MOVERS[:SPAWNS[:SEED]]]` moves the scene along the
@@ -226,10 +240,15 @@ pub fn split_motion(spec: &str) -> Result<(&str, Option<MotionParams>), CliError
 /// Loads the scene `spec` (without its motion, [`split_motion`]); with `clusters`, attaches
 /// its clusters: from the cache (`tilegraph_scene::clusters::cache_dir`), else built with
 /// meshoptimizer and cached.
-pub fn load_scene(spec: &str, clusters: bool) -> Result<Scene, CliError> {
+pub fn load_scene(spec: &str, clusters: impl Into<Clusters>) -> Result<Scene, CliError> {
     let (spec, _) = split_motion(spec)?;
     let mut scene = tilegraph_scene::load(spec)?;
-    if clusters {
+    let attach = match clusters.into() {
+        Clusters::No => false,
+        Clusters::Yes => true,
+        Clusters::ForAuto => knobs::auto_wants_clusters(&scene),
+    };
+    if attach {
         let (data, how) = tilegraph_scene::clusters::cached(&scene)?;
         match how {
             tilegraph_scene::clusters::Provenance::Cache(path) => {
@@ -261,8 +280,9 @@ pub fn on_context<R>(
 }
 
 /// What `auto` may choose between on `ctx`'s device.
-pub fn auto_inputs(ctx: &Context) -> AutoInputs {
+pub fn auto_inputs(ctx: &Context, scene: &Scene) -> AutoInputs {
     AutoInputs {
+        clusters: scene.clusters().is_some(),
         conditional_rendering: ctx.has_feature(Feature::ConditionalRendering),
     }
 }
@@ -301,3 +321,13 @@ pub const ALL_CULLINGS: [Culling; 7] = Culling::STANDARD;
 /// (`CheckExtras::timing_warmup`): long enough for a desktop GPU's clocks to settle after the
 /// checked pass's readbacks (an H100 timed one setting 0.51 and 1.00 ms in two runs without it).
 pub const TIMING_WARMUP: std::time::Duration = std::time::Duration::from_millis(500);
+
+impl From<bool> for Clusters {
+    fn from(yes: bool) -> Self {
+        if yes {
+            Clusters::Yes
+        } else {
+            Clusters::No
+        }
+    }
+}

@@ -32,6 +32,13 @@ pub const AUTO_MIN_INSTANCES: usize = 256;
 /// instance: 6.45 ms against two-phase HiZ's 19.4 ms on the H100, docs/ACCURACY.md).
 pub const AUTO_QUERY_TRIANGLES_PER_INSTANCE: u64 = 1000;
 
+/// `auto` also tries the cluster techniques where instances hold at least this many triangles
+/// on average — a level baked into a few meshes, where instance culling can only draw all or
+/// nothing of each: on the H100 at 1080p `hiz-2phase-clusters` draws `interior:3000@one-mesh`
+/// in 0.85 ms against 1.01 unculled (docs/ACCURACY.md "Clusters along walks"). The scene then
+/// needs its clusters ([`auto_wants_clusters`]).
+pub const AUTO_CLUSTER_TRIANGLES_PER_INSTANCE: u64 = 8192;
+
 /// Frames each candidate of `auto`'s trial runs before it is timed (two-phase culling's first
 /// frame starts from an empty visibility and draws everything in the frustum).
 pub const AUTO_WARMUP_FRAMES: usize = 2;
@@ -45,8 +52,8 @@ pub const AUTO_TIMED_FRAMES: usize = 8;
 /// depends on the device as much as on the scene (the FlightHelmet at 320x180 on lavapipe is
 /// fastest frustum-culled, at 1080p on an H200 unculled; a single Godot room on both with
 /// same-frame queries). So `auto` times every conservative candidate the device can run on the
-/// first frames — the first pick, then none, frustum, two-phase HiZ and same-frame queries —
-/// and keeps the fastest. Every candidate is conservative: no frame of the trial loses an
+/// first frames — the first pick, then none, frustum, two-phase HiZ, same-frame queries and,
+/// on a scene with its clusters attached, the two cluster techniques — and keeps the fastest. Every candidate is conservative: no frame of the trial loses an
 /// instance.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AutoTrial {
@@ -78,9 +85,12 @@ impl AutoTrial {
             Culling::Frustum,
             Culling::HizTwoPhase,
             Culling::OqConditional,
+            Culling::FrustumClusters,
+            Culling::HizTwoPhaseClusters,
         ] {
             if candidates.contains(&c)
                 || (c == Culling::OqConditional && !inputs.conditional_rendering)
+                || (c.clusters() && !inputs.clusters)
                 || c.unsupported_with(technique).is_some()
             {
                 continue;
@@ -269,11 +279,29 @@ pub enum KnobUseError {
     },
 }
 
-/// What the device offers that `auto` chooses between.
+/// What the device and the scene offer that `auto` chooses between.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct AutoInputs {
     /// `VK_EXT_conditional_rendering` (same-frame occlusion queries).
     pub conditional_rendering: bool,
+    /// The scene has its clusters attached: the cluster techniques can be tried.
+    pub clusters: bool,
+}
+
+/// Whether `auto` would try cluster culling on `scene` if it had its clusters: its opaque and
+/// alpha-tested instances hold at least [`AUTO_CLUSTER_TRIANGLES_PER_INSTANCE`] triangles on
+/// average (a caller attaches them, then says so in [`AutoInputs::clusters`]).
+pub fn auto_wants_clusters(scene: &Scene) -> bool {
+    let content = SceneContent::of(scene);
+    let drawn = (content.opaque + content.alpha_tested) as u64;
+    let triangles: u64 = scene
+        .instances()
+        .iter()
+        .filter(|i| i.flags.is_drawn())
+        .filter_map(|i| scene.mesh(i.mesh))
+        .map(|m| u64::from(m.triangle_count()))
+        .sum();
+    drawn > 0 && triangles / drawn >= AUTO_CLUSTER_TRIANGLES_PER_INSTANCE
 }
 
 /// The knobs of one run, resolved.
@@ -636,6 +664,7 @@ mod tests {
         p.knobs.set("oq_group", KnobValue::Integer(8)).unwrap();
         let inputs = AutoInputs {
             conditional_rendering: true,
+            clusters: false,
         };
         let mut run = KnobSettings::default();
         run.set_assignment("culling=oq-conditional").unwrap();
@@ -680,6 +709,7 @@ mod tests {
     fn auto_times_every_candidate_and_keeps_the_fastest() {
         let inputs = AutoInputs {
             conditional_rendering: false,
+            clusters: false,
         };
         let mut t = AutoTrial::new(Culling::HizTwoPhase, inputs, Technique::Forward);
         assert_eq!(t.frames(), 3 * (AUTO_WARMUP_FRAMES + AUTO_TIMED_FRAMES));
@@ -717,6 +747,7 @@ mod tests {
         // Same-frame queries are a candidate only where the device has conditional rendering.
         let conditional = AutoInputs {
             conditional_rendering: true,
+            clusters: false,
         };
         let with = AutoTrial::new(Culling::None, conditional, Technique::Forward);
         assert_eq!(with.candidates.len(), 4);
@@ -726,12 +757,34 @@ mod tests {
             visbuf.candidates,
             [Culling::HizTwoPhase, Culling::None, Culling::Frustum]
         );
+        // The cluster techniques only on a scene with its clusters attached, and not with the
+        // visibility buffer (its ids restart at each cluster range).
+        let clusters = AutoInputs {
+            clusters: true,
+            ..conditional
+        };
+        let forward = AutoTrial::new(Culling::None, clusters, Technique::Forward);
+        assert_eq!(
+            forward.candidates[4..],
+            [Culling::FrustumClusters, Culling::HizTwoPhaseClusters]
+        );
+        let visbuf = AutoTrial::new(Culling::HizTwoPhase, clusters, Technique::Visbuf);
+        assert!(!visbuf.candidates.iter().any(|c| c.clusters()));
+    }
+
+    #[test]
+    fn auto_wants_clusters_of_levels_baked_into_few_meshes() {
+        let city = tilegraph_scene::load("city:300").unwrap();
+        assert!(!auto_wants_clusters(&city));
+        let baked = tilegraph_scene::load("interior:3000@one-mesh").unwrap();
+        assert!(auto_wants_clusters(&baked));
     }
 
     #[test]
     fn auto_draws_small_scenes_whole_and_culls_big_ones() {
         let inputs = AutoInputs {
             conditional_rendering: true,
+            clusters: false,
         };
         let small = tilegraph_scene::load("city:100").unwrap();
         let (c, why) = auto_culling(&small, inputs, Technique::Forward);
@@ -749,6 +802,7 @@ mod tests {
     fn auto_leaves_queries_out_where_the_technique_cannot_run_them() {
         let inputs = AutoInputs {
             conditional_rendering: true,
+            clusters: false,
         };
         // 300 instances of a 1,000-triangle mesh.
         let mut b = tilegraph_scene::SceneBuilder::new("heavy");

@@ -152,11 +152,19 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
 
 pub(crate) fn load_scenes(matrix: &Matrix) -> Result<HashMap<String, Scene>, CliError> {
     let mut scenes = HashMap::new();
-    // Clusters change the index order: every technique of the sweep draws the same one.
-    let clusters = matrix
+    // Clusters change the index order: every technique of the sweep draws the same one. `auto`
+    // tries cluster culling on scenes of big instances: they get their clusters too.
+    let clusters = if matrix
         .culling
         .iter()
-        .any(|c| Culling::parse(c).is_some_and(Culling::clusters));
+        .any(|c| Culling::parse(c).is_some_and(Culling::clusters))
+    {
+        crate::run::Clusters::Yes
+    } else if matrix.culling.iter().any(|c| Culling::parse(c).is_none()) {
+        crate::run::Clusters::ForAuto
+    } else {
+        crate::run::Clusters::No
+    };
     for spec in &matrix.scenes {
         if !scenes.contains_key(spec) {
             scenes.insert(spec.clone(), crate::run::load_scene(spec, clusters)?);
@@ -227,7 +235,7 @@ pub(crate) fn run_one(
         &path,
         Some(frames as usize),
         tilegraph_passes::cullcheck::CheckExtras {
-            auto: resolved.auto_trial(crate::run::auto_inputs(ctx)),
+            auto: resolved.auto_trial(crate::run::auto_inputs(ctx, scene)),
             motion: crate::run::split_motion(&s.scene)?.1,
             timing_warmup: crate::run::TIMING_WARMUP,
             ..Default::default()
