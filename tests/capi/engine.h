@@ -105,34 +105,33 @@ static TgGetInstanceProcAddr engine_gipa(void) {
     return (TgGetInstanceProcAddr)vkGetInstanceProcAddr;
 }
 
+/* What tilegraph needs on this device for `technique` with `culling`. */
+static TgDeviceRequirements engine_requirements(const Engine *e, uint32_t technique,
+                                                uint32_t culling) {
+    TgDeviceQuery query = {.get_instance_proc_addr = engine_gipa(),
+                           .instance = e->instance,
+                           .physical_device = e->physical,
+                           .queue_family = e->family,
+                           .technique = technique,
+                           .culling = culling};
+    TgDeviceRequirements req;
+    TG_CHECK(tg_device_requirements(&query, &req));
+    return req;
+}
+
+/* The features (TgFeature bits) tilegraph needs for `technique` with `culling`: an engine
+ * whose frames have several views enables the union of theirs. */
+static inline uint32_t engine_features(const Engine *e, uint32_t technique, uint32_t culling) {
+    return engine_requirements(e, technique, culling).features;
+}
+
 /* Asks tilegraph what `technique` and `culling` need, sets those features in the engine's own
  * feature structs (the engine could set its own there too), enables the extensions, and
  * creates the device. `features_override` non-zero: the device gets only those TgFeature bits
  * instead (a device that lacks what tilegraph would ask for). */
-/* The features (TgFeature bits) tilegraph needs for `technique` with `culling`: an engine
- * whose frames have several views enables the union of theirs. */
-static inline uint32_t engine_features(const Engine *e, uint32_t technique, uint32_t culling) {
-    TgDeviceQuery query = {.get_instance_proc_addr = engine_gipa(),
-                           .instance = e->instance,
-                           .physical_device = e->physical,
-                           .queue_family = e->family,
-                           .technique = technique,
-                           .culling = culling};
-    TgDeviceRequirements req;
-    TG_CHECK(tg_device_requirements(&query, &req));
-    return req.features;
-}
-
 static void engine_create_device(Engine *e, uint32_t technique, uint32_t culling,
                                  uint32_t features_override) {
-    TgDeviceQuery query = {.get_instance_proc_addr = engine_gipa(),
-                           .instance = e->instance,
-                           .physical_device = e->physical,
-                           .queue_family = e->family,
-                           .technique = technique,
-                           .culling = culling};
-    TgDeviceRequirements req;
-    TG_CHECK(tg_device_requirements(&query, &req));
+    TgDeviceRequirements req = engine_requirements(e, technique, culling);
     if (features_override != 0) {
         req.features = features_override;
     }

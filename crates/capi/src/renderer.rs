@@ -4,18 +4,16 @@
 use std::ffi::{c_char, c_void, CString};
 
 use tilegraph_graph::{AccessFlags, Layout, PipelineStages, ResourceState};
-use tilegraph_passes::shadow::{CasterCulling, ShadowOptions};
-use tilegraph_passes::{
-    EngineTarget, FrameReport, GpuTiming, RenderOptions, SceneRenderer, VisbufResolve,
-};
+use tilegraph_passes::{EngineTarget, FrameReport, GpuTiming, RenderOptions, SceneRenderer};
 use tilegraph_scene::{Camera, CameraFrame, Scene};
 use tilegraph_vk::ash::vk::{self, Handle};
 use tilegraph_vk::executor::{EngineFrame, ImageHandle};
 
-use crate::context::{culling, technique, ContextObject, TgContext};
+use crate::context::{ContextObject, TgContext};
 use crate::registry::{self, Kind};
 use crate::scene::{TgCamera, TgScene};
 use crate::status::{arg, boundary, out, Failure, TgStatus};
+use crate::views::{view_options, TgViewDesc};
 
 /// A renderer: one scene, drawn frame after frame into the engine's target.
 #[repr(C)]
@@ -210,20 +208,20 @@ pub unsafe extern "C" fn tg_renderer_create(
                 desc.width, desc.height, desc.frames_in_flight
             )));
         }
+        // The renderer's own camera is a view like any other, with the scene-wide choices.
         let options = RenderOptions {
-            technique: technique(desc.technique)?,
-            culling: culling(desc.culling)?,
-            width: desc.width,
-            height: desc.height,
-            clear_color: desc.clear_color,
             instance_capacity: desc.instance_capacity,
-            visbuf_resolve: visbuf_resolve(desc.visbuf_resolve)?,
-            shadows: shadows(
-                desc.shadow_cascades,
-                desc.shadow_resolution,
-                desc.shadow_culling,
-            )?,
-            ..RenderOptions::default()
+            ..view_options(&TgViewDesc {
+                technique: desc.technique,
+                culling: desc.culling,
+                width: desc.width,
+                height: desc.height,
+                clear_color: desc.clear_color,
+                visbuf_resolve: desc.visbuf_resolve,
+                shadow_cascades: desc.shadow_cascades,
+                shadow_resolution: desc.shadow_resolution,
+                shadow_culling: desc.shadow_culling,
+            })?
         };
         let renderer = registry::with2(
             (context.raw, Kind::Context, "context"),
@@ -462,60 +460,6 @@ fn gpu_timing(raw: u32) -> Result<GpuTiming, Failure> {
                 "gpu timing {raw} is no TgGpuTiming"
             )))
         }
-    })
-}
-
-/// The visibility buffer's resolve of a desc's `visbuf_resolve`, or what is wrong with it.
-pub(crate) fn visbuf_resolve(raw: u32) -> Result<Option<VisbufResolve>, Failure> {
-    Ok(match raw {
-        0 => None,
-        1 => Some(VisbufResolve::Uber),
-        2 => Some(VisbufResolve::PerMaterial),
-        3 => Some(VisbufResolve::Classified),
-        v => {
-            return Err(Failure::invalid(format!(
-                "`desc->visbuf_resolve` {v} is not 0 to 3"
-            )))
-        }
-    })
-}
-
-/// The shadow options of a desc's `shadow_*` fields, or what is wrong with them.
-pub(crate) fn shadows(
-    cascades: u32,
-    resolution: u32,
-    culling: u32,
-) -> Result<ShadowOptions, Failure> {
-    if cascades > 4 {
-        return Err(Failure::invalid(format!(
-            "`desc->shadow_cascades` {cascades} is not 0 to 4"
-        )));
-    }
-    let resolution = match resolution {
-        0 => 1024,
-        r @ 64..=4096 => r,
-        r => {
-            return Err(Failure::invalid(format!(
-                "`desc->shadow_resolution` {r} is not 0 or 64 to 4096"
-            )))
-        }
-    };
-    let culling = match culling {
-        0 => CasterCulling::Receivers,
-        1 => CasterCulling::None,
-        2 => CasterCulling::Cascade,
-        3 => CasterCulling::ReceiversHiz,
-        c => {
-            return Err(Failure::invalid(format!(
-                "`desc->shadow_culling` {c} is no TgShadowCulling"
-            )))
-        }
-    };
-    Ok(ShadowOptions {
-        cascades,
-        resolution,
-        culling,
-        ..ShadowOptions::default()
     })
 }
 
