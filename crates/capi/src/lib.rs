@@ -23,6 +23,7 @@ pub mod context;
 pub mod features;
 pub mod graph;
 pub mod materials;
+pub mod options;
 pub mod plan;
 mod registry;
 pub mod renderer;

@@ -10,10 +10,10 @@ use tilegraph_vk::ash::vk::{self, Handle};
 use tilegraph_vk::executor::{EngineFrame, ImageHandle};
 
 use crate::context::{ContextObject, TgContext};
+use crate::options::{view_options, TgViewDesc};
 use crate::registry::{self, Kind};
 use crate::scene::{TgCamera, TgScene};
 use crate::status::{arg, boundary, out, Failure, TgStatus};
-use crate::views::{view_options, TgViewDesc};
 
 /// A renderer: one scene, drawn frame after frame into the engine's target.
 #[repr(C)]

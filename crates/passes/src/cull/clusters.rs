@@ -101,9 +101,8 @@ impl ClusterLayout {
         self.chunk_instance.len() as u32
     }
 
-    /// The base buffer's words: each instance's first cluster instance, then (from
-    /// [`Self::chunk_base_at`]) its first chunk and the chunks' end, then (from
-    /// [`Self::chunk_instance_at`]) each chunk's instance.
+    /// The base buffer's words: each instance's first cluster instance, then its first chunk
+    /// and the chunks' end, then each chunk's instance ([`Self::chunk_words`] says where).
     pub fn base_words(&self) -> Vec<u32> {
         let mut words = self.base.clone();
         words.extend(&self.chunk_base);
@@ -111,12 +110,12 @@ impl ClusterLayout {
         words
     }
 
-    pub fn chunk_base_at(&self) -> u32 {
-        self.base.len() as u32
-    }
-
-    pub fn chunk_instance_at(&self) -> u32 {
-        (self.base.len() + self.chunk_base.len()) as u32
+    /// `CullParams::commands` y, z, w: where the first chunks and the chunks' instances sit
+    /// in [`Self::base_words`], and how many chunks there are.
+    pub fn chunk_words(&self) -> [u32; 3] {
+        let first_chunks = self.base.len() as u32;
+        let instances = first_chunks + self.chunk_base.len() as u32;
+        [first_chunks, instances, self.chunks()]
     }
 
     /// Commands of both phases' lists.

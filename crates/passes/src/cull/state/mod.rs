@@ -412,14 +412,10 @@ impl CullState {
             u32::from(pyramid.is_some_and(|p| p.format == tilegraph_cull::DepthFormat::D16Unorm));
         // Cluster culling: where its commands and draw ids go, entries per list, and the cone
         // test (perspective views only: an orthographic view's direction is not modelled).
-        // Cluster culling's chunks: where their first chunks and instances are kept, how many.
-        let chunk_words = self.clusters.as_ref().map_or((0, 0, 0), |c| {
-            (
-                c.layout.chunk_base_at(),
-                c.layout.chunk_instance_at(),
-                c.layout.chunks(),
-            )
-        });
+        let [c1, c2, c3] = self
+            .clusters
+            .as_ref()
+            .map_or([0; 3], |c| c.layout.chunk_words());
         let (cluster_info, list_len, cmd_base) = match &self.clusters {
             Some(c) => {
                 let mut len = [0u32; 4];
@@ -477,12 +473,7 @@ impl CullState {
                 clusters: cluster_info,
                 list_len,
                 cmd_base,
-                commands: [
-                    self.capacity.groups.max(1),
-                    chunk_words.0,
-                    chunk_words.1,
-                    chunk_words.2,
-                ],
+                commands: [self.capacity.groups.max(1), c1, c2, c3],
             }
         };
         let first = match self.culling.base() {

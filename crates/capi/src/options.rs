@@ -1,0 +1,100 @@
+//! What a renderer's or a view's description asks for, as `RenderOptions` — or what is wrong
+//! with it.
+
+use tilegraph_passes::shadow::{CasterCulling, ShadowOptions};
+use tilegraph_passes::{RenderOptions, VisbufResolve};
+
+use crate::context::{culling, technique};
+use crate::status::Failure;
+
+/// A further view: what it draws and how (the scene-wide choices — light, GPU timing,
+/// instance capacity — are the renderer's).
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct TgViewDesc {
+    /// A TgTechnique.
+    pub technique: u32,
+    /// A TgCulling.
+    pub culling: u32,
+    /// The size of the view's image.
+    pub width: u32,
+    pub height: u32,
+    pub clear_color: [f32; 4],
+    /// As `TgRendererDesc::visbuf_resolve`.
+    pub visbuf_resolve: u32,
+    /// The view's own shadow cascades of the renderer's light, as in `TgRendererDesc` (0: the
+    /// view draws no shadows).
+    pub shadow_cascades: u32,
+    pub shadow_resolution: u32,
+    /// A TgShadowCulling.
+    pub shadow_culling: u32,
+}
+
+/// The options of a view (the renderer's own camera's too): technique, culling, size, clear
+/// colour, the visibility buffer's resolve, shadows — or what is wrong with them.
+pub(crate) fn view_options(desc: &TgViewDesc) -> Result<RenderOptions, Failure> {
+    Ok(RenderOptions {
+        technique: technique(desc.technique)?,
+        culling: culling(desc.culling)?,
+        width: desc.width,
+        height: desc.height,
+        clear_color: desc.clear_color,
+        visbuf_resolve: visbuf_resolve(desc.visbuf_resolve)?,
+        shadows: shadows(
+            desc.shadow_cascades,
+            desc.shadow_resolution,
+            desc.shadow_culling,
+        )?,
+        ..RenderOptions::default()
+    })
+}
+
+/// The visibility buffer's resolve of a desc's `visbuf_resolve`, or what is wrong with it.
+fn visbuf_resolve(raw: u32) -> Result<Option<VisbufResolve>, Failure> {
+    Ok(match raw {
+        0 => None,
+        1 => Some(VisbufResolve::Uber),
+        2 => Some(VisbufResolve::PerMaterial),
+        3 => Some(VisbufResolve::Classified),
+        v => {
+            return Err(Failure::invalid(format!(
+                "`desc->visbuf_resolve` {v} is not 0 to 3"
+            )))
+        }
+    })
+}
+
+/// The shadow options of a desc's `shadow_*` fields, or what is wrong with them.
+fn shadows(cascades: u32, resolution: u32, culling: u32) -> Result<ShadowOptions, Failure> {
+    if cascades > 4 {
+        return Err(Failure::invalid(format!(
+            "`desc->shadow_cascades` {cascades} is not 0 to 4"
+        )));
+    }
+    let resolution = match resolution {
+        0 => 1024,
+        r @ 64..=4096 => r,
+        r => {
+            return Err(Failure::invalid(format!(
+                "`desc->shadow_resolution` {r} is not 0 or 64 to 4096"
+            )))
+        }
+    };
+    let culling = match culling {
+        0 => CasterCulling::Receivers,
+        1 => CasterCulling::None,
+        2 => CasterCulling::Cascade,
+        3 => CasterCulling::ReceiversHiz,
+        c => {
+            return Err(Failure::invalid(format!(
+                "`desc->shadow_culling` {c} is no TgShadowCulling"
+            )))
+        }
+    };
+    Ok(ShadowOptions {
+        cascades,
+        resolution,
+        culling,
+        ..ShadowOptions::default()
+    })
+}
