@@ -81,7 +81,6 @@ pub struct SceneRenderer {
     views: Views,
     executor: Executor,
     resources: SceneResources,
-    frames: u64,
     last_slot: usize,
     /// Instance slots of the scene the last frame drew.
     last_instances: usize,
@@ -170,7 +169,6 @@ impl SceneRenderer {
             },
             executor,
             resources,
-            frames: 0,
             last_slot: 0,
             last_instances: scene.instances().len(),
             draw_builder: DrawBuilder::default(),
@@ -532,7 +530,6 @@ impl SceneRenderer {
         self.resources
             .pipelines
             .prune(ctx, self.executor.render_pass_serial_floor());
-        self.frames += 1;
         for v in self.views.iter_mut() {
             v.frames += 1;
         }

@@ -125,21 +125,14 @@ impl SceneRenderer {
     /// Reads the last frame's image (waits for the GPU); not for a renderer that draws into
     /// an engine's target.
     pub fn read_image(&mut self, ctx: &Context) -> Result<RgbaImage, RenderError> {
-        let Some((_, target)) = &self.views.main.target else {
+        if self.views.main.target.is_none() {
             return Err(RenderError::EngineSubmits);
-        };
+        }
         self.executor.finish(ctx)?;
-        let pixels = tilegraph_vk::readback::read_image(
-            ctx,
-            target,
-            vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-            0,
-        )?;
-        Ok(RgbaImage {
-            width: self.options().width,
-            height: self.options().height,
-            pixels,
-        })
+        self.views
+            .main
+            .read_target(ctx)?
+            .ok_or(RenderError::EngineSubmits)
     }
 }
 

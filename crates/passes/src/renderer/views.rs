@@ -113,6 +113,25 @@ impl View {
         }
     }
 
+    /// The colour target's image as the last frame left it (`None`: the view renders into an
+    /// engine's target); the caller waited for the GPU.
+    pub(super) fn read_target(&self, ctx: &Context) -> Result<Option<RgbaImage>, RenderError> {
+        let Some((_, target)) = &self.target else {
+            return Ok(None);
+        };
+        let pixels = tilegraph_vk::readback::read_image(
+            ctx,
+            target,
+            vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+            0,
+        )?;
+        Ok(Some(RgbaImage {
+            width: self.options.width,
+            height: self.options.height,
+            pixels,
+        }))
+    }
+
     pub(super) fn aspect(&self) -> f32 {
         self.options.width as f32 / self.options.height.max(1) as f32
     }
@@ -273,21 +292,9 @@ impl SceneRenderer {
         view: ViewId,
     ) -> Result<RgbaImage, RenderError> {
         self.executor.finish(ctx)?;
-        let v = self.further_view(view)?;
-        let Some((_, target)) = &v.target else {
-            return Err(RenderError::UnknownView(view.0));
-        };
-        let pixels = tilegraph_vk::readback::read_image(
-            ctx,
-            target,
-            vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
-            0,
-        )?;
-        Ok(RgbaImage {
-            width: v.options.width,
-            height: v.options.height,
-            pixels,
-        })
+        self.further_view(view)?
+            .read_target(ctx)?
+            .ok_or(RenderError::UnknownView(view.0))
     }
 
     fn further_view(&self, view: ViewId) -> Result<&View, RenderError> {
