@@ -7,7 +7,7 @@ use tilegraph_passes::cull::Culling;
 use tilegraph_vk::queries::FrameTimings;
 
 /// The cullings a touch cycles through, in order.
-pub const CYCLE: [Culling; 7] = Culling::STANDARD;
+pub const CYCLE: [Culling; 8] = Culling::STANDARD;
 
 /// The culling after `current` among those `available` says the device can run (the first
 /// when `current` is the last); `current` itself when no other is available.

@@ -8,6 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
+mod aarch64;
 mod structure;
 
 /// A system piece, how to recognise it, and the Debian/Ubuntu package that provides it.
@@ -57,6 +58,21 @@ const REQUIREMENTS: &[Requirement] = &[
         what: "Graphviz dot (a test renders the plan's DOT)",
         package: "graphviz",
         present: || on_path("dot"),
+    },
+    Requirement {
+        what: "qemu-aarch64 (the pure crates' tests run for aarch64 under it)",
+        package: "qemu-user",
+        present: || on_path("qemu-aarch64"),
+    },
+    Requirement {
+        what: "aarch64 cross linker (aarch64-linux-gnu-gcc)",
+        package: "gcc-aarch64-linux-gnu",
+        present: || on_path("aarch64-linux-gnu-gcc"),
+    },
+    Requirement {
+        what: "aarch64 C library (the cross linker's and qemu's sysroot)",
+        package: "libc6-dev-arm64-cross",
+        present: || Path::new(aarch64::SYSROOT).join("lib/crt1.o").exists(),
     },
 ];
 
@@ -256,7 +272,8 @@ fn test(rest: &[String]) -> Result<(), String> {
             .env("TILEGRAPH_VALIDATION", "required")
             .env("TILEGRAPH_SKIP_LOG", &skips),
     )
-    .and_then(|()| best_practices_per_vendor());
+    .and_then(|()| best_practices_per_vendor())
+    .and_then(|()| aarch64::test());
     report_skips(&skips);
     tests
 }

@@ -154,6 +154,10 @@ enum TgCulling
    * Last frame's depth reprojected: not conservative (docs/ACCURACY.md).
    */
   TG_CULLING_REPROJECT = 9,
+  /**
+   * Occluders rasterized on the CPU, same frame (knobs `software_*`).
+   */
+  TG_CULLING_SOFTWARE_OCCLUSION = 10,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

@@ -56,6 +56,8 @@ pub enum TgCulling {
     HizTwoPhaseClusters = 8,
     /// Last frame's depth reprojected: not conservative (docs/ACCURACY.md).
     Reproject = 9,
+    /// Occluders rasterized on the CPU, same frame (knobs `software_*`).
+    SoftwareOcclusion = 10,
 }
 
 /// Device features tilegraph may need, as bits of `TgDeviceRequirements::features`.
@@ -178,6 +180,7 @@ pub(crate) fn culling(raw: u32) -> Result<Culling, Failure> {
         7 => Culling::FrustumClusters,
         8 => Culling::HizTwoPhaseClusters,
         9 => Culling::Reproject,
+        10 => Culling::SoftwareOcclusion,
         _ => return Err(Failure::invalid(format!("culling {raw} is no TgCulling"))),
     })
 }

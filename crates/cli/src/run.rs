@@ -315,7 +315,7 @@ pub fn with_every_culling_feature(mut o: ContextOptions) -> ContextOptions {
 
 /// The techniques `cull-check`, `bench` and `tune` run when none are named: the
 /// instance-level ones (the cluster techniques, which build the scene's clusters, by name).
-pub const ALL_CULLINGS: [Culling; 7] = Culling::STANDARD;
+pub const ALL_CULLINGS: [Culling; 8] = Culling::STANDARD;
 
 /// How long `cull-check`, `bench` and `tune` render the path before they time it
 /// (`CheckExtras::timing_warmup`): long enough for a desktop GPU's clocks to settle after the

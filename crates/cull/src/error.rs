@@ -4,6 +4,10 @@
 /// Invalid input to a culling reference function.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CullError {
+    /// An occluder mesh the software rasterizer cannot take (bad indices, non-finite vertices).
+    #[error("software occluder: {reason}")]
+    InvalidOccluder { reason: String },
+
     /// A viewport, depth buffer or id buffer of width or height 0.
     #[error("{what}: extent {width_px}x{height_px} px is empty; both sides must be at least 1")]
     ZeroExtent {

@@ -16,6 +16,7 @@
 //! - [`project`]: sphere / box -> NDC rect + conservative nearest depth.
 //! - [`hiz`]: the pyramid (three [`NpotMode`]s) and the occlusion test.
 //! - [`oracle`]: exact visible set from an id buffer, [`CullStats`].
+//! - [`software`]: software occlusion culling, a conservative CPU rasterizer (SIMD and scalar).
 
 mod check;
 
@@ -30,6 +31,7 @@ pub mod project;
 pub mod reference;
 pub mod screen;
 pub mod shadow;
+pub mod software;
 
 pub use bounds::{Aabb, AabbExt, Obb, Sphere};
 pub use camera::{view_look_at, Projection, ProjectionExt};
@@ -49,3 +51,6 @@ pub use project::{
     ScreenProjection, DEPTH_MARGIN_ULPS,
 };
 pub use screen::{ClampedRect, Extent2d, ExtentExt, NdcRect, PixelRect, MAX_EXTENT_PX};
+pub use software::{
+    Kernel, OccluderMesh, OcclusionView, SoftwareConfig, SoftwareOcclusion, SoftwareStats,
+};

@@ -571,6 +571,15 @@ impl Resolved {
             options.raster_occlusion_scale = s;
         }
         let integer = |k: &str| self.get(k).and_then(KnobValue::as_integer);
+        if let Some(r) = crate::occlusion::software::parse_resolution(name("software_resolution")) {
+            options.software.resolution = r;
+        }
+        if let Some(n) = integer("software_threads") {
+            options.software.threads = n as usize;
+        }
+        if let Some(n) = integer("software_occluder_triangles") {
+            options.software.occluder_triangles = n;
+        }
         let shadows = &mut options.shadows;
         if let Some(n) = integer("shadow_cascades") {
             shadows.cascades = n;
@@ -648,6 +657,12 @@ mod tests {
                     "shadow_format" => s == "profile" || crate::shadow::parse_format(&s).is_some(),
                     "shadow_culling" => tilegraph_cull::shadow::CasterCulling::parse(&s).is_some(),
                     "oq_group" | "raster_occlusion_scale" | "occlusion_recheck" => {
+                        matches!(k.domain, Domain::Integers(_))
+                    }
+                    "software_resolution" => {
+                        crate::occlusion::software::parse_resolution(&s).is_some()
+                    }
+                    "software_threads" | "software_occluder_triangles" => {
                         matches!(k.domain, Domain::Integers(_))
                     }
                     other => panic!("knob {other} has no meaning in tilegraph-passes"),

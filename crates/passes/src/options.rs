@@ -47,6 +47,9 @@ pub enum RenderError {
     },
     #[error("the engine's colour target: {0}")]
     Target(String),
+    /// Software occlusion could not take the frame's camera or an occluder mesh.
+    #[error("software occlusion: {0}")]
+    Software(tilegraph_cull::CullError),
     #[error("this renderer draws into the engine's target and the engine submits its frames: use SceneRenderer::record")]
     EngineSubmits,
     #[error("invalid render size {width}x{height}")]
@@ -162,6 +165,8 @@ pub struct RenderOptions {
     pub classify_tile: Option<u32>,
     /// The directional light's cascaded shadow maps (off by default).
     pub shadows: crate::shadow::ShadowOptions,
+    /// Software occlusion's knobs (`Culling::SoftwareOcclusion`).
+    pub software: crate::occlusion::SoftwareOptions,
 }
 
 impl RenderOptions {
@@ -213,6 +218,7 @@ impl Default for RenderOptions {
             visbuf_resolve: None,
             classify_tile: None,
             shadows: crate::shadow::ShadowOptions::default(),
+            software: crate::occlusion::SoftwareOptions::default(),
         }
     }
 }

@@ -109,11 +109,15 @@ pub enum Culling {
     /// clusters first, then every cluster of a visible instance against the pyramid of that
     /// depth. Needs the scene's clusters.
     HizTwoPhaseClusters,
+    /// Software occlusion (seed 002): the frame's large opaque instances rasterized on the CPU
+    /// into a low-resolution depth buffer, every instance in the frustum tested against it, the
+    /// CPU lists drawn. Same frame, no GPU work; conservative.
+    SoftwareOcclusion,
 }
 
 impl Culling {
     /// Every culling technique, in the order the docs list them.
-    pub const ALL: [Culling; 10] = [
+    pub const ALL: [Culling; 11] = [
         Culling::None,
         Culling::Frustum,
         Culling::Hiz,
@@ -124,12 +128,13 @@ impl Culling {
         Culling::Reproject,
         Culling::FrustumClusters,
         Culling::HizTwoPhaseClusters,
+        Culling::SoftwareOcclusion,
     ];
 
     /// What the tools run when no technique is named, and the Android sample cycles through:
     /// [`Culling::ALL`] but the cluster techniques (which need the scene's clusters) and
     /// `reproject` (a measurement of seed 000's idea, run by name).
-    pub const STANDARD: [Culling; 7] = [
+    pub const STANDARD: [Culling; 8] = [
         Culling::None,
         Culling::Frustum,
         Culling::Hiz,
@@ -137,6 +142,7 @@ impl Culling {
         Culling::Oq,
         Culling::OqConditional,
         Culling::RasterOcclusion,
+        Culling::SoftwareOcclusion,
     ];
 
     /// The instance-level technique a cluster technique starts from (itself for the others):
@@ -166,6 +172,7 @@ impl Culling {
             "raster-occlusion" => Some(Culling::RasterOcclusion),
             "frustum-clusters" => Some(Culling::FrustumClusters),
             "hiz-2phase-clusters" => Some(Culling::HizTwoPhaseClusters),
+            "software-occlusion" => Some(Culling::SoftwareOcclusion),
             _ => None,
         }
     }
@@ -182,6 +189,7 @@ impl Culling {
             Culling::RasterOcclusion => "raster-occlusion",
             Culling::FrustumClusters => "frustum-clusters",
             Culling::HizTwoPhaseClusters => "hiz-2phase-clusters",
+            Culling::SoftwareOcclusion => "software-occlusion",
         }
     }
 
@@ -196,6 +204,12 @@ impl Culling {
                 | Culling::RasterOcclusion
                 | Culling::Reproject
         )
+    }
+
+    /// Whether the CPU decides which opaque and alpha-tested instances are drawn (the frustum's
+    /// instances, narrowed by queries or software occlusion; raster occlusion's pre-pass).
+    pub fn cpu_lists(self) -> bool {
+        self.uses_queries() || matches!(self, Culling::RasterOcclusion | Culling::SoftwareOcclusion)
     }
 
     /// Whether the technique issues hardware occlusion queries.

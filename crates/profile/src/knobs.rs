@@ -117,6 +117,7 @@ pub const CULLING_NAMES: &[&str] = &[
     "reproject",
     "frustum-clusters",
     "hiz-2phase-clusters",
+    "software-occlusion",
 ];
 
 /// Every knob. Order is the order `tilegraph` prints and `tune` sweeps them.
@@ -211,6 +212,27 @@ pub const KNOBS: &[KnobSpec] = &[
         default: DefaultValue::Integer(1),
         applies: Applies::WithCulling(&["raster-occlusion"]),
         help: "raster occlusion against a conservative 1/N-resolution depth: cheaper, more drawn",
+    },
+    KnobSpec {
+        name: "software_resolution",
+        domain: Domain::Choice(&["128x64", "256x128", "512x256"]),
+        default: DefaultValue::Name("256x128"),
+        applies: Applies::WithCulling(&["software-occlusion"]),
+        help: "software occlusion's depth buffer in tiles across x down (coverage stays exact at the frame's pixels): finer tiles hide more, cost more CPU",
+    },
+    KnobSpec {
+        name: "software_threads",
+        domain: Domain::Integers(&[1, 2, 4, 8]),
+        default: DefaultValue::Integer(1),
+        applies: Applies::WithCulling(&["software-occlusion"]),
+        help: "threads rasterizing software occlusion's occluders (bands of tiles; the result does not depend on it)",
+    },
+    KnobSpec {
+        name: "software_occluder_triangles",
+        domain: Domain::Integers(&[2048, 4096, 16384, 65536]),
+        default: DefaultValue::Integer(16384),
+        applies: Applies::WithCulling(&["software-occlusion"]),
+        help: "software occlusion's occluder triangles per frame at most (the largest opaque instances, nearest first)",
     },
     KnobSpec {
         name: "visbuf_resolve",

@@ -29,6 +29,8 @@ pub(super) struct CpuLists {
     /// The opaque and alpha-tested instances in a grid, for techniques whose CPU lists draw
     /// them (made at their first frame).
     pub(super) opaque: Option<OpaqueGrid>,
+    /// Software occlusion's buffer and occluder meshes (made at its first frame).
+    pub(super) software: Option<crate::occlusion::SoftwareCull>,
 }
 
 /// A renderer's grid of the scene's drawn opaque and alpha-tested instances, refitted from the

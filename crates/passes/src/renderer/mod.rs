@@ -608,7 +608,8 @@ impl SceneRenderer {
         // The CPU's culling first; then the slot, waiting for its previous frame if need be.
         for k in 0..self.views.len() {
             if let Some(f) = self.views.get(k).and_then(|v| v.current) {
-                self.cull_view_on_cpu(scene, k, &f)?;
+                let bits = ctx.physical.limits.sub_pixel_precision_bits;
+                self.cull_view_on_cpu(scene, k, &f, bits)?;
             }
         }
         let slot = match slot {

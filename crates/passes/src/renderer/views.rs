@@ -77,6 +77,16 @@ pub(super) struct View {
 }
 
 impl View {
+    /// Keeps the CPU lists' opaque and alpha-tested instances as the frame's drawn set (what
+    /// `drawn_instances` reports for techniques the CPU decides).
+    fn record_drawn(&mut self) {
+        let mut drawn = self.last_drawn.take().unwrap_or_default();
+        drawn.clear();
+        drawn.extend(self.cpu.visible.iter().map(|m| m.instance));
+        drawn.sort_unstable();
+        self.last_drawn = Some(drawn);
+    }
+
     /// A view of `options` with its targets: a colour target unless the engine's main view
     /// renders into its own, an id target when the visibility buffer's ids are captured.
     pub(super) fn new(
@@ -320,6 +330,7 @@ impl SceneRenderer {
         scene: &Scene,
         k: usize,
         frame: &CameraFrame,
+        subpixel_bits: u32,
     ) -> Result<(), RenderError> {
         let Some(view) = self.views.get_mut(k) else {
             return Ok(());
@@ -332,7 +343,7 @@ impl SceneRenderer {
         // occlusion tests against) frustum-cull it here too; unculled and GPU-culled frames draw
         // the scene's buckets as they are.
         cpu_frustum_visible(scene.blended_grid(), &m, &mut view.cpu.blended)?;
-        if culling.uses_queries() || culling == Culling::RasterOcclusion {
+        if culling.cpu_lists() {
             let opaque = match &mut view.cpu.opaque {
                 Some(g) => {
                     g.refit(scene);
@@ -341,6 +352,19 @@ impl SceneRenderer {
                 None => view.cpu.opaque.insert(super::fit::OpaqueGrid::of(scene)),
             };
             cpu_frustum_visible(&opaque.grid, &m, &mut view.cpu.visible)?;
+        }
+        if culling == Culling::SoftwareOcclusion {
+            view.cpu
+                .software
+                .get_or_insert_with(Default::default)
+                .cull(
+                    scene,
+                    frame,
+                    &view.options,
+                    subpixel_bits,
+                    &mut view.cpu.visible,
+                )
+                .map_err(RenderError::Software)?;
         }
         Ok(())
     }
@@ -370,7 +394,7 @@ impl SceneRenderer {
         let m = frame.current;
         let (w, h) = (view.options.width, view.options.height);
         let culling = view.options.culling;
-        let cpu_lists = culling.uses_queries() || culling == Culling::RasterOcclusion;
+        let cpu_lists = culling.cpu_lists();
         if let Some(cull) = res.states.get_mut::<CullState>() {
             // The slot's frame has completed: its counts are there to read.
             if let Some(counts) = cull.collect(ctx, slot)? {
@@ -393,12 +417,12 @@ impl SceneRenderer {
                 oq.prepare(slot, &m, h as f32, Some(&cpu.mask));
                 cpu.visible
                     .retain(|m| passed.get(m.instance as usize).copied().unwrap_or(true));
-                let mut drawn = view.last_drawn.take().unwrap_or_default();
-                drawn.clear();
-                drawn.extend(cpu.visible.iter().map(|m| m.instance));
-                drawn.sort_unstable();
-                view.last_drawn = Some(drawn);
+                view.record_drawn();
             }
+        }
+        if culling == Culling::SoftwareOcclusion {
+            // Decided on the CPU before this function (`cull_view_on_cpu`).
+            view.record_drawn();
         }
         let order = view
             .options

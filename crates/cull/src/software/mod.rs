@@ -1,0 +1,374 @@
+//! Software occlusion culling (seed 002): known occluders rasterized on the CPU into a
+//! low-resolution depth buffer, boxes tested against it — in the frame that draws them, no GPU
+//! work, no readback, no latency.
+//!
+//! **Conservative at the frame's own pixels.** The buffer is a grid of tiles (the resolution
+//! knob: 256x128 tiles over a 1920x1080 frame are 8x9-pixel tiles). Coverage is kept per pixel
+//! centre of the frame, as bit masks, and depth per tile, so a tile's depth is a bound on every
+//! pixel the GPU will shade there:
+//!
+//! - A pixel centre counts as covered by a triangle only when it lies inside every edge by a
+//!   margin that covers the distance between this rasterizer's vertex snapping (1/256 px) and
+//!   any GPU's (`subpixel_bits`, 4 at least by the Vulkan spec), so the GPU covers it too. Only
+//!   triangles the GPU draws count: front-facing by Vulkan's area rule with a facing the
+//!   snapping cannot flip (or any facing, double-sided), every vertex inside the near and far
+//!   planes and a guard band.
+//! - Where two triangles of one occluder share a manifold edge and lie on its two sides on
+//!   screen, a pixel near that edge is covered by one of them on the GPU whichever way its
+//!   snapping decides: it counts when it is inside both triangles' *other* edges by the margin,
+//!   at the farther of the two depths. That is what makes a tile full where a box's two faces
+//!   meet, or across a quad's diagonal.
+//! - Depth: the triangle's plane at the tile's farthest covered corner, plus a bound on how far
+//!   the GPU's snapped plane can differ, clamped to the triangle's farthest vertex; then moved
+//!   64 f32 steps farther (the GPU's own f32 arithmetic) and, for D16, to the code on the far
+//!   side. A box's nearest depth goes the other way ([`DepthFormat::toward_near`]).
+//! - A tile keeps a *full* layer (a depth every pixel of it is in front of) and a *working*
+//!   layer (a mask and the farthest depth of what is in it) in the manner of Intel's Masked
+//!   Occlusion Culling; when the working layer's mask fills the tile, its depth becomes the
+//!   full layer's if nearer. A box is occluded only when its nearest depth is strictly behind
+//!   the full layer of every tile its pixel rectangle touches (the working layer's depth, when
+//!   the mask holds every pixel of the rectangle in that tile).
+//!
+//! The masks are computed by [`Kernel`]: a scalar reference and SIMD paths (SSE2, NEON) equal to
+//! it bit for bit. Tile rows are split among threads (each band sees every triangle in the same
+//! order, so the result does not depend on the thread count).
+
+mod kernel;
+mod mesh;
+mod raster;
+
+use glam::{DMat3, DMat4, DVec3};
+use tilegraph_types::round::f64_to_f32_round_up;
+
+pub use kernel::Kernel;
+pub use mesh::OccluderMesh;
+
+use crate::depth::{dequantize_d16, DepthConvention, DepthFormat, D16_MAX_CODE};
+use crate::project::ScreenProjection;
+use crate::screen::{ClampedRect, Extent2d, ExtentExt};
+use crate::CullError;
+use kernel::{low_bits, SUB};
+use raster::Tri;
+
+/// The most pixels a tile spans in either direction (a row of a tile is one `u32` mask).
+pub const MAX_TILE_PX: u32 = 32;
+
+/// How the rasterizer is set up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SoftwareConfig {
+    /// Tiles across and down: the depth buffer's resolution. A tile spans
+    /// `ceil(frame / resolution)` pixels (at most [`MAX_TILE_PX`], so a coarser request gets
+    /// more tiles).
+    pub resolution: (u32, u32),
+    /// The GPU's viewport subpixel precision (`VkPhysicalDeviceLimits::subPixelPrecisionBits`;
+    /// the spec's minimum, 4, when unknown): sets the snapping margin.
+    pub subpixel_bits: u32,
+    /// Threads that rasterize bands of tile rows (1: the caller's thread only).
+    pub threads: usize,
+    pub kernel: Kernel,
+}
+
+impl Default for SoftwareConfig {
+    fn default() -> Self {
+        SoftwareConfig {
+            resolution: (256, 128),
+            subpixel_bits: 4,
+            threads: 1,
+            kernel: Kernel::Simd,
+        }
+    }
+}
+
+/// The frame the occluders are rasterized for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OcclusionView {
+    /// Clip space from positions relative to the eye (projection * camera-relative view), f64.
+    pub clip_from_relative: DMat4,
+    pub extent: Extent2d,
+    pub convention: DepthConvention,
+    pub format: DepthFormat,
+}
+
+/// What one frame's rasterization did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SoftwareStats {
+    pub occluders: u32,
+    pub triangles: u32,
+    /// Triangles the GPU draws and this rasterizer took (front-facing, inside the clip volume).
+    pub rasterized: u32,
+    /// Tiles with a full layer after [`SoftwareOcclusion::rasterize`].
+    pub full_tiles: u32,
+    pub tiles: u32,
+}
+
+/// A tile's layers: keys grow with distance (the depth for the standard convention, its
+/// negation for reverse-Z), `+inf` where nothing is known.
+#[derive(Clone, Debug, Default)]
+struct Tiles {
+    full: Vec<f32>,
+    work: Vec<f32>,
+    /// `tile_h` row masks per tile.
+    masks: Vec<u32>,
+}
+
+/// The software occlusion buffer of one view. Reused frame after frame without allocating once
+/// its buffers have grown.
+#[derive(Clone, Debug)]
+pub struct SoftwareOcclusion {
+    config: SoftwareConfig,
+    view: Option<OcclusionView>,
+    tile_w: u32,
+    tile_h: u32,
+    tiles_x: u32,
+    tiles_y: u32,
+    /// The snapping margin: how far (subpixel units, per coordinate) the GPU's vertex may lie
+    /// from this rasterizer's.
+    delta: f64,
+    tiles: Tiles,
+    tris: Vec<Tri>,
+    verts: Vec<raster::Vert>,
+    stats: SoftwareStats,
+}
+
+impl SoftwareOcclusion {
+    pub fn new(config: SoftwareConfig) -> Self {
+        SoftwareOcclusion {
+            config,
+            view: None,
+            tile_w: 1,
+            tile_h: 1,
+            tiles_x: 0,
+            tiles_y: 0,
+            delta: 0.0,
+            tiles: Tiles::default(),
+            tris: Vec::new(),
+            verts: Vec::new(),
+            stats: SoftwareStats::default(),
+        }
+    }
+
+    pub fn config(&self) -> SoftwareConfig {
+        self.config
+    }
+
+    pub fn set_config(&mut self, config: SoftwareConfig) {
+        self.config = config;
+    }
+
+    /// Starts a frame: an empty buffer for `view`.
+    pub fn begin(&mut self, view: OcclusionView) -> Result<(), CullError> {
+        view.extent.validate("software occlusion extent")?;
+        crate::check::finite_mat4("clip_from_relative", &view.clip_from_relative.as_mat4())?;
+        let (rx, ry) = self.config.resolution;
+        let (w, h) = (view.extent.width_px, view.extent.height_px);
+        self.tile_w = w.div_ceil(rx.max(1)).clamp(1, MAX_TILE_PX);
+        self.tile_h = h.div_ceil(ry.max(1)).clamp(1, MAX_TILE_PX);
+        self.tiles_x = w.div_ceil(self.tile_w);
+        self.tiles_y = h.div_ceil(self.tile_h);
+        // Ours rounds to the nearest 1/256 px (half a unit), the GPU's to the nearest of its
+        // grid, and both compute positions in floating point (a few thousandths of a pixel
+        // apart at the guard band's edge): 4 units of slack.
+        let bits = self.config.subpixel_bits.clamp(1, 8);
+        self.delta = 0.5 + SUB / f64::from(1u32 << (bits + 1)) + 4.0;
+        let n = (self.tiles_x * self.tiles_y) as usize;
+        self.tiles.full.clear();
+        self.tiles.full.resize(n, f32::INFINITY);
+        self.tiles.work.clear();
+        self.tiles.work.resize(n, f32::NEG_INFINITY);
+        self.tiles.masks.clear();
+        self.tiles.masks.resize(n * self.tile_h as usize, 0);
+        self.tris.clear();
+        self.stats = SoftwareStats {
+            tiles: n as u32,
+            ..SoftwareStats::default()
+        };
+        self.view = Some(view);
+        Ok(())
+    }
+
+    /// Adds an occluder: `mesh` placed by `linear` and `offset` (its translation minus the eye,
+    /// computed in f64 by the caller). Triangles are set up now and rasterized by
+    /// [`SoftwareOcclusion::rasterize`], in the order they were added (nearest first rasterizes
+    /// best). Ignored before [`SoftwareOcclusion::begin`].
+    pub fn add_occluder(&mut self, mesh: &OccluderMesh, linear: DMat3, offset: DVec3) {
+        let Some(view) = self.view else {
+            return;
+        };
+        self.stats.occluders += 1;
+        self.stats.triangles += mesh.triangles.len() as u32;
+        let frame = raster::Frame {
+            view: &view,
+            delta: self.delta,
+        };
+        raster::project_vertices(&frame, mesh, linear, offset, &mut self.verts);
+        self.stats.rasterized += raster::setup(&frame, mesh, &self.verts, &mut self.tris);
+    }
+
+    /// Rasterizes every added triangle into the tiles.
+    pub fn rasterize(&mut self) {
+        let Some(view) = self.view else {
+            return;
+        };
+        let grid = raster::Grid {
+            tile_w: self.tile_w,
+            tile_h: self.tile_h,
+            tiles_x: self.tiles_x,
+            extent: view.extent,
+            kernel: self.config.kernel,
+        };
+        let rows_per_band = self
+            .tiles_y
+            .div_ceil(self.config.threads.max(1) as u32)
+            .max(1) as usize;
+        let (tx, th) = (self.tiles_x as usize, self.tile_h as usize);
+        let Tiles { full, work, masks } = &mut self.tiles;
+        let bands = full
+            .chunks_mut(rows_per_band * tx)
+            .zip(work.chunks_mut(rows_per_band * tx))
+            .zip(masks.chunks_mut(rows_per_band * tx * th))
+            .enumerate();
+        let tris = &self.tris;
+        let to_key = |k: f64| far_key(&view, k);
+        if self.config.threads <= 1 || self.tiles_y as usize <= rows_per_band {
+            for (b, ((f, w), m)) in bands {
+                raster::band(&grid, tris, (b * rows_per_band) as u32, f, w, m, &to_key);
+            }
+        } else {
+            std::thread::scope(|s| {
+                for (b, ((f, w), m)) in bands {
+                    let (grid, to_key) = (&grid, &to_key);
+                    s.spawn(move || {
+                        raster::band(grid, tris, (b * rows_per_band) as u32, f, w, m, to_key)
+                    });
+                }
+            });
+        }
+        self.stats.full_tiles = full.iter().filter(|k| k.is_finite()).count() as u32;
+    }
+
+    pub fn stats(&self) -> SoftwareStats {
+        self.stats
+    }
+
+    /// The full layer's keys, row-major over `tiles()` (tests compare kernels with it).
+    pub fn full_layer(&self) -> &[f32] {
+        &self.tiles.full
+    }
+
+    /// The working layer: keys and row masks.
+    pub fn working_layer(&self) -> (&[f32], &[u32]) {
+        (&self.tiles.work, &self.tiles.masks)
+    }
+
+    /// Tiles across and down, and the pixels a tile spans.
+    pub fn tiles(&self) -> ((u32, u32), (u32, u32)) {
+        ((self.tiles_x, self.tiles_y), (self.tile_w, self.tile_h))
+    }
+
+    /// A bound on the depth of whatever the GPU draws at pixel `(x, y)` after the occluders:
+    /// the tile's full layer, or its working layer where the pixel is in its mask (as a depth
+    /// in the view's convention; `None` where nothing is known). For tests and tools.
+    pub fn pixel_bound(&self, x: u32, y: u32) -> Option<f32> {
+        let view = self.view?;
+        let (t, r, bit) = self.locate(x, y)?;
+        let mut key = *self.tiles.full.get(t)?;
+        let mask = *self.tiles.masks.get(t * self.tile_h as usize + r)?;
+        if mask & bit != 0 {
+            key = key.min(*self.tiles.work.get(t)?);
+        }
+        key.is_finite().then(|| match view.convention {
+            DepthConvention::Standard => key,
+            DepthConvention::Reverse => -key,
+        })
+    }
+
+    fn locate(&self, x: u32, y: u32) -> Option<(usize, usize, u32)> {
+        let view = self.view?;
+        if x >= view.extent.width_px || y >= view.extent.height_px {
+            return None;
+        }
+        let (tx, ty) = (x / self.tile_w, y / self.tile_h);
+        let t = (ty * self.tiles_x + tx) as usize;
+        Some((t, (y % self.tile_h) as usize, 1 << (x % self.tile_w)))
+    }
+
+    /// Whether the occluders hide everything a volume projected to `projection` can draw:
+    /// its nearest depth strictly behind the bound of every tile its pixel rectangle touches.
+    /// A volume that draws no pixel centre at all counts as hidden; one touching the near plane
+    /// or holding the eye never does.
+    pub fn is_occluded(&self, projection: &ScreenProjection) -> bool {
+        let (Some(view), ScreenProjection::Projected(b)) = (self.view, projection) else {
+            return false;
+        };
+        let Ok(rect) = b.rect_ndc.to_pixel_rect(view.extent) else {
+            return false;
+        };
+        let ClampedRect::OnScreen {
+            min_x,
+            min_y,
+            max_x,
+            max_y,
+        } = rect.clamp_to(view.extent)
+        else {
+            return true;
+        };
+        let near = view.format.toward_near(view.convention, b.nearest_depth);
+        let key = match view.convention {
+            DepthConvention::Standard => near,
+            DepthConvention::Reverse => -near,
+        };
+        let (tw, th) = (self.tile_w, self.tile_h);
+        for ty in min_y / th..=max_y / th {
+            for tx in min_x / tw..=max_x / tw {
+                let t = (ty * self.tiles_x + tx) as usize;
+                let full = self.tiles.full.get(t).copied().unwrap_or(f32::INFINITY);
+                if key > full {
+                    continue;
+                }
+                // The working layer decides where it holds every pixel of the rectangle here.
+                let x0 = min_x.max(tx * tw) - tx * tw;
+                let x1 = max_x.min(tx * tw + tw - 1) - tx * tw;
+                let cols = low_bits(x1 + 1) & !low_bits(x0);
+                let y0 = min_y.max(ty * th) - ty * th;
+                let y1 = max_y.min(ty * th + th - 1) - ty * th;
+                let base = t * th as usize;
+                let held = (y0..=y1).all(|r| {
+                    let m = self
+                        .tiles
+                        .masks
+                        .get(base + r as usize)
+                        .copied()
+                        .unwrap_or(0);
+                    cols & !m == 0
+                });
+                let work = self.tiles.work.get(t).copied().unwrap_or(f32::INFINITY);
+                if !(held && key > work) {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+}
+
+/// `k` (a key: larger is farther) as the f32 key of a depth the GPU's fragment can not lie
+/// behind: 64 f32 steps of the value farther (the GPU's f32 arithmetic), rounded up, and for D16
+/// the code on the far side.
+fn far_key(view: &OcclusionView, k: f64) -> f32 {
+    let k = k + k.abs() * f64::from(2.0f32.powi(-18)) + f64::from(f32::MIN_POSITIVE);
+    match view.format {
+        DepthFormat::D32Float => f64_to_f32_round_up(k),
+        DepthFormat::D16Unorm => {
+            let max = f64::from(D16_MAX_CODE);
+            let code = match view.convention {
+                DepthConvention::Standard => (k.clamp(0.0, 1.0) * max).ceil(),
+                DepthConvention::Reverse => ((-k).clamp(0.0, 1.0) * max).floor(),
+            };
+            let d = dequantize_d16(code as u16);
+            match view.convention {
+                DepthConvention::Standard => d,
+                DepthConvention::Reverse => -d,
+            }
+        }
+    }
+}

@@ -1,0 +1,248 @@
+//! Software occlusion culling (`Culling::SoftwareOcclusion`, seed 002): the frame's largest
+//! opaque instances rasterized on the CPU into a low-resolution depth buffer
+//! ([`tilegraph_cull::SoftwareOcclusion`], conservative at the frame's pixels), every instance
+//! in the frustum tested against it, the CPU lists built from what survives. Same frame: no GPU
+//! work, no readback, no latency; nothing is drawn a frame late.
+//!
+//! **Occluders** (the stated rule): instances in the frustum whose material is opaque with
+//! tilegraph's shaders (alpha-tested and blended materials, and engine materials, whose shaders
+//! may discard, never occlude), whose box covers at least 1/1024 of the frame, nearest first
+//! until the triangle budget (knob `software_occluder_triangles`) is spent. Meshes are used as
+//! they are: a simplified mesh is conservative only when its surface stays inside the original,
+//! which meshoptimizer's simplifier does not promise, so none is made.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use tilegraph_cull::{
+    project_aabb, Aabb, Extent2d, ExtentExt, OccluderMesh, OcclusionView, ScreenProjection,
+    SoftwareConfig, SoftwareOcclusion, SoftwareStats,
+};
+use tilegraph_scene::{CameraFrame, GridMember, MaterialClass, Scene};
+
+use crate::options::RenderOptions;
+use tilegraph_types::round::{f64_to_f32_round_down, f64_to_f32_round_up};
+
+/// The knobs of software occlusion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SoftwareOptions {
+    /// The depth buffer's tiles across and down (knob `software_resolution`).
+    pub resolution: (u32, u32),
+    /// Threads rasterizing bands of tiles (knob `software_threads`).
+    pub threads: usize,
+    /// Occluder triangles per frame at most (knob `software_occluder_triangles`).
+    pub occluder_triangles: u32,
+}
+
+impl Default for SoftwareOptions {
+    fn default() -> Self {
+        SoftwareOptions {
+            resolution: (256, 128),
+            threads: 1,
+            occluder_triangles: 16384,
+        }
+    }
+}
+
+/// Parses `WxH`.
+pub fn parse_resolution(s: &str) -> Option<(u32, u32)> {
+    let (w, h) = s.split_once('x')?;
+    Some((w.parse().ok()?, h.parse().ok()?))
+}
+
+/// What the last frame's software occlusion did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SoftwareFrame {
+    pub raster: SoftwareStats,
+    /// Instances in the frustum, and those the buffer hid.
+    pub tested: u32,
+    pub culled: u32,
+    /// CPU milliseconds: selecting, rasterizing and testing.
+    pub cpu_ms: f64,
+}
+
+/// A view's software occlusion: the buffer, the occluder meshes prepared so far, the frame's
+/// scratch.
+#[derive(Debug, Default)]
+pub struct SoftwareCull {
+    buffer: Option<SoftwareOcclusion>,
+    /// Per mesh id: its occluder form, made the first time the mesh occludes.
+    meshes: Vec<Option<Arc<OccluderMesh>>>,
+    projected: Vec<ScreenProjection>,
+    candidates: Vec<(f32, u32)>,
+    pub last: SoftwareFrame,
+}
+
+/// Why a frame's software occlusion could not run (bad camera or mesh data); the caller keeps
+/// every instance instead.
+pub type SoftwareError = tilegraph_cull::CullError;
+
+impl SoftwareCull {
+    /// Removes from `visible` (the frame's opaque and alpha-tested instances in the frustum)
+    /// those the occluders hide, for a view rendered with `view` on a GPU snapping vertices to
+    /// `subpixel_bits`.
+    pub fn cull(
+        &mut self,
+        scene: &Scene,
+        frame: &CameraFrame,
+        view: &RenderOptions,
+        subpixel_bits: u32,
+        visible: &mut Vec<GridMember>,
+    ) -> Result<(), SoftwareError> {
+        let start = std::time::Instant::now();
+        let (width, height, format) = (view.width, view.height, view.depth_format);
+        let options = &view.software;
+        let m = frame.current;
+        let projection = frame.camera.projection;
+        let extent = Extent2d::try_new(width, height)?;
+        let aspect = width as f32 / height as f32;
+        let config = SoftwareConfig {
+            resolution: options.resolution,
+            subpixel_bits,
+            threads: options.threads.max(1),
+            ..SoftwareConfig::default()
+        };
+        let buffer = self
+            .buffer
+            .get_or_insert_with(|| SoftwareOcclusion::new(config));
+        buffer.set_config(config);
+        buffer.begin(OcclusionView {
+            clip_from_relative: projection.matrix(aspect).as_dmat4() * m.view.as_dmat4(),
+            extent,
+            convention: m.depth,
+            format,
+        })?;
+        // Every box, camera-relative and rounded outward to f32.
+        self.projected.clear();
+        for member in visible.iter() {
+            let c = member.center - m.eye;
+            let h = member.half_extents.as_dvec3();
+            let lo = c - h;
+            let hi = c + h;
+            let b = Aabb {
+                min: Vec3::new(
+                    f64_to_f32_round_down(lo.x),
+                    f64_to_f32_round_down(lo.y),
+                    f64_to_f32_round_down(lo.z),
+                ),
+                max: Vec3::new(
+                    f64_to_f32_round_up(hi.x),
+                    f64_to_f32_round_up(hi.y),
+                    f64_to_f32_round_up(hi.z),
+                ),
+            };
+            self.projected
+                .push(project_aabb(&b, &m.view, &projection, aspect)?);
+        }
+        // Occluders: big opaque boxes, nearest first.
+        let min_area = f64::from(width) * f64::from(height) / 1024.0;
+        self.candidates.clear();
+        for (k, (member, p)) in visible.iter().zip(&self.projected).enumerate() {
+            let Some(inst) = scene.instances().get(member.instance as usize) else {
+                continue;
+            };
+            let occludes = scene.instance_material(inst).is_some_and(|mat| {
+                mat.class == MaterialClass::Opaque && mat.engine_material.is_none()
+            });
+            if !occludes {
+                continue;
+            }
+            let (near, area) = match p {
+                ScreenProjection::Projected(b) => {
+                    let r = b.rect_ndc;
+                    let area = f64::from(r.max.x - r.min.x)
+                        * f64::from(r.max.y - r.min.y)
+                        * 0.25
+                        * f64::from(width)
+                        * f64::from(height);
+                    let key = match m.depth {
+                        tilegraph_cull::DepthConvention::Standard => b.nearest_depth,
+                        tilegraph_cull::DepthConvention::Reverse => -b.nearest_depth,
+                    };
+                    (key, area)
+                }
+                // Around the eye: nearest of all, as big as the screen.
+                ScreenProjection::TouchesNearPlane | ScreenProjection::CameraInside => {
+                    (f32::NEG_INFINITY, f64::INFINITY)
+                }
+                ScreenProjection::BeforeNearPlane => continue,
+            };
+            if area >= min_area {
+                self.candidates.push((near, k as u32));
+            }
+        }
+        self.candidates
+            .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut budget = options.occluder_triangles;
+        for &(_, k) in &self.candidates {
+            let Some(member) = visible.get(k as usize) else {
+                continue;
+            };
+            let Some(inst) = scene.instances().get(member.instance as usize) else {
+                continue;
+            };
+            let mesh_id = inst.mesh.0 as usize;
+            let Some(mesh) = scene.meshes().get(mesh_id) else {
+                continue;
+            };
+            let triangles = mesh.index_count / 3;
+            if triangles > budget {
+                continue;
+            }
+            budget -= triangles;
+            if self.meshes.len() <= mesh_id {
+                self.meshes.resize(mesh_id + 1, None);
+            }
+            let occluder = match &self.meshes[mesh_id] {
+                Some(o) => Arc::clone(o),
+                None => {
+                    let o = Arc::new(occluder_mesh(scene, mesh_id)?);
+                    self.meshes[mesh_id] = Some(Arc::clone(&o));
+                    o
+                }
+            };
+            let t = &inst.transform;
+            buffer.add_occluder(&occluder, t.linear.as_dmat3(), t.translation - m.eye);
+        }
+        buffer.rasterize();
+        let tested = visible.len() as u32;
+        let mut k = 0;
+        let projected = &self.projected;
+        visible.retain(|_| {
+            let keep = projected.get(k).is_none_or(|p| !buffer.is_occluded(p));
+            k += 1;
+            keep
+        });
+        self.last = SoftwareFrame {
+            raster: buffer.stats(),
+            tested,
+            culled: tested - visible.len() as u32,
+            cpu_ms: start.elapsed().as_secs_f64() * 1e3,
+        };
+        Ok(())
+    }
+}
+
+/// Mesh `id` of `scene` as an occluder.
+fn occluder_mesh(scene: &Scene, id: usize) -> Result<OccluderMesh, SoftwareError> {
+    let invalid = |reason: String| tilegraph_cull::CullError::InvalidOccluder { reason };
+    let mesh = scene
+        .meshes()
+        .get(id)
+        .ok_or_else(|| invalid(format!("mesh {id} does not exist")))?;
+    let first = mesh.vertex_offset.max(0) as usize;
+    let vertices = scene
+        .vertices()
+        .get(first..first + mesh.vertex_count as usize)
+        .ok_or_else(|| invalid(format!("mesh {id}: vertex range out of the scene's")))?;
+    let positions: Vec<Vec3> = vertices.iter().map(|v| Vec3::from(v.position)).collect();
+    let i0 = mesh.first_index as usize;
+    let indices = scene
+        .indices()
+        .get(i0..i0 + mesh.index_count as usize)
+        .ok_or_else(|| invalid(format!("mesh {id}: index range out of the scene's")))?;
+    let double_sided = scene
+        .material(mesh.material)
+        .is_some_and(|m| m.double_sided);
+    OccluderMesh::new(&positions, indices, double_sided)
+}
