@@ -160,6 +160,9 @@ fn print(
         "totals: visible {} drawn {} FN {} (in {} frames) FP {} (rate {:.3}); images equal {}/{}; triangles drawn {}; culling GPU {:.3} ms of {:.3} ms per frame (medians)",
         t.visible, t.drawn, t.false_negatives, t.frames_with_false_negatives, t.false_positives, t.false_positive_rate, t.frames_image_equal, t.frames, t.triangles_drawn, t.cull_gpu_ms, t.frame_gpu_ms
     )?;
+    if let Some(ms) = t.software_cpu_ms {
+        outln!("software occlusion: {ms:.3} CPU ms per frame (median)")?;
+    }
     if let (Some(ideal), Some(e)) = (t.ideal_frame_gpu_ms, t.efficiency) {
         outln!(
             "ideal frame (the oracle's visible instances, no culling work): {ideal:.3} ms; efficiency {e:.2}"

@@ -52,5 +52,5 @@ pub use project::{
 };
 pub use screen::{ClampedRect, Extent2d, ExtentExt, NdcRect, PixelRect, MAX_EXTENT_PX};
 pub use software::{
-    Kernel, OccluderMesh, OcclusionView, SoftwareConfig, SoftwareOcclusion, SoftwareStats,
+    BoxRect, Kernel, OccluderMesh, OcclusionView, SoftwareConfig, SoftwareOcclusion, SoftwareStats,
 };

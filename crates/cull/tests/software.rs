@@ -449,7 +449,11 @@ fn a_wall_hides_what_is_behind_it() {
             let hidden = |center: Vec3, half: f32| {
                 let b = Aabb::new(center - Vec3::splat(half), center + Vec3::splat(half));
                 let p = project_aabb(&b, &Mat4::IDENTITY, &case.projection, aspect).unwrap();
-                sw.is_occluded(&p)
+                let fast = sw
+                    .project_box(center.as_dvec3(), glam::DVec3::splat(f64::from(half)))
+                    .is_some_and(|r| sw.hides(&r));
+                assert_eq!(fast, sw.is_occluded(&p), "{center} {half}");
+                fast
             };
             assert!(
                 hidden(Vec3::new(0.0, 0.0, -8.0), 0.5),
@@ -482,4 +486,53 @@ fn a_wall_hides_what_is_behind_it() {
             assert!(!sw.is_occluded(&p));
         }
     }
+}
+
+/// The fast box projection the renderer uses covers at least the pixels and depths of the
+/// reference projection (`project_aabb`: the 8 corners, outward-rounded): its rectangle holds
+/// that one's, its nearest depth is no farther.
+#[test]
+fn the_fast_box_projection_contains_the_reference_one() {
+    let mut rng = Pcg64::seed_from_u64(0xb0c5);
+    let mut compared = 0;
+    for _ in 0..2000 {
+        let case = random_case(&mut rng);
+        let sw = case.software(Kernel::Simd, 1);
+        let center = Vec3::new(
+            rng.random_range(-20.0..20.0),
+            rng.random_range(-20.0..20.0),
+            rng.random_range(-60.0..5.0),
+        );
+        let half = Vec3::new(
+            10f32.powf(rng.random_range(-3.0..1.0)),
+            10f32.powf(rng.random_range(-3.0..1.0)),
+            10f32.powf(rng.random_range(-3.0..1.0)),
+        );
+        let b = Aabb::new(center - half, center + half);
+        let reference = project_aabb(&b, &Mat4::IDENTITY, &case.projection, case.aspect()).unwrap();
+        let fast = sw.project_box(center.as_dvec3(), half.as_dvec3());
+        let tilegraph_cull::ScreenProjection::Projected(p) = reference else {
+            continue;
+        };
+        let Some(fast) = fast else {
+            continue; // the fast path gives up near the near plane: never hides
+        };
+        let r = p.rect_ndc.to_pixel_rect(case.extent).unwrap();
+        assert!(
+            fast.min.0 <= i64::from(r.min_x)
+                && fast.min.1 <= i64::from(r.min_y)
+                && fast.max.0 >= i64::from(r.max_x)
+                && fast.max.1 >= i64::from(r.max_y),
+            "{fast:?} does not hold {r:?}"
+        );
+        let convention = case.projection.depth_convention();
+        let near = case.format.toward_near(convention, p.nearest_depth);
+        let key = match convention {
+            DepthConvention::Standard => near,
+            DepthConvention::Reverse => -near,
+        };
+        assert!(fast.near_key <= key, "{} > {key}", fast.near_key);
+        compared += 1;
+    }
+    assert!(compared > 500, "{compared}");
 }

@@ -242,6 +242,8 @@ pub struct FrameReport {
     pub gpu_culling: Option<GpuCullCounts>,
     /// The state lint of this frame's draws, after [`SceneRenderer::lint_next_frame`](crate::SceneRenderer::lint_next_frame).
     pub lint: Option<Arc<FrameLint>>,
+    /// With software occlusion: what the main view's CPU rasterizer did this frame.
+    pub software: Option<crate::occlusion::SoftwareFrame>,
 }
 
 /// What in [`RenderOptions`] wants a device feature (named in [`RenderError::MissingFeature`]).

@@ -45,7 +45,7 @@ pub use mesh::OccluderMesh;
 
 use crate::depth::{dequantize_d16, DepthConvention, DepthFormat, D16_MAX_CODE};
 use crate::project::ScreenProjection;
-use crate::screen::{ClampedRect, Extent2d, ExtentExt};
+use crate::screen::{Extent2d, ExtentExt};
 use crate::CullError;
 use kernel::{low_bits, SUB};
 use raster::Tri;
@@ -303,20 +303,104 @@ impl SoftwareOcclusion {
         let Ok(rect) = b.rect_ndc.to_pixel_rect(view.extent) else {
             return false;
         };
-        let ClampedRect::OnScreen {
-            min_x,
-            min_y,
-            max_x,
-            max_y,
-        } = rect.clamp_to(view.extent)
-        else {
-            return true;
-        };
         let near = view.format.toward_near(view.convention, b.nearest_depth);
         let key = match view.convention {
             DepthConvention::Standard => near,
             DepthConvention::Reverse => -near,
         };
+        self.hides(&BoxRect {
+            min: (i64::from(rect.min_x), i64::from(rect.min_y)),
+            max: (i64::from(rect.max_x), i64::from(rect.max_y)),
+            near_key: key,
+        })
+    }
+
+    /// A box (centre relative to the eye, half extents; f64) as the buffer tests it: the pixels
+    /// whose square its projection overlaps and its nearest depth, moved toward the eye by more
+    /// than the GPU's f32 arithmetic can err; `None` when part of it is nearer than the near
+    /// plane (or behind the eye), which no occluder can hide. The fast path of
+    /// [`SoftwareOcclusion::is_occluded`] for a frame's thousands of boxes.
+    pub fn project_box(&self, center: DVec3, half: DVec3) -> Option<BoxRect> {
+        let view = self.view?;
+        let m = view.clip_from_relative;
+        let c = m * center.extend(1.0);
+        let axes = [m.x_axis * half.x, m.y_axis * half.y, m.z_axis * half.z];
+        // Each clip coordinate's range over the box: centre +- the axes' absolute sums.
+        let e = axes[0].abs() + axes[1].abs() + axes[2].abs();
+        let (w_lo, w_hi) = (c.w - e.w, c.w + e.w);
+        if !(w_lo > 0.0 && c.z - e.z >= 0.0 && c.is_finite() && e.is_finite()) {
+            return None;
+        }
+        // x / w over x in [x_lo, x_hi], w in [w_lo, w_hi] (w > 0): its extremes are at the
+        // interval's corners. A superset of the 8 corners' rectangle, for 8 divisions.
+        let range = |lo: f64, hi: f64| {
+            let q = [lo / w_lo, lo / w_hi, hi / w_lo, hi / w_hi];
+            (q[0].min(q[1]).min(q[2]), q[1].max(q[2]).max(q[3]).max(q[0]))
+        };
+        let (x0, x1) = range(c.x - e.x, c.x + e.x);
+        let (y0, y1) = range(c.y - e.y, c.y + e.y);
+        let (w, h) = (
+            f64::from(view.extent.width_px),
+            f64::from(view.extent.height_px),
+        );
+        let lo = ((x0 + 1.0) * 0.5 * w, (y0 + 1.0) * 0.5 * h);
+        let hi = ((x1 + 1.0) * 0.5 * w, (y1 + 1.0) * 0.5 * h);
+        // The nearest depth: perspective depth follows the view distance, w, so it is the
+        // depth of the corner of least w; orthographic depth is z's extreme on the eye's side.
+        let near = if e.w == 0.0 {
+            match view.convention {
+                DepthConvention::Standard => (c.z - e.z) / c.w,
+                DepthConvention::Reverse => -(c.z + e.z) / c.w,
+            }
+        } else {
+            let toward = |a: glam::DVec4| if a.w > 0.0 { -a } else { a };
+            let p = c + toward(axes[0]) + toward(axes[1]) + toward(axes[2]);
+            let d = p.z / p.w;
+            match view.convention {
+                DepthConvention::Standard => d,
+                DepthConvention::Reverse => -d,
+            }
+        };
+        // A thousandth of a pixel outward (the rect's own rounding); 2^-20 of the depth and
+        // 2^-22 more nearer (the GPU's f32 depth of the box's object: an orthographic depth
+        // cancels to an absolute error), then the format's code on the near side.
+        let px = |v: f64| (v.clamp(-1e12, 1e12)).floor() as i64;
+        let near = near - near.abs() * f64::from(2.0f32.powi(-20)) - f64::from(2.0f32.powi(-22));
+        let near = tilegraph_types::round::f64_to_f32_round_down(near);
+        let depth = match view.convention {
+            DepthConvention::Standard => near,
+            DepthConvention::Reverse => -near,
+        };
+        let depth = view.format.toward_near(view.convention, depth);
+        Some(BoxRect {
+            min: (px(lo.0 - 1e-3), px(lo.1 - 1e-3)),
+            max: (px(hi.0 + 1e-3), px(hi.1 + 1e-3)),
+            near_key: match view.convention {
+                DepthConvention::Standard => depth,
+                DepthConvention::Reverse => -depth,
+            },
+        })
+    }
+
+    /// Whether the occluders hide everything in `rect` at its nearest depth or behind: its
+    /// key strictly behind the bound of every tile the rectangle touches (the working layer's,
+    /// where its mask holds every pixel of the rectangle in that tile). A rectangle wholly off
+    /// screen covers no pixel centre, so it counts as hidden.
+    pub fn hides(&self, rect: &BoxRect) -> bool {
+        let Some(view) = self.view else {
+            return false;
+        };
+        let (w, h) = (
+            i64::from(view.extent.width_px),
+            i64::from(view.extent.height_px),
+        );
+        if rect.max.0 < 0 || rect.max.1 < 0 || rect.min.0 >= w || rect.min.1 >= h {
+            return true;
+        }
+        let clamp = |v: i64, n: i64| v.clamp(0, n - 1) as u32;
+        let (min_x, max_x) = (clamp(rect.min.0, w), clamp(rect.max.0, w));
+        let (min_y, max_y) = (clamp(rect.min.1, h), clamp(rect.max.1, h));
+        let key = rect.near_key;
         let (tw, th) = (self.tile_w, self.tile_h);
         for ty in min_y / th..=max_y / th {
             for tx in min_x / tw..=max_x / tw {
@@ -324,6 +408,11 @@ impl SoftwareOcclusion {
                 let full = self.tiles.full.get(t).copied().unwrap_or(f32::INFINITY);
                 if key > full {
                     continue;
+                }
+                // Keys are never NaN: an empty working layer is -inf, which every key passes.
+                let work = self.tiles.work.get(t).copied().unwrap_or(f32::INFINITY);
+                if key <= work {
+                    return false;
                 }
                 // The working layer decides where it holds every pixel of the rectangle here.
                 let x0 = min_x.max(tx * tw) - tx * tw;
@@ -341,8 +430,7 @@ impl SoftwareOcclusion {
                         .unwrap_or(0);
                     cols & !m == 0
                 });
-                let work = self.tiles.work.get(t).copied().unwrap_or(f32::INFINITY);
-                if !(held && key > work) {
+                if !held {
                     return false;
                 }
             }
@@ -351,11 +439,31 @@ impl SoftwareOcclusion {
     }
 }
 
+/// A box as the buffer tests it ([`SoftwareOcclusion::project_box`]): the inclusive pixel
+/// rectangle its projection overlaps (possibly past the screen) and its nearest depth's key
+/// (the depth for the standard convention, its negation for reverse-Z; already on the near
+/// side of what the attachment can hold).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxRect {
+    pub min: (i64, i64),
+    pub max: (i64, i64),
+    pub near_key: f32,
+}
+
+impl BoxRect {
+    /// Pixels the rectangle spans on a screen of `width x height`.
+    pub fn area_on(&self, width: u32, height: u32) -> u64 {
+        let span =
+            |lo: i64, hi: i64, n: u32| (hi.min(i64::from(n) - 1) - lo.max(0) + 1).max(0) as u64;
+        span(self.min.0, self.max.0, width) * span(self.min.1, self.max.1, height)
+    }
+}
+
 /// `k` (a key: larger is farther) as the f32 key of a depth the GPU's fragment can not lie
-/// behind: 64 f32 steps of the value farther (the GPU's f32 arithmetic), rounded up, and for D16
-/// the code on the far side.
+/// behind: 64 f32 steps of the value and 2^-22 farther (the GPU's f32 arithmetic, absolute where
+/// an orthographic depth cancels), rounded up, and for D16 the code on the far side.
 fn far_key(view: &OcclusionView, k: f64) -> f32 {
-    let k = k + k.abs() * f64::from(2.0f32.powi(-18)) + f64::from(f32::MIN_POSITIVE);
+    let k = k + k.abs() * f64::from(2.0f32.powi(-18)) + f64::from(2.0f32.powi(-22));
     match view.format {
         DepthFormat::D32Float => f64_to_f32_round_up(k),
         DepthFormat::D16Unorm => {

@@ -273,11 +273,17 @@ pub(crate) fn band(
         for ty in ty0..=ty1 {
             for tx in px0 / tw..=px1 / tw {
                 let tile = Place::new(grid, tx, ty);
+                let local = ((ty - first_row) * grid.tiles_x + tx) as usize;
+                // Nothing this triangle adds can be nearer than its own depth here: behind
+                // the tile's full layer, the coverage is not worth computing.
+                let own = to_key(tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1));
+                if full.get(local).is_none_or(|&f| own >= f) {
+                    continue;
+                }
                 let mut cover = [0u32; MAX_TILE_PX as usize];
                 let Some(key) = coverage(grid, tris, tri, &tile, &mut cover) else {
                     continue;
                 };
-                let local = ((ty - first_row) * grid.tiles_x + tx) as usize;
                 let base = local * th as usize;
                 if let (Some(f), Some(w), Some(m)) = (
                     full.get_mut(local),

@@ -126,6 +126,9 @@ pub struct Totals {
     /// Median CPU milliseconds the tested renderer's frame took to record and submit (with
     /// what waiting for a free frame slot cost), frames back to back (the third pass).
     pub cpu_ms: f64,
+    /// With software occlusion: the median CPU milliseconds of its part of those frames
+    /// (choosing occluders, rasterizing, testing boxes).
+    pub software_cpu_ms: Option<f64>,
     /// Median GPU milliseconds of each pass of the tested frame, in recording order.
     pub passes: Vec<PassTime>,
 }
@@ -612,6 +615,7 @@ impl Run<'_> {
         }
         .warm_up(ctx, world, tested)?;
         let checked_with = tested.options().gpu_timing;
+        let mut software_ms = Vec::new();
         let mut timed = |timing: GpuTiming, cpu_ms: &mut Vec<f64>| {
             tested.finish(ctx)?;
             tested.set_gpu_timing(ctx, timing)?;
@@ -622,8 +626,11 @@ impl Run<'_> {
                 };
                 let scene = world.at(index)?;
                 let started = std::time::Instant::now();
-                tested.render_frame(ctx, scene, &frame)?;
+                let report = tested.render_frame(ctx, scene, &frame)?;
                 cpu_ms.push(started.elapsed().as_secs_f64() * 1e3);
+                if let (Some(s), GpuTiming::Frame) = (report.software, timing) {
+                    software_ms.push(s.cpu_ms);
+                }
             }
             tested.finish(ctx)?;
             Ok::<_, RenderError>(tested.medians())
@@ -699,6 +706,7 @@ impl Run<'_> {
             efficiency: None,
             passes_gpu_ms: medians.iter().fold(0.0, |a, m| a + m.median_gpu_ms),
             cpu_ms: tilegraph_vk::queries::median(&cpu_ms).unwrap_or(0.0),
+            software_cpu_ms: tilegraph_vk::queries::median(&software_ms),
             passes: medians
                 .iter()
                 .map(|m| PassTime {

@@ -15,13 +15,12 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use tilegraph_cull::{
-    project_aabb, Aabb, Extent2d, ExtentExt, OccluderMesh, OcclusionView, ScreenProjection,
-    SoftwareConfig, SoftwareOcclusion, SoftwareStats,
+    BoxRect, Extent2d, ExtentExt, OccluderMesh, OcclusionView, SoftwareConfig, SoftwareOcclusion,
+    SoftwareStats,
 };
 use tilegraph_scene::{CameraFrame, GridMember, MaterialClass, Scene};
 
 use crate::options::RenderOptions;
-use tilegraph_types::round::{f64_to_f32_round_down, f64_to_f32_round_up};
 
 /// The knobs of software occlusion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -68,7 +67,7 @@ pub struct SoftwareCull {
     buffer: Option<SoftwareOcclusion>,
     /// Per mesh id: its occluder form, made the first time the mesh occludes.
     meshes: Vec<Option<Arc<OccluderMesh>>>,
-    projected: Vec<ScreenProjection>,
+    projected: Vec<Option<BoxRect>>,
     candidates: Vec<(f32, u32)>,
     pub last: SoftwareFrame,
 }
@@ -112,62 +111,29 @@ impl SoftwareCull {
             convention: m.depth,
             format,
         })?;
-        // Every box, camera-relative and rounded outward to f32.
+        // Every box, relative to the eye in f64.
         self.projected.clear();
-        for member in visible.iter() {
-            let c = member.center - m.eye;
-            let h = member.half_extents.as_dvec3();
-            let lo = c - h;
-            let hi = c + h;
-            let b = Aabb {
-                min: Vec3::new(
-                    f64_to_f32_round_down(lo.x),
-                    f64_to_f32_round_down(lo.y),
-                    f64_to_f32_round_down(lo.z),
-                ),
-                max: Vec3::new(
-                    f64_to_f32_round_up(hi.x),
-                    f64_to_f32_round_up(hi.y),
-                    f64_to_f32_round_up(hi.z),
-                ),
-            };
-            self.projected
-                .push(project_aabb(&b, &m.view, &projection, aspect)?);
-        }
-        // Occluders: big opaque boxes, nearest first.
-        let min_area = f64::from(width) * f64::from(height) / 1024.0;
+        self.projected.extend(visible.iter().map(|member| {
+            buffer.project_box(member.center - m.eye, member.half_extents.as_dvec3())
+        }));
+        // Occluders: big opaque boxes, nearest first; one around the eye first of all.
+        let min_area = u64::from(width) * u64::from(height) / 1024;
         self.candidates.clear();
         for (k, (member, p)) in visible.iter().zip(&self.projected).enumerate() {
-            let Some(inst) = scene.instances().get(member.instance as usize) else {
-                continue;
+            let near = match p {
+                Some(r) if r.area_on(width, height) >= min_area => r.near_key,
+                Some(_) => continue,
+                None => f32::NEG_INFINITY,
             };
-            let occludes = scene.instance_material(inst).is_some_and(|mat| {
-                mat.class == MaterialClass::Opaque && mat.engine_material.is_none()
-            });
-            if !occludes {
-                continue;
-            }
-            let (near, area) = match p {
-                ScreenProjection::Projected(b) => {
-                    let r = b.rect_ndc;
-                    let area = f64::from(r.max.x - r.min.x)
-                        * f64::from(r.max.y - r.min.y)
-                        * 0.25
-                        * f64::from(width)
-                        * f64::from(height);
-                    let key = match m.depth {
-                        tilegraph_cull::DepthConvention::Standard => b.nearest_depth,
-                        tilegraph_cull::DepthConvention::Reverse => -b.nearest_depth,
-                    };
-                    (key, area)
-                }
-                // Around the eye: nearest of all, as big as the screen.
-                ScreenProjection::TouchesNearPlane | ScreenProjection::CameraInside => {
-                    (f32::NEG_INFINITY, f64::INFINITY)
-                }
-                ScreenProjection::BeforeNearPlane => continue,
-            };
-            if area >= min_area {
+            let occludes = scene
+                .instances()
+                .get(member.instance as usize)
+                .is_some_and(|inst| {
+                    scene.instance_material(inst).is_some_and(|mat| {
+                        mat.class == MaterialClass::Opaque && mat.engine_material.is_none()
+                    })
+                });
+            if occludes {
                 self.candidates.push((near, k as u32));
             }
         }
@@ -209,7 +175,9 @@ impl SoftwareCull {
         let mut k = 0;
         let projected = &self.projected;
         visible.retain(|_| {
-            let keep = projected.get(k).is_none_or(|p| !buffer.is_occluded(p));
+            let keep = projected
+                .get(k)
+                .is_none_or(|p| p.is_none_or(|r| !buffer.hides(&r)));
             k += 1;
             keep
         });

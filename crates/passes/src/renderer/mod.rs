@@ -548,6 +548,9 @@ impl SceneRenderer {
             draws: draws.opaque.len() + draws.alpha_tested.len() + draws.blended.len(),
             triangles: draws.triangles(),
             gpu_culling: self.views.main.gpu_counts,
+            software: (self.views.main.options.culling == crate::setup::Culling::SoftwareOcclusion)
+                .then(|| self.views.main.cpu.software.as_ref().map(|s| s.last))
+                .flatten(),
         })
     }
 
