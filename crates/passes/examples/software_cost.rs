@@ -4,7 +4,7 @@
 //! each buffer resolution and thread count, timed alone (no GPU). Prints the median and 95th
 //! percentile milliseconds, and the instances in the frustum and hidden per frame.
 //!
-//! `cargo run --release -p tilegraph-passes --example software_cost -- SCENE [WxH] [FRAMES] [walk:SEED]`
+//! `cargo run --release -p tilegraph-passes --example software_cost -- SCENE [WxH] [FRAMES] [path|walk:SEED] [OCCLUDER_TRIANGLES]`
 
 use tilegraph_passes::cull::cpu_frustum_visible;
 use tilegraph_passes::occlusion::{SoftwareCull, SoftwareOptions};
@@ -30,6 +30,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         None => scene.camera_path().clone(),
     };
+    let budget: u32 = args
+        .next()
+        .map_or(Ok(SoftwareOptions::default().occluder_triangles), |a| {
+            a.parse()
+        })?;
     let mut grid = LooseGrid::new(scene.bounds(), scene.instances().len());
     for (i, inst) in scene.instances().iter().enumerate() {
         let blended = scene
@@ -41,7 +46,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     println!(
-        "{scene_name}, {w}x{h}, {} frames of its path, {threads} hardware threads",
+        "{scene_name}, {w}x{h}, {} frames of its path, {threads} hardware threads, {budget} occluder triangles at most",
         frames.min(path.len())
     );
     println!(
@@ -58,7 +63,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 software: SoftwareOptions {
                     resolution,
                     threads: t,
-                    ..SoftwareOptions::default()
+                    occluder_triangles: budget,
                 },
                 ..RenderOptions::default()
             };

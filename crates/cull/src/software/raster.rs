@@ -35,6 +35,8 @@ pub(crate) struct Tri {
     across: [(u32, u8); 3],
     /// Inclusive pixel rectangle of the centres it can cover, on screen.
     px: [u32; 4],
+    /// Its vertices (subpixel units), for its extent in each row of tiles.
+    verts: [(f64, f64); 3],
     /// The depth key's plane `k = k0 + gx (X - x0) + gy (Y - y0)`, the GPU's possible
     /// difference from it, and the farthest vertex key.
     origin: (f64, f64),
@@ -146,6 +148,7 @@ impl Tri {
             ids: [u64::MAX; 3],
             across: [(NONE, 0); 3],
             px: [1, 1, 0, 0],
+            verts: [(0.0, 0.0); 3],
             origin: (0.0, 0.0),
             k0: 0.0,
             gx: 0.0,
@@ -154,6 +157,34 @@ impl Tri {
             kmax: 0.0,
             drawn: false,
         }
+    }
+
+    /// The pixel columns whose centres the triangle can reach between the rows at subpixel
+    /// heights `y0..=y1` (a triangle is convex: its extent there is that of its vertices and
+    /// edge crossings inside the band), widened by a pixel; `None` when it misses the band.
+    fn columns(&self, y0: f64, y1: f64) -> Option<(u32, u32)> {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (i, &(x, y)) in self.verts.iter().enumerate() {
+            if (y0..=y1).contains(&y) {
+                lo = lo.min(x);
+                hi = hi.max(x);
+            }
+            let (qx, qy) = self.verts[(i + 1) % 3];
+            for h in [y0, y1] {
+                if (y - h) * (qy - h) <= 0.0 && y != qy {
+                    let at = x + (h - y) * (qx - x) / (qy - y);
+                    lo = lo.min(at);
+                    hi = hi.max(at);
+                }
+            }
+        }
+        if lo > hi {
+            return None;
+        }
+        let [px0, _, px1, _] = self.px;
+        let first = (((lo - 128.0) / SUB).floor() - 1.0).max(f64::from(px0));
+        let last = (((hi - 128.0) / SUB).ceil() + 1.0).min(f64::from(px1));
+        (first <= last).then_some((first as u32, last as u32))
     }
 
     /// The farthest key the GPU can store for this triangle over the pixel centres
@@ -227,6 +258,7 @@ fn triangle(frame: &Frame<'_>, double_sided: bool, v: [(f64, f64, f64); 3]) -> O
             ids: [0; 3],
             across: [(NONE, 0); 3],
             px: [x0 as u32, y0 as u32, x1 as u32, y1 as u32],
+            verts: [(q0.0, q0.1), (q1.0, q1.1), (q2.0, q2.1)],
             origin: (q0.0, q0.1),
             k0: q0.2,
             gx,
@@ -264,14 +296,19 @@ pub(crate) fn band(
     let rows = (full.len() as u32) / grid.tiles_x.max(1);
     let last_row = first_row + rows;
     for tri in tris.iter().filter(|t| t.drawn) {
-        let [px0, py0, px1, py1] = tri.px;
+        let [_, py0, _, py1] = tri.px;
         let ty0 = (py0 / th).max(first_row);
         let ty1 = (py1 / th).min(last_row.saturating_sub(1));
         if ty0 > ty1 || py0 / th >= last_row {
             continue;
         }
         for ty in ty0..=ty1 {
-            for tx in px0 / tw..=px1 / tw {
+            let band_y0 = f64::from(ty * th) * SUB + 128.0;
+            let band_y1 = band_y0 + f64::from(th - 1) * SUB;
+            let Some((c0, c1)) = tri.columns(band_y0, band_y1) else {
+                continue;
+            };
+            for tx in c0 / tw..=c1 / tw {
                 let tile = Place::new(grid, tx, ty);
                 let local = ((ty - first_row) * grid.tiles_x + tx) as usize;
                 // Nothing this triangle adds can be nearer than its own depth here: behind
@@ -360,6 +397,21 @@ fn and_into(acc: &mut Rows, m: &Rows, rows: usize) -> bool {
 fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows) -> Option<f64> {
     let k = grid.kernel;
     let rows = tile.rows;
+    // The corners decide most tiles: wholly inside, or outside an edge no neighbour can
+    // cover past (the pair's coverage needs this triangle's other two edges).
+    let class = tri
+        .edges
+        .map(|e| e.classify(tile.x0, tile.y0, tile.x1, tile.y1));
+    if class.iter().all(|c| *c == Some(true)) {
+        cover[..rows].fill(low_bits(tile.width));
+        return Some(tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1));
+    }
+    let mut outside = (0..3).filter(|&i| class[i] == Some(false));
+    match (outside.next(), outside.next()) {
+        (None, _) => {}
+        (Some(i), None) if tri.across[i].0 != NONE => {}
+        _ => return None,
+    }
     let none: Rows = [0; MAX_TILE_PX as usize];
     let e: [Option<Rows>; 3] = tri.edges.map(|edge| {
         let mut m = none;
