@@ -7,7 +7,7 @@
 //! `cargo run --release -p tilegraph-passes --example software_cost -- SCENE [WxH] [FRAMES] [path|walk:SEED] [OCCLUDER_TRIANGLES]`
 
 use tilegraph_passes::cull::cpu_frustum_visible;
-use tilegraph_passes::occlusion::{SoftwareCull, SoftwareOptions};
+use tilegraph_passes::occlusion::{SoftwareCull, SoftwareOptions, SoftwareTarget};
 use tilegraph_passes::RenderOptions;
 use tilegraph_scene::{CameraPath, LooseGrid, MaterialClass};
 
@@ -57,15 +57,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut visible = Vec::new();
     for resolution in [(256, 128), (512, 256)] {
         for t in [1, threads] {
-            let view = RenderOptions {
-                width: w,
-                height: h,
-                software: SoftwareOptions {
+            // The device's subpixel precision on lavapipe and desktop GPUs: 8 bits.
+            let target = SoftwareTarget {
+                size: (w, h),
+                format: RenderOptions::default().depth_format,
+                knobs: SoftwareOptions {
                     resolution,
                     threads: t,
                     occluder_triangles: budget,
                 },
-                ..RenderOptions::default()
+                subpixel_bits: 8,
             };
             let mut cull = SoftwareCull::default();
             let (mut ms, mut tested, mut hidden, mut triangles) = (Vec::new(), 0u64, 0u64, 0u64);
@@ -74,8 +75,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     break;
                 };
                 cpu_frustum_visible(&grid, &frame.current, &mut visible)?;
-                // The device's subpixel precision on lavapipe and desktop GPUs.
-                cull.cull(&scene, &frame, &view, 8, &mut visible)?;
+                cull.cull(&scene, &frame, &target, &mut visible)?;
                 ms.push(cull.last.cpu_ms);
                 tested += u64::from(cull.last.tested);
                 hidden += u64::from(cull.last.culled);

@@ -12,4 +12,4 @@ pub use queries::{
     OqState,
 };
 pub use raster::{add_raster_occlusion, RasterOcclusion};
-pub use software::{SoftwareCull, SoftwareFrame, SoftwareOptions};
+pub use software::{SoftwareCull, SoftwareFrame, SoftwareOptions, SoftwareTarget};

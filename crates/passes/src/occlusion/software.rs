@@ -20,8 +20,6 @@ use tilegraph_cull::{
 };
 use tilegraph_scene::{CameraFrame, GridMember, MaterialClass, Scene};
 
-use crate::options::RenderOptions;
-
 /// The knobs of software occlusion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SoftwareOptions {
@@ -47,6 +45,17 @@ impl Default for SoftwareOptions {
 pub fn parse_resolution(s: &str) -> Option<(u32, u32)> {
     let (w, h) = s.split_once('x')?;
     Some((w.parse().ok()?, h.parse().ok()?))
+}
+
+/// The view software occlusion culls for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SoftwareTarget {
+    /// The frame's size in pixels.
+    pub size: (u32, u32),
+    pub format: tilegraph_cull::DepthFormat,
+    pub knobs: SoftwareOptions,
+    /// The GPU's `subPixelPrecisionBits`.
+    pub subpixel_bits: u32,
 }
 
 /// What the last frame's software occlusion did.
@@ -78,19 +87,17 @@ pub type SoftwareError = tilegraph_cull::CullError;
 
 impl SoftwareCull {
     /// Removes from `visible` (the frame's opaque and alpha-tested instances in the frustum)
-    /// those the occluders hide, for a view rendered with `view` on a GPU snapping vertices to
-    /// `subpixel_bits`.
+    /// those the occluders hide, for a view described by `target`.
     pub fn cull(
         &mut self,
         scene: &Scene,
         frame: &CameraFrame,
-        view: &RenderOptions,
-        subpixel_bits: u32,
+        target: &SoftwareTarget,
         visible: &mut Vec<GridMember>,
     ) -> Result<(), SoftwareError> {
         let start = std::time::Instant::now();
-        let (width, height, format) = (view.width, view.height, view.depth_format);
-        let options = &view.software;
+        let (width, height) = target.size;
+        let (format, options, subpixel_bits) = (target.format, &target.knobs, target.subpixel_bits);
         let m = frame.current;
         let projection = frame.camera.projection;
         let extent = Extent2d::try_new(width, height)?;

@@ -360,8 +360,12 @@ impl SceneRenderer {
                 .cull(
                     scene,
                     frame,
-                    &view.options,
-                    subpixel_bits,
+                    &crate::occlusion::SoftwareTarget {
+                        size: (view.options.width, view.options.height),
+                        format: view.options.depth_format,
+                        knobs: view.options.software,
+                        subpixel_bits,
+                    },
                     &mut view.cpu.visible,
                 )
                 .map_err(RenderError::Software)?;
