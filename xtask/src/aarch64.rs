@@ -2,9 +2,7 @@
 //! NEON path above all, compared with its scalar reference) built for
 //! `aarch64-unknown-linux-gnu` and run under `qemu-aarch64` user-mode emulation.
 
-use std::process::Command;
-
-use crate::{cargo, run};
+use crate::{cargo, ensure_rust_target, run};
 
 const TARGET: &str = "aarch64-unknown-linux-gnu";
 
@@ -17,21 +15,7 @@ const CRATES: [&str; 2] = ["tilegraph-types", "tilegraph-cull"];
 /// Adds the Rust target when missing, then runs the crates' library and integration tests
 /// (not their benchmarks) under qemu.
 pub fn test() -> Result<(), String> {
-    let installed = Command::new("rustup")
-        .args(["target", "list", "--installed"])
-        .output()
-        .map(|o| {
-            String::from_utf8_lossy(&o.stdout)
-                .lines()
-                .any(|l| l.trim() == TARGET)
-        })
-        .map_err(|e| format!("rustup (needed for the {TARGET} target): {e}"))?;
-    if !installed {
-        run(
-            &format!("rustup target add {TARGET}"),
-            Command::new("rustup").args(["target", "add", TARGET]),
-        )?;
-    }
+    ensure_rust_target(TARGET)?;
     let mut c = cargo();
     c.args(["test", "--target", TARGET, "--lib", "--tests"]);
     for krate in CRATES {

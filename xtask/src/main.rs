@@ -361,21 +361,7 @@ fn best_practices_per_vendor() -> Result<(), String> {
 /// library for aarch64-linux-android. Neither links, so no NDK is needed (docs/ANDROID.md).
 fn android() -> Result<(), String> {
     const TARGET: &str = "aarch64-linux-android";
-    let installed = Command::new("rustup")
-        .args(["target", "list", "--installed"])
-        .output()
-        .map(|o| {
-            String::from_utf8_lossy(&o.stdout)
-                .lines()
-                .any(|l| l.trim() == TARGET)
-        })
-        .map_err(|e| format!("rustup (needed for the {TARGET} target): {e}"))?;
-    if !installed {
-        run(
-            &format!("rustup target add {TARGET}"),
-            Command::new("rustup").args(["target", "add", TARGET]),
-        )?;
-    }
+    ensure_rust_target(TARGET)?;
     run(
         &format!("cargo clippy --target {TARGET} -p tilegraph-android"),
         cargo().args([
@@ -400,6 +386,26 @@ fn android() -> Result<(), String> {
             "--crate-type",
             "staticlib",
         ]),
+    )
+}
+
+/// Adds the Rust standard library for `target` with rustup when the toolchain lacks it.
+fn ensure_rust_target(target: &str) -> Result<(), String> {
+    let installed = Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .output()
+        .map(|o| {
+            String::from_utf8_lossy(&o.stdout)
+                .lines()
+                .any(|l| l.trim() == target)
+        })
+        .map_err(|e| format!("rustup (needed for the {target} target): {e}"))?;
+    if installed {
+        return Ok(());
+    }
+    run(
+        &format!("rustup target add {target}"),
+        Command::new("rustup").args(["target", "add", target]),
     )
 }
 
