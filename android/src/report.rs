@@ -63,6 +63,10 @@ mod tests {
         );
         assert_eq!(
             next_culling(Culling::RasterOcclusion, no_conditional),
+            Culling::SoftwareOcclusion
+        );
+        assert_eq!(
+            next_culling(Culling::SoftwareOcclusion, no_conditional),
             Culling::None
         );
         assert_eq!(

@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release -p tilegraph-passes --example software_cost -- SCENE [WxH] [FRAMES] [path|walk:SEED] [OCCLUDER_TRIANGLES]`
 
-use tilegraph_passes::cull::cpu_frustum_visible;
+use tilegraph_passes::cull::cpu_frustum_visible_by_cell;
 use tilegraph_passes::occlusion::{SoftwareCull, SoftwareOptions, SoftwareTarget};
 use tilegraph_passes::RenderOptions;
 use tilegraph_scene::{CameraPath, LooseGrid, MaterialClass};
@@ -55,6 +55,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("|---|---|---|---|---|---|---|");
     let aspect = w as f32 / h as f32;
     let mut visible = Vec::new();
+    let mut cells = Vec::new();
     for resolution in [(256, 128), (512, 256)] {
         for t in [1, threads] {
             // The device's subpixel precision on lavapipe and desktop GPUs: 8 bits.
@@ -74,8 +75,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let Some(frame) = path.frame(index, aspect) else {
                     break;
                 };
-                cpu_frustum_visible(&grid, &frame.current, &mut visible)?;
-                cull.cull(&scene, &frame, &target, &mut visible)?;
+                cpu_frustum_visible_by_cell(&grid, &frame.current, &mut visible, &mut cells)?;
+                cull.cull(&scene, &frame, &target, &cells, &mut visible)?;
                 ms.push(cull.last.cpu_ms);
                 tested += u64::from(cull.last.tested);
                 hidden += u64::from(cull.last.culled);

@@ -65,7 +65,7 @@ pub use motion::{Motion, MotionParams};
 pub use procedural::{generate, ProceduralKind, ProceduralParams};
 pub use scene::{
     BoundsInfo, Change, ClassCounts, DrawBuckets, DrawGroup, GltfCounts, GpuInstance, GpuMaterial,
-    GpuMesh, GridMember, Instance, InstanceBounds, InstanceFlags, InstanceHandle, InstanceId,
+    CellRun, GpuMesh, GridMember, Instance, InstanceBounds, InstanceFlags, InstanceHandle, InstanceId,
     LooseGrid, Material, MaterialClass, MaterialId, Mesh, MeshHandle, MeshId, Overlap,
     RelativeInstance, Scene, SceneBuilder, SceneCursor, SceneInfo, SceneSource, SplitPoint,
     Transform, Vertex, DRAW_LISTS,

@@ -519,6 +519,26 @@ pub fn cpu_frustum_visible(
     m: &tilegraph_scene::FrameMatrices,
     out: &mut Vec<tilegraph_scene::GridMember>,
 ) -> Result<(), VkError> {
+    frustum_visit(grid, m, out, None)
+}
+
+/// [`cpu_frustum_visible`], also saying which runs of `out` share a cell (`cells`, in order):
+/// software occlusion tests a cell's box before its members.
+pub fn cpu_frustum_visible_by_cell(
+    grid: &tilegraph_scene::LooseGrid,
+    m: &tilegraph_scene::FrameMatrices,
+    out: &mut Vec<tilegraph_scene::GridMember>,
+    cells: &mut Vec<tilegraph_scene::CellRun>,
+) -> Result<(), VkError> {
+    frustum_visit(grid, m, out, Some(cells))
+}
+
+fn frustum_visit(
+    grid: &tilegraph_scene::LooseGrid,
+    m: &tilegraph_scene::FrameMatrices,
+    out: &mut Vec<tilegraph_scene::GridMember>,
+    mut cells: Option<&mut Vec<tilegraph_scene::CellRun>>,
+) -> Result<(), VkError> {
     let frustum = Frustum::from_clip_from_world(&m.view_projection, m.depth).map_err(|e| {
         VkError::Invalid {
             what: "frustum".into(),
@@ -527,8 +547,11 @@ pub fn cpu_frustum_visible(
     })?;
     let eye = m.eye;
     out.clear();
+    if let Some(c) = cells.as_deref_mut() {
+        c.clear();
+    }
     // Bounds are finite (the scene refuses anything else): the f64 test needs no checks.
-    grid.visit(
+    grid.visit_cells(
         |cell| {
             let center = (cell.min + cell.max) * 0.5 - eye;
             match frustum.test_box(center, (cell.max - cell.min) * 0.5) {
@@ -537,14 +560,23 @@ pub fn cpu_frustum_visible(
                 tilegraph_cull::PlaneTest::Outside(_) => tilegraph_scene::Overlap::Outside,
             }
         },
-        |member, overlap| {
-            let inside = overlap == tilegraph_scene::Overlap::Inside
-                || !matches!(
-                    frustum.test_box(member.center - eye, member.half_extents.as_dvec3()),
-                    tilegraph_cull::PlaneTest::Outside(_)
-                );
-            if inside {
-                out.push(*member);
+        |bounds, members, overlap| {
+            let before = out.len();
+            if overlap == tilegraph_scene::Overlap::Inside {
+                out.extend_from_slice(members);
+            } else {
+                out.extend(members.iter().filter(|member| {
+                    !matches!(
+                        frustum.test_box(member.center - eye, member.half_extents.as_dvec3()),
+                        tilegraph_cull::PlaneTest::Outside(_)
+                    )
+                }));
+            }
+            if let (Some(c), true) = (cells.as_deref_mut(), out.len() > before) {
+                c.push(tilegraph_scene::CellRun {
+                    bounds: *bounds,
+                    end: out.len() as u32,
+                });
             }
         },
     );

@@ -13,12 +13,12 @@
 
 use std::sync::Arc;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use tilegraph_cull::{
-    BoxRect, Extent2d, ExtentExt, OccluderMesh, OcclusionView, SoftwareConfig, SoftwareOcclusion,
+    Extent2d, ExtentExt, OccluderMesh, OcclusionView, SoftwareConfig, SoftwareOcclusion,
     SoftwareStats,
 };
-use tilegraph_scene::{CameraFrame, GridMember, MaterialClass, Scene};
+use tilegraph_scene::{CameraFrame, CellRun, GridMember, MaterialClass, Scene};
 
 /// The knobs of software occlusion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -76,7 +76,8 @@ pub struct SoftwareCull {
     buffer: Option<SoftwareOcclusion>,
     /// Per mesh id: its occluder form, made the first time the mesh occludes.
     meshes: Vec<Option<Arc<OccluderMesh>>>,
-    projected: Vec<Option<BoxRect>>,
+    /// Per member of the frame's list: whether it stays.
+    keep: Vec<bool>,
     candidates: Vec<(f32, u32)>,
     pub last: SoftwareFrame,
 }
@@ -87,12 +88,15 @@ pub type SoftwareError = tilegraph_cull::CullError;
 
 impl SoftwareCull {
     /// Removes from `visible` (the frame's opaque and alpha-tested instances in the frustum)
-    /// those the occluders hide, for a view described by `target`.
+    /// those the occluders hide, for a view described by `target`. `cells`: the runs of
+    /// `visible` that share a grid cell ([`crate::cull::cpu_frustum_visible_by_cell`]), whose
+    /// boxes are tested first (members after the last run, or all without runs, one by one).
     pub fn cull(
         &mut self,
         scene: &Scene,
         frame: &CameraFrame,
         target: &SoftwareTarget,
+        cells: &[CellRun],
         visible: &mut Vec<GridMember>,
     ) -> Result<(), SoftwareError> {
         let start = std::time::Instant::now();
@@ -118,19 +122,29 @@ impl SoftwareCull {
             convention: m.depth,
             format,
         })?;
-        // Every box, relative to the eye in f64.
-        self.projected.clear();
-        self.projected.extend(visible.iter().map(|member| {
-            buffer.project_box(member.center - m.eye, member.half_extents.as_dvec3())
-        }));
-        // Occluders: big opaque boxes, nearest first; one around the eye first of all.
+        // Occluders: big opaque boxes, nearest first; one around the eye first of all. The
+        // bounding sphere's size on screen (over-estimated) skips the small ones cheaply; the
+        // boxes of the rest decide.
         let min_area = u64::from(width) * u64::from(height) / 1024;
+        let px_per_unit = f64::from(projection.matrix(aspect).y_axis.y.abs()) * f64::from(height) * 0.5;
+        let perspective = projection.is_perspective();
         self.candidates.clear();
-        for (k, (member, p)) in visible.iter().zip(&self.projected).enumerate() {
-            let near = match p {
-                Some(r) if r.area_on(width, height) >= min_area => r.near_key,
-                Some(_) => continue,
-                None => f32::NEG_INFINITY,
+        for (k, member) in visible.iter().enumerate() {
+            let rel = member.center - m.eye;
+            let half = member.half_extents.as_dvec3();
+            let (r, d) = (half.length(), rel.length());
+            let near = if perspective && d <= r {
+                f32::NEG_INFINITY
+            } else {
+                let diameter = 2.0 * r * px_per_unit / if perspective { d - r } else { 1.0 };
+                if diameter * diameter < min_area as f64 {
+                    continue;
+                }
+                match buffer.project_box(rel, half) {
+                    Some(b) if b.area_on(width, height) >= min_area => b.near_key,
+                    Some(_) => continue,
+                    None => f32::NEG_INFINITY,
+                }
             };
             let occludes = scene
                 .instances()
@@ -178,15 +192,40 @@ impl SoftwareCull {
             buffer.add_occluder(&occluder, t.linear.as_dmat3(), t.translation - m.eye);
         }
         buffer.rasterize();
+        // A cell's box first: hidden, so are all its members.
         let tested = visible.len() as u32;
-        let mut k = 0;
-        let projected = &self.projected;
-        visible.retain(|_| {
-            let keep = projected
+        let eye = m.eye;
+        let hidden = |center: DVec3, half: DVec3| {
+            buffer
+                .project_box(center, half)
+                .is_some_and(|r| buffer.hides(&r))
+        };
+        self.keep.clear();
+        self.keep.resize(visible.len(), true);
+        let mut start = 0usize;
+        for run in cells {
+            let end = (run.end as usize).min(visible.len());
+            let b = &run.bounds;
+            let cell_hidden = hidden((b.min + b.max) * 0.5 - eye, (b.max - b.min) * 0.5);
+            for k in start..end {
+                self.keep[k] = !cell_hidden
+                    && visible
+                        .get(k)
+                        .is_none_or(|v| !hidden(v.center - eye, v.half_extents.as_dvec3()));
+            }
+            start = end.max(start);
+        }
+        for k in start..visible.len() {
+            self.keep[k] = visible
                 .get(k)
-                .is_none_or(|p| p.is_none_or(|r| !buffer.hides(&r)));
+                .is_none_or(|v| !hidden(v.center - eye, v.half_extents.as_dvec3()));
+        }
+        let mut k = 0;
+        let keep = &self.keep;
+        visible.retain(|_| {
+            let kept = keep.get(k).copied().unwrap_or(true);
             k += 1;
-            keep
+            kept
         });
         self.last = SoftwareFrame {
             raster: buffer.stats(),

@@ -29,8 +29,10 @@ pub(super) struct CpuLists {
     /// The opaque and alpha-tested instances in a grid, for techniques whose CPU lists draw
     /// them (made at their first frame).
     pub(super) opaque: Option<OpaqueGrid>,
-    /// Software occlusion's buffer and occluder meshes (made at its first frame).
+    /// Software occlusion's buffer and occluder meshes (made at its first frame), and the runs
+    /// of `visible` that share a grid cell (its cells are tested before their members).
     pub(super) software: Option<crate::occlusion::SoftwareCull>,
+    pub(super) cells: Vec<tilegraph_scene::CellRun>,
 }
 
 /// A renderer's grid of the scene's drawn opaque and alpha-tested instances, refitted from the

@@ -19,7 +19,9 @@ use tilegraph_vk::{Context, VkError};
 
 use super::fit::{decide_setup, CpuLists};
 use super::{SceneRenderer, Target};
-use crate::cull::{cpu_frustum_visible, CullState, Culling, FrameLists, GpuCullCounts};
+use crate::cull::{
+    cpu_frustum_visible, cpu_frustum_visible_by_cell, CullState, Culling, FrameLists, GpuCullCounts,
+};
 use crate::draws::{order_groups, Visible};
 use crate::gpu_scene::{visbuf_instance_bits, FrameUniforms};
 use crate::hiz::{HizState, ReprojectState};
@@ -351,7 +353,12 @@ impl SceneRenderer {
                 }
                 None => view.cpu.opaque.insert(super::fit::OpaqueGrid::of(scene)),
             };
-            cpu_frustum_visible(&opaque.grid, &m, &mut view.cpu.visible)?;
+            if culling == Culling::SoftwareOcclusion {
+                let cpu = &mut view.cpu;
+                cpu_frustum_visible_by_cell(&opaque.grid, &m, &mut cpu.visible, &mut cpu.cells)?;
+            } else {
+                cpu_frustum_visible(&opaque.grid, &m, &mut view.cpu.visible)?;
+            }
         }
         if culling == Culling::SoftwareOcclusion {
             view.cpu
@@ -366,6 +373,7 @@ impl SceneRenderer {
                         knobs: view.options.software,
                         subpixel_bits,
                     },
+                    &view.cpu.cells,
                     &mut view.cpu.visible,
                 )
                 .map_err(RenderError::Software)?;

@@ -31,6 +31,14 @@ pub enum Overlap {
     Inside,
 }
 
+/// A run of members of one cell in a list a visit filled: the cell's bounds (which hold every
+/// member's) and where the run ends (it starts where the previous run ended).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellRun {
+    pub bounds: DAabb,
+    pub end: u32,
+}
+
 /// A member of a grid cell: an instance with its world bounds and mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GridMember {
@@ -199,16 +207,28 @@ impl LooseGrid {
     /// the caller's to test (their bounds are in the member).
     pub fn visit(
         &self,
-        mut test: impl FnMut(&DAabb) -> Overlap,
+        test: impl FnMut(&DAabb) -> Overlap,
         mut visit: impl FnMut(&GridMember, Overlap),
+    ) {
+        self.visit_cells(test, |_, members, overlap| {
+            for m in members {
+                visit(m, overlap);
+            }
+        });
+    }
+
+    /// Calls `visit(bounds, members, overlap)` for every occupied cell `test` does not find
+    /// outside: a caller that tests the cell's box first (software occlusion) sees each cell
+    /// whole.
+    pub fn visit_cells(
+        &self,
+        mut test: impl FnMut(&DAabb) -> Overlap,
+        mut visit: impl FnMut(&DAabb, &[GridMember], Overlap),
     ) {
         for cell in self.cells.iter().filter(|c| !c.members.is_empty()) {
             let overlap = test(&cell.bounds);
-            if overlap == Overlap::Outside {
-                continue;
-            }
-            for m in &cell.members {
-                visit(m, overlap);
+            if overlap != Overlap::Outside {
+                visit(&cell.bounds, &cell.members, overlap);
             }
         }
     }

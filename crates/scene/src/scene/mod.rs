@@ -30,7 +30,7 @@ pub use elements::{
     MaterialId, Mesh, MeshHandle, MeshId, Transform, Vertex,
 };
 pub use gpu::{GpuInstance, GpuMaterial, GpuMesh, RelativeInstance, SplitPoint};
-pub use grid::{GridMember, LooseGrid, Overlap};
+pub use grid::{CellRun, GridMember, LooseGrid, Overlap};
 pub use info::{BoundsInfo, ClassCounts, SceneInfo};
 pub use journal::{Change, SceneCursor};
 
