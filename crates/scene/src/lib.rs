@@ -64,9 +64,9 @@ pub use gltf_load::{
 pub use motion::{Motion, MotionParams};
 pub use procedural::{generate, ProceduralKind, ProceduralParams};
 pub use scene::{
-    BoundsInfo, Change, ClassCounts, DrawBuckets, DrawGroup, GltfCounts, GpuInstance, GpuMaterial,
-    CellRun, GpuMesh, GridMember, Instance, InstanceBounds, InstanceFlags, InstanceHandle, InstanceId,
-    LooseGrid, Material, MaterialClass, MaterialId, Mesh, MeshHandle, MeshId, Overlap,
+    BoundsInfo, CellRun, Change, ClassCounts, DrawBuckets, DrawGroup, GltfCounts, GpuInstance,
+    GpuMaterial, GpuMesh, GridMember, Instance, InstanceBounds, InstanceFlags, InstanceHandle,
+    InstanceId, LooseGrid, Material, MaterialClass, MaterialId, Mesh, MeshHandle, MeshId, Overlap,
     RelativeInstance, Scene, SceneBuilder, SceneCursor, SceneInfo, SceneSource, SplitPoint,
     Transform, Vertex, DRAW_LISTS,
 };

@@ -228,17 +228,16 @@ impl SoftwareOcclusion {
             .zip(masks.chunks_mut(rows_per_band * tx * th))
             .enumerate();
         let tris = &self.tris;
-        let to_key = |k: f64| far_key(&view, k);
         if self.config.threads <= 1 || self.tiles_y as usize <= rows_per_band {
             for (b, ((f, w), m)) in bands {
-                raster::band(&grid, tris, (b * rows_per_band) as u32, f, w, m, &to_key);
+                raster::band(&grid, tris, (b * rows_per_band) as u32, f, w, m, &view);
             }
         } else {
             std::thread::scope(|s| {
                 for (b, ((f, w), m)) in bands {
-                    let (grid, to_key) = (&grid, &to_key);
+                    let (grid, view) = (&grid, &view);
                     s.spawn(move || {
-                        raster::band(grid, tris, (b * rows_per_band) as u32, f, w, m, to_key)
+                        raster::band(grid, tris, (b * rows_per_band) as u32, f, w, m, view)
                     });
                 }
             });
@@ -462,8 +461,9 @@ impl BoxRect {
 /// `k` (a key: larger is farther) as the f32 key of a depth the GPU's fragment can not lie
 /// behind: 64 f32 steps of the value and 2^-22 farther (the GPU's f32 arithmetic, absolute where
 /// an orthographic depth cancels), rounded up, and for D16 the code on the far side.
+#[inline]
 fn far_key(view: &OcclusionView, k: f64) -> f32 {
-    let k = k + k.abs() * f64::from(2.0f32.powi(-18)) + f64::from(2.0f32.powi(-22));
+    let k = k + k.abs() * (1.0 / 262_144.0) + 1.0 / 4_194_304.0; // 2^-18, 2^-22
     match view.format {
         DepthFormat::D32Float => f64_to_f32_round_up(k),
         DepthFormat::D16Unorm => {

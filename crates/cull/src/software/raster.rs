@@ -290,7 +290,7 @@ pub(crate) fn band(
     full: &mut [f32],
     work: &mut [f32],
     masks: &mut [u32],
-    to_key: &(dyn Fn(f64) -> f32 + Sync),
+    view: &OcclusionView,
 ) {
     let (tw, th) = (grid.tile_w, grid.tile_h);
     let rows = (full.len() as u32) / grid.tiles_x.max(1);
@@ -313,7 +313,7 @@ pub(crate) fn band(
                 let local = ((ty - first_row) * grid.tiles_x + tx) as usize;
                 // Nothing this triangle adds can be nearer than its own depth here: behind
                 // the tile's full layer, the coverage is not worth computing.
-                let own = to_key(tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1));
+                let own = super::far_key(view, tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1));
                 if full.get(local).is_none_or(|&f| own >= f) {
                     continue;
                 }
@@ -327,7 +327,7 @@ pub(crate) fn band(
                     work.get_mut(local),
                     masks.get_mut(base..base + th as usize),
                 ) {
-                    merge(&tile, &cover, to_key(key), f, w, m);
+                    merge(&tile, &cover, super::far_key(view, key), f, w, m);
                 }
             }
         }
@@ -359,37 +359,6 @@ impl Place {
             rows: rows as usize,
         }
     }
-
-    /// The edge's mask over the tile, or `None` when no centre is inside.
-    fn edge(&self, kernel: Kernel, e: &Edge, out: &mut Rows) -> Option<()> {
-        match e.classify(self.x0, self.y0, self.x1, self.y1) {
-            Some(true) => {
-                out[..self.rows].fill(low_bits(self.width));
-                Some(())
-            }
-            Some(false) => None,
-            None => {
-                edge_rows(
-                    kernel,
-                    e,
-                    self.x0,
-                    self.y0,
-                    self.width,
-                    &mut out[..self.rows],
-                );
-                Some(())
-            }
-        }
-    }
-}
-
-fn and_into(acc: &mut Rows, m: &Rows, rows: usize) -> bool {
-    let mut any = 0;
-    for r in 0..rows {
-        acc[r] &= m[r];
-        any |= acc[r];
-    }
-    any != 0
 }
 
 /// The centres of `tile` the GPU covers with `tri` (or with a neighbour across one of its shared
@@ -397,13 +366,14 @@ fn and_into(acc: &mut Rows, m: &Rows, rows: usize) -> bool {
 fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows) -> Option<f64> {
     let k = grid.kernel;
     let rows = tile.rows;
+    let all = low_bits(tile.width);
     // The corners decide most tiles: wholly inside, or outside an edge no neighbour can
     // cover past (the pair's coverage needs this triangle's other two edges).
     let class = tri
         .edges
         .map(|e| e.classify(tile.x0, tile.y0, tile.x1, tile.y1));
     if class.iter().all(|c| *c == Some(true)) {
-        cover[..rows].fill(low_bits(tile.width));
+        cover[..rows].fill(all);
         return Some(tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1));
     }
     let mut outside = (0..3).filter(|&i| class[i] == Some(false));
@@ -412,45 +382,63 @@ fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows
         (Some(i), None) if tri.across[i].0 != NONE => {}
         _ => return None,
     }
-    let none: Rows = [0; MAX_TILE_PX as usize];
-    let e: [Option<Rows>; 3] = tri.edges.map(|edge| {
-        let mut m = none;
-        tile.edge(k, &edge, &mut m).map(|()| m)
-    });
-    let mut key = f64::NEG_INFINITY;
-    if let [Some(a), Some(b), Some(c)] = &e {
-        let mut acc = *a;
-        if and_into(&mut acc, b, rows) && and_into(&mut acc, c, rows) {
-            cover[..rows].copy_from_slice(&acc[..rows]);
-            key = tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1);
+    // Each edge's rows (all set where the corners say so; unused where outside).
+    let mut masks = [[0u32; MAX_TILE_PX as usize]; 3];
+    for (i, m) in masks.iter_mut().enumerate() {
+        match class[i] {
+            Some(true) => m[..rows].fill(all),
+            Some(false) => {}
+            None => edge_rows(k, &tri.edges[i], tile.x0, tile.y0, tile.width, &mut m[..rows]),
         }
+    }
+    let mut key = f64::NEG_INFINITY;
+    let mut any = 0;
+    for r in 0..rows {
+        let c = masks[0][r] & masks[1][r] & masks[2][r];
+        cover[r] = c;
+        any |= c;
+    }
+    if any != 0 {
+        key = tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1);
     }
     // Across a shared edge i: inside this triangle's other two edges and the neighbour's other
     // two, the GPU covers the centre with one of the pair.
+    let mut other_rows = [0u32; MAX_TILE_PX as usize];
     for i in 0..3 {
         let (n, j) = tri.across[i];
-        if n == NONE || e[i].is_some_and(|m| m[..rows].iter().all(|&r| r == low_bits(tile.width))) {
+        let (b, c) = ((i + 1) % 3, (i + 2) % 3);
+        if n == NONE || class[i] == Some(true) || class[b] == Some(false) || class[c] == Some(false)
+        {
             continue;
         }
-        let (Some(b), Some(c)) = (&e[(i + 1) % 3], &e[(i + 2) % 3]) else {
-            continue;
-        };
         let Some(other) = tris.get(n as usize) else {
             continue;
         };
-        let mut acc = *b;
-        if !and_into(&mut acc, c, rows) {
-            continue;
+        let mut acc = [0u32; MAX_TILE_PX as usize];
+        let mut any = 0;
+        for r in 0..rows {
+            acc[r] = masks[b][r] & masks[c][r];
+            any |= acc[r];
         }
-        let mut m = none;
-        let mut ok = true;
         for o in [(j as usize + 1) % 3, (j as usize + 2) % 3] {
-            if tile.edge(k, &other.edges[o], &mut m).is_none() || !and_into(&mut acc, &m, rows) {
-                ok = false;
+            if any == 0 {
                 break;
             }
+            let e = &other.edges[o];
+            match e.classify(tile.x0, tile.y0, tile.x1, tile.y1) {
+                Some(true) => continue,
+                Some(false) => any = 0,
+                None => {
+                    edge_rows(k, e, tile.x0, tile.y0, tile.width, &mut other_rows[..rows]);
+                    any = 0;
+                    for r in 0..rows {
+                        acc[r] &= other_rows[r];
+                        any |= acc[r];
+                    }
+                }
+            }
         }
-        if !ok {
+        if any == 0 {
             continue;
         }
         let mut added = 0;
@@ -458,7 +446,7 @@ fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows
             added |= acc[r] & !cover[r];
             cover[r] |= acc[r];
         }
-        if added != 0 || key == f64::NEG_INFINITY {
+        if added != 0 {
             key = key
                 .max(tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1))
                 .max(other.depth_over(tile.x0, tile.y0, tile.x1, tile.y1));

@@ -126,7 +126,8 @@ impl SoftwareCull {
         // bounding sphere's size on screen (over-estimated) skips the small ones cheaply; the
         // boxes of the rest decide.
         let min_area = u64::from(width) * u64::from(height) / 1024;
-        let px_per_unit = f64::from(projection.matrix(aspect).y_axis.y.abs()) * f64::from(height) * 0.5;
+        let px_per_unit =
+            f64::from(projection.matrix(aspect).y_axis.y.abs()) * f64::from(height) * 0.5;
         let perspective = projection.is_perspective();
         self.candidates.clear();
         for (k, member) in visible.iter().enumerate() {
@@ -202,20 +203,20 @@ impl SoftwareCull {
         };
         self.keep.clear();
         self.keep.resize(visible.len(), true);
-        let mut start = 0usize;
+        let mut first = 0usize;
         for run in cells {
             let end = (run.end as usize).min(visible.len());
             let b = &run.bounds;
             let cell_hidden = hidden((b.min + b.max) * 0.5 - eye, (b.max - b.min) * 0.5);
-            for k in start..end {
+            for k in first..end {
                 self.keep[k] = !cell_hidden
                     && visible
                         .get(k)
                         .is_none_or(|v| !hidden(v.center - eye, v.half_extents.as_dvec3()));
             }
-            start = end.max(start);
+            first = end.max(first);
         }
-        for k in start..visible.len() {
+        for k in first..visible.len() {
             self.keep[k] = visible
                 .get(k)
                 .is_none_or(|v| !hidden(v.center - eye, v.half_extents.as_dvec3()));

@@ -354,8 +354,8 @@ impl SceneRenderer {
                 None => view.cpu.opaque.insert(super::fit::OpaqueGrid::of(scene)),
             };
             if culling == Culling::SoftwareOcclusion {
-                let cpu = &mut view.cpu;
-                cpu_frustum_visible_by_cell(&opaque.grid, &m, &mut cpu.visible, &mut cpu.cells)?;
+                let (visible, cells) = (&mut view.cpu.visible, &mut view.cpu.cells);
+                cpu_frustum_visible_by_cell(&opaque.grid, &m, visible, cells)?;
             } else {
                 cpu_frustum_visible(&opaque.grid, &m, &mut view.cpu.visible)?;
             }
