@@ -388,7 +388,14 @@ fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows
         match class[i] {
             Some(true) => m[..rows].fill(all),
             Some(false) => {}
-            None => edge_rows(k, &tri.edges[i], tile.x0, tile.y0, tile.width, &mut m[..rows]),
+            None => edge_rows(
+                k,
+                &tri.edges[i],
+                tile.x0,
+                tile.y0,
+                tile.width,
+                &mut m[..rows],
+            ),
         }
     }
     let mut key = f64::NEG_INFINITY;
