@@ -284,6 +284,8 @@ pub fn auto_inputs(ctx: &Context, scene: &Scene) -> AutoInputs {
     AutoInputs {
         clusters: scene.clusters().is_some(),
         conditional_rendering: ctx.has_feature(Feature::ConditionalRendering),
+        prefer_cpu_occlusion: ctx.profile().passes.cpu_occlusion
+            == tilegraph_profile::CpuOcclusion::Prefer,
     }
 }
 

@@ -497,7 +497,7 @@ fn knobs_the_run_cannot_use_are_errors_and_the_flag_is_credited() {
     let trial = v["auto_trial"].as_str().unwrap();
     let kept = v["culling"].as_str().unwrap();
     assert!(trial.contains(&format!("— {kept} is fastest")), "{trial}");
-    for candidate in ["none", "frustum", "hiz-2phase"] {
+    for candidate in ["none", "frustum", "hiz-2phase", "software-occlusion"] {
         assert!(trial.contains(&format!("{candidate} ")), "{trial}");
     }
     // Each candidate's whole-frame time arrived (a frame of city:100 takes milliseconds here).

@@ -52,8 +52,9 @@ pub const AUTO_TIMED_FRAMES: usize = 8;
 /// depends on the device as much as on the scene (the FlightHelmet at 320x180 on lavapipe is
 /// fastest frustum-culled, at 1080p on an H200 unculled; a single Godot room on both with
 /// same-frame queries). So `auto` times every conservative candidate the device can run on the
-/// first frames — the first pick, then none, frustum, two-phase HiZ, same-frame queries and,
-/// on a scene with its clusters attached, the two cluster techniques — and keeps the fastest. Every candidate is conservative: no frame of the trial loses an
+/// first frames — the first pick, then none, frustum, two-phase HiZ, same-frame queries, on a
+/// scene with its clusters attached the two cluster techniques, and software occlusion (its
+/// GPU frame plus its CPU time) — and keeps the fastest. Every candidate is conservative: no frame of the trial loses an
 /// instance.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AutoTrial {
@@ -87,6 +88,7 @@ impl AutoTrial {
             Culling::OqConditional,
             Culling::FrustumClusters,
             Culling::HizTwoPhaseClusters,
+            Culling::SoftwareOcclusion,
         ] {
             if candidates.contains(&c)
                 || (c == Culling::OqConditional && !inputs.conditional_rendering)
@@ -164,8 +166,12 @@ impl AutoTrial {
             renderer.clear_timings();
             return Ok((renderer, None));
         }
+        // A CPU technique's frame costs its CPU work too: software occlusion is timed as its
+        // GPU frame plus its own CPU milliseconds (as if they ran one after the other: the
+        // render thread's time is what it takes from the frame when the CPU bounds it).
+        let cpu_ms = renderer.software_cpu_ms().unwrap_or(0.0);
         let ms = match renderer.medians().iter().find(|m| m.name == FRAME_TIMING) {
-            Some(m) => m.median_gpu_ms,
+            Some(m) => m.median_gpu_ms + cpu_ms,
             None => {
                 log::warn!(
                     "auto: no GPU frame time arrived for {}; it is not kept",
@@ -286,6 +292,9 @@ pub struct AutoInputs {
     pub conditional_rendering: bool,
     /// The scene has its clusters attached: the cluster techniques can be tried.
     pub clusters: bool,
+    /// The profile prefers software occlusion on the CPU (`[passes] cpu_occlusion = "prefer"`:
+    /// its family builds depth pyramids slowly): `auto` starts from it.
+    pub prefer_cpu_occlusion: bool,
 }
 
 /// Whether `auto` would try cluster culling on `scene` if it had its clusters: its opaque and
@@ -350,6 +359,14 @@ pub fn auto_culling(scene: &Scene, inputs: AutoInputs, technique: Technique) -> 
             Culling::None,
             format!(
                 "auto: {drawn} opaque and alpha-tested instances, fewer than {AUTO_MIN_INSTANCES}: culling's fixed cost would exceed what it saves"
+            ),
+        );
+    }
+    if inputs.prefer_cpu_occlusion {
+        return (
+            Culling::SoftwareOcclusion,
+            format!(
+                "auto: {drawn} instances, and the profile prefers occlusion on the CPU (its family builds depth pyramids slowly: seed 000 measured 10-20 ms on Adreno 505): software occlusion"
             ),
         );
     }
@@ -680,6 +697,7 @@ mod tests {
         let inputs = AutoInputs {
             conditional_rendering: true,
             clusters: false,
+            prefer_cpu_occlusion: false,
         };
         let mut run = KnobSettings::default();
         run.set_assignment("culling=oq-conditional").unwrap();
@@ -725,13 +743,19 @@ mod tests {
         let inputs = AutoInputs {
             conditional_rendering: false,
             clusters: false,
+            prefer_cpu_occlusion: false,
         };
         let mut t = AutoTrial::new(Culling::HizTwoPhase, inputs, Technique::Forward);
-        assert_eq!(t.frames(), 3 * (AUTO_WARMUP_FRAMES + AUTO_TIMED_FRAMES));
-        let times = [0.5, 1.1, 0.7];
+        assert_eq!(t.frames(), 4 * (AUTO_WARMUP_FRAMES + AUTO_TIMED_FRAMES));
+        let times = [0.5, 1.1, 0.7, 0.9];
         let mut decided = None;
         for (i, ms) in times.iter().enumerate() {
-            let expected = [Culling::HizTwoPhase, Culling::None, Culling::Frustum][i];
+            let expected = [
+                Culling::HizTwoPhase,
+                Culling::None,
+                Culling::Frustum,
+                Culling::SoftwareOcclusion,
+            ][i];
             assert_eq!(t.current(), expected);
             for _ in 1..AUTO_WARMUP_FRAMES {
                 assert_eq!(t.after_frame(), TrialStep::Continue);
@@ -763,14 +787,20 @@ mod tests {
         let conditional = AutoInputs {
             conditional_rendering: true,
             clusters: false,
+            prefer_cpu_occlusion: false,
         };
         let with = AutoTrial::new(Culling::None, conditional, Technique::Forward);
-        assert_eq!(with.candidates.len(), 4);
+        assert_eq!(with.candidates.len(), 5);
         // ... and only with a technique that draws a depth pre-pass for them to test against.
         let visbuf = AutoTrial::new(Culling::HizTwoPhase, conditional, Technique::Visbuf);
         assert_eq!(
             visbuf.candidates,
-            [Culling::HizTwoPhase, Culling::None, Culling::Frustum]
+            [
+                Culling::HizTwoPhase,
+                Culling::None,
+                Culling::Frustum,
+                Culling::SoftwareOcclusion
+            ]
         );
         // The cluster techniques only on a scene with its clusters attached, and not with the
         // visibility buffer (its ids restart at each cluster range).
@@ -781,10 +811,43 @@ mod tests {
         let forward = AutoTrial::new(Culling::None, clusters, Technique::Forward);
         assert_eq!(
             forward.candidates[4..],
-            [Culling::FrustumClusters, Culling::HizTwoPhaseClusters]
+            [
+                Culling::FrustumClusters,
+                Culling::HizTwoPhaseClusters,
+                Culling::SoftwareOcclusion
+            ]
         );
         let visbuf = AutoTrial::new(Culling::HizTwoPhase, clusters, Technique::Visbuf);
         assert!(!visbuf.candidates.iter().any(|c| c.clusters()));
+    }
+
+    #[test]
+    fn a_profile_that_prefers_the_cpu_starts_auto_from_software_occlusion() {
+        let prefer = AutoInputs {
+            conditional_rendering: true,
+            clusters: false,
+            prefer_cpu_occlusion: true,
+        };
+        let big = tilegraph_scene::load("city:2000").unwrap();
+        let (c, why) = auto_culling(&big, prefer, Technique::Forward);
+        assert_eq!(c, Culling::SoftwareOcclusion, "{why}");
+        assert!(why.contains("Adreno 505"), "{why}");
+        // Small scenes are still drawn whole; the trial still times the GPU techniques.
+        let small = tilegraph_scene::load("city:100").unwrap();
+        assert_eq!(auto_culling(&small, prefer, Technique::Forward).0, Culling::None);
+        let t = AutoTrial::new(Culling::SoftwareOcclusion, prefer, Technique::Forward);
+        assert_eq!(t.current(), Culling::SoftwareOcclusion);
+        assert!(t.candidates.contains(&Culling::HizTwoPhase));
+        // adreno-5xx is the profile that says so (seed 000's Adreno 505).
+        let adreno = profile("adreno-5xx");
+        assert_eq!(
+            adreno.passes.cpu_occlusion,
+            tilegraph_profile::CpuOcclusion::Prefer
+        );
+        assert_eq!(
+            profile("mali-valhall").passes.cpu_occlusion,
+            tilegraph_profile::CpuOcclusion::Allow
+        );
     }
 
     #[test]
@@ -800,6 +863,7 @@ mod tests {
         let inputs = AutoInputs {
             conditional_rendering: true,
             clusters: false,
+            prefer_cpu_occlusion: false,
         };
         let small = tilegraph_scene::load("city:100").unwrap();
         let (c, why) = auto_culling(&small, inputs, Technique::Forward);
@@ -818,6 +882,7 @@ mod tests {
         let inputs = AutoInputs {
             conditional_rendering: true,
             clusters: false,
+            prefer_cpu_occlusion: false,
         };
         // 300 instances of a 1,000-triangle mesh.
         let mut b = tilegraph_scene::SceneBuilder::new("heavy");

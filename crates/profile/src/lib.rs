@@ -163,6 +163,22 @@ pub struct PassPolicy {
     /// dispatches and barriers where shared memory is fast, 1 where it is not.
     #[serde(default = "four_levels")]
     pub hiz_levels_per_dispatch: u32,
+    /// Whether `culling = auto` starts from software occlusion on the CPU (`prefer`: the
+    /// family builds depth pyramids slowly or reads culling buffers badly) or only tries it
+    /// beside the GPU techniques (`allow`, the default).
+    #[serde(default)]
+    pub cpu_occlusion: CpuOcclusion,
+}
+
+/// What `culling = auto` makes of software occlusion on a family.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CpuOcclusion {
+    /// Timed beside the GPU techniques like any candidate.
+    #[default]
+    Allow,
+    /// The first pick: the family's GPU culling is known to be slow.
+    Prefer,
 }
 
 fn four_levels() -> u32 {

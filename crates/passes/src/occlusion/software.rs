@@ -80,7 +80,13 @@ pub struct SoftwareCull {
     keep: Vec<bool>,
     candidates: Vec<(f32, u32)>,
     pub last: SoftwareFrame,
+    /// CPU milliseconds of the last frames (at most [`HISTORY`]; the renderer clears it with
+    /// its timings).
+    pub history: Vec<f64>,
 }
+
+/// Frames of CPU time [`SoftwareCull::history`] keeps.
+pub const HISTORY: usize = 64;
 
 /// Why a frame's software occlusion could not run (bad camera or mesh data); the caller keeps
 /// every instance instead.
@@ -234,6 +240,10 @@ impl SoftwareCull {
             culled: tested - visible.len() as u32,
             cpu_ms: start.elapsed().as_secs_f64() * 1e3,
         };
+        if self.history.len() >= HISTORY {
+            self.history.remove(0);
+        }
+        self.history.push(self.last.cpu_ms);
         Ok(())
     }
 }

@@ -654,6 +654,16 @@ impl SceneRenderer {
     /// collected).
     pub fn clear_timings(&mut self) {
         self.executor.clear_timings();
+        if let Some(s) = self.views.main.cpu.software.as_mut() {
+            s.history.clear();
+        }
+    }
+
+    /// With software occlusion: the median CPU milliseconds of its work in the main view's
+    /// frames since [`Self::clear_timings`] (the last 64 at most).
+    pub fn software_cpu_ms(&self) -> Option<f64> {
+        let s = self.views.main.cpu.software.as_ref()?;
+        tilegraph_vk::queries::median(&s.history)
     }
 
     pub fn executor(&self) -> &Executor {
