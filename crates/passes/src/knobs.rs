@@ -834,7 +834,10 @@ mod tests {
         assert!(why.contains("Adreno 505"), "{why}");
         // Small scenes are still drawn whole; the trial still times the GPU techniques.
         let small = tilegraph_scene::load("city:100").unwrap();
-        assert_eq!(auto_culling(&small, prefer, Technique::Forward).0, Culling::None);
+        assert_eq!(
+            auto_culling(&small, prefer, Technique::Forward).0,
+            Culling::None
+        );
         let t = AutoTrial::new(Culling::SoftwareOcclusion, prefer, Technique::Forward);
         assert_eq!(t.current(), Culling::SoftwareOcclusion);
         assert!(t.candidates.contains(&Culling::HizTwoPhase));
