@@ -58,6 +58,7 @@ pub fn check(
         ..Default::default()
     };
     let resolved = RunArgs::resolve(ctx, scene, knobs, &mut o)?;
+    o.pvs = a.load_pvs()?;
     let mut save = |f: &FailedFrame<'_>| -> Result<(), String> {
         let Some(dir) = save_frames else {
             return Ok(());

@@ -18,6 +18,7 @@ mod graph;
 mod image_io;
 mod knobs;
 mod lint;
+mod pvs;
 mod render;
 mod run;
 mod tune;
@@ -133,6 +134,11 @@ enum Command {
     /// and images against goldens kept in DIR (`--bless` writes them); JUnit XML, a JSON
     /// summary and a Markdown report; the exit status says pass or fail (docs/VALIDATING.md).
     Validate(validate::ValidateArgs),
+    /// Bake a precomputed visible set: for each cell of a grid over the region cameras visit
+    /// (the camera path's eyes, grown by half a cell), the instances the exact oracle's id
+    /// render sees from sampled viewpoints (six 90° faces each); `--culling pvs --pvs FILE`
+    /// draws it. Prints the bake time and the file's size.
+    Pvs(pvs::PvsArgs),
     /// Instance, mesh and triangle counts, bounds and material classes of a scene.
     SceneInfo {
         /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
@@ -243,6 +249,7 @@ fn main() -> ExitCode {
         Command::BenchDoc(args) => bench::doc::run(&args),
         Command::Tune(args) => tune::run(&args),
         Command::Validate(args) => validate::run(&args),
+        Command::Pvs(args) => pvs::run(&args),
         Command::Knobs {
             profile,
             scene,
@@ -273,6 +280,7 @@ fn demo(out: &std::path::Path, size: (u32, u32), frames: u32) -> Result<(), CliE
         frames: Some(frames),
         json: false,
         texture_binding: None,
+        pvs: None,
         technique: None,
         oq_group: None,
         raster_occlusion_scale: None,

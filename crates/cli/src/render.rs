@@ -117,6 +117,7 @@ fn render_with(
     let resolved = RunArgs::resolve(ctx, scene, args.knobs, &mut ropts)?;
     ropts.lighting.heavy_iterations = args.heavy;
     ropts.texture_binding = run.texture_binding;
+    ropts.pvs = run.load_pvs()?;
     let path = run.camera_path(scene)?;
     let camera = path.camera(args.camera_frame).ok_or_else(|| {
         CliError::Usage(format!(

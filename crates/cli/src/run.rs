@@ -55,6 +55,9 @@ pub struct RunArgs {
     /// them) or `layers` (resampled into one array image); default: the profile's `[textures]`.
     #[arg(long, value_parser = parse_texture_binding)]
     pub texture_binding: Option<tilegraph_profile::TextureBinding>,
+    /// A precomputed visible set (`tilegraph pvs --out FILE`) for `--culling pvs`.
+    #[arg(long, value_name = "FILE")]
+    pub pvs: Option<PathBuf>,
     /// Deprecated: `--shading` in `render`, `--culling` in `cull-check`.
     #[arg(long, hide = true)]
     pub technique: Option<String>,
@@ -131,6 +134,19 @@ impl RunArgs {
         let resolved = knobs::resolve(ctx.profile(), run, scene, auto_inputs(ctx, scene))?;
         resolved.apply(options);
         Ok(resolved)
+    }
+
+    /// The visible set of `--pvs`, read and checked (`None` without the flag).
+    pub fn load_pvs(&self) -> Result<Option<std::sync::Arc<tilegraph_cull::Pvs>>, CliError> {
+        let Some(path) = &self.pvs else {
+            return Ok(None);
+        };
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| CliError::Usage(format!("--pvs {}: {e}", path.display())))?;
+        let pvs: tilegraph_cull::Pvs = serde_json::from_str(&text)?;
+        pvs.validate()
+            .map_err(|e| CliError::Usage(format!("--pvs {}: {e}", path.display())))?;
+        Ok(Some(std::sync::Arc::new(pvs)))
     }
 
     /// The camera path: `--camera-path`, else the scene's own.

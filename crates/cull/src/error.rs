@@ -8,6 +8,10 @@ pub enum CullError {
     #[error("software occluder: {reason}")]
     InvalidOccluder { reason: String },
 
+    /// A precomputed visible set that does not hold together.
+    #[error("precomputed visible set: {reason}")]
+    InvalidPvs { reason: String },
+
     /// A viewport, depth buffer or id buffer of width or height 0.
     #[error("{what}: extent {width_px}x{height_px} px is empty; both sides must be at least 1")]
     ZeroExtent {

@@ -16,6 +16,7 @@
 //! - [`project`]: sphere / box -> NDC rect + conservative nearest depth.
 //! - [`hiz`]: the pyramid (three [`NpotMode`]s) and the occlusion test.
 //! - [`oracle`]: exact visible set from an id buffer, [`CullStats`].
+//! - [`pvs`]: a precomputed visible set per cell of a grid ([`Pvs`]).
 //! - [`software`]: software occlusion culling, a conservative CPU rasterizer (SIMD and scalar).
 
 mod check;
@@ -28,6 +29,7 @@ pub mod frustum;
 pub mod hiz;
 pub mod oracle;
 pub mod project;
+pub mod pvs;
 pub mod reference;
 pub mod screen;
 pub mod shadow;
@@ -50,6 +52,7 @@ pub use project::{
     project_aabb, project_obb, project_sphere, project_sphere_view, ProjectedBounds,
     ScreenProjection, DEPTH_MARGIN_ULPS,
 };
+pub use pvs::{Pvs, PVS_VERSION};
 pub use screen::{ClampedRect, Extent2d, ExtentExt, NdcRect, PixelRect, MAX_EXTENT_PX};
 pub use software::{
     BoxRect, Kernel, OccluderMesh, OcclusionView, SoftwareConfig, SoftwareOcclusion, SoftwareStats,

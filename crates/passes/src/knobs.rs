@@ -597,6 +597,9 @@ impl Resolved {
         if let Some(n) = integer("software_occluder_triangles") {
             options.software.occluder_triangles = n;
         }
+        if let Some(n) = integer("pvs_dilation") {
+            options.pvs_dilation = n;
+        }
         let shadows = &mut options.shadows;
         if let Some(n) = integer("shadow_cascades") {
             shadows.cascades = n;
@@ -679,7 +682,7 @@ mod tests {
                     "software_resolution" => {
                         crate::occlusion::software::parse_resolution(&s).is_some()
                     }
-                    "software_threads" | "software_occluder_triangles" => {
+                    "software_threads" | "software_occluder_triangles" | "pvs_dilation" => {
                         matches!(k.domain, Domain::Integers(_))
                     }
                     other => panic!("knob {other} has no meaning in tilegraph-passes"),

@@ -31,6 +31,7 @@ pub mod occlusion;
 pub mod options;
 pub mod pipelines;
 pub mod prepass;
+pub mod pvs;
 pub mod recording;
 pub mod renderer;
 pub mod setup;

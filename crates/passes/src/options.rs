@@ -40,6 +40,9 @@ pub enum RenderError {
         technique: &'static str,
         reason: &'static str,
     },
+    /// `Culling::Pvs` without a visible set, or with one baked for other geometry.
+    #[error("culling pvs: {reason}")]
+    Pvs { reason: String },
     #[error("culling {culling} culls clusters, and scene {scene:?} has none attached (build them with tilegraph_scene::clusters::cached or read prebuilt ones, then Scene::attach_clusters)")]
     NoClusters {
         culling: &'static str,
@@ -167,6 +170,10 @@ pub struct RenderOptions {
     pub shadows: crate::shadow::ShadowOptions,
     /// Software occlusion's knobs (`Culling::SoftwareOcclusion`).
     pub software: crate::occlusion::SoftwareOptions,
+    /// The precomputed visible set `Culling::Pvs` draws from, and how many cells around the
+    /// camera's its sets join (knob `pvs_dilation`).
+    pub pvs: Option<std::sync::Arc<tilegraph_cull::Pvs>>,
+    pub pvs_dilation: u32,
 }
 
 impl RenderOptions {
@@ -219,6 +226,8 @@ impl Default for RenderOptions {
             classify_tile: None,
             shadows: crate::shadow::ShadowOptions::default(),
             software: crate::occlusion::SoftwareOptions::default(),
+            pvs: None,
+            pvs_dilation: 1,
         }
     }
 }
@@ -353,6 +362,20 @@ pub(crate) fn check_device(
             technique: options.technique.name(),
             reason,
         });
+    }
+    if options.culling == Culling::Pvs {
+        let reason = match &options.pvs {
+            None => Some("no visible set given (bake one with `tilegraph pvs`, pass it with --pvs or RenderOptions::pvs)".to_string()),
+            Some(p) if p.scene_fingerprint != scene.placement_fingerprint() => Some(format!(
+                "the visible set was baked for other geometry or placements (fingerprint {:016x}, scene {:016x})",
+                p.scene_fingerprint,
+                scene.placement_fingerprint()
+            )),
+            Some(p) => p.validate().err().map(|e| e.to_string()),
+        };
+        if let Some(reason) = reason {
+            return Err(RenderError::Pvs { reason });
+        }
     }
     if options.culling.clusters() && scene.clusters().is_none() {
         return Err(RenderError::NoClusters {

@@ -113,11 +113,15 @@ pub enum Culling {
     /// into a low-resolution depth buffer, every instance in the frustum tested against it, the
     /// CPU lists drawn. Same frame, no GPU work; conservative.
     SoftwareOcclusion,
+    /// A precomputed visible set (`RenderOptions::pvs`, baked by `tilegraph pvs`): the camera
+    /// cell's instances (with `pvs_dilation`, its neighbours' too) that the frustum holds, on
+    /// the CPU lists. Exact only at its baked viewpoints: misses measured, not conservative.
+    Pvs,
 }
 
 impl Culling {
     /// Every culling technique, in the order the docs list them.
-    pub const ALL: [Culling; 11] = [
+    pub const ALL: [Culling; 12] = [
         Culling::None,
         Culling::Frustum,
         Culling::Hiz,
@@ -129,6 +133,7 @@ impl Culling {
         Culling::FrustumClusters,
         Culling::HizTwoPhaseClusters,
         Culling::SoftwareOcclusion,
+        Culling::Pvs,
     ];
 
     /// What the tools run when no technique is named, and the Android sample cycles through:
@@ -173,6 +178,7 @@ impl Culling {
             "frustum-clusters" => Some(Culling::FrustumClusters),
             "hiz-2phase-clusters" => Some(Culling::HizTwoPhaseClusters),
             "software-occlusion" => Some(Culling::SoftwareOcclusion),
+            "pvs" => Some(Culling::Pvs),
             _ => None,
         }
     }
@@ -190,6 +196,7 @@ impl Culling {
             Culling::FrustumClusters => "frustum-clusters",
             Culling::HizTwoPhaseClusters => "hiz-2phase-clusters",
             Culling::SoftwareOcclusion => "software-occlusion",
+            Culling::Pvs => "pvs",
         }
     }
 
@@ -207,9 +214,14 @@ impl Culling {
     }
 
     /// Whether the CPU decides which opaque and alpha-tested instances are drawn (the frustum's
-    /// instances, narrowed by queries or software occlusion; raster occlusion's pre-pass).
+    /// instances, narrowed by queries, software occlusion or a precomputed visible set; raster
+    /// occlusion's pre-pass).
     pub fn cpu_lists(self) -> bool {
-        self.uses_queries() || matches!(self, Culling::RasterOcclusion | Culling::SoftwareOcclusion)
+        self.uses_queries()
+            || matches!(
+                self,
+                Culling::RasterOcclusion | Culling::SoftwareOcclusion | Culling::Pvs
+            )
     }
 
     /// Whether the technique issues hardware occlusion queries.
@@ -234,7 +246,10 @@ impl Culling {
     /// holds each to FN 0 and equal images); the others trade misses for speed (single-phase
     /// HiZ after a cut, next-frame queries as objects appear, reprojected depth).
     pub fn conservative(self) -> bool {
-        !matches!(self, Culling::Hiz | Culling::Oq | Culling::Reproject)
+        !matches!(
+            self,
+            Culling::Hiz | Culling::Oq | Culling::Reproject | Culling::Pvs
+        )
     }
 
     /// Why this culling cannot run with `technique`, or `None` when it can.

@@ -118,6 +118,7 @@ pub const CULLING_NAMES: &[&str] = &[
     "frustum-clusters",
     "hiz-2phase-clusters",
     "software-occlusion",
+    "pvs",
 ];
 
 /// Every knob. Order is the order `tilegraph` prints and `tune` sweeps them.
@@ -233,6 +234,13 @@ pub const KNOBS: &[KnobSpec] = &[
         default: DefaultValue::Integer(16384),
         applies: Applies::WithCulling(&["software-occlusion"]),
         help: "software occlusion's occluder triangles per frame at most (the largest opaque instances, nearest first)",
+    },
+    KnobSpec {
+        name: "pvs_dilation",
+        domain: Domain::Integers(&[0, 1, 2]),
+        default: DefaultValue::Integer(1),
+        applies: Applies::WithCulling(&["pvs"]),
+        help: "cells around the camera's whose precomputed visible sets are drawn too: fewer misses between baked viewpoints, more drawn",
     },
     KnobSpec {
         name: "visbuf_resolve",

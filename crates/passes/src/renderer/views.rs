@@ -360,6 +360,16 @@ impl SceneRenderer {
                 cpu_frustum_visible(&opaque.grid, &m, &mut view.cpu.visible)?;
             }
         }
+        if let (Culling::Pvs, Some(pvs)) = (culling, &view.options.pvs) {
+            // Outside the baked region every instance in the frustum is drawn.
+            let cpu = &mut view.cpu;
+            let inside = pvs.mark_visible(m.eye, view.options.pvs_dilation, &mut cpu.pvs_mask);
+            if inside {
+                let mask = &cpu.pvs_mask;
+                cpu.visible
+                    .retain(|v| mask.get(v.instance as usize).copied().unwrap_or(true));
+            }
+        }
         if culling == Culling::SoftwareOcclusion {
             view.cpu
                 .software
@@ -432,7 +442,7 @@ impl SceneRenderer {
                 view.record_drawn();
             }
         }
-        if culling == Culling::SoftwareOcclusion {
+        if matches!(culling, Culling::SoftwareOcclusion | Culling::Pvs) {
             // Decided on the CPU before this function (`cull_view_on_cpu`).
             view.record_drawn();
         }

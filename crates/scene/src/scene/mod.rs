@@ -20,6 +20,7 @@ mod grid;
 mod info;
 mod journal;
 mod one_mesh;
+mod placement;
 mod pool;
 mod variants;
 
