@@ -79,10 +79,12 @@ pub fn run(a: &PvsArgs) -> Result<(), CliError> {
     })?;
     let cells = pvs.cells.len().max(1);
     outln!(
-        "{}: {} cells of {} m ({}x{}x{}), {} viewpoints x 6 faces of {} px each; {:.1} s; {} bytes; {:.1} of {} instances per cell on average",
+        "{}: {} cells of {:.1}x{:.1}x{:.1} m ({}x{}x{}), {} viewpoints x 6 faces of {} px each; {:.1} s; {} bytes; {:.1} of {} instances per cell on average",
         a.out.display(),
         pvs.cells.len(),
-        pvs.cell,
+        pvs.cell[0],
+        pvs.cell[1],
+        pvs.cell[2],
         pvs.dims[0],
         pvs.dims[1],
         pvs.dims[2],

@@ -20,9 +20,9 @@ pub struct Pvs {
     /// `Scene::placement_fingerprint`) and its instance slots.
     pub scene_fingerprint: u64,
     pub instances: u32,
-    /// The grid: its lowest corner, the cells' side (m) and their count per axis.
+    /// The grid: its lowest corner, a cell's size per axis (m) and the cells per axis.
     pub origin: [f64; 3],
-    pub cell: f64,
+    pub cell: [f64; 3],
     pub dims: [u32; 3],
     /// Viewpoints sampled per cell, and the side in pixels of each of their six faces.
     pub samples: u32,
@@ -43,10 +43,11 @@ impl Pvs {
                 self.version
             ));
         }
-        if !(self.cell.is_finite() && self.cell > 0.0 && self.origin.iter().all(|v| v.is_finite()))
+        if !(self.cell.iter().all(|c| c.is_finite() && *c > 0.0)
+            && self.origin.iter().all(|v| v.is_finite()))
         {
             return bad(format!(
-                "cell side {} at origin {:?}: not a grid",
+                "cell size {:?} at origin {:?}: not a grid",
                 self.cell, self.origin
             ));
         }
@@ -76,7 +77,7 @@ impl Pvs {
     pub fn cell_at(&self, p: DVec3) -> Option<[u32; 3]> {
         let mut at = [0u32; 3];
         for a in 0..3 {
-            let t = ((p[a] - self.origin[a]) / self.cell).floor();
+            let t = ((p[a] - self.origin[a]) / self.cell[a]).floor();
             if !(t >= 0.0 && t < f64::from(self.dims[a])) {
                 return None;
             }
@@ -138,7 +139,7 @@ mod tests {
             scene_fingerprint: 7,
             instances: 10,
             origin: [0.0, 0.0, 0.0],
-            cell: 2.0,
+            cell: [2.0, 2.0, 2.0],
             dims: [3, 1, 2],
             samples: 1,
             face_px: 8,
@@ -176,7 +177,7 @@ mod tests {
         p.version = 99;
         assert!(p.validate().is_err());
         let mut p = grid();
-        p.cell = f64::NAN;
+        p.cell[1] = f64::NAN;
         assert!(p.validate().is_err());
     }
 }

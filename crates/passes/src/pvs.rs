@@ -52,19 +52,28 @@ const FACES: [(DVec3, Vec3); 6] = [
     (DVec3::NEG_Y, Vec3::Z),
 ];
 
+/// A cell's size per axis: `spec.cell`, or the region's extent along an axis it spans less
+/// than a cell of (an eye-height walk: viewpoints stay at the heights cameras take).
+pub fn cell_size(spec: &BakeSpec) -> [f64; 3] {
+    let size = spec.region.max - spec.region.min;
+    let cell = spec.cell.max(1e-3);
+    [0, 1, 2].map(|a| cell.min(size[a].max(1e-3)))
+}
+
 /// The grid over `spec.region` (cells per axis) and each cell's viewpoints, in the order the
 /// bake renders them (cells x fastest, then y, then z).
 pub fn viewpoints(spec: &BakeSpec) -> ([u32; 3], Vec<Vec<DVec3>>) {
     let size = spec.region.max - spec.region.min;
-    let cell = spec.cell.max(1e-3);
-    let dims = [0, 1, 2].map(|a| ((size[a] / cell).ceil().clamp(1.0, 1e6) as u32).max(1));
+    let cell = cell_size(spec);
+    let dims = [0, 1, 2].map(|a| ((size[a] / cell[a]).ceil().clamp(1.0, 1e6) as u32).max(1));
+    let step = DVec3::from_array(cell);
     let mut state = spec.seed;
     let mut cells = Vec::new();
     for z in 0..dims[2] {
         for y in 0..dims[1] {
             for x in 0..dims[0] {
                 let low =
-                    spec.region.min + DVec3::new(f64::from(x), f64::from(y), f64::from(z)) * cell;
+                    spec.region.min + DVec3::new(f64::from(x), f64::from(y), f64::from(z)) * step;
                 cells.push(
                     (0..spec.samples.max(1))
                         .map(|_| {
@@ -73,7 +82,7 @@ pub fn viewpoints(spec: &BakeSpec) -> ([u32; 3], Vec<Vec<DVec3>>) {
                                 next_unit(&mut state),
                                 next_unit(&mut state),
                             );
-                            low + jitter * cell
+                            low + jitter * step
                         })
                         .collect(),
                 );
@@ -149,7 +158,7 @@ pub fn bake(
         scene_fingerprint: scene.placement_fingerprint(),
         instances,
         origin: spec.region.min.to_array(),
-        cell: spec.cell.max(1e-3),
+        cell: cell_size(spec),
         dims,
         samples: spec.samples.max(1),
         face_px: spec.face_px.max(1),
@@ -158,8 +167,9 @@ pub fn bake(
     })
 }
 
-/// The region of a camera path's eyes (grown by half a cell each way, so that a sample can sit
-/// on either side of the path).
+/// The region of a camera path's eyes, grown by half a cell along each axis the path spans
+/// (so that a sample can sit on either side of it) and by 0.1 m along one it keeps (an
+/// eye-height walk's height: viewpoints below the floor see nothing cameras see).
 pub fn path_region(path: &tilegraph_scene::CameraPath, cell: f64) -> DAabb {
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
@@ -170,5 +180,9 @@ pub fn path_region(path: &tilegraph_scene::CameraPath, cell: f64) -> DAabb {
     if lo.x > hi.x {
         return DAabb::new(DVec3::ZERO, DVec3::splat(cell));
     }
-    DAabb::new(lo - DVec3::splat(cell * 0.5), hi + DVec3::splat(cell * 0.5))
+    let grow = (hi - lo)
+        .to_array()
+        .map(|e| if e >= cell { cell * 0.5 } else { 0.1 });
+    let grow = DVec3::from_array(grow);
+    DAabb::new(lo - grow, hi + grow)
 }
