@@ -24,6 +24,10 @@ pub struct PvsArgs {
     /// cell; the scene's own path when absent.
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
+    /// Cover the scene's whole extent across (x and z) at the path's heights, so that any
+    /// camera at those heights is inside (an eye-height walk anywhere in the level).
+    #[arg(long)]
+    pub whole_level: bool,
     /// The viewpoints' random sequence.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -47,8 +51,16 @@ pub fn run(a: &PvsArgs) -> Result<(), CliError> {
         Some(p) => crate::run::named_camera_path(&p.to_string_lossy(), &scene)?,
         None => scene.camera_path().clone(),
     };
+    let mut region = path_region(&path, a.cell);
+    if a.whole_level {
+        let b = scene.bounds();
+        region.min.x = b.min.x;
+        region.min.z = b.min.z;
+        region.max.x = b.max.x;
+        region.max.z = b.max.z;
+    }
     let spec = BakeSpec {
-        region: path_region(&path, a.cell),
+        region,
         cell: a.cell,
         samples: a.samples,
         face_px: a.face_px,
