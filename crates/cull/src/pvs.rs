@@ -92,17 +92,16 @@ impl Pvs {
         c[0] as usize + dx * (c[1] as usize + dy * c[2] as usize)
     }
 
-    /// Marks in `mask` (one flag per instance slot, cleared first) what a camera at `eye`
-    /// may see: the sets of its cell and of the cells within `dilation` of it. Returns `false`
-    /// (and marks nothing) when `eye` lies outside the baked region: the caller draws what the
-    /// frustum holds.
-    pub fn mark_visible(&self, eye: DVec3, dilation: u32, mask: &mut Vec<bool>) -> bool {
-        mask.clear();
-        mask.resize(self.instances as usize, false);
+    /// Gathers into `ids` (ascending, no repeats) what a camera at `eye` may see: the sets of
+    /// its cell and of the cells within `dilation` of it. The cost follows those sets, not the
+    /// scene. Returns `false` (and gathers nothing) when `eye` lies outside the baked region:
+    /// the caller draws what the frustum holds.
+    pub fn visible_from(&self, eye: DVec3, dilation: u32, ids: &mut Vec<u32>) -> bool {
+        ids.clear();
         let Some(c) = self.cell_at(eye) else {
             return false;
         };
-        let d = dilation as i64;
+        let d = i64::from(dilation);
         let range = |a: usize| {
             let lo = (i64::from(c[a]) - d).max(0);
             let hi = (i64::from(c[a]) + d).min(i64::from(self.dims[a]) - 1);
@@ -112,14 +111,12 @@ impl Pvs {
             for y in range(1) {
                 for x in range(0) {
                     let k = self.index([x as u32, y as u32, z as u32]);
-                    for &i in self.cells.get(k).map_or(&[][..], Vec::as_slice) {
-                        if let Some(m) = mask.get_mut(i as usize) {
-                            *m = true;
-                        }
-                    }
+                    ids.extend_from_slice(self.cells.get(k).map_or(&[][..], Vec::as_slice));
                 }
             }
         }
+        ids.sort_unstable();
+        ids.dedup();
         true
     }
 
@@ -155,14 +152,13 @@ mod tests {
         assert_eq!(p.cell_at(DVec3::new(2.5, 1.0, 3.0)), Some([1, 0, 1]));
         assert_eq!(p.cell_at(DVec3::new(-0.1, 1.0, 3.0)), None);
         assert_eq!(p.cell_at(DVec3::new(6.0, 1.0, 3.0)), None);
-        let mut m = Vec::new();
-        assert!(p.mark_visible(DVec3::new(2.5, 1.0, 3.0), 0, &mut m));
-        let on = |m: &[bool]| (0..10).filter(|&i| m[i]).collect::<Vec<_>>();
-        assert_eq!(on(&m), [4]);
-        assert!(p.mark_visible(DVec3::new(5.0, 1.0, 3.0), 1, &mut m));
-        assert_eq!(on(&m), [1, 2, 4, 5, 9]);
-        assert!(!p.mark_visible(DVec3::new(5.0, 3.0, 3.0), 1, &mut m));
-        assert!(m.iter().all(|&v| !v));
+        let mut ids = Vec::new();
+        assert!(p.visible_from(DVec3::new(2.5, 1.0, 3.0), 0, &mut ids));
+        assert_eq!(ids, [4]);
+        assert!(p.visible_from(DVec3::new(5.0, 1.0, 3.0), 1, &mut ids));
+        assert_eq!(ids, [1, 2, 4, 5, 9]);
+        assert!(!p.visible_from(DVec3::new(5.0, 3.0, 3.0), 1, &mut ids));
+        assert!(ids.is_empty());
     }
 
     #[test]

@@ -33,8 +33,8 @@ pub(super) struct CpuLists {
     /// of `visible` that share a grid cell (its cells are tested before their members).
     pub(super) software: Option<crate::occlusion::SoftwareCull>,
     pub(super) cells: Vec<tilegraph_scene::CellRun>,
-    /// `Culling::Pvs`: the instances the camera's cell (and its neighbours) may see.
-    pub(super) pvs_mask: Vec<bool>,
+    /// `Culling::Pvs`: the instances the camera's cell (and its neighbours) may see, ascending.
+    pub(super) pvs_ids: Vec<u32>,
 }
 
 /// A renderer's grid of the scene's drawn opaque and alpha-tested instances, refitted from the

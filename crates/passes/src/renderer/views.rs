@@ -363,11 +363,10 @@ impl SceneRenderer {
         if let (Culling::Pvs, Some(pvs)) = (culling, &view.options.pvs) {
             // Outside the baked region every instance in the frustum is drawn.
             let cpu = &mut view.cpu;
-            let inside = pvs.mark_visible(m.eye, view.options.pvs_dilation, &mut cpu.pvs_mask);
-            if inside {
-                let mask = &cpu.pvs_mask;
+            if pvs.visible_from(m.eye, view.options.pvs_dilation, &mut cpu.pvs_ids) {
+                let ids = &cpu.pvs_ids;
                 cpu.visible
-                    .retain(|v| mask.get(v.instance as usize).copied().unwrap_or(true));
+                    .retain(|v| ids.binary_search(&v.instance).is_ok());
             }
         }
         if culling == Culling::SoftwareOcclusion {
