@@ -158,6 +158,11 @@ enum TgCulling
    * Occluders rasterized on the CPU, same frame (knobs `software_*`).
    */
   TG_CULLING_SOFTWARE_OCCLUSION = 10,
+  /**
+   * A precomputed visible set (`TgRendererDesc::pvs`, baked by `tilegraph pvs`): the
+   * camera cell's instances the frustum holds. Exact only at its samples (docs/ACCURACY.md).
+   */
+  TG_CULLING_PVS = 11,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -938,6 +943,37 @@ typedef struct {
   int32_t new_layout;
 } TgBarrier;
 
+/**
+ * A precomputed visible set.
+ */
+typedef struct {
+  uint64_t raw;
+} TgPvs;
+
+/**
+ * What a visible set holds.
+ */
+typedef struct {
+  /**
+   * The instance slots of the scene it was baked for.
+   */
+  uint32_t instances;
+  /**
+   * Cells per axis, and a cell's size per axis (m).
+   */
+  uint32_t cells[3];
+  double cell_size[3];
+  /**
+   * Viewpoints sampled per cell, and the side in pixels of each of their six faces.
+   */
+  uint32_t samples;
+  uint32_t face_px;
+  /**
+   * Instance ids stored over every cell.
+   */
+  uint64_t stored_ids;
+} TgPvsInfo;
+
 typedef struct {
   /**
    * A TgTechnique.
@@ -983,6 +1019,11 @@ typedef struct {
    * A TgShadowCulling: which casters each cascade draws (every choice gives the same image).
    */
   uint32_t shadow_culling;
+  /**
+   * As `TgViewDesc::pvs` and `pvs_dilation`: the visible set TG_CULLING_PVS draws from.
+   */
+  TgPvs pvs;
+  uint32_t pvs_dilation;
 } TgRendererDesc;
 
 /**
@@ -1200,6 +1241,13 @@ typedef struct {
    * A TgShadowCulling.
    */
   uint32_t shadow_culling;
+  /**
+   * The visible set TG_CULLING_PVS draws from (a zero handle: none), and how many cells
+   * around the camera's join their sets to its own (0: its cell only; more trades drawn
+   * instances for fewer misses, docs/ACCURACY.md).
+   */
+  TgPvs pvs;
+  uint32_t pvs_dilation;
 } TgViewDesc;
 
 /**
@@ -1668,6 +1716,38 @@ TgStatus tg_plan_barrier(TgPlan plan,
  * `out_name` is writable.
  */
 TgStatus tg_plan_pass_name(TgPlan plan, uint32_t pass, const char **out_name);
+
+/**
+ * Reads a visible set from the file at `path` (the JSON `tilegraph pvs` writes) and checks
+ * it. A file that is not one is TG_STATUS_SCENE, its message says why.
+ *
+ * # Safety
+ * `path` is a NUL-terminated string; `out_pvs` is writable.
+ */
+TgStatus tg_pvs_load(const char *path, TgPvs *out_pvs);
+
+/**
+ * Reads a visible set from `size` bytes of a file's content (an Android asset read through
+ * the AAssetManager, say); the bytes are not kept.
+ *
+ * # Safety
+ * `data` holds `size` readable bytes; `out_pvs` is writable.
+ */
+TgStatus tg_pvs_load_memory(const uint8_t *data, uintptr_t size, TgPvs *out_pvs);
+
+/**
+ * What `pvs` holds.
+ *
+ * # Safety
+ * `out_info` is writable.
+ */
+TgStatus tg_pvs_info(TgPvs pvs, TgPvsInfo *out_info);
+
+/**
+ * Destroys a visible set. Renderers and views made with it keep their own reference, so it
+ * may be destroyed as soon as they are made. A zero handle is a no-op.
+ */
+TgStatus tg_pvs_destroy(TgPvs pvs);
 
 /**
  * Makes a renderer for `scene` on `context`: uploads the scene, makes the culling

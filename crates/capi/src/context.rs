@@ -58,6 +58,9 @@ pub enum TgCulling {
     Reproject = 9,
     /// Occluders rasterized on the CPU, same frame (knobs `software_*`).
     SoftwareOcclusion = 10,
+    /// A precomputed visible set (`TgRendererDesc::pvs`, baked by `tilegraph pvs`): the
+    /// camera cell's instances the frustum holds. Exact only at its samples (docs/ACCURACY.md).
+    Pvs = 11,
 }
 
 /// Device features tilegraph may need, as bits of `TgDeviceRequirements::features`.
@@ -181,6 +184,7 @@ pub(crate) fn culling(raw: u32) -> Result<Culling, Failure> {
         8 => Culling::HizTwoPhaseClusters,
         9 => Culling::Reproject,
         10 => Culling::SoftwareOcclusion,
+        11 => Culling::Pvs,
         _ => return Err(Failure::invalid(format!("culling {raw} is no TgCulling"))),
     })
 }

@@ -14,6 +14,7 @@
 //! - `changes.rs`: a scene a game changes every frame, by handle (meshes, instances, batched
 //!   transforms, flags, animated bounds);
 //! - `materials.rs`: the engine's own shaders drawing tilegraph's culled lists;
+//! - `pvs.rs`: precomputed visible sets baked by `tilegraph pvs`, from a file or memory;
 //! - `renderer.rs`: recording a scene's frame into the engine's command buffer, statistics;
 //! - `graph.rs`, `plan.rs`: the compiler alone — declare, compile, walk the plan;
 //! - `features.rs`: tilegraph's features set in the engine's own feature structs.
@@ -25,6 +26,7 @@ pub mod graph;
 pub mod materials;
 pub mod options;
 pub mod plan;
+pub mod pvs;
 mod registry;
 pub mod renderer;
 pub mod scene;
@@ -47,6 +49,7 @@ pub use materials::{
 pub use plan::{
     TgAttachment, TgBarrier, TgPlan, TgPlanSummary, TgResidency, TgStep, TgStepKind, TgSubpass,
 };
+pub use pvs::{TgPvs, TgPvsInfo};
 pub use renderer::{
     TgEngineFrame, TgFrameStats, TgGpuTiming, TgImageState, TgPassTime, TgRenderer, TgRendererDesc,
     TgTarget,

@@ -5,6 +5,7 @@ use tilegraph_passes::shadow::{CasterCulling, ShadowOptions};
 use tilegraph_passes::{RenderOptions, VisbufResolve};
 
 use crate::context::{culling, technique};
+use crate::pvs::TgPvs;
 use crate::status::Failure;
 
 /// A further view: what it draws and how (the scene-wide choices — light, GPU timing,
@@ -28,10 +29,15 @@ pub struct TgViewDesc {
     pub shadow_resolution: u32,
     /// A TgShadowCulling.
     pub shadow_culling: u32,
+    /// The visible set TG_CULLING_PVS draws from (a zero handle: none), and how many cells
+    /// around the camera's join their sets to its own (0: its cell only; more trades drawn
+    /// instances for fewer misses, docs/ACCURACY.md).
+    pub pvs: TgPvs,
+    pub pvs_dilation: u32,
 }
 
 /// The options of a view (the renderer's own camera's too): technique, culling, size, clear
-/// colour, the visibility buffer's resolve, shadows — or what is wrong with them.
+/// colour, the visibility buffer's resolve, shadows, a visible set — or what is wrong with them.
 pub(crate) fn view_options(desc: &TgViewDesc) -> Result<RenderOptions, Failure> {
     Ok(RenderOptions {
         technique: technique(desc.technique)?,
@@ -45,6 +51,8 @@ pub(crate) fn view_options(desc: &TgViewDesc) -> Result<RenderOptions, Failure> 
             desc.shadow_resolution,
             desc.shadow_culling,
         )?,
+        pvs: crate::pvs::of(desc.pvs, "desc->pvs")?,
+        pvs_dilation: desc.pvs_dilation,
         ..RenderOptions::default()
     })
 }

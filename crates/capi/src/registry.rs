@@ -19,15 +19,17 @@ pub enum Kind {
     Renderer = 3,
     Graph = 4,
     Plan = 5,
+    Pvs = 6,
 }
 
 impl Kind {
-    const ALL: [Kind; 5] = [
+    const ALL: [Kind; 6] = [
         Kind::Context,
         Kind::Scene,
         Kind::Renderer,
         Kind::Graph,
         Kind::Plan,
+        Kind::Pvs,
     ];
 
     fn name(self) -> &'static str {
@@ -37,6 +39,7 @@ impl Kind {
             Kind::Renderer => "TgRenderer",
             Kind::Graph => "TgGraph",
             Kind::Plan => "TgPlan",
+            Kind::Pvs => "TgPvs",
         }
     }
 }

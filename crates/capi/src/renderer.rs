@@ -11,6 +11,7 @@ use tilegraph_vk::executor::{EngineFrame, ImageHandle};
 
 use crate::context::{ContextObject, TgContext};
 use crate::options::{view_options, TgViewDesc};
+use crate::pvs::TgPvs;
 use crate::registry::{self, Kind};
 use crate::scene::{TgCamera, TgScene};
 use crate::status::{arg, boundary, out, Failure, TgStatus};
@@ -51,6 +52,9 @@ pub struct TgRendererDesc {
     pub shadow_resolution: u32,
     /// A TgShadowCulling: which casters each cascade draws (every choice gives the same image).
     pub shadow_culling: u32,
+    /// As `TgViewDesc::pvs` and `pvs_dilation`: the visible set TG_CULLING_PVS draws from.
+    pub pvs: TgPvs,
+    pub pvs_dilation: u32,
 }
 
 /// Which shadow casters each cascade draws (docs/CULLING.md, "Shadow casters"). All exact.
@@ -221,6 +225,8 @@ pub unsafe extern "C" fn tg_renderer_create(
                 shadow_cascades: desc.shadow_cascades,
                 shadow_resolution: desc.shadow_resolution,
                 shadow_culling: desc.shadow_culling,
+                pvs: desc.pvs,
+                pvs_dilation: desc.pvs_dilation,
             })?
         };
         let renderer = registry::with2(

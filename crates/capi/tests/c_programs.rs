@@ -10,6 +10,9 @@
 //!   images, which differ from tilegraph's own shading;
 //! - `plan.c` compiles a deferred frame's graph for three profiles and walks every plan whole
 //!   (steps, attachments, subpasses, barriers): its text equals the Rust plan's, line for line;
+//! - `pvs.c` reads a visible set baked by the test from memory, as a game reads an asset, and
+//!   draws the city's path with `TG_CULLING_PVS`: its pixels equal the Rust path's; the
+//!   refusals (no set, another scene's, bytes that are none, a destroyed handle) name the cause;
 //! - `errors.c` drives every error status and checks each message, faults included.
 //!
 //! `cargo xtask test` builds the static library first (`cargo build --profile test -p
@@ -277,6 +280,71 @@ fn the_c_moving_scene_renders_the_rust_paths_image() {
     assert_eq!(
         differing, 0,
         "{differing} bytes differ from the Rust path's image"
+    );
+}
+
+/// A visible set of city:300 baked over its path (as `tilegraph pvs` bakes), written where
+/// `tests/capi/pvs.c` reads it; and the Rust path's image of the frames `pvs.c` draws with it.
+fn rust_pvs_reference(file: &Path) -> Vec<u8> {
+    use std::sync::Arc;
+    use tilegraph_passes::pvs::{bake, path_region, BakeSpec};
+    let scene = tilegraph_scene::load("city:300").unwrap();
+    let spec = BakeSpec {
+        region: path_region(scene.camera_path(), 40.0),
+        cell: 40.0,
+        samples: 1,
+        face_px: 32,
+        seed: 3,
+    };
+    let baker = gpu_with(
+        None,
+        RenderOptions {
+            technique: Technique::Visbuf,
+            ..Default::default()
+        }
+        .device_features(),
+    )
+    .unwrap();
+    let pvs = bake(&baker, &scene, &spec, |_, _| {}).unwrap();
+    drop(baker);
+    std::fs::write(file, pvs.to_json().unwrap()).unwrap();
+    let options = RenderOptions {
+        technique: Technique::Forward,
+        culling: Culling::Pvs,
+        width: 160,
+        height: 90,
+        pvs: Some(Arc::new(pvs)),
+        pvs_dilation: 1,
+        ..Default::default()
+    };
+    let g = gpu_with(Some("mali-valhall"), options.device_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+    for frame in scene.camera_path().frames(160.0 / 90.0).take(6) {
+        r.render_frame(&g, &scene, &frame).unwrap();
+    }
+    let image = r.read_image(&g).unwrap();
+    r.destroy(&g);
+    image.pixels
+}
+
+#[test]
+fn the_c_game_draws_its_shipped_visible_set_as_the_rust_path() {
+    let exe = compile("pvs");
+    let set = target_dir().join("capi-pvs.json");
+    let out = target_dir().join("capi-pvs.rgba");
+    let reference = rust_pvs_reference(&set);
+    let log = run(&exe, &[set.to_str().unwrap(), out.to_str().unwrap()]);
+    assert!(log.trim_end().ends_with("ok"), "{log}");
+    let pixels = std::fs::read(&out).unwrap();
+    assert_eq!(pixels.len(), reference.len());
+    let differing = pixels
+        .iter()
+        .zip(&reference)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert_eq!(
+        differing, 0,
+        "{differing} bytes differ from the Rust path's image\n{log}"
     );
 }
 

@@ -141,11 +141,10 @@ impl RunArgs {
         let Some(path) = &self.pvs else {
             return Ok(None);
         };
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| CliError::Usage(format!("--pvs {}: {e}", path.display())))?;
-        let pvs: tilegraph_cull::Pvs = serde_json::from_str(&text)?;
-        pvs.validate()
-            .map_err(|e| CliError::Usage(format!("--pvs {}: {e}", path.display())))?;
+        let usage =
+            |e: &dyn std::fmt::Display| CliError::Usage(format!("--pvs {}: {e}", path.display()));
+        let bytes = std::fs::read(path).map_err(|e| usage(&e))?;
+        let pvs = tilegraph_cull::Pvs::from_json(&bytes).map_err(|e| usage(&e))?;
         Ok(Some(std::sync::Arc::new(pvs)))
     }
 

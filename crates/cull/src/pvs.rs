@@ -73,6 +73,23 @@ impl Pvs {
         Ok(())
     }
 
+    /// Reads a set from its file (the JSON `tilegraph pvs` writes) and checks it
+    /// ([`Pvs::validate`]).
+    pub fn from_json(bytes: &[u8]) -> Result<Pvs, CullError> {
+        let pvs: Pvs = serde_json::from_slice(bytes).map_err(|e| CullError::InvalidPvs {
+            reason: format!("not a visible set written by `tilegraph pvs`: {e}"),
+        })?;
+        pvs.validate()?;
+        Ok(pvs)
+    }
+
+    /// The set as its file holds it (JSON).
+    pub fn to_json(&self) -> Result<String, CullError> {
+        serde_json::to_string(self).map_err(|e| CullError::InvalidPvs {
+            reason: format!("cannot be written: {e}"),
+        })
+    }
+
     /// The cell holding `p`, as grid coordinates; `None` outside the region.
     pub fn cell_at(&self, p: DVec3) -> Option<[u32; 3]> {
         let mut at = [0u32; 3];

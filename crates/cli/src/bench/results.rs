@@ -101,6 +101,10 @@ pub struct TotalsRecord {
     pub passes_gpu_ms: f64,
     pub cull_gpu_ms: f64,
     pub cpu_ms: f64,
+    /// Software occlusion's median CPU milliseconds per frame (its part of `cpu_ms`: choosing
+    /// occluders, rasterizing, testing boxes); absent for other cullings.
+    #[serde(default)]
+    pub software_cpu_ms: Option<f64>,
     /// With shadows: casters drawn over the path, every caster into every cascade over the
     /// path (what `shadow_culling = none` draws), and the shadow passes' GPU ms.
     #[serde(default)]
@@ -192,6 +196,7 @@ impl RunRecord {
             passes_gpu_ms: t.passes_gpu_ms,
             cull_gpu_ms: t.cull_gpu_ms,
             cpu_ms: t.cpu_ms,
+            software_cpu_ms: t.software_cpu_ms,
             shadow_casters: t.shadow_casters,
             shadow_casters_all: t.shadow_casters_all,
             shadow_gpu_ms: t.shadow_gpu_ms,
