@@ -57,6 +57,12 @@ impl Case {
     }
 
     fn software(&self, kernel: Kernel, threads: usize) -> SoftwareOcclusion {
+        self.software_batched(kernel, threads, usize::MAX)
+    }
+
+    /// As `software`, rasterizing after every `every` occluders (as `tilegraph_passes` does,
+    /// testing the next occluders' boxes in between).
+    fn software_batched(&self, kernel: Kernel, threads: usize, every: usize) -> SoftwareOcclusion {
         let mut sw = SoftwareOcclusion::new(SoftwareConfig {
             resolution: self.resolution,
             subpixel_bits: self.bits,
@@ -64,9 +70,12 @@ impl Case {
             kernel,
         });
         sw.begin(self.occlusion_view()).unwrap();
-        for o in &self.occluders {
+        for (k, o) in self.occluders.iter().enumerate() {
             let mesh = OccluderMesh::new(&o.positions, &o.indices, o.double_sided).unwrap();
             sw.add_occluder(&mesh, o.linear.as_dmat3(), o.offset.as_dvec3());
+            if (k + 1) % every.max(1) == 0 {
+                sw.rasterize();
+            }
         }
         sw.rasterize();
         sw
@@ -389,8 +398,15 @@ fn simd_and_threads_give_the_scalar_buffers_bit_for_bit() {
             Extent2d::try_new(rng.random_range(64..400), rng.random_range(32..300)).unwrap();
         case.resolution = (rng.random_range(8..128), rng.random_range(4..64));
         let scalar = case.software(Kernel::Scalar, 1);
-        for (kernel, threads) in [(Kernel::Simd, 1), (Kernel::Simd, 3), (Kernel::Scalar, 4)] {
-            let other = case.software(kernel, threads);
+        // Rasterized in batches, the triangles meet the tiles in the same order: the same
+        // layers.
+        for (kernel, threads, every) in [
+            (Kernel::Simd, 1, usize::MAX),
+            (Kernel::Simd, 3, usize::MAX),
+            (Kernel::Scalar, 4, usize::MAX),
+            (Kernel::Simd, 2, 1),
+        ] {
+            let other = case.software_batched(kernel, threads, every);
             let bits = |s: &SoftwareOcclusion| -> (Vec<u32>, Vec<u32>, Vec<u32>) {
                 let (work, masks) = s.working_layer();
                 (
@@ -402,7 +418,7 @@ fn simd_and_threads_give_the_scalar_buffers_bit_for_bit() {
             assert_eq!(
                 bits(&scalar),
                 bits(&other),
-                "case {case_index}: {kernel:?} x{threads} ({})",
+                "case {case_index}: {kernel:?} x{threads}, batches of {every} ({})",
                 Kernel::simd_name()
             );
         }

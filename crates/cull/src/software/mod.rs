@@ -38,7 +38,7 @@ mod mesh;
 mod raster;
 
 use glam::{DMat3, DMat4, DVec3};
-use tilegraph_types::round::f64_to_f32_round_up;
+use tilegraph_types::round::{f64_to_f32_round_up, floor_f64};
 
 pub use kernel::Kernel;
 pub use mesh::OccluderMesh;
@@ -109,7 +109,13 @@ struct Tiles {
     work: Vec<f32>,
     /// `tile_h` row masks per tile.
     masks: Vec<u32>,
+    /// Per block of `BLOCK x BLOCK` tiles, the farthest full-layer key: a box behind it is
+    /// behind every tile of the block (box tests skip them). Updated by each rasterization.
+    blocks: Vec<f32>,
 }
+
+/// Tiles on a side of a block of [`Tiles::blocks`].
+const BLOCK: u32 = 8;
 
 /// The software occlusion buffer of one view. Reused frame after frame without allocating once
 /// its buffers have grown.
@@ -126,6 +132,8 @@ pub struct SoftwareOcclusion {
     delta: f64,
     tiles: Tiles,
     tris: Vec<Tri>,
+    /// `tris[..rasterized]` are in the tiles.
+    rasterized: usize,
     verts: Vec<raster::Vert>,
     stats: SoftwareStats,
 }
@@ -142,6 +150,7 @@ impl SoftwareOcclusion {
             delta: 0.0,
             tiles: Tiles::default(),
             tris: Vec::new(),
+            rasterized: 0,
             verts: Vec::new(),
             stats: SoftwareStats::default(),
         }
@@ -177,7 +186,11 @@ impl SoftwareOcclusion {
         self.tiles.work.resize(n, f32::NEG_INFINITY);
         self.tiles.masks.clear();
         self.tiles.masks.resize(n * self.tile_h as usize, 0);
+        let blocks = self.tiles_x.div_ceil(BLOCK) * self.tiles_y.div_ceil(BLOCK);
+        self.tiles.blocks.clear();
+        self.tiles.blocks.resize(blocks as usize, f32::INFINITY);
         self.tris.clear();
+        self.rasterized = 0;
         self.stats = SoftwareStats {
             tiles: n as u32,
             ..SoftwareStats::default()
@@ -187,7 +200,7 @@ impl SoftwareOcclusion {
     }
 
     /// Adds an occluder: `mesh` placed by `linear` and `offset` (its translation minus the eye,
-    /// computed in f64 by the caller). Triangles are set up now and rasterized by
+    /// computed in f64 by the caller). Triangles are set up now and rasterized by the next
     /// [`SoftwareOcclusion::rasterize`], in the order they were added (nearest first rasterizes
     /// best). Ignored before [`SoftwareOcclusion::begin`].
     pub fn add_occluder(&mut self, mesh: &OccluderMesh, linear: DMat3, offset: DVec3) {
@@ -204,7 +217,10 @@ impl SoftwareOcclusion {
         self.stats.rasterized += raster::setup(&frame, mesh, &self.verts, &mut self.tris);
     }
 
-    /// Rasterizes every added triangle into the tiles.
+    /// Rasterizes the triangles added since the last call into the tiles. Between calls the
+    /// buffer can already test boxes: an occluder whose box it hides adds nothing nearer, and a
+    /// caller adding occluders nearest first skips it (what `tilegraph_passes` does). The result
+    /// depends on where the calls fall, never on the thread count.
     pub fn rasterize(&mut self) {
         let Some(view) = self.view else {
             return;
@@ -221,32 +237,50 @@ impl SoftwareOcclusion {
             .div_ceil(self.config.threads.max(1) as u32)
             .max(1) as usize;
         let (tx, th) = (self.tiles_x as usize, self.tile_h as usize);
-        let Tiles { full, work, masks } = &mut self.tiles;
+        let Tiles {
+            full, work, masks, ..
+        } = &mut self.tiles;
         let bands = full
             .chunks_mut(rows_per_band * tx)
             .zip(work.chunks_mut(rows_per_band * tx))
             .zip(masks.chunks_mut(rows_per_band * tx * th))
             .enumerate();
-        let tris = &self.tris;
+        let (tris, start) = (&self.tris, self.rasterized);
+        self.rasterized = tris.len();
+        if start == tris.len() {
+            return;
+        }
         if self.config.threads <= 1 || self.tiles_y as usize <= rows_per_band {
             for (b, ((f, w), m)) in bands {
-                raster::band(&grid, tris, (b * rows_per_band) as u32, f, w, m, &view);
+                raster::band(
+                    &grid,
+                    tris,
+                    start,
+                    (b * rows_per_band) as u32,
+                    f,
+                    w,
+                    m,
+                    &view,
+                );
             }
         } else {
             std::thread::scope(|s| {
                 for (b, ((f, w), m)) in bands {
                     let (grid, view) = (&grid, &view);
                     s.spawn(move || {
-                        raster::band(grid, tris, (b * rows_per_band) as u32, f, w, m, view)
+                        raster::band(grid, tris, start, (b * rows_per_band) as u32, f, w, m, view)
                     });
                 }
             });
         }
-        self.stats.full_tiles = full.iter().filter(|k| k.is_finite()).count() as u32;
+        self.update_blocks();
     }
 
     pub fn stats(&self) -> SoftwareStats {
-        self.stats
+        SoftwareStats {
+            full_tiles: self.tiles.full.iter().filter(|k| k.is_finite()).count() as u32,
+            ..self.stats
+        }
     }
 
     /// The full layer's keys, row-major over `tiles()` (tests compare kernels with it).
@@ -331,9 +365,11 @@ impl SoftwareOcclusion {
             return None;
         }
         // x / w over x in [x_lo, x_hi], w in [w_lo, w_hi] (w > 0): its extremes are at the
-        // interval's corners. A superset of the 8 corners' rectangle, for 8 divisions.
+        // interval's corners. A superset of the 8 corners' rectangle, for 2 divisions (the
+        // reciprocals' rounding, 2^-52 relative, is far inside the rectangle's 1/1000 pixel).
+        let (inv_lo, inv_hi) = (1.0 / w_lo, 1.0 / w_hi);
         let range = |lo: f64, hi: f64| {
-            let q = [lo / w_lo, lo / w_hi, hi / w_lo, hi / w_hi];
+            let q = [lo * inv_lo, lo * inv_hi, hi * inv_lo, hi * inv_hi];
             (q[0].min(q[1]).min(q[2]), q[1].max(q[2]).max(q[3]).max(q[0]))
         };
         let (x0, x1) = range(c.x - e.x, c.x + e.x);
@@ -363,7 +399,7 @@ impl SoftwareOcclusion {
         // A thousandth of a pixel outward (the rect's own rounding); 2^-20 of the depth and
         // 2^-22 more nearer (the GPU's f32 depth of the box's object: an orthographic depth
         // cancels to an absolute error), then the format's code on the near side.
-        let px = |v: f64| (v.clamp(-1e12, 1e12)).floor() as i64;
+        let px = |v: f64| floor_f64(v.clamp(-1e12, 1e12)) as i64;
         let near = near - near.abs() * f64::from(2.0f32.powi(-20)) - f64::from(2.0f32.powi(-22));
         let near = tilegraph_types::round::f64_to_f32_round_down(near);
         let depth = match view.convention {
@@ -401,40 +437,71 @@ impl SoftwareOcclusion {
         let (min_y, max_y) = (clamp(rect.min.1, h), clamp(rect.max.1, h));
         let key = rect.near_key;
         let (tw, th) = (self.tile_w, self.tile_h);
-        for ty in min_y / th..=max_y / th {
-            for tx in min_x / tw..=max_x / tw {
-                let t = (ty * self.tiles_x + tx) as usize;
-                let full = self.tiles.full.get(t).copied().unwrap_or(f32::INFINITY);
-                if key > full {
+        let (tx0, tx1, ty0, ty1) = (min_x / tw, max_x / tw, min_y / th, max_y / th);
+        let blocks_x = self.tiles_x.div_ceil(BLOCK);
+        for by in ty0 / BLOCK..=ty1 / BLOCK {
+            for bx in tx0 / BLOCK..=tx1 / BLOCK {
+                // Behind the block's farthest full layer: behind every tile of it.
+                let farthest = self.tiles.blocks.get((by * blocks_x + bx) as usize);
+                if farthest.is_some_and(|&f| key > f) {
                     continue;
                 }
-                // Keys are never NaN: an empty working layer is -inf, which every key passes.
-                let work = self.tiles.work.get(t).copied().unwrap_or(f32::INFINITY);
-                if key <= work {
-                    return false;
-                }
-                // The working layer decides where it holds every pixel of the rectangle here.
-                let x0 = min_x.max(tx * tw) - tx * tw;
-                let x1 = max_x.min(tx * tw + tw - 1) - tx * tw;
-                let cols = low_bits(x1 + 1) & !low_bits(x0);
-                let y0 = min_y.max(ty * th) - ty * th;
-                let y1 = max_y.min(ty * th + th - 1) - ty * th;
-                let base = t * th as usize;
-                let held = (y0..=y1).all(|r| {
-                    let m = self
-                        .tiles
-                        .masks
-                        .get(base + r as usize)
-                        .copied()
-                        .unwrap_or(0);
-                    cols & !m == 0
-                });
-                if !held {
-                    return false;
+                for ty in (by * BLOCK).max(ty0)..=(by * BLOCK + BLOCK - 1).min(ty1) {
+                    for tx in (bx * BLOCK).max(tx0)..=(bx * BLOCK + BLOCK - 1).min(tx1) {
+                        if !self.tile_hides(tx, ty, (min_x, min_y), (max_x, max_y), key) {
+                            return false;
+                        }
+                    }
                 }
             }
         }
         true
+    }
+
+    /// Whether tile `(tx, ty)` hides the part of the pixel rectangle `min..=max` in it at `key`.
+    fn tile_hides(&self, tx: u32, ty: u32, min: (u32, u32), max: (u32, u32), key: f32) -> bool {
+        let (tw, th) = (self.tile_w, self.tile_h);
+        let t = (ty * self.tiles_x + tx) as usize;
+        let full = self.tiles.full.get(t).copied().unwrap_or(f32::INFINITY);
+        if key > full {
+            return true;
+        }
+        // Keys are never NaN: an empty working layer is -inf, which every key passes.
+        let work = self.tiles.work.get(t).copied().unwrap_or(f32::INFINITY);
+        if key <= work {
+            return false;
+        }
+        // The working layer decides where it holds every pixel of the rectangle here.
+        let x0 = min.0.max(tx * tw) - tx * tw;
+        let x1 = max.0.min(tx * tw + tw - 1) - tx * tw;
+        let cols = low_bits(x1 + 1) & !low_bits(x0);
+        let y0 = min.1.max(ty * th) - ty * th;
+        let y1 = max.1.min(ty * th + th - 1) - ty * th;
+        let base = t * th as usize;
+        (y0..=y1).all(|r| {
+            let m = self
+                .tiles
+                .masks
+                .get(base + r as usize)
+                .copied()
+                .unwrap_or(0);
+            cols & !m == 0
+        })
+    }
+
+    /// Each block's farthest full-layer key, after rasterizing.
+    fn update_blocks(&mut self) {
+        let blocks_x = self.tiles_x.div_ceil(BLOCK) as usize;
+        let Tiles { full, blocks, .. } = &mut self.tiles;
+        blocks.fill(f32::NEG_INFINITY);
+        for (ty, row) in full.chunks(self.tiles_x.max(1) as usize).enumerate() {
+            let base = ty / BLOCK as usize * blocks_x;
+            for (bx, keys) in row.chunks(BLOCK as usize).enumerate() {
+                if let Some(b) = blocks.get_mut(base + bx) {
+                    *b = keys.iter().fold(*b, |m, &k| m.max(k));
+                }
+            }
+        }
     }
 }
 

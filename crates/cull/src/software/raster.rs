@@ -1,6 +1,7 @@
 //! Triangle setup and the tile loop of [`super::SoftwareOcclusion`].
 
 use glam::{DMat3, DVec3};
+use tilegraph_types::round::{ceil_f64, floor_f64};
 
 use super::kernel::{edge_rows, low_bits, Edge, Kernel, SUB};
 use super::mesh::{OccluderMesh, NONE};
@@ -182,8 +183,8 @@ impl Tri {
             return None;
         }
         let [px0, _, px1, _] = self.px;
-        let first = (((lo - 128.0) / SUB).floor() - 1.0).max(f64::from(px0));
-        let last = (((hi - 128.0) / SUB).ceil() + 1.0).min(f64::from(px1));
+        let first = (floor_f64((lo - 128.0) / SUB) - 1.0).max(f64::from(px0));
+        let last = (ceil_f64((hi - 128.0) / SUB) + 1.0).min(f64::from(px1));
         (first <= last).then_some((first as u32, last as u32))
     }
 
@@ -235,8 +236,8 @@ fn triangle(frame: &Frame<'_>, double_sided: bool, v: [(f64, f64, f64); 3]) -> O
         }
     });
     // Pixel centres sit at 256 p + 128.
-    let first = |lo: f64| ((lo - 128.0) / SUB).ceil().max(0.0);
-    let last = |hi: f64, n: u32| ((hi - 128.0) / SUB).floor().min(f64::from(n) - 1.0);
+    let first = |lo: f64| ceil_f64((lo - 128.0) / SUB).max(0.0);
+    let last = |hi: f64, n: u32| floor_f64((hi - 128.0) / SUB).min(f64::from(n) - 1.0);
     let (x0, x1) = (first(min_x), last(max_x, w));
     let (y0, y1) = (first(min_y), last(max_y, h));
     if x0 > x1 || y0 > y1 {
@@ -281,11 +282,13 @@ pub(crate) struct Grid {
 
 type Rows = [u32; MAX_TILE_PX as usize];
 
-/// Rasterizes every triangle into the band of tile rows starting at `first_row` whose layers
-/// are `full`, `work` and `masks`.
+/// Rasterizes `tris[start..]` (their neighbours anywhere in `tris`) into the band of tile rows
+/// starting at `first_row` whose layers are `full`, `work` and `masks`.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn band(
     grid: &Grid,
     tris: &[Tri],
+    start: usize,
     first_row: u32,
     full: &mut [f32],
     work: &mut [f32],
@@ -295,7 +298,11 @@ pub(crate) fn band(
     let (tw, th) = (grid.tile_w, grid.tile_h);
     let rows = (full.len() as u32) / grid.tiles_x.max(1);
     let last_row = first_row + rows;
-    for tri in tris.iter().filter(|t| t.drawn) {
+    // A triangle's coverage of one tile, and the rows it is made of (each row written before
+    // it is read, so nothing is cleared per tile).
+    let mut cover = [0u32; MAX_TILE_PX as usize];
+    let mut scratch = Scratch::default();
+    for tri in tris.iter().skip(start).filter(|t| t.drawn) {
         let [_, py0, _, py1] = tri.px;
         let ty0 = (py0 / th).max(first_row);
         let ty1 = (py1 / th).min(last_row.saturating_sub(1));
@@ -308,18 +315,46 @@ pub(crate) fn band(
             let Some((c0, c1)) = tri.columns(band_y0, band_y1) else {
                 continue;
             };
-            for tx in c0 / tw..=c1 / tw {
+            let (tx0, tx1) = (c0 / tw, c1 / tw);
+            // Nothing this triangle adds to a tile can be nearer than its own depth there
+            // (below): behind the tile's full layer, the coverage is not worth computing. Its
+            // depth grows along the row toward one end, so the row's least is that end tile's;
+            // a full layer already at or nearer than it skips the tile for a compare.
+            let nearest_end = Place::new(grid, if tri.gx > 0.0 { tx0 } else { tx1 }, ty);
+            let row_least = super::far_key(
+                view,
+                tri.depth_over(
+                    nearest_end.x0,
+                    nearest_end.y0,
+                    nearest_end.x1,
+                    nearest_end.y1,
+                ),
+            );
+            let row = ((ty - first_row) * grid.tiles_x) as usize;
+            // Tiles inside all three edges are covered whole: no coverage to compute there.
+            let whole = interior(grid, tri, tx0, tx1, ty);
+            for tx in tx0..=tx1 {
+                let local = row + tx as usize;
+                if full.get(local).is_none_or(|&f| row_least >= f) {
+                    continue;
+                }
                 let tile = Place::new(grid, tx, ty);
-                let local = ((ty - first_row) * grid.tiles_x + tx) as usize;
-                // Nothing this triangle adds can be nearer than its own depth here: behind
-                // the tile's full layer, the coverage is not worth computing.
-                let own = super::far_key(view, tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1));
+                let own_depth = tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1);
+                let own = super::far_key(view, own_depth);
                 if full.get(local).is_none_or(|&f| own >= f) {
                     continue;
                 }
-                let mut cover = [0u32; MAX_TILE_PX as usize];
-                let Some(key) = coverage(grid, tris, tri, &tile, &mut cover) else {
-                    continue;
+                let found = if whole.0 <= tx && tx <= whole.1 {
+                    Cover::Full
+                } else {
+                    coverage(grid, tris, tri, &tile, &mut cover, &mut scratch)
+                };
+                let key = match found {
+                    Cover::None => continue,
+                    // Every centre: at the triangle's own depth here.
+                    Cover::Full => None,
+                    Cover::Rows(key) if key == own_depth => Some(own),
+                    Cover::Rows(key) => Some(super::far_key(view, key)),
                 };
                 let base = local * th as usize;
                 if let (Some(f), Some(w), Some(m)) = (
@@ -327,11 +362,59 @@ pub(crate) fn band(
                     work.get_mut(local),
                     masks.get_mut(base..base + th as usize),
                 ) {
-                    merge(&tile, &cover, super::far_key(view, key), f, w, m);
+                    match key {
+                        None => merge_full(own, f, w, m),
+                        Some(key) => merge(&tile, &cover, key, f, w, m),
+                    }
                 }
             }
         }
     }
+}
+
+/// The tiles of row `ty` between `tx0` and `tx1` that every edge of `tri` holds whole (as
+/// [`Edge::classify`] says of each), as `(first, last)` (`first > last`: none). Found by
+/// bisection: along a row, an edge's test of a tile is monotonic (it looks at the corner its
+/// normal points away from, which moves one way). Short rows are left to the tile loop.
+fn interior(grid: &Grid, tri: &Tri, tx0: u32, tx1: u32, ty: u32) -> (u32, u32) {
+    const EMPTY: (u32, u32) = (1, 0);
+    if tx1 < tx0 + 4 {
+        return EMPTY;
+    }
+    let (mut lo, mut hi) = (tx0, tx1);
+    for e in &tri.edges {
+        let inside = |tx: u32| {
+            let p = Place::new(grid, tx, ty);
+            e.classify(p.x0, p.y0, p.x1, p.y1) == Some(true)
+        };
+        // The first tile in [a, b) where `pred` turns true, or b (`pred` false then true).
+        let turn = |mut a: u32, mut b: u32, pred: &dyn Fn(u32) -> bool| {
+            while a < b {
+                let m = a + (b - a) / 2;
+                if pred(m) {
+                    b = m;
+                } else {
+                    a = m + 1;
+                }
+            }
+            a
+        };
+        if e.a >= 0.0 {
+            // Outside, then inside.
+            lo = turn(lo, hi + 1, &inside);
+        } else {
+            // Inside, then outside.
+            let end = turn(lo, hi + 1, &|tx| !inside(tx));
+            if end == lo {
+                return EMPTY;
+            }
+            hi = end - 1;
+        }
+        if lo > hi {
+            return EMPTY;
+        }
+    }
+    (lo, hi)
 }
 
 /// A tile's pixel centres: the first and last (subpixel units), its valid columns and rows.
@@ -361,9 +444,25 @@ impl Place {
     }
 }
 
+/// What a triangle covers of a tile.
+enum Cover {
+    None,
+    /// Every pixel centre, with the triangle alone (its own depth there holds).
+    Full,
+    /// The rows written to `cover`, at this farthest key.
+    Rows(f64),
+}
+
 /// The centres of `tile` the GPU covers with `tri` (or with a neighbour across one of its shared
-/// edges), into `cover`, and the farthest key there; `None` when there are none.
-fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows) -> Option<f64> {
+/// edges): all of them, or those written into `cover` and the farthest key there.
+fn coverage(
+    grid: &Grid,
+    tris: &[Tri],
+    tri: &Tri,
+    tile: &Place,
+    cover: &mut Rows,
+    scratch: &mut Scratch,
+) -> Cover {
     let k = grid.kernel;
     let rows = tile.rows;
     let all = low_bits(tile.width);
@@ -373,21 +472,24 @@ fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows
         .edges
         .map(|e| e.classify(tile.x0, tile.y0, tile.x1, tile.y1));
     if class.iter().all(|c| *c == Some(true)) {
-        cover[..rows].fill(all);
-        return Some(tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1));
+        return Cover::Full;
     }
     let mut outside = (0..3).filter(|&i| class[i] == Some(false));
     match (outside.next(), outside.next()) {
         (None, _) => {}
         (Some(i), None) if tri.across[i].0 != NONE => {}
-        _ => return None,
+        _ => return Cover::None,
     }
     // Each edge's rows (all set where the corners say so; unused where outside).
-    let mut masks = [[0u32; MAX_TILE_PX as usize]; 3];
+    let Scratch {
+        masks,
+        acc,
+        other_rows,
+    } = scratch;
     for (i, m) in masks.iter_mut().enumerate() {
         match class[i] {
             Some(true) => m[..rows].fill(all),
-            Some(false) => {}
+            Some(false) => m[..rows].fill(0),
             None => edge_rows(
                 k,
                 &tri.edges[i],
@@ -410,7 +512,6 @@ fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows
     }
     // Across a shared edge i: inside this triangle's other two edges and the neighbour's other
     // two, the GPU covers the centre with one of the pair.
-    let mut other_rows = [0u32; MAX_TILE_PX as usize];
     for i in 0..3 {
         let (n, j) = tri.across[i];
         let (b, c) = ((i + 1) % 3, (i + 2) % 3);
@@ -421,7 +522,6 @@ fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows
         let Some(other) = tris.get(n as usize) else {
             continue;
         };
-        let mut acc = [0u32; MAX_TILE_PX as usize];
         let mut any = 0;
         for r in 0..rows {
             acc[r] = masks[b][r] & masks[c][r];
@@ -459,7 +559,42 @@ fn coverage(grid: &Grid, tris: &[Tri], tri: &Tri, tile: &Place, cover: &mut Rows
                 .max(other.depth_over(tile.x0, tile.y0, tile.x1, tile.y1));
         }
     }
-    (key > f64::NEG_INFINITY).then_some(key)
+    if key > f64::NEG_INFINITY {
+        Cover::Rows(key)
+    } else {
+        Cover::None
+    }
+}
+
+/// Rows [`coverage`] builds a tile's coverage from: each edge's, a shared edge's pair, a
+/// neighbour's edge.
+struct Scratch {
+    masks: [Rows; 3],
+    acc: Rows,
+    other_rows: Rows,
+}
+
+impl Default for Scratch {
+    fn default() -> Self {
+        let rows = [0u32; MAX_TILE_PX as usize];
+        Scratch {
+            masks: [rows; 3],
+            acc: rows,
+            other_rows: rows,
+        }
+    }
+}
+
+/// Folds a triangle covering every pixel centre of a tile at `key` into its layers: as
+/// [`merge`] with every row set.
+fn merge_full(key: f32, full: &mut f32, work: &mut f32, masks: &mut [u32]) {
+    if key < *full {
+        *full = key;
+        if *work >= key {
+            masks.fill(0);
+            *work = f32::NEG_INFINITY;
+        }
+    }
 }
 
 /// Folds a triangle's coverage (`cover`, farthest key `key`) into a tile's layers.

@@ -15,10 +15,10 @@ use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
 use tilegraph_cull::{
-    Extent2d, ExtentExt, OccluderMesh, OcclusionView, SoftwareConfig, SoftwareOcclusion,
+    BoxRect, Extent2d, ExtentExt, OccluderMesh, OcclusionView, SoftwareConfig, SoftwareOcclusion,
     SoftwareStats,
 };
-use tilegraph_scene::{CameraFrame, CellRun, GridMember, MaterialClass, Scene};
+use tilegraph_scene::{CameraFrame, CellRun, DAabb, GridMember, MaterialClass, Scene};
 
 /// The knobs of software occlusion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -65,6 +65,8 @@ pub struct SoftwareFrame {
     /// Instances in the frustum, and those the buffer hid.
     pub tested: u32,
     pub culled: u32,
+    /// Occluders left out because the nearer ones already hid their boxes.
+    pub occluders_hidden: u32,
     /// CPU milliseconds: selecting, rasterizing and testing.
     pub cpu_ms: f64,
 }
@@ -78,12 +80,17 @@ pub struct SoftwareCull {
     meshes: Vec<Option<Arc<OccluderMesh>>>,
     /// Per member of the frame's list: whether it stays.
     keep: Vec<bool>,
-    candidates: Vec<(f32, u32)>,
+    /// Occluder candidates: nearest depth, index in the frame's list, box on screen.
+    candidates: Vec<(f32, u32, Option<BoxRect>)>,
     pub last: SoftwareFrame,
     /// CPU milliseconds of the last frames (at most [`HISTORY`]; the renderer clears it with
     /// its timings).
     pub history: Vec<f64>,
 }
+
+/// Occluder triangles rasterized before the first box test of an occluder (the batches after
+/// it double).
+const FIRST_BATCH: u32 = 512;
 
 /// Frames of CPU time [`SoftwareCull::history`] keeps.
 pub const HISTORY: usize = 64;
@@ -128,47 +135,54 @@ impl SoftwareCull {
             convention: m.depth,
             format,
         })?;
-        // Occluders: big opaque boxes, nearest first; one around the eye first of all. The
-        // bounding sphere's size on screen (over-estimated) skips the small ones cheaply; the
-        // boxes of the rest decide.
-        let min_area = u64::from(width) * u64::from(height) / 1024;
-        let px_per_unit =
-            f64::from(projection.matrix(aspect).y_axis.y.abs()) * f64::from(height) * 0.5;
-        let perspective = projection.is_perspective();
+        // Occluders: big opaque boxes, nearest first; one around the eye first of all.
+        let size = SizeTest {
+            min_area: u64::from(width) * u64::from(height) / 1024,
+            px_per_unit: f64::from(projection.matrix(aspect).y_axis.y.abs())
+                * f64::from(height)
+                * 0.5,
+            perspective: projection.is_perspective(),
+            eye: m.eye,
+        };
         self.candidates.clear();
-        for (k, member) in visible.iter().enumerate() {
-            let rel = member.center - m.eye;
-            let half = member.half_extents.as_dvec3();
-            let (r, d) = (half.length(), rel.length());
-            let near = if perspective && d <= r {
-                f32::NEG_INFINITY
-            } else {
-                let diameter = 2.0 * r * px_per_unit / if perspective { d - r } else { 1.0 };
-                if diameter * diameter < min_area as f64 {
-                    continue;
+        let mut consider = |k: usize, member: &GridMember| {
+            if let Some((near, rect)) = size.candidate(buffer, member, (width, height)) {
+                let occludes =
+                    scene
+                        .instances()
+                        .get(member.instance as usize)
+                        .is_some_and(|inst| {
+                            scene.instance_material(inst).is_some_and(|mat| {
+                                mat.class == MaterialClass::Opaque && mat.engine_material.is_none()
+                            })
+                        });
+                if occludes {
+                    self.candidates.push((near, k as u32, rect));
                 }
-                match buffer.project_box(rel, half) {
-                    Some(b) if b.area_on(width, height) >= min_area => b.near_key,
-                    Some(_) => continue,
-                    None => f32::NEG_INFINITY,
-                }
-            };
-            let occludes = scene
-                .instances()
-                .get(member.instance as usize)
-                .is_some_and(|inst| {
-                    scene.instance_material(inst).is_some_and(|mat| {
-                        mat.class == MaterialClass::Opaque && mat.engine_material.is_none()
-                    })
-                });
-            if occludes {
-                self.candidates.push((near, k as u32));
             }
+        };
+        // A cell too small on screen for any member to be: its members are skipped unseen.
+        let mut first = 0usize;
+        for run in cells {
+            let end = (run.end as usize).min(visible.len());
+            if !size.all_too_small(&run.bounds) {
+                for (k, member) in visible.iter().enumerate().take(end).skip(first) {
+                    consider(k, member);
+                }
+            }
+            first = end.max(first);
+        }
+        for (k, member) in visible.iter().enumerate().skip(first) {
+            consider(k, member);
         }
         self.candidates
             .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        // Nearest first, rasterized in batches that double: an occluder whose box the batches
+        // before it already hide adds nothing nearer, so it is left out (and its triangles
+        // stay in the budget).
         let mut budget = options.occluder_triangles;
-        for &(_, k) in &self.candidates {
+        let (mut pending, mut batch, mut occluders_hidden) = (0u32, FIRST_BATCH, 0u32);
+        for &(_, k, rect) in &self.candidates {
             let Some(member) = visible.get(k as usize) else {
                 continue;
             };
@@ -181,6 +195,10 @@ impl SoftwareCull {
             };
             let triangles = mesh.index_count / 3;
             if triangles > budget {
+                continue;
+            }
+            if rect.is_some_and(|r| buffer.hides(&r)) {
+                occluders_hidden += 1;
                 continue;
             }
             budget -= triangles;
@@ -197,6 +215,12 @@ impl SoftwareCull {
             };
             let t = &inst.transform;
             buffer.add_occluder(&occluder, t.linear.as_dmat3(), t.translation - m.eye);
+            pending += triangles;
+            if pending >= batch {
+                buffer.rasterize();
+                pending = 0;
+                batch = batch.saturating_mul(2);
+            }
         }
         buffer.rasterize();
         // A cell's box first: hidden, so are all its members.
@@ -238,6 +262,7 @@ impl SoftwareCull {
             raster: buffer.stats(),
             tested,
             culled: tested - visible.len() as u32,
+            occluders_hidden,
             cpu_ms: start.elapsed().as_secs_f64() * 1e3,
         };
         if self.history.len() >= HISTORY {
@@ -245,6 +270,60 @@ impl SoftwareCull {
         }
         self.history.push(self.last.cpu_ms);
         Ok(())
+    }
+}
+
+/// Which instances are big enough on screen to occlude: those whose box covers at least
+/// `min_area` pixels. The bounding sphere's size on screen (over-estimated) skips the small ones
+/// cheaply, a whole cell of them at a time; the boxes of the rest decide.
+struct SizeTest {
+    min_area: u64,
+    px_per_unit: f64,
+    perspective: bool,
+    eye: DVec3,
+}
+
+impl SizeTest {
+    /// Whether a sphere of radius `r` whose nearest point lies `gap` in front of the eye spans
+    /// fewer pixels across than a square of `min_area`.
+    fn too_small(&self, r: f64, gap: f64) -> bool {
+        let diameter = 2.0 * r * self.px_per_unit / if self.perspective { gap } else { 1.0 };
+        diameter * diameter < self.min_area as f64
+    }
+
+    /// Whether every box inside `cell` is too small. A member's box inside the cell's box `U`
+    /// has a half-diagonal `r <= R` (U's) and, centred `a` from U's centre, `|a| + r <= sqrt(2)
+    /// R`; so its sphere's nearest point is at least `D - sqrt(2) R` away (`D`: U's centre's
+    /// distance) and spans at most what a sphere of radius `R` that far does.
+    fn all_too_small(&self, cell: &DAabb) -> bool {
+        let big_r = ((cell.max - cell.min) * 0.5).length();
+        let gap =
+            (((cell.min + cell.max) * 0.5) - self.eye).length() - std::f64::consts::SQRT_2 * big_r;
+        (!self.perspective || gap > 0.0) && self.too_small(big_r, gap)
+    }
+
+    /// A member as an occluder candidate: its nearest depth key and its box on screen, or
+    /// `None` when it is too small. One holding the eye comes first of all (no box).
+    fn candidate(
+        &self,
+        buffer: &SoftwareOcclusion,
+        member: &GridMember,
+        (width, height): (u32, u32),
+    ) -> Option<(f32, Option<BoxRect>)> {
+        let rel = member.center - self.eye;
+        let half = member.half_extents.as_dvec3();
+        let (r, d) = (half.length(), rel.length());
+        if self.perspective && d <= r {
+            return Some((f32::NEG_INFINITY, None));
+        }
+        if self.too_small(r, d - r) {
+            return None;
+        }
+        match buffer.project_box(rel, half) {
+            Some(b) if b.area_on(width, height) >= self.min_area => Some((b.near_key, Some(b))),
+            Some(_) => None,
+            None => Some((f32::NEG_INFINITY, None)),
+        }
     }
 }
 
