@@ -114,19 +114,27 @@ fn edge_rows_sse2(e: &Edge, x0: f64, y0: f64, width: u32, out: &mut [u32]) {
         _mm_add_pd, _mm_cmpge_pd, _mm_movemask_pd, _mm_mul_pd, _mm_set1_pd, _mm_set_pd,
     };
     let step = e.a * SUB;
-    let lanes = _mm_mul_pd(_mm_set1_pd(step), _mm_set_pd(1.0, 0.0));
-    let inc = _mm_set1_pd(2.0 * step);
+    // Columns 0..8 of a row as four pairs (every value an exact integer, so adding a pair's
+    // offset to the row gives what stepping column by column would).
+    let s = _mm_set1_pd(step);
+    let pairs = [
+        _mm_mul_pd(s, _mm_set_pd(1.0, 0.0)),
+        _mm_mul_pd(s, _mm_set_pd(3.0, 2.0)),
+        _mm_mul_pd(s, _mm_set_pd(5.0, 4.0)),
+        _mm_mul_pd(s, _mm_set_pd(7.0, 6.0)),
+    ];
+    let eight = _mm_set1_pd(8.0 * step);
     let margin = _mm_set1_pd(e.margin);
     let keep = low_bits(width);
     for (r, m) in out.iter_mut().enumerate() {
-        let row = e.at(x0, y0 + SUB * r as f64);
-        let mut v = _mm_add_pd(_mm_set1_pd(row), lanes);
+        let mut base = _mm_set1_pd(e.at(x0, y0 + SUB * r as f64));
         let mut bits = 0u32;
         let mut k = 0;
         while k < width {
-            bits |= (_mm_movemask_pd(_mm_cmpge_pd(v, margin)) as u32) << k;
-            v = _mm_add_pd(v, inc);
-            k += 2;
+            let ge = |p| _mm_movemask_pd(_mm_cmpge_pd(_mm_add_pd(base, p), margin)) as u32;
+            bits |= (ge(pairs[0]) | ge(pairs[1]) << 2 | ge(pairs[2]) << 4 | ge(pairs[3]) << 6) << k;
+            base = _mm_add_pd(base, eight);
+            k += 8;
         }
         *m = bits & keep;
     }
@@ -143,25 +151,33 @@ fn edge_rows_simd(e: &Edge, x0: f64, y0: f64, width: u32, out: &mut [u32]) {
 #[target_feature(enable = "neon")]
 fn edge_rows_neon(e: &Edge, x0: f64, y0: f64, width: u32, out: &mut [u32]) {
     use std::arch::aarch64::{
-        vaddq_f64, vcgeq_f64, vdupq_n_f64, vgetq_lane_u64, vmulq_f64, vsetq_lane_f64,
+        float64x2_t, vaddq_f64, vcgeq_f64, vdupq_n_f64, vgetq_lane_u64, vmulq_f64, vsetq_lane_f64,
     };
     let step = e.a * SUB;
-    let ks = vsetq_lane_f64::<1>(1.0, vdupq_n_f64(0.0));
-    let lanes = vmulq_f64(vdupq_n_f64(step), ks);
-    let inc = vdupq_n_f64(2.0 * step);
+    // Columns 0..8 of a row as four pairs, as the SSE2 path.
+    let s = vdupq_n_f64(step);
+    let pair = |lo: f64, hi: f64| vmulq_f64(s, vsetq_lane_f64::<1>(hi, vdupq_n_f64(lo)));
+    let pairs = [
+        pair(0.0, 1.0),
+        pair(2.0, 3.0),
+        pair(4.0, 5.0),
+        pair(6.0, 7.0),
+    ];
+    let eight = vdupq_n_f64(8.0 * step);
     let margin = vdupq_n_f64(e.margin);
     let keep = low_bits(width);
     for (r, m) in out.iter_mut().enumerate() {
-        let row = e.at(x0, y0 + SUB * r as f64);
-        let mut v = vaddq_f64(vdupq_n_f64(row), lanes);
+        let mut base = vdupq_n_f64(e.at(x0, y0 + SUB * r as f64));
         let mut bits = 0u32;
         let mut k = 0;
         while k < width {
-            let ge = vcgeq_f64(v, margin);
-            let pair = (vgetq_lane_u64::<0>(ge) & 1) | ((vgetq_lane_u64::<1>(ge) & 1) << 1);
-            bits |= (pair as u32) << k;
-            v = vaddq_f64(v, inc);
-            k += 2;
+            let ge = |p: float64x2_t| {
+                let c = vcgeq_f64(vaddq_f64(base, p), margin);
+                ((vgetq_lane_u64::<0>(c) & 1) | ((vgetq_lane_u64::<1>(c) & 1) << 1)) as u32
+            };
+            bits |= (ge(pairs[0]) | ge(pairs[1]) << 2 | ge(pairs[2]) << 4 | ge(pairs[3]) << 6) << k;
+            base = vaddq_f64(base, eight);
+            k += 8;
         }
         *m = bits & keep;
     }

@@ -107,7 +107,8 @@ pub struct SoftwareStats {
 struct Tiles {
     full: Vec<f32>,
     work: Vec<f32>,
-    /// `tile_h` row masks per tile.
+    /// `tile_h` row masks per tile: the working layer's pixels where its key is above -inf,
+    /// stale (never read) where it is -inf.
     masks: Vec<u32>,
     /// Per block of `BLOCK x BLOCK` tiles, the farthest full-layer key: a box behind it is
     /// behind every tile of the block (box tests skip them). Updated by each rasterization.
@@ -184,7 +185,7 @@ impl SoftwareOcclusion {
         self.tiles.full.resize(n, f32::INFINITY);
         self.tiles.work.clear();
         self.tiles.work.resize(n, f32::NEG_INFINITY);
-        self.tiles.masks.clear();
+        // Masks are read only where the working layer holds a key: no clearing per frame.
         self.tiles.masks.resize(n * self.tile_h as usize, 0);
         let blocks = self.tiles_x.div_ceil(BLOCK) * self.tiles_y.div_ceil(BLOCK);
         self.tiles.blocks.clear();
@@ -306,8 +307,9 @@ impl SoftwareOcclusion {
         let (t, r, bit) = self.locate(x, y)?;
         let mut key = *self.tiles.full.get(t)?;
         let mask = *self.tiles.masks.get(t * self.tile_h as usize + r)?;
-        if mask & bit != 0 {
-            key = key.min(*self.tiles.work.get(t)?);
+        let work = *self.tiles.work.get(t)?;
+        if work > f32::NEG_INFINITY && mask & bit != 0 {
+            key = key.min(work);
         }
         key.is_finite().then(|| match view.convention {
             DepthConvention::Standard => key,
@@ -466,9 +468,10 @@ impl SoftwareOcclusion {
         if key > full {
             return true;
         }
-        // Keys are never NaN: an empty working layer is -inf, which every key passes.
+        // Keys are never NaN. An empty working layer (-inf; its masks are stale) holds no
+        // pixel.
         let work = self.tiles.work.get(t).copied().unwrap_or(f32::INFINITY);
-        if key <= work {
+        if key <= work || work == f32::NEG_INFINITY {
             return false;
         }
         // The working layer decides where it holds every pixel of the rectangle here.

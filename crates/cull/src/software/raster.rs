@@ -331,11 +331,17 @@ pub(crate) fn band(
                 ),
             );
             let row = ((ty - first_row) * grid.tiles_x) as usize;
+            // The tiles that may take something: where the row's least depth is in front.
+            let open =
+                |full: &[f32], tx: u32| full.get(row + tx as usize).is_some_and(|&f| row_least < f);
+            let Some(first_open) = (tx0..=tx1).find(|&tx| open(full, tx)) else {
+                continue;
+            };
             // Tiles inside all three edges are covered whole: no coverage to compute there.
-            let whole = interior(grid, tri, tx0, tx1, ty);
-            for tx in tx0..=tx1 {
+            let whole = interior(grid, tri, first_open, tx1, ty);
+            for tx in first_open..=tx1 {
                 let local = row + tx as usize;
-                if full.get(local).is_none_or(|&f| row_least >= f) {
+                if !open(full, tx) {
                     continue;
                 }
                 let tile = Place::new(grid, tx, ty);
@@ -363,7 +369,7 @@ pub(crate) fn band(
                     masks.get_mut(base..base + th as usize),
                 ) {
                     match key {
-                        None => merge_full(own, f, w, m),
+                        None => merge_full(own, f, w),
                         Some(key) => merge(&tile, &cover, key, f, w, m),
                     }
                 }
@@ -586,12 +592,11 @@ impl Default for Scratch {
 }
 
 /// Folds a triangle covering every pixel centre of a tile at `key` into its layers: as
-/// [`merge`] with every row set.
-fn merge_full(key: f32, full: &mut f32, work: &mut f32, masks: &mut [u32]) {
+/// [`merge`] with every row set. A working layer it empties keeps its stale masks.
+fn merge_full(key: f32, full: &mut f32, work: &mut f32) {
     if key < *full {
         *full = key;
         if *work >= key {
-            masks.fill(0);
             *work = f32::NEG_INFINITY;
         }
     }
@@ -607,10 +612,13 @@ fn merge(tile: &Place, cover: &Rows, key: f32, full: &mut f32, work: &mut f32, m
     if cover[..rows].iter().all(|&r| r == all) {
         *full = key;
         if *work >= *full {
-            masks.fill(0);
             *work = f32::NEG_INFINITY;
         }
         return;
+    }
+    // An empty working layer's masks are stale.
+    if *work == f32::NEG_INFINITY {
+        masks.fill(0);
     }
     let mut filled = true;
     for (r, m) in masks.iter_mut().enumerate().take(rows) {
@@ -620,7 +628,6 @@ fn merge(tile: &Place, cover: &Rows, key: f32, full: &mut f32, work: &mut f32, m
     *work = work.max(key);
     if filled {
         *full = full.min(*work);
-        masks.fill(0);
         *work = f32::NEG_INFINITY;
     }
 }

@@ -78,8 +78,6 @@ pub struct SoftwareCull {
     buffer: Option<SoftwareOcclusion>,
     /// Per mesh id: its occluder form, made the first time the mesh occludes.
     meshes: Vec<Option<Arc<OccluderMesh>>>,
-    /// Per member of the frame's list: whether it stays.
-    keep: Vec<bool>,
     /// Occluder candidates: nearest depth, index in the frame's list, box on screen.
     candidates: Vec<(f32, u32, Option<BoxRect>)>,
     pub last: SoftwareFrame,
@@ -231,33 +229,33 @@ impl SoftwareCull {
                 .project_box(center, half)
                 .is_some_and(|r| buffer.hides(&r))
         };
-        self.keep.clear();
-        self.keep.resize(visible.len(), true);
+        // Compacted in place: a hidden cell's members are dropped without a look.
+        let mut kept = 0usize;
+        let mut keep_if_seen = |visible: &mut Vec<GridMember>, k: usize| {
+            if let Some(v) = visible.get(k).copied() {
+                if !hidden(v.center - eye, v.half_extents.as_dvec3()) {
+                    if let Some(slot) = visible.get_mut(kept) {
+                        *slot = v;
+                    }
+                    kept += 1;
+                }
+            }
+        };
         let mut first = 0usize;
         for run in cells {
             let end = (run.end as usize).min(visible.len());
             let b = &run.bounds;
-            let cell_hidden = hidden((b.min + b.max) * 0.5 - eye, (b.max - b.min) * 0.5);
-            for k in first..end {
-                self.keep[k] = !cell_hidden
-                    && visible
-                        .get(k)
-                        .is_none_or(|v| !hidden(v.center - eye, v.half_extents.as_dvec3()));
+            if !hidden((b.min + b.max) * 0.5 - eye, (b.max - b.min) * 0.5) {
+                for k in first..end {
+                    keep_if_seen(visible, k);
+                }
             }
             first = end.max(first);
         }
         for k in first..visible.len() {
-            self.keep[k] = visible
-                .get(k)
-                .is_none_or(|v| !hidden(v.center - eye, v.half_extents.as_dvec3()));
+            keep_if_seen(visible, k);
         }
-        let mut k = 0;
-        let keep = &self.keep;
-        visible.retain(|_| {
-            let kept = keep.get(k).copied().unwrap_or(true);
-            k += 1;
-            kept
-        });
+        visible.truncate(kept);
         self.last = SoftwareFrame {
             raster: buffer.stats(),
             tested,
