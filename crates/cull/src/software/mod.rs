@@ -115,6 +115,9 @@ struct Tiles {
     blocks: Vec<f32>,
 }
 
+/// Triangles a rasterization takes from which it splits the tiles among threads.
+const PARALLEL_TRIANGLES: usize = 2048;
+
 /// Tiles on a side of a block of [`Tiles::blocks`].
 const BLOCK: u32 = 8;
 
@@ -233,10 +236,13 @@ impl SoftwareOcclusion {
             extent: view.extent,
             kernel: self.config.kernel,
         };
-        let rows_per_band = self
-            .tiles_y
-            .div_ceil(self.config.threads.max(1) as u32)
-            .max(1) as usize;
+        // A small batch is not worth the threads' start.
+        let threads = if self.tris.len() - self.rasterized < PARALLEL_TRIANGLES {
+            1
+        } else {
+            self.config.threads.max(1)
+        };
+        let rows_per_band = self.tiles_y.div_ceil(threads as u32).max(1) as usize;
         let (tx, th) = (self.tiles_x as usize, self.tile_h as usize);
         let Tiles {
             full, work, masks, ..
@@ -251,7 +257,7 @@ impl SoftwareOcclusion {
         if start == tris.len() {
             return;
         }
-        if self.config.threads <= 1 || self.tiles_y as usize <= rows_per_band {
+        if threads <= 1 || self.tiles_y as usize <= rows_per_band {
             for (b, ((f, w), m)) in bands {
                 raster::band(
                     &grid,
