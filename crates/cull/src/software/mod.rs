@@ -257,26 +257,21 @@ impl SoftwareOcclusion {
         if start == tris.len() {
             return;
         }
+        let bands = bands.map(|(b, ((full, work), masks))| raster::Band {
+            first_row: (b * rows_per_band) as u32,
+            full,
+            work,
+            masks,
+        });
         if threads <= 1 || self.tiles_y as usize <= rows_per_band {
-            for (b, ((f, w), m)) in bands {
-                raster::band(
-                    &grid,
-                    tris,
-                    start,
-                    (b * rows_per_band) as u32,
-                    f,
-                    w,
-                    m,
-                    &view,
-                );
+            for band in bands {
+                raster::band(&grid, tris, start, band, &view);
             }
         } else {
             std::thread::scope(|s| {
-                for (b, ((f, w), m)) in bands {
+                for band in bands {
                     let (grid, view) = (&grid, &view);
-                    s.spawn(move || {
-                        raster::band(grid, tris, start, (b * rows_per_band) as u32, f, w, m, view)
-                    });
+                    s.spawn(move || raster::band(grid, tris, start, band, view));
                 }
             });
         }

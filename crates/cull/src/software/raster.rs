@@ -282,19 +282,22 @@ pub(crate) struct Grid {
 
 type Rows = [u32; MAX_TILE_PX as usize];
 
-/// Rasterizes `tris[start..]` (their neighbours anywhere in `tris`) into the band of tile rows
-/// starting at `first_row` whose layers are `full`, `work` and `masks`.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn band(
-    grid: &Grid,
-    tris: &[Tri],
-    start: usize,
-    first_row: u32,
-    full: &mut [f32],
-    work: &mut [f32],
-    masks: &mut [u32],
-    view: &OcclusionView,
-) {
+/// A band of tile rows one thread rasterizes: its first row and its tiles' layers.
+pub(crate) struct Band<'a> {
+    pub first_row: u32,
+    pub full: &'a mut [f32],
+    pub work: &'a mut [f32],
+    pub masks: &'a mut [u32],
+}
+
+/// Rasterizes `tris[start..]` (their neighbours anywhere in `tris`) into `band`.
+pub(crate) fn band(grid: &Grid, tris: &[Tri], start: usize, band: Band<'_>, view: &OcclusionView) {
+    let Band {
+        first_row,
+        full,
+        work,
+        masks,
+    } = band;
     let (tw, th) = (grid.tile_w, grid.tile_h);
     let rows = (full.len() as u32) / grid.tiles_x.max(1);
     let last_row = first_row + rows;
