@@ -262,6 +262,7 @@ fn test(rest: &[String]) -> Result<(), String> {
     // Every skip of the run (test data absent) is appended here and listed at the end.
     let skips = root().join("target").join("test-skips.log");
     let _ = std::fs::remove_file(&skips);
+    let require_data = require_data();
     // The shader check (staleness + spirv-val) is xtask's own unit test, run by cargo test below.
     // Every GPU test requires the validation layer (with synchronization validation).
     let tests = run(
@@ -270,12 +271,38 @@ fn test(rest: &[String]) -> Result<(), String> {
             .args(["test", "--workspace"])
             .args(rest)
             .env("TILEGRAPH_VALIDATION", "required")
-            .env("TILEGRAPH_SKIP_LOG", &skips),
+            .env("TILEGRAPH_SKIP_LOG", &skips)
+            .env("TILEGRAPH_REQUIRE_DATA", require_data),
     )
     .and_then(|()| best_practices_per_vendor())
     .and_then(|()| aarch64::test());
     report_skips(&skips);
     tests
+}
+
+/// Whether the tests must find every third-party file they read (`TILEGRAPH_REQUIRE_DATA`):
+/// as the caller set it, else "1" where the data directory is there — a file missing from it
+/// (a scene renamed or dropped) then fails its test instead of skipping it — and "0" where the
+/// whole directory is absent (a machine without `../shared`: the tests that need it skip, and
+/// the run lists them at its end).
+fn require_data() -> String {
+    if let Ok(v) = std::env::var("TILEGRAPH_REQUIRE_DATA") {
+        return v;
+    }
+    let dir = std::env::var_os("TILEGRAPH_TEST_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join("..").join("shared").join("data"));
+    let present = dir.is_dir();
+    println!(
+        "==> test data: {} {}",
+        dir.display(),
+        if present {
+            "present: a file missing from it fails its test"
+        } else {
+            "absent: the tests that need it skip (listed at the end)"
+        }
+    );
+    String::from(if present { "1" } else { "0" })
 }
 
 /// Appends a skip to `$TILEGRAPH_SKIP_LOG` (the format `tilegraph_scene::test_data::skipped`
