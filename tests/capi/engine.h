@@ -263,6 +263,16 @@ static TgTarget engine_target(const EngineImage *img, uint32_t width, uint32_t h
     return t;
 }
 
+/* The target of a frame in a loop that copies the image out after each: the first frame finds
+ * it undefined, the later ones where the last left it (after its copy). */
+static TgTarget engine_frame_target(const EngineImage *img, uint32_t width, uint32_t height,
+                                    int first) {
+    return first ? engine_target(img, width, height, VK_IMAGE_LAYOUT_UNDEFINED,
+                                 VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE)
+                 : engine_target(img, width, height, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                                 VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_READ_BIT);
+}
+
 /* One engine frame slot: a command buffer and its fence. */
 typedef struct EngineSlot {
     VkCommandBuffer cb;

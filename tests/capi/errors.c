@@ -128,11 +128,7 @@ static TgStatus frame(Engine *e, EngineSlot *s, TgRenderer renderer, TgScene sce
     TgCamera camera;
     uint32_t cut;
     TG_CHECK(tg_scene_path_camera(scene, index, &camera, &cut));
-    TgTarget t = *first ? engine_target(img, WIDTH, HEIGHT, VK_IMAGE_LAYOUT_UNDEFINED,
-                                        VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE)
-                        : engine_target(img, WIDTH, HEIGHT, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                                        VK_PIPELINE_STAGE_2_COPY_BIT,
-                                        VK_ACCESS_2_TRANSFER_READ_BIT);
+    TgTarget t = engine_frame_target(img, WIDTH, HEIGHT, *first);
     TgEngineFrame f = {.command_buffer = s->cb, .slot = 0};
     TgStatus status = tg_renderer_record(renderer, &camera, cut, &f, &t);
     if (status == TG_STATUS_OK) {

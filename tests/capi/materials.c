@@ -187,12 +187,7 @@ int main(int argc, char **argv) {
         TG_CHECK(tg_scene_path_camera(scene, k * STEP, &camera, NULL));
         EngineSlot *s = &slots[k % SLOTS];
         engine_begin(&e, s);
-        TgTarget t = k == 0 ? engine_target(&target, WIDTH, HEIGHT, VK_IMAGE_LAYOUT_UNDEFINED,
-                                             VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE)
-                            : engine_target(&target, WIDTH, HEIGHT,
-                                            VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                                            VK_PIPELINE_STAGE_2_COPY_BIT,
-                                            VK_ACCESS_2_TRANSFER_READ_BIT);
+        TgTarget t = engine_frame_target(&target, WIDTH, HEIGHT, k == 0);
         TgEngineFrame frame = {.command_buffer = s->cb, .slot = k % SLOTS};
         TG_CHECK(tg_renderer_record(renderer, &camera, 0, &frame, &t));
         engine_submit(&e, s);

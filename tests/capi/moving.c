@@ -74,12 +74,7 @@ int main(int argc, char **argv) {
 
         EngineSlot *s = &slots[i % SLOTS];
         engine_begin(&e, s);
-        TgTarget t = i == 0 ? engine_target(&target, WIDTH, HEIGHT, VK_IMAGE_LAYOUT_UNDEFINED,
-                                             VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE)
-                            : engine_target(&target, WIDTH, HEIGHT,
-                                            VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                                            VK_PIPELINE_STAGE_2_COPY_BIT,
-                                            VK_ACCESS_2_TRANSFER_READ_BIT);
+        TgTarget t = engine_frame_target(&target, WIDTH, HEIGHT, i == 0);
         TgEngineFrame frame = {.command_buffer = s->cb, .slot = i % SLOTS};
         TG_CHECK(tg_renderer_record(renderer, &camera, cut, &frame, &t));
         engine_submit(&e, s);

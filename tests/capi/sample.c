@@ -90,12 +90,7 @@ int main(int argc, char **argv) {
         uint32_t cut;
         TG_CHECK(tg_scene_path_camera(scene, i, &camera, &cut));
         /* First frame: the image's content is undefined; later ones: where the last left it. */
-        TgTarget t = i == 0 ? engine_target(&target, WIDTH, HEIGHT, VK_IMAGE_LAYOUT_UNDEFINED,
-                                             VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE)
-                            : engine_target(&target, WIDTH, HEIGHT,
-                                            VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                                            VK_PIPELINE_STAGE_2_COPY_BIT,
-                                            VK_ACCESS_2_TRANSFER_READ_BIT);
+        TgTarget t = engine_frame_target(&target, WIDTH, HEIGHT, i == 0);
         TgEngineFrame frame = {.command_buffer = s->cb, .slot = i % SLOTS};
         if (i == WHOLE_FROM) {
             /* What a shipped game keeps: the whole frame's GPU time, no queries per pass (the

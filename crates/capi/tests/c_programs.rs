@@ -116,6 +116,18 @@ fn run(exe: &Path, args: &[&str]) -> String {
     stdout
 }
 
+/// The image a C program wrote at `path` equals the Rust path's `reference`, byte for byte
+/// (`what`: which image, or the program's log).
+fn assert_equals_rust_image(what: &str, path: &Path, reference: &[u8]) {
+    let pixels = std::fs::read(path).unwrap();
+    assert_eq!(pixels.len(), reference.len(), "{what}");
+    let differing = pixels.iter().zip(reference).filter(|(a, b)| a != b).count();
+    assert_eq!(
+        differing, 0,
+        "{differing} bytes differ from the Rust path's image: {what}"
+    );
+}
+
 /// The Rust path: tilegraph's own device and submission, the same frames — the main camera's
 /// image, and the second camera's rendered alone (on a device with the same features).
 fn rust_reference() -> (Vec<u8>, Vec<u8>) {
@@ -193,13 +205,7 @@ fn the_c_sample_renders_the_rust_paths_image() {
         ("main camera", &out, &reference),
         ("second camera", &view_out, &view_reference),
     ] {
-        let pixels = std::fs::read(path).unwrap();
-        assert_eq!(pixels.len(), reference.len(), "{what}");
-        let differing = pixels.iter().zip(reference).filter(|(a, b)| a != b).count();
-        assert_eq!(
-            differing, 0,
-            "{what}: {differing} bytes differ from the Rust path's image"
-        );
+        assert_equals_rust_image(what, path, reference);
     }
 }
 
@@ -269,18 +275,7 @@ fn the_c_moving_scene_renders_the_rust_paths_image() {
     let out = target_dir().join("capi-moving.rgba");
     let log = run(&exe, &[out.to_str().unwrap()]);
     assert!(log.trim_end().ends_with("ok"), "{log}");
-    let pixels = std::fs::read(&out).unwrap();
-    let reference = rust_moving_reference();
-    assert_eq!(pixels.len(), reference.len());
-    let differing = pixels
-        .iter()
-        .zip(&reference)
-        .filter(|(a, b)| a != b)
-        .count();
-    assert_eq!(
-        differing, 0,
-        "{differing} bytes differ from the Rust path's image"
-    );
+    assert_equals_rust_image(&log, &out, &rust_moving_reference());
 }
 
 /// A visible set of city:300 baked over its path (as `tilegraph pvs` bakes), written where
@@ -335,17 +330,7 @@ fn the_c_game_draws_its_shipped_visible_set_as_the_rust_path() {
     let reference = rust_pvs_reference(&set);
     let log = run(&exe, &[set.to_str().unwrap(), out.to_str().unwrap()]);
     assert!(log.trim_end().ends_with("ok"), "{log}");
-    let pixels = std::fs::read(&out).unwrap();
-    assert_eq!(pixels.len(), reference.len());
-    let differing = pixels
-        .iter()
-        .zip(&reference)
-        .filter(|(a, b)| a != b)
-        .count();
-    assert_eq!(
-        differing, 0,
-        "{differing} bytes differ from the Rust path's image\n{log}"
-    );
+    assert_equals_rust_image(&log, &out, &reference);
 }
 
 #[test]
