@@ -1242,9 +1242,10 @@ typedef struct {
    */
   uint32_t shadow_culling;
   /**
-   * The visible set TG_CULLING_PVS draws from (a zero handle: none), and how many cells
-   * around the camera's join their sets to its own (0: its cell only; more trades drawn
-   * instances for fewer misses, docs/ACCURACY.md).
+   * The visible set TG_CULLING_PVS draws from (a zero handle: none; other cullings ignore
+   * it), and how many cells around the camera's join their sets to its own (0: its cell
+   * only; 1 is what `tilegraph` uses by default; more trades drawn instances for fewer
+   * misses, docs/ACCURACY.md).
    */
   TgPvs pvs;
   uint32_t pvs_dilation;
@@ -1719,7 +1720,8 @@ TgStatus tg_plan_pass_name(TgPlan plan, uint32_t pass, const char **out_name);
 
 /**
  * Reads a visible set from the file at `path` (the JSON `tilegraph pvs` writes) and checks
- * it. A file that is not one is TG_STATUS_SCENE, its message says why.
+ * it. A file that is not one is TG_STATUS_SCENE, its message says why. Like every handle, the
+ * set belongs to the thread that made it: load it on the thread that makes the renderer.
  *
  * # Safety
  * `path` is a NUL-terminated string; `out_pvs` is writable.

@@ -29,9 +29,10 @@ pub struct TgViewDesc {
     pub shadow_resolution: u32,
     /// A TgShadowCulling.
     pub shadow_culling: u32,
-    /// The visible set TG_CULLING_PVS draws from (a zero handle: none), and how many cells
-    /// around the camera's join their sets to its own (0: its cell only; more trades drawn
-    /// instances for fewer misses, docs/ACCURACY.md).
+    /// The visible set TG_CULLING_PVS draws from (a zero handle: none; other cullings ignore
+    /// it), and how many cells around the camera's join their sets to its own (0: its cell
+    /// only; 1 is what `tilegraph` uses by default; more trades drawn instances for fewer
+    /// misses, docs/ACCURACY.md).
     pub pvs: TgPvs,
     pub pvs_dilation: u32,
 }

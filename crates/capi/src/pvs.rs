@@ -45,7 +45,8 @@ fn invalid_set(e: tilegraph_cull::CullError) -> Failure {
 }
 
 /// Reads a visible set from the file at `path` (the JSON `tilegraph pvs` writes) and checks
-/// it. A file that is not one is TG_STATUS_SCENE, its message says why.
+/// it. A file that is not one is TG_STATUS_SCENE, its message says why. Like every handle, the
+/// set belongs to the thread that made it: load it on the thread that makes the renderer.
 ///
 /// # Safety
 /// `path` is a NUL-terminated string; `out_pvs` is writable.

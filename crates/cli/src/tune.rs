@@ -109,8 +109,10 @@ fn feasible(c: &Candidate, max_fn_rate: Option<f64>) -> bool {
 }
 
 /// The selection rule: among the settings that meet the constraint, the fastest
-/// ([`Candidate::cost_ms`]: GPU frame and CPU culling); a tie (equal frame time) goes to the lower FP rate, then to fewer changes from the profile, then to the
-/// key (so the pick is deterministic). Returns the candidates in that order, pick first.
+/// ([`Candidate::cost_ms`]: GPU frame and CPU culling, added: the render thread culls before it
+/// records); a tie (equal time) goes to the lower FP rate, then to fewer changes from the
+/// profile, then to the key (so the pick is deterministic). Returns the candidates in that
+/// order, pick first.
 pub fn select(
     candidates: &[Candidate],
     max_fn_rate: Option<f64>,

@@ -67,6 +67,8 @@ impl Case {
             resolution: self.resolution,
             subpixel_bits: self.bits,
             threads,
+            // Every batch on the threads, however small: the split is what is tested.
+            parallel_triangles: 0,
             kernel,
         });
         sw.begin(self.occlusion_view()).unwrap();

@@ -65,6 +65,9 @@ pub struct SoftwareConfig {
     pub subpixel_bits: u32,
     /// Threads that rasterize bands of tile rows (1: the caller's thread only).
     pub threads: usize,
+    /// Triangles a rasterization takes from which it starts the threads (a small batch is not
+    /// worth their start): 2048 by default; tests set 0 to run every batch on them.
+    pub parallel_triangles: usize,
     pub kernel: Kernel,
 }
 
@@ -74,6 +77,7 @@ impl Default for SoftwareConfig {
             resolution: (256, 128),
             subpixel_bits: 4,
             threads: 1,
+            parallel_triangles: 2048,
             kernel: Kernel::Simd,
         }
     }
@@ -114,9 +118,6 @@ struct Tiles {
     /// behind every tile of the block (box tests skip them). Updated by each rasterization.
     blocks: Vec<f32>,
 }
-
-/// Triangles a rasterization takes from which it splits the tiles among threads.
-const PARALLEL_TRIANGLES: usize = 2048;
 
 /// Tiles on a side of a block of [`Tiles::blocks`].
 const BLOCK: u32 = 8;
@@ -237,7 +238,7 @@ impl SoftwareOcclusion {
             kernel: self.config.kernel,
         };
         // A small batch is not worth the threads' start.
-        let threads = if self.tris.len() - self.rasterized < PARALLEL_TRIANGLES {
+        let threads = if self.tris.len() - self.rasterized < self.config.parallel_triangles {
             1
         } else {
             self.config.threads.max(1)
@@ -290,7 +291,8 @@ impl SoftwareOcclusion {
         &self.tiles.full
     }
 
-    /// The working layer: keys and row masks.
+    /// The working layer: keys and row masks (a tile's masks mean nothing where its key is
+    /// -inf: an emptied layer keeps its stale masks).
     pub fn working_layer(&self) -> (&[f32], &[u32]) {
         (&self.tiles.work, &self.tiles.masks)
     }
@@ -364,7 +366,8 @@ impl SoftwareOcclusion {
         // Each clip coordinate's range over the box: centre +- the axes' absolute sums.
         let e = axes[0].abs() + axes[1].abs() + axes[2].abs();
         let (w_lo, w_hi) = (c.w - e.w, c.w + e.w);
-        if !(w_lo > 0.0 && c.z - e.z >= 0.0 && c.is_finite() && e.is_finite()) {
+        // (A w so small that its reciprocal overflows counts as crossing the near plane.)
+        if !(w_lo >= f64::MIN_POSITIVE && c.z - e.z >= 0.0 && c.is_finite() && e.is_finite()) {
             return None;
         }
         // x / w over x in [x_lo, x_hi], w in [w_lo, w_hi] (w > 0): its extremes are at the

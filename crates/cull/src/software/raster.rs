@@ -319,10 +319,11 @@ pub(crate) fn band(grid: &Grid, tris: &[Tri], start: usize, band: Band<'_>, view
                 continue;
             };
             let (tx0, tx1) = (c0 / tw, c1 / tw);
-            // Nothing this triangle adds to a tile can be nearer than its own depth there
-            // (below): behind the tile's full layer, the coverage is not worth computing. Its
-            // depth grows along the row toward one end, so the row's least is that end tile's;
-            // a full layer already at or nearer than it skips the tile for a compare.
+            // Nothing this triangle adds to a tile can be nearer than its own bound there (the
+            // farthest key it can store over the tile, below): where the tile's full layer is
+            // already at or nearer than that, the coverage is not worth computing. The bound
+            // grows along the row toward one end, so the row's least is that end tile's, and a
+            // full layer at or nearer than it skips the tile for a compare.
             let nearest_end = Place::new(grid, if tri.gx > 0.0 { tx0 } else { tx1 }, ty);
             let row_least = super::far_key(
                 view,
