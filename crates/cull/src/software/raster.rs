@@ -359,12 +359,20 @@ pub(crate) fn band(grid: &Grid, tris: &[Tri], start: usize, band: Band<'_>, view
                 } else {
                     coverage(grid, tris, tri, &tile, &mut cover, &mut scratch)
                 };
-                let key = match found {
+                let far = |key: f64| {
+                    if key == own_depth {
+                        own
+                    } else {
+                        super::far_key(view, key)
+                    }
+                };
+                // Whole tiles at a key, or rows.
+                let (whole_at, rows_at) = match found {
                     Cover::None => continue,
                     // Every centre: at the triangle's own depth here.
-                    Cover::Full => None,
-                    Cover::Rows(key) if key == own_depth => Some(own),
-                    Cover::Rows(key) => Some(super::far_key(view, key)),
+                    Cover::Full => (Some(own), None),
+                    Cover::FullAt(key) => (Some(far(key)), None),
+                    Cover::Rows(key) => (None, Some(far(key))),
                 };
                 let base = local * th as usize;
                 if let (Some(f), Some(w), Some(m)) = (
@@ -372,9 +380,10 @@ pub(crate) fn band(grid: &Grid, tris: &[Tri], start: usize, band: Band<'_>, view
                     work.get_mut(local),
                     masks.get_mut(base..base + th as usize),
                 ) {
-                    match key {
-                        None => merge_full(own, f, w),
-                        Some(key) => merge(&tile, &cover, key, f, w, m),
+                    if let Some(key) = whole_at {
+                        merge_full(key, f, w);
+                    } else if let Some(key) = rows_at {
+                        merge(&tile, &cover, key, f, w, m);
                     }
                 }
             }
@@ -459,6 +468,8 @@ enum Cover {
     None,
     /// Every pixel centre, with the triangle alone (its own depth there holds).
     Full,
+    /// Every pixel centre, with the triangle and a neighbour, at this farthest key.
+    FullAt(f64),
     /// The rows written to `cover`, at this farthest key.
     Rows(f64),
 }
@@ -483,6 +494,29 @@ fn coverage(
         .map(|e| e.classify(tile.x0, tile.y0, tile.x1, tile.y1));
     if class.iter().all(|c| *c == Some(true)) {
         return Cover::Full;
+    }
+    // Inside two edges, and across the third (shared) from a neighbour that holds the tile inside
+    // its other two: the pair covers every centre, at the farther of their depths — what the
+    // rows below would find, without computing them (a quad's diagonal through its middle).
+    for i in 0..3 {
+        let (b, c) = ((i + 1) % 3, (i + 2) % 3);
+        let (n, j) = tri.across[i];
+        if class[i].is_some() || class[b] != Some(true) || class[c] != Some(true) || n == NONE {
+            continue;
+        }
+        let Some(other) = tris.get(n as usize) else {
+            break;
+        };
+        let held = [(j as usize + 1) % 3, (j as usize + 2) % 3]
+            .iter()
+            .all(|&o| other.edges[o].classify(tile.x0, tile.y0, tile.x1, tile.y1) == Some(true));
+        if held {
+            return Cover::FullAt(
+                tri.depth_over(tile.x0, tile.y0, tile.x1, tile.y1)
+                    .max(other.depth_over(tile.x0, tile.y0, tile.x1, tile.y1)),
+            );
+        }
+        break;
     }
     let mut outside = (0..3).filter(|&i| class[i] == Some(false));
     match (outside.next(), outside.next()) {
