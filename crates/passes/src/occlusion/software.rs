@@ -134,13 +134,15 @@ impl SoftwareCull {
             format,
         })?;
         // Occluders: big opaque boxes, nearest first; one around the eye first of all.
+        let min_area = u64::from(width) * u64::from(height) / 1024;
+        let px_per_unit =
+            f64::from(projection.matrix(aspect).y_axis.y.abs()) * f64::from(height) * 0.5;
         let size = SizeTest {
-            min_area: u64::from(width) * u64::from(height) / 1024,
-            px_per_unit: f64::from(projection.matrix(aspect).y_axis.y.abs())
-                * f64::from(height)
-                * 0.5,
+            min_area,
+            px_per_unit,
             perspective: projection.is_perspective(),
             eye: m.eye,
+            reach: 2.0 * px_per_unit / (min_area as f64).sqrt() + 1.0,
         };
         self.candidates.clear();
         let mut consider = |k: usize, member: &GridMember| {
@@ -279,6 +281,9 @@ struct SizeTest {
     px_per_unit: f64,
     perspective: bool,
     eye: DVec3,
+    /// `2 px_per_unit / sqrt(min_area) + 1`: a sphere of radius `r` farther than `reach * r`
+    /// is too small (perspective).
+    reach: f64,
 }
 
 impl SizeTest {
@@ -310,6 +315,13 @@ impl SizeTest {
     ) -> Option<(f32, Option<BoxRect>)> {
         let rel = member.center - self.eye;
         let half = member.half_extents.as_dvec3();
+        // Most members are small and far: no square root for them. With r1 = the half extents'
+        // sum (at least the radius), a centre farther than `reach * r1` makes
+        // 2 r1 px / (d - r1) < sqrt(min_area): the test below would say too small too.
+        let reach = half.abs().element_sum() * self.reach;
+        if self.perspective && reach * reach < rel.length_squared() {
+            return None;
+        }
         let (r, d) = (half.length(), rel.length());
         if self.perspective && d <= r {
             return Some((f32::NEG_INFINITY, None));
