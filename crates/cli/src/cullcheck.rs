@@ -57,8 +57,8 @@ pub fn check(
         height: h,
         ..Default::default()
     };
-    let resolved = RunArgs::resolve(ctx, scene, knobs, &mut o)?;
     o.pvs = a.load_pvs()?;
+    let resolved = RunArgs::resolve(ctx, scene, knobs, &mut o)?;
     let mut save = |f: &FailedFrame<'_>| -> Result<(), String> {
         let Some(dir) = save_frames else {
             return Ok(());
@@ -80,7 +80,7 @@ pub fn check(
         bar.set_position(done as u64);
     };
     let extras = CheckExtras {
-        auto: resolved.auto_trial(crate::run::auto_inputs(ctx, scene)),
+        auto: resolved.auto_trial(crate::run::auto_inputs(ctx, scene, o.pvs.as_deref())),
         on_failure: save_frames.map(|_| &mut save as OnFailure<'_>),
         on_frame: Some(&mut progress),
         motion: crate::run::split_motion(&a.scene)?.1,

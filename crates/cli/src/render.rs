@@ -114,10 +114,10 @@ fn render_with(
         height: h,
         ..Default::default()
     };
+    ropts.pvs = run.load_pvs()?;
     let resolved = RunArgs::resolve(ctx, scene, args.knobs, &mut ropts)?;
     ropts.lighting.heavy_iterations = args.heavy;
     ropts.texture_binding = run.texture_binding;
-    ropts.pvs = run.load_pvs()?;
     let path = run.camera_path(scene)?;
     let camera = path.camera(args.camera_frame).ok_or_else(|| {
         CliError::Usage(format!(
@@ -136,7 +136,8 @@ fn render_with(
     let mut renderer = SceneRenderer::new(ctx, scene, ropts.clone())?;
     let mut trial_reason = None;
     // `auto`: time every candidate on this device first, keep the fastest.
-    if let Some(mut trial) = resolved.auto_trial(crate::run::auto_inputs(ctx, scene)) {
+    let inputs = crate::run::auto_inputs(ctx, scene, ropts.pvs.as_deref());
+    if let Some(mut trial) = resolved.auto_trial(inputs) {
         while trial_reason.is_none() {
             let drawn = world
                 .next()

@@ -124,14 +124,16 @@ impl RunArgs {
     }
 
     /// The knobs `run` sets (from [`Self::knob_settings`], read before the device is created)
-    /// resolved for `scene` on `ctx`, and written into `options`.
+    /// resolved for `scene` on `ctx` (with `options.pvs`, the visible set given), and written
+    /// into `options`.
     pub fn resolve(
         ctx: &Context,
         scene: &Scene,
         run: &KnobSettings,
         options: &mut RenderOptions,
     ) -> Result<Resolved, CliError> {
-        let resolved = knobs::resolve(ctx.profile(), run, scene, auto_inputs(ctx, scene))?;
+        let inputs = auto_inputs(ctx, scene, options.pvs.as_deref());
+        let resolved = knobs::resolve(ctx.profile(), run, scene, inputs)?;
         resolved.apply(options);
         Ok(resolved)
     }
@@ -294,13 +296,17 @@ pub fn on_context<R>(
     Ok(r)
 }
 
-/// What `auto` may choose between on `ctx`'s device.
-pub fn auto_inputs(ctx: &Context, scene: &Scene) -> AutoInputs {
+/// What `auto` may choose between on `ctx`'s device, for `scene` and the visible set given
+/// (`--pvs`; `auto` times it only where the profile says `auto_pvs = "allow"` and the set was
+/// baked for this scene).
+pub fn auto_inputs(ctx: &Context, scene: &Scene, pvs: Option<&tilegraph_cull::Pvs>) -> AutoInputs {
+    let passes = &ctx.profile().passes;
     AutoInputs {
         clusters: scene.clusters().is_some(),
         conditional_rendering: ctx.has_feature(Feature::ConditionalRendering),
-        prefer_cpu_occlusion: ctx.profile().passes.cpu_occlusion
-            == tilegraph_profile::CpuOcclusion::Prefer,
+        prefer_cpu_occlusion: passes.cpu_occlusion == tilegraph_profile::CpuOcclusion::Prefer,
+        pvs: passes.auto_pvs == tilegraph_profile::AutoPvs::Allow
+            && pvs.is_some_and(|p| p.scene_fingerprint == scene.placement_fingerprint()),
     }
 }
 

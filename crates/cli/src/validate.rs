@@ -286,7 +286,7 @@ impl Matrix<'_> {
             self.ctx.profile(),
             &knobs,
             &s.scene,
-            auto_inputs(self.ctx, &s.scene),
+            auto_inputs(self.ctx, &s.scene, None),
         )?;
         resolved.apply(&mut o);
         Ok(o)

@@ -794,3 +794,69 @@ fn walks_at_eye_height_are_named_camera_paths() {
     );
     assert!(!ok && err.contains("walk:SEED"), "{err}");
 }
+
+/// `auto` times a visible set given for the scene only where the profile says
+/// `auto_pvs = "allow"` (no shipped profile does).
+#[test]
+fn auto_times_a_given_visible_set_only_where_the_profile_allows() {
+    let dir = std::env::temp_dir().join(format!("tilegraph-auto-pvs-{}", std::process::id()));
+    let profiles = dir.join("profiles");
+    std::fs::create_dir_all(&profiles).unwrap();
+    let set = dir.join("city.pvs.json");
+    let set = set.to_str().unwrap();
+    let (ok, _, err) = tilegraph(
+        &[
+            "pvs",
+            "city:300",
+            "--cell",
+            "40",
+            "--samples",
+            "1",
+            "--face-px",
+            "32",
+            "--out",
+            set,
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    let lavapipe = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../config/profiles/lavapipe.toml"
+    ))
+    .unwrap();
+    assert!(lavapipe.contains("[passes]"));
+    std::fs::write(
+        profiles.join("lavapipe.toml"),
+        lavapipe.replacen("[passes]", "[passes]\nauto_pvs = \"allow\"", 1),
+    )
+    .unwrap();
+    let trial = |env: &[(&str, &str)]| {
+        let (ok, out, err) = tilegraph(
+            &[
+                "cull-check",
+                "city:300",
+                "--culling",
+                "auto",
+                "--pvs",
+                set,
+                "--size",
+                "160x90",
+                "--frames",
+                "48",
+            ],
+            env,
+        );
+        assert!(ok, "{err}");
+        let text = format!("{out}{err}");
+        text.lines()
+            .find(|l| l.contains("auto timed on this device"))
+            .unwrap_or_else(|| panic!("no trial in {text}"))
+            .to_string()
+    };
+    let shipped = trial(&[]);
+    assert!(!shipped.contains(" pvs "), "{shipped}");
+    let allowed = trial(&[("TILEGRAPH_PROFILE_DIR", profiles.to_str().unwrap())]);
+    assert!(allowed.contains(" pvs "), "{allowed}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -89,8 +89,10 @@ impl AutoTrial {
             Culling::FrustumClusters,
             Culling::HizTwoPhaseClusters,
             Culling::SoftwareOcclusion,
+            Culling::Pvs,
         ] {
             if candidates.contains(&c)
+                || (c == Culling::Pvs && !inputs.pvs)
                 || (c == Culling::OqConditional && !inputs.conditional_rendering)
                 || (c.clusters() && !inputs.clusters)
                 || c.unsupported_with(technique).is_some()
@@ -295,6 +297,9 @@ pub struct AutoInputs {
     /// The profile prefers software occlusion on the CPU (`[passes] cpu_occlusion = "prefer"`:
     /// its family builds depth pyramids slowly): `auto` starts from it.
     pub prefer_cpu_occlusion: bool,
+    /// A precomputed visible set baked for the scene is given and the profile lets `auto` pick
+    /// one (`[passes] auto_pvs = "allow"`): it is timed with the other candidates.
+    pub pvs: bool,
 }
 
 /// Whether `auto` would try cluster culling on `scene` if it had its clusters: its opaque and
@@ -701,6 +706,7 @@ mod tests {
             conditional_rendering: true,
             clusters: false,
             prefer_cpu_occlusion: false,
+            pvs: false,
         };
         let mut run = KnobSettings::default();
         run.set_assignment("culling=oq-conditional").unwrap();
@@ -747,6 +753,7 @@ mod tests {
             conditional_rendering: false,
             clusters: false,
             prefer_cpu_occlusion: false,
+            pvs: false,
         };
         let mut t = AutoTrial::new(Culling::HizTwoPhase, inputs, Technique::Forward);
         assert_eq!(t.frames(), 4 * (AUTO_WARMUP_FRAMES + AUTO_TIMED_FRAMES));
@@ -791,6 +798,7 @@ mod tests {
             conditional_rendering: true,
             clusters: false,
             prefer_cpu_occlusion: false,
+            pvs: false,
         };
         let with = AutoTrial::new(Culling::None, conditional, Technique::Forward);
         assert_eq!(with.candidates.len(), 5);
@@ -825,11 +833,38 @@ mod tests {
     }
 
     #[test]
+    fn auto_times_a_given_visible_set_only_where_the_profile_allows() {
+        let inputs = |pvs| AutoInputs {
+            conditional_rendering: true,
+            clusters: false,
+            prefer_cpu_occlusion: false,
+            pvs,
+        };
+        let with = AutoTrial::new(Culling::HizTwoPhase, inputs(true), Technique::Forward);
+        assert!(with.candidates.contains(&Culling::Pvs));
+        let without = AutoTrial::new(Culling::HizTwoPhase, inputs(false), Technique::Forward);
+        assert!(!without.candidates.contains(&Culling::Pvs));
+        // Every shipped profile keeps auto conservative.
+        for p in tilegraph_profile::ProfileSet::embedded()
+            .unwrap()
+            .profiles()
+        {
+            assert_eq!(
+                p.passes.auto_pvs,
+                tilegraph_profile::AutoPvs::Never,
+                "{}",
+                p.name
+            );
+        }
+    }
+
+    #[test]
     fn a_profile_that_prefers_the_cpu_starts_auto_from_software_occlusion() {
         let prefer = AutoInputs {
             conditional_rendering: true,
             clusters: false,
             prefer_cpu_occlusion: true,
+            pvs: false,
         };
         let big = tilegraph_scene::load("city:2000").unwrap();
         let (c, why) = auto_culling(&big, prefer, Technique::Forward);
@@ -870,6 +905,7 @@ mod tests {
             conditional_rendering: true,
             clusters: false,
             prefer_cpu_occlusion: false,
+            pvs: false,
         };
         let small = tilegraph_scene::load("city:100").unwrap();
         let (c, why) = auto_culling(&small, inputs, Technique::Forward);
@@ -889,6 +925,7 @@ mod tests {
             conditional_rendering: true,
             clusters: false,
             prefer_cpu_occlusion: false,
+            pvs: false,
         };
         // 300 instances of a 1,000-triangle mesh.
         let mut b = tilegraph_scene::SceneBuilder::new("heavy");

@@ -168,6 +168,23 @@ pub struct PassPolicy {
     /// beside the GPU techniques (`allow`, the default).
     #[serde(default)]
     pub cpu_occlusion: CpuOcclusion,
+    /// Whether `culling = auto` may pick a precomputed visible set when one baked for the scene
+    /// is given (`allow`), though it is exact only at its baked viewpoints; `never` (the
+    /// default, and every shipped profile's) keeps `auto` to conservative cullings.
+    #[serde(default)]
+    pub auto_pvs: AutoPvs,
+}
+
+/// Whether `culling = auto` may pick a precomputed visible set.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AutoPvs {
+    /// Only conservative cullings: a PVS can miss between its baked viewpoints.
+    #[default]
+    Never,
+    /// A given set is timed beside the other candidates: the game accepts its misses (measured
+    /// by `cull-check --culling pvs` on paths it was not baked on).
+    Allow,
 }
 
 /// What `culling = auto` makes of software occlusion on a family.

@@ -235,7 +235,7 @@ pub(crate) fn run_one(
         &path,
         Some(frames as usize),
         tilegraph_passes::cullcheck::CheckExtras {
-            auto: resolved.auto_trial(crate::run::auto_inputs(ctx, scene)),
+            auto: resolved.auto_trial(crate::run::auto_inputs(ctx, scene, None)),
             motion: crate::run::split_motion(&s.scene)?.1,
             timing_warmup: crate::run::TIMING_WARMUP,
             ..Default::default()
