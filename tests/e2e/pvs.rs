@@ -6,11 +6,10 @@
 
 use std::sync::Arc;
 
-use tilegraph_e2e::gpu_with;
 use tilegraph_passes::cull::Culling;
 use tilegraph_passes::cullcheck::{cull_check_options, CheckExtras, CullCheck};
-use tilegraph_passes::pvs::{bake, face_cameras, path_region, viewpoints, BakeSpec};
-use tilegraph_passes::{RenderError, RenderOptions, SceneRenderer, Technique};
+use tilegraph_passes::pvs::{face_cameras, viewpoints};
+use tilegraph_passes::{RenderError, RenderOptions, SceneRenderer};
 use tilegraph_scene::{CameraPath, PathKey, Scene};
 use tilegraph_vk::Context;
 
@@ -23,24 +22,8 @@ fn check(g: &Context, scene: &Scene, options: RenderOptions, path: &CameraPath) 
 #[test]
 fn a_visible_set_is_exact_at_its_samples_and_dilation_only_adds() {
     let scene = tilegraph_scene::load("city:300").unwrap();
-    let g = gpu_with(
-        None,
-        RenderOptions {
-            technique: Technique::Visbuf,
-            ..Default::default()
-        }
-        .device_features(),
-    )
-    .unwrap();
     let own = scene.camera_path().clone();
-    let spec = BakeSpec {
-        region: path_region(&own, 40.0),
-        cell: 40.0,
-        samples: 1,
-        face_px: FACE,
-        seed: 3,
-    };
-    let pvs = bake(&g, &scene, &spec, |_, _| {}).unwrap();
+    let (g, spec, pvs) = tilegraph_e2e::bake_path_pvs(&scene, FACE);
     pvs.validate().unwrap();
     let (dims, eyes) = viewpoints(&spec);
     assert_eq!(pvs.dims, dims);

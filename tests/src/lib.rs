@@ -89,6 +89,31 @@ pub fn gpu_with(profile: Option<&str>, features: FeatureRequest) -> Result<Gpu, 
 pub mod engine;
 pub mod frames;
 
+/// A visible set of `scene` baked over its own camera path as the PVS tests bake it (40 m
+/// cells, one viewpoint each, faces of `face_px`), on a validated device that can bake it
+/// (the visibility buffer's features), with its spec.
+pub fn bake_path_pvs(
+    scene: &tilegraph_scene::Scene,
+    face_px: u32,
+) -> (Gpu, tilegraph_passes::pvs::BakeSpec, tilegraph_cull::Pvs) {
+    use tilegraph_passes::pvs::{bake, path_region, BakeSpec};
+    let features = tilegraph_passes::RenderOptions {
+        technique: tilegraph_passes::Technique::Visbuf,
+        ..Default::default()
+    }
+    .device_features();
+    let g = gpu_with(None, features).expect("a device that bakes visible sets");
+    let spec = BakeSpec {
+        region: path_region(scene.camera_path(), 40.0),
+        cell: 40.0,
+        samples: 1,
+        face_px,
+        seed: 3,
+    };
+    let pvs = bake(&g, scene, &spec, |_, _| {}).expect("the bake");
+    (g, spec, pvs)
+}
+
 /// `$TILEGRAPH_TEST_DATA` or `../shared/data` beside the repository.
 pub fn test_data_dir() -> std::path::PathBuf {
     tilegraph_scene::test_data::dir()

@@ -282,25 +282,8 @@ fn the_c_moving_scene_renders_the_rust_paths_image() {
 /// `tests/capi/pvs.c` reads it; and the Rust path's image of the frames `pvs.c` draws with it.
 fn rust_pvs_reference(file: &Path) -> Vec<u8> {
     use std::sync::Arc;
-    use tilegraph_passes::pvs::{bake, path_region, BakeSpec};
     let scene = tilegraph_scene::load("city:300").unwrap();
-    let spec = BakeSpec {
-        region: path_region(scene.camera_path(), 40.0),
-        cell: 40.0,
-        samples: 1,
-        face_px: 32,
-        seed: 3,
-    };
-    let baker = gpu_with(
-        None,
-        RenderOptions {
-            technique: Technique::Visbuf,
-            ..Default::default()
-        }
-        .device_features(),
-    )
-    .unwrap();
-    let pvs = bake(&baker, &scene, &spec, |_, _| {}).unwrap();
+    let (baker, _, pvs) = tilegraph_e2e::bake_path_pvs(&scene, 32);
     drop(baker);
     std::fs::write(file, pvs.to_json().unwrap()).unwrap();
     let options = RenderOptions {
