@@ -366,25 +366,20 @@ pub(crate) fn band(grid: &Grid, tris: &[Tri], start: usize, band: Band<'_>, view
                         super::far_key(view, key)
                     }
                 };
-                // Whole tiles at a key, or rows.
-                let (whole_at, rows_at) = match found {
-                    Cover::None => continue,
-                    // Every centre: at the triangle's own depth here.
-                    Cover::Full => (Some(own), None),
-                    Cover::FullAt(key) => (Some(far(key)), None),
-                    Cover::Rows(key) => (None, Some(far(key))),
-                };
                 let base = local * th as usize;
-                if let (Some(f), Some(w), Some(m)) = (
+                let (Some(f), Some(w), Some(m)) = (
                     full.get_mut(local),
                     work.get_mut(local),
                     masks.get_mut(base..base + th as usize),
-                ) {
-                    if let Some(key) = whole_at {
-                        merge_full(key, f, w);
-                    } else if let Some(key) = rows_at {
-                        merge(&tile, &cover, key, f, w, m);
-                    }
+                ) else {
+                    continue;
+                };
+                match found {
+                    Cover::None => {}
+                    // Every centre: at the triangle's own depth here.
+                    Cover::Full => merge_full(own, f, w),
+                    Cover::FullAt(key) => merge_full(far(key), f, w),
+                    Cover::Rows(key) => merge(&tile, &cover, far(key), f, w, m),
                 }
             }
         }
