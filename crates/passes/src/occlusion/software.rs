@@ -65,8 +65,6 @@ pub struct SoftwareFrame {
     /// Instances in the frustum, and those the buffer hid.
     pub tested: u32,
     pub culled: u32,
-    /// Occluders left out because the nearer ones already hid their boxes.
-    pub occluders_hidden: u32,
     /// CPU milliseconds: selecting, rasterizing and testing.
     pub cpu_ms: f64,
 }
@@ -181,7 +179,7 @@ impl SoftwareCull {
         // before it already hide adds nothing nearer, so it is left out (and its triangles
         // stay in the budget).
         let mut budget = options.occluder_triangles;
-        let (mut pending, mut batch, mut occluders_hidden) = (0u32, FIRST_BATCH, 0u32);
+        let (mut pending, mut batch) = (0u32, FIRST_BATCH);
         for &(_, k, rect) in &self.candidates {
             let Some(member) = visible.get(k as usize) else {
                 continue;
@@ -198,7 +196,6 @@ impl SoftwareCull {
                 continue;
             }
             if rect.is_some_and(|r| buffer.hides(&r)) {
-                occluders_hidden += 1;
                 continue;
             }
             budget -= triangles;
@@ -262,7 +259,6 @@ impl SoftwareCull {
             raster: buffer.stats(),
             tested,
             culled: tested - visible.len() as u32,
-            occluders_hidden,
             cpu_ms: start.elapsed().as_secs_f64() * 1e3,
         };
         if self.history.len() >= HISTORY {
