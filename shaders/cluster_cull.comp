@@ -6,8 +6,8 @@
 // back-facing cone test, and in two-phase culling's late phase the HiZ test against the pyramid
 // of the early depth. Writes each cluster's flags and the chunk's number of runs of consecutive
 // drawn clusters (a run ends at the chunk's end: chunks are independent, and a run split in two
-// draws the same triangles in the same order), added to its entry's (cluster_scan.comp places
-// the entries', cluster_emit.comp writes one command per run and zeroes the entries').
+// draws the same triangles in the same order), added to its entry's (cluster_place.comp and
+// cluster_lists.comp place the entries', cluster_emit.comp writes one command per run and zeroes the entries').
 //
 // Phases (cull.info.y, as cull.comp): 0 frustum; 2 early: of the instances the early phase
 // draws, the clusters in the frustum and not back-facing that were not found occluded last
@@ -42,6 +42,34 @@ shared uint prev0[65];
 shared uint prev1[65];
 shared uint starts0;
 shared uint starts1;
+// Each region's flags as the tests left them, before gaps are bridged.
+shared uint raw[2][64];
+
+// Cluster t's flag in region r once gaps of at most `gap` clusters (knob cluster_gap) between
+// two drawn clusters of the chunk are drawn through: one command instead of two, the gap's
+// triangles drawn in their place in the unculled order (culled for nothing but cost: the image
+// stays equal, and the instance is drawn anyway).
+uint bridged(uint r, uint t, uint gap) {
+    if (raw[r][t] != 0u) {
+        return 1u;
+    }
+    uint left = 64u;
+    for (uint d = 1u; d <= gap && d <= t; ++d) {
+        if (raw[r][t - d] != 0u) {
+            left = t - d;
+            break;
+        }
+    }
+    if (left == 64u) {
+        return 0u;
+    }
+    for (uint d = 1u; d <= gap && t + d < 64u; ++d) {
+        if (raw[r][t + d] != 0u) {
+            return t + d - left - 1u <= gap ? 1u : 0u;
+        }
+    }
+    return 0u;
+}
 
 // The cluster's box in the instance's camera-relative frame (as cull.comp's instance bounds),
 // grown by the f32 transform's rounding: relative to the camera-relative result, to the
@@ -117,6 +145,10 @@ void main() {
     uint phase = cull.info.y;
     bool late = phase == 3u;
     uint region1 = cull.clusters.z;
+    // Knob cluster_early = "instances" (cull.clusters.y bit 1): the early phase draws every
+    // cluster in the frustum and not back-facing of an instance visible last frame, whatever
+    // the cluster's own history — the depth instance culling's early phase leaves, to the pixel.
+    bool whole_early = (cull.clusters.y & 2u) != 0u;
     // Late: how many runs the early phase drew in this chunk (0: none of its clusters, whatever
     // its flags hold from older frames). Read by every thread before thread 0 rewrites it.
     uint early_runs = late ? runs[chunk_slot(0u, w)] : 0u;
@@ -135,7 +167,7 @@ void main() {
     // winding (a mirrored instance's front faces are the other side) and scale uniformly.
     mat3 linear = transpose(mat3(inst.model_rows[0].xyz, inst.model_rows[1].xyz, inst.model_rows[2].xyz));
     float steps = uintBitsToFloat(cull.clusters.w);
-    bool cone = cull.clusters.y == 1u && materials[meshes[inst.mesh].material].double_sided == 0u
+    bool cone = (cull.clusters.y & 1u) != 0u && materials[meshes[inst.mesh].material].double_sided == 0u
         && determinant(linear) > 0.0 && uniform_scale(linear) && steps > 0.0;
     mat3 linear_inverse = cone ? inverse(linear) : mat3(1.0);
     uint base = cluster_base[id];
@@ -157,18 +189,29 @@ void main() {
         if (phase == 0u) {
             f0 = visible ? 1u : 0u;
         } else if (phase == 2u) {
-            f0 = visible && cluster_visible[k] != 0u ? 1u : 0u;
+            f0 = visible && (whole_early || cluster_visible[k] != 0u) ? 1u : 0u;
         } else if (phase == 1u) {
             f0 = visible && hiz_visible_bounds(b, false) ? 1u : 0u;
         } else {
             bool now = visible && hiz_visible_bounds(b, false);
+            // Drawn early, bridged gaps included (what the early depth holds).
             bool early = early_runs != 0u && flags[k] != 0u;
             f1 = now && !early ? 1u : 0u;
             f0 = now ? 1u : 0u;
             cluster_visible[k] = now || !visible ? 1u : 0u;
-            flags[region1 + k] = f1;
         }
-        flags[k] = f0;
+    }
+    raw[0][t] = f0;
+    raw[1][t] = f1;
+    barrier();
+    uint gap = (cull.clusters.y >> 8u) & 0xFFu;
+    f0 = bridged(0u, t, gap);
+    f1 = bridged(1u, t, gap);
+    if (c < range.y) {
+        flags[base + c] = f0;
+        if (late) {
+            flags[region1 + base + c] = f1;
+        }
     }
     prev0[t + 1u] = f0;
     prev1[t + 1u] = f1;

@@ -1,10 +1,11 @@
 #version 450
 // Cluster culling, last step: one workgroup per chunk of 64 clusters of an instance writes one
 // indexed indirect command per run of consecutive drawn clusters of each region the chunk has
-// runs in (a run ends at the chunk's end), at its entry's place (cluster_scan.comp) after the
-// runs of the instance's chunks before it, in cluster order: the frame draws the surviving index ranges in the unculled order (instance by
-// instance, as the unculled instanced draw). Each command draws one instance whose id it
-// stores in the draw list (firstInstance points at it).
+// runs in (a run ends at the chunk's end), at its entry's place — its group's first command
+// (cluster_lists.comp), then its place in the group (cluster_place.comp) — after the runs of
+// the instance's chunks before it, in cluster order: the frame draws the surviving index ranges
+// in the unculled order (instance by instance, as the unculled instanced draw). Each command
+// draws one instance whose id it stores in the draw list (firstInstance points at it).
 #include "scene.glsl"
 #include "cull.glsl"
 #include "cluster.glsl"
@@ -48,7 +49,7 @@ uint flag(uint r, uint base, uint c, uint first, uint end) {
     return c >= first && c < end ? flags[r * cull.clusters.z + base + c] : 0u;
 }
 
-void emit(uint r, uint w, uint id, uint e, Instance inst, uvec2 range, uint base, uint first) {
+void emit(uint r, uint w, uint id, uint e, uint g, Instance inst, uvec2 range, uint base, uint first) {
     uint t = gl_LocalInvocationID.x;
     uint n = runs[chunk_slot(r, w)];
     if (n == 0u) {
@@ -56,7 +57,8 @@ void emit(uint r, uint w, uint id, uint e, Instance inst, uvec2 range, uint base
     }
     uint list = 4u * r + e / cull.screen.z;
     uint before = runs_before(r, chunk_first(id), w);
-    uint first_cmd = cull.cmd_base[list / 4u][list % 4u] + offsets[r * 4u * cull.screen.z + e] + before;
+    uint first_cmd = cull.cmd_base[list / 4u][list % 4u] + offsets[group_slot(0u, r, g)]
+        + offsets[r * 4u * cull.screen.z + e] + before;
     Mesh m = meshes[inst.mesh];
     uint end = min(first + 64u, range.y);
     uint c = first + t;
@@ -111,7 +113,7 @@ void main() {
     uvec2 range = mesh_clusters[inst.mesh];
     uint base = cluster_base[id];
     uint first = (w - chunk_first(id)) * 64u;
-    // The entry's runs are placed (the scan read them): zero them for the next culling to add
+    // The entry's runs are placed (cluster_place.comp read them): zero them for the next culling to add
     // to (by the first chunk's workgroup; only this phase's regions were added to).
     if (gl_LocalInvocationID.x == 0u && first == 0u) {
         runs[e] = 0u;
@@ -119,8 +121,9 @@ void main() {
             runs[4u * cull.screen.z + e] = 0u;
         }
     }
-    emit(0u, w, id, e, inst, range, base, first);
+    uint g = offsets[group_of_entry(e)];
+    emit(0u, w, id, e, g, inst, range, base, first);
     if (cull.info.y == 3u) {
-        emit(1u, w, id, e, inst, range, base, first);
+        emit(1u, w, id, e, g, inst, range, base, first);
     }
 }

@@ -1,5 +1,5 @@
-// Shared declarations of the cluster culling shaders (cluster_cull.comp, cluster_scan.comp,
-// cluster_emit.comp): a second stage after instance culling that tests the clusters of every
+// Shared declarations of the cluster culling shaders (cluster_cull.comp, cluster_place.comp,
+// cluster_lists.comp, cluster_emit.comp): a second stage after instance culling that tests the clusters of every
 // drawn instance and writes one indirect command per run of consecutive surviving clusters
 // (docs/CULLING.md, "Clusters"). Needs scene.glsl and cull.glsl first.
 //
@@ -39,7 +39,10 @@ layout(set = 1, binding = 10, std430) readonly buffer MeshClusters { uvec2 mesh_
 layout(set = 1, binding = 11, std430) readonly buffer ClusterBase { uint cluster_base[]; };
 // Per region and cluster instance: 1 drawn (region r at r * cull.clusters.z).
 layout(set = 1, binding = 12, std430) buffer Flags { uint flags[]; };
-// Per list entry (0-7 lists of `stride`): runs of drawn clusters, and the first command's place.
+// Per list entry (0-7 lists of `stride`): runs of drawn clusters, and the first command's place
+// among its group's; after the entries' places, each entry's draw group (group_of_entry), then
+// per draw group and region its runs (then its first command among its list's) and its entries
+// with runs (group_slot).
 layout(set = 1, binding = 14, std430) buffer Runs { uint runs[]; };
 layout(set = 1, binding = 15, std430) buffer Offsets { uint offsets[]; };
 // The frame's draw groups (cull.glsl), in draw order.
@@ -63,6 +66,19 @@ uint chunk_first(uint id) {
 
 uint chunk_instance(uint w) {
     return cluster_base[cull.commands.z + w];
+}
+
+// Where group g's runs of region r (kind 0: cluster_place.comp writes them, cluster_lists.comp
+// turns them into the group's first command) or its entries with runs (kind 1) are kept in
+// Offsets, after the entries' places.
+uint group_slot(uint kind, uint r, uint g) {
+    return 12u * cull.screen.z + (2u * kind + r) * cull.groups.x + g;
+}
+
+// Where the draw group of entry e (of lists 0-3) is kept in Offsets (cluster_place.comp
+// writes it: a list's groups are in draw order, not in entry order).
+uint group_of_entry(uint e) {
+    return 8u * cull.screen.z + e;
 }
 
 // Where chunk w's runs of region r are kept (Runs).

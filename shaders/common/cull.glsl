@@ -26,7 +26,6 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
     // Cluster culling only (common/cluster.glsl):
     uvec4 clusters;        // x: draw id of cluster command 0, y: 1 = back-facing cone test, z: cluster instances,
                            // w: sub-pixel steps per unit of lateral offset at distance 1 (f32 bits; the cone's snapping margin)
-    uvec4 list_len;        // per list of a phase: its entries
     uvec4 cmd_base[2];     // per list (0-7): its first cluster command
     uvec4 commands;        // x: command slots per list (the most draw groups a list holds); clusters:
                            // y first chunks in cluster_base, z chunk instances there, w chunks

@@ -16,7 +16,7 @@ use tilegraph_scene::Scene;
 use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
 use tilegraph_vk::Context;
 
-use crate::cull::{CullBounds, Culling};
+use crate::cull::{ClusterEarly, CullBounds, Culling};
 use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
 use crate::setup::{SceneContent, Technique, VisbufResolve};
@@ -573,6 +573,7 @@ impl Resolved {
             "sphere" => CullBounds::Sphere,
             _ => CullBounds::Aabb,
         };
+        options.cluster_early = ClusterEarly::parse(name("cluster_early")).unwrap_or_default();
         options.visbuf_resolve = VisbufResolve::parse(name("visbuf_resolve"));
         if let Some(t) = self.get("classify_tile").and_then(KnobValue::as_integer) {
             options.classify_tile = Some(t);
@@ -593,6 +594,9 @@ impl Resolved {
             options.raster_occlusion_scale = s;
         }
         let integer = |k: &str| self.get(k).and_then(KnobValue::as_integer);
+        if let Some(g) = integer("cluster_gap") {
+            options.cluster_gap = g;
+        }
         if let Some(r) = crate::occlusion::software::parse_resolution(name("software_resolution")) {
             options.software.resolution = r;
         }
@@ -674,6 +678,7 @@ mod tests {
                     "hiz_npot" => ["edge-aware", "pad-to-pow2"].contains(&s.as_str()),
                     "hiz_resolution" => ["full", "half", "quarter"].contains(&s.as_str()),
                     "cull_bounds" => ["aabb", "sphere"].contains(&s.as_str()),
+                    "cluster_early" => ClusterEarly::parse(&s).is_some(),
                     "visbuf_resolve" => VisbufResolve::parse(&s).is_some(),
                     "classify_tile" => matches!(k.domain, Domain::Integers(_)),
                     "shadow_cascades" | "shadow_resolution" | "shadow_distance" | "shadow_pcf" => {
@@ -681,7 +686,7 @@ mod tests {
                     }
                     "shadow_format" => s == "profile" || crate::shadow::parse_format(&s).is_some(),
                     "shadow_culling" => tilegraph_cull::shadow::CasterCulling::parse(&s).is_some(),
-                    "oq_group" | "raster_occlusion_scale" | "occlusion_recheck" => {
+                    "oq_group" | "raster_occlusion_scale" | "occlusion_recheck" | "cluster_gap" => {
                         matches!(k.domain, Domain::Integers(_))
                     }
                     "software_resolution" => {

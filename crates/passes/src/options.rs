@@ -10,7 +10,7 @@ use tilegraph_vk::executor::FrameStats;
 use tilegraph_vk::queries::GpuTiming;
 use tilegraph_vk::{Context, Feature, FeatureRequest, VkError};
 
-use crate::cull::{CullBounds, CullState, Culling, GpuCullCounts};
+use crate::cull::{ClusterEarly, CullBounds, CullState, Culling, GpuCullCounts, CLUSTER_GAP};
 use crate::gpu_scene::{visbuf_instance_bits, Lighting};
 use crate::lint::FrameLint;
 use crate::occlusion::OqState;
@@ -133,6 +133,11 @@ pub struct RenderOptions {
     pub hiz_base_level: u32,
     /// The bounds GPU culling tests (knob `cull_bounds`).
     pub cull_bounds: CullBounds,
+    /// What `hiz-2phase-clusters`' early phase draws (knob `cluster_early`).
+    pub cluster_early: ClusterEarly,
+    /// Cluster techniques: the longest gap of culled clusters a command draws through (knob
+    /// `cluster_gap`; 0 draws exactly the surviving clusters).
+    pub cluster_gap: u32,
     /// Keep the visibility buffer's ids after the frame (the oracle reads them back):
     /// the id attachment becomes an imported image, so it is stored.
     pub capture_ids: bool,
@@ -215,6 +220,8 @@ impl Default for RenderOptions {
             hiz_mode: NpotMode::EdgeAware,
             hiz_base_level: 0,
             cull_bounds: CullBounds::Aabb,
+            cluster_early: ClusterEarly::Instances,
+            cluster_gap: CLUSTER_GAP,
             capture_ids: false,
             oq_group: 16,
             occlusion_recheck: 8,

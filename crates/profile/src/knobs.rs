@@ -194,6 +194,20 @@ pub const KNOBS: &[KnobSpec] = &[
         help: "what GPU culling tests: the world AABB (8 projected corners) or the bounding sphere (fewer instructions; looser for boxes, tighter for rotated thin objects)",
     },
     KnobSpec {
+        name: "cluster_early",
+        domain: Domain::Choice(&["instances", "clusters"]),
+        default: DefaultValue::Name("instances"),
+        applies: Applies::WithCulling(&["hiz-2phase-clusters"]),
+        help: "what hiz-2phase-clusters' early phase draws of an instance visible last frame: every cluster in the frustum and not back-facing (hiz-2phase's early depth to the pixel: never more triangles than hiz-2phase), or only those not found occluded last frame (less early work where large instances are mostly hidden; can draw more after a turn)",
+    },
+    KnobSpec {
+        name: "cluster_gap",
+        domain: Domain::Integers(&[0, 1, 2, 4, 8]),
+        default: DefaultValue::Integer(0),
+        applies: Applies::WithCulling(&["frustum-clusters", "hiz-2phase-clusters"]),
+        help: "the longest gap of culled clusters (within a chunk of 64) one indirect command draws through: fewer commands for a few more triangles (0 draws exactly the surviving clusters)",
+    },
+    KnobSpec {
         name: "oq_group",
         domain: Domain::Integers(&[1, 2, 4, 8, 16, 32, 64]),
         default: DefaultValue::Integer(16),

@@ -3,13 +3,16 @@
 //! the frustum, back-facing normal cone, and in the late phase the pyramid — and writes one
 //! indexed indirect command per run of consecutive surviving clusters, in the unculled order.
 //!
-//! Three dispatches per phase (shaders `cluster_cull.comp`, `cluster_scan.comp`,
-//! `cluster_emit.comp`): flags and runs per chunk of 64 clusters of an instance (a workgroup
-//! each, so a level baked into one mesh is culled by as many workgroups as it has chunks, not
-//! by one), added to the instance's entry; the entries' runs placed per list (a prefix sum in
-//! entry order); then the commands, a workgroup per chunk, after its instance's earlier
-//! chunks' runs (and the entries' runs zeroed for the next culling). A run ends at its chunk's end: a run split
-//! in two draws the same index ranges in the same order. The scene's index buffer is in cluster order
+//! Four dispatches per phase after the instance test (shaders `cluster_cull.comp`,
+//! `cluster_place.comp`, `cluster_lists.comp`, `cluster_emit.comp`): flags and runs per chunk
+//! of 64 clusters of an instance (a workgroup each, so a level baked into one mesh is culled by
+//! as many workgroups as it has chunks, not by one), added to the instance's entry; the
+//! entries' runs placed within their draw group (a workgroup per group, as the instance
+//! compaction packs survivors) and the groups' within their list (a workgroup per list); then
+//! the commands, a workgroup per chunk, after its instance's earlier chunks' runs (and the
+//! entries' runs zeroed for the next culling). The instance compaction does not run: a culled
+//! instance's entry has no runs. A run ends at its chunk's end: a run split in two draws the
+//! same index ranges in the same order. The scene's index buffer is in cluster order
 //! (`tilegraph_scene::Scene::attach_clusters`), so a run is one index range and the frame draws
 //! the surviving triangles in the unculled order: images stay bit-equal.
 
@@ -22,10 +25,11 @@ use tilegraph_vk::{Buffer, Context, VkError};
 
 use super::compute::ComputeStage;
 use super::{list_index, LISTS_PER_PHASE, LIST_COUNT};
-use crate::gpu_scene::upload;
+use crate::gpu_scene::{upload, Capacity};
 
 const CULL_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_cull.comp.spv");
-const SCAN_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_scan.comp.spv");
+const PLACE_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_place.comp.spv");
+const LISTS_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_lists.comp.spv");
 const EMIT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_emit.comp.spv");
 
 /// The cluster set's storage buffers: bindings 1-16 (common/cluster.glsl).
@@ -151,9 +155,9 @@ pub struct ClusterStage {
     pub commands: Buffer,
     /// Per list: the draw count (0-7); 8-15 unused.
     pub counts: Buffer,
-    /// `cluster_cull.comp`, `cluster_scan.comp`, `cluster_emit.comp`, their layouts and set
-    /// pool.
-    compute: ComputeStage,
+    /// `cluster_cull.comp`, `cluster_place.comp`, `cluster_lists.comp`, `cluster_emit.comp`,
+    /// their layouts and set pool.
+    compute: ComputeStage<4>,
     /// Two per slot: the early (or only) and the late phase.
     sets: Vec<vk::DescriptorSet>,
 }
@@ -170,14 +174,18 @@ fn make_buffers(
     ctx: &Context,
     layout: &ClusterLayout,
     clusters: &tilegraph_scene::clusters::Clusters,
-    stride: u32,
+    capacity: Capacity,
 ) -> Result<[Buffer; 9], VkError> {
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let total = u64::from(layout.total.max(1));
-    // Per entry of the lists, then per region and chunk (cluster.glsl's chunk_slot).
-    let entries = u64::from(stride.max(1)) * u64::from(LIST_COUNT);
+    let stride = u64::from(capacity.stride.max(1));
+    let entries = stride * u64::from(LIST_COUNT);
     // Runs per entry of the lists, then per region and chunk (cluster.glsl's chunk_slot).
     let runs = entries + 2 * u64::from(layout.chunks());
+    // Places per entry of the lists, each entry's group (lists of a phase), then per kind,
+    // region and draw group (cluster.glsl's group_of_entry and group_slot).
+    let offsets =
+        entries + stride * u64::from(LISTS_PER_PHASE) + 4 * u64::from(capacity.groups.max(1));
     let base_words = layout.base_words();
     let src = vk::BufferUsageFlags::TRANSFER_SRC;
     let dst = vk::BufferUsageFlags::TRANSFER_DST;
@@ -193,7 +201,7 @@ fn make_buffers(
         Spec::Empty("cluster flags", 2 * total * 4, storage),
         Spec::Empty("cluster visibility", total * 4, storage | dst),
         Spec::Empty("cluster runs", runs * 4, storage | dst),
-        Spec::Empty("cluster offsets", entries * 4, storage),
+        Spec::Empty("cluster offsets", offsets * 4, storage),
         Spec::Empty(
             "cluster commands",
             commands * 20,
@@ -234,21 +242,25 @@ fn make_buffers(
     })
 }
 
-/// One of the three cluster dispatches.
+/// One of the four cluster dispatches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ClusterStep {
+    /// `cluster_cull.comp`: a workgroup per chunk flags its clusters and counts their runs.
     Cull,
-    Scan,
+    /// `cluster_place.comp`: a workgroup per draw group and region places its entries' runs.
+    Place,
+    /// `cluster_lists.comp`: a workgroup per list places its groups and writes its counts.
+    Lists,
+    /// `cluster_emit.comp`: a workgroup per chunk writes its runs' commands.
     Emit,
 }
 
 impl ClusterStage {
-    /// The stage for `shared.scene`'s clusters (`None` without them) and `stride` entries per
-    /// list.
+    /// The stage for `shared.scene`'s clusters (`None` without them) and lists of `capacity`.
     pub(super) fn new(
         ctx: &Context,
         shared: &Shared<'_>,
-        stride: u32,
+        capacity: Capacity,
         scene_set_layout: vk::DescriptorSetLayout,
     ) -> Result<Option<Self>, VkError> {
         let (Some(layout), Some(clusters)) =
@@ -257,7 +269,7 @@ impl ClusterStage {
             return Ok(None);
         };
         let [clusters, mesh_clusters, base, flags, visibility, runs, offsets, commands, counts] =
-            make_buffers(ctx, &layout, clusters, stride)?;
+            make_buffers(ctx, &layout, clusters, capacity)?;
         let mut stage = ClusterStage {
             layout,
             clusters,
@@ -302,7 +314,8 @@ impl ClusterStage {
         })?;
         let shaders = [
             ("cluster_cull.comp", CULL_SPV),
-            ("cluster_scan.comp", SCAN_SPV),
+            ("cluster_place.comp", PLACE_SPV),
+            ("cluster_lists.comp", LISTS_SPV),
             ("cluster_emit.comp", EMIT_SPV),
         ];
         let sets = 2 * shared.slots.len() as u32;
@@ -341,15 +354,15 @@ impl ClusterStage {
         Ok(())
     }
 
-    /// Records dispatch `step` of phase `which` (0 early or only, 1 late); the graph put the
-    /// barriers around it.
+    /// Records dispatch `step` of phase `which` (0 early or only, 1 late) over the frame's
+    /// `groups` draw groups; the graph put the barriers around it.
     pub(super) fn record_dispatch(
         &self,
         ctx: &Context,
         cb: vk::CommandBuffer,
         scene_set: vk::DescriptorSet,
         slot: usize,
-        which: usize,
+        (which, groups): (usize, u32),
         step: ClusterStep,
     ) -> Result<(), VkError> {
         let chunks = self.layout.chunks();
@@ -362,13 +375,12 @@ impl ClusterStage {
             })?;
         // One workgroup per chunk, in rows of 65,535 (the least maxComputeWorkGroupCount).
         let rows = (chunks.clamp(1, 65_535), chunks.div_ceil(65_535).max(1));
+        let regions = which as u32 + 1; // the late phase places the union's runs again
         let (pipeline, (x, y)) = match step {
             ClusterStep::Cull => (self.compute.pipelines[0], rows),
-            ClusterStep::Scan => (
-                self.compute.pipelines[1],
-                ((which as u32 + 1) * LISTS_PER_PHASE, 1),
-            ),
-            ClusterStep::Emit => (self.compute.pipelines[2], rows),
+            ClusterStep::Place => (self.compute.pipelines[1], (regions * groups.max(1), 1)),
+            ClusterStep::Lists => (self.compute.pipelines[2], (regions * LISTS_PER_PHASE, 1)),
+            ClusterStep::Emit => (self.compute.pipelines[3], rows),
         };
         self.compute
             .dispatch(ctx, cb, pipeline, [scene_set, set], (x, y));

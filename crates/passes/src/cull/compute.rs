@@ -1,8 +1,8 @@
 //! The Vulkan objects a culling stage is made of — instance culling (`cull.comp`,
 //! `cull_compact.comp`, `cull_commands.comp`) and the cluster stage (`cluster_cull.comp`,
-//! `cluster_scan.comp`, `cluster_emit.comp`) alike: one descriptor set layout (binding 0 the
-//! phase's parameter block, then storage buffers), a pipeline layout after the scene's set, three
-//! compute pipelines and a pool for the per-slot, per-phase sets.
+//! `cluster_place.comp`, `cluster_lists.comp`, `cluster_emit.comp`) alike: one descriptor set
+//! layout (binding 0 the phase's parameter block, then storage buffers), a pipeline layout after
+//! the scene's set, `N` compute pipelines and a pool for the per-slot, per-phase sets.
 
 use ash::vk;
 use tilegraph_vk::ash;
@@ -14,21 +14,21 @@ use tilegraph_vk::{Context, VkError};
 /// A compute shader of a stage: its name (for errors and debug names) and SPIR-V.
 pub(super) type Shader = (&'static str, &'static [u8]);
 
-/// Set layout, pipeline layout, the stage's three pipelines and its descriptor pool. Made empty
+/// Set layout, pipeline layout, the stage's `N` pipelines and its descriptor pool. Made empty
 /// ([`ComputeStage::EMPTY`]) and filled by [`ComputeStage::init`], so an error half-way leaves
 /// what was made for [`ComputeStage::destroy`].
-pub(super) struct ComputeStage {
+pub(super) struct ComputeStage<const N: usize> {
     pub set_layout: vk::DescriptorSetLayout,
     pub pipeline_layout: vk::PipelineLayout,
-    pub pipelines: [vk::Pipeline; 3],
+    pub pipelines: [vk::Pipeline; N],
     pool: vk::DescriptorPool,
 }
 
-impl ComputeStage {
-    pub const EMPTY: ComputeStage = ComputeStage {
+impl<const N: usize> ComputeStage<N> {
+    pub const EMPTY: ComputeStage<N> = ComputeStage {
         set_layout: vk::DescriptorSetLayout::null(),
         pipeline_layout: vk::PipelineLayout::null(),
-        pipelines: [vk::Pipeline::null(); 3],
+        pipelines: [vk::Pipeline::null(); N],
         pool: vk::DescriptorPool::null(),
     };
 
@@ -39,7 +39,7 @@ impl ComputeStage {
         ctx: &Context,
         scene_set_layout: vk::DescriptorSetLayout,
         storage: u32,
-        shaders: [Shader; 3],
+        shaders: [Shader; N],
         sets: u32,
     ) -> Result<(), VkError> {
         let c = vk::ShaderStageFlags::COMPUTE;

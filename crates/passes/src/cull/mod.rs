@@ -177,9 +177,12 @@ pub fn import_cull_buffers(
     if let Some(p) = pyramid {
         g.export(p);
     }
-    // Tools read the drawn set back after the frame.
-    g.export(counts);
-    g.export(commands);
+    // Tools read the drawn set back after the frame (a cluster technique's from the cluster
+    // lists: the instance lists are not compacted).
+    if clusters.is_none() {
+        g.export(counts);
+        g.export(commands);
+    }
     g.export(draw_ids);
     CullLists {
         commands,
@@ -230,7 +233,9 @@ pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
     } else {
         ("cull-compact", "cull-commands")
     };
-    add_compaction(g, lists, 0, [compact, commands]);
+    if lists.clusters.is_none() {
+        add_compaction(g, lists, 0, [compact, commands]);
+    }
     add_cluster_stage(g, lists, 0);
     if !two_phase {
         add_cull_stats(g, lists);
@@ -246,14 +251,16 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
     let names = if which == 0 {
         [
             "cluster-cull",
-            "cluster-scan",
+            "cluster-place",
+            "cluster-lists",
             "cluster-clear",
             "cluster-emit",
         ]
     } else {
         [
             "cluster-cull-late",
-            "cluster-scan-late",
+            "cluster-place-late",
+            "cluster-lists-late",
             "cluster-clear-late",
             "cluster-emit-late",
         ]
@@ -275,19 +282,25 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
     g.compute_pass(
         names[1],
         PassClass::Compute,
-        dispatch(which, Step::Cluster(clusters::ClusterStep::Scan)),
+        dispatch(which, Step::Cluster(clusters::ClusterStep::Place)),
     )
     .storage_read(c.runs)
-    .storage_write(c.offsets)
+    .storage_write(c.offsets);
+    g.compute_pass(
+        names[2],
+        PassClass::Compute,
+        dispatch(which, Step::Cluster(clusters::ClusterStep::Lists)),
+    )
+    .storage_read_write(c.offsets)
     .storage_write(c.counts);
     if c.clear {
         let commands = c.commands;
         let clear: Payload = Box::new(move |pc, _| zero_fill(pc, commands));
-        g.transfer_pass(names[2], PassClass::Transfer, clear)
+        g.transfer_pass(names[3], PassClass::Transfer, clear)
             .transfer_dst(c.commands);
     }
     g.compute_pass(
-        names[3],
+        names[4],
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Emit)),
     )
@@ -307,8 +320,9 @@ fn add_cull_stats(g: &mut FrameGraph, lists: CullLists) {
         let culling = res.states.require::<CullState>(pc.pass_name)?;
         culling.record_stats_copy(pc.ctx, pc.cb, pc.frame_slot)
     });
+    let counts = lists.clusters.map_or(lists.counts, |c| c.counts);
     g.transfer_pass("cull-stats", PassClass::Transfer, copy)
-        .transfer_src(lists.counts)
+        .transfer_src(counts)
         .retention(Retention::Always);
 }
 
@@ -340,7 +354,9 @@ pub fn add_cull_late(g: &mut FrameGraph, lists: CullLists) {
     if let Some(p) = lists.pyramid {
         c.storage_read(p);
     }
-    add_compaction(g, lists, 1, ["cull-late-compact", "cull-late-commands"]);
+    if lists.clusters.is_none() {
+        add_compaction(g, lists, 1, ["cull-late-compact", "cull-late-commands"]);
+    }
     add_cluster_stage(g, lists, 1);
     add_cull_stats(g, lists);
 }
@@ -403,8 +419,6 @@ pub struct CullParams {
     pub hiz_depth: [f32; 4],
     /// Cluster culling: x draw id of cluster command 0, y 1 = cone test, z cluster instances.
     pub clusters: [u32; 4],
-    /// Cluster culling: per list of a phase, its entries.
-    pub list_len: [u32; 4],
     /// Cluster culling: per list 0-7, its first command.
     pub cmd_base: [[u32; 4]; 2],
     /// x: command slots per list (the most draw groups a list holds); cluster culling: y where
@@ -432,6 +446,43 @@ impl CullBounds {
             CullBounds::Aabb => "aabb",
             CullBounds::Sphere => "sphere",
         }
+    }
+}
+
+/// The longest gap of culled clusters a cluster technique's command draws through by default
+/// (knob `cluster_gap`): docs/CULLING.md, "Clusters", measures the trade.
+pub const CLUSTER_GAP: u32 = 0;
+
+/// What two-phase cluster culling's early phase draws of an instance visible last frame (knob
+/// `cluster_early`; docs/CULLING.md, "Clusters"). Both are exact: the late phase tests every
+/// cluster of the instances visible now.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ClusterEarly {
+    /// Its clusters in the frustum and not back-facing: the same depth, to the pixel, as
+    /// `hiz-2phase`'s early phase (which draws the whole instance), so the same pyramid, the
+    /// same instances visible — and the colour pass never draws more triangles than
+    /// `hiz-2phase`'s.
+    #[default]
+    Instances,
+    /// Of those, only the clusters the pyramid did not find occluded last frame: less early
+    /// work where instances are large and mostly hidden (a level's room as one mesh), but after
+    /// a turn or a cut the early depth can be thinner than instance culling's, and the late
+    /// phase then draws more.
+    Clusters,
+}
+
+impl ClusterEarly {
+    pub fn name(self) -> &'static str {
+        match self {
+            ClusterEarly::Instances => "instances",
+            ClusterEarly::Clusters => "clusters",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Self> {
+        [ClusterEarly::Instances, ClusterEarly::Clusters]
+            .into_iter()
+            .find(|c| c.name() == s)
     }
 }
 

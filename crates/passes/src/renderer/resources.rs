@@ -138,6 +138,8 @@ fn add_states(
                 orders: &orders,
                 occluder,
                 bounds: options.cull_bounds,
+                cluster_early: options.cluster_early,
+                cluster_gap: options.cluster_gap,
                 capacity,
             },
         )?;

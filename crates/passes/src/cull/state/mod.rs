@@ -12,8 +12,8 @@ use tilegraph_vk::{Buffer, Context, Feature, VkError};
 use super::clusters::{cone_steps, ClusterStage, Shared};
 use super::compute::ComputeStage;
 use super::{
-    gpu_planes, sphere_projection, CullBounds, CullParams, Culling, DrawCount, GpuLayout, Phase,
-    Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
+    gpu_planes, sphere_projection, ClusterEarly, CullBounds, CullParams, Culling, DrawCount,
+    GpuLayout, Phase, Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
 };
 use crate::frame::PassState;
 use crate::gpu_scene::Capacity;
@@ -21,6 +21,7 @@ use crate::hiz::{HizState, PyramidInfo};
 
 mod runs;
 mod sizes;
+mod stats;
 
 /// What a frame's GPU culling drew, read back without waiting once its slot completed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -93,6 +94,10 @@ pub struct CullInputs<'a> {
     pub occluder: Option<Occluder>,
     /// What `cull.comp` tests (knob `cull_bounds`).
     pub bounds: CullBounds,
+    /// What the cluster stage's early phase draws (knob `cluster_early`).
+    pub cluster_early: ClusterEarly,
+    /// The longest gap of culled clusters a cluster command draws through (knob `cluster_gap`).
+    pub cluster_gap: u32,
     /// Room for instance slots and list entries.
     pub capacity: Capacity,
 }
@@ -102,6 +107,10 @@ pub struct CullState {
     pub culling: Culling,
     /// What `cull.comp` tests: the box or the sphere (knob `cull_bounds`).
     pub bounds: CullBounds,
+    /// What the cluster stage's early phase draws (knob `cluster_early`).
+    pub cluster_early: ClusterEarly,
+    /// The longest gap of culled clusters a cluster command draws through (knob `cluster_gap`).
+    pub cluster_gap: u32,
     /// Room of the buffers (instance slots, list stride).
     pub capacity: Capacity,
     /// Instance slots of the frame written last (the mark dispatch's size).
@@ -126,7 +135,7 @@ pub struct CullState {
     /// The layout being written (kept: no allocation per frame).
     pub(super) layout: GpuLayout,
     /// `cull.comp`, `cull_compact.comp`, `cull_commands.comp`, their layouts and set pool.
-    compute: ComputeStage,
+    compute: ComputeStage<3>,
     /// Two per slot: the early (or only) and the late phase.
     sets: Vec<vk::DescriptorSet>,
     /// The cluster stage of the cluster techniques.
@@ -177,6 +186,8 @@ impl CullState {
             orders,
             occluder,
             bounds,
+            cluster_early,
+            cluster_gap,
             capacity,
         } = inputs;
         // The cluster commands' draw ids follow the instance lists'.
@@ -222,6 +233,8 @@ impl CullState {
         let mut state = CullState {
             culling,
             bounds,
+            cluster_early,
+            cluster_gap,
             capacity,
             instances: 0,
             draw_count,
@@ -268,8 +281,7 @@ impl CullState {
                     levels: occluder.map_or(state.no_pyramid.raw, |o| o.levels),
                     scene,
                 };
-                state.clusters =
-                    ClusterStage::new(ctx, &shared, capacity.stride, scene_set_layout)?;
+                state.clusters = ClusterStage::new(ctx, &shared, capacity, scene_set_layout)?;
                 Ok(())
             })
             .and_then(|()| {
@@ -416,21 +428,17 @@ impl CullState {
             .clusters
             .as_ref()
             .map_or([0; 3], |c| c.layout.chunk_words());
-        let (cluster_info, list_len, cmd_base) = match &self.clusters {
+        let (cluster_info, cmd_base) = match &self.clusters {
             Some(c) => {
-                let mut len = [0u32; 4];
-                for g in &layout.groups {
-                    if let Some(l) = len.get_mut(g[3] as usize % 4) {
-                        *l += g[1];
-                    }
-                }
-                debug_assert!(len.iter().sum::<u32>() == layout.entries);
                 let cone = u32::from(sphere_projection(m.projection).0[2] == 1.0);
+                let whole_early = u32::from(self.cluster_early == ClusterEarly::Instances);
+                // A chunk holds 64 clusters: a longer gap is a whole chunk.
+                let gap = self.cluster_gap.min(63);
                 let b = c.layout.cmd_base;
                 (
                     [
                         stride * LIST_COUNT,
-                        cone,
+                        cone | (whole_early << 1) | (gap << 8),
                         c.layout.total,
                         cone_steps(
                             m.projection,
@@ -439,11 +447,10 @@ impl CullState {
                         )
                         .to_bits(),
                     ],
-                    len,
                     [[b[0], b[1], b[2], b[3]], [b[4], b[5], b[6], b[7]]],
                 )
             }
-            None => ([0; 4], [0; 4], [[0; 4]; 2]),
+            None => ([0; 4], [[0; 4]; 2]),
         };
         // The pyramid's frame as the sphere test sees it: last frame's view (moved to the
         // current eye, as `reproject` is) for single-phase HiZ, this frame's for the late phase.
@@ -471,7 +478,6 @@ impl CullState {
                 hiz_proj,
                 hiz_depth,
                 clusters: cluster_info,
-                list_len,
                 cmd_base,
                 commands: [self.capacity.groups.max(1), c1, c2, c3],
             }
@@ -578,7 +584,14 @@ impl CullState {
                         reason: "the culling state has no cluster stage".into(),
                     });
                 };
-                return c.record_dispatch(ctx, cb, scene_set, slot, which, step);
+                return c.record_dispatch(
+                    ctx,
+                    cb,
+                    scene_set,
+                    slot,
+                    (which, inputs.group_total),
+                    step,
+                );
             }
         };
         self.compute
@@ -658,76 +671,6 @@ impl CullState {
             raw: b.raw,
             size: b.size,
         }
-    }
-
-    /// Records the copy of this frame's counts into frame slot `slot`'s host-visible stats
-    /// buffer (the graph made the counts readable by transfers), made visible to the host:
-    /// [`CullState::collect`] reads it once the slot's frame has completed.
-    pub fn record_stats_copy(
-        &self,
-        ctx: &Context,
-        cb: vk::CommandBuffer,
-        slot: usize,
-    ) -> Result<(), VkError> {
-        let stats = &self.slot(slot)?.stats;
-        let region = [vk::BufferCopy {
-            src_offset: 0,
-            dst_offset: 0,
-            size: stats.size.min(self.counts.size),
-        }];
-        // SAFETY: recording outside a render pass; both buffers are live, the region fits both.
-        unsafe {
-            ctx.device
-                .cmd_copy_buffer(cb, self.counts.raw, stats.raw, &region)
-        };
-        let to_host = [vk::BufferMemoryBarrier2::default()
-            .src_stage_mask(vk::PipelineStageFlags2::COPY)
-            .src_access_mask(vk::AccessFlags2::TRANSFER_WRITE)
-            .dst_stage_mask(vk::PipelineStageFlags2::HOST)
-            .dst_access_mask(vk::AccessFlags2::HOST_READ)
-            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-            .buffer(stats.raw)
-            .offset(0)
-            .size(vk::WHOLE_SIZE)];
-        ctx.cmd_pipeline_barrier2(
-            cb,
-            &vk::DependencyInfo::default().buffer_memory_barriers(&to_host),
-        )
-    }
-
-    /// What the last frame recorded in `slot` drew, read without waiting: call it once the
-    /// slot's frame has completed (when the slot is acquired again). `None` before the slot's
-    /// first frame, and once read.
-    pub fn collect(
-        &mut self,
-        ctx: &Context,
-        slot: usize,
-    ) -> Result<Option<GpuCullCounts>, VkError> {
-        let Some(inputs) = self.slots.get_mut(slot) else {
-            return Ok(None);
-        };
-        let Some((frame, candidates)) = inputs.pending.take() else {
-            return Ok(None);
-        };
-        ctx.invalidate_mapped(&inputs.stats)?;
-        let word = |i: usize| {
-            inputs
-                .stats
-                .mapped()
-                .and_then(|b| b.get(4 * i..4 * i + 4))
-                .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-        };
-        // The colour pass draws the early (or only) phase's lists: 0-3.
-        let per_phase = LISTS_PER_PHASE as usize;
-        let commands = (0..per_phase).map(word).sum();
-        let instances: u32 = (0..per_phase).map(|l| word(LIST_COUNT as usize + l)).sum();
-        Ok(Some(GpuCullCounts {
-            frame,
-            commands,
-            instances,
-            culled: candidates.saturating_sub(instances),
-        }))
     }
 
     fn destroy_all(self, ctx: &Context) {
