@@ -1,25 +1,26 @@
 #version 450
-// Cluster culling (seed 000's cluster and cone culling): one workgroup per chunk of 64 clusters
-// of an instance (common/cluster.glsl), run after the instance culling of a phase — an
-// instance of many clusters (a level baked into one mesh) is culled by as many workgroups as
-// it has chunks. For every cluster of a drawn instance: the frustum test of its box, the
+// Cluster culling (seed 000's cluster and cone culling): a workgroup per chunk of 64 clusters
+// of an instance (common/cluster.glsl), run indirectly after the instance test of a phase over
+// the chunks of the instances it kept (cull_clusters.comp lists them) — an instance of many
+// clusters (a level baked into one mesh) is culled by as many workgroups as it has chunks. For every cluster of a drawn instance: the frustum test of its box, the
 // back-facing cone test, and in two-phase culling's late phase the HiZ test against the pyramid
 // of the early depth. Writes each cluster's flags and the chunk's number of runs of consecutive
 // drawn clusters (a run ends at the chunk's end: chunks are independent, and a run split in two
 // draws the same triangles in the same order), added to its entry's (cluster_place.comp and
 // cluster_lists.comp place the entries', cluster_emit.comp writes one command per run and zeroes the entries').
 //
-// Phases (cull.info.y, as cull.comp): 0 frustum; 2 early: of the instances the early phase
-// draws, the clusters in the frustum and not back-facing that were not found occluded last
-// frame; 3 late: every cluster of an instance visible now, tested against the pyramid: what
+// Phases (cull.info.y, as cull.comp): 0 frustum; 2 early (knob cluster_early = "clusters"
+// only: with "instances" the early phase is hiz-2phase's, whole instances): of the instances
+// the early phase draws, the clusters in the frustum and not back-facing that were not found
+// occluded last frame; 3 late: every cluster of an instance visible now, tested against the pyramid: what
 // passes is the colour pass's (region 0), what of it the early phase did not draw goes to
 // region 1 (the late depth pass). An instance not visible now draws nothing in colour: it won
 // no pixel in the early depth, or its box would not lie behind that depth's pyramid.
 //
 // Next frame's cluster visibility: 0 only for a cluster the pyramid found occluded. One outside
 // the frustum or back-facing now was not tested against depth, so it is drawn early when it
-// comes into view: a camera that turns keeps the early depth, and so the pyramid, as complete
-// as instance culling's (which draws the whole of each instance visible last frame).
+// comes into view (the early depth then follows a turning camera, though after a cut it can be
+// thinner than instance culling's, which draws the whole of each instance visible last frame).
 #include "scene.glsl"
 #include "cull.glsl"
 #include "cull_tests.glsl"
@@ -127,12 +128,9 @@ bool uniform_scale(mat3 linear) {
         && abs(g[0][1]) <= tol && abs(g[0][2]) <= tol && abs(g[1][2]) <= tol;
 }
 
-void main() {
-    uint w = workgroup_chunk();
+// Culls the clusters of chunk w (uniform over the workgroup: every return is).
+void cull_chunk(uint w) {
     uint t = gl_LocalInvocationID.x;
-    if (w >= chunk_count()) {
-        return;
-    }
     uint id = chunk_instance(w);
     if (id >= cull.info.x || order[id] == 0xFFFFFFFFu) {
         if (t == 0u) {
@@ -145,13 +143,15 @@ void main() {
     uint phase = cull.info.y;
     bool late = phase == 3u;
     uint region1 = cull.clusters.z;
-    // Knob cluster_early = "instances" (cull.clusters.y bit 1): the early phase draws every
-    // cluster in the frustum and not back-facing of an instance visible last frame, whatever
-    // the cluster's own history — the depth instance culling's early phase leaves, to the pixel.
+    // Knob cluster_early = "instances" (cull.clusters.y bit 1): the early phase was
+    // hiz-2phase's own (whole instances, the instance compaction's lists; no cluster stage ran
+    // early), so every cluster of an instance drawn early is in the early depth.
     bool whole_early = (cull.clusters.y & 2u) != 0u;
     // Late: how many runs the early phase drew in this chunk (0: none of its clusters, whatever
-    // its flags hold from older frames). Read by every thread before thread 0 rewrites it.
-    uint early_runs = late ? runs[chunk_slot(0u, w)] : 0u;
+    // its flags and runs hold from older frames: an instance visible now was drawn early unless
+    // its late entry is marked). Read by every thread before thread 0 rewrites it.
+    bool drawn_early = late && entries[4u * cull.screen.z + e] == 0u;
+    uint early_runs = drawn_early ? runs[chunk_slot(0u, w)] : 0u;
     bool drawn = late ? visible_last[id] != 0u : entries[e] != 0u;
     Instance inst = instance_at(id);
     uvec2 range = mesh_clusters[inst.mesh];
@@ -189,13 +189,13 @@ void main() {
         if (phase == 0u) {
             f0 = visible ? 1u : 0u;
         } else if (phase == 2u) {
-            f0 = visible && (whole_early || cluster_visible[k] != 0u) ? 1u : 0u;
+            f0 = visible && cluster_visible[k] != 0u ? 1u : 0u;
         } else if (phase == 1u) {
             f0 = visible && hiz_visible_bounds(b, false) ? 1u : 0u;
         } else {
             bool now = visible && hiz_visible_bounds(b, false);
             // Drawn early, bridged gaps included (what the early depth holds).
-            bool early = early_runs != 0u && flags[k] != 0u;
+            bool early = whole_early ? drawn_early : early_runs != 0u && flags[k] != 0u;
             f1 = now && !early ? 1u : 0u;
             f0 = now ? 1u : 0u;
             cluster_visible[k] = now || !visible ? 1u : 0u;
@@ -233,5 +233,14 @@ void main() {
         if (late && starts1 != 0u) {
             atomicAdd(runs[4u * cull.screen.z + e], starts1);
         }
+    }
+}
+
+void main() {
+    uint r = work_region();
+    uint n = work_count(r);
+    for (uint i = gl_WorkGroupID.x; i < n; i += gl_NumWorkGroups.x) {
+        cull_chunk(work_chunk(r, i));
+        barrier(); // the next chunk's shared flags and counts start afresh
     }
 }

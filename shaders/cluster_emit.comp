@@ -1,5 +1,6 @@
 #version 450
-// Cluster culling, last step: one workgroup per chunk of 64 clusters of an instance writes one
+// Cluster culling, last step: a workgroup per chunk of 64 clusters of an instance (the phase's
+// chunk list, as cluster_cull.comp's) writes one
 // indexed indirect command per run of consecutive drawn clusters of each region the chunk has
 // runs in (a run ends at the chunk's end), at its entry's place — its group's first command
 // (cluster_lists.comp), then its place in the group (cluster_place.comp) — after the runs of
@@ -99,11 +100,8 @@ void emit(uint r, uint w, uint id, uint e, uint g, Instance inst, uvec2 range, u
     barrier();
 }
 
-void main() {
-    uint w = workgroup_chunk();
-    if (w >= chunk_count()) {
-        return;
-    }
+// Writes the commands of chunk w (uniform over the workgroup: every return is).
+void emit_chunk(uint w) {
     uint id = chunk_instance(w);
     if (id >= cull.info.x || order[id] == 0xFFFFFFFFu) {
         return;
@@ -125,5 +123,14 @@ void main() {
     emit(0u, w, id, e, g, inst, range, base, first);
     if (cull.info.y == 3u) {
         emit(1u, w, id, e, g, inst, range, base, first);
+    }
+}
+
+void main() {
+    uint r = work_region();
+    uint n = work_count(r);
+    for (uint i = gl_WorkGroupID.x; i < n; i += gl_NumWorkGroups.x) {
+        emit_chunk(work_chunk(r, i));
+        barrier(); // the next chunk's scans start afresh
     }
 }

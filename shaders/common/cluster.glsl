@@ -48,9 +48,24 @@ layout(set = 1, binding = 15, std430) buffer Offsets { uint offsets[]; };
 // The frame's draw groups (cull.glsl), in draw order.
 layout(set = 1, binding = 16, std430) readonly buffer ClusterGroups { Group cluster_groups[]; };
 
-// The chunk a workgroup handles: dispatches are (min(n, 65535), ceil(n / 65535)).
-uint workgroup_chunk() {
-    return gl_WorkGroupID.x + gl_WorkGroupID.y * 65535u;
+// Per region (0 early or only, 1 late): the dispatch's workgroups (x, 1, 1) and its chunk
+// count, then from word 8 the region's chunks (cull_clusters.comp appends the chunks of the
+// instances whose clusters the phase tests; a reset pass empties both lists each frame).
+layout(set = 1, binding = 17, std430) readonly buffer Work { uint work[]; };
+
+// The region whose chunk list the dispatch runs through: the late phase's, or the early (or
+// only) phase's.
+uint work_region() {
+    return cull.info.y == 3u ? 1u : 0u;
+}
+
+// How many chunks region r's list holds, and its i-th.
+uint work_count(uint r) {
+    return work[4u * r + 3u];
+}
+
+uint work_chunk(uint r, uint i) {
+    return work[8u + r * cull.commands.w + i];
 }
 
 // The chunks (cull.commands: y where the first chunk of each instance is kept in

@@ -244,6 +244,7 @@ impl<'a> Composition<'a> {
                     (l.visibility, &s.visibility),
                     (l.runs, &s.runs),
                     (l.offsets, &s.offsets),
+                    (l.work, &s.work),
                 ] {
                     externals.insert(id, External::Buffer(CullState::handle(buffer)));
                 }
@@ -323,6 +324,9 @@ impl<'a> Composition<'a> {
             // draws the CPU lists; everything else draws the culling shader's lists.
             let source = match (self.lists, culling, depth_only) {
                 (Some(_), Culling::RasterOcclusion, true) | (None, _, _) => DrawSource::Cpu,
+                // Two-phase culling's early depth: where the cluster stage runs late only, the
+                // instance compaction's lists.
+                (Some(lists), _, true) if two_phase && phase == 0 => lists.early_depth_source(),
                 (Some(lists), _, _) => lists.source(phase),
             };
             let name = format!("{}{suffix}", pass.name());

@@ -233,12 +233,14 @@ pub enum DrawSource {
     /// The frame's CPU draw list ([`FrameData::draws`]).
     Cpu,
     /// The culling shader's indirect lists of one phase (0: early or only, 1: late), read
-    /// from `commands`, `counts` and `draw_ids`.
+    /// from `commands`, `counts` and `draw_ids`: the cluster stage's (`clusters`) or the
+    /// instance compaction's.
     Gpu {
         commands: BufferId,
         counts: BufferId,
         draw_ids: BufferId,
         phase: u32,
+        clusters: bool,
     },
 }
 

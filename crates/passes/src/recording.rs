@@ -126,7 +126,9 @@ pub fn record_class(
             record_conditional(pc, res, variant, class, colors, predicate)
         }
         DrawSource::Cpu => record_cpu(pc, res, variant, class, colors),
-        DrawSource::Gpu { phase, .. } => record_indirect(pc, res, variant, class, phase, colors),
+        DrawSource::Gpu {
+            phase, clusters, ..
+        } => record_indirect(pc, res, variant, class, (phase, clusters), colors),
     }
 }
 
@@ -290,7 +292,7 @@ fn record_indirect(
     res: &mut SceneResources,
     variant: Variant,
     class: DrawClass,
-    phase: u32,
+    (phase, clusters): (u32, bool),
     colors: u32,
 ) -> Result<(), VkError> {
     let set = bind_geometry(pc, res, true)?;
@@ -309,7 +311,7 @@ fn record_indirect(
         let engine_of = |p: &Pipelines, g: &u32| p.engine_for(frame.engine_of(*g), variant);
         if !meshes.iter().any(|g| engine_of(pipelines, g).is_some()) {
             bind_pipeline(pc, pipelines, state, (sided, None), set, &mut bound)?;
-            culling.record_draws(pc.ctx, pc.cb, pc.frame_slot, list)?;
+            culling.record_draws(pc.ctx, pc.cb, pc.frame_slot, (list, clusters))?;
             continue;
         }
         // Runs of consecutive groups of one pipeline.

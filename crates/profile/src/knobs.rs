@@ -198,7 +198,7 @@ pub const KNOBS: &[KnobSpec] = &[
         domain: Domain::Choice(&["instances", "clusters"]),
         default: DefaultValue::Name("instances"),
         applies: Applies::WithCulling(&["hiz-2phase-clusters"]),
-        help: "what hiz-2phase-clusters' early phase draws of an instance visible last frame: every cluster in the frustum and not back-facing (hiz-2phase's early depth to the pixel: never more triangles than hiz-2phase), or only those not found occluded last frame (less early work where large instances are mostly hidden; can draw more after a turn)",
+        help: "what hiz-2phase-clusters' early phase draws of an instance visible last frame: the whole instance (hiz-2phase's early phase: never more colour triangles than hiz-2phase), or its clusters in the frustum, not back-facing and not found occluded last frame (less early work where large instances are mostly hidden; can draw more after a turn or a cut)",
     },
     KnobSpec {
         name: "cluster_gap",

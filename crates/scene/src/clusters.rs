@@ -23,8 +23,9 @@ pub use crate::scene::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VER
 
 const CLUSTER_BYTES: usize = std::mem::size_of::<GpuCluster>();
 
-/// Version 2: 80-byte clusters with the snapping-safe cone (`crate::cone`).
-const MAGIC: &[u8; 8] = b"TGCLUST2";
+/// Version 3: 80-byte clusters with the snapping-safe cone (`crate::cone`), each cluster's
+/// triangles in vertex-cache order (a version 2 file is rebuilt).
+const MAGIC: &[u8; 8] = b"TGCLUST3";
 
 impl ClusterData {
     /// Writes the data to `path` (little-endian: magic, fingerprint, counts, then the arrays).
@@ -208,6 +209,15 @@ pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
                     cone_thinness: cone.thinness,
                     _pad: [0; 3],
                 });
+            }
+            // Each cluster's triangles in vertex-cache order (meshoptimizer's): the meshlet
+            // builder's order is the cluster's growth, whose vertex reuse is poorer than the
+            // mesh's own; a cluster's set of triangles, hence its box and cone, stays.
+            for c in &data.clusters[first_cluster as usize..] {
+                let r = c.first_index as usize..(c.first_index + c.index_count) as usize;
+                if let Some(tri) = data.indices.get_mut(r) {
+                    meshopt::optimize_vertex_cache_in_place(tri, verts.len());
+                }
             }
             if at != range.end {
                 return Err(bad(format!(

@@ -32,8 +32,8 @@ const PLACE_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_place.c
 const LISTS_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_lists.comp.spv");
 const EMIT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_emit.comp.spv");
 
-/// The cluster set's storage buffers: bindings 1-16 (common/cluster.glsl).
-const STORAGE_BINDINGS: u32 = 16;
+/// The cluster set's storage buffers: bindings 1-17 (common/cluster.glsl).
+const STORAGE_BINDINGS: u32 = 17;
 
 /// Where each instance's clusters sit and how many commands each list can hold.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -153,8 +153,11 @@ pub struct ClusterStage {
     pub runs: Buffer,
     pub offsets: Buffer,
     pub commands: Buffer,
-    /// Per list: the draw count (0-7); 8-15 unused.
+    /// Per list: the draw count (0-7), then the instances its commands draw (8-15).
     pub counts: Buffer,
+    /// Per region: the indirect dispatch of its chunks and their count, then the chunk lists
+    /// (cluster.glsl's Work; `cull_clusters.comp` appends, a reset pass empties).
+    pub work: Buffer,
     /// `cluster_cull.comp`, `cluster_place.comp`, `cluster_lists.comp`, `cluster_emit.comp`,
     /// their layouts and set pool.
     compute: ComputeStage<4>,
@@ -169,13 +172,13 @@ enum Spec<'a> {
 }
 
 /// The stage's buffers: clusters, mesh ranges, bases, flags, visibility, runs, offsets,
-/// commands, counts (all destroyed again on an error).
+/// commands, counts, work (all destroyed again on an error).
 fn make_buffers(
     ctx: &Context,
     layout: &ClusterLayout,
     clusters: &tilegraph_scene::clusters::Clusters,
     capacity: Capacity,
-) -> Result<[Buffer; 9], VkError> {
+) -> Result<[Buffer; 10], VkError> {
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let total = u64::from(layout.total.max(1));
     let stride = u64::from(capacity.stride.max(1));
@@ -212,6 +215,11 @@ fn make_buffers(
             2 * u64::from(LIST_COUNT) * 4,
             storage | indirect | src,
         ),
+        Spec::Empty(
+            "cluster work",
+            (8 + 2 * u64::from(layout.chunks())) * 4,
+            storage | indirect | dst,
+        ),
     ];
     let mut made = Vec::with_capacity(specs.len());
     for spec in specs {
@@ -231,7 +239,7 @@ fn make_buffers(
             }
         }
     }
-    <[Buffer; 9]>::try_from(made).map_err(|made| {
+    <[Buffer; 10]>::try_from(made).map_err(|made| {
         for b in made {
             ctx.destroy_buffer(b);
         }
@@ -268,7 +276,7 @@ impl ClusterStage {
         else {
             return Ok(None);
         };
-        let [clusters, mesh_clusters, base, flags, visibility, runs, offsets, commands, counts] =
+        let [clusters, mesh_clusters, base, flags, visibility, runs, offsets, commands, counts, work] =
             make_buffers(ctx, &layout, clusters, capacity)?;
         let mut stage = ClusterStage {
             layout,
@@ -281,6 +289,7 @@ impl ClusterStage {
             offsets,
             commands,
             counts,
+            work,
             compute: ComputeStage::EMPTY,
             sets: Vec::new(),
         };
@@ -346,6 +355,7 @@ impl ClusterStage {
                         (14, ssbo, self.runs.raw),
                         (15, ssbo, self.offsets.raw),
                         (16, ssbo, *groups),
+                        (17, ssbo, self.work.raw),
                     ],
                 );
                 self.sets.push(set);
@@ -365,7 +375,6 @@ impl ClusterStage {
         (which, groups): (usize, u32),
         step: ClusterStep,
     ) -> Result<(), VkError> {
-        let chunks = self.layout.chunks();
         let set = *self
             .sets
             .get(2 * slot + which)
@@ -373,18 +382,46 @@ impl ClusterStage {
                 what: "cluster culling".into(),
                 reason: format!("no set for slot {slot}"),
             })?;
-        // One workgroup per chunk, in rows of 65,535 (the least maxComputeWorkGroupCount).
-        let rows = (chunks.clamp(1, 65_535), chunks.div_ceil(65_535).max(1));
+        let sets = [scene_set, set];
         let regions = which as u32 + 1; // the late phase places the union's runs again
-        let (pipeline, (x, y)) = match step {
-            ClusterStep::Cull => (self.compute.pipelines[0], rows),
-            ClusterStep::Place => (self.compute.pipelines[1], (regions * groups.max(1), 1)),
-            ClusterStep::Lists => (self.compute.pipelines[2], (regions * LISTS_PER_PHASE, 1)),
-            ClusterStep::Emit => (self.compute.pipelines[3], rows),
+                                        // The chunk steps run over the phase's chunk list, a workgroup per chunk (at most
+                                        // 65,535, the least maxComputeWorkGroupCount: a workgroup then takes several).
+        let listed = |pipeline| {
+            let offset = 16 * which as u64;
+            self.compute
+                .dispatch_indirect(ctx, cb, pipeline, sets, (self.work.raw, offset));
         };
-        self.compute
-            .dispatch(ctx, cb, pipeline, [scene_set, set], (x, y));
+        match step {
+            ClusterStep::Cull => listed(self.compute.pipelines[0]),
+            ClusterStep::Place => self.compute.dispatch(
+                ctx,
+                cb,
+                self.compute.pipelines[1],
+                sets,
+                (regions * groups.max(1), 1),
+            ),
+            ClusterStep::Lists => self.compute.dispatch(
+                ctx,
+                cb,
+                self.compute.pipelines[2],
+                sets,
+                (regions * LISTS_PER_PHASE, 1),
+            ),
+            ClusterStep::Emit => listed(self.compute.pipelines[3]),
+        }
         Ok(())
+    }
+
+    /// Records the reset of both regions' chunk lists (the graph made the work buffer a
+    /// transfer destination): no chunk, one workgroup row.
+    pub(super) fn record_work_reset(&self, ctx: &Context, cb: vk::CommandBuffer) {
+        let header: [u32; 8] = [0, 1, 1, 0, 0, 1, 1, 0];
+        // SAFETY: recording outside a render pass; the buffer is live, a transfer destination,
+        // and holds at least the 32 bytes of the header.
+        unsafe {
+            ctx.device
+                .cmd_update_buffer(cb, self.work.raw, 0, bytemuck::cast_slice(&header))
+        };
     }
 
     pub(super) fn destroy(self, ctx: &Context) {
@@ -399,6 +436,7 @@ impl ClusterStage {
             self.offsets,
             self.commands,
             self.counts,
+            self.work,
         ] {
             ctx.destroy_buffer(b);
         }

@@ -114,6 +114,34 @@ impl<const N: usize> ComputeStage<N> {
         }
     }
 
+    /// Records `pipeline` over the workgroups the `VkDispatchIndirectCommand` at `args` (a
+    /// buffer and offset) says, with the scene's set and the stage's `set`. The graph put the
+    /// barriers around the pass (the arguments read as indirect).
+    pub fn dispatch_indirect(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        pipeline: vk::Pipeline,
+        sets: [vk::DescriptorSet; 2],
+        args: (vk::Buffer, u64),
+    ) {
+        // SAFETY: recording outside a render pass; pipeline, layout, sets and the argument
+        // buffer (an indirect buffer holding 12 bytes at the offset) are live.
+        unsafe {
+            ctx.device
+                .cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
+            ctx.device.cmd_bind_descriptor_sets(
+                cb,
+                vk::PipelineBindPoint::COMPUTE,
+                self.pipeline_layout,
+                0,
+                &sets,
+                &[],
+            );
+            ctx.device.cmd_dispatch_indirect(cb, args.0, args.1);
+        }
+    }
+
     /// Destroys what was made; the GPU must be idle.
     pub fn destroy(self, ctx: &Context) {
         // SAFETY: the GPU is idle (caller's guarantee); null handles are ignored.

@@ -110,6 +110,11 @@ pub struct ClusterLists {
     pub visibility: BufferId,
     pub runs: BufferId,
     pub offsets: BufferId,
+    /// Each phase's chunks to cull and emit, and their indirect dispatches.
+    pub work: BufferId,
+    /// `cluster_early = instances`: the early phase is hiz-2phase's (the instance compaction,
+    /// whole instances drawn); the cluster stage runs in the late phase only.
+    pub whole_early: bool,
     /// A fixed draw count draws every list's whole capacity: the commands past this frame's
     /// count must be empty, so each emit is preceded by a clear.
     pub clear: bool,
@@ -127,6 +132,22 @@ impl CullLists {
             counts,
             draw_ids: self.draw_ids,
             phase,
+            clusters: self.clusters.is_some(),
+        }
+    }
+
+    /// The draws of two-phase culling's early depth pass: the instance lists where the cluster
+    /// stage does not run early (`cluster_early = instances`: hiz-2phase's own early phase).
+    pub fn early_depth_source(self) -> DrawSource {
+        match self.clusters {
+            Some(c) if c.whole_early => DrawSource::Gpu {
+                commands: self.commands,
+                counts: self.counts,
+                draw_ids: self.draw_ids,
+                phase: 0,
+                clusters: false,
+            },
+            _ => self.source(0),
         }
     }
 }
@@ -165,6 +186,8 @@ pub fn import_cull_buffers(
             visibility: g.import_buffer("cluster-visibility", c.visibility.size, keep),
             runs: g.import_buffer("cluster-runs", c.runs.size, discard),
             offsets: g.import_buffer("cluster-offsets", c.offsets.size, discard),
+            work: g.import_buffer("cluster-work", c.work.size, discard),
+            whole_early: state.cluster_early == ClusterEarly::Instances,
             clear: matches!(state.draw_count, DrawCount::Fixed { .. }),
         };
         g.export(lists.visibility);
@@ -217,8 +240,20 @@ enum Step {
 pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
     let two_phase = culling.base() == Culling::HizTwoPhase;
     let name = if two_phase { "cull-early" } else { "cull" };
+    if let Some(cl) = lists.clusters {
+        // Both phases' chunk lists start empty (the instance tests append).
+        let reset: Payload = Box::new(|pc, res| {
+            let culling = res.states.require::<CullState>(pc.pass_name)?;
+            culling.record_work_reset(pc.ctx, pc.cb)
+        });
+        g.transfer_pass("cluster-work-reset", PassClass::Transfer, reset)
+            .transfer_dst(cl.work);
+    }
     let mut c = g.compute_pass(name, PassClass::Compute, dispatch(0, Step::Mark));
     c.storage_write(lists.entries);
+    if let Some(cl) = lists.clusters {
+        c.storage_read_write(cl.work);
+    }
     if two_phase || culling == Culling::RasterOcclusion {
         // The early phase reads last frame's visibility (raster occlusion: this frame's
         // flags); cull.comp's visibility binding is writable (the late phase writes it), so
@@ -233,10 +268,11 @@ pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
     } else {
         ("cull-compact", "cull-commands")
     };
-    if lists.clusters.is_none() {
-        add_compaction(g, lists, 0, [compact, commands]);
+    match lists.clusters {
+        // The cluster stage's own early phase.
+        Some(c) if !(two_phase && c.whole_early) => add_cluster_stage(g, lists, 0),
+        _ => add_compaction(g, lists, 0, [compact, commands]),
     }
-    add_cluster_stage(g, lists, 0);
     if !two_phase {
         add_cull_stats(g, lists);
     }
@@ -270,7 +306,9 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Cull)),
     );
-    cull.storage_read(lists.entries)
+    cull.indirect(c.work)
+        .storage_read(c.work)
+        .storage_read(lists.entries)
         .storage_read(lists.visibility)
         .storage_read_write(c.flags)
         .storage_read_write(c.runs)
@@ -304,6 +342,8 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Emit)),
     )
+    .indirect(c.work)
+    .storage_read(c.work)
     // It zeroes the entries' runs once placed, for the next culling to add to.
     .storage_read_write(c.runs)
     .storage_read(c.offsets)
@@ -353,6 +393,9 @@ pub fn add_cull_late(g: &mut FrameGraph, lists: CullLists) {
         .storage_read_write(lists.visibility);
     if let Some(p) = lists.pyramid {
         c.storage_read(p);
+    }
+    if let Some(cl) = lists.clusters {
+        c.storage_read_write(cl.work);
     }
     if lists.clusters.is_none() {
         add_compaction(g, lists, 1, ["cull-late-compact", "cull-late-commands"]);
@@ -458,16 +501,16 @@ pub const CLUSTER_GAP: u32 = 0;
 /// cluster of the instances visible now.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ClusterEarly {
-    /// Its clusters in the frustum and not back-facing: the same depth, to the pixel, as
-    /// `hiz-2phase`'s early phase (which draws the whole instance), so the same pyramid, the
-    /// same instances visible — and the colour pass never draws more triangles than
-    /// `hiz-2phase`'s.
+    /// The whole instance: the early phase is `hiz-2phase`'s own (its instanced lists; the
+    /// cluster stage runs in the late phase only), so the same depth, pyramid, instances
+    /// visible now and history — and the colour pass, clusters of those instances, never draws
+    /// more triangles than `hiz-2phase`'s.
     #[default]
     Instances,
-    /// Of those, only the clusters the pyramid did not find occluded last frame: less early
-    /// work where instances are large and mostly hidden (a level's room as one mesh), but after
-    /// a turn or a cut the early depth can be thinner than instance culling's, and the late
-    /// phase then draws more.
+    /// Its clusters in the frustum and not back-facing that the pyramid did not find occluded
+    /// last frame (the cluster stage runs in both phases): less early work where instances are
+    /// large and mostly hidden (a level's room as one mesh), but after a turn or a cut the early
+    /// depth can be thinner than instance culling's, and the late phase then draws more.
     Clusters,
 }
 

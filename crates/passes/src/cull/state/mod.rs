@@ -146,11 +146,14 @@ pub struct CullState {
 }
 
 const CULL_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull.comp.spv");
+const CULL_CLUSTERS_SPV: &[u8] =
+    include_bytes!("../../../../../shaders/spv/cull_clusters.comp.spv");
 const COMPACT_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull_compact.comp.spv");
 const COMMANDS_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull_commands.comp.spv");
 
-/// The culling descriptor set's storage buffers (bindings 1-10).
-const STORAGE_BINDINGS: u32 = 10;
+/// The culling descriptor set's storage buffers (bindings 1-10; 11 and 12 the cluster techniques' base
+/// and chunk lists, `cull_clusters.comp`).
+const STORAGE_BINDINGS: u32 = 12;
 
 impl PassState for CullState {
     fn destroy(self: Box<Self>, ctx: &Context) {
@@ -282,6 +285,18 @@ impl CullState {
                     scene,
                 };
                 state.clusters = ClusterStage::new(ctx, &shared, capacity, scene_set_layout)?;
+                // cull_clusters.comp lists each phase's chunks: the cluster base and the work
+                // lists at bindings 11 and 12.
+                if let Some(c) = &state.clusters {
+                    for &set in &state.sets {
+                        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
+                        write_buffer_set(
+                            ctx,
+                            set,
+                            &[(11, ssbo, c.base.raw), (12, ssbo, c.work.raw)],
+                        );
+                    }
+                }
                 Ok(())
             })
             .and_then(|()| {
@@ -315,7 +330,11 @@ impl CullState {
         let n = u64::from(self.capacity.instances.max(1));
         let slots = orders.len().max(1) as u32;
         let shaders = [
-            ("cull.comp", CULL_SPV),
+            if self.culling.clusters() {
+                ("cull_clusters.comp", CULL_CLUSTERS_SPV)
+            } else {
+                ("cull.comp", CULL_SPV)
+            },
             ("cull_compact.comp", COMPACT_SPV),
             ("cull_commands.comp", COMMANDS_SPV),
         ];
@@ -606,7 +625,7 @@ impl CullState {
         ctx: &Context,
         cb: vk::CommandBuffer,
         slot: usize,
-        list: u32,
+        (list, from_clusters): (u32, bool),
     ) -> Result<(), VkError> {
         let inputs = self.slot(slot)?;
         let groups = inputs
@@ -618,7 +637,8 @@ impl CullState {
             return Ok(());
         }
         let slots = u64::from(self.capacity.groups.max(1));
-        let (commands, counts, offset, groups) = match &self.clusters {
+        let clusters = self.clusters.as_ref().filter(|_| from_clusters);
+        let (commands, counts, offset, groups) = match clusters {
             // Cluster lists: the list's commands from its base, up to its capacity.
             Some(c) => {
                 let local = (list % LISTS_PER_PHASE) as usize;

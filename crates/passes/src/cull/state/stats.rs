@@ -8,6 +8,14 @@ use tilegraph_vk::{Context, VkError};
 use super::{CullState, GpuCullCounts, LISTS_PER_PHASE, LIST_COUNT};
 
 impl CullState {
+    /// Records the reset of the cluster stage's chunk lists (nothing without one).
+    pub fn record_work_reset(&self, ctx: &Context, cb: vk::CommandBuffer) -> Result<(), VkError> {
+        if let Some(c) = &self.clusters {
+            c.record_work_reset(ctx, cb);
+        }
+        Ok(())
+    }
+
     /// Records the copy of this frame's counts into frame slot `slot`'s host-visible stats
     /// buffer (the graph made the counts readable by transfers), made visible to the host:
     /// [`CullState::collect`] reads it once the slot's frame has completed.

@@ -1,0 +1,123 @@
+// GPU-driven culling, one thread per instance (seeds 000, 002, 004). Marks each instance's fixed
+// entry in the list of its draw class (instance id + 1 = drawn, 0 = culled);
+// cull_compact.comp and cull_commands.comp then pack the survivors into instanced indirect
+// commands (common/cull.glsl).
+//
+// Phases (cull.info.y):
+//   0 frustum      frustum only;
+//   1 hiz          frustum + HiZ test against the previous frame's pyramid, projected with the
+//                  previous frame's matrices (reprojected to the current eye);
+//   2 early        two-phase, first half: what was visible last frame and is in the frustum;
+//                  raster occlusion (groups.w != 0): this frame's box flags, or carried;
+//   3 late         two-phase, second half: test everything in the frustum against the pyramid
+//                  of the early depth; list what is visible and was not drawn early (and add it
+//                  to the early lists, which the colour pass then draws); the result is next
+//                  frame's visibility.
+// Blended instances are not culled here (they are sorted back to front on the CPU).
+#include "scene.glsl"
+#include "cull.glsl"
+#include "cull_tests.glsl"
+#include "recheck.glsl"
+
+layout(local_size_x = 64) in;
+
+// Per entry: 0 = culled, instance id + 1 = drawn (read by cull_compact.comp).
+layout(set = 1, binding = 8, std430) writeonly buffer Entries { uint entries[]; };
+// Per instance: two-phase culling's 0 / 1 (visible last frame); raster occlusion's
+// FLAG_PASSED | FLAG_DRAWN (recheck.glsl).
+layout(set = 1, binding = 4, std430) buffer Visibility { uint visible_last[]; };
+// Per instance: its entry in its list, list * stride + position, in the CPU draw order (the
+// order an unculled frame draws in), so the culled frame draws the survivors in the same order
+// and ties between coplanar surfaces resolve the same way. ~0u for blended instances.
+layout(set = 1, binding = 7, std430) readonly buffer Order { uint order[]; };
+
+#ifdef CLUSTER_WORK
+// Cluster techniques (cull_clusters.comp): the chunks of the instances whose clusters the phase
+// tests, appended to the phase's work list (cluster.glsl's Work) for the cluster dispatches,
+// which run indirectly over the drawn instances' chunks only.
+layout(set = 1, binding = 11, std430) readonly buffer ClusterBase { uint cluster_base[]; };
+layout(set = 1, binding = 12, std430) buffer Work { uint work[]; };
+
+// Appends instance `id`'s chunks to the work list of region `p` (0 early or only, 1 late): the
+// chunk count, the dispatch's workgroups (at most 65,535: a workgroup then takes several) and
+// the chunks' ids, in whatever order the threads come (each chunk's results have their place).
+void append_chunks(uint p, uint id) {
+    uint first = cluster_base[cull.commands.y + id];
+    uint n = cluster_base[cull.commands.y + id + 1u] - first;
+    if (n == 0u) {
+        return;
+    }
+    uint at = atomicAdd(work[4u * p + 3u], n);
+    atomicMax(work[4u * p], min(at + n, 65535u));
+    for (uint i = 0u; i < n; ++i) {
+        work[8u + p * cull.commands.w + at + i] = first + i;
+    }
+}
+#endif
+
+// Marks the instance's entry of list `list`: drawn or not. Entries never move, so the frame is
+// deterministic (no atomic append order); the compaction packs them in entry order.
+void mark(uint list, uint id, bool draw) {
+    entries[list * cull.screen.z + order[id] % cull.screen.z] = draw ? id + 1u : 0u;
+}
+
+void main() {
+    uint id = gl_GlobalInvocationID.x;
+    if (id >= cull.info.x) {
+        return;
+    }
+    Instance inst = instance_at(id);
+    if (order[id] == 0xFFFFFFFFu) {
+        return;
+    }
+    uint list = order[id] / cull.screen.z;
+    uint phase = cull.info.y;
+    bool in_frustum = frustum_visible(inst);
+    if (phase == 0u) {
+        mark(list, id, in_frustum);
+#ifdef CLUSTER_WORK
+        if (in_frustum) {
+            append_chunks(0u, id);
+        }
+#endif
+    } else if (phase == 1u) {
+        mark(list, id, in_frustum && hiz_visible(inst));
+    } else if (phase == 2u && cull.groups.w != 0u) {
+        // Raster occlusion (cull.groups.w: the packed recheck): a box fragment passed, or the
+        // instance was drawn last frame and its box was not tested (recheck.glsl). The word
+        // becomes next frame's: drawn or not, this frame's pass flag cleared.
+        // A box at the near plane was not drawn (its proxy would be clipped): visible. The
+        // test is the vertex shader's, widened so that rounding never makes it disagree.
+        uint word = visible_last[id];
+        bool near = proxy_crosses_near(inst.center, raster_proxy_half_size(inst.half_extents), 1e-5);
+        bool draw = in_frustum && ((word & FLAG_PASSED) != 0u || near
+                                   || raster_carried(word, cull.groups.w, id));
+        mark(list, id, draw);
+        visible_last[id] = draw ? FLAG_DRAWN : 0u;
+    } else if (phase == 2u) {
+        mark(list, id, in_frustum && visible_last[id] != 0u);
+#ifdef CLUSTER_WORK
+        // cluster_early = "instances" (cull.clusters.y bit 1): the early phase draws whole
+        // instances, no cluster stage runs early.
+        if (in_frustum && visible_last[id] != 0u && (cull.clusters.y & 2u) == 0u) {
+            append_chunks(0u, id);
+        }
+#endif
+    } else {
+        bool visible = in_frustum && hiz_visible(inst);
+        bool late = visible && visible_last[id] == 0u;
+        mark(4u + list, id, late);
+        if (late) {
+            // The colour pass draws the early lists completed with the newly visible: the union,
+            // in the unculled order (the late compaction packs the early lists again).
+            mark(list, id, true);
+        }
+        visible_last[id] = visible ? 1u : 0u;
+#ifdef CLUSTER_WORK
+        // Every cluster of an instance visible now is tested against the pyramid.
+        if (visible) {
+            append_chunks(1u, id);
+        }
+#endif
+    }
+}
