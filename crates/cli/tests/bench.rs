@@ -137,6 +137,13 @@ fn smoke_bench_writes_results_report_and_one_series_per_setting_and_resumes() {
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
         if name.starts_with("pareto-") {
             pareto += 1;
+            // The ideal frame, every setting's ceiling, drawn and named with its ms.
+            assert!(
+                texts
+                    .iter()
+                    .any(|t| t.starts_with("ideal frame ") && t.ends_with(" ms (dashed)")),
+                "{name}: no ideal frame in {texts:?}"
+            );
             for culling in CULLINGS {
                 for order in ["front-to-back", "back-to-front"] {
                     let label = format!("{culling} opaque_sort={order}");

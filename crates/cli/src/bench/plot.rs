@@ -1,6 +1,6 @@
 //! The bench's SVG plots (plotters): a Pareto plot per scene and size — x the frame's GPU ms,
 //! y the FN rate (filled) and FP rate (hollow) of each setting, one series per setting, the
-//! front of (ms, FN rate) joined — and the GPU time per pass of each setting as stacked bars.
+//! front of (ms, FN rate) joined, the ideal frame a dashed vertical line — and the GPU time per pass of each setting as stacked bars.
 
 use std::path::{Path, PathBuf};
 
@@ -8,6 +8,7 @@ use plotters::prelude::*;
 
 use super::matrix::Labels;
 use super::report::Group;
+use super::results::RunRecord;
 use crate::CliError;
 
 fn colour(i: usize) -> RGBColor {
@@ -23,6 +24,15 @@ fn write_err(path: &Path) -> impl Fn(String) -> CliError {
     }
 }
 
+/// The least ideal frame of the group's runs (each check times the oracle's visible set of its
+/// own frames; a cluster technique's on the scene with its indices in cluster order).
+fn ideal_ms(runs: &[(&RunRecord, bool)]) -> Option<f64> {
+    runs.iter()
+        .filter_map(|(r, _)| r.totals.as_ref().and_then(|t| t.ideal_frame_gpu_ms))
+        .filter(|m| m.is_finite() && *m > 0.0)
+        .min_by(f64::total_cmp)
+}
+
 /// `pareto-<scene>-<WxH>.svg`.
 pub fn pareto(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, CliError> {
     let path = out.join(format!("pareto-{}.svg", g.stem()));
@@ -31,7 +41,7 @@ pub fn pareto(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, Cli
     let max_ms = runs
         .iter()
         .filter_map(|(r, _)| r.totals.as_ref().map(|t| t.frame_gpu_ms))
-        .fold(0.0f64, f64::max)
+        .fold(ideal_ms(&runs).unwrap_or(0.0), f64::max)
         .max(1e-3)
         * 1.15;
     let max_rate = runs
@@ -97,6 +107,20 @@ pub fn pareto(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, Cli
         chart
             .draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
             .map_err(|e| err(e.to_string()))?;
+        // The ideal frame (the oracle's visible set drawn with no culling work): the ceiling
+        // every setting's frame is measured against, a dashed vertical line.
+        if let Some(ideal) = ideal_ms(&runs) {
+            chart
+                .draw_series(DashedLineSeries::new(
+                    [(ideal, 0.0), (ideal, max_rate)],
+                    6,
+                    4,
+                    BLACK.stroke_width(1),
+                ))
+                .map_err(|e| err(e.to_string()))?
+                .label(format!("ideal frame {ideal:.3} ms (dashed)"))
+                .legend(|(x, y)| PathElement::new(vec![(x - 6, y), (x + 6, y)], BLACK));
+        }
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)
