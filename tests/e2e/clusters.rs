@@ -148,6 +148,20 @@ fn cluster_culling_never_culls_a_visible_pixel() {
     println!("{}", lines.join("\n"));
 }
 
+/// `levels` (scene spec, walk seed) and the Godot room with walk seed 5 where the test data
+/// has it (skipped, saying so, where it does not).
+fn with_godot_room(levels: &[(&str, u64)]) -> Vec<(String, u64)> {
+    let mut specs: Vec<(String, u64)> = levels.iter().map(|(s, k)| (s.to_string(), *k)).collect();
+    match tilegraph_e2e::test_data("bench/GodotRooms/room.gltf") {
+        Some(p) => specs.push((p.display().to_string(), 5)),
+        None => eprintln!(
+            "skipping the Godot room: {} not found",
+            tilegraph_e2e::test_data_dir().display()
+        ),
+    }
+    specs
+}
+
 /// Levels exported as one mesh per material (`@one-mesh`: one instance covers the level, its
 /// clusters lie far from the mesh's origin, thin and distant pieces of surface share a mesh
 /// with everything else), on walks at eye height with yaw sweeps and hard cuts: both cluster
@@ -156,17 +170,7 @@ fn cluster_culling_never_culls_a_visible_pixel() {
 /// The Godot room (its objects instances, its walls one mesh) walks the same way.
 #[test]
 fn one_mesh_levels_on_eye_height_walks_stay_exact() {
-    let mut specs = vec![
-        ("interior:700@one-mesh".to_string(), 7),
-        ("city:900@one-mesh".to_string(), 3),
-    ];
-    match tilegraph_e2e::test_data("bench/GodotRooms/room.gltf") {
-        Some(p) => specs.push((p.display().to_string(), 5)),
-        None => eprintln!(
-            "skipping the Godot room: {} not found",
-            tilegraph_e2e::test_data_dir().display()
-        ),
-    }
+    let specs = with_godot_room(&[("interior:700@one-mesh", 7), ("city:900@one-mesh", 3)]);
     for (spec, seed) in &specs {
         let (spec, seed) = (spec.as_str(), *seed);
         let scene = with_clusters(spec);
@@ -215,14 +219,7 @@ fn one_mesh_levels_on_eye_height_walks_stay_exact() {
 /// level's walk and the Godot room's, FN 0 at cluster level and every image equal.
 #[test]
 fn other_cluster_settings_stay_exact() {
-    let mut specs = vec![("interior:700@one-mesh".to_string(), 7)];
-    match tilegraph_e2e::test_data("bench/GodotRooms/room.gltf") {
-        Some(p) => specs.push((p.display().to_string(), 5)),
-        None => eprintln!(
-            "skipping the Godot room: {} not found",
-            tilegraph_e2e::test_data_dir().display()
-        ),
-    }
+    let specs = with_godot_room(&[("interior:700@one-mesh", 7)]);
     for (spec, seed) in &specs {
         let scene = with_clusters(spec);
         let path = CameraPath::eye_height_walk(&scene.bounds(), 14, *seed);

@@ -98,6 +98,19 @@ impl<const N: usize> ComputeStage<N> {
         if groups.0 == 0 || groups.1 == 0 {
             return;
         }
+        self.bind(ctx, cb, pipeline, sets);
+        // SAFETY: recording outside a render pass, the pipeline and sets bound.
+        unsafe { ctx.device.cmd_dispatch(cb, groups.0, groups.1, 1) };
+    }
+
+    /// Binds `pipeline` and `sets` (the scene's, the stage's) for a dispatch.
+    fn bind(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        pipeline: vk::Pipeline,
+        sets: [vk::DescriptorSet; 2],
+    ) {
         // SAFETY: recording outside a render pass; pipeline, layout and sets are live.
         unsafe {
             ctx.device
@@ -110,7 +123,6 @@ impl<const N: usize> ComputeStage<N> {
                 &sets,
                 &[],
             );
-            ctx.device.cmd_dispatch(cb, groups.0, groups.1, 1);
         }
     }
 
@@ -125,21 +137,10 @@ impl<const N: usize> ComputeStage<N> {
         sets: [vk::DescriptorSet; 2],
         args: (vk::Buffer, u64),
     ) {
-        // SAFETY: recording outside a render pass; pipeline, layout, sets and the argument
-        // buffer (an indirect buffer holding 12 bytes at the offset) are live.
-        unsafe {
-            ctx.device
-                .cmd_bind_pipeline(cb, vk::PipelineBindPoint::COMPUTE, pipeline);
-            ctx.device.cmd_bind_descriptor_sets(
-                cb,
-                vk::PipelineBindPoint::COMPUTE,
-                self.pipeline_layout,
-                0,
-                &sets,
-                &[],
-            );
-            ctx.device.cmd_dispatch_indirect(cb, args.0, args.1);
-        }
+        self.bind(ctx, cb, pipeline, sets);
+        // SAFETY: recording outside a render pass, the pipeline and sets bound; the argument
+        // buffer (an indirect buffer holding 12 bytes at the offset) is live.
+        unsafe { ctx.device.cmd_dispatch_indirect(cb, args.0, args.1) };
     }
 
     /// Destroys what was made; the GPU must be idle.
