@@ -6,7 +6,8 @@
 //! every conservative culling technique (frustum, two-phase HiZ with random pyramid knobs and
 //! bounds, same-frame queries, raster occlusion, and both cluster techniques on a scene of
 //! closed spheres, some mirrored or double-sided, or on a level built as one mesh of thin,
-//! near-degenerate, zero-area, edge-on and distant triangles, `fragile_level`) for no visible
+//! near-degenerate, zero-area, edge-on and distant triangles, `fragile_level`; with either
+//! `cluster_early` and `cluster_gap` 0 or 2) for no visible
 //! instance — and for the cluster techniques no visible cluster — culled and an image
 //! equal to the unculled one (the frustum and two-phase HiZ techniques, instance and cluster
 //! level, which draw in the unculled order), on a
@@ -24,7 +25,7 @@ use proptest::prelude::*;
 use proptest::test_runner::{Config, FileFailurePersistence, TestCaseError, TestRng, TestRunner};
 use tilegraph_cull::{DepthFormat, NpotMode};
 use tilegraph_e2e::gpu_with;
-use tilegraph_passes::cull::{CullBounds, Culling};
+use tilegraph_passes::cull::{ClusterEarly, CullBounds, Culling};
 use tilegraph_passes::cullcheck::{cull_check_options, CheckExtras};
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
 use tilegraph_scene::{Camera, CameraPath, DepthConvention, PathKey, Projection, Scene};
@@ -313,6 +314,15 @@ fn conservative_culling_holds_at_random_extremes() {
                 hiz_base_level: base,
                 cull_bounds: bounds,
                 hiz_mode: mode,
+                // The cluster knobs' other settings, from fields the case already draws (so a
+                // saved seed still makes its case): the early phase of visible clusters where
+                // the pyramid is padded, gaps drawn through where the bounds are spheres.
+                cluster_early: if case.padded {
+                    ClusterEarly::Clusters
+                } else {
+                    ClusterEarly::Instances
+                },
+                cluster_gap: if case.sphere { 2 } else { 0 },
                 ..Default::default()
             };
             let r = cull_check_options(&g, scene, options, path, None, CheckExtras::default())
