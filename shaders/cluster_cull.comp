@@ -151,7 +151,7 @@ void cull_chunk(uint w) {
     // its flags and runs hold from older frames: an instance visible now was drawn early unless
     // its late entry is marked). Read by every thread before thread 0 rewrites it.
     bool drawn_early = late && entries[4u * cull.screen.z + e] == 0u;
-    uint early_runs = drawn_early ? runs[chunk_slot(0u, w)] : 0u;
+    uint early_runs = drawn_early && !whole_early ? runs[chunk_slot(0u, w)] : 0u;
     bool drawn = late ? visible_last[id] != 0u : entries[e] != 0u;
     Instance inst = instance_at(id);
     uvec2 range = mesh_clusters[inst.mesh];
@@ -198,7 +198,10 @@ void cull_chunk(uint w) {
             bool early = whole_early ? drawn_early : early_runs != 0u && flags[k] != 0u;
             f1 = now && !early ? 1u : 0u;
             f0 = now ? 1u : 0u;
-            cluster_visible[k] = now || !visible ? 1u : 0u;
+            // Next frame's cluster history: only an early phase of clusters reads it.
+            if (!whole_early) {
+                cluster_visible[k] = now || !visible ? 1u : 0u;
+            }
         }
     }
     raw[0][t] = f0;
