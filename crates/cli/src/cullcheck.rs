@@ -165,8 +165,13 @@ fn print(
         outln!("software occlusion: {ms:.3} CPU ms per frame (median)")?;
     }
     if let (Some(ideal), Some(e)) = (t.ideal_frame_gpu_ms, t.efficiency) {
+        let set = if clusters {
+            "visible clusters"
+        } else {
+            "visible instances"
+        };
         outln!(
-            "ideal frame (the oracle's visible instances, no culling work): {ideal:.3} ms; efficiency {e:.2}"
+            "ideal frame (the oracle's {set}, no culling work): {ideal:.3} ms; efficiency {e:.2}"
         )?;
     }
     if clusters {

@@ -143,6 +143,9 @@ pub struct DrawBuilder {
     /// Visible blended instances as sort keys ([`blend_key`]), and the radix sort's scratch.
     blended: Vec<u64>,
     scratch: Vec<u64>,
+    /// The ideal frame's clusters ([`keep_clusters`]), and its scratch list.
+    keep: Option<Vec<u64>>,
+    kept: Vec<Draw>,
 }
 
 /// The back-to-front sort key of a blended instance: the distance from the eye to its bounds'
@@ -184,6 +187,19 @@ fn radix_sort(keys: &mut Vec<u64>, scratch: &mut Vec<u64>) {
 }
 
 impl DrawBuilder {
+    /// From the next list on, [`Self::narrow`] keeps only these clusters (sorted
+    /// [`cluster_key`]s; `None`: every triangle of the instances drawn).
+    pub fn keep_only(&mut self, clusters: Option<Vec<u64>>) {
+        self.keep = clusters;
+    }
+
+    /// [`keep_clusters`] with the clusters [`Self::keep_only`] named, if any.
+    pub fn narrow(&mut self, scene: &Scene, list: &mut DrawList) {
+        if let Some(keep) = &self.keep {
+            keep_clusters(scene, keep, list, &mut self.kept);
+        }
+    }
+
     /// Fills `list`: the opaque and alpha-tested draws — the scene's buckets in the frame's
     /// order `groups` (`visible` `None`), or the `visible` instances of them in that order and
     /// each bucket's entry order, written from `cpu_base` — and the `blended` instances
@@ -273,6 +289,76 @@ impl DrawBuilder {
                 }
             }
         }
+    }
+}
+
+/// One (instance, cluster) pair as a sortable key: the instance in the high word, the
+/// cluster's global index ([`tilegraph_scene::Clusters::clusters`]) in the low one.
+pub fn cluster_key(instance: u32, cluster: u32) -> u64 {
+    (u64::from(instance) << 32) | u64::from(cluster)
+}
+
+/// Narrows the opaque and alpha-tested draws of `list` to the clusters `keep` names (sorted
+/// [`cluster_key`]s): each instance of a draw becomes one draw per run of consecutive kept
+/// clusters of its mesh, in cluster order (the order its whole draw had), and an instance with
+/// none kept is not drawn. The ideal frame of a cluster technique: the oracle's visible
+/// clusters drawn with no culling work. A scene without clusters keeps its draws.
+pub fn keep_clusters(scene: &Scene, keep: &[u64], list: &mut DrawList, scratch: &mut Vec<Draw>) {
+    let Some(clusters) = scene.clusters() else {
+        return;
+    };
+    let buckets = scene.buckets();
+    for draws in [&mut list.opaque, &mut list.alpha_tested] {
+        scratch.clear();
+        for d in draws.iter() {
+            let Some(&[base, count]) = clusters.mesh_clusters.get(d.mesh as usize) else {
+                continue;
+            };
+            let own = base..base.saturating_add(count);
+            for entry in d.first_instance..d.first_instance + d.instance_count {
+                let instance = if entry >= list.cpu_base {
+                    list.instances
+                        .get((entry - list.cpu_base) as usize)
+                        .copied()
+                } else {
+                    buckets.instance_at(entry)
+                };
+                let Some(instance) = instance else {
+                    continue;
+                };
+                let lo = keep.partition_point(|&k| k < cluster_key(instance, 0));
+                let hi = keep.partition_point(|&k| k <= cluster_key(instance, u32::MAX));
+                let mut run: Option<Draw> = None;
+                let of_mesh = keep
+                    .get(lo..hi)
+                    .unwrap_or(&[])
+                    .iter()
+                    .map(|&k| k as u32)
+                    .filter(|c| own.contains(c));
+                for c in of_mesh {
+                    let Some(c) = clusters.clusters.get(c as usize) else {
+                        continue;
+                    };
+                    match run.as_mut() {
+                        Some(r) if r.first_index + r.index_count == c.first_index => {
+                            r.index_count += c.index_count;
+                        }
+                        _ => {
+                            scratch.extend(run.take());
+                            run = Some(Draw {
+                                first_index: c.first_index,
+                                index_count: c.index_count,
+                                first_instance: entry,
+                                instance_count: 1,
+                                ..*d
+                            });
+                        }
+                    }
+                }
+                scratch.extend(run);
+            }
+        }
+        std::mem::swap(draws, scratch);
     }
 }
 

@@ -91,8 +91,9 @@ pub struct TotalsRecord {
     pub frame_gpu_ms: f64,
     /// 95th percentile of the same frames.
     pub frame_gpu_ms_p95: f64,
-    /// The ideal frame: the oracle's visible instances drawn with no culling work, timed whole
-    /// (absent for moving scenes and in results written before it).
+    /// The ideal frame: the oracle's visible instances (clusters, for a cluster technique) drawn
+    /// with no culling work, timed whole (absent for moving scenes and in results written
+    /// before it).
     #[serde(default)]
     pub ideal_frame_gpu_ms: Option<f64>,
     /// Sum of the passes' medians (timed each, in a pass of their own along the path): the

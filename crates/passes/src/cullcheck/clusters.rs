@@ -9,6 +9,11 @@
 
 use serde::Serialize;
 use tilegraph_scene::Scene;
+use tilegraph_vk::Context;
+
+use crate::cull::LISTS_PER_PHASE;
+use crate::options::RenderError;
+use crate::renderer::SceneRenderer;
 
 use crate::cull::IndirectDraw;
 
@@ -22,10 +27,7 @@ pub struct ClusterCheck {
     pub false_positives: usize,
 }
 
-/// A pair as one sortable key.
-fn key(instance: u32, cluster: u32) -> u64 {
-    (u64::from(instance) << 32) | u64::from(cluster)
-}
+use crate::draws::cluster_key as key;
 
 /// The clusters of `scene` (global indices) whose index ranges overlap `first..first + count`
 /// of mesh `mesh` (its clusters tile its range in order).
@@ -44,17 +46,16 @@ fn clusters_in(scene: &Scene, mesh: u32, first: u32, count: u32) -> std::ops::Ra
     base + lo as u32..base + hi.max(lo) as u32
 }
 
-/// Compares the oracle's pixels (`owners`: instance per pixel, `u32::MAX` for none;
-/// `triangles`: the triangle of its mesh per pixel) with the colour commands a cluster
-/// technique drew. `compare[i]`: instance `i` is in the comparison (drawn, not blended). `None`
-/// when the scene has no clusters.
-pub fn cluster_check(
+/// The clusters owning the oracle's pixels (`owners`: instance per pixel, `u32::MAX` for none;
+/// `triangles`: the triangle of its mesh per pixel), as sorted (instance, cluster) keys
+/// ([`crate::draws::cluster_key`]) of the compared instances (`compare[i]`: instance `i` is in
+/// the comparison: drawn, not blended). `None` when the scene has no clusters.
+pub fn visible_clusters(
     scene: &Scene,
     owners: &[u32],
     triangles: &[u32],
     compare: &[bool],
-    colour: &[&IndirectDraw],
-) -> Option<ClusterCheck> {
+) -> Option<Vec<u64>> {
     scene.clusters()?;
     let mesh_of = |i: u32| scene.instances().get(i as usize).map(|inst| inst.mesh);
     let compared = |i: u32| compare.get(i as usize).copied().unwrap_or(false);
@@ -71,6 +72,59 @@ pub fn cluster_check(
         .collect();
     visible.sort_unstable();
     visible.dedup();
+    Some(visible)
+}
+
+/// A cluster technique's frame below the instance.
+pub(super) struct Below {
+    /// The triangles its colour lists drew.
+    pub triangles: u64,
+    /// Its clusters against the oracle's (`None`: the oracle has no triangle ids).
+    pub check: Option<ClusterCheck>,
+    /// The oracle's visible clusters ([`visible_clusters`]), for the ideal frame.
+    pub visible: Option<Vec<u64>>,
+}
+
+/// Reads back what the cluster technique `tested` drew in its last frame and compares it with
+/// the oracle's pixels (`owners`: instance and triangle per pixel).
+pub(super) fn of_technique(
+    ctx: &Context,
+    tested: &mut SceneRenderer,
+    scene: &Scene,
+    owners: (&[u32], Option<&[u32]>),
+    compare: &[bool],
+) -> Result<Below, RenderError> {
+    let lists = tested.gpu_lists(ctx)?.ok_or(RenderError::MissingReadback {
+        what: "the cluster technique's GPU lists",
+    })?;
+    let colour: Vec<_> = lists
+        .lists
+        .iter()
+        .take(LISTS_PER_PHASE as usize)
+        .flatten()
+        .collect();
+    let (ids, triangles) = owners;
+    let visible = triangles.and_then(|t| visible_clusters(scene, ids, t, compare));
+    let check = visible
+        .as_deref()
+        .map(|v| cluster_check(scene, v, compare, &colour));
+    Ok(Below {
+        triangles: lists.colour_triangles(),
+        check,
+        visible,
+    })
+}
+
+/// Compares the visible clusters ([`visible_clusters`]) with the colour commands a cluster
+/// technique drew.
+pub fn cluster_check(
+    scene: &Scene,
+    visible: &[u64],
+    compare: &[bool],
+    colour: &[&IndirectDraw],
+) -> ClusterCheck {
+    let mesh_of = |i: u32| scene.instances().get(i as usize).map(|inst| inst.mesh);
+    let compared = |i: u32| compare.get(i as usize).copied().unwrap_or(false);
     let mut drawn: Vec<u64> = colour
         .iter()
         .flat_map(|d| d.instances.iter().map(move |&i| (i, *d)))
@@ -85,12 +139,12 @@ pub fn cluster_check(
     drawn.dedup();
     let in_drawn = |k: &u64| drawn.binary_search(k).is_ok();
     let in_visible = |k: &u64| visible.binary_search(k).is_ok();
-    Some(ClusterCheck {
+    ClusterCheck {
         visible: visible.len(),
         drawn: drawn.len(),
         false_negatives: visible.iter().filter(|k| !in_drawn(k)).count(),
         false_positives: drawn.iter().filter(|k| !in_visible(k)).count(),
-    })
+    }
 }
 
 #[cfg(test)]
@@ -148,6 +202,18 @@ mod tests {
         }
     }
 
+    fn check(
+        s: &Scene,
+        owners: &[u32],
+        triangles: &[u32],
+        compare: &[bool],
+        colour: &[IndirectDraw],
+    ) -> Option<ClusterCheck> {
+        let visible = visible_clusters(s, owners, triangles, compare)?;
+        let colour: Vec<_> = colour.iter().collect();
+        Some(cluster_check(s, &visible, compare, &colour))
+    }
+
     #[test]
     fn a_visible_cluster_left_out_is_a_false_negative() {
         let s = scene();
@@ -158,14 +224,7 @@ mod tests {
         let compare = [true, true];
         // Everything drawn: exact, and the unseen clusters are false positives.
         let all = [draw(0, 18, &[0, 1])];
-        let c = cluster_check(
-            &s,
-            &owners,
-            &triangles,
-            &compare,
-            &all.iter().collect::<Vec<_>>(),
-        )
-        .unwrap();
+        let c = check(&s, &owners, &triangles, &compare, &all).unwrap();
         assert_eq!(
             c,
             ClusterCheck {
@@ -177,35 +236,66 @@ mod tests {
         );
         // Instance 0's last cluster culled (its run ends at index 12): one false negative.
         let cut = [draw(0, 12, &[0]), draw(0, 18, &[1])];
-        let c = cluster_check(
-            &s,
-            &owners,
-            &triangles,
-            &compare,
-            &cut.iter().collect::<Vec<_>>(),
-        )
-        .unwrap();
+        let c = check(&s, &owners, &triangles, &compare, &cut).unwrap();
         assert_eq!(c.false_negatives, 1);
         // Runs of single clusters cover exactly what they name.
         let runs = [draw(0, 6, &[0]), draw(12, 6, &[0]), draw(6, 6, &[1])];
-        let c = cluster_check(
-            &s,
-            &owners,
-            &triangles,
-            &compare,
-            &runs.iter().collect::<Vec<_>>(),
-        )
-        .unwrap();
+        let c = check(&s, &owners, &triangles, &compare, &runs).unwrap();
         assert_eq!((c.false_negatives, c.false_positives, c.drawn), (0, 0, 3));
         // An instance outside the comparison counts neither way.
-        let c = cluster_check(
-            &s,
-            &owners,
-            &triangles,
-            &[true, false],
-            &cut.iter().collect::<Vec<_>>(),
-        )
-        .unwrap();
+        let c = check(&s, &owners, &triangles, &[true, false], &cut).unwrap();
         assert_eq!((c.visible, c.false_negatives), (2, 1));
+    }
+
+    #[test]
+    fn the_ideal_frame_draws_runs_of_the_visible_clusters() {
+        use crate::draws::{order_groups, DrawBuilder, DrawList, Visible};
+        let s = scene();
+        let mut groups = Vec::new();
+        order_groups(
+            &s,
+            glam::DVec3::ZERO,
+            tilegraph_profile::SortOrder::ByState,
+            &mut groups,
+        );
+        let mut builder = DrawBuilder::default();
+        let mut list = DrawList::default();
+        let build = |builder: &mut DrawBuilder, list: &mut DrawList| {
+            let visible = Visible {
+                opaque: None,
+                blended: &[],
+            };
+            builder.build_into(&s, glam::DVec3::ZERO, &groups, visible, 1000, list);
+            builder.narrow(&s, list);
+            list.opaque
+                .iter()
+                .map(|d| {
+                    (
+                        d.first_index,
+                        d.index_count,
+                        d.first_instance,
+                        d.instance_count,
+                    )
+                })
+                .collect::<Vec<_>>()
+        };
+        let entry = |i: u32| s.buckets().entry(i).unwrap_or(u32::MAX);
+        // No selection: the bucket whole, both instances in one draw.
+        assert_eq!(build(&mut builder, &mut list), [(0, 18, entry(0), 2)]);
+        // Instance 0's clusters 0 and 2 (two runs), instance 1's 0 and 1 (one run); a key of
+        // a cluster past the mesh's is ignored.
+        let keep = vec![key(0, 0), key(0, 2), key(1, 0), key(1, 1), key(1, 7)];
+        builder.keep_only(Some(keep));
+        assert_eq!(
+            build(&mut builder, &mut list),
+            [
+                (0, 6, entry(0), 1),
+                (12, 6, entry(0), 1),
+                (0, 12, entry(1), 1)
+            ]
+        );
+        // Nothing visible: nothing drawn.
+        builder.keep_only(Some(Vec::new()));
+        assert!(build(&mut builder, &mut list).is_empty());
     }
 }

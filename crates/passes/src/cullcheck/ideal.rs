@@ -11,16 +11,26 @@ use crate::cull::Culling;
 use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
 
+/// What the oracle saw in one frame.
+#[derive(Debug, Clone, Default)]
+pub(super) struct FrameVisible {
+    /// The compared instances owning a pixel.
+    pub instances: Vec<u32>,
+    /// For a cluster technique, their clusters owning a pixel (sorted
+    /// [`crate::draws::cluster_key`]s).
+    pub clusters: Option<Vec<u64>>,
+}
+
 /// The ideal frame's median GPU milliseconds: `options` without culling, on a copy of `scene`
-/// in which each frame hides every compared instance the oracle did not see (`visible`: per
-/// frame, the ids it saw; blended and hidden instances as they are), timed whole, frames back
-/// to back after one untimed pass along the path (and the warm-up).
+/// in which each frame hides every compared instance the oracle did not see (blended and hidden
+/// instances as they are) and, where the oracle saw clusters, draws only those of the others,
+/// timed whole, frames back to back after one untimed pass along the path (and the warm-up).
 pub(super) fn ideal_frame(
     ctx: &Context,
     scene: &Scene,
     options: RenderOptions,
     timing: &Timing<'_>,
-    visible: &[Vec<u32>],
+    visible: &[FrameVisible],
 ) -> Result<Option<f64>, RenderError> {
     let mut scene = scene.clone();
     let compared = compared_instances(&scene);
@@ -37,12 +47,12 @@ pub(super) fn ideal_frame(
     let mut shown = vec![true; compared.len()];
     let mut run = |renderer: &mut SceneRenderer, scene: &mut Scene| {
         let mut want = vec![false; compared.len()];
-        for (index, ids) in visible.iter().enumerate() {
+        for (index, seen) in visible.iter().enumerate() {
             let Some(frame) = timing.path.frame(index, timing.aspect) else {
                 break;
             };
             want.iter_mut().for_each(|w| *w = false);
-            for &i in ids {
+            for &i in &seen.instances {
                 if let Some(w) = want.get_mut(i as usize) {
                     *w = true;
                 }
@@ -65,6 +75,7 @@ pub(super) fn ideal_frame(
                 scene.set_flags(h, flags)?;
                 shown[i] = want[i];
             }
+            renderer.keep_only_clusters(seen.clusters.clone());
             renderer.render_frame(ctx, scene, &frame)?;
         }
         renderer.finish(ctx)

@@ -16,7 +16,7 @@ use tilegraph_vk::queries::{GpuTiming, FRAME_TIMING};
 use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::Context;
 
-use crate::cull::{Culling, LISTS_PER_PHASE};
+use crate::cull::Culling;
 use crate::knobs::AutoTrial;
 use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
@@ -28,11 +28,11 @@ mod clusters;
 mod ideal;
 mod world;
 
-use ideal::ideal_frame;
+use ideal::{ideal_frame, FrameVisible};
 use world::{run_trial, Timing, World};
 
 pub use casters::CasterCheck;
-pub use clusters::{cluster_check, ClusterCheck};
+pub use clusters::{cluster_check, visible_clusters, ClusterCheck};
 
 /// One frame's comparison.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -112,12 +112,13 @@ pub struct Totals {
     pub shadow_casters_needed: Option<u64>,
     pub shadow_caster_false_positives: Option<u64>,
     pub shadow_caster_false_negatives: Option<u64>,
-    /// The **ideal frame**: the oracle's visible instances of each frame drawn with no culling
-    /// work (everything else hidden), timed whole like `frame_gpu_ms` — what a perfect culling
-    /// at instance level would cost on this GPU, the ceiling of every technique. `None` for a
-    /// moving scene.
+    /// The **ideal frame**: the oracle's visible set of each frame drawn with no culling work
+    /// (everything else hidden), timed whole like `frame_gpu_ms` — what a perfect culling would
+    /// cost on this GPU, the ceiling of every technique. The set is the visible instances,
+    /// drawn whole; for a cluster technique, their visible clusters only (each instance's runs
+    /// of them). `None` for a moving scene.
     pub ideal_frame_gpu_ms: Option<f64>,
-    /// `ideal_frame_gpu_ms / frame_gpu_ms`: 1 is as good as culling instances gets.
+    /// `ideal_frame_gpu_ms / frame_gpu_ms`: 1 is as good as culling gets.
     pub efficiency: Option<f64>,
     /// The passes' median GPU milliseconds summed (the second pass): the frame without what
     /// lies between its passes; `frame_gpu_ms - passes_gpu_ms` is that. On lavapipe it misses
@@ -405,7 +406,7 @@ impl Run<'_> {
         r: &mut Renderers,
         on_failure: &mut Option<OnFailure<'_>>,
         on_frame: &mut Option<&mut dyn FnMut(usize, usize)>,
-    ) -> Result<(CullCheck, Vec<Vec<u32>>), RenderError> {
+    ) -> Result<(CullCheck, Vec<FrameVisible>), RenderError> {
         let Run {
             culling,
             path,
@@ -455,11 +456,9 @@ impl Run<'_> {
                     *v = true;
                 }
             }
-            visible_sets.push(
-                (0..n as u32)
-                    .filter(|&i| visible[i as usize] && compare[i as usize])
-                    .collect(),
-            );
+            let seen: Vec<u32> = (0..n as u32)
+                .filter(|&i| visible[i as usize] && compare[i as usize])
+                .collect();
             reference.render_frame(ctx, scene, &frame)?;
             let want = reference.read_image(ctx)?;
             let casters_all = reference.read_shadow_casters(ctx)?;
@@ -501,26 +500,26 @@ impl Run<'_> {
                 }
                 _ => None,
             };
-            // Cluster techniques draw index ranges: their triangles are the colour lists', and
-            // their clusters are compared with the oracle's below the instance.
-            let mut cluster_triangles = None;
-            let mut clusters = None;
-            if tested.options().culling.clusters() {
-                let lists = tested.gpu_lists(ctx)?.ok_or(RenderError::MissingReadback {
-                    what: "the cluster technique's GPU lists",
-                })?;
-                cluster_triangles = Some(lists.colour_triangles());
-                let colour: Vec<_> = lists
-                    .lists
-                    .iter()
-                    .take(LISTS_PER_PHASE as usize)
-                    .flatten()
-                    .collect();
-                clusters = owners
-                    .triangles
-                    .as_deref()
-                    .and_then(|t| cluster_check(scene, ids, t, &compare, &colour));
-            }
+            let below = if tested.options().culling.clusters() {
+                let triangles = owners.triangles.as_deref();
+                Some(clusters::of_technique(
+                    ctx,
+                    tested,
+                    scene,
+                    (ids, triangles),
+                    &compare,
+                )?)
+            } else {
+                None
+            };
+            let (cluster_triangles, clusters, seen_clusters) = match below {
+                Some(b) => (Some(b.triangles), b.check, b.visible),
+                None => (None, None, None),
+            };
+            visible_sets.push(FrameVisible {
+                instances: seen,
+                clusters: seen_clusters,
+            });
             let mut drawn = vec![false; n];
             match tested.drawn_instances(ctx)? {
                 Some(list) => {

@@ -649,6 +649,13 @@ impl SceneRenderer {
         self.resources.pipelines.len()
     }
 
+    /// From the next frame on, the main view draws of its opaque and alpha-tested instances
+    /// only these clusters (sorted `(instance << 32) | cluster` keys; `None`: whole
+    /// instances): `cull-check`'s ideal frame of a cluster technique.
+    pub(crate) fn keep_only_clusters(&mut self, clusters: Option<Vec<u64>>) {
+        self.draw_builder.keep_only(clusters);
+    }
+
     /// Forgets the GPU timings of the frames so far: [`Self::medians`] then covers the frames
     /// rendered after this (call [`Self::finish`] first, so no earlier frame is still to be
     /// collected).

@@ -462,6 +462,9 @@ impl SceneRenderer {
             capacity.cpu_base_of(k),
             &mut res.frame.draws,
         );
+        if k == 0 {
+            draw_builder.narrow(scene, &mut res.frame.draws);
+        }
         res.frame.depth = m.depth;
         view.depth = m.depth;
         let instance_bits =
