@@ -23,9 +23,10 @@ pub use crate::scene::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VER
 
 const CLUSTER_BYTES: usize = std::mem::size_of::<GpuCluster>();
 
-/// Version 3: 80-byte clusters with the snapping-safe cone (`crate::cone`), each cluster's
-/// triangles in vertex-cache order (a version 2 file is rebuilt).
-const MAGIC: &[u8; 8] = b"TGCLUST3";
+/// Version 4: 80-byte clusters with the snapping-safe cone (`crate::cone`), each cluster's
+/// triangles in vertex-cache order, each mesh's clusters outermost first (an older file is
+/// rebuilt).
+const MAGIC: &[u8; 8] = b"TGCLUST4";
 
 impl ClusterData {
     /// Writes the data to `path` (little-endian: magic, fingerprint, counts, then the arrays).
@@ -169,7 +170,7 @@ pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
             let meshlets =
                 meshopt::build_meshlets(indices, &adapter, MAX_VERTICES, MAX_TRIANGLES, 0.25);
             let mut at = first;
-            for meshlet in meshlets.iter() {
+            for meshlet in overdraw_order(&meshlets, verts) {
                 let begin = at;
                 let mut corners = Vec::with_capacity(meshlet.triangles.len());
                 let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
@@ -235,6 +236,64 @@ pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
         clusters: data.clusters.len() as u64,
     };
     Ok((data, stats))
+}
+
+/// The mesh's meshlets in the order that draws its outer surface first (view-independent
+/// overdraw reduction, Sander, Nehab and Barczak 2007, as meshoptimizer's overdraw optimizer
+/// sorts its patches): by how far each meshlet's centroid lies from the mesh's along the
+/// meshlet's area-weighted normal, outermost first; ties keep the builder's order.
+#[cfg(feature = "meshopt")]
+fn overdraw_order<'m>(
+    meshlets: &'m meshopt::Meshlets,
+    verts: &[crate::Vertex],
+) -> impl Iterator<Item = meshopt::Meshlet<'m>> {
+    let position = |m: &meshopt::Meshlet<'_>, local: u8| {
+        m.vertices
+            .get(usize::from(local))
+            .and_then(|&v| verts.get(v as usize))
+            .map(|v| glam::Vec3::from(v.position))
+    };
+    // Per meshlet: area-weighted centroid sum, area sum and normal sum.
+    let sums: Vec<(glam::Vec3, f32, glam::Vec3)> = meshlets
+        .iter()
+        .map(|m| {
+            let mut acc = (glam::Vec3::ZERO, 0.0, glam::Vec3::ZERO);
+            for t in m.triangles.chunks_exact(3) {
+                let (Some(a), Some(b), Some(c)) =
+                    (position(&m, t[0]), position(&m, t[1]), position(&m, t[2]))
+                else {
+                    continue;
+                };
+                let n = (b - a).cross(c - a);
+                let area = 0.5 * n.length();
+                acc.0 += area * (a + b + c) / 3.0;
+                acc.1 += area;
+                acc.2 += n;
+            }
+            acc
+        })
+        .collect();
+    let total: f32 = sums.iter().map(|s| s.1).sum();
+    let mesh_centroid = if total > 0.0 {
+        sums.iter().map(|s| s.0).sum::<glam::Vec3>() / total
+    } else {
+        glam::Vec3::ZERO
+    };
+    let mut keyed: Vec<(f32, usize)> = sums
+        .iter()
+        .enumerate()
+        .map(|(k, &(weighted, area, normal))| {
+            let centroid = if area > 0.0 {
+                weighted / area
+            } else {
+                mesh_centroid
+            };
+            let key = (centroid - mesh_centroid).dot(normal.normalize_or_zero());
+            (if key.is_finite() { key } else { 0.0 }, k)
+        })
+        .collect();
+    keyed.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    keyed.into_iter().map(move |(_, k)| meshlets.get(k))
 }
 
 /// Where [`cached`] keeps built clusters: `$TILEGRAPH_CACHE_DIR`, else
@@ -332,6 +391,81 @@ mod tests {
                     assert!((x - c.center[a]).abs() <= c.half_extents[a] * (1.0 + 1e-6) + 1e-6);
                 }
             }
+        }
+    }
+
+    #[test]
+    fn meshlets_are_drawn_outermost_first_each_once() {
+        // A box seen from outside (normals out) and a room seen from inside (normals in): the
+        // outer faces come first in the first, last in the second; every meshlet once.
+        for inward in [false, true] {
+            let mut vertices = Vec::new();
+            let mut indices = Vec::new();
+            for axis in 0..3 {
+                for side in [-1.0f32, 1.0] {
+                    // A 4x4 grid of quads on the face, wound to face out (or in).
+                    let base = vertices.len() as u32;
+                    for j in 0..5 {
+                        for i in 0..5 {
+                            let (u, v) = (i as f32 / 2.0 - 1.0, j as f32 / 2.0 - 1.0);
+                            let mut p = [0.0; 3];
+                            p[axis] = side;
+                            p[(axis + 1) % 3] = u;
+                            p[(axis + 2) % 3] = v;
+                            vertices.push(crate::Vertex {
+                                position: p,
+                                normal: [0.0; 3],
+                                uv: [0.0; 2],
+                            });
+                        }
+                    }
+                    for j in 0..4u32 {
+                        for i in 0..4u32 {
+                            let k = base + j * 5 + i;
+                            let (a, b, c, d) = (k, k + 1, k + 6, k + 5);
+                            let out = (side > 0.0) != inward;
+                            if out {
+                                indices.extend([a, b, c, a, c, d]);
+                            } else {
+                                indices.extend([a, c, b, a, d, c]);
+                            }
+                        }
+                    }
+                }
+            }
+            let adapter = meshopt::VertexDataAdapter::new(
+                bytemuck::cast_slice(&vertices),
+                std::mem::size_of::<crate::Vertex>(),
+                0,
+            )
+            .unwrap();
+            // Small meshlets: several per face.
+            let meshlets = meshopt::build_meshlets(&indices, &adapter, 16, 8, 0.0);
+            let ordered: Vec<_> = overdraw_order(&meshlets, &vertices).collect();
+            assert_eq!(ordered.len(), meshlets.len());
+            let mut seen: Vec<_> = ordered.iter().map(|m| m.triangles.as_ptr()).collect();
+            seen.sort_unstable();
+            seen.dedup();
+            assert_eq!(seen.len(), meshlets.len(), "a meshlet twice");
+            // The box is centred on the origin: a meshlet's key is its centroid along its
+            // mean normal, +1 (out) or -1 (in) within one face, between for one that spans two.
+            let key = |m: &meshopt::Meshlet<'_>| {
+                let mut n = glam::Vec3::ZERO;
+                let mut c = glam::Vec3::ZERO;
+                for t in m.triangles.chunks_exact(3) {
+                    let p = |k: u8| {
+                        glam::Vec3::from(vertices[m.vertices[usize::from(k)] as usize].position)
+                    };
+                    let (a, b, d) = (p(t[0]), p(t[1]), p(t[2]));
+                    n += (b - a).cross(d - a);
+                    c += a + b + d;
+                }
+                (c / m.triangles.len() as f32).dot(n.normalize_or_zero())
+            };
+            let keys: Vec<f32> = ordered.iter().map(key).collect();
+            assert!(keys.windows(2).all(|w| w[0] >= w[1] - 1e-3), "{keys:?}");
+            let sign = if inward { -1.0 } else { 1.0 };
+            assert!(keys.iter().all(|k| k * sign > 0.0), "{keys:?}");
         }
     }
 
