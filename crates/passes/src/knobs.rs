@@ -34,8 +34,8 @@ pub const AUTO_QUERY_TRIANGLES_PER_INSTANCE: u64 = 1000;
 
 /// `auto` also tries the cluster techniques where instances hold at least this many triangles
 /// on average — a level baked into a few meshes, where instance culling can only draw all or
-/// nothing of each: on the H100 at 1080p `hiz-2phase-clusters` draws `interior:3000@one-mesh`
-/// in 0.85 ms against 1.01 unculled (docs/ACCURACY.md "Clusters along walks"). The scene then
+/// nothing of each: on the H100 at 1080p `frustum-clusters` draws `interior:3000@one-mesh`'s
+/// walk in 0.82 ms against 1.01 unculled (docs/ACCURACY.md, the one-mesh levels). The scene then
 /// needs its clusters ([`auto_wants_clusters`]).
 pub const AUTO_CLUSTER_TRIANGLES_PER_INSTANCE: u64 = 8192;
 
