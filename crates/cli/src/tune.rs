@@ -4,10 +4,12 @@
 //! on a camera path it did not see, and write the profile back with the pick as its `[knobs]`,
 //! the evidence in its comments.
 //!
-//! The sweep is in two stages (coordinate descent): every culling with its own knobs
-//! (`hiz_npot`, `hiz_resolution`, `cull_bounds`, `oq_group`, `occlusion_recheck`,
+//! The sweep is in two stages (coordinate descent): every culling (unless `--culling` names
+//! them: the standard ones, and the cluster techniques on a scene `auto` would try them on) with
+//! its own knobs (`hiz_npot`, `hiz_resolution`, `cull_bounds`, `oq_group`, `occlusion_recheck`,
 //! `raster_occlusion_scale`, `software_resolution`, `software_occluder_triangles`,
-//! `software_threads`) under
+//! `software_threads`; the cluster techniques' `cluster_early` × `cluster_gap` as a coordinate
+//! of their own, their other knobs at the profile's values) under
 //! the profile's shading and draw order; then, with the best of those fixed, every shading ×
 //! draw order (× alpha pre-pass where the scene has alpha-tested geometry; × caster culling
 //! where the profile has shadows). Both stages' runs are kept in `results.json`, so an
@@ -161,10 +163,14 @@ pub fn run(a: &TuneArgs) -> Result<(), CliError> {
             "tune: --max-fn-rate {r} is outside 0..=1"
         )));
     }
-    let clusters = a
-        .culling
-        .iter()
-        .any(|c| Culling::parse(c).is_some_and(Culling::clusters));
+    let clusters = if a.culling.is_empty() {
+        crate::run::Clusters::ForAuto
+    } else {
+        a.culling
+            .iter()
+            .any(|c| Culling::parse(c).is_some_and(Culling::clusters))
+            .into()
+    };
     let scene = crate::run::load_scene(&a.scene, clusters)?;
     let size = a.size.unwrap_or((320, 180));
     let frames = a.frames.unwrap_or(24);
@@ -185,6 +191,18 @@ pub fn run(a: &TuneArgs) -> Result<(), CliError> {
     crate::run::on_context(crate::run::with_every_culling_feature(options), |ctx| {
         tune_on(ctx, a, &scene, size, frames, tune_path, held_out)
     })
+}
+
+/// What `tune` sweeps unless `--culling` names it: every standard culling, and the cluster
+/// techniques where the scene has its clusters (loaded where `auto` would try them,
+/// `knobs::auto_wants_clusters`).
+fn default_cullings(scene: &tilegraph_scene::Scene) -> Vec<String> {
+    let clusters = [Culling::FrustumClusters, Culling::HizTwoPhaseClusters];
+    crate::run::ALL_CULLINGS
+        .iter()
+        .chain(clusters.iter().filter(|_| scene.clusters().is_some()))
+        .map(|c| c.name().to_string())
+        .collect()
 }
 
 fn tune_on(
@@ -218,10 +236,7 @@ fn tune_on(
     let base = Matrix {
         scenes: vec![a.scene.clone()],
         culling: if a.culling.is_empty() {
-            crate::run::ALL_CULLINGS
-                .iter()
-                .map(|c| c.name().to_string())
-                .collect()
+            default_cullings(scene)
         } else {
             a.culling.clone()
         },
@@ -247,7 +262,29 @@ fn tune_on(
         frames,
     };
     let lookup = |s: &str| (s == a.scene).then_some(scene);
-    let stage1 = base.expand(lookup)?;
+    // The cluster techniques' own knobs as one more coordinate: crossed with each other, the
+    // technique's other knobs at the profile's values (crossed with those too, they would
+    // multiply the cluster settings tenfold).
+    let cluster_knobs = Matrix {
+        culling: (base.culling.iter())
+            .filter(|c| Culling::parse(c).is_some_and(Culling::clusters))
+            .cloned()
+            .collect(),
+        axes: ["cluster_early", "cluster_gap"]
+            .iter()
+            .filter_map(|k| tilegraph_profile::knobs::spec(k))
+            .map(|k| (k.name.to_string(), k.domain.values()))
+            .collect(),
+        ..base.clone()
+    };
+    let mut stage1 = base.expand(lookup)?;
+    if !cluster_knobs.culling.is_empty() {
+        for s in cluster_knobs.expand(lookup)? {
+            if !stage1.iter().any(|t| t.key() == s.key()) {
+                stage1.push(s);
+            }
+        }
+    }
     let measure = |settings: &[Setting],
                    results: &mut Results,
                    paths: &mut HashMap<String, CameraPath>|
@@ -619,6 +656,23 @@ mod tests {
             fp_rate: fp,
             changes,
         }
+    }
+
+    #[test]
+    fn cluster_techniques_are_tuned_where_the_scene_has_clusters() {
+        let names = |clusters: bool| {
+            let scene = crate::run::load_scene("interior:200@one-mesh", clusters).unwrap();
+            default_cullings(&scene)
+        };
+        let with = names(true);
+        assert!(with.iter().any(|c| c == "frustum-clusters"), "{with:?}");
+        assert!(with.iter().any(|c| c == "hiz-2phase-clusters"), "{with:?}");
+        let without = names(false);
+        assert_eq!(without.len(), crate::run::ALL_CULLINGS.len(), "{without:?}");
+        assert!(
+            without.iter().all(|c| !c.contains("clusters")),
+            "{without:?}"
+        );
     }
 
     #[test]

@@ -108,6 +108,46 @@ fn a_tuned_profile_loads_and_bench_remeasures_its_pick() {
 }
 
 #[test]
+fn the_cluster_knobs_are_swept_with_a_cluster_technique() {
+    let dir = std::env::temp_dir().join(format!("tilegraph-tune-cl-{}", std::process::id()));
+    std::fs::remove_dir_all(&dir).ok();
+    let (ok, stdout, err) = tilegraph(
+        &[
+            "tune",
+            "--scene",
+            "interior:200@one-mesh",
+            "--culling",
+            "frustum-clusters",
+            "--size",
+            "96x54",
+            "--frames",
+            "3",
+            "--out",
+            dir.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(ok, "{err}");
+    assert!(stdout.contains("# Pick: frustum-clusters"), "{stdout}");
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap();
+    let mut gaps: Vec<String> = results["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        // Stage 2 records the shadings cluster culling cannot run (visbuf) as failed runs.
+        .filter(|r| r["culling"] == "frustum-clusters" && !r["totals"].is_null())
+        .inspect(|r| assert_eq!(r["totals"]["false_negatives"], 0, "{r}"))
+        .filter(|r| !r["settings"]["knobs"]["cluster_gap"].is_null())
+        .map(|r| r["settings"]["knobs"]["cluster_gap"].to_string())
+        .collect();
+    gaps.sort();
+    gaps.dedup();
+    assert_eq!(gaps, ["0", "1", "2", "4", "8"], "{results}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn an_impossible_constraint_is_refused_with_the_best_reached() {
     let dir = std::env::temp_dir().join(format!("tilegraph-tune-bad-{}", std::process::id()));
     let (ok, _, err) = tilegraph(
