@@ -188,9 +188,17 @@ fn radix_sort(keys: &mut Vec<u64>, scratch: &mut Vec<u64>) {
 
 impl DrawBuilder {
     /// From the next list on, [`Self::narrow`] keeps only these clusters (sorted
-    /// [`cluster_key`]s; `None`: every triangle of the instances drawn).
-    pub fn keep_only(&mut self, clusters: Option<Vec<u64>>) {
-        self.keep = clusters;
+    /// [`cluster_key`]s; `None`: every triangle of the instances drawn), copied into a buffer
+    /// kept from frame to frame.
+    pub fn keep_only(&mut self, clusters: Option<&[u64]>) {
+        match clusters {
+            Some(c) => {
+                let keep = self.keep.get_or_insert_with(Vec::new);
+                keep.clear();
+                keep.extend_from_slice(c);
+            }
+            None => self.keep = None,
+        }
     }
 
     /// [`keep_clusters`] with the clusters [`Self::keep_only`] named, if any.

@@ -285,7 +285,7 @@ mod tests {
         // Instance 0's clusters 0 and 2 (two runs), instance 1's 0 and 1 (one run); a key of
         // a cluster past the mesh's is ignored.
         let keep = vec![key(0, 0), key(0, 2), key(1, 0), key(1, 1), key(1, 7)];
-        builder.keep_only(Some(keep));
+        builder.keep_only(Some(&keep));
         assert_eq!(
             build(&mut builder, &mut list),
             [
@@ -295,7 +295,7 @@ mod tests {
             ]
         );
         // Nothing visible: nothing drawn.
-        builder.keep_only(Some(Vec::new()));
+        builder.keep_only(Some(&[]));
         assert!(build(&mut builder, &mut list).is_empty());
     }
 }

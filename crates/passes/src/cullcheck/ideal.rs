@@ -12,7 +12,7 @@ use crate::options::{RenderError, RenderOptions};
 use crate::renderer::SceneRenderer;
 
 /// What the oracle saw in one frame.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug)]
 pub(super) struct FrameVisible {
     /// The compared instances owning a pixel.
     pub instances: Vec<u32>,
@@ -75,7 +75,7 @@ pub(super) fn ideal_frame(
                 scene.set_flags(h, flags)?;
                 shown[i] = want[i];
             }
-            renderer.keep_only_clusters(seen.clusters.clone());
+            renderer.keep_only_clusters(seen.clusters.as_deref());
             renderer.render_frame(ctx, scene, &frame)?;
         }
         renderer.finish(ctx)

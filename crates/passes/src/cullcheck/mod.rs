@@ -32,7 +32,7 @@ use ideal::{ideal_frame, FrameVisible};
 use world::{run_trial, Timing, World};
 
 pub use casters::CasterCheck;
-pub use clusters::{cluster_check, visible_clusters, ClusterCheck};
+pub use clusters::{cluster_check, ClusterCheck};
 
 /// One frame's comparison.
 #[derive(Debug, Clone, PartialEq, Serialize)]

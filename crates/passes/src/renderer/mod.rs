@@ -652,7 +652,7 @@ impl SceneRenderer {
     /// From the next frame on, the main view draws of its opaque and alpha-tested instances
     /// only these clusters (sorted `(instance << 32) | cluster` keys; `None`: whole
     /// instances): `cull-check`'s ideal frame of a cluster technique.
-    pub(crate) fn keep_only_clusters(&mut self, clusters: Option<Vec<u64>>) {
+    pub(crate) fn keep_only_clusters(&mut self, clusters: Option<&[u64]>) {
         self.draw_builder.keep_only(clusters);
     }
 
