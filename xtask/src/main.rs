@@ -60,6 +60,11 @@ const REQUIREMENTS: &[Requirement] = &[
         present: || on_path("dot"),
     },
     Requirement {
+        what: "Chromium (a test opens the bench's plots and HTML report headless)",
+        package: "chromium",
+        present: || on_path("chromium"),
+    },
+    Requirement {
         what: "qemu-aarch64 (the pure crates' tests run for aarch64 under it)",
         package: "qemu-user",
         present: || on_path("qemu-aarch64"),

@@ -18,6 +18,7 @@ mod graph;
 mod image_io;
 mod knobs;
 mod lint;
+mod markup;
 mod pvs;
 mod render;
 mod run;

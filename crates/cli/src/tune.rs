@@ -294,7 +294,12 @@ fn tune_on(
             bar.set_message(s.key());
             if !results.is_done(&s.key()) {
                 results.insert(crate::bench::run_or_record_failure(
-                    ctx, scene, s, frames, paths,
+                    ctx,
+                    scene,
+                    s,
+                    frames,
+                    paths,
+                    Some(&a.out),
                 )?);
                 results.save(&results_path)?;
             }
@@ -345,7 +350,7 @@ fn tune_on(
             continue;
         };
         if held_out.check(c, s, |h| {
-            crate::bench::run_one(ctx, scene, h, frames, &mut paths)
+            crate::bench::run_one(ctx, scene, h, frames, &mut paths, Some(&a.out))
         })? {
             best1 = Some(s.clone());
             break;
@@ -394,7 +399,7 @@ fn tune_on(
     for c in &ranked {
         let Some(s) = setting_of(c) else { continue };
         if held_out.check(c, &s, |h| {
-            crate::bench::run_one(ctx, scene, h, frames, &mut paths)
+            crate::bench::run_one(ctx, scene, h, frames, &mut paths, Some(&a.out))
         })? {
             let totals = held_out.totals_of(&s);
             chosen = totals.map(|t| (c.clone(), s, t));
@@ -409,7 +414,7 @@ fn tune_on(
     // The pick's spread: two more runs of it (the first is in results.json).
     let mut times = vec![pick_c.cost_ms()];
     for _ in 0..2 {
-        let r = crate::bench::run_one(ctx, scene, &pick, frames, &mut paths)?;
+        let r = crate::bench::run_one(ctx, scene, &pick, frames, &mut paths, None)?;
         if let Some(t) = r.totals {
             times.push(t.frame_gpu_ms + t.software_cpu_ms.unwrap_or(0.0));
         }
@@ -791,6 +796,7 @@ mod tests {
             }),
             passes: Vec::new(),
             frames: Vec::new(),
+            worst_frame: None,
         }
     }
 

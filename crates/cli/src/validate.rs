@@ -29,6 +29,7 @@ use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::{Context, Validation};
 
 use crate::image_io::{read_png, write_png};
+use crate::markup::escape;
 use crate::run::{auto_inputs, load_scene, named_camera_path, with_every_culling_feature};
 use crate::CliError;
 
@@ -585,23 +586,6 @@ pub fn junit(cases: &[Case]) -> String {
     }
     x.push_str("</testsuites>\n");
     x
-}
-
-fn escape(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for ch in s.chars() {
-        match ch {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            // XML 1.0 has no other control characters.
-            c if c.is_control() && !matches!(c, '\n' | '\t' | '\r') => out.push(' '),
-            c => out.push(c),
-        }
-    }
-    out
 }
 
 fn markdown(cases: &[Case]) -> String {

@@ -1,7 +1,7 @@
 //! The bench matrix: what the options (or the TOML file) ask for, checked, and expanded into
 //! settings — one per combination, knob axes only where the knob means something.
 
-use std::collections::{BTreeMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -304,11 +304,15 @@ fn cartesian(axes: &[&(String, Vec<KnobValue>)]) -> Vec<BTreeMap<String, KnobVal
 }
 
 /// How a setting is named in plots and the report: its culling, and whatever else varies in
-/// the matrix (knobs, shading, profile, camera path).
+/// the matrix (knobs, shading, profile, camera path); and a short key (`s12`: the setting's
+/// place in the matrix, the same in every scene and size) that the plots print beside their points and the tables key their rows
+/// by, so that a plot of 144 settings needs no legend of 144 entries.
 pub struct Labels {
     shading: bool,
     profile: bool,
     path: bool,
+    keys: HashMap<String, usize>,
+    knob_names: Vec<String>,
 }
 
 impl Labels {
@@ -316,11 +320,53 @@ impl Labels {
         let varies = |f: &dyn Fn(&Setting) -> String| {
             settings.iter().map(f).collect::<HashSet<_>>().len() > 1
         };
+        let mut keys = HashMap::new();
+        for s in settings {
+            let next = keys.len() + 1;
+            keys.entry(Self::identity(s)).or_insert(next);
+        }
+        let mut knob_names: Vec<String> = settings
+            .iter()
+            .flat_map(|s| s.knobs.keys().cloned())
+            .collect();
+        knob_names.sort();
+        knob_names.dedup();
         Labels {
             shading: varies(&|s| s.shading.clone()),
             profile: varies(&|s| s.profile.clone().unwrap_or_default()),
             path: varies(&|s| s.camera_path.clone().unwrap_or_default()),
+            keys,
+            knob_names,
         }
+    }
+
+    /// What a short key names: the setting but its scene and size, so that `s3` is the same
+    /// setting in every scene's table and plot.
+    fn identity(s: &Setting) -> String {
+        Setting {
+            scene: String::new(),
+            size: [0, 0],
+            ..s.clone()
+        }
+        .key()
+    }
+
+    /// The setting's short key, `s` and its 1-based place among the matrix's settings (scene
+    /// and size aside; `s?` for a setting the matrix does not hold).
+    pub fn short(&self, s: &Setting) -> String {
+        self.keys
+            .get(&Self::identity(s))
+            .map_or_else(|| "s?".into(), |i| format!("s{i}"))
+    }
+
+    /// Every knob some setting sets, sorted: the knob columns of the HTML report's tables.
+    pub fn knob_names(&self) -> &[String] {
+        &self.knob_names
+    }
+
+    /// Whether the shading varies over the matrix (a column of its own in the tables).
+    pub fn shading_varies(&self) -> bool {
+        self.shading
     }
 
     pub fn label(&self, s: &Setting) -> String {

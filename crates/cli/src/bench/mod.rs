@@ -1,12 +1,17 @@
 //! `tilegraph bench`: a matrix of settings (scenes × profiles × sizes × camera paths × shading ×
 //! culling × knob values), each run against the exact oracle (`cull-check`), written to a
-//! directory as it goes: `results.json` (every run), `report.md`, and SVG plots (a Pareto plot
-//! per scene and size, GPU time per pass). An interrupted bench resumes: finished runs are kept
-//! and not run again.
+//! directory as it goes: `results.json` (every run), `report.md`, `report.html` (one
+//! self-contained file: tables, plots, the worst frames' images, which are also kept in
+//! `frames/`), and SVG plots (a Pareto plot per scene and size, GPU time per pass). An
+//! interrupted bench resumes: finished runs are kept and not run again.
 
 pub mod doc;
+mod html;
 pub(crate) mod matrix;
+mod pareto;
 mod plot;
+#[cfg(test)]
+mod readable;
 mod report;
 pub(crate) mod results;
 
@@ -16,14 +21,15 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use tilegraph_passes::cull::Culling;
-use tilegraph_passes::cullcheck::cull_check_options;
+use tilegraph_passes::cullcheck::{cull_check_options, FailedFrame, OnFailure};
 use tilegraph_passes::RenderOptions;
 use tilegraph_profile::knobs::{KnobSettings, KnobValue};
 use tilegraph_scene::{CameraPath, Scene};
+use tilegraph_vk::readback::RgbaImage;
 use tilegraph_vk::{Context, ContextOptions};
 
 pub use matrix::{Matrix, Setting};
-pub use results::{Results, RunRecord};
+pub use results::{Results, RunRecord, WorstFrame};
 
 use crate::CliError;
 
@@ -120,6 +126,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                     s,
                     matrix.frames,
                     &mut paths,
+                    Some(&args.out),
                 )?);
                 results.save(&results_path)?;
                 bar.inc(1);
@@ -181,8 +188,9 @@ pub(crate) fn run_or_record_failure(
     s: &Setting,
     frames: u32,
     paths: &mut HashMap<String, CameraPath>,
+    worst_to: Option<&Path>,
 ) -> Result<RunRecord, CliError> {
-    match run_one(ctx, scene, s, frames, paths) {
+    match run_one(ctx, scene, s, frames, paths, worst_to) {
         Ok(r) => Ok(r),
         Err(CliError::Render(e)) if !e.is_device_lost() => {
             Ok(RunRecord::failed(s, ctx, e.to_string()))
@@ -192,13 +200,15 @@ pub(crate) fn run_or_record_failure(
     }
 }
 
-/// One setting against the oracle.
+/// One setting against the oracle; with `worst_to`, the images of its worst frame (if any
+/// differs) are written under `worst_to/frames/`.
 pub(crate) fn run_one(
     ctx: &Context,
     scene: &Scene,
     s: &Setting,
     frames: u32,
     paths: &mut HashMap<String, CameraPath>,
+    worst_to: Option<&Path>,
 ) -> Result<RunRecord, CliError> {
     let path = match paths.get(&s.camera_path_key()) {
         Some(p) => p.clone(),
@@ -228,6 +238,20 @@ pub(crate) fn run_one(
     };
     let resolved = crate::run::RunArgs::resolve(ctx, scene, &knobs, &mut options)?;
     let started = Instant::now();
+    // The worst frame's images: the most pixels unlike the unculled image, then the most FN.
+    let mut worst: Option<(usize, usize, usize, [RgbaImage; 3])> = None;
+    let mut keep_worst = |f: &FailedFrame<'_>| -> Result<(), String> {
+        let score = (f.check.image_diff_pixels, f.check.false_negatives);
+        if worst.as_ref().is_none_or(|w| (w.1, w.2) < score) {
+            worst = Some((
+                f.check.frame,
+                score.0,
+                score.1,
+                [f.technique.clone(), f.reference.clone(), f.diff.clone()],
+            ));
+        }
+        Ok(())
+    };
     let check = cull_check_options(
         ctx,
         scene,
@@ -238,16 +262,38 @@ pub(crate) fn run_one(
             auto: resolved.auto_trial(crate::run::auto_inputs(ctx, scene, None)),
             motion: crate::run::split_motion(&s.scene)?.1,
             timing_warmup: crate::run::TIMING_WARMUP,
+            on_failure: worst_to.map(|_| &mut keep_worst as OnFailure<'_>),
             ..Default::default()
         },
     )?;
-    Ok(RunRecord::from_check(
-        s,
-        ctx,
-        &resolved,
-        check,
-        started.elapsed().as_secs_f64(),
-    ))
+    let mut record =
+        RunRecord::from_check(s, ctx, &resolved, check, started.elapsed().as_secs_f64());
+    if let (Some(out), Some((frame, differing_pixels, false_negatives, images))) = (worst_to, worst)
+    {
+        let stem = format!("frames/{:016x}", fnv1a(s.key().as_bytes()));
+        let [technique, reference, diff] = images;
+        let save = |what: &str, image: &RgbaImage| -> Result<String, CliError> {
+            let name = format!("{stem}-{what}.png");
+            crate::image_io::write_png(&out.join(&name), image)?;
+            Ok(name)
+        };
+        record.worst_frame = Some(WorstFrame {
+            frame,
+            differing_pixels,
+            false_negatives,
+            technique: save("technique", &technique)?,
+            reference: save("reference", &reference)?,
+            diff: save("diff", &diff)?,
+        });
+    }
+    Ok(record)
+}
+
+/// A stable 64-bit hash of a setting's key: its worst frame's file names.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
 }
 
 /// report.md and the plots, from every run the matrix names (old and new).
@@ -263,7 +309,7 @@ pub(crate) fn write_outputs(
     let labels = matrix::Labels::new(settings);
     let mut written = Vec::new();
     for group in report::groups(&runs) {
-        written.push(plot::pareto(out, &group, &labels)?);
+        written.push(pareto::write(out, &group, &labels)?);
         written.push(plot::passes(out, &group, &labels)?);
         if group.has_shadows() {
             written.push(plot::casters(out, &group, &labels)?);
@@ -271,6 +317,7 @@ pub(crate) fn write_outputs(
     }
     let report_path = out.join("report.md");
     results::write_atomically(&report_path, report::markdown(&runs, &labels).as_bytes())?;
+    written.insert(0, html::write(out, &runs, &labels)?);
     written.insert(0, report_path);
     written.insert(0, out.join("results.json"));
     Ok(written)

@@ -1,6 +1,5 @@
-//! The bench's SVG plots (plotters): a Pareto plot per scene and size — x the frame's GPU ms,
-//! y the FN rate (filled) and FP rate (hollow) of each setting, one series per setting, the
-//! front of (ms, FN rate) joined, the ideal frame a dashed vertical line — and the GPU time per pass of each setting as stacked bars.
+//! The bench's SVG plots drawn with plotters: the GPU time per pass of each setting as stacked
+//! bars, and the shadow casters. (The Pareto plot is `pareto.rs`'s.)
 
 use std::path::{Path, PathBuf};
 
@@ -8,7 +7,7 @@ use plotters::prelude::*;
 
 use super::matrix::Labels;
 use super::report::Group;
-use super::results::RunRecord;
+use super::RunRecord;
 use crate::CliError;
 
 fn colour(i: usize) -> RGBColor {
@@ -22,115 +21,6 @@ fn write_err(path: &Path) -> impl Fn(String) -> CliError {
         path: path.clone(),
         reason,
     }
-}
-
-/// The least ideal frame of the group's runs (each check times the oracle's visible set of its
-/// own frames; a cluster technique's on the scene with its indices in cluster order).
-fn ideal_ms(runs: &[(&RunRecord, bool)]) -> Option<f64> {
-    runs.iter()
-        .filter_map(|(r, _)| r.totals.as_ref().and_then(|t| t.ideal_frame_gpu_ms))
-        .filter(|m| m.is_finite() && *m > 0.0)
-        .min_by(f64::total_cmp)
-}
-
-/// `pareto-<scene>-<WxH>.svg`.
-pub fn pareto(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, CliError> {
-    let path = out.join(format!("pareto-{}.svg", g.stem()));
-    let err = write_err(&path);
-    let runs = g.measured();
-    let max_ms = runs
-        .iter()
-        .filter_map(|(r, _)| r.totals.as_ref().map(|t| t.frame_gpu_ms))
-        .fold(ideal_ms(&runs).unwrap_or(0.0), f64::max)
-        .max(1e-3)
-        * 1.15;
-    let max_rate = runs
-        .iter()
-        .filter_map(|(r, _)| r.totals.as_ref().map(|t| t.fn_rate.max(t.fp_rate)))
-        .fold(0.05f64, f64::max)
-        .min(1.0)
-        * 1.1;
-    let height = 420 + 18 * runs.len() as u32;
-    {
-        let root = SVGBackend::new(&path, (900, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(
-                format!(
-                    "{} {}x{}: FN rate (filled) and FP rate (hollow) against frame GPU ms",
-                    g.scene, g.size[0], g.size[1]
-                ),
-                ("sans-serif", 18),
-            )
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(56)
-            .build_cartesian_2d(0.0..max_ms, 0.0..max_rate)
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .configure_mesh()
-            .x_desc("frame GPU ms (median)")
-            .y_desc("rate")
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
-        for (i, (r, front)) in runs.iter().enumerate() {
-            let Some(t) = &r.totals else { continue };
-            let c = colour(i);
-            let size = if *front { 7 } else { 5 };
-            let points = [
-                (t.frame_gpu_ms, t.fn_rate, true),
-                (t.frame_gpu_ms, t.fp_rate, false),
-            ];
-            chart
-                .draw_series(points.iter().map(|&(x, y, filled)| {
-                    let style = if filled {
-                        c.filled()
-                    } else {
-                        c.stroke_width(2)
-                    };
-                    Circle::new((x, y), size, style)
-                }))
-                .map_err(|e| err(e.to_string()))?
-                .label(format!(
-                    "{}{}",
-                    labels.label(&r.settings),
-                    if *front { " (front)" } else { "" }
-                ))
-                .legend(move |(x, y)| Circle::new((x, y), 5, c.filled()));
-        }
-        let mut front: Vec<(f64, f64)> = runs
-            .iter()
-            .filter(|(_, f)| *f)
-            .filter_map(|(r, _)| r.totals.as_ref().map(|t| (t.frame_gpu_ms, t.fn_rate)))
-            .collect();
-        front.sort_by(|a, b| a.0.total_cmp(&b.0));
-        chart
-            .draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
-            .map_err(|e| err(e.to_string()))?;
-        // The ideal frame (the oracle's visible set drawn with no culling work): the ceiling
-        // every setting's frame is measured against, a dashed vertical line.
-        if let Some(ideal) = ideal_ms(&runs) {
-            chart
-                .draw_series(DashedLineSeries::new(
-                    [(ideal, 0.0), (ideal, max_rate)],
-                    6,
-                    4,
-                    BLACK.stroke_width(1),
-                ))
-                .map_err(|e| err(e.to_string()))?
-                .label(format!("ideal frame {ideal:.3} ms (dashed)"))
-                .legend(|(x, y)| PathElement::new(vec![(x - 6, y), (x + 6, y)], BLACK));
-        }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
-        root.present().map_err(|e| err(e.to_string()))?;
-    }
-    Ok(path)
 }
 
 /// `casters-<scene>-<WxH>.svg`: per setting with shadows, x the shadow passes' GPU ms, y the
@@ -228,11 +118,27 @@ pub fn casters(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, Cl
     Ok(path)
 }
 
-/// `passes-<scene>-<WxH>.svg`: one bar per setting, a segment per pass (median GPU ms).
+/// How many settings the per-pass plot shows at most, fastest first (the front's always).
+const PASS_BARS: usize = 24;
+
+/// `passes-<scene>-<WxH>.svg`: a bar per setting, a segment per pass (median GPU ms): the
+/// [`PASS_BARS`] fastest settings and the Pareto front, fastest on top, each named by its short
+/// key and culling; the passes' colours in a legend right of the bars.
 pub fn passes(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, CliError> {
     let path = out.join(format!("passes-{}.svg", g.stem()));
     let err = write_err(&path);
-    let runs: Vec<_> = g.measured().into_iter().map(|(r, _)| r).collect();
+    let mut measured = g.measured();
+    measured.sort_by(|a, b| {
+        let ms = |r: &RunRecord| r.totals.as_ref().map_or(f64::MAX, |t| t.frame_gpu_ms);
+        ms(a.0).total_cmp(&ms(b.0))
+    });
+    let all = measured.len();
+    let runs: Vec<&RunRecord> = measured
+        .iter()
+        .enumerate()
+        .filter(|(i, (_, front))| *i < PASS_BARS || *front)
+        .map(|(_, (r, _))| *r)
+        .collect();
     let mut pass_names: Vec<String> = Vec::new();
     for r in &runs {
         for p in &r.passes {
@@ -247,23 +153,37 @@ pub fn passes(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, Cli
         .fold(0.0f64, f64::max)
         .max(1e-3)
         * 1.1;
-    let names: Vec<String> = runs.iter().map(|r| labels.label(&r.settings)).collect();
-    let height = 140 + 28 * runs.len().max(1) as u32 + 16 * pass_names.len() as u32;
+    // Fastest on top: the chart's y grows upwards.
+    let names: Vec<String> = runs
+        .iter()
+        .rev()
+        .map(|r| format!("{} {}", labels.short(&r.settings), r.settings.culling))
+        .collect();
+    let height = (120 + 22 * runs.len().max(1)).max(140 + 18 * pass_names.len()) as u32;
     {
         let root = SVGBackend::new(&path, (1000, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        let (bars_area, legend_area) = root.split_horizontally(790);
         let n = runs.len().max(1) as f64;
-        let mut chart = ChartBuilder::on(&root)
+        let shown = if runs.len() < all {
+            format!(
+                ", the {} fastest of {all} settings and the front",
+                runs.len()
+            )
+        } else {
+            String::new()
+        };
+        let mut chart = ChartBuilder::on(&bars_area)
             .caption(
                 format!(
-                    "{} {}x{}: GPU ms per pass (medians)",
+                    "{} {}x{}: GPU ms per pass (medians){shown}",
                     g.scene, g.size[0], g.size[1]
                 ),
-                ("sans-serif", 18),
+                ("sans-serif", 15),
             )
             .margin(12)
             .x_label_area_size(36)
-            .y_label_area_size(300)
+            .y_label_area_size(190)
             .build_cartesian_2d(0.0..max_ms, 0.0..n)
             .map_err(|e| err(e.to_string()))?;
         chart
@@ -285,6 +205,7 @@ pub fn passes(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, Cli
             let c = colour(pi);
             let bars: Vec<Rectangle<(f64, f64)>> = runs
                 .iter()
+                .rev()
                 .enumerate()
                 .filter_map(|(i, r)| {
                     let start: f64 = r
@@ -301,19 +222,20 @@ pub fn passes(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, Cli
                     ))
                 })
                 .collect();
-            chart
-                .draw_series(bars)
-                .map_err(|e| err(e.to_string()))?
-                .label(pass.clone())
-                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], c.filled()));
+            chart.draw_series(bars).map_err(|e| err(e.to_string()))?;
+            // The legend, right of the bars.
+            let y = 48 + 18 * pi as i32;
+            legend_area
+                .draw(&Rectangle::new([(8, y - 5), (18, y + 5)], c.filled()))
+                .map_err(|e| err(e.to_string()))?;
+            legend_area
+                .draw(&Text::new(
+                    pass.clone(),
+                    (24, y - 6),
+                    ("sans-serif", 12).into_font(),
+                ))
+                .map_err(|e| err(e.to_string()))?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
         root.present().map_err(|e| err(e.to_string()))?;
     }
     Ok(path)

@@ -12,7 +12,7 @@ pub struct Group<'a> {
     pub runs: Vec<&'a RunRecord>,
 }
 
-impl Group<'_> {
+impl<'a> Group<'a> {
     /// A file-name stem: `city-300-320x180`.
     pub fn stem(&self) -> String {
         let scene: String = self
@@ -38,8 +38,8 @@ impl Group<'_> {
     /// The runs that measured something, each with whether it is on the Pareto front of
     /// (frame GPU ms, FN rate): no other run is at least as fast and at least as accurate and
     /// better in one.
-    pub fn measured(&self) -> Vec<(&RunRecord, bool)> {
-        let ok: Vec<&RunRecord> = self
+    pub fn measured(&self) -> Vec<(&'a RunRecord, bool)> {
+        let ok: Vec<&'a RunRecord> = self
             .runs
             .iter()
             .copied()
@@ -104,7 +104,8 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
          frame's GPU time is the median (and 95th percentile) of frames timed whole, two \
          timestamps each; culling ms and in-passes ms sum per-pass medians of frames timed per \
          pass (what lies between the passes — clears, stores, barriers — is in the frame only). \
-         Conservative settings sit on FN rate 0; **bold** rows are the Pareto front of (frame GPU ms, FN rate).\n",
+         Conservative settings sit on FN rate 0; **bold** rows are the Pareto front of (frame GPU ms, FN rate); \
+         each row's key labels its points in the plots. `report.html` holds the same with the worst frames' images.\n",
         env!("CARGO_PKG_VERSION"),
         devices.join("; ")
     );
@@ -161,52 +162,97 @@ pub fn caster_table(g: &Group<'_>, labels: &Labels) -> String {
     md
 }
 
-/// One group's table: every measured setting, fastest first, the Pareto front in bold, then the
-/// settings that failed.
-pub fn table(g: &Group<'_>, labels: &Labels) -> String {
-    let mut md = String::new();
-    md.push_str("| setting | profile | frames | FN (frames) | FN rate | FP rate | images equal | culling ms | in passes ms | frame ms | p95 ms | ideal ms (efficiency) | CPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+/// One measured setting's row of a group's table (Markdown and HTML alike).
+pub struct Row<'a> {
+    pub run: &'a RunRecord,
+    /// Its short key (`s12`, as the Pareto plot labels it).
+    pub key: String,
+    /// On the Pareto front of (frame GPU ms, FN rate).
+    pub front: bool,
+    /// The measured columns, as [`COLUMNS`] names them.
+    pub cells: Vec<String>,
+}
+
+/// The measured columns of a group's table.
+pub const COLUMNS: [&str; 12] = [
+    "profile",
+    "frames",
+    "FN (frames)",
+    "FN rate",
+    "FP rate",
+    "images equal",
+    "culling ms",
+    "in passes ms",
+    "frame ms",
+    "p95 ms",
+    "ideal ms (efficiency)",
+    "CPU ms",
+];
+
+/// Every measured setting of `g`, fastest first.
+pub fn rows<'a>(g: &Group<'a>, labels: &Labels) -> Vec<Row<'a>> {
     let mut measured = g.measured();
     measured.sort_by(|a, b| {
         let ms = |r: &RunRecord| r.totals.as_ref().map_or(f64::MAX, |t| t.frame_gpu_ms);
         ms(a.0).total_cmp(&ms(b.0))
     });
-    for (r, front) in measured {
-        let Some(t) = &r.totals else { continue };
+    measured
+        .into_iter()
+        .filter_map(|(run, front)| {
+            let t = run.totals.as_ref()?;
+            let cells = vec![
+                run.device.profile.clone(),
+                t.frames.to_string(),
+                format!("{} ({})", t.false_negatives, t.frames_with_false_negatives),
+                format!("{:.4}", t.fn_rate),
+                format!("{:.3}", t.fp_rate),
+                format!("{}/{}", t.frames_image_equal, t.frames),
+                format!("{:.3}", t.cull_gpu_ms),
+                format!("{:.3}", t.passes_gpu_ms),
+                format!("{:.3}", t.frame_gpu_ms),
+                format!("{:.3}", t.frame_gpu_ms_p95),
+                match t.ideal_frame_gpu_ms {
+                    Some(i) if t.frame_gpu_ms > 0.0 => {
+                        format!("{i:.3} ({:.2})", i / t.frame_gpu_ms)
+                    }
+                    _ => "—".into(),
+                },
+                format!("{:.2}", t.cpu_ms),
+            ];
+            Some(Row {
+                run,
+                key: labels.short(&run.settings),
+                front,
+                cells,
+            })
+        })
+        .collect()
+}
+
+/// One group's table: every measured setting, fastest first, keyed as the plot labels it, the
+/// Pareto front in bold, then the settings that failed.
+pub fn table(g: &Group<'_>, labels: &Labels) -> String {
+    let mut md = format!(
+        "| key | setting | {} |\n|---|---|{}\n",
+        COLUMNS.join(" | "),
+        "---|".repeat(COLUMNS.len())
+    );
+    for row in rows(g, labels) {
+        let r = row.run;
         let mut label = labels.label(&r.settings);
         if r.settings.culling != r.culling {
             label = format!("{label} → {}", r.culling);
         }
-        if front {
+        if row.front {
             label = format!("**{label}**");
         }
-        let _ = writeln!(
-                md,
-                "| {label} | {} | {} | {} ({}) | {:.4} | {:.3} | {}/{} | {:.3} | {:.3} | {:.3} | {:.3} | {} | {:.2} |",
-                r.device.profile,
-                t.frames,
-                t.false_negatives,
-                t.frames_with_false_negatives,
-                t.fn_rate,
-                t.fp_rate,
-                t.frames_image_equal,
-                t.frames,
-                t.cull_gpu_ms,
-                t.passes_gpu_ms,
-                t.frame_gpu_ms,
-                t.frame_gpu_ms_p95,
-                match t.ideal_frame_gpu_ms {
-                    Some(i) if t.frame_gpu_ms > 0.0 =>
-                        format!("{i:.3} ({:.2})", i / t.frame_gpu_ms),
-                    _ => "—".into(),
-                },
-                t.cpu_ms
-            );
+        let _ = writeln!(md, "| {} | {label} | {} |", row.key, row.cells.join(" | "));
     }
     for r in g.runs.iter().filter(|r| r.error.is_some()) {
         let _ = writeln!(
             md,
-            "\nFailed: {} — {}",
+            "\nFailed: {} {} — {}",
+            labels.short(&r.settings),
             labels.label(&r.settings),
             r.error.as_deref().unwrap_or_default()
         );

@@ -140,6 +140,23 @@ pub struct RunRecord {
     pub totals: Option<TotalsRecord>,
     pub passes: Vec<PassRecord>,
     pub frames: Vec<FrameRecord>,
+    /// The frame whose image differed most from the unculled one (then the most FN), its
+    /// images kept beside results.json; absent where every frame was exact.
+    #[serde(default)]
+    pub worst_frame: Option<WorstFrame>,
+}
+
+/// A run's worst frame: which, how wrong, and its images (PNG files, relative to the output
+/// directory: the setting's image, the unculled reference, and the diff — the reference in
+/// grey, differing pixels red, visible instances culled magenta).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WorstFrame {
+    pub frame: usize,
+    pub differing_pixels: usize,
+    pub false_negatives: usize,
+    pub technique: String,
+    pub reference: String,
+    pub diff: String,
 }
 
 /// This binary's version and the commit it was built from.
@@ -250,6 +267,7 @@ impl RunRecord {
                 })
                 .collect(),
             totals: Some(totals),
+            worst_frame: None,
         }
     }
 
@@ -268,6 +286,7 @@ impl RunRecord {
             totals: None,
             passes: Vec::new(),
             frames: Vec::new(),
+            worst_frame: None,
         }
     }
 }
