@@ -8,6 +8,9 @@ layout(set = 0, binding = 7, std430) buffer Counters { uint shaded[4]; } counter
 #endif
 
 layout(constant_id = 0) const uint MATERIAL_CLASS = 0u;
+// The bottleneck finder's probe (`tilegraph bottleneck`): 1 = a fixed colour, the material,
+// texture and lighting work skipped (seed 002: "simplify the fragment shader to the limit").
+layout(constant_id = 2) const uint TRIVIAL_FRAGMENT = 0u;
 
 layout(location = 0) in vec3 v_normal;
 layout(location = 1) in vec2 v_uv;
@@ -16,6 +19,10 @@ layout(location = 3) in vec3 v_position;
 layout(location = 0) out vec4 o_color;
 
 void main() {
+    if (TRIVIAL_FRAGMENT == 1u) {
+        o_color = vec4(0.5, 0.5, 0.5, 1.0);
+        return;
+    }
     Material m = materials[v_material];
     vec4 base = material_color(m, v_uv);
     // Nested, not `&&`: a branch on the specialization constant alone, which specialization

@@ -12,6 +12,7 @@ macro_rules! outln {
 }
 
 mod bench;
+mod bottleneck;
 mod cullcheck;
 mod devices;
 mod graph;
@@ -109,6 +110,17 @@ enum Command {
     /// setting that meets the accuracy constraint, check it on a path it did not see, and write
     /// the profile with the pick as its knobs (load it with TILEGRAPH_PROFILE_DIR).
     Tune(tune::TuneArgs),
+    /// Find the stage that limits the frame (seed 002's recipe): time it as it is, then with
+    /// a fixed-colour fragment shader, at 50x50, with a trivial vertex shader, with a quarter
+    /// of each mesh's triangles and with a quarter of the instances; name the stage whose
+    /// removal saves the frame, with the savings and what to try.
+    Bottleneck {
+        #[command(flatten)]
+        run: RunArgs,
+        /// ALU iterations of the heavy material (0 = plain Lambert).
+        #[arg(long, default_value_t = 0)]
+        heavy: u32,
+    },
     /// The compiled plan of one frame of a scene (steps, or DOT with --dot) and the reason for
     /// every merge, load and store op, barrier and attachment's traffic.
     Graph {
@@ -247,6 +259,20 @@ fn main() -> ExitCode {
         Command::CullCheck { run, save_frames } => cullcheck::run(&run, save_frames.as_deref()),
         Command::Bench(args) => bench::run(&args),
         Command::Graph { run, dot } => graph::run(&run, dot),
+        Command::Bottleneck { run, heavy } => run
+            .knob_settings(run::TechniqueMeant::Shading)
+            .and_then(|knobs| {
+                let clusters = run::wants_clusters(&knobs);
+                Ok((knobs, run::load_scene(&run.scene, clusters)?))
+            })
+            .and_then(|(knobs, scene)| {
+                bottleneck::run(&bottleneck::BottleneckArgs {
+                    run: &run,
+                    knobs: &knobs,
+                    scene: &scene,
+                    heavy,
+                })
+            }),
         Command::BenchDoc(args) => bench::doc::run(&args),
         Command::Tune(args) => tune::run(&args),
         Command::Validate(args) => validate::run(&args),

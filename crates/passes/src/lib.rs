@@ -18,6 +18,7 @@
 pub mod compose;
 pub mod cull;
 pub mod cullcheck;
+mod depth_test;
 pub mod draws;
 pub mod forward;
 pub mod frame;
@@ -31,6 +32,7 @@ pub mod occlusion;
 pub mod options;
 pub mod pipelines;
 pub mod prepass;
+mod probe;
 pub mod pvs;
 pub mod recording;
 pub mod renderer;
@@ -42,6 +44,7 @@ pub mod visbuf;
 
 pub use frame::{DrawSource, FrameData, FrameGraph, Payload, SceneResources};
 pub use options::{FrameReport, RenderError, RenderOptions, WantedBy};
+pub use probe::StageProbe;
 pub use renderer::{scene_memory, EngineTarget, SceneMemory, SceneRenderer, ViewId};
 pub use setup::{
     decide, FrameSetup, PassDecision, PassKind, SceneContent, Technique, VisbufResolve,

@@ -114,6 +114,9 @@ pub struct RenderOptions {
     /// Count the fragments each colour pass shades (an atomic per fragment; needs
     /// `fragmentStoresAndAtomics`). For measurement runs, not for shipping frames.
     pub count_fragments: bool,
+    /// `tilegraph bottleneck`'s probes: shaders made trivial to see what a stage costs. Off
+    /// (the default) for every frame that is not such a measurement.
+    pub probe: crate::probe::StageProbe,
     /// Overrides the profile's opaque draw order (measurements: `BackToFront` is the worst
     /// case for early depth rejection).
     pub opaque_order: Option<tilegraph_profile::SortOrder>,
@@ -212,6 +215,7 @@ impl Default for RenderOptions {
             lighting: Lighting::default(),
             clear_color: [0.55, 0.65, 0.78, 1.0],
             count_fragments: false,
+            probe: crate::probe::StageProbe::default(),
             opaque_order: None,
             alpha_prepass: None,
             depth_prepass: None,

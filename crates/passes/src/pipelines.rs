@@ -27,8 +27,11 @@ use tilegraph_vk::pipeline::{
 };
 use tilegraph_vk::{Context, VkError};
 
+pub use crate::depth_test::ColourDepth;
+use crate::depth_test::{nearer, nearer_or_equal};
 use crate::draws::DrawClass;
 use crate::materials::{EngineMaterial, MaterialPass, MaterialShaders};
+use crate::probe::StageProbe;
 use crate::spv;
 
 /// How far occlusion proxies are pulled toward the eye, in units of the depth format (a D32
@@ -129,8 +132,9 @@ pub struct Pipelines {
     trace: Option<Vec<TracedBind>>,
     /// Pipelines of render passes with serials below this are destroyed.
     pruned_below: u64,
-    /// Count fragments in the colour passes (`forward_count*.frag`).
-    count_fragments: bool,
+    /// Count fragments in the colour passes (`forward_count*.frag`), and the bottleneck
+    /// finder's trivial shaders.
+    shaders: (bool, StageProbe),
     /// How the scene's textures are bound (which build of each fragment shader), and the
     /// descriptors of the binding: `TEXTURE_SLOTS` (specialization 1) of the indexed builds.
     textures: (TextureBinding, u32),
@@ -151,14 +155,14 @@ impl Pipelines {
     pub fn new(
         ctx: &Context,
         scene_set_layout: vk::DescriptorSetLayout,
-        count_fragments: bool,
+        shaders: (bool, StageProbe),
         textures: (TextureBinding, u32),
     ) -> Result<Self, VkError> {
         let mut p = Pipelines {
             cache: HashMap::new(),
             trace: None,
             pruned_below: 0,
-            count_fragments,
+            shaders,
             textures,
             materials: Vec::new(),
             scene_layout: vk::PipelineLayout::null(),
@@ -344,12 +348,12 @@ impl Pipelines {
             engine,
         };
         let layouts = (self.scene_layout, self.input_layout, self.sampled_layout);
-        let count_fragments = self.count_fragments;
+        let shaders = self.shaders;
         let textures = self.textures;
         let material = engine.and_then(|k| self.materials.get(k as usize).cloned());
         self.get_or_create(pc, key, |target| {
             let target = with_colors(target, color_count);
-            let shaders = material.as_deref().and_then(|m| {
+            let material_shaders = material.as_deref().and_then(|m| {
                 material_pass(variant)
                     .and_then(|p| m.shaders(p))
                     .map(|s| (s, m.layout))
@@ -359,9 +363,9 @@ impl Pipelines {
                 target,
                 layouts,
                 (variant, double_sided, depth),
-                count_fragments,
-                textures,
                 shaders,
+                textures,
+                material_shaders,
             )
         })
     }
@@ -523,35 +527,6 @@ pub(crate) fn with_colors(
     }
 }
 
-/// How a colour pass uses depth.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum ColourDepth {
-    /// No pre-pass wrote this class: test nearer, write.
-    Write,
-    /// A pre-pass wrote the depth of every instance drawn here: test EQUAL, no writes.
-    Equal,
-    /// A pre-pass wrote part of it (last frame's visible set): test nearer-or-equal, write.
-    /// The colour of each pixel is that of the last fragment drawn at its nearest depth, as
-    /// with `Equal` after a full pre-pass — so the image is the same.
-    WriteOrEqual,
-}
-
-/// The depth compare that lets a nearer fragment through, or one level with it.
-pub fn nearer_or_equal(depth: DepthConvention) -> vk::CompareOp {
-    match depth {
-        DepthConvention::Reverse => vk::CompareOp::GREATER_OR_EQUAL,
-        DepthConvention::Standard => vk::CompareOp::LESS_OR_EQUAL,
-    }
-}
-
-/// The depth compare that lets a nearer fragment through.
-pub fn nearer(depth: DepthConvention) -> vk::CompareOp {
-    match depth {
-        DepthConvention::Reverse => vk::CompareOp::GREATER,
-        DepthConvention::Standard => vk::CompareOp::LESS,
-    }
-}
-
 /// (vertex stage, fragment stage, vertex attributes, depth state, blend, layout) of a variant.
 type VariantState<'a> = (
     Stage<'a>,
@@ -572,7 +547,7 @@ fn scene_pipeline(
         vk::PipelineLayout,
     ),
     (variant, double_sided, depth): (Variant, bool, DepthConvention),
-    count_fragments: bool,
+    (count_fragments, probe): (bool, StageProbe),
     (texture_binding, texture_slots): (TextureBinding, u32),
     engine: Option<(&MaterialShaders, vk::PipelineLayout)>,
 ) -> Result<DescribedPipeline, VkError> {
@@ -599,9 +574,15 @@ fn scene_pipeline(
     let pos_uv = [POSITION, UV];
     let all = [POSITION, NORMAL, UV];
     let class_spec: [(u32, u32); 2];
+    let forward_spec: [(u32, u32); 3];
+    let vertex_spec = [(0, u32::from(probe.trivial_vertex))];
     let (vs, fs, attrs, depth_state, blend, layout): VariantState<'_> = match variant {
         Variant::DepthOpaque => (
-            stage("depth.vert", spv::DEPTH_VS),
+            Stage {
+                name: "depth.vert",
+                spirv: spv::DEPTH_VS,
+                specialization: &vertex_spec,
+            },
             None,
             &pos_only,
             write,
@@ -624,7 +605,11 @@ fn scene_pipeline(
             class,
             depth: colour_depth,
         } => {
-            class_spec = [(0, class.index()), (1, texture_slots)];
+            forward_spec = [
+                (0, class.index()),
+                (1, texture_slots),
+                (2, u32::from(probe.trivial_fragment)),
+            ];
             let depth_state = match (class, colour_depth) {
                 (DrawClass::Blended, _) => DepthState {
                     test: true,
@@ -682,11 +667,15 @@ fn scene_pipeline(
                 ),
             };
             (
-                stage("forward.vert", spv::FORWARD_VS),
+                Stage {
+                    name: "forward.vert",
+                    spirv: spv::FORWARD_VS,
+                    specialization: &vertex_spec,
+                },
                 Some(Stage {
                     name: fs_name,
                     spirv: fs,
-                    specialization: &class_spec,
+                    specialization: &forward_spec,
                 }),
                 &all,
                 depth_state,

@@ -119,10 +119,26 @@ pub const MAX_SPREAD_MATERIALS: u32 = 4096;
 /// Loads a scene from a spec: a glTF path, `kind[:size[:seed]]`, or `default`; with `@one-mesh`
 /// after it, baked into one mesh per material ([`Scene::one_mesh_per_material`]: a level as
 /// many engines export it); with `@materials:N`, its opaque instances spread over `N` materials
-/// ([`Scene::with_spread_materials`]: what material classification is measured on).
+/// ([`Scene::with_spread_materials`]: what material classification is measured on); with
+/// `@dense:L`, every triangle split into `4^L` ([`Scene::densified`]); with `@draws`, a mesh per
+/// instance ([`Scene::mesh_per_instance`]) — the bottleneck finder's constructed cases.
 pub fn load_with(spec: &str, options: &LoadOptions) -> Result<Scene, SceneError> {
     if let Some(level) = spec.strip_suffix("@one-mesh") {
         return load_with(level, options)?.one_mesh_per_material();
+    }
+    if let Some(base) = spec.strip_suffix("@draws") {
+        return load_with(base, options)?.mesh_per_instance();
+    }
+    if let Some((base, level)) = spec.rsplit_once("@dense:") {
+        let level = level
+            .parse::<u32>()
+            .ok()
+            .filter(|l| (1..=5).contains(l))
+            .ok_or_else(|| SceneError::BadSpec {
+                spec: spec.to_string(),
+                reason: format!("@dense:{level}: a subdivision level from 1 to 5"),
+            })?;
+        return load_with(base, options)?.densified(level);
     }
     if let Some((base, n)) = spec.rsplit_once("@materials:") {
         let count = n

@@ -46,7 +46,7 @@ pub(super) fn create_resources(
     let pipelines = match Pipelines::new(
         ctx,
         gpu.set_layout,
-        main.count_fragments,
+        (main.count_fragments, main.probe),
         (gpu.textures.binding, gpu.textures.slot_count()),
     ) {
         Ok(p) => p,

@@ -241,6 +241,7 @@ impl SceneRenderer {
             instance_capacity: main.instance_capacity,
             texture_binding: main.texture_binding,
             count_fragments: main.count_fragments,
+            probe: main.probe,
             ..options
         };
         let index = u32::try_from(self.views.len()).map_err(|_| RenderError::TooManyViews)?;

@@ -1,7 +1,7 @@
 //! A scene's opaque geometry spread over many materials: what the visibility buffer's
 //! per-material resolves and material classification are measured on (`--materials N`).
 
-use super::{Material, MaterialClass, MeshId, Scene, SceneBuilder, SceneError};
+use super::{Material, MaterialClass, MeshId, Scene, SceneBuilder, SceneError, Vertex};
 
 impl Scene {
     /// This scene with each opaque instance drawn in one of `n` new opaque materials (of `n`
@@ -60,6 +60,184 @@ impl Scene {
     }
 }
 
+impl Scene {
+    /// This scene with fewer triangles or fewer instances, for the bottleneck finder: each
+    /// mesh drawn with its first `1 / triangles` of its triangles (at least one), and every
+    /// `instances`-th instance kept (the first of each run). 1 keeps everything. Materials,
+    /// textures, vertices and the camera path are kept.
+    pub fn thinned(&self, triangles: u32, instances: u32) -> Result<Scene, SceneError> {
+        let (triangles, instances) = (triangles.max(1), instances.max(1));
+        let mut b = SceneBuilder::new(format!("{}/thinned:{triangles}x{instances}", self.name));
+        for t in self.textures.iter() {
+            b.add_texture(t.clone());
+        }
+        for m in &self.materials {
+            b.add_material(*m);
+        }
+        let offset = b.push_vertices(&self.vertices);
+        debug_assert_eq!(offset, 0);
+        let mut meshes = Vec::with_capacity(self.meshes.len());
+        for mesh in &self.meshes {
+            let first = mesh.first_index as usize;
+            let all = mesh.index_count / 3;
+            let keep = (all.div_ceil(triangles).max(1).min(all) * 3) as usize;
+            let indices = self.indices.get(first..first + keep).unwrap_or_default();
+            meshes.push(b.push_mesh_range(
+                mesh.vertex_offset as u32,
+                mesh.vertex_count,
+                indices,
+                mesh.material,
+            ));
+        }
+        for inst in self.instances.iter().step_by(instances as usize) {
+            let Some(&mesh) = meshes.get(inst.mesh.index()) else {
+                continue;
+            };
+            b.push_instance_trusted(inst.transform, mesh);
+            if let Some(last) = b.instances.last_mut() {
+                last.flags = inst.flags;
+            }
+        }
+        b.build(Some(self.camera_path.clone()))
+    }
+}
+
+impl Scene {
+    /// This scene with every triangle split into `4^level` (a barycentric grid of `2^level`
+    /// segments a side, the corners' attributes interpolated): the same surfaces, dense meshes
+    /// (a bottleneck finder's constructed case, `@dense:LEVEL`). `level` is at most 5.
+    pub fn densified(&self, level: u32) -> Result<Scene, SceneError> {
+        let n = 1u32 << level.min(5);
+        let mut b = SceneBuilder::new(format!("{}@dense:{level}", self.name));
+        for t in self.textures.iter() {
+            b.add_texture(t.clone());
+        }
+        for m in &self.materials {
+            b.add_material(*m);
+        }
+        let mut meshes = Vec::with_capacity(self.meshes.len());
+        for mesh in &self.meshes {
+            let first = mesh.first_index as usize;
+            let indices = self
+                .indices
+                .get(first..first + mesh.index_count as usize)
+                .unwrap_or_default();
+            let base = mesh.vertex_offset.max(0) as usize;
+            let corner = |i: u32| self.vertices.get(base + i as usize).copied();
+            let (mut verts, mut idx) = (Vec::new(), Vec::new());
+            for t in indices.chunks_exact(3) {
+                let (Some(a), Some(c1), Some(c2)) = (corner(t[0]), corner(t[1]), corner(t[2]))
+                else {
+                    continue;
+                };
+                let start = verts.len() as u32;
+                // Vertex (i, j): i steps toward the second corner, j toward the third.
+                for i in 0..=n {
+                    for j in 0..=n - i {
+                        let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+                        let w = 1.0 - u - v;
+                        let mix = |x: &[f32], y: &[f32], z: &[f32], k: usize| {
+                            w * x[k] + u * y[k] + v * z[k]
+                        };
+                        let normal = glam::Vec3::from_array(std::array::from_fn(|k| {
+                            mix(&a.normal, &c1.normal, &c2.normal, k)
+                        }))
+                        .normalize_or_zero();
+                        verts.push(Vertex {
+                            position: std::array::from_fn(|k| {
+                                mix(&a.position, &c1.position, &c2.position, k)
+                            }),
+                            normal: normal.to_array(),
+                            uv: std::array::from_fn(|k| mix(&a.uv, &c1.uv, &c2.uv, k)),
+                        });
+                    }
+                }
+                // Row i holds n - i + 1 vertices.
+                let at = |i: u32, j: u32| start + i * (n + 1) - i * i.saturating_sub(1) / 2 + j;
+                for i in 0..n {
+                    for j in 0..n - i {
+                        idx.extend([at(i, j), at(i + 1, j), at(i, j + 1)]);
+                        if j + 1 < n - i {
+                            idx.extend([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+                        }
+                    }
+                }
+            }
+            if b.vertex_count() + verts.len() > i32::MAX as usize
+                || b.index_count() + idx.len() > u32::MAX as usize
+            {
+                return Err(SceneError::BadSpec {
+                    spec: format!("{}@dense:{level}", self.name),
+                    reason: "the dense meshes would exceed 32-bit buffer offsets".into(),
+                });
+            }
+            let offset = b.push_vertices(&verts);
+            meshes.push(b.push_mesh_range(offset, verts.len() as u32, &idx, mesh.material));
+        }
+        self.rebuilt_with(b, |i| meshes.get(i).copied())
+    }
+
+    /// This scene with a mesh of its own for every instance (the same vertices, a copy of the
+    /// indices): as many draws as instances, where instancing would draw each mesh once (a
+    /// bottleneck finder's constructed case, `@draws`).
+    pub fn mesh_per_instance(&self) -> Result<Scene, SceneError> {
+        let mut b = SceneBuilder::new(format!("{}@draws", self.name));
+        for t in self.textures.iter() {
+            b.add_texture(t.clone());
+        }
+        for m in &self.materials {
+            b.add_material(*m);
+        }
+        let offset = b.push_vertices(&self.vertices);
+        debug_assert_eq!(offset, 0);
+        for inst in &self.instances {
+            let Some(mesh) = self.meshes.get(inst.mesh.index()) else {
+                continue;
+            };
+            let first = mesh.first_index as usize;
+            let indices = self
+                .indices
+                .get(first..first + mesh.index_count as usize)
+                .unwrap_or_default();
+            if b.index_count() + indices.len() > u32::MAX as usize {
+                return Err(SceneError::BadSpec {
+                    spec: format!("{}@draws", self.name),
+                    reason: "a mesh per instance would exceed 32-bit index offsets".into(),
+                });
+            }
+            let own = b.push_mesh_range(
+                mesh.vertex_offset as u32,
+                mesh.vertex_count,
+                indices,
+                mesh.material,
+            );
+            b.push_instance_trusted(inst.transform, own);
+            if let Some(last) = b.instances.last_mut() {
+                last.flags = inst.flags;
+            }
+        }
+        b.build(Some(self.camera_path.clone()))
+    }
+
+    /// The scene's instances over the meshes `b` holds (`mesh(i)`: the new id of mesh `i`).
+    fn rebuilt_with(
+        &self,
+        mut b: SceneBuilder,
+        mesh: impl Fn(usize) -> Option<MeshId>,
+    ) -> Result<Scene, SceneError> {
+        for inst in &self.instances {
+            let Some(m) = mesh(inst.mesh.index()) else {
+                continue;
+            };
+            b.push_instance_trusted(inst.transform, m);
+            if let Some(last) = b.instances.last_mut() {
+                last.flags = inst.flags;
+            }
+        }
+        b.build(Some(self.camera_path.clone()))
+    }
+}
+
 /// A well-mixed hash of an instance index (neighbours land on unrelated materials).
 fn spread(i: u32) -> u32 {
     let mut x = i.wrapping_mul(0x9E37_79B9);
@@ -96,6 +274,69 @@ mod tests {
         ] {
             let e = crate::load(bad).unwrap_err().to_string();
             assert!(e.contains("material count"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn thinning_keeps_a_share_of_triangles_and_of_instances() {
+        let city = crate::load("city:400").unwrap();
+        let same = city.thinned(1, 1).unwrap();
+        assert_eq!(same.triangles_drawn(), city.triangles_drawn());
+        assert_eq!(same.instances().len(), city.instances().len());
+        let fewer = city.thinned(4, 1).unwrap();
+        assert_eq!(fewer.instances().len(), city.instances().len());
+        let (t, all) = (fewer.triangles_drawn(), city.triangles_drawn());
+        assert!(t * 4 >= all && t * 3 < all, "{t} of {all} triangles");
+        for m in fewer.meshes() {
+            assert!(m.index_count >= 3 && m.index_count % 3 == 0);
+        }
+        let sparse = city.thinned(1, 4).unwrap();
+        assert_eq!(sparse.instances().len(), city.instances().len().div_ceil(4));
+        for (a, b) in city.instances().iter().step_by(4).zip(sparse.instances()) {
+            assert_eq!(a.transform, b.transform);
+        }
+    }
+
+    #[test]
+    fn dense_meshes_keep_their_surfaces_and_draws_follow_instances() {
+        let city = crate::load("city:100").unwrap();
+        let dense = crate::load("city:100@dense:2").unwrap();
+        assert_eq!(dense.instances().len(), city.instances().len());
+        assert_eq!(dense.triangles_drawn(), 16 * city.triangles_drawn());
+        for (a, b) in city.meshes().iter().zip(dense.meshes()) {
+            assert_eq!(a.local_aabb, b.local_aabb);
+            assert_eq!(16 * a.index_count, b.index_count);
+        }
+        // Each split triangle faces the way its parent did, and the split ones tile its area.
+        let (m0, d0) = (&city.meshes()[0], &dense.meshes()[0]);
+        let tri = |s: &Scene, m: &crate::Mesh, k: usize| {
+            let at = |i: usize| {
+                let v = s.indices()[m.first_index as usize + 3 * k + i];
+                glam::Vec3::from(s.vertices()[(m.vertex_offset as u32 + v) as usize].position)
+            };
+            (at(1) - at(0)).cross(at(2) - at(0))
+        };
+        let parent = tri(&city, m0, 0);
+        let mut area = glam::Vec3::ZERO;
+        for k in 0..16 {
+            let child = tri(&dense, d0, k);
+            assert!(child.dot(parent) > 0.0, "child {k} flipped");
+            area += child;
+        }
+        assert!(
+            (area - parent).length() <= 1e-4 * parent.length(),
+            "{area} {parent}"
+        );
+
+        let draws = crate::load("city:100@draws").unwrap();
+        assert_eq!(draws.meshes().len(), city.instances().len());
+        assert_eq!(draws.triangles_drawn(), city.triangles_drawn());
+        for (a, b) in city.instances().iter().zip(draws.instances()) {
+            assert_eq!(a.transform, b.transform);
+        }
+        for bad in ["city:100@dense:0", "city:100@dense:6", "city:100@dense:x"] {
+            let e = crate::load(bad).unwrap_err().to_string();
+            assert!(e.contains("@dense"), "{bad}: {e}");
         }
     }
 
