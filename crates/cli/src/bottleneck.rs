@@ -9,6 +9,7 @@
 use std::time::Instant;
 
 use serde::Serialize;
+use tilegraph_passes::cull::Culling;
 use tilegraph_passes::{GpuTiming, RenderOptions, SceneRenderer, StageProbe, Technique};
 use tilegraph_profile::knobs::KnobSettings;
 use tilegraph_scene::{CameraPath, Scene};
@@ -118,6 +119,7 @@ impl Stage {
 /// CPU ms of a frame (recording and submission, and any wait for a free frame in flight).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Measured {
+    /// The frame under the probes' culling ([`probe_culling`]), which the probes save from.
     pub frame_gpu_ms: f64,
     pub cpu_ms: f64,
     pub trivial_fragment_ms: f64,
@@ -138,21 +140,39 @@ impl Measured {
     }
 }
 
-/// The stage that limits the frame, and why, from the recipe's end of the pipeline backwards:
-/// the first probe that saves at least [`SIGNIFICANT`] of the frame names it; with none, the
-/// CPU if it takes longer than the GPU, else the frame's fixed costs.
+/// The stage that limits the frame, and why. The probes overlap — a tiny frame also skips the
+/// shading, a quarter of the triangles also a quarter of their pixels, a quarter of the
+/// instances also their triangles — so each stage's share is estimated from the probe that
+/// isolates it best: shading S = what a fixed colour saves, pixels P = what a tiny frame saves,
+/// per triangle T and per instance I = what a quarter of them saves, scaled to all of them.
+/// In order: the CPU if a frame takes it [`CPU_OVER_GPU`] times the GPU's; fragment shading if
+/// S is [`SIGNIFICANT`] and at least half of P; draws if I is significant and
+/// [`DRAWS_OVER_TRIANGLES`] times T; geometry if T is significant and clearly more than P
+/// (small triangles: a tiny frame skips their raster setup too, but fewer of them save more);
+/// memory writes if P is significant; vertex shading if the trivial vertex shader saves a
+/// significant share; else the frame's fixed costs.
 pub fn classify(m: &Measured) -> (Stage, String) {
+    let base = m.frame_gpu_ms;
     let pct = |ms: f64| format!("{:.0} %", 100.0 * m.saving(ms));
-    let (f, r, v) = (
-        m.saving(m.trivial_fragment_ms),
-        m.saving(m.tiny_resolution_ms),
-        m.saving(m.trivial_vertex_ms),
+    let share = |x: f64| if base > 0.0 { x / base } else { 0.0 };
+    let (s, p, v) = (
+        share(base - m.trivial_fragment_ms),
+        share(base - m.tiny_resolution_ms),
+        share(base - m.trivial_vertex_ms),
     );
-    let (tris, insts) = (
-        m.saving(m.quarter_triangles_ms),
-        m.saving(m.quarter_instances_ms),
-    );
-    if f >= SIGNIFICANT {
+    let scale = f64::from(THIN) / f64::from(THIN - 1);
+    let t = (share(base - m.quarter_triangles_ms) * scale).min(1.0);
+    let i = (share(base - m.quarter_instances_ms) * scale).min(1.0);
+    if m.cpu_ms > CPU_OVER_GPU * base {
+        return (
+            Stage::Cpu,
+            format!(
+                "a frame takes {:.3} ms of CPU (recording and submission) against {:.3} ms of GPU",
+                m.cpu_ms, base
+            ),
+        );
+    }
+    if s >= SIGNIFICANT && s >= 0.5 * p {
         return (
             Stage::Fragment,
             format!(
@@ -161,17 +181,7 @@ pub fn classify(m: &Measured) -> (Stage, String) {
             ),
         );
     }
-    if r >= SIGNIFICANT {
-        return (
-            Stage::MemoryWrite,
-            format!(
-                "a tiny frame ({TINY}x{TINY} at most) saves {} where a trivial fragment shader saves {}",
-                pct(m.tiny_resolution_ms),
-                pct(m.trivial_fragment_ms)
-            ),
-        );
-    }
-    if insts >= SIGNIFICANT && insts >= DRAWS_OVER_TRIANGLES * tris.max(0.0) {
+    if i >= SIGNIFICANT && i >= DRAWS_OVER_TRIANGLES * t {
         return (
             Stage::Draws,
             format!(
@@ -181,12 +191,23 @@ pub fn classify(m: &Measured) -> (Stage, String) {
             ),
         );
     }
-    if tris >= SIGNIFICANT {
+    if t >= SIGNIFICANT && t > 1.25 * p {
         return (
             Stage::Geometry,
             format!(
-                "a quarter of each mesh's triangles saves {}",
-                pct(m.quarter_triangles_ms)
+                "a quarter of each mesh's triangles saves {} (a tiny frame {})",
+                pct(m.quarter_triangles_ms),
+                pct(m.tiny_resolution_ms)
+            ),
+        );
+    }
+    if p >= SIGNIFICANT {
+        return (
+            Stage::MemoryWrite,
+            format!(
+                "a tiny frame ({TINY}x{TINY} at most) saves {} where a fixed-colour fragment shader saves {}",
+                pct(m.tiny_resolution_ms),
+                pct(m.trivial_fragment_ms)
             ),
         );
     }
@@ -200,26 +221,28 @@ pub fn classify(m: &Measured) -> (Stage, String) {
             ),
         );
     }
-    if m.cpu_ms > CPU_OVER_GPU * m.frame_gpu_ms {
-        return (
-            Stage::Cpu,
-            format!(
-                "no probe saves {:.0} % of the GPU's {:.3} ms, and a frame takes {:.3} ms of CPU",
-                100.0 * SIGNIFICANT,
-                m.frame_gpu_ms,
-                m.cpu_ms
-            ),
-        );
-    }
     (
         Stage::Fixed,
         format!(
             "no probe saves {:.0} % of the {:.3} ms frame, and the CPU keeps up ({:.3} ms)",
             100.0 * SIGNIFICANT,
-            m.frame_gpu_ms,
+            base,
             m.cpu_ms
         ),
     )
+}
+
+/// The culling the probes run under: the configured one where it does not read the frame's
+/// depth or the scene's instance numbering, else frustum culling (of clusters for a cluster
+/// technique). A trivial vertex shader leaves the depth empty, a tiny frame coarse and the
+/// thinned scenes full of holes: occlusion culling would cull differently under each probe
+/// (HiZ culls nothing behind an empty depth), and the probes would time another frame.
+pub fn probe_culling(c: Culling) -> Culling {
+    match c {
+        Culling::None | Culling::Frustum | Culling::FrustumClusters => c,
+        c if c.clusters() => Culling::FrustumClusters,
+        _ => Culling::Frustum,
+    }
 }
 
 /// `bottleneck --json`.
@@ -229,6 +252,10 @@ struct Report<'a> {
     device: &'a str,
     profile: &'a str,
     culling: &'static str,
+    /// The culling the probes ran under, and the frame under the configured one where they
+    /// differ.
+    probe_culling: &'static str,
+    configured_frame_gpu_ms: f64,
     shading: &'static str,
     size: [u32; 2],
     frames: u32,
@@ -251,11 +278,15 @@ pub fn run(args: &BottleneckArgs<'_>) -> Result<(), CliError> {
         RunArgs::resolve(ctx, args.scene, args.knobs, &mut options)?;
         if options.technique == Technique::Visbuf {
             return Err(CliError::Usage(
-                "bottleneck: its probes make the forward colour and vertex shaders trivial, and                  visbuf shading resolves in shaders of its own: run it with --shading forward                  or prepass"
+                "bottleneck: its probes make the forward colour and vertex shaders trivial, and \
+                 visbuf shading resolves in shaders of its own: run it with --shading forward \
+                 or prepass"
                     .into(),
             ));
         }
         options.lighting.heavy_iterations = args.heavy;
+        let configured = options.clone();
+        options.culling = probe_culling(options.culling);
         let path = run.camera_path(args.scene)?;
         let time =
             |scene: &Scene, options: RenderOptions| time_frames(ctx, scene, options, &path, frames);
@@ -265,8 +296,22 @@ pub fn run(args: &BottleneckArgs<'_>) -> Result<(), CliError> {
         };
         let tiny = ((w / 4).clamp(1, TINY), (h / 4).clamp(1, TINY));
         let (frame_gpu_ms, cpu_ms) = time(args.scene, options.clone())?;
-        let fewer_triangles = args.scene.thinned(THIN, 1)?;
-        let fewer_instances = args.scene.thinned(1, THIN)?;
+        let configured_frame_gpu_ms = if configured.culling == options.culling {
+            frame_gpu_ms
+        } else {
+            time(args.scene, configured.clone())?.0
+        };
+        // The thinned scenes, with clusters of their own where the scene has them.
+        let thinned = |triangles: u32, instances: u32| -> Result<Scene, CliError> {
+            let mut s = args.scene.thinned(triangles, instances)?;
+            if args.scene.clusters().is_some() {
+                let name = s.name().to_string();
+                crate::run::attach_clusters(&mut s, &name)?;
+            }
+            Ok(s)
+        };
+        let fewer_triangles = thinned(THIN, 1)?;
+        let fewer_instances = thinned(1, THIN)?;
         let m = Measured {
             frame_gpu_ms,
             cpu_ms,
@@ -303,7 +348,9 @@ pub fn run(args: &BottleneckArgs<'_>) -> Result<(), CliError> {
             scene: args.scene.name(),
             device: &ctx.physical.identity.device_name,
             profile: &ctx.profile().name,
-            culling: options.culling.name(),
+            culling: configured.culling.name(),
+            probe_culling: options.culling.name(),
+            configured_frame_gpu_ms,
             shading: options.technique.name(),
             size: [w, h],
             frames,
@@ -333,9 +380,18 @@ fn print(json: bool, r: &Report<'_>) -> Result<(), CliError> {
         r.size[1],
         r.frames
     )?;
+    if r.probe_culling != r.culling {
+        outln!(
+            "  the frame with {}: {:.3} ms; the probes run with {} (they change the depth that {} reads)",
+            r.culling,
+            r.configured_frame_gpu_ms,
+            r.probe_culling,
+            r.culling
+        )?;
+    }
     outln!("  {:<44} {:>9} {:>8}", "probe", "GPU ms", "saves")?;
     for (what, ms) in [
-        ("the frame as it is", m.frame_gpu_ms),
+        ("the frame (the probes' culling)", m.frame_gpu_ms),
         ("fragment shader: a fixed colour", m.trivial_fragment_ms),
         ("resolution: tiny (50x50 at most)", m.tiny_resolution_ms),
         (
@@ -398,39 +454,65 @@ fn time_frames(
 mod tests {
     use super::*;
 
-    fn measured(f: f64, r: f64, v: f64, t: f64, i: f64, cpu: f64) -> Measured {
+    /// (frame, cpu, fixed colour, tiny, trivial vertex, quarter triangles, quarter instances).
+    fn measured(ms: [f64; 7]) -> Measured {
         Measured {
-            frame_gpu_ms: 10.0,
-            cpu_ms: cpu,
-            trivial_fragment_ms: f,
-            tiny_resolution_ms: r,
-            trivial_vertex_ms: v,
-            quarter_triangles_ms: t,
-            quarter_instances_ms: i,
+            frame_gpu_ms: ms[0],
+            cpu_ms: ms[1],
+            trivial_fragment_ms: ms[2],
+            tiny_resolution_ms: ms[3],
+            trivial_vertex_ms: ms[4],
+            quarter_triangles_ms: ms[5],
+            quarter_instances_ms: ms[6],
         }
     }
 
     #[test]
-    fn the_recipe_names_the_first_stage_that_saves_the_frame() {
-        // A heavy material: shading is most of it (and a tiny frame saves it too).
-        let heavy = measured(2.0, 1.0, 1.5, 7.0, 3.0, 0.5);
-        assert_eq!(classify(&heavy).0, Stage::Fragment);
-        // Fill: the shader is cheap, the pixels are not.
-        let fill = measured(9.5, 3.0, 4.0, 9.0, 7.0, 0.5);
-        assert_eq!(classify(&fill).0, Stage::MemoryWrite);
-        // Dense meshes: fewer triangles save in proportion, fewer instances no more.
-        let dense = measured(9.8, 9.5, 2.0, 3.5, 3.0, 0.5);
-        assert_eq!(classify(&dense).0, Stage::Geometry);
-        // Many small draws: fewer instances save, their few triangles do not.
-        let draws = measured(9.9, 9.8, 8.0, 9.5, 3.0, 0.5);
+    fn the_h100_cases_are_named_as_constructed() {
+        // H100 80GB HBM3, 580.159.04, 1080p, 48 frames (docs/TUNING.md, "Finding the
+        // bottleneck"): a heavy material, dense meshes, a million small draws, the city as
+        // shipped, the Godot rooms unculled.
+        let cases = [
+            (
+                [69.386, 69.440, 0.789, 0.323, 0.422, 27.742, 58.530],
+                Stage::Fragment,
+            ),
+            (
+                [22.802, 22.772, 19.971, 14.471, 8.631, 6.020, 5.928],
+                Stage::Geometry,
+            ),
+            (
+                [84.239, 318.857, 79.257, 79.156, 79.205, 78.236, 38.498],
+                Stage::Cpu,
+            ),
+            (
+                [0.815, 0.839, 0.790, 0.112, 0.422, 0.580, 0.710],
+                Stage::MemoryWrite,
+            ),
+            (
+                [120.810, 120.822, 106.392, 120.475, 41.488, 30.411, 30.415],
+                Stage::Geometry,
+            ),
+        ];
+        for (ms, want) in cases {
+            let (got, why) = classify(&measured(ms));
+            assert_eq!(got, want, "{ms:?}: {why}");
+        }
+    }
+
+    #[test]
+    fn each_stage_is_reachable() {
+        // Per-object GPU cost: fewer instances save, fewer of their triangles little.
+        let draws = measured([10.0, 1.0, 9.8, 9.7, 9.0, 9.6, 4.0]);
         assert_eq!(classify(&draws).0, Stage::Draws);
-        // A heavy vertex shader: the trivial one saves, fewer triangles less than 15 %.
-        let vertex = measured(9.9, 9.8, 6.0, 9.0, 9.0, 0.5);
+        // A heavy vertex shader over few triangles.
+        let vertex = measured([10.0, 1.0, 9.9, 9.5, 6.0, 9.2, 9.2]);
         assert_eq!(classify(&vertex).0, Stage::Vertex);
-        // Nothing on the GPU helps, the CPU takes longer: CPU; keeps up: fixed costs.
-        let cpu = measured(9.9, 9.8, 9.7, 9.6, 9.5, 20.0);
-        assert_eq!(classify(&cpu).0, Stage::Cpu);
-        let fixed = measured(9.9, 9.8, 9.7, 9.6, 9.5, 1.0);
+        // Big triangles, fill-bound: fewer triangles save their pixels, no more than a tiny
+        // frame does.
+        let fill = measured([10.0, 1.0, 9.5, 2.0, 2.0, 3.0, 3.0]);
+        assert_eq!(classify(&fill).0, Stage::MemoryWrite);
+        let fixed = measured([10.0, 1.0, 9.9, 9.8, 9.7, 9.6, 9.5]);
         let (stage, why) = classify(&fixed);
         assert_eq!(stage, Stage::Fixed);
         assert!(why.contains("10.000 ms"), "{why}");
@@ -440,5 +522,21 @@ mod tests {
             ..fixed
         };
         assert_eq!(classify(&zero).0, Stage::Cpu);
+    }
+
+    #[test]
+    fn occlusion_cullings_give_way_to_frustum_culling_under_the_probes() {
+        assert_eq!(probe_culling(Culling::HizTwoPhase), Culling::Frustum);
+        assert_eq!(probe_culling(Culling::Oq), Culling::Frustum);
+        assert_eq!(probe_culling(Culling::Pvs), Culling::Frustum);
+        assert_eq!(
+            probe_culling(Culling::HizTwoPhaseClusters),
+            Culling::FrustumClusters
+        );
+        assert_eq!(probe_culling(Culling::None), Culling::None);
+        assert_eq!(
+            probe_culling(Culling::FrustumClusters),
+            Culling::FrustumClusters
+        );
     }
 }

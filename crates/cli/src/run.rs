@@ -266,20 +266,26 @@ pub fn load_scene(spec: &str, clusters: impl Into<Clusters>) -> Result<Scene, Cl
         Clusters::ForAuto => knobs::auto_wants_clusters(&scene),
     };
     if attach {
-        let (data, how) = tilegraph_scene::clusters::cached(&scene)?;
-        match how {
-            tilegraph_scene::clusters::Provenance::Cache(path) => {
-                log::info!("{spec}: clusters from {}", path.display())
-            }
-            tilegraph_scene::clusters::Provenance::Built(stats) => log::info!(
-                "{spec}: {} clusters built in {:.1} ms",
-                stats.clusters,
-                stats.milliseconds
-            ),
-        }
-        scene.attach_clusters(data)?;
+        attach_clusters(&mut scene, spec)?;
     }
     Ok(scene)
+}
+
+/// Attaches `scene`'s clusters (`what` names it in the log): from the cache, else built.
+pub fn attach_clusters(scene: &mut Scene, what: &str) -> Result<(), CliError> {
+    let (data, how) = tilegraph_scene::clusters::cached(scene)?;
+    match how {
+        tilegraph_scene::clusters::Provenance::Cache(path) => {
+            log::info!("{what}: clusters from {}", path.display())
+        }
+        tilegraph_scene::clusters::Provenance::Built(stats) => log::info!(
+            "{what}: {} clusters built in {:.1} ms",
+            stats.clusters,
+            stats.milliseconds
+        ),
+    }
+    scene.attach_clusters(data)?;
+    Ok(())
 }
 
 /// Runs `work` on a context made from `options`, then destroys it with validation checked

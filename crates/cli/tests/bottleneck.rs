@@ -1,5 +1,5 @@
 //! `tilegraph bottleneck` on lavapipe (validation required): every probe runs and is timed,
-//! and a constructed case whose bottleneck is known — a heavy material, thousands of ALU
+//! occlusion culling gives way to frustum culling under them, and a constructed case whose bottleneck is known — a heavy material, thousands of ALU
 //! iterations a pixel — is named fragment shading.
 
 use std::process::Command;
@@ -24,7 +24,7 @@ fn a_heavy_material_is_named_fragment_shading() {
         "bottleneck",
         "city:100",
         "--culling",
-        "frustum",
+        "hiz-2phase",
         "--size",
         "160x90",
         "--frames",
@@ -49,7 +49,16 @@ fn a_heavy_material_is_named_fragment_shading() {
         assert!(ms > 0.0 && ms.is_finite(), "{probe}: {r}");
     }
     assert_eq!(r["stage"], "fragment", "{r}");
-    assert_eq!(r["culling"], "frustum", "{r}");
+    // HiZ reads the depth the probes change: they run with frustum culling, the frame as
+    // configured timed too.
+    assert_eq!(r["culling"], "hiz-2phase", "{r}");
+    assert_eq!(r["probe_culling"], "frustum", "{r}");
+    assert!(
+        r["configured_frame_gpu_ms"]
+            .as_f64()
+            .is_some_and(|ms| ms > 0.0),
+        "{r}"
+    );
     assert!(
         r["advice"].as_str().is_some_and(|a| a.contains("prepass")),
         "{r}"
