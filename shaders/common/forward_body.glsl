@@ -19,6 +19,10 @@ layout(location = 3) in vec3 v_position;
 layout(location = 0) out vec4 o_color;
 
 void main() {
+#ifdef WRITE_DEPTH
+    // The depth it would have: only the test's timing changes (after the shader).
+    gl_FragDepth = gl_FragCoord.z;
+#endif
     if (TRIVIAL_FRAGMENT == 1u) {
         o_color = vec4(0.5, 0.5, 0.5, 1.0);
         return;

@@ -433,3 +433,63 @@ fn alpha_tested_fragments_are_counted_with_and_without_a_prepass() {
         "alpha-tested fragments uncounted with a pre-pass: {b:?}"
     );
 }
+
+/// Seed 000's depth variants (`tilegraph experiments`) draw what they claim on its scene: a
+/// colour shader that writes the depth it would have gives the same image, so does a material
+/// whose discard never fires, and with no depth test the spheres drawn later (front to back:
+/// the far ones) cover the near ones.
+#[test]
+fn the_experiments_depth_variants_draw_what_they_claim() {
+    use tilegraph_passes::StageProbe;
+    use tilegraph_scene::seed_grid::{generate, SeedGrid};
+    let grid = |discard| {
+        generate(
+            SeedGrid {
+                n: 3,
+                detail: 2,
+                discard,
+            },
+            1,
+        )
+        .unwrap()
+    };
+    let (scene, discarding) = (grid(false), grid(true));
+    let options = |probe: StageProbe, alpha: bool| RenderOptions {
+        width: W,
+        height: H,
+        depth_prepass: Some(false),
+        alpha_prepass: alpha.then_some(false),
+        opaque_order: Some(SortOrder::FrontToBack),
+        probe,
+        ..Default::default()
+    };
+    let plain = image_of("lavapipe", &scene, options(StageProbe::default(), false));
+    let late = StageProbe {
+        late_depth: true,
+        ..Default::default()
+    };
+    assert!(plain == image_of("lavapipe", &scene, options(late, false)));
+    assert!(
+        plain
+            == image_of(
+                "lavapipe",
+                &discarding,
+                options(StageProbe::default(), true)
+            )
+    );
+    let no_test = StageProbe {
+        no_depth_test: true,
+        ..Default::default()
+    };
+    let unsorted = image_of("lavapipe", &scene, options(no_test, false));
+    let differing = plain
+        .pixels
+        .chunks_exact(4)
+        .zip(unsorted.pixels.chunks_exact(4))
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        differing > 100,
+        "{differing} pixels differ without a depth test"
+    );
+}

@@ -410,7 +410,7 @@ fn print(json: bool, r: &Report<'_>) -> Result<(), CliError> {
 
 /// Median whole-frame GPU ms and CPU ms per frame of `frames` frames along `path` (after the
 /// warm-up every timed run has).
-fn time_frames(
+pub(crate) fn time_frames(
     ctx: &Context,
     scene: &Scene,
     options: RenderOptions,

@@ -15,6 +15,7 @@ mod bench;
 mod bottleneck;
 mod cullcheck;
 mod devices;
+mod experiments;
 mod graph;
 mod image_io;
 mod knobs;
@@ -121,6 +122,10 @@ enum Command {
         #[arg(long, default_value_t = 0)]
         heavy: u32,
     },
+    /// Seed 000's geometry-culling tests on this device: its scene, techniques, workloads and
+    /// sizes, each frame over early Z front to back's, beside the seed's published figures for
+    /// one of its GPUs; results.json, report.md and SVG plots in --out.
+    Experiments(experiments::ExperimentsArgs),
     /// The compiled plan of one frame of a scene (steps, or DOT with --dot) and the reason for
     /// every merge, load and store op, barrier and attachment's traffic.
     Graph {
@@ -275,6 +280,7 @@ fn main() -> ExitCode {
             }),
         Command::BenchDoc(args) => bench::doc::run(&args),
         Command::Tune(args) => tune::run(&args),
+        Command::Experiments(args) => experiments::run(&args),
         Command::Validate(args) => validate::run(&args),
         Command::Pvs(args) => pvs::run(&args),
         Command::Knobs {

@@ -637,6 +637,11 @@ fn scene_pipeline(
                 },
                 (_, ColourDepth::Write) => write,
             };
+            let depth_state = if probe.no_depth_test {
+                DepthState::OFF
+            } else {
+                depth_state
+            };
             let blend = if class == DrawClass::Blended {
                 Blend::Alpha
             } else {
@@ -646,6 +651,13 @@ fn scene_pipeline(
             // tested without a pre-pass): seed 003, discard disables early-Z.
             let late = class == DrawClass::AlphaTested && colour_depth != ColourDepth::Equal;
             let (fs_name, fs) = match (late, count_fragments) {
+                _ if probe.late_depth => (
+                    "forward_late_depth.frag",
+                    pick(
+                        spv::FORWARD_LATE_DEPTH_FS,
+                        spv::FORWARD_LATE_DEPTH_LAYERS_FS,
+                    ),
+                ),
                 (true, true) => (
                     "forward_count_late.frag",
                     pick(

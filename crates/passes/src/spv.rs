@@ -7,6 +7,8 @@ pub const FORWARD_VS: &[u8] = include_bytes!("../../../shaders/spv/forward.vert.
 pub const FORWARD_FS: &[u8] = include_bytes!("../../../shaders/spv/forward.frag.spv");
 pub const FORWARD_EARLY_FS: &[u8] = include_bytes!("../../../shaders/spv/forward_early.frag.spv");
 pub const FORWARD_COUNT_FS: &[u8] = include_bytes!("../../../shaders/spv/forward_count.frag.spv");
+pub const FORWARD_LATE_DEPTH_FS: &[u8] =
+    include_bytes!("../../../shaders/spv/forward_late_depth.frag.spv");
 pub const FORWARD_COUNT_LATE_FS: &[u8] =
     include_bytes!("../../../shaders/spv/forward_count_late.frag.spv");
 pub const VISBUF_VS: &[u8] = include_bytes!("../../../shaders/spv/visbuf.vert.spv");
@@ -24,6 +26,8 @@ pub const FORWARD_EARLY_LAYERS_FS: &[u8] =
     include_bytes!("../../../shaders/spv/forward_early_layers.frag.spv");
 pub const FORWARD_COUNT_LAYERS_FS: &[u8] =
     include_bytes!("../../../shaders/spv/forward_count_layers.frag.spv");
+pub const FORWARD_LATE_DEPTH_LAYERS_FS: &[u8] =
+    include_bytes!("../../../shaders/spv/forward_late_depth_layers.frag.spv");
 pub const FORWARD_COUNT_LATE_LAYERS_FS: &[u8] =
     include_bytes!("../../../shaders/spv/forward_count_late_layers.frag.spv");
 pub const VISBUF_LAYERS_FS: &[u8] = include_bytes!("../../../shaders/spv/visbuf_layers.frag.spv");

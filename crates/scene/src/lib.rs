@@ -62,6 +62,7 @@ pub use gltf_load::{
     ResourceResolver,
 };
 pub use motion::{Motion, MotionParams};
+pub use procedural::seed_grid;
 pub use procedural::{generate, ProceduralKind, ProceduralParams};
 pub use scene::{
     BoundsInfo, CellRun, Change, ClassCounts, DrawBuckets, DrawGroup, GltfCounts, GpuInstance,
@@ -126,6 +127,9 @@ pub fn load_with(spec: &str, options: &LoadOptions) -> Result<Scene, SceneError>
     if let Some(level) = spec.strip_suffix("@one-mesh") {
         return load_with(level, options)?.one_mesh_per_material();
     }
+    if let Some(rest) = spec.strip_prefix("seed-grid") {
+        return seed_grid_spec(spec, rest);
+    }
     if let Some(base) = spec.strip_suffix("@draws") {
         return load_with(base, options)?.mesh_per_instance();
     }
@@ -161,6 +165,28 @@ pub fn load_with(spec: &str, options: &LoadOptions) -> Result<Scene, SceneError>
         scene.translate(options.origin);
     }
     Ok(scene)
+}
+
+/// `seed-grid[:N[:DETAIL]]` ([`seed_grid::generate`]; `rest` is what follows `seed-grid`).
+fn seed_grid_spec(spec: &str, rest: &str) -> Result<Scene, SceneError> {
+    let bad = || SceneError::BadSpec {
+        spec: spec.to_string(),
+        reason: "seed-grid[:N[:DETAIL]]: whole numbers".into(),
+    };
+    let mut grid = seed_grid::SeedGrid::default();
+    if !rest.is_empty() {
+        let mut parts = rest.strip_prefix(':').ok_or_else(bad)?.split(':');
+        if let Some(n) = parts.next() {
+            grid.n = n.parse().map_err(|_| bad())?;
+        }
+        if let Some(d) = parts.next() {
+            grid.detail = d.parse().map_err(|_| bad())?;
+        }
+        if parts.next().is_some() {
+            return Err(bad());
+        }
+    }
+    seed_grid::generate(grid, 1)
 }
 
 #[derive(Debug, PartialEq)]

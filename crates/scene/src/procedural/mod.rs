@@ -16,6 +16,7 @@ mod city;
 mod field;
 mod forest;
 mod interior;
+pub mod seed_grid;
 pub(crate) mod shapes;
 
 use std::fmt;
