@@ -448,6 +448,7 @@ fn the_experiments_depth_variants_draw_what_they_claim() {
                 n: 3,
                 detail: 2,
                 discard,
+                back_to_front: false,
             },
             1,
         )

@@ -124,6 +124,7 @@ pub struct Technique {
     pub name: &'static str,
     pub shading: &'static str,
     pub culling: &'static str,
+    /// The spheres in the reverse order (the scene's instances reversed).
     pub back_to_front: bool,
     pub probe: StageProbe,
     /// The spheres' material alpha-tested at a cutoff nothing falls below.
@@ -242,17 +243,19 @@ pub fn run(a: &ExperimentsArgs) -> Result<(), CliError> {
             )));
         }
     }
-    let grid = |discard| {
+    let grid = |discard, back_to_front| {
         seed_grid::generate(
             SeedGrid {
                 n: a.grid,
                 detail: a.detail,
                 discard,
+                back_to_front,
             },
             1,
         )
     };
-    let (plain, discarding) = (grid(false)?, grid(true)?);
+    let (plain, discarding, reversed) =
+        (grid(false, false)?, grid(true, false)?, grid(false, true)?);
     std::fs::create_dir_all(&a.out).map_err(|e| CliError::Write {
         path: a.out.clone(),
         reason: e.to_string(),
@@ -272,7 +275,11 @@ pub fn run(a: &ExperimentsArgs) -> Result<(), CliError> {
                 let mut measured = Vec::new();
                 for t in TECHNIQUES {
                     bar.set_message(format!("{workload} {label} {}", t.name));
-                    let scene = if t.discard { &discarding } else { &plain };
+                    let scene = match (t.discard, t.back_to_front) {
+                        (true, _) => &discarding,
+                        (false, true) => &reversed,
+                        (false, false) => &plain,
+                    };
                     let ms = time_technique(ctx, scene, t, (*w, *h), workload == "alu", a)?;
                     measured.push((t.name, ms));
                     bar.inc(1);

@@ -24,12 +24,15 @@ pub const MAX_SEED_DETAIL: u32 = 16;
 
 /// What to build: `n` (32·n³ spheres), each of `detail` (2·detail quads a cube face's side);
 /// with `discard`, their material alpha-tested at a cutoff no fragment falls below (the
-/// seed's "early ZS, discard": a shader that may discard and never does).
+/// seed's "early ZS, discard": a shader that may discard and never does). The instances are in
+/// the grid's order, row by row away from the camera (the seed's front to back: instanced in
+/// one draw, they are drawn in that order), or with `back_to_front` the reverse.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SeedGrid {
     pub n: u32,
     pub detail: u32,
     pub discard: bool,
+    pub back_to_front: bool,
 }
 
 impl Default for SeedGrid {
@@ -38,6 +41,7 @@ impl Default for SeedGrid {
             n: 7,
             detail: 8,
             discard: false,
+            back_to_front: false,
         }
     }
 }
@@ -92,11 +96,15 @@ pub fn generate(grid: SeedGrid, seed: u64) -> Result<Scene, SceneError> {
             ),
         });
     }
-    let mut b = SceneBuilder::new(if grid.discard {
-        format!("{spec}+discard")
-    } else {
-        spec.clone()
-    });
+    let mut b = SceneBuilder::new(format!(
+        "{spec}{}{}",
+        if grid.discard { "+discard" } else { "" },
+        if grid.back_to_front {
+            "+back-to-front"
+        } else {
+            ""
+        }
+    ));
     let (nx, ny, nz) = (4 * grid.n, 4 * grid.n, 2 * grid.n);
     let count = (nx * ny * nz) as usize;
     b.set_source(SceneSource::Procedural {
@@ -124,6 +132,7 @@ pub fn generate(grid: SeedGrid, seed: u64) -> Result<Scene, SceneError> {
     let aspect = 16.0 / 9.0;
     let turn = Mat3::from_rotation_y((-45f32).to_radians());
     let mut centre = DVec3::ZERO;
+    let mut placed = Vec::with_capacity(count);
     for z in 0..nz {
         for y in 0..ny {
             for x in 0..nx {
@@ -146,12 +155,18 @@ pub fn generate(grid: SeedGrid, seed: u64) -> Result<Scene, SceneError> {
                 let local = Vec3::new((ux * 50.0) as f32, (uz * 10.0) as f32, (uy * 50.0) as f32);
                 let p = (turn * local).as_dvec3();
                 centre += p;
-                b.push_instance_trusted(
-                    Transform::new(Mat3::from_diagonal(Vec3::splat(radius as f32)), p),
-                    mesh,
-                );
+                placed.push(Transform::new(
+                    Mat3::from_diagonal(Vec3::splat(radius as f32)),
+                    p,
+                ));
             }
         }
+    }
+    if grid.back_to_front {
+        placed.reverse();
+    }
+    for t in placed {
+        b.push_instance_trusted(t, mesh);
     }
     centre /= count as f64;
     let camera = Camera {
@@ -231,10 +246,33 @@ mod tests {
                 n: 1,
                 detail: 1,
                 discard: true,
+                back_to_front: false,
             },
             1,
         )
         .unwrap();
+        // Back to front: the same spheres in the opposite order.
+        let reversed = generate(
+            SeedGrid {
+                n: 2,
+                detail: 3,
+                discard: false,
+                back_to_front: true,
+            },
+            1,
+        )
+        .unwrap();
+        for (a, b) in scene
+            .instances()
+            .iter()
+            .zip(reversed.instances().iter().rev())
+        {
+            assert_eq!(a.transform, b.transform);
+        }
+        // The grid's own order draws the near rows first: the first row is nearer than the
+        // last of its layer.
+        let row = 4 * 2;
+        assert!(dist(&scene.instances()[0]) < dist(&scene.instances()[row * (row - 1)]));
         assert_eq!(
             discard.materials()[0].class,
             MaterialClass::AlphaTested { cutoff: 0.0 }
