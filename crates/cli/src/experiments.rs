@@ -59,6 +59,10 @@ pub struct ExperimentsArgs {
     /// Where results.json, report.md and the plots go.
     #[arg(long)]
     pub out: PathBuf,
+    /// Measure nothing: write the report and plots of an earlier run's results.json (beside
+    /// another of the seed's GPUs with --compare, say).
+    #[arg(long, value_name = "RESULTS_JSON")]
+    pub from_results: Option<PathBuf>,
 }
 
 /// The seed's published results.
@@ -194,8 +198,9 @@ pub struct Run {
     pub ratio: f64,
 }
 
-#[derive(Serialize)]
-struct ResultsFile<'a> {
+/// results.json: where and what ran, and every run.
+#[derive(Serialize, Deserialize)]
+struct ResultsFile {
     device: String,
     profile: String,
     build: String,
@@ -205,7 +210,29 @@ struct ResultsFile<'a> {
     triangles: u64,
     alu_iterations: u32,
     frames: u32,
-    runs: &'a [Run],
+    workloads: Vec<String>,
+    /// (label, width, height).
+    sizes: Vec<(String, u32, u32)>,
+    runs: Vec<Run>,
+}
+
+/// report.md and the plots of `f`, beside `compare`'s published figures; the report's text.
+fn write_outputs(
+    out: &Path,
+    f: &ResultsFile,
+    published: &Published,
+    compare: &str,
+) -> Result<String, CliError> {
+    std::fs::create_dir_all(out).map_err(|e| CliError::Write {
+        path: out.to_path_buf(),
+        reason: e.to_string(),
+    })?;
+    let md = report(f, published, compare);
+    crate::bench::results::write_atomically(&out.join("report.md"), md.as_bytes())?;
+    for workload in &f.workloads {
+        plot(out, workload, &f.runs, published, compare, &f.sizes)?;
+    }
+    Ok(md)
 }
 
 pub fn run(a: &ExperimentsArgs) -> Result<(), CliError> {
@@ -221,6 +248,18 @@ pub fn run(a: &ExperimentsArgs) -> Result<(), CliError> {
                 .collect::<Vec<_>>()
                 .join(", ")
         )));
+    }
+    if let Some(from) = &a.from_results {
+        let text = std::fs::read_to_string(from)
+            .map_err(|e| CliError::Usage(format!("--from-results {}: {e}", from.display())))?;
+        let file: ResultsFile = serde_json::from_str(&text).map_err(|e| {
+            CliError::Usage(format!(
+                "--from-results {}: not an experiments results.json: {e}",
+                from.display()
+            ))
+        })?;
+        let md = write_outputs(&a.out, &file, &published, &a.compare)?;
+        return outln!("{md}");
     }
     let sizes = if a.sizes.is_empty() {
         vec!["1K".to_string(), "2K".into(), "4K".into()]
@@ -315,16 +354,14 @@ pub fn run(a: &ExperimentsArgs) -> Result<(), CliError> {
             triangles: plain.triangles_drawn(),
             alu_iterations: a.alu_iterations,
             frames: a.frames,
-            runs: &runs,
+            workloads: workloads.clone(),
+            sizes: sizes.clone(),
+            runs,
         };
         let json =
             serde_json::to_string_pretty(&file).map_err(|e| CliError::Usage(e.to_string()))?;
         crate::bench::results::write_atomically(&a.out.join("results.json"), json.as_bytes())?;
-        let md = report(&file, &published, &a.compare, &workloads, &sizes);
-        crate::bench::results::write_atomically(&a.out.join("report.md"), md.as_bytes())?;
-        for workload in &workloads {
-            plot(&a.out, workload, &runs, &published, &a.compare, &sizes)?;
-        }
+        let md = write_outputs(&a.out, &file, &published, &a.compare)?;
         outln!("{md}")
     })
 }
@@ -369,13 +406,8 @@ fn time_technique(
     Ok(crate::bottleneck::time_frames(ctx, scene, options, &path, a.frames)?.0)
 }
 
-fn report(
-    f: &ResultsFile<'_>,
-    published: &Published,
-    compare: &str,
-    workloads: &[String],
-    sizes: &[(String, u32, u32)],
-) -> String {
+fn report(f: &ResultsFile, published: &Published, compare: &str) -> String {
+    let (workloads, sizes) = (&f.workloads, &f.sizes);
     let mut md = format!(
         "# Seed 000's geometry-culling tests on {}\n\n{} spheres ({} triangles; grid {}, detail {}), \
          profile {}, tilegraph {}, {} frames a run (medians of whole frames). Each cell: the \
@@ -501,6 +533,8 @@ fn plot(
                 String::new()
             }
         })
+        .x_labels(8)
+        .x_label_formatter(&|v| format!("{v:.2}"))
         .x_desc("ratio (1 = early Z front to back)")
         .draw()
         .map_err(|e| err(e.to_string()))?;

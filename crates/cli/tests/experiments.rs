@@ -93,6 +93,28 @@ fn the_seeds_experiments_run_small_and_report_beside_its_figures() {
         let svg = std::fs::read_to_string(out.join(format!("experiments-{w}.svg"))).unwrap();
         roxmltree::Document::parse(&svg).unwrap_or_else(|e| panic!("{w}: {e}"));
     }
+    // The same results beside another of the seed's GPUs, measuring nothing.
+    let again = out.join("again");
+    let (ok, stdout, err) = tilegraph(&[
+        "experiments",
+        "--from-results",
+        out.join("results.json").to_str().unwrap(),
+        "--compare",
+        "Apple M1",
+        "--out",
+        again.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(stdout.contains("1K Apple M1"), "{stdout}");
+    assert!(again.join("experiments-alu.svg").is_file());
+    let (ok, _, err) = tilegraph(&[
+        "experiments",
+        "--from-results",
+        out.join("report.md").to_str().unwrap(),
+        "--out",
+        again.to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("report.md"), "{err}");
     let _ = std::fs::remove_dir_all(&out);
 }
 
