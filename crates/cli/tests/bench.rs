@@ -2,21 +2,9 @@
 //! writes results, a report and SVG plots with every setting's points, and resumes.
 
 use std::path::PathBuf;
-use std::process::Command;
 
-fn tilegraph(args: &[String]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tilegraph"))
-        .args(args)
-        .env_remove("TILEGRAPH_PROFILE")
-        .env("TILEGRAPH_VALIDATION", "required")
-        .output()
-        .expect("run tilegraph");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+mod common;
+use common::tilegraph;
 
 /// `relative` under the test data, or `None` (recorded as a skip).
 fn test_data(relative: &str) -> Option<PathBuf> {

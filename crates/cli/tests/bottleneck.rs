@@ -1,22 +1,10 @@
 //! `tilegraph bottleneck` on lavapipe (validation required): every probe runs and is timed,
-//! occlusion culling gives way to frustum culling under them, and a constructed case whose bottleneck is known — a heavy material, thousands of ALU
-//! iterations a pixel — is named fragment shading.
+//! occlusion culling gives way to frustum culling under them, and a constructed case whose
+//! bottleneck is known — a heavy material, thousands of ALU iterations a pixel — is named
+//! fragment shading.
 
-use std::process::Command;
-
-fn tilegraph(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tilegraph"))
-        .args(args)
-        .env_remove("TILEGRAPH_PROFILE")
-        .env("TILEGRAPH_VALIDATION", "required")
-        .output()
-        .expect("run tilegraph");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+mod common;
+use common::tilegraph;
 
 #[test]
 fn a_heavy_material_is_named_fragment_shading() {

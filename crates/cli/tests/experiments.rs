@@ -2,21 +2,8 @@
 //! seed runs under both workloads, the report has its tables beside the seed's figures, the
 //! plots parse; no timing is asserted.
 
-use std::process::Command;
-
-fn tilegraph(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tilegraph"))
-        .args(args)
-        .env_remove("TILEGRAPH_PROFILE")
-        .env("TILEGRAPH_VALIDATION", "required")
-        .output()
-        .expect("run tilegraph");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+mod common;
+use common::tilegraph;
 
 const TECHNIQUES: [&str; 10] = [
     "without ZS",

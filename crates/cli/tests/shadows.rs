@@ -4,21 +4,8 @@
 //! oracle's (needed, FP, FN); `render --json` reports the
 //! casters drawn per cascade.
 
-use std::process::Command;
-
-fn tilegraph(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tilegraph"))
-        .args(args)
-        .env_remove("TILEGRAPH_PROFILE")
-        .env("TILEGRAPH_VALIDATION", "required")
-        .output()
-        .expect("run tilegraph");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+mod common;
+use common::tilegraph;
 
 const SHADOWS: [&str; 6] = [
     "--set",

@@ -5,21 +5,9 @@
 //! instances (JUnit `culling`); bad input names the file.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn tilegraph(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tilegraph"))
-        .args(args)
-        .env_remove("TILEGRAPH_PROFILE")
-        .env("TILEGRAPH_VALIDATION", "required")
-        .output()
-        .expect("run tilegraph");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+mod common;
+use common::tilegraph;
 
 fn config(culling: &str, city_path: Option<&str>) -> String {
     let path = city_path.map_or(String::new(), |p| format!("camera_path = \"{p}\"\n"));

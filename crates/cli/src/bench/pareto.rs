@@ -560,42 +560,12 @@ fn legend(s: &mut String, cullings: &[&str], shadings: &[&str], ideal: Option<f6
     };
     heading(s, &mut y, "culling (colour)");
     for (i, c) in cullings.iter().enumerate() {
-        marker(
-            s,
-            Marker::Circle,
-            (LEGEND_X + 6.0, y),
-            5.0,
-            PALETTE[i % PALETTE.len()],
-            "",
-        );
-        let _ = writeln!(
-            s,
-            "<text x=\"{}\" y=\"{:.1}\">{}</text>",
-            LEGEND_X + 16.0,
-            y + 4.0,
-            escape(c)
-        );
-        y += 17.0;
+        legend_entry(s, (Marker::Circle, PALETTE[i % PALETTE.len()]), &mut y, c);
     }
     y += 6.0;
     heading(s, &mut y, "shading (shape)");
     for (i, sh) in shadings.iter().enumerate() {
-        marker(
-            s,
-            MARKERS[i % MARKERS.len()],
-            (LEGEND_X + 6.0, y),
-            5.0,
-            "#666",
-            "",
-        );
-        let _ = writeln!(
-            s,
-            "<text x=\"{}\" y=\"{:.1}\">{}</text>",
-            LEGEND_X + 16.0,
-            y + 4.0,
-            escape(sh)
-        );
-        y += 17.0;
+        legend_entry(s, (MARKERS[i % MARKERS.len()], "#666"), &mut y, sh);
     }
     y += 6.0;
     let _ = writeln!(
@@ -616,6 +586,19 @@ fn legend(s: &mut String, cullings: &[&str], shadings: &[&str], ideal: Option<f6
         );
     }
     s.push_str("</g>\n");
+}
+
+/// One legend line at `y`: a marker and its text; `y` moves to the next line.
+fn legend_entry(s: &mut String, (m, colour): (Marker, &str), y: &mut f64, text: &str) {
+    marker(s, m, (LEGEND_X + 6.0, *y), 5.0, colour, "");
+    let _ = writeln!(
+        s,
+        "<text x=\"{}\" y=\"{:.1}\">{}</text>",
+        LEGEND_X + 16.0,
+        *y + 4.0,
+        escape(text)
+    );
+    *y += 17.0;
 }
 
 #[cfg(test)]

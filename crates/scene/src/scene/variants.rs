@@ -11,17 +11,9 @@ impl Scene {
     /// opaque meshes get double-sided copies (so up to `2 n` new materials).
     pub fn with_spread_materials(&self, n: u32) -> Result<Scene, SceneError> {
         let n = n.max(1);
-        let mut b = SceneBuilder::new(format!("{}+materials:{n}", self.name));
-        for t in self.textures.iter() {
-            b.add_texture(t.clone());
-        }
-        for m in &self.materials {
-            b.add_material(*m);
-        }
+        let mut b = self.builder_like(format!("{}+materials:{n}", self.name), true);
         // Variant k of sidedness s: made when first used.
         let mut variants = vec![[None; 2]; n as usize];
-        let offset = b.push_vertices(&self.vertices);
-        debug_assert_eq!(offset, 0);
         let mut copies: Vec<Vec<MeshId>> = Vec::with_capacity(self.meshes.len());
         for mesh in &self.meshes {
             let first = mesh.first_index as usize;
@@ -67,15 +59,10 @@ impl Scene {
     /// textures, vertices and the camera path are kept.
     pub fn thinned(&self, triangles: u32, instances: u32) -> Result<Scene, SceneError> {
         let (triangles, instances) = (triangles.max(1), instances.max(1));
-        let mut b = SceneBuilder::new(format!("{}/thinned:{triangles}x{instances}", self.name));
-        for t in self.textures.iter() {
-            b.add_texture(t.clone());
-        }
-        for m in &self.materials {
-            b.add_material(*m);
-        }
-        let offset = b.push_vertices(&self.vertices);
-        debug_assert_eq!(offset, 0);
+        let mut b = self.builder_like(
+            format!("{}/thinned:{triangles}x{instances}", self.name),
+            true,
+        );
         let mut meshes = Vec::with_capacity(self.meshes.len());
         for mesh in &self.meshes {
             let first = mesh.first_index as usize;
@@ -108,13 +95,7 @@ impl Scene {
     /// (a bottleneck finder's constructed case, `@dense:LEVEL`). `level` is at most 5.
     pub fn densified(&self, level: u32) -> Result<Scene, SceneError> {
         let n = 1u32 << level.min(5);
-        let mut b = SceneBuilder::new(format!("{}@dense:{level}", self.name));
-        for t in self.textures.iter() {
-            b.add_texture(t.clone());
-        }
-        for m in &self.materials {
-            b.add_material(*m);
-        }
+        let mut b = self.builder_like(format!("{}@dense:{level}", self.name), false);
         let mut meshes = Vec::with_capacity(self.meshes.len());
         for mesh in &self.meshes {
             let first = mesh.first_index as usize;
@@ -181,15 +162,7 @@ impl Scene {
     /// indices): as many draws as instances, where instancing would draw each mesh once (a
     /// bottleneck finder's constructed case, `@draws`).
     pub fn mesh_per_instance(&self) -> Result<Scene, SceneError> {
-        let mut b = SceneBuilder::new(format!("{}@draws", self.name));
-        for t in self.textures.iter() {
-            b.add_texture(t.clone());
-        }
-        for m in &self.materials {
-            b.add_material(*m);
-        }
-        let offset = b.push_vertices(&self.vertices);
-        debug_assert_eq!(offset, 0);
+        let mut b = self.builder_like(format!("{}@draws", self.name), true);
         for inst in &self.instances {
             let Some(mesh) = self.meshes.get(inst.mesh.index()) else {
                 continue;
@@ -217,6 +190,23 @@ impl Scene {
             }
         }
         b.build(Some(self.camera_path.clone()))
+    }
+
+    /// A builder named `name` with this scene's textures and materials (same ids), and with
+    /// `vertices` its vertex buffer too (same offsets: its meshes' ranges hold).
+    fn builder_like(&self, name: String, vertices: bool) -> SceneBuilder {
+        let mut b = SceneBuilder::new(name);
+        for t in self.textures.iter() {
+            b.add_texture(t.clone());
+        }
+        for m in &self.materials {
+            b.add_material(*m);
+        }
+        if vertices {
+            let offset = b.push_vertices(&self.vertices);
+            debug_assert_eq!(offset, 0);
+        }
+        b
     }
 
     /// The scene's instances over the meshes `b` holds (`mesh(i)`: the new id of mesh `i`).
