@@ -123,7 +123,7 @@ impl Published {
 
 /// One of the seed's techniques on tilegraph: its shading, culling, draw order and state.
 #[derive(Debug, Clone, Copy)]
-pub struct Technique {
+pub struct SeedTechnique {
     /// The seed's name for it (its tables' rows).
     pub name: &'static str,
     pub shading: &'static str,
@@ -135,8 +135,12 @@ pub struct Technique {
     pub discard: bool,
 }
 
-const fn technique(name: &'static str, shading: &'static str, culling: &'static str) -> Technique {
-    Technique {
+const fn technique(
+    name: &'static str,
+    shading: &'static str,
+    culling: &'static str,
+) -> SeedTechnique {
+    SeedTechnique {
         name,
         shading,
         culling,
@@ -152,7 +156,7 @@ const fn technique(name: &'static str, shading: &'static str, culling: &'static 
 }
 
 /// The seed's techniques, in its tables' order.
-pub const TECHNIQUES: [Technique; 10] = {
+pub const TECHNIQUES: [SeedTechnique; 10] = {
     let mut without = technique("without ZS", "forward", "none");
     without.probe.no_depth_test = true;
     let mut late = technique("late ZS, front to back", "forward", "none");
@@ -370,7 +374,7 @@ pub fn run(a: &ExperimentsArgs) -> Result<(), CliError> {
 fn time_technique(
     ctx: &tilegraph_vk::Context,
     scene: &Scene,
-    t: Technique,
+    t: SeedTechnique,
     (width, height): (u32, u32),
     alu: bool,
     a: &ExperimentsArgs,

@@ -214,64 +214,73 @@ fn place_labels(
     out
 }
 
-fn marker(svg: &mut String, m: Marker, (x, y): (f64, f64), r: f64, fill: &str, attrs: &str) {
-    let stroke = if attrs.contains("data-front=\"1\"") {
+/// How a marker is written: attributes on its element, outlined in black on the front, and a
+/// hover title inside it (none in the legend).
+#[derive(Default)]
+struct Mark<'a> {
+    attrs: &'a str,
+    front: bool,
+    title: &'a str,
+}
+
+/// A polygon marker's corners on a unit radius (the circle and square are elements of their own).
+fn corners(m: Marker) -> &'static [(f64, f64)] {
+    match m {
+        Marker::Circle | Marker::Square => &[],
+        Marker::TriangleUp => &[(0.0, -1.1), (1.0, 0.7), (-1.0, 0.7)],
+        Marker::Diamond => &[(0.0, -1.2), (1.0, 0.0), (0.0, 1.2), (-1.0, 0.0)],
+        Marker::TriangleDown => &[(0.0, 1.1), (1.0, -0.7), (-1.0, -0.7)],
+        Marker::Plus => &[
+            (-0.35, -1.0),
+            (0.35, -1.0),
+            (0.35, -0.35),
+            (1.0, -0.35),
+            (1.0, 0.35),
+            (0.35, 0.35),
+            (0.35, 1.0),
+            (-0.35, 1.0),
+            (-0.35, 0.35),
+            (-1.0, 0.35),
+            (-1.0, -0.35),
+            (-0.35, -0.35),
+        ],
+    }
+}
+
+fn marker(svg: &mut String, m: Marker, (x, y): (f64, f64), r: f64, fill: &str, mark: &Mark<'_>) {
+    let stroke = if mark.front {
         "stroke=\"#000\" stroke-width=\"1.2\""
     } else {
         "stroke=\"#fff\" stroke-width=\"0.6\" fill-opacity=\"0.8\""
     };
-    let poly = |pts: &[(f64, f64)]| {
-        pts.iter()
-            .map(|(px, py)| format!("{:.1},{:.1}", x + px * r, y + py * r))
-            .collect::<Vec<_>>()
-            .join(" ")
+    let (element, shape) = match m {
+        Marker::Circle => (
+            "circle",
+            format!("cx=\"{x:.1}\" cy=\"{y:.1}\" r=\"{r:.1}\""),
+        ),
+        Marker::Square => (
+            "rect",
+            format!(
+                "x=\"{:.1}\" y=\"{:.1}\" width=\"{:.1}\" height=\"{:.1}\"",
+                x - 0.85 * r,
+                y - 0.85 * r,
+                1.7 * r,
+                1.7 * r
+            ),
+        ),
+        polygon => {
+            let points: Vec<String> = corners(polygon)
+                .iter()
+                .map(|(px, py)| format!("{:.1},{:.1}", x + px * r, y + py * r))
+                .collect();
+            ("polygon", format!("points=\"{}\"", points.join(" ")))
+        }
     };
-    let _ = match m {
-        Marker::Circle => writeln!(
-            svg,
-            "<circle {attrs} cx=\"{x:.1}\" cy=\"{y:.1}\" r=\"{r:.1}\" fill=\"{fill}\" {stroke}/>"
-        ),
-        Marker::Square => writeln!(
-            svg,
-            "<rect {attrs} x=\"{:.1}\" y=\"{:.1}\" width=\"{:.1}\" height=\"{:.1}\" fill=\"{fill}\" {stroke}/>",
-            x - 0.85 * r,
-            y - 0.85 * r,
-            1.7 * r,
-            1.7 * r
-        ),
-        Marker::TriangleUp => writeln!(
-            svg,
-            "<polygon {attrs} points=\"{}\" fill=\"{fill}\" {stroke}/>",
-            poly(&[(0.0, -1.1), (1.0, 0.7), (-1.0, 0.7)])
-        ),
-        Marker::Diamond => writeln!(
-            svg,
-            "<polygon {attrs} points=\"{}\" fill=\"{fill}\" {stroke}/>",
-            poly(&[(0.0, -1.2), (1.0, 0.0), (0.0, 1.2), (-1.0, 0.0)])
-        ),
-        Marker::TriangleDown => writeln!(
-            svg,
-            "<polygon {attrs} points=\"{}\" fill=\"{fill}\" {stroke}/>",
-            poly(&[(0.0, 1.1), (1.0, -0.7), (-1.0, -0.7)])
-        ),
-        Marker::Plus => writeln!(
-            svg,
-            "<polygon {attrs} points=\"{}\" fill=\"{fill}\" {stroke}/>",
-            poly(&[
-                (-0.35, -1.0),
-                (0.35, -1.0),
-                (0.35, -0.35),
-                (1.0, -0.35),
-                (1.0, 0.35),
-                (0.35, 0.35),
-                (0.35, 1.0),
-                (-0.35, 1.0),
-                (-0.35, 0.35),
-                (-1.0, 0.35),
-                (-1.0, -0.35),
-                (-0.35, -0.35),
-            ])
-        ),
+    let open = format!("<{element} {} {shape} fill=\"{fill}\" {stroke}", mark.attrs);
+    let _ = if mark.title.is_empty() {
+        writeln!(svg, "{open}/>")
+    } else {
+        writeln!(svg, "{open}>{}</{element}>", mark.title)
     };
 }
 
@@ -502,11 +511,12 @@ pub fn svg(g: &Group<'_>, labels: &Labels) -> String {
                 u8::from(p.front)
             );
             let r = if p.front { 5.5 } else { 4.0 };
-            let mut one = String::new();
-            marker(&mut one, p.marker, (x_of(p.ms), y), r, p.colour, &attrs);
-            // The hover title inside the marker's element.
-            let one = one.trim_end().trim_end_matches("/>").to_string();
-            let _ = writeln!(s, "{one}>{title}</{}>", element(p.marker));
+            let mark = Mark {
+                attrs: &attrs,
+                front: p.front,
+                title: &title,
+            };
+            marker(&mut s, p.marker, (x_of(p.ms), y), r, p.colour, &mark);
         }
     }
     // The front's labels.
@@ -536,14 +546,6 @@ pub fn svg(g: &Group<'_>, labels: &Labels) -> String {
     legend(&mut s, &cullings, &shadings, ideal);
     s.push_str("</svg>\n");
     s
-}
-
-fn element(m: Marker) -> &'static str {
-    match m {
-        Marker::Circle => "circle",
-        Marker::Square => "rect",
-        _ => "polygon",
-    }
 }
 
 /// Right of the panels: colour per culling, shape per shading, the front and the ideal frame.
@@ -590,7 +592,7 @@ fn legend(s: &mut String, cullings: &[&str], shadings: &[&str], ideal: Option<f6
 
 /// One legend line at `y`: a marker and its text; `y` moves to the next line.
 fn legend_entry(s: &mut String, (m, colour): (Marker, &str), y: &mut f64, text: &str) {
-    marker(s, m, (LEGEND_X + 6.0, *y), 5.0, colour, "");
+    marker(s, m, (LEGEND_X + 6.0, *y), 5.0, colour, &Mark::default());
     let _ = writeln!(
         s,
         "<text x=\"{}\" y=\"{:.1}\">{}</text>",
