@@ -38,6 +38,8 @@ void main() {
     }
     vec3 n = gl_FrontFacing ? v_normal : -v_normal;
     vec3 c = shade_lit(base.rgb, n, shadow_factor(v_position, n), frame.params.x);
+    c += random_texel_reads(uvec2(gl_FragCoord.xy), frame.material_work.x).rgb
+        * float(frame.material_work.y);
     o_color = vec4(c, MATERIAL_CLASS == 2u ? base.a : 1.0);
 #ifdef COUNT_FRAGMENTS
     atomicAdd(counters.shaded[MATERIAL_CLASS], 1u);

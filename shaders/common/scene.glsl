@@ -75,6 +75,10 @@ layout(set = 0, binding = 0, std140) uniform Frame {
     // reaches past a receiver, metres.
     vec4 caster_floor;
     vec4 caster_reach;
+    // x: texels each pixel reads at random of the scene's textures (the memory-bound material,
+    // textures.glsl's random_texel_reads; 0 = none); y: their weight in the colour, always 0 (a
+    // uniform, so the compiler must make the reads, and the image stays exactly as it is).
+    uvec4 material_work;
 } frame;
 
 const uint MAX_CASTER_PLANES = 20u;

@@ -35,5 +35,8 @@ void resolve(uint id) {
     }
     vec3 n = surface_normal(s);
     vec3 p = s.p0 * s.bc.x + s.p1 * s.bc.y + s.p2 * s.bc.z;
-    o_color = vec4(shade_lit(color.rgb, n, shadow_factor(p, n), frame.params.x), 1.0);
+    vec3 c = shade_lit(color.rgb, n, shadow_factor(p, n), frame.params.x);
+    c += random_texel_reads(uvec2(gl_FragCoord.xy), frame.material_work.x).rgb
+        * float(frame.material_work.y);
+    o_color = vec4(c, 1.0);
 }

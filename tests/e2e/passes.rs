@@ -6,7 +6,7 @@
 use tilegraph_e2e::gpu_with;
 use tilegraph_graph::Plan;
 use tilegraph_passes::{FrameReport, PassKind, RenderOptions, SceneRenderer, Technique};
-use tilegraph_profile::SortOrder;
+use tilegraph_profile::{SortOrder, TextureBinding};
 use tilegraph_scene::Scene;
 use tilegraph_vk::readback::RgbaImage;
 
@@ -441,20 +441,7 @@ fn alpha_tested_fragments_are_counted_with_and_without_a_prepass() {
 #[test]
 fn the_experiments_depth_variants_draw_what_they_claim() {
     use tilegraph_passes::StageProbe;
-    use tilegraph_scene::seed_grid::{generate, SeedGrid};
-    let grid = |discard| {
-        generate(
-            SeedGrid {
-                n: 3,
-                detail: 2,
-                discard,
-                back_to_front: false,
-            },
-            1,
-        )
-        .unwrap()
-    };
-    let (scene, discarding) = (grid(false), grid(true));
+    let (scene, discarding) = (seed_grid(false, 0), seed_grid(true, 0));
     let options = |probe: StageProbe, alpha: bool| RenderOptions {
         width: W,
         height: H,
@@ -493,4 +480,77 @@ fn the_experiments_depth_variants_draw_what_they_claim() {
         differing > 100,
         "{differing} pixels differ without a depth test"
     );
+}
+
+/// A small seed grid (N 3: 864 spheres of 192 triangles) for the experiments' tests, with
+/// `textures` noise textures of 32² (the memory workload's).
+fn seed_grid(discard: bool, textures: u32) -> Scene {
+    use tilegraph_scene::seed_grid::{generate, SeedGrid, SeedTextures};
+    generate(
+        SeedGrid {
+            n: 3,
+            detail: 2,
+            discard,
+            back_to_front: false,
+            textures: SeedTextures {
+                count: textures,
+                side: 32,
+            },
+        },
+        1,
+    )
+    .unwrap()
+}
+
+/// The experiments' depth pre-pass as a render pass of its own draws the image of the subpass
+/// tilegraph merges it into, in two render passes instead of one; and the memory workload's
+/// random texel reads (forward and visibility-buffer resolve, textures indexed and as layers)
+/// leave the image as it is.
+#[test]
+fn the_experiments_separate_prepass_and_random_reads_keep_the_image() {
+    use tilegraph_passes::StageProbe;
+    let scene = seed_grid(false, 0);
+    let frame = |scene: &Scene, options: RenderOptions| {
+        let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+        let mut r = SceneRenderer::new(&g, scene, options).unwrap();
+        let cam = scene.camera_path().camera(0).unwrap();
+        let report = r.render(&g, scene, &cam).unwrap();
+        let image = r.read_image(&g).unwrap();
+        r.destroy(&g);
+        (image, report.plan.render_passes().count())
+    };
+    let prepass = |separate_render_passes| RenderOptions {
+        width: W,
+        height: H,
+        technique: Technique::Prepass,
+        probe: StageProbe {
+            separate_render_passes,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let (merged, merged_passes) = frame(&scene, prepass(false));
+    let (separate, separate_passes) = frame(&scene, prepass(true));
+    assert!(merged == separate);
+    assert_eq!((merged_passes, separate_passes), (1, 2));
+
+    let textured = seed_grid(false, 3);
+    for technique in [Technique::Forward, Technique::Visbuf] {
+        for binding in [TextureBinding::Indexed, TextureBinding::Layers] {
+            let options = |random_reads| {
+                let mut o = RenderOptions {
+                    width: W,
+                    height: H,
+                    technique,
+                    texture_binding: Some(binding),
+                    ..Default::default()
+                };
+                o.lighting.random_reads = random_reads;
+                o
+            };
+            let (plain, _) = frame(&textured, options(0));
+            let (reading, _) = frame(&textured, options(4));
+            assert!(plain == reading, "{technique:?} {binding:?}");
+        }
+    }
 }

@@ -1,17 +1,18 @@
 //! `tilegraph experiments` on lavapipe, small (validation required): every technique of the
-//! seed runs under both workloads, the report has its tables beside the seed's figures, the
+//! seed runs under its three workloads, the report has its tables beside the seed's figures, the
 //! plots parse; no timing is asserted.
 
 mod common;
 use common::tilegraph;
 
-const TECHNIQUES: [&str; 10] = [
+const TECHNIQUES: [&str; 11] = [
     "without ZS",
     "late ZS, front to back",
     "early ZS, back to front",
     "early ZS, discard",
     "early ZS, front to back",
     "depth pre-pass",
+    "depth pre-pass as subpass",
     "vis buf",
     "raster culling",
     "HiZ + pyramid",
@@ -34,6 +35,12 @@ fn the_seeds_experiments_run_small_and_report_beside_its_figures() {
         "1",
         "--alu-iterations",
         "8",
+        "--random-reads",
+        "2",
+        "--textures",
+        "3",
+        "--texture-side",
+        "32",
         "--compare",
         "ARM Mali G57",
         "--out",
@@ -44,7 +51,7 @@ fn the_seeds_experiments_run_small_and_report_beside_its_figures() {
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
     assert_eq!(results["spheres"], 32);
     let runs = results["runs"].as_array().unwrap();
-    assert_eq!(runs.len(), 2 * 2 * TECHNIQUES.len(), "{results}");
+    assert_eq!(runs.len(), 3 * 2 * TECHNIQUES.len(), "{results}");
     for r in runs {
         assert!(r["frame_gpu_ms"].as_f64().unwrap() > 0.0, "{r}");
         if r["technique"] == "early ZS, front to back" {
@@ -53,13 +60,19 @@ fn the_seeds_experiments_run_small_and_report_beside_its_figures() {
     }
     let report = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert_eq!(stdout.trim(), report.trim());
-    assert!(report.contains("## VS / raster / ZS bound") && report.contains("## ALU bound"));
+    for heading in [
+        "## VS / raster / ZS bound",
+        "## ALU bound (8 iterations a pixel)",
+        "## Memory bound (2 random texel reads a pixel from 3 noise textures of 32²)",
+    ] {
+        assert!(report.contains(heading), "{heading}: {report}");
+    }
     for t in TECHNIQUES {
         let rows: Vec<&str> = report
             .lines()
             .filter(|l| l.starts_with(&format!("| {t} |")))
             .collect();
-        assert_eq!(rows.len(), 2, "{t}: {report}");
+        assert_eq!(rows.len(), 3, "{t}: {report}");
         // At 1K the seed's Mali G57 figure sits beside ours (vis buf has none in its vertex
         // table: a dash).
         for row in rows {
@@ -76,7 +89,7 @@ fn the_seeds_experiments_run_small_and_report_beside_its_figures() {
         report.contains("| early ZS, front to back | 1.00 | — | 1.00 | 1.00 |"),
         "{report}"
     );
-    for w in ["vertex", "alu"] {
+    for w in ["vertex", "alu", "memory"] {
         let svg = std::fs::read_to_string(out.join(format!("experiments-{w}.svg"))).unwrap();
         roxmltree::Document::parse(&svg).unwrap_or_else(|e| panic!("{w}: {e}"));
     }
@@ -113,7 +126,7 @@ fn unknown_gpus_and_workloads_are_refused_by_name() {
         err.contains("GeForce 256") && err.contains("Nvidia RTX 2080"),
         "{err}"
     );
-    let (ok, _, err) = tilegraph(&["experiments", "--workloads", "memory", "--out", "unused"]);
+    let (ok, _, err) = tilegraph(&["experiments", "--workloads", "texture", "--out", "unused"]);
     assert!(!ok);
-    assert!(err.contains("memory"), "{err}");
+    assert!(err.contains("texture") && err.contains("memory"), "{err}");
 }

@@ -20,4 +20,8 @@ pub struct StageProbe {
     /// The forward colour shaders write the depth they would have (`forward_late_depth.frag`):
     /// the depth test runs after the shader (seed 000's "late ZS"). The image is unchanged.
     pub late_depth: bool,
+    /// Every raster pass a render pass of its own, as if the profile's `merge_subpasses` were
+    /// `never` (seed 000's depth pre-pass "separate" beside "as a subpass"): what a pass's
+    /// attachments cost when they go to memory between passes. The image is unchanged.
+    pub separate_render_passes: bool,
 }

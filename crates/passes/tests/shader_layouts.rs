@@ -165,6 +165,7 @@ fn instance_mesh_material_and_frame_match_rust() {
             offset_of!(FrameUniforms, caster_counts),
             offset_of!(FrameUniforms, caster_floor),
             offset_of!(FrameUniforms, caster_reach),
+            offset_of!(FrameUniforms, material_work),
         ],
         size_of::<FrameUniforms>(),
         false,

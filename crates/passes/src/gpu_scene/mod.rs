@@ -75,6 +75,9 @@ pub struct FrameUniforms {
     /// and what a lookup reaches past a receiver (`receivers-hiz`).
     pub caster_floor: [f32; 4],
     pub caster_reach: [f32; 4],
+    /// x: texels each pixel reads at random ([`Lighting::random_reads`]); y: their weight in
+    /// the colour, 0 (a uniform the shader cannot see is 0, so the reads are made).
+    pub material_work: [u32; 4],
 }
 
 /// Per-frame shading parameters.
@@ -86,6 +89,10 @@ pub struct Lighting {
     pub ambient: f32,
     /// Iterations of the heavy-material ALU loop (0 = plain Lambert).
     pub heavy_iterations: u32,
+    /// Texels each pixel reads at random places of random textures of the scene, level 0 (0 =
+    /// none): a memory-bound material (seed 000's "memory bound" test). Like the ALU loop it
+    /// leaves the image as it is.
+    pub random_reads: u32,
 }
 
 impl Default for Lighting {
@@ -95,6 +102,7 @@ impl Default for Lighting {
             color: Vec3::splat(0.85),
             ambient: 0.2,
             heavy_iterations: 0,
+            random_reads: 0,
         }
     }
 }
@@ -133,6 +141,7 @@ impl FrameUniforms {
             depth_params: [near, 0.5, 0.0, 0.0],
             eye_high: eye.high.extend(0.0).to_array(),
             eye_low: eye.low.extend(0.0).to_array(),
+            material_work: [lighting.random_reads, 0, 0, 0],
             ..Zeroable::zeroed()
         }
     }

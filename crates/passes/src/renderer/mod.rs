@@ -341,7 +341,15 @@ impl SceneRenderer {
         color: ColorTarget,
         image: &ImageHandle,
     ) -> Result<DeclaredFrame, RenderError> {
-        let profile = ctx.profile();
+        let unmerged;
+        let profile = if self.views.main.options.probe.separate_render_passes {
+            let mut p = ctx.profile().clone();
+            p.render_pass.merge_subpasses = tilegraph_profile::MergePolicy::Never;
+            unmerged = p;
+            &unmerged
+        } else {
+            ctx.profile()
+        };
         let mut graph = FrameGraph::new();
         let mut externals = Externals::new();
         let mut keys = Vec::with_capacity(self.views.len());

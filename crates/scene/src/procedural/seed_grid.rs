@@ -15,12 +15,27 @@ use super::Rng;
 use crate::camera::{Camera, CameraPath, PathKey};
 use crate::error::SceneError;
 use crate::scene::{Material, MaterialClass, Scene, SceneBuilder, SceneSource, Transform, Vertex};
+use crate::texture::{Sampler, Texture};
 use tilegraph_types::{DepthConvention, Projection};
 
 /// The largest N accepted (32·N³ spheres: 10 is the seed's slider's end, 32 000 spheres).
 pub const MAX_SEED_GRID: u32 = 16;
 /// The seed's two detail levels' range.
 pub const MAX_SEED_DETAIL: u32 = 16;
+/// Most noise textures a grid takes, and the largest side of one.
+pub const MAX_SEED_TEXTURES: u32 = 64;
+pub const MAX_SEED_TEXTURE_SIDE: u32 = 4096;
+
+/// Textures for the seed's memory-bound test: `count` textures of `side`² texels of white
+/// noise (incompressible and without locality, as photographs read at random places are), the
+/// spheres' material sampling the first; a material's random reads
+/// (`Lighting::random_reads` in tilegraph-passes) pick among all of them. The seed binds 32
+/// (8 images, 4 times each). `count` 0: no texture, the plain colour.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SeedTextures {
+    pub count: u32,
+    pub side: u32,
+}
 
 /// What to build: `n` (32·n³ spheres), each of `detail` (2·detail quads a cube face's side);
 /// with `discard`, their material alpha-tested at a cutoff no fragment falls below (the
@@ -33,6 +48,7 @@ pub struct SeedGrid {
     pub detail: u32,
     pub discard: bool,
     pub back_to_front: bool,
+    pub textures: SeedTextures,
 }
 
 impl Default for SeedGrid {
@@ -42,8 +58,31 @@ impl Default for SeedGrid {
             detail: 8,
             discard: false,
             back_to_front: false,
+            textures: SeedTextures::default(),
         }
     }
+}
+
+/// Texture `index` of `t`: white noise, each texel a hash of its place and the texture.
+fn noise_texture(index: u32, side: u32) -> Result<Texture, SceneError> {
+    let mut rgba = Vec::with_capacity(side as usize * side as usize * 4);
+    for y in 0..side {
+        for x in 0..side {
+            let h = (rng_unit_of(x, y, index) * f64::from(u32::MAX)) as u32;
+            rgba.extend_from_slice(&[h as u8, (h >> 8) as u8, (h >> 16) as u8, 255]);
+        }
+    }
+    Texture::from_rgba8(
+        format!("seed-noise-{index}"),
+        side,
+        side,
+        rgba,
+        Sampler::default(),
+    )
+    .map_err(|e| SceneError::BadSpec {
+        spec: format!("seed-grid noise texture {index}"),
+        reason: e.to_string(),
+    })
 }
 
 /// The sphere: a cube of `2 detail` quads a face's side, every vertex pushed onto the unit
@@ -96,15 +135,39 @@ pub fn generate(grid: SeedGrid, seed: u64) -> Result<Scene, SceneError> {
             ),
         });
     }
+    let SeedTextures {
+        count: textures,
+        side,
+    } = grid.textures;
+    if textures > MAX_SEED_TEXTURES
+        || (textures > 0 && !(1..=MAX_SEED_TEXTURE_SIDE).contains(&side))
+    {
+        return Err(SceneError::BadSpec {
+            spec,
+            reason: format!(
+                "up to {MAX_SEED_TEXTURES} textures of a side from 1 to {MAX_SEED_TEXTURE_SIDE}"
+            ),
+        });
+    }
     let mut b = SceneBuilder::new(format!(
-        "{spec}{}{}",
+        "{spec}{}{}{}",
         if grid.discard { "+discard" } else { "" },
         if grid.back_to_front {
             "+back-to-front"
         } else {
             ""
+        },
+        if textures > 0 {
+            format!("+textures:{textures}x{side}")
+        } else {
+            String::new()
         }
     ));
+    let mut first_texture = None;
+    for t in 0..textures {
+        let id = b.add_texture(noise_texture(t, side)?);
+        first_texture.get_or_insert(id);
+    }
     let (nx, ny, nz) = (4 * grid.n, 4 * grid.n, 2 * grid.n);
     let count = (nx * ny * nz) as usize;
     b.set_source(SceneSource::Procedural {
@@ -121,7 +184,7 @@ pub fn generate(grid: SeedGrid, seed: u64) -> Result<Scene, SceneError> {
             MaterialClass::Opaque
         },
         double_sided: false,
-        base_color_texture: None,
+        base_color_texture: first_texture,
         engine_material: None,
     });
     let data = sphere(grid.detail);
@@ -247,6 +310,7 @@ mod tests {
                 detail: 1,
                 discard: true,
                 back_to_front: false,
+                textures: SeedTextures::default(),
             },
             1,
         )
@@ -258,6 +322,7 @@ mod tests {
                 detail: 3,
                 discard: false,
                 back_to_front: true,
+                textures: SeedTextures::default(),
             },
             1,
         )
@@ -285,6 +350,45 @@ mod tests {
             "seed-grid7",
         ] {
             assert!(crate::load(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn the_memory_tests_textures_are_noise_and_the_spheres_sample_the_first() {
+        let grid = |count, side| SeedGrid {
+            n: 1,
+            detail: 1,
+            textures: SeedTextures { count, side },
+            ..SeedGrid::default()
+        };
+        let scene = generate(grid(3, 64), 1).unwrap();
+        assert_eq!(scene.textures().len(), 3);
+        assert!(scene.name().ends_with("+textures:3x64"), "{}", scene.name());
+        assert_eq!(
+            scene.materials()[0].base_color_texture,
+            Some(crate::texture::TextureId(0))
+        );
+        for t in scene.textures() {
+            assert_eq!((t.width(), t.height()), (64, 64));
+            // White noise: every channel's mean near the middle, neighbours unrelated.
+            let texels = t.level_pixels(0).unwrap();
+            let mean = texels.chunks(4).map(|p| f64::from(p[0])).sum::<f64>() / 4096.0;
+            assert!((mean - 127.5).abs() < 8.0, "{mean}");
+            let same = texels
+                .chunks(4)
+                .zip(texels.chunks(4).skip(1))
+                .filter(|(a, b)| a[0] == b[0])
+                .count();
+            assert!(same < 64, "{same} neighbours alike");
+        }
+        assert_ne!(scene.textures()[0].pixels(), scene.textures()[1].pixels());
+        assert!(generate(grid(0, 0), 1).unwrap().textures().is_empty());
+        for (count, side) in [
+            (MAX_SEED_TEXTURES + 1, 64),
+            (2, 0),
+            (2, MAX_SEED_TEXTURE_SIDE + 1),
+        ] {
+            assert!(generate(grid(count, side), 1).is_err(), "{count}x{side}");
         }
     }
 }
