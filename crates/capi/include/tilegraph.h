@@ -303,6 +303,10 @@ enum TgFeature
    * VkPhysicalDeviceVulkan12Features.shaderSampledImageArrayNonUniformIndexing.
    */
   TG_FEATURE_SAMPLED_IMAGE_ARRAY_NON_UNIFORM_INDEXING = (1 << 14),
+  /**
+   * VkPhysicalDeviceVulkan12Features.timelineSemaphore (async compute's waits).
+   */
+  TG_FEATURE_TIMELINE_SEMAPHORE = (1 << 15),
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

@@ -97,9 +97,11 @@ pub enum TgFeature {
     SampledImageArrayDynamicIndexing = 1 << 13,
     /// VkPhysicalDeviceVulkan12Features.shaderSampledImageArrayNonUniformIndexing.
     SampledImageArrayNonUniformIndexing = 1 << 14,
+    /// VkPhysicalDeviceVulkan12Features.timelineSemaphore (async compute's waits).
+    TimelineSemaphore = 1 << 15,
 }
 
-const FEATURE_BITS: [(Feature, TgFeature); 15] = [
+const FEATURE_BITS: [(Feature, TgFeature); 16] = [
     (Feature::Synchronization2, TgFeature::Synchronization2),
     (Feature::DynamicRendering, TgFeature::DynamicRendering),
     (Feature::DrawIndirectCount, TgFeature::DrawIndirectCount),
@@ -136,6 +138,7 @@ const FEATURE_BITS: [(Feature, TgFeature); 15] = [
         Feature::SampledImageArrayNonUniformIndexing,
         TgFeature::SampledImageArrayNonUniformIndexing,
     ),
+    (Feature::TimelineSemaphore, TgFeature::TimelineSemaphore),
 ];
 
 fn feature_bits(features: impl IntoIterator<Item = Feature>) -> u32 {

@@ -314,6 +314,7 @@ fn demo(out: &std::path::Path, size: (u32, u32), frames: u32) -> Result<(), CliE
         json: false,
         texture_binding: None,
         pvs: None,
+        async_compute: None,
         technique: None,
         oq_group: None,
         raster_occlusion_scale: None,

@@ -58,6 +58,12 @@ pub struct RunArgs {
     /// A precomputed visible set (`tilegraph pvs --out FILE`) for `--culling pvs`.
     #[arg(long, value_name = "FILE")]
     pub pvs: Option<PathBuf>,
+    /// Async compute, instead of the profile's `[queues]`: `off`, or on with `exclusive`
+    /// (ownership transfers) or `concurrent` sharing. On a device without a second compute
+    /// queue (lavapipe) the two-queue plan is submitted to its one queue in order: its waits
+    /// and transfers run, the overlap does not.
+    #[arg(long, value_parser = parse_async_compute)]
+    pub async_compute: Option<tilegraph_profile::QueuePolicy>,
     /// Deprecated: `--shading` in `render`, `--culling` in `cull-check`.
     #[arg(long, hide = true)]
     pub technique: Option<String>,
@@ -120,6 +126,10 @@ impl RunArgs {
             o.force_profile(p, "--profile");
         }
         o.features = features;
+        if let Some(q) = self.async_compute {
+            o.queues = Some(q);
+            o.async_on_one_queue = true;
+        }
         with_every_culling_feature(o)
     }
 
@@ -156,6 +166,20 @@ impl RunArgs {
             Some(p) => named_camera_path(&p.to_string_lossy(), scene),
             None => Ok(scene.camera_path().clone()),
         }
+    }
+}
+
+fn parse_async_compute(s: &str) -> Result<tilegraph_profile::QueuePolicy, String> {
+    use tilegraph_profile::{QueuePolicy, QueueSharing};
+    let on = |sharing| QueuePolicy {
+        async_compute: true,
+        sharing,
+    };
+    match s {
+        "off" => Ok(QueuePolicy::default()),
+        "exclusive" => Ok(on(QueueSharing::Exclusive)),
+        "concurrent" => Ok(on(QueueSharing::Concurrent)),
+        _ => Err(format!("`{s}`: off, exclusive or concurrent")),
     }
 }
 

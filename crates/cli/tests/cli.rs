@@ -860,3 +860,58 @@ fn auto_times_a_given_visible_set_only_where_the_profile_allows() {
     assert!(allowed.contains(" pvs "), "{allowed}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `graph --async-compute` shows the queues: the HiZ build on the async compute queue, each
+/// submission with its waits and their reasons, and the `queue` and `wait` explanations;
+/// `--async-compute off` keeps one queue and says why the build stays on it.
+#[test]
+fn graph_shows_queues_and_cross_queue_waits() {
+    let base = [
+        "graph",
+        "city:300",
+        "--culling",
+        "hiz",
+        "--shading",
+        "prepass",
+    ];
+    let with = |flag: &str| {
+        let mut args = base.to_vec();
+        args.extend(["--async-compute", flag]);
+        let (ok, out, err) = tilegraph(&args, &[("TILEGRAPH_VALIDATION", "required")]);
+        assert!(ok, "{err}");
+        out
+    };
+    let out = with("exclusive");
+    assert!(
+        out.contains("submissions on 2 queues (exclusive sharing)"),
+        "{out}"
+    );
+    assert!(
+        out.contains("hiz-build") && out.contains("compute (async)"),
+        "{out}"
+    );
+    assert!(
+        out.contains("submission 2 on the async-compute queue"),
+        "{out}"
+    );
+    assert!(
+        out.contains("waits for submission 0") && out.contains("frame start"),
+        "{out}"
+    );
+    assert!(
+        out.contains("(ownership)") && out.contains("release to async-compute"),
+        "{out}"
+    );
+    assert!(
+        out.contains("queue    hiz-build") && out.contains("wait     submission"),
+        "{out}"
+    );
+    let out = with("concurrent");
+    assert!(
+        out.contains("(concurrent sharing)") && !out.contains("(ownership)"),
+        "{out}"
+    );
+    let out = with("off");
+    assert!(!out.contains("submission 1"), "{out}");
+    assert!(out.contains("async compute is off"), "{out}");
+}

@@ -4,7 +4,8 @@ use std::fmt::{self, Write as _};
 
 use crate::declare::{Origin, PassUse, ResourceDesc};
 use crate::plan::{
-    AttachmentRef, Plan, PruneReason, RenderPass, Step, StepRange, Subpass, TrafficBreakdown, Usage,
+    AttachmentRef, BarrierBatch, Plan, PruneReason, Queue, QueueTransfer, RenderPass, Step,
+    StepRange, Subpass, TrafficBreakdown, Usage, WaitReason,
 };
 
 /// `1536 B`, `12.0 KiB`, `7.91 MiB`.
@@ -170,34 +171,101 @@ impl Plan {
         Ok(())
     }
 
+    /// The rows of a barrier batch (a transfer's half named after its hazard).
+    fn batch_rows(&self, batch: &BarrierBatch) -> Vec<Vec<String>> {
+        let hazard = |h: crate::plan::Hazard, t: Option<QueueTransfer>, release: bool| match t {
+            Some(t) if release => format!("{} release to {}", h.name(), t.to.name()),
+            Some(t) => format!("{} acquire from {}", h.name(), t.from.name()),
+            None => h.name().to_string(),
+        };
+        let release = batch
+            .images
+            .iter()
+            .map(|b| b.dst_stages)
+            .chain(batch.buffers.iter().map(|b| b.dst_stages))
+            .all(|s| s.is_empty());
+        let mut rows = Vec::new();
+        for b in &batch.images {
+            rows.push(row([
+                self.resource_name(b.resource).to_string(),
+                hazard(b.hazard, b.queue_transfer, release),
+                format!("{} -> {}", b.old_layout, b.new_layout),
+                format!("{} / {}", b.src_stages, b.src_access),
+                "->".into(),
+                format!("{} / {}", b.dst_stages, b.dst_access),
+            ]));
+        }
+        for b in &batch.buffers {
+            rows.push(row([
+                self.resource_name(b.resource).to_string(),
+                hazard(b.hazard, b.queue_transfer, release),
+                "buffer".into(),
+                format!("{} / {}", b.src_stages, b.src_access),
+                "->".into(),
+                format!("{} / {}", b.dst_stages, b.dst_access),
+            ]));
+        }
+        rows
+    }
+
+    /// A submission's heading: its queue and what it waits for (plans of two queues).
+    fn fmt_submission(&self, f: &mut fmt::Formatter<'_>, k: usize) -> fmt::Result {
+        let Some(s) = self.submissions.get(k) else {
+            return Ok(());
+        };
+        writeln!(f, "  submission {k} on the {} queue", s.queue.name())?;
+        for w in &s.waits {
+            let reasons: Vec<String> = w
+                .reasons
+                .iter()
+                .map(|r| match r {
+                    WaitReason::Resource {
+                        resource,
+                        hazard,
+                        transfer,
+                    } => format!(
+                        "{} {}{}",
+                        hazard.name(),
+                        self.resource_name(*resource),
+                        if *transfer { " (ownership)" } else { "" }
+                    ),
+                    WaitReason::FrameStart => "frame start".into(),
+                    WaitReason::Join => "join".into(),
+                })
+                .collect();
+            writeln!(
+                f,
+                "       waits for submission {} at {}: {}",
+                w.submission.0,
+                w.dst_stages,
+                reasons.join(", ")
+            )?;
+        }
+        if s.first == s.end && !s.releases.is_empty() {
+            writeln!(f, "       releases ({})", s.releases.len())?;
+            table(f, "       ", &self.batch_rows(&s.releases))?;
+        }
+        Ok(())
+    }
+
     fn fmt_steps(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "steps")?;
+        let queues = self.submissions.len() > 1;
+        let mut next = 0;
         for (i, step) in self.steps.iter().enumerate() {
+            while queues
+                && self
+                    .submissions
+                    .get(next)
+                    .is_some_and(|s| s.first.index() <= i)
+            {
+                self.fmt_submission(f, next)?;
+                next += 1;
+            }
             match step {
                 Step::Barriers(batch) => {
                     writeln!(f, "  {i:>3}  barriers ({})", batch.len())?;
-                    let mut rows = Vec::new();
-                    for b in &batch.images {
-                        rows.push(row([
-                            self.resource_name(b.resource).to_string(),
-                            b.hazard.name().into(),
-                            format!("{} -> {}", b.old_layout, b.new_layout),
-                            format!("{} / {}", b.src_stages, b.src_access),
-                            "->".into(),
-                            format!("{} / {}", b.dst_stages, b.dst_access),
-                        ]));
-                    }
-                    for b in &batch.buffers {
-                        rows.push(row([
-                            self.resource_name(b.resource).to_string(),
-                            b.hazard.name().into(),
-                            "buffer".into(),
-                            format!("{} / {}", b.src_stages, b.src_access),
-                            "->".into(),
-                            format!("{} / {}", b.dst_stages, b.dst_access),
-                        ]));
-                    }
-                    table(f, "       ", &rows)?;
+                    table(f, "       ", &self.batch_rows(batch))?;
                 }
                 Step::RenderPass(rp) => {
                     let budget = match self.tile_budget_bytes_per_px {
@@ -225,6 +293,22 @@ impl Plan {
                 }
                 Step::Flush(_) => writeln!(f, "  {i:>3}  flush (submit before occlusion queries)")?,
             }
+            let ending = self
+                .submissions
+                .iter()
+                .filter(|s| queues && s.end.index() == i + 1 && !s.releases.is_empty());
+            for s in ending {
+                writeln!(
+                    f,
+                    "       releases at the end of the submission ({})",
+                    s.releases.len()
+                )?;
+                table(f, "       ", &self.batch_rows(&s.releases))?;
+            }
+        }
+        while queues && next < self.submissions.len() {
+            self.fmt_submission(f, next)?;
+            next += 1;
         }
         Ok(())
     }
@@ -345,13 +429,25 @@ impl fmt::Display for Plan {
         let render_passes = self.render_passes().count();
         writeln!(
             f,
-            "plan for {}: {} passes, {} pruned, {} render pass{}, {} barriers",
+            "plan for {}: {} passes, {} pruned, {} render pass{}, {} barriers{}",
             self.profile,
             self.passes.len(),
             self.pruned.len(),
             render_passes,
             if render_passes == 1 { "" } else { "es" },
-            self.barrier_count()
+            self.barrier_count(),
+            if self.submissions.len() > 1 {
+                format!(
+                    ", {} submissions on 2 queues ({} sharing)",
+                    self.submissions.len(),
+                    match self.queue_sharing {
+                        tilegraph_profile::QueueSharing::Exclusive => "exclusive",
+                        tilegraph_profile::QueueSharing::Concurrent => "concurrent",
+                    }
+                )
+            } else {
+                String::new()
+            }
         )?;
         writeln!(f, "passes (execution order)")?;
         let mut rows = vec![row([
@@ -367,10 +463,15 @@ impl fmt::Display for Plan {
                 Some(s) => format!("{}.{}", p.step.0, s.0),
                 None => format!("{}", p.step.0),
             };
+            let kind = if p.queue == Queue::AsyncCompute {
+                format!("{} (async)", p.kind.name())
+            } else {
+                p.kind.name().into()
+            };
             rows.push(row([
                 format!("{i}"),
                 p.name.clone(),
-                p.kind.name().into(),
+                kind,
                 p.class.name().into(),
                 step,
                 self.uses_text(&p.uses),

@@ -6,7 +6,7 @@
 use std::fmt;
 
 use crate::declare::{InitialContent, Origin, ResourceId};
-use crate::plan::{MergeReason, Plan, Step, StepIndex};
+use crate::plan::{MergeReason, Plan, Queue, Step, StepIndex, WaitReason};
 use crate::types::{LoadOp, StoreOp};
 
 /// What a line explains.
@@ -17,6 +17,10 @@ pub enum Topic {
     Store,
     Barrier,
     Traffic,
+    /// Which queue an async-capable pass runs on.
+    Queue,
+    /// A submission's wait on the other queue.
+    Wait,
 }
 
 impl Topic {
@@ -27,6 +31,8 @@ impl Topic {
             Topic::Store => "store",
             Topic::Barrier => "barrier",
             Topic::Traffic => "traffic",
+            Topic::Queue => "queue",
+            Topic::Wait => "wait",
         }
     }
 }
@@ -221,7 +227,67 @@ impl Plan {
                 Step::Compute { .. } | Step::Transfer { .. } | Step::Flush(_) => {}
             }
         }
+        self.explain_queues(&mut out);
         out
+    }
+
+    /// Where each async-capable pass runs, and why each submission waits on the other queue.
+    fn explain_queues(&self, out: &mut Vec<Reason>) {
+        for p in self.passes.iter().filter(|p| p.async_capable) {
+            let why = if p.queue == Queue::AsyncCompute {
+                "declared async-capable, and async compute is on (the profile's `[queues]`, or the context's override): it runs beside the raster work".to_string()
+            } else {
+                format!(
+                    "declared async-capable, but async compute is off (profile {}, or a device without a second queue)",
+                    self.profile
+                )
+            };
+            out.push(Reason {
+                step: Some(p.step),
+                topic: Topic::Queue,
+                subject: p.name.clone(),
+                decision: p.queue.name().to_string(),
+                why,
+            });
+        }
+        if self.submissions.len() < 2 {
+            return;
+        }
+        for (k, s) in self.submissions.iter().enumerate() {
+            for w in &s.waits {
+                let other = self
+                    .submissions
+                    .get(w.submission.index())
+                    .map_or("other", |o| o.queue.name());
+                for r in &w.reasons {
+                    let why = match r {
+                        WaitReason::Resource {
+                            resource,
+                            hazard,
+                            transfer,
+                        } => format!(
+                            "{} of {}: the {other} queue used it last{}",
+                            hazard.name(),
+                            self.resource_name(*resource),
+                            if *transfer {
+                                "; its content moves to this queue's family (exclusive sharing)"
+                            } else {
+                                ""
+                            }
+                        ),
+                        WaitReason::FrameStart => "the async queue starts after the frame began on the graphics queue: earlier frames' use of the same memory and the imports' producers are behind it".into(),
+                        WaitReason::Join => "the frame ends on the graphics queue after the async queue's last work: one fence covers both".into(),
+                    };
+                    out.push(Reason {
+                        step: (s.first != s.end).then_some(s.first),
+                        topic: Topic::Wait,
+                        subject: format!("submission {k} ({})", s.queue.name()),
+                        decision: format!("waits for {} at {}", w.submission.0, w.dst_stages),
+                        why,
+                    });
+                }
+            }
+        }
     }
 
     fn explain_attachment(

@@ -41,9 +41,10 @@ pub use plan::{
     AliasAssignment, AliasHandoff, AliasLifetime, Attachment, AttachmentIndex, AttachmentRef,
     BarrierBatch, BlockIndex, BufferBarrier, FlushReason, Hazard, ImageBarrier, InlineVec,
     MemoryBlock, MemoryClass, MemoryNeed, MemoryRequirements, MemorySlot, MergeNote, MergeReason,
-    Plan, PlanResource, PlannedPass, PruneReason, PrunedPass, RenderPass, Residency, Step,
-    StepIndex, StepRange, Subpass, SubpassDependency, SubpassIndex, TrafficBreakdown,
-    TrafficEstimate, TrafficModel, Usage, ESTIMATED_ALIGNMENT_BYTES,
+    Plan, PlanResource, PlannedPass, PruneReason, PrunedPass, Queue, QueueTransfer, QueueWait,
+    RenderPass, Residency, Step, StepIndex, StepRange, Submission, SubmissionIndex, Subpass,
+    SubpassDependency, SubpassIndex, TrafficBreakdown, TrafficEstimate, TrafficModel, Usage,
+    WaitReason, ESTIMATED_ALIGNMENT_BYTES,
 };
 pub use tilegraph_profile::PassClass;
 pub use types::{

@@ -14,6 +14,11 @@
 //!   use;
 //! - every barrier and subpass dependency names only accesses its stages perform;
 //! - no pruned pass contributes to an export;
+//! - with compute passes on an async compute queue: the submissions cover the steps in order,
+//!   each waits only on earlier ones (no cycle of waits), a conflicting access on one queue
+//!   after one on the other waits on its submission, the frame starts and ends on the graphics
+//!   queue, every acquire of an ownership transfer has its release on the other queue (none at
+//!   all with concurrent sharing), and barriers on the compute queue name only its stages;
 //! - compiling twice gives the same plan;
 //! - re-placing memory with other requirements (as the executor does) keeps all of the above.
 
@@ -22,7 +27,7 @@ mod common;
 use common::profile;
 use proptest::prelude::*;
 use tilegraph_graph::*;
-use tilegraph_profile::{MergePolicy, Profile};
+use tilegraph_profile::{MergePolicy, Profile, QueueSharing};
 
 const EXTENTS: [Extent2d; 2] = [Extent2d::new(16, 16), Extent2d::new(8, 4)];
 const FORMATS: [Format; 6] = [
@@ -76,6 +81,8 @@ struct Spec {
     dependencies: Vec<(u16, u16)>,
     profile: u8,
     chaos: bool,
+    /// Bit `p % 64`: compute pass `p` may run on an async compute queue.
+    async_passes: u64,
 }
 
 fn res_spec() -> impl Strategy<Value = ResSpec> {
@@ -128,17 +135,19 @@ fn spec(max_passes: usize) -> impl Strategy<Value = Spec> {
         prop::collection::vec(pass_spec(), 0..=max_passes),
         prop::collection::vec(any::<u16>(), 0..4),
         prop::collection::vec((any::<u16>(), any::<u16>()), 0..3),
-        0u8..7,
+        0u8..10,
         prop::bool::weighted(0.2),
+        any::<u64>(),
     )
         .prop_map(
-            |(resources, passes, exports, dependencies, profile, chaos)| Spec {
+            |(resources, passes, exports, dependencies, profile, chaos, async_passes)| Spec {
                 resources,
                 passes,
                 exports,
                 dependencies,
                 profile,
                 chaos,
+                async_passes,
             },
         )
 }
@@ -152,9 +161,19 @@ fn pick_profile(index: u8) -> Profile {
         "lavapipe",
         "desktop-nvidia",
     ];
-    match names.get(index as usize) {
-        Some(name) => profile(name),
-        None => {
+    // Async compute on: exclusive and concurrent sharing, immediate and tiler.
+    let async_on = |name: &str, sharing| {
+        let mut p = profile(name);
+        p.queues.async_compute = true;
+        p.queues.sharing = sharing;
+        p
+    };
+    match (names.get(index as usize), index) {
+        (Some(name), _) => profile(name),
+        (None, 7) => async_on("desktop-nvidia", QueueSharing::Exclusive),
+        (None, 8) => async_on("desktop-nvidia", QueueSharing::Concurrent),
+        (None, 9) => async_on("mali-valhall", QueueSharing::Exclusive),
+        (None, _) => {
             let mut p = profile("adreno-7xx");
             p.render_pass.merge_subpasses = MergePolicy::Never;
             p
@@ -396,6 +415,9 @@ fn build(spec: &Spec) -> Built {
                 b.coverage(coverage);
                 if pass.always {
                     b.retention(Retention::Always);
+                }
+                if spec.async_passes & (1 << (p % 64)) != 0 {
+                    b.async_compute();
                 }
                 b.id()
             }
@@ -980,8 +1002,36 @@ fn barriers_between(plan: &Plan, r: ResourceId, from: usize, to: usize) -> Vec<S
         .collect()
 }
 
+/// The submission each step is in.
+fn submission_of_steps(plan: &Plan) -> Vec<usize> {
+    let mut of = vec![usize::MAX; plan.steps.len()];
+    for (k, s) in plan.submissions.iter().enumerate() {
+        for i in s.steps() {
+            if let Some(x) = of.get_mut(i) {
+                *x = k;
+            }
+        }
+    }
+    of
+}
+
+/// Whether a conflicting access in step `a` is ordered before one in step `b` on the other
+/// queue: `b`'s submission waits on `a`'s (or a later one of its queue, whose signal comes
+/// after it), at every stage of `b`'s access the queue has.
+fn waits_for(plan: &Plan, of: &[usize], a: usize, b: usize, b_stages: PipelineStages) -> bool {
+    let (sa, sb) = (of[a], of[b]);
+    let queue_a = plan.submissions[sa].queue;
+    let need = b_stages.intersection(plan.submissions[sb].queue.stages());
+    plan.submissions[sb].waits.iter().any(|w| {
+        w.submission.index() >= sa
+            && plan.submissions[w.submission.index()].queue == queue_a
+            && w.dst_stages.contains(need)
+    })
+}
+
 fn check_hazards(plan: &Plan) -> Result<(), String> {
     let accesses = step_accesses(plan);
+    let of = submission_of_steps(plan);
     // Consecutive accesses of one resource where either writes need a barrier on it between
     // them that waits for the first and blocks the second. After a write (read-after-write,
     // write-after-write) it is also a memory dependency: the write is in its source access
@@ -992,6 +1042,15 @@ fn check_hazards(plan: &Plan) -> Result<(), String> {
         for pair in list.windows(2) {
             let (a, b) = (pair[0], pair[1]);
             if !(a.writes || b.writes) {
+                continue;
+            }
+            if plan.submissions[of[a.step]].queue != plan.submissions[of[b.step]].queue {
+                if !waits_for(plan, &of, a.step, b.step, b.stages) {
+                    return Err(format!(
+                        "{}: step {} then step {} on the other queue, without a wait",
+                        plan.resources[r].name, a.step, b.step
+                    ));
+                }
                 continue;
             }
             let found = barriers_between(plan, id, a.step, b.step);
@@ -1414,7 +1473,160 @@ fn other_requirements(plan: &Plan, scales: &[(u64, u32)]) -> Vec<MemoryRequireme
         .collect()
 }
 
+/// Happens-before between submissions: the same queue in order, or a chain of waits.
+fn ordered(plan: &Plan, from: usize, to: usize) -> bool {
+    let mut reach = vec![false; plan.submissions.len()];
+    reach[from] = true;
+    for k in from + 1..plan.submissions.len() {
+        let s = &plan.submissions[k];
+        let same_queue_before = (from..k).any(|j| reach[j] && plan.submissions[j].queue == s.queue);
+        reach[k] = same_queue_before || s.waits.iter().any(|w| reach[w.submission.index()]);
+    }
+    reach.get(to).copied().unwrap_or(false)
+}
+
+fn check_submissions(plan: &Plan, profile: &Profile) -> Result<(), String> {
+    let subs = &plan.submissions;
+    if subs.is_empty() {
+        return Err("no submission".into());
+    }
+    let mut at = 0;
+    for (k, s) in subs.iter().enumerate() {
+        if s.first.index() != at || s.end.index() < s.first.index() {
+            return Err(format!(
+                "submission {k} does not start where {} ends",
+                k.max(1) - 1
+            ));
+        }
+        at = s.end.index();
+        for w in &s.waits {
+            if w.submission.index() >= k {
+                return Err(format!("submission {k} waits on a later one"));
+            }
+            if subs[w.submission.index()].queue == s.queue {
+                return Err(format!("submission {k} waits on its own queue"));
+            }
+        }
+        for i in s.steps() {
+            let pass_queue = match &plan.steps[i] {
+                Step::Compute { pass } => plan.pass(*pass).map(|p| p.queue),
+                Step::RenderPass(_) | Step::Transfer { .. } | Step::Flush(_) => {
+                    Some(Queue::Graphics)
+                }
+                Step::Barriers(b) => {
+                    if s.queue == Queue::AsyncCompute {
+                        let all =
+                            Queue::AsyncCompute.stages() | PipelineStages::CONDITIONAL_RENDERING;
+                        let stages = b
+                            .images
+                            .iter()
+                            .flat_map(|x| [x.src_stages, x.dst_stages])
+                            .chain(b.buffers.iter().flat_map(|x| [x.src_stages, x.dst_stages]));
+                        for st in stages {
+                            if !all.contains(st) {
+                                return Err(format!("step {i}: {st} on the compute queue"));
+                            }
+                        }
+                    }
+                    None
+                }
+            };
+            if pass_queue.is_some_and(|q| q != s.queue) {
+                return Err(format!("step {i} is in a submission of another queue"));
+            }
+        }
+    }
+    if at != plan.steps.len() {
+        return Err("the submissions leave steps out".into());
+    }
+    let Some(last_async) = subs.iter().rposition(|s| s.queue == Queue::AsyncCompute) else {
+        if subs.len() != 1 || plan.passes.iter().any(|p| p.queue != Queue::Graphics) {
+            return Err("one queue, but not one submission".into());
+        }
+        return Ok(());
+    };
+    if !profile.queues.async_compute {
+        return Err("async compute off, but a submission on the async queue".into());
+    }
+    let first_async = subs
+        .iter()
+        .position(|s| s.queue == Queue::AsyncCompute)
+        .unwrap_or(0);
+    let last = subs.len() - 1;
+    if subs[0].queue != Queue::Graphics
+        || subs[0].first != subs[0].end
+        || subs[last].queue != Queue::Graphics
+        || !ordered(plan, 0, first_async)
+        || !ordered(plan, last_async, last)
+    {
+        return Err("the frame does not start and end on the graphics queue".into());
+    }
+    // Ownership transfers: each acquire has its release, earlier, on the other queue, with the
+    // same layouts; none at all with concurrent sharing.
+    let exclusive = profile.queues.sharing == QueueSharing::Exclusive;
+    let of = submission_of_steps(plan);
+    for (i, step) in plan.steps.iter().enumerate() {
+        let Step::Barriers(b) = step else { continue };
+        let acquires = b
+            .images
+            .iter()
+            .map(|x| (x.resource, x.queue_transfer, x.old_layout, x.new_layout))
+            .chain(b.buffers.iter().map(|x| {
+                (
+                    x.resource,
+                    x.queue_transfer,
+                    Layout::Undefined,
+                    Layout::Undefined,
+                )
+            }));
+        for (r, transfer, old, new) in acquires {
+            let Some(t) = transfer else { continue };
+            if !exclusive {
+                return Err(format!(
+                    "step {i}: an ownership transfer with concurrent sharing"
+                ));
+            }
+            let released = subs[..of[i]].iter().any(|s| {
+                s.queue == t.from
+                    && s.releases.images.iter().any(|x| {
+                        x.resource == r
+                            && x.old_layout == old
+                            && x.new_layout == new
+                            && x.queue_transfer == Some(t)
+                    })
+                    || s.queues_release_buffer(r, t)
+            });
+            if !released {
+                return Err(format!(
+                    "step {i}: {} acquired without its release",
+                    plan.resources[r.index()].name
+                ));
+            }
+        }
+    }
+    if !exclusive && subs.iter().any(|s| !s.releases.is_empty()) {
+        return Err("releases with concurrent sharing".into());
+    }
+    Ok(())
+}
+
+trait ReleasesBuffer {
+    fn queues_release_buffer(&self, r: ResourceId, t: QueueTransfer) -> bool;
+}
+
+impl ReleasesBuffer for Submission {
+    fn queues_release_buffer(&self, r: ResourceId, t: QueueTransfer) -> bool {
+        self.queue == t.from
+            && self
+                .releases
+                .buffers
+                .iter()
+                .any(|x| x.resource == r && x.queue_transfer == Some(t))
+    }
+}
+
 fn check_plan(plan: &Plan, built: &Built, profile: &Profile) -> Result<(), String> {
+    check_submissions(plan, profile)?;
     check_access_support(plan)?;
     check_store_none(plan, profile.render_pass.store_op_none)?;
     check_subpass_dependencies(plan)?;
@@ -1494,6 +1706,7 @@ fn the_generator_mostly_makes_graphs_that_compile() {
     let mut runner = TestRunner::deterministic();
     let strategy = spec(200);
     let (mut ok, mut total, mut pruned, mut merged) = (0, 0, 0, 0);
+    let (mut two_queues, mut crossings, mut transfers) = (0, 0, 0);
     for _ in 0..64 {
         let Ok(tree) = strategy.new_tree(&mut runner) else {
             continue;
@@ -1506,8 +1719,26 @@ fn the_generator_mostly_makes_graphs_that_compile() {
             ok += 1;
             pruned += usize::from(!c.plan.pruned.is_empty());
             merged += usize::from(c.plan.render_passes().any(|(_, rp)| rp.subpasses.len() > 1));
+            two_queues += usize::from(c.plan.submissions.len() > 1);
+            let waits = c.plan.submissions.iter().flat_map(|s| &s.waits);
+            let reasons: Vec<&WaitReason> = waits.flat_map(|w| &w.reasons).collect();
+            crossings += usize::from(
+                reasons
+                    .iter()
+                    .any(|r| matches!(r, WaitReason::Resource { .. })),
+            );
+            transfers += usize::from(
+                reasons
+                    .iter()
+                    .any(|r| matches!(r, WaitReason::Resource { transfer: true, .. })),
+            );
         }
     }
+    // Three profiles of ten turn async compute on.
+    assert!(
+        two_queues > total / 8 && crossings > total / 10 && transfers > total / 20,
+        "two queues in {two_queues} of {total}, crossings in {crossings}, transfers in {transfers}"
+    );
     assert_eq!(ok, total, "every non-chaos graph compiles");
     assert!(
         pruned > total / 4,

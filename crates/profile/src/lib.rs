@@ -55,6 +55,38 @@ pub struct Profile {
     /// How material textures are bound; built-in defaults where the profile says nothing.
     #[serde(default)]
     pub textures: TexturePolicy,
+    /// Whether compute passes that may run beside the raster work go to an async compute
+    /// queue; off where the profile says nothing.
+    #[serde(default)]
+    pub queues: QueuePolicy,
+}
+
+/// How the frame uses the device's queues.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct QueuePolicy {
+    /// Compute passes declared async-capable run on a second queue (one of a compute-only
+    /// family where the device has one), synchronized with the graphics queue by semaphores.
+    /// `tilegraph_vk::Context` turns it off on a device without such a queue.
+    #[serde(default)]
+    pub async_compute: bool,
+    /// How resources used on both queues are shared.
+    #[serde(default)]
+    pub sharing: QueueSharing,
+}
+
+/// How a resource used by both queues is shared between their families.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum QueueSharing {
+    /// `VK_SHARING_MODE_EXCLUSIVE`: the content moves with an ownership transfer (a release
+    /// barrier on the queue that had it, an acquire on the queue that takes it) wherever the
+    /// families differ.
+    #[default]
+    Exclusive,
+    /// `VK_SHARING_MODE_CONCURRENT`: no transfers; reads on both queues need no wait at all.
+    /// Some drivers compress less in this mode.
+    Concurrent,
 }
 
 /// How the scene's material textures are bound to the shading passes.

@@ -71,6 +71,24 @@ impl Context {
         Ok(())
     }
 
+    /// `vkQueueSubmit2` through core 1.3 or VK_KHR_synchronization2.
+    pub fn queue_submit2(
+        &self,
+        queue: vk::Queue,
+        submits: &[vk::SubmitInfo2<'_>],
+        fence: vk::Fence,
+    ) -> Result<(), VkError> {
+        let r = match &self.sync2 {
+            // SAFETY: synchronization2 was enabled at device creation; the caller's command
+            // buffers are executable and its semaphores live.
+            Sync2::Core => unsafe { self.device.queue_submit2(queue, submits, fence) },
+            // SAFETY: as above, through the extension.
+            Sync2::Khr(k) => unsafe { k.queue_submit2(queue, submits, fence) },
+            Sync2::Missing => return Err(missing_feature(Feature::Synchronization2)),
+        };
+        r.map_err(|e| VkError::call("vkQueueSubmit2", e))
+    }
+
     /// `vkCmdWriteTimestamp2` through core 1.3 or VK_KHR_synchronization2.
     pub fn cmd_write_timestamp2(
         &self,

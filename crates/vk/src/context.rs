@@ -2,7 +2,6 @@
 //! profile chosen for it, and a gpu-allocator whose allocations land in the profile's memory type.
 
 use std::collections::BTreeSet;
-use std::ffi::CStr;
 use std::mem::ManuallyDrop;
 use std::sync::atomic::AtomicU64;
 use std::sync::Mutex;
@@ -12,8 +11,9 @@ use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use gpu_allocator::{AllocationSizes, AllocatorDebugSettings};
 use tilegraph_profile::{Profile, ProfileSet, Selection};
 
+pub use crate::device_config::DeviceConfig;
 use crate::error::{VkError, VkResultExt};
-use crate::features::{Feature, FeatureRequest, FeatureStructs};
+use crate::features::{Feature, FeatureRequest};
 use crate::instance::{Instance, PhysicalDevice, MIN_API_VERSION};
 use crate::validation::Validation;
 
@@ -45,6 +45,14 @@ pub struct ContextOptions {
     /// the caller says otherwise ([`Self::force_profile`]).
     pub profile_forced_by: String,
     pub features: FeatureRequest,
+    /// Where the device has no second queue for async compute (lavapipe has one queue),
+    /// submit a profile's two-queue plans to the one queue in order instead of turning async
+    /// compute off: their semaphore waits, barriers and transfers run (and are validated), the
+    /// overlap does not. For tests.
+    pub async_on_one_queue: bool,
+    /// The queue policy to use instead of the profile's `[queues]` (async compute on or off,
+    /// the sharing mode): what `--async-compute` measures.
+    pub queues: Option<tilegraph_profile::QueuePolicy>,
 }
 
 impl ContextOptions {
@@ -58,6 +66,8 @@ impl ContextOptions {
             profile: std::env::var(tilegraph_profile::PROFILE_ENV).ok(),
             profile_forced_by: tilegraph_profile::PROFILE_ENV.to_string(),
             features: FeatureRequest::executor(),
+            async_on_one_queue: false,
+            queues: None,
         }
     }
 
@@ -81,6 +91,13 @@ pub(crate) enum DynRendering {
     Missing,
 }
 
+/// The queue the async compute passes of a plan are submitted to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AsyncQueue {
+    pub queue: vk::Queue,
+    pub family: u32,
+}
+
 /// The device a frame runs on.
 pub struct Context {
     pub physical: PhysicalDevice,
@@ -88,6 +105,9 @@ pub struct Context {
     pub device: ash::Device,
     pub queue: vk::Queue,
     pub queue_family: u32,
+    /// Where the profile's async compute runs (`None`: it is off, and the profile says so).
+    /// The same queue as `queue` under [`ContextOptions::async_on_one_queue`].
+    pub async_queue: Option<AsyncQueue>,
     pub(crate) enabled: BTreeSet<Feature>,
     pub(crate) allocator: ManuallyDrop<Mutex<Allocator>>,
     pub(crate) allocations: AtomicU64,
@@ -126,21 +146,41 @@ impl Context {
         if let tilegraph_profile::MatchedBy::Forced { by, .. } = &mut selection.matched_by {
             by.clone_from(&options.profile_forced_by);
         }
-        Self::with_instance(instance, physical, selection, &options.features)
+        Self::with_instance(instance, physical, selection, &options)
     }
 
     fn with_instance(
         instance: Instance,
         physical: PhysicalDevice,
-        selection: Selection,
-        request: &FeatureRequest,
+        mut selection: Selection,
+        options: &ContextOptions,
     ) -> Result<Self, VkError> {
-        let mut config = DeviceConfig::new(&physical, request)?;
+        let mut config = DeviceConfig::new(&physical, &options.features)?;
+        if let Some(queues) = options.queues {
+            selection.profile.queues = queues;
+        }
+        let async_on_one_queue = options.async_on_one_queue;
         let queue_family = config.queue_family;
-        let priorities = [1.0f32];
-        let queue_info = [vk::DeviceQueueCreateInfo::default()
+        // Async compute: on where the profile asks for it and the device has the queue and
+        // timeline semaphores (or the caller runs it on one queue).
+        let wanted = selection.profile.queues.async_compute;
+        let timelines = config.enabled.contains(&Feature::TimelineSemaphore);
+        let second = physical.async_compute_queue.filter(|_| wanted && timelines);
+        let priorities = [1.0f32, 1.0];
+        let mut queue_info = vec![vk::DeviceQueueCreateInfo::default()
             .queue_family_index(queue_family)
-            .queue_priorities(&priorities)];
+            .queue_priorities(if second == Some((queue_family, 1)) {
+                &priorities[..2]
+            } else {
+                &priorities[..1]
+            })];
+        if let Some((family, _)) = second.filter(|(f, _)| *f != queue_family) {
+            queue_info.push(
+                vk::DeviceQueueCreateInfo::default()
+                    .queue_family_index(family)
+                    .queue_priorities(&priorities[..1]),
+            );
+        }
         let info = config.chain(vk::DeviceCreateInfo::default().queue_create_infos(&queue_info));
         // SAFETY: feature structs are chained only for this API version / enabled extensions, and
         // every enabled feature was reported as supported.
@@ -148,6 +188,30 @@ impl Context {
             .vk("vkCreateDevice")?;
         // SAFETY: queue 0 of a family we created.
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
+        let async_queue = match second {
+            // SAFETY: a queue of the create infos above.
+            Some((family, index)) => Some(AsyncQueue {
+                queue: unsafe { device.get_device_queue(family, index) },
+                family,
+            }),
+            None if wanted && timelines && async_on_one_queue => Some(AsyncQueue {
+                queue,
+                family: queue_family,
+            }),
+            None => None,
+        };
+        if wanted && async_queue.is_none() {
+            log::info!(
+                "profile {} asks for async compute, but {}: it is off",
+                selection.profile.name,
+                if timelines {
+                    "the device has no second compute queue"
+                } else {
+                    "the device has no timeline semaphores"
+                }
+            );
+            selection.profile.queues.async_compute = false;
+        }
         log::info!(
             "device created with features [{}] and extensions [{}]",
             config
@@ -168,6 +232,7 @@ impl Context {
             device,
             queue,
             queue_family,
+            async_queue,
             enabled,
             owned: true,
         };
@@ -228,6 +293,14 @@ impl Context {
         if let tilegraph_profile::MatchedBy::Forced { by, .. } = &mut selection.matched_by {
             by.clone_from(&profile_forced_by);
         }
+        if selection.profile.queues.async_compute {
+            // The engine's device and submission: its plans stay on one queue for now.
+            log::info!(
+                "profile {}: async compute is off on an adopted device (the engine submits one queue)",
+                selection.profile.name
+            );
+            selection.profile.queues.async_compute = false;
+        }
         // SAFETY: the caller vouches that `device` was created from this instance.
         let device = unsafe { ash::Device::load(instance.raw.fp_v1_0(), device) };
         // SAFETY: the caller vouches that the queue exists.
@@ -236,6 +309,7 @@ impl Context {
             device,
             queue,
             queue_family,
+            async_queue: None,
             enabled,
             owned: false,
         };
@@ -255,6 +329,7 @@ impl Context {
             device,
             queue,
             queue_family,
+            async_queue,
             enabled,
             owned,
         } = made;
@@ -325,6 +400,7 @@ impl Context {
             device,
             queue,
             queue_family,
+            async_queue,
             enabled,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             allocations: AtomicU64::new(0),
@@ -523,6 +599,7 @@ struct DeviceParts {
     device: ash::Device,
     queue: vk::Queue,
     queue_family: u32,
+    async_queue: Option<AsyncQueue>,
     enabled: BTreeSet<Feature>,
     owned: bool,
 }
@@ -544,125 +621,6 @@ pub struct AdoptedDevice {
     /// What forced [`Self::profile`], as the selection reports it ("forced by {this} {name}"):
     /// the engine's own setting, a C field (`TgAdoptInfo.profile`), a system property.
     pub profile_forced_by: String,
-}
-
-/// What a device must be created with for a [`FeatureRequest`]: the features (the required
-/// ones, and the optional ones the device supports), their Vulkan feature structs, and the
-/// extensions they need. An engine asks for it before creating its device, enables at least
-/// this, and hands [`DeviceConfig::enabled`] to [`Context::adopt`].
-pub struct DeviceConfig {
-    pub enabled: BTreeSet<Feature>,
-    pub extensions: Vec<&'static CStr>,
-    /// The graphics + compute queue family tilegraph would use.
-    pub queue_family: u32,
-    structs: Box<FeatureStructs>,
-    extension_ptrs: Vec<*const std::ffi::c_char>,
-    api13: bool,
-}
-
-impl DeviceConfig {
-    /// The configuration `request` needs on `physical`: an error naming what is missing when a
-    /// required feature is not supported.
-    pub fn new(physical: &PhysicalDevice, request: &FeatureRequest) -> Result<Self, VkError> {
-        let missing: Vec<String> = request
-            .required
-            .iter()
-            .filter(|f| !physical.supported.contains(f))
-            .map(|f| f.to_string())
-            .collect();
-        if !missing.is_empty() {
-            return Err(VkError::MissingRequired {
-                device: physical.identity.device_name.clone(),
-                what: "features",
-                missing: missing.join(", "),
-            });
-        }
-        let mut enabled: BTreeSet<Feature> = request.required.clone();
-        for f in &request.optional {
-            if physical.supported.contains(f) {
-                enabled.insert(*f);
-            } else {
-                log::info!("optional feature {f} is not supported by {:?}; passes that want it take another path", physical.identity.device_name);
-            }
-        }
-        let queue_family = physical
-            .queue_family
-            .ok_or_else(|| VkError::MissingRequired {
-                device: physical.identity.device_name.clone(),
-                what: "queue family",
-                missing: "graphics + compute".into(),
-            })?;
-        let api13 = physical.api13();
-        let mut structs = Box::<FeatureStructs>::default();
-        let mut extensions: Vec<&'static CStr> = Vec::new();
-        for f in &enabled {
-            structs.set(*f, api13);
-            if let Some(e) = FeatureStructs::extension(*f, api13) {
-                if !extensions.contains(&e) {
-                    extensions.push(e);
-                }
-            }
-        }
-        // A portability implementation (MoltenVK) must have its subset extension enabled
-        // (VUID-VkDeviceCreateInfo-pProperties-04451).
-        let portability = c"VK_KHR_portability_subset";
-        if physical.has_extension(portability) {
-            extensions.push(portability);
-        }
-        let extension_ptrs = extensions.iter().map(|e| e.as_ptr()).collect();
-        Ok(DeviceConfig {
-            enabled,
-            extensions,
-            queue_family,
-            structs,
-            extension_ptrs,
-            api13,
-        })
-    }
-
-    /// Adds an extension of the engine's own (`VK_KHR_swapchain`, ...) to the list
-    /// [`DeviceConfig::chain`] enables; a name already there is not repeated.
-    pub fn add_extension(&mut self, name: &'static CStr) {
-        if !self.extensions.contains(&name) {
-            self.extensions.push(name);
-            self.extension_ptrs.push(name.as_ptr());
-        }
-    }
-
-    /// `info` with the extensions and the feature structs chained (replacing its extension
-    /// list — add the engine's own with [`DeviceConfig::add_extension`]; `info` must chain no
-    /// feature struct of its own).
-    pub fn chain<'a>(&'a mut self, info: vk::DeviceCreateInfo<'a>) -> vk::DeviceCreateInfo<'a> {
-        let uses = |f: Feature| self.enabled.contains(&f);
-        let (sync2, dynrend, cond) = (
-            uses(Feature::Synchronization2),
-            uses(Feature::DynamicRendering),
-            uses(Feature::ConditionalRendering),
-        );
-        let api13 = self.api13;
-        let s = &mut *self.structs;
-        let mut info = info.enabled_extension_names(&self.extension_ptrs);
-        info.p_enabled_features = std::ptr::null();
-        s.features2 = vk::PhysicalDeviceFeatures2::default().features(s.core);
-        info = info
-            .push_next(&mut s.features2)
-            .push_next(&mut s.v11)
-            .push_next(&mut s.v12);
-        if api13 {
-            info = info.push_next(&mut s.v13);
-        } else {
-            if sync2 {
-                info = info.push_next(&mut s.sync2);
-            }
-            if dynrend {
-                info = info.push_next(&mut s.dynrend);
-            }
-        }
-        if cond {
-            info = info.push_next(&mut s.cond);
-        }
-        info
-    }
 }
 
 pub(crate) fn missing_feature(f: Feature) -> VkError {

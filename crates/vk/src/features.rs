@@ -48,10 +48,13 @@ pub enum Feature {
     /// visibility-buffer resolve's material texture. Without it, textures go into one array
     /// image (`TextureBinding::Layers`).
     SampledImageArrayNonUniformIndexing,
+    /// Timeline semaphores (core 1.2 feature): the waits between the graphics and the async
+    /// compute queue's submissions. Without it, async compute is off.
+    TimelineSemaphore,
 }
 
 impl Feature {
-    pub const ALL: [Feature; 15] = [
+    pub const ALL: [Feature; 16] = [
         Feature::Synchronization2,
         Feature::DynamicRendering,
         Feature::DrawIndirectCount,
@@ -67,6 +70,7 @@ impl Feature {
         Feature::GeometryShader,
         Feature::SampledImageArrayDynamicIndexing,
         Feature::SampledImageArrayNonUniformIndexing,
+        Feature::TimelineSemaphore,
     ];
 }
 
@@ -117,6 +121,7 @@ impl FeatureRequest {
                 Feature::PipelineStatisticsQuery,
                 Feature::SampledImageArrayDynamicIndexing,
                 Feature::SampledImageArrayNonUniformIndexing,
+                Feature::TimelineSemaphore,
             ])
     }
 }
@@ -198,6 +203,7 @@ impl FeatureTargets<'_> {
             Feature::SampledImageArrayNonUniformIndexing => set(&mut self.v12, V12, |s| {
                 s.shader_sampled_image_array_non_uniform_indexing = t
             }),
+            Feature::TimelineSemaphore => set(&mut self.v12, V12, |s| s.timeline_semaphore = t),
         }
     }
 }
@@ -245,6 +251,7 @@ impl FeatureStructs {
             Feature::SampledImageArrayNonUniformIndexing => {
                 b(self.v12.shader_sampled_image_array_non_uniform_indexing)
             }
+            Feature::TimelineSemaphore => b(self.v12.timeline_semaphore),
         }
     }
 

@@ -6,8 +6,14 @@
 //! frame slot instead: it vouches that the GPU finished the frame last recorded for that slot
 //! (it waited on its own fence), which is all tilegraph needs to reuse the slot's buffers and read
 //! its queries. Its slots have no pool and no fence; waiting for every frame is a device wait.
+//!
+//! A plan of two queues (async compute) is submitted in parts, in plan order, each part to its
+//! queue, waiting on the other queue's timeline semaphore for the values its plan waits name
+//! and signalling its own; the last part (graphics, after the async queue's last) carries the
+//! slot's fence.
 
 use ash::vk;
+use tilegraph_graph::Queue;
 
 use crate::error::{VkError, VkResultExt};
 use crate::{Context, FaultSite};
@@ -17,6 +23,13 @@ pub const DEFAULT_FRAMES_IN_FLIGHT: usize = 2;
 
 struct FrameSlot {
     pool: vk::CommandPool,
+    /// The async compute queue's pool where its family is not `pool`'s (else null), and its
+    /// command buffers, recycled like `cbs`.
+    async_pool: vk::CommandPool,
+    async_cbs: Vec<vk::CommandBuffer>,
+    async_begun: usize,
+    /// This frame submitted work to the async compute queue.
+    async_submitted: bool,
     /// Every command buffer allocated from `pool`; a frame records into them in turn (one more
     /// per flush) and the pool reset recycles them all.
     cbs: Vec<vk::CommandBuffer>,
@@ -51,6 +64,25 @@ pub struct FrameRing {
     slots: Vec<FrameSlot>,
     next_frame: u64,
     submission: Submission,
+    /// Per queue (graphics, async compute): a timeline semaphore counting its submitted parts,
+    /// and the last value signalled; null without async compute.
+    timelines: [vk::Semaphore; 2],
+    signaled: [u64; 2],
+}
+
+/// One part of a frame for [`FrameRing::submit_part`]: its queue and the other queue's
+/// timeline values it waits for, each with the stages that wait.
+#[derive(Debug, Clone, Copy)]
+pub struct QueuePart<'a> {
+    pub queue: Queue,
+    pub waits: &'a [(Queue, u64, vk::PipelineStageFlags2)],
+}
+
+const fn timeline_slot(q: Queue) -> usize {
+    match q {
+        Queue::Graphics => 0,
+        Queue::AsyncCompute => 1,
+    }
 }
 
 /// The slot being recorded: its command buffer is in the recording state.
@@ -69,6 +101,10 @@ impl FrameSlot {
     fn engines() -> Self {
         FrameSlot {
             pool: vk::CommandPool::null(),
+            async_pool: vk::CommandPool::null(),
+            async_cbs: Vec::new(),
+            async_begun: 0,
+            async_submitted: false,
             cbs: Vec::new(),
             begun: 0,
             fence: vk::Fence::null(),
@@ -91,7 +127,26 @@ impl FrameRing {
             slots: Vec::new(),
             next_frame: 0,
             submission,
+            timelines: [vk::Semaphore::null(); 2],
+            signaled: [0; 2],
         };
+        if submission == Submission::Owned && ctx.async_queue.is_some() {
+            for t in &mut ring.timelines {
+                let mut kind = vk::SemaphoreTypeCreateInfo::default()
+                    .semaphore_type(vk::SemaphoreType::TIMELINE)
+                    .initial_value(0);
+                let info = vk::SemaphoreCreateInfo::default().push_next(&mut kind);
+                // SAFETY: valid device with timeline semaphores (Context enables async
+                // compute only with them).
+                match unsafe { ctx.device.create_semaphore(&info, None) } {
+                    Ok(s) => *t = s,
+                    Err(r) => {
+                        ring.destroy(ctx);
+                        return Err(VkError::call("vkCreateSemaphore", r));
+                    }
+                }
+            }
+        }
         for i in 0..frames_in_flight.max(1) {
             let slot = match submission {
                 Submission::Owned => Self::slot(ctx, i),
@@ -139,8 +194,36 @@ impl FrameRing {
             }
         };
         ctx.set_name(cb, &format!("frame slot {i}"));
+        let async_family = ctx
+            .async_queue
+            .map(|q| q.family)
+            .filter(|&f| f != ctx.queue_family);
+        let async_pool = match async_family {
+            Some(family) => {
+                let info = vk::CommandPoolCreateInfo::default()
+                    .queue_family_index(family)
+                    .flags(vk::CommandPoolCreateFlags::TRANSIENT);
+                // SAFETY: valid device and queue family (one of the device's queues).
+                match unsafe { d.create_command_pool(&info, None) } {
+                    Ok(p) => p,
+                    Err(r) => {
+                        // SAFETY: unused fence and pool.
+                        unsafe {
+                            d.destroy_fence(fence, None);
+                            d.destroy_command_pool(pool, None);
+                        }
+                        return Err(VkError::call("vkCreateCommandPool", r));
+                    }
+                }
+            }
+            None => vk::CommandPool::null(),
+        };
         Ok(FrameSlot {
             pool,
+            async_pool,
+            async_cbs: Vec::new(),
+            async_begun: 0,
+            async_submitted: false,
             cbs: vec![cb],
             begun: 1,
             fence,
@@ -208,6 +291,16 @@ impl FrameRing {
                 .reset_command_pool(s.pool, vk::CommandPoolResetFlags::empty())
         }
         .vk("vkResetCommandPool")?;
+        if s.async_pool != vk::CommandPool::null() {
+            // SAFETY: as above: the fence covers the async parts (the last part joins them).
+            unsafe {
+                ctx.device
+                    .reset_command_pool(s.async_pool, vk::CommandPoolResetFlags::empty())
+            }
+            .vk("vkResetCommandPool")?;
+        }
+        s.async_begun = 0;
+        s.async_submitted = false;
         let cb = s.cbs.first().copied().ok_or_else(|| VkError::Invalid {
             what: "frame ring".into(),
             reason: "the slot has no command buffer".into(),
@@ -290,12 +383,77 @@ impl FrameRing {
         })
     }
 
-    /// Ends recording and submits; the slot's fence signals when the GPU is done.
-    pub fn submit(&mut self, ctx: &Context, token: FrameToken) -> Result<(), VkError> {
-        if self.submission == Submission::Engine {
-            self.end_engine(&token);
-            return Ok(());
+    /// The device queue a part of `queue` goes to.
+    fn device_queue(ctx: &Context, queue: Queue) -> vk::Queue {
+        match (queue, ctx.async_queue) {
+            (Queue::AsyncCompute, Some(a)) => a.queue,
+            _ => ctx.queue,
         }
+    }
+
+    /// `part`'s waits and signal; the value it signals.
+    fn part_sync(
+        &mut self,
+        part: &QueuePart<'_>,
+    ) -> (
+        Vec<vk::SemaphoreSubmitInfo<'static>>,
+        vk::SemaphoreSubmitInfo<'static>,
+    ) {
+        let waits = part
+            .waits
+            .iter()
+            .map(|&(q, value, stages)| {
+                vk::SemaphoreSubmitInfo::default()
+                    .semaphore(self.timelines[timeline_slot(q)])
+                    .value(value)
+                    .stage_mask(stages)
+            })
+            .collect();
+        let k = timeline_slot(part.queue);
+        self.signaled[k] += 1;
+        let signal = vk::SemaphoreSubmitInfo::default()
+            .semaphore(self.timelines[k])
+            .value(self.signaled[k])
+            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS);
+        (waits, signal)
+    }
+
+    /// The timeline value the last part submitted to `queue` signalled.
+    pub fn signaled(&self, queue: Queue) -> u64 {
+        self.signaled[timeline_slot(queue)]
+    }
+
+    /// Submits the commands recorded so far as `part` (waiting on the other queue's timeline
+    /// for its values, signalling its own: the value is [`FrameRing::signaled`] after), and
+    /// continues recording in a fresh command buffer for `next`'s queue family.
+    pub fn submit_part(
+        &mut self,
+        ctx: &Context,
+        token: &mut FrameToken,
+        part: &QueuePart<'_>,
+        next: Queue,
+    ) -> Result<(), VkError> {
+        self.expect(Submission::Owned)?;
+        if self.timelines[0] == vk::Semaphore::null() {
+            return Err(VkError::Invalid {
+                what: "frame ring".into(),
+                reason: "a plan of two queues on a context without async compute".into(),
+            });
+        }
+        // SAFETY: recording command buffer of this slot.
+        unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
+        let (waits, signal) = self.part_sync(part);
+        let cbs = [vk::CommandBufferSubmitInfo::default().command_buffer(token.cb)];
+        let signals = [signal];
+        let submit = vk::SubmitInfo2::default()
+            .wait_semaphore_infos(&waits)
+            .command_buffer_infos(&cbs)
+            .signal_semaphore_infos(&signals);
+        ctx.queue_submit2(
+            Self::device_queue(ctx, part.queue),
+            &[submit],
+            vk::Fence::null(),
+        )?;
         let s = self
             .slots
             .get_mut(token.slot)
@@ -303,19 +461,93 @@ impl FrameRing {
                 what: "frame ring".into(),
                 reason: format!("slot {} does not exist", token.slot),
             })?;
-        let fence = s.fence;
+        s.flushed = true;
+        s.async_submitted |= part.queue == Queue::AsyncCompute;
+        let own_pool = next == Queue::AsyncCompute && s.async_pool != vk::CommandPool::null();
+        let (pool, cbs, begun) = if own_pool {
+            (s.async_pool, &mut s.async_cbs, &mut s.async_begun)
+        } else {
+            (s.pool, &mut s.cbs, &mut s.begun)
+        };
+        let cb = match cbs.get(*begun) {
+            Some(&cb) => cb,
+            None => {
+                let alloc = vk::CommandBufferAllocateInfo::default()
+                    .command_pool(pool)
+                    .level(vk::CommandBufferLevel::PRIMARY)
+                    .command_buffer_count(1);
+                // SAFETY: live pool; its buffers are freed with it.
+                let cb = unsafe { ctx.device.allocate_command_buffers(&alloc) }
+                    .vk("vkAllocateCommandBuffers")?;
+                let cb = cb.first().copied().ok_or_else(|| VkError::Invalid {
+                    what: "frame ring".into(),
+                    reason: "no command buffer allocated".into(),
+                })?;
+                cbs.push(cb);
+                cb
+            }
+        };
+        *begun += 1;
+        let begin = vk::CommandBufferBeginInfo::default()
+            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+        // SAFETY: fresh (or reset with its pool) command buffer.
+        unsafe { ctx.device.begin_command_buffer(cb, &begin) }.vk("vkBeginCommandBuffer")?;
+        token.cb = cb;
+        Ok(())
+    }
+
+    /// Ends recording and submits; the slot's fence signals when the GPU is done.
+    pub fn submit(&mut self, ctx: &Context, token: FrameToken) -> Result<(), VkError> {
+        self.submit_last(ctx, token, None)
+    }
+
+    /// [`FrameRing::submit`] of a frame's last part (`part`: its waits on the other queue, in
+    /// a plan of two queues).
+    pub fn submit_last(
+        &mut self,
+        ctx: &Context,
+        token: FrameToken,
+        part: Option<&QueuePart<'_>>,
+    ) -> Result<(), VkError> {
+        if self.submission == Submission::Engine {
+            self.end_engine(&token);
+            return Ok(());
+        }
+        let fence = self
+            .slots
+            .get(token.slot)
+            .ok_or_else(|| VkError::Invalid {
+                what: "frame ring".into(),
+                reason: format!("slot {} does not exist", token.slot),
+            })?
+            .fence;
+        let timelines = self.timelines[0] != vk::Semaphore::null();
+        let sync = part
+            .filter(|_| timelines)
+            .map(|p| (p.queue, self.part_sync(p)));
         let submitted = (|| {
             // SAFETY: the command buffer is recording (begin or flush gave it to this token).
             unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
+            ctx.injected_fault_at(FaultSite::Submit, "vkQueueSubmit (injected fault)")?;
+            if let Some((queue, (waits, signal))) = &sync {
+                let cbs = [vk::CommandBufferSubmitInfo::default().command_buffer(token.cb)];
+                let signals = [*signal];
+                let submit = vk::SubmitInfo2::default()
+                    .wait_semaphore_infos(waits)
+                    .command_buffer_infos(&cbs)
+                    .signal_semaphore_infos(&signals);
+                return ctx.queue_submit2(Self::device_queue(ctx, *queue), &[submit], fence);
+            }
             let cbs = [token.cb];
             let submit = vk::SubmitInfo::default().command_buffers(&cbs);
-            ctx.injected_fault_at(FaultSite::Submit, "vkQueueSubmit (injected fault)")?;
             // SAFETY: executable command buffer, unsignalled fence.
             unsafe { ctx.device.queue_submit(ctx.queue, &[submit], fence) }.vk("vkQueueSubmit")
         })();
         match submitted {
             Ok(()) => {
-                s.in_flight = true;
+                if let Some(s) = self.slots.get_mut(token.slot) {
+                    s.in_flight = true;
+                }
                 Ok(())
             }
             Err(e) => {
@@ -397,9 +629,18 @@ impl FrameRing {
             return Ok(());
         }
         if s.flushed {
-            // SAFETY: unsignalled fence of this slot (waited and reset before `begin`).
-            let tracked =
-                unsafe { ctx.device.queue_submit(ctx.queue, &[], s.fence) }.vk("vkQueueSubmit");
+            let tracked = if s.async_submitted {
+                // The fence waits for the async queue's parts too.
+                let waits = [vk::SemaphoreSubmitInfo::default()
+                    .semaphore(self.timelines[1])
+                    .value(self.signaled[1])
+                    .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)];
+                let submit = vk::SubmitInfo2::default().wait_semaphore_infos(&waits);
+                ctx.queue_submit2(ctx.queue, &[submit], s.fence)
+            } else {
+                // SAFETY: unsignalled fence of this slot (waited and reset before `begin`).
+                unsafe { ctx.device.queue_submit(ctx.queue, &[], s.fence) }.vk("vkQueueSubmit")
+            };
             match tracked {
                 Ok(()) => s.in_flight = true,
                 Err(e) => {
@@ -463,6 +704,16 @@ impl FrameRing {
             unsafe {
                 ctx.device.destroy_fence(s.fence, None);
                 ctx.device.destroy_command_pool(s.pool, None);
+                if s.async_pool != vk::CommandPool::null() {
+                    ctx.device.destroy_command_pool(s.async_pool, None);
+                }
+            }
+        }
+        for t in &mut self.timelines {
+            if *t != vk::Semaphore::null() {
+                // SAFETY: the caller waited for the GPU: no submission uses it.
+                unsafe { ctx.device.destroy_semaphore(*t, None) };
+                *t = vk::Semaphore::null();
             }
         }
     }

@@ -41,6 +41,10 @@ pub struct PhysicalDevice {
     pub supported: BTreeSet<Feature>,
     /// Queue family with graphics and compute, if any.
     pub queue_family: Option<u32>,
+    /// A queue for async compute beside the first of `queue_family`, as (family, index): the
+    /// first queue of a compute-only family with timestamps where the device has one (its own
+    /// engine on most desktop GPUs), else the second queue of `queue_family`.
+    pub async_compute_queue: Option<(u32, u32)>,
     pub limits: DeviceLimits,
     pub(crate) extensions: BTreeSet<CString>,
 }
@@ -318,6 +322,7 @@ impl Instance {
                 missing: format!("graphics + compute on family {queue_family}"),
             })?;
         pd.queue_family = Some(queue_family);
+        pd.async_compute_queue = async_compute_queue(&families, queue_family);
         pd.limits.timestamp_valid_bits = family.timestamp_valid_bits;
         Ok(pd)
     }
@@ -374,6 +379,7 @@ impl Instance {
         let timestamp_valid_bits = queue_family
             .and_then(|i| queues.get(i as usize))
             .map_or(0, |q| q.timestamp_valid_bits);
+        let async_compute_queue = queue_family.and_then(|g| async_compute_queue(&queues, g));
 
         let name = props
             .device_name_as_c_str()
@@ -431,6 +437,7 @@ impl Instance {
                 .unwrap_or_default(),
             supported: BTreeSet::new(),
             queue_family,
+            async_compute_queue,
             limits: DeviceLimits {
                 timestamp_period_ns: props.limits.timestamp_period,
                 timestamp_valid_bits,
@@ -564,5 +571,28 @@ impl Drop for Instance {
         // SAFETY: the Context that borrowed this instance has destroyed its device already
         // (Context owns the Instance and drops it last).
         unsafe { self.raw.destroy_instance(None) };
+    }
+}
+
+/// The queue async compute would run on beside the first queue of `graphics`: a compute-only
+/// family's first queue (with timestamps, which the per-pass timings write there), else the
+/// second queue of `graphics`; `None` where the device has neither (lavapipe: one queue).
+fn async_compute_queue(
+    families: &[vk::QueueFamilyProperties],
+    graphics: u32,
+) -> Option<(u32, u32)> {
+    let compute_only = families.iter().enumerate().find(|(i, q)| {
+        *i as u32 != graphics
+            && q.queue_count > 0
+            && q.timestamp_valid_bits > 0
+            && q.queue_flags.contains(vk::QueueFlags::COMPUTE)
+            && !q.queue_flags.contains(vk::QueueFlags::GRAPHICS)
+    });
+    match compute_only {
+        Some((i, _)) => Some((i as u32, 0)),
+        None => families
+            .get(graphics as usize)
+            .filter(|q| q.queue_count >= 2)
+            .map(|_| (graphics, 1)),
     }
 }

@@ -9,6 +9,7 @@
 
 mod commands;
 mod context;
+mod device_config;
 mod error;
 pub mod executor;
 mod features;
@@ -24,7 +25,7 @@ pub mod shader_facts;
 mod validation;
 
 pub use ash;
-pub use context::{AdoptedDevice, Context, ContextOptions, DeviceConfig, FaultSite};
+pub use context::{AdoptedDevice, AsyncQueue, Context, ContextOptions, DeviceConfig, FaultSite};
 pub use error::VkError;
 pub use features::{Feature, FeatureRequest, FeatureTargets};
 pub use instance::{DeviceLimits, Instance, PhysicalDevice, MIN_API_VERSION};

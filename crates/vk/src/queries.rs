@@ -307,10 +307,11 @@ impl QueryRing {
         ctx: &Context,
         cb: vk::CommandBuffer,
         slot: usize,
-        name: &str,
+        (name, graphics): (&str, bool),
     ) -> Result<Option<u32>, VkError> {
         let cap = self.capacity_passes;
-        let stats_ok = self.stats_supported;
+        // Pipeline statistics count graphics stages: not on a compute-only queue.
+        let stats_ok = self.stats_supported && graphics;
         let s = self.slot_mut(slot)?;
         if !s.timing.per_pass() {
             return Ok(None);

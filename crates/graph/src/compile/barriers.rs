@@ -230,6 +230,7 @@ fn push_barrier(batch: &mut BarrierBatch, resource: usize, is_image: bool, b: Ba
             old_layout: b.old_layout,
             new_layout: b.new_layout,
             hazard: b.hazard,
+            queue_transfer: None,
         });
     } else {
         batch.buffers.push(BufferBarrier {
@@ -239,6 +240,7 @@ fn push_barrier(batch: &mut BarrierBatch, resource: usize, is_image: bool, b: Ba
             dst_stages: b.dst_stages,
             dst_access: b.dst_access,
             hazard: b.hazard,
+            queue_transfer: None,
         });
     }
 }

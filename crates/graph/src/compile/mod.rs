@@ -3,8 +3,9 @@
 //!
 //! ```text
 //! validate_declarations -> trace_dataflow -> prune_unused_passes -> order_passes
-//!   -> merge_render_passes -> resource_lifetimes -> residencies -> assign_aliases
-//!   -> infer_load_store -> plan_barriers -> (the plan) -> estimate_traffic
+//!   -> assign_queues -> merge_render_passes -> resource_lifetimes -> residencies
+//!   -> assign_aliases -> infer_load_store -> plan_barriers -> plan_submissions
+//!   -> (the plan) -> estimate_traffic
 //! ```
 //!
 //! Merging comes before load/store inference because "never leaves the render pass" (DONT_CARE
@@ -22,6 +23,7 @@ mod load_store;
 mod merge;
 mod order;
 mod prune;
+mod queues;
 mod reassign;
 mod traffic;
 mod validate;
@@ -34,7 +36,7 @@ use crate::declare::{GraphBuilder, PassId, ResourceDecl, ResourceDesc, ResourceI
 use crate::error::GraphError;
 use crate::plan::{
     AliasLifetime, MemoryClass, MemoryNeed, MemoryRequirements, Plan, PlanResource, PlannedPass,
-    PrunedPass, Residency, Step, StepIndex, StepRange, SubpassIndex, TrafficModel,
+    PrunedPass, Queue, Residency, Step, StepIndex, StepRange, SubpassIndex, TrafficModel,
     ESTIMATED_ALIGNMENT_BYTES,
 };
 
@@ -42,6 +44,7 @@ use barriers::{plan_barriers, step_lifetimes, BarrierPlan, ResourceSync};
 use lifetimes::{content_kept_at_end, infer_usage, residencies, resource_lifetimes, ResourceUses};
 use load_store::{infer_load_store, LoadStoreInput};
 use prune::Pruning;
+use queues::{assign_queues, plan_submissions, SubmissionInput};
 
 /// A compiled frame: the plan, and the payloads of the surviving passes.
 #[derive(Debug, Clone)]
@@ -131,6 +134,9 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     let accesses = &validated.accesses;
     let dataflow = dataflow::trace_dataflow(&resources, &passes, accesses, &exports)?;
     let pruning = prune::prune_unused_passes(&dataflow, accesses, &passes, &exports);
+    let async_capable: Vec<bool> = passes.iter().map(|p| p.async_capable).collect();
+    let queue_of = assign_queues(&async_capable, profile.queues.async_compute);
+    let on_async: Vec<bool> = queue_of.iter().map(|&q| q == Queue::AsyncCompute).collect();
     let order = order::order_passes(
         accesses,
         &dataflow,
@@ -138,8 +144,15 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         n_resources,
         &pruning.alive,
         &dependencies,
-        profile,
+        (profile, &on_async),
     )?;
+    let async_queue = resources_on(
+        Queue::AsyncCompute,
+        &queue_of,
+        &order,
+        accesses,
+        n_resources,
+    );
     let (groups, merges) =
         merge::merge_render_passes(&order, &validated, &passes, n_resources, profile);
     let kept_at_end =
@@ -152,7 +165,10 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         .collect();
     // Aliasing runs on group numbers: steps are numbered later, and the assignment depends only
     // on the order of lifetimes.
-    let aliasing = assign_aliases(&alias_lifetimes(&uses, &residency), &requirements)?;
+    let aliasing = assign_aliases(
+        &alias_lifetimes(&uses, &residency, &async_queue),
+        &requirements,
+    )?;
     let work = infer_load_store(&LoadStoreInput {
         groups: &groups,
         order: &order,
@@ -171,9 +187,20 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
         steps,
         final_states,
     } = plan_barriers(work, accesses, &sync, &aliasing);
+    let (steps, submissions) = plan_submissions(
+        steps,
+        &SubmissionInput {
+            queue_of: &queue_of,
+            accesses,
+            resources: &sync,
+            kept_at_end: &kept_at_end,
+            sharing: profile.queues.sharing,
+        },
+    );
 
     let lifetimes = step_lifetimes(&steps, accesses, n_resources);
-    let (planned, pruned, payloads) = planned_passes(&steps, &order, passes, payloads, pruning);
+    let (planned, pruned, payloads) =
+        planned_passes(&steps, &order, (passes, &queue_of), payloads, pruning);
     let plan_resources: Vec<PlanResource> = resources
         .into_iter()
         .enumerate()
@@ -189,6 +216,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             estimated_size_bytes: requirements[i].size_bytes,
             estimated_alignment_bytes: requirements[i].alignment_bytes,
             final_state: final_states[i],
+            async_queue: async_queue[i],
         })
         .collect();
     let model = match profile.gpu.architecture {
@@ -208,17 +236,46 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             aliasing,
             traffic,
             merges,
+            submissions,
+            queue_sharing: profile.queues.sharing,
         },
         payloads,
     })
 }
 
-/// What aliasing places: each resource's first and last group, and the memory it needs.
-fn alias_lifetimes(uses: &ResourceUses, residency: &[Residency]) -> Vec<AliasLifetime> {
+/// Per resource: whether a surviving pass on `queue` uses it.
+fn resources_on(
+    queue: Queue,
+    queue_of: &[Queue],
+    order: &[PassId],
+    accesses: &access::PassAccesses,
+    n_resources: usize,
+) -> Vec<bool> {
+    let mut on = vec![false; n_resources];
+    for &p in order {
+        if queue_of.get(p.index()) == Some(&queue) {
+            for a in accesses.of(p) {
+                if let Some(x) = on.get_mut(a.resource.index()) {
+                    *x = true;
+                }
+            }
+        }
+    }
+    on
+}
+
+/// What aliasing places: each resource's first and last group, and the memory it needs (its
+/// own where the async queue uses it).
+fn alias_lifetimes(
+    uses: &ResourceUses,
+    residency: &[Residency],
+    async_queue: &[bool],
+) -> Vec<AliasLifetime> {
     uses.resources
         .iter()
         .zip(residency)
-        .map(|(u, &res)| AliasLifetime {
+        .zip(async_queue)
+        .map(|((u, &res), &on_async)| AliasLifetime {
             lifetime: u.lifetime().map(|(first, last)| StepRange {
                 first: StepIndex(first),
                 last: StepIndex(last),
@@ -227,6 +284,9 @@ fn alias_lifetimes(uses: &ResourceUses, residency: &[Residency]) -> Vec<AliasLif
                 Residency::Imported | Residency::Unused => MemoryNeed::External,
                 Residency::Exported => MemoryNeed::Dedicated(MemoryClass::DeviceLocal),
                 Residency::Transient => MemoryNeed::Dedicated(MemoryClass::LazilyAllocated),
+                Residency::FrameLocal if on_async => {
+                    MemoryNeed::Dedicated(MemoryClass::DeviceLocal)
+                }
                 Residency::FrameLocal => MemoryNeed::Shared(MemoryClass::DeviceLocal),
             },
         })
@@ -239,7 +299,7 @@ fn alias_lifetimes(uses: &ResourceUses, residency: &[Residency]) -> Vec<AliasLif
 fn planned_passes<P>(
     steps: &[Step],
     order: &[PassId],
-    mut passes: Vec<crate::declare::PassDecl>,
+    (mut passes, queue_of): (Vec<crate::declare::PassDecl>, &[Queue]),
     payloads: Vec<P>,
     pruning: Pruning,
 ) -> (Vec<PlannedPass>, Vec<PrunedPass>, Vec<Option<P>>) {
@@ -258,6 +318,8 @@ fn planned_passes<P>(
             uses: std::mem::take(&mut d.uses),
             step: StepIndex(0),
             subpass: None,
+            queue: queue_of.get(id.index()).copied().unwrap_or(Queue::Graphics),
+            async_capable: d.async_capable,
         });
     }
     locate_passes(steps, &mut planned);

@@ -8,6 +8,11 @@
 //! a post-process pass that feeds an opaque pass is not held back behind transparents. With the
 //! profile's order (occlusion queries after transparents) this puts occlusion-query passes
 //! after all opaque, alpha-tested and transparent work that does not depend on them (seed 001).
+//!
+//! With passes on the async compute queue, a graphics pass that takes what an async pass makes
+//! is only as urgent as the passes that wait on it (its own class does not hurry it), and goes
+//! after the other ready passes of that rank: the graphics queue draws what does not wait
+//! while the async queue runs, instead of waiting at once.
 
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, VecDeque};
@@ -159,10 +164,17 @@ pub(crate) fn order_passes(
     n_resources: usize,
     alive: &[bool],
     dependencies: &[(PassId, PassId)],
-    profile: &Profile,
+    (profile, on_async): (&Profile, &[bool]),
 ) -> Result<Vec<PassId>, GraphError> {
     let n = passes.len();
     let edges = dependency_edges(accesses, dataflow, n_resources, alive, dependencies);
+    // Graphics passes that wait on an async pass.
+    let mut defer = vec![false; n];
+    for p in (0..n).filter(|&p| on_async.get(p).copied().unwrap_or(false)) {
+        for &s in edges.of(p) {
+            defer[s as usize] = !on_async.get(s as usize).copied().unwrap_or(false);
+        }
+    }
     let mut indegree = vec![0u32; n];
     for &t in &edges.targets {
         indegree[t as usize] += 1;
@@ -222,11 +234,25 @@ pub(crate) fn order_passes(
         }
     }
 
-    // (effective rank, own rank, declaration index) packed into one integer key.
-    let key = |p: usize| -> u64 {
-        (u64::from(effective[p]) << 48) | (u64::from(rank[p]) << 32) | p as u64
+    // A pass that waits on the async queue: as urgent as its successors only.
+    let mut urgency = effective.clone();
+    for p in (0..n).filter(|&p| defer[p]) {
+        urgency[p] = edges
+            .of(p)
+            .iter()
+            .map(|&s| effective[s as usize])
+            .min()
+            .unwrap_or(rank[p]);
+    }
+    // (urgency, waits on the async queue, own rank, declaration index) packed into one integer
+    // key.
+    let key = |p: usize| -> u128 {
+        (u128::from(urgency[p]) << 49)
+            | (u128::from(defer[p]) << 48)
+            | (u128::from(rank[p]) << 32)
+            | p as u128
     };
-    let mut ready: BinaryHeap<Reverse<u64>> = BinaryHeap::with_capacity(alive_count);
+    let mut ready: BinaryHeap<Reverse<u128>> = BinaryHeap::with_capacity(alive_count);
     ready.extend(
         topo.iter()
             .filter(|&&p| indegree[p as usize] == 0)
@@ -235,7 +261,7 @@ pub(crate) fn order_passes(
     let mut order = Vec::with_capacity(alive_count);
     // The smallest ready key, when known, is kept out of the heap: in a chain the pass freed by
     // the one just emitted is usually the next one, and then it never enters the heap.
-    let mut next: Option<u64> = None;
+    let mut next: Option<u128> = None;
     while let Some(k) = next.take().or_else(|| ready.pop().map(|Reverse(k)| k)) {
         let p = (k & 0xffff_ffff) as u32;
         order.push(PassId(p));

@@ -5,12 +5,13 @@
 
 use crate::declare::{PassId, UseKind};
 use crate::error::GraphError;
-use crate::plan::{MemoryRequirements, Plan, Step};
+use crate::plan::{MemoryRequirements, Plan, Queue, Residency, Step};
 
 use super::access::{push_pass_accesses, PassAccesses};
 use super::alias::assign_aliases;
 use super::barriers::{plan_barriers, step_lifetimes, BarrierPlan, ResourceSync};
 use super::locate_passes;
+use super::queues::{plan_submissions, SubmissionInput};
 
 /// Re-derives every planned pass's accesses (indexed by `PassId`) from its declared uses.
 fn plan_accesses(plan: &Plan) -> PassAccesses {
@@ -57,6 +58,28 @@ impl Plan {
             .collect();
         let work = std::mem::take(&mut self.steps);
         let BarrierPlan { steps, .. } = plan_barriers(work, &accesses, &sync, &aliasing);
+        let mut queue_of = vec![Queue::Graphics; self.passes.len() + self.pruned.len()];
+        for p in &self.passes {
+            if let Some(q) = queue_of.get_mut(p.id.index()) {
+                *q = p.queue;
+            }
+        }
+        let kept_at_end: Vec<bool> = self
+            .resources
+            .iter()
+            .map(|r| matches!(r.residency, Residency::Exported | Residency::Imported))
+            .collect();
+        let (steps, submissions) = plan_submissions(
+            steps,
+            &SubmissionInput {
+                queue_of: &queue_of,
+                accesses: &accesses,
+                resources: &sync,
+                kept_at_end: &kept_at_end,
+                sharing: self.queue_sharing,
+            },
+        );
+        self.submissions = submissions;
         let lifetimes = step_lifetimes(&steps, &accesses, self.resources.len());
         for (i, r) in self.resources.iter_mut().enumerate() {
             r.lifetime = lifetimes[i];

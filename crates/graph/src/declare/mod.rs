@@ -227,6 +227,8 @@ pub(crate) struct PassDecl {
     pub retention: Retention,
     pub render_area: Option<Extent2d>,
     pub uses: Vec<PassUse>,
+    /// A compute pass that may run on an async compute queue.
+    pub async_capable: bool,
 }
 
 /// Declares one frame. `P` is the payload each pass carries (the backend's recording callback);
@@ -353,6 +355,7 @@ impl<P> GraphBuilder<P> {
             retention: Retention::PruneIfUnused,
             render_area: None,
             uses: Vec::new(),
+            async_capable: false,
         });
         self.payloads.push(payload);
         id
@@ -580,6 +583,17 @@ pub struct ComputePassBuilder<'g, P> {
 
 impl<P> ComputePassBuilder<'_, P> {
     common_pass_methods!();
+
+    /// The pass may run on an async compute queue, beside the raster work, where the profile
+    /// asks for async compute (`[queues] async_compute`) and the device has such a queue: it
+    /// touches nothing but what it declares, and records nothing a compute-only queue lacks.
+    /// The compiler adds the semaphore waits and ownership transfers its uses need.
+    pub fn async_compute(&mut self) -> &mut Self {
+        if let Some(decl) = self.graph.pass_mut(self.pass) {
+            decl.async_capable = true;
+        }
+        self
+    }
 }
 
 /// Declares a transfer pass (copies, blits, clears, query-result copies).

@@ -2,15 +2,17 @@
 //! `Display` prints as a table and [`Plan::to_dot`] draws.
 
 mod memory;
+mod queues;
 mod traffic;
 
 pub use memory::{
     AliasAssignment, AliasHandoff, AliasLifetime, BlockIndex, MemoryBlock, MemoryClass, MemoryNeed,
     MemoryRequirements, MemorySlot, ESTIMATED_ALIGNMENT_BYTES,
 };
+pub use queues::{Queue, QueueTransfer, QueueWait, Submission, SubmissionIndex, WaitReason};
 pub use traffic::{TrafficBreakdown, TrafficEstimate, TrafficModel};
 
-use tilegraph_profile::PassClass;
+use tilegraph_profile::{PassClass, QueueSharing};
 
 use smallvec::SmallVec;
 
@@ -81,6 +83,11 @@ pub struct Plan {
     /// Per raster pass after the first of a run: whether it joined the render pass before it,
     /// and why (or why not).
     pub merges: Vec<MergeNote>,
+    /// The steps cut into submissions, each to one queue, in an order every wait respects: one
+    /// graphics submission of every step unless some pass runs on the async compute queue.
+    pub submissions: Vec<Submission>,
+    /// How resources used on both queues are shared (the profile's `[queues] sharing`).
+    pub queue_sharing: QueueSharing,
 }
 
 /// Whether a raster pass joined the render pass of the raster pass before it.
@@ -130,6 +137,10 @@ pub struct PlannedPass {
     pub step: StepIndex,
     /// Its subpass when `step` is a render pass.
     pub subpass: Option<SubpassIndex>,
+    /// The queue that runs it.
+    pub queue: Queue,
+    /// Declared able to run on an async compute queue (whether or not it does).
+    pub async_capable: bool,
 }
 
 /// A pass removed because nothing needed what it writes.
@@ -208,6 +219,10 @@ pub struct PlanResource {
     /// The state the frame leaves it in: the imported `final_state`, or for created resources
     /// the state after their last use (what next frame's import of a history image declares).
     pub final_state: ResourceState,
+    /// A pass on the async compute queue uses it: it gets memory of its own (a hand-off of
+    /// memory between queues would need a semaphore of its own) and, with concurrent sharing,
+    /// is created shared by both queues' families.
+    pub async_queue: bool,
 }
 
 impl PlanResource {
@@ -225,6 +240,9 @@ impl PlanResource {
             Residency::Imported | Residency::Unused => MemoryNeed::External,
             Residency::Exported => MemoryNeed::Dedicated(MemoryClass::DeviceLocal),
             Residency::Transient => MemoryNeed::Dedicated(MemoryClass::LazilyAllocated),
+            Residency::FrameLocal if self.async_queue => {
+                MemoryNeed::Dedicated(MemoryClass::DeviceLocal)
+            }
             Residency::FrameLocal => MemoryNeed::Shared(MemoryClass::DeviceLocal),
         };
         AliasLifetime {
@@ -334,6 +352,8 @@ pub struct ImageBarrier {
     pub old_layout: Layout,
     pub new_layout: Layout,
     pub hazard: Hazard,
+    /// Half of a queue-family ownership transfer (`None`: a barrier of one queue).
+    pub queue_transfer: Option<QueueTransfer>,
 }
 
 /// A synchronization2 buffer barrier over the whole buffer.
@@ -345,6 +365,8 @@ pub struct BufferBarrier {
     pub dst_stages: PipelineStages,
     pub dst_access: AccessFlags,
     pub hazard: Hazard,
+    /// Half of a queue-family ownership transfer (`None`: a barrier of one queue).
+    pub queue_transfer: Option<QueueTransfer>,
 }
 
 /// One `VkRenderPass` (with its framebuffer), one subpass per merged raster pass.

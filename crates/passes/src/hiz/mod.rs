@@ -72,9 +72,11 @@ pub fn add_hiz_build(g: &mut FrameGraph, depth: ImageId, pyramid: BufferId) -> H
         hiz.built_from = Some(convention);
         Ok(())
     });
+    // Only compute work on what it declares: it may run on an async compute queue.
     g.compute_pass("hiz-build", PassClass::Compute, build)
         .sampled(depth)
-        .storage_read_write(pyramid);
+        .storage_read_write(pyramid)
+        .async_compute();
     HizPyramid { buffer: pyramid }
 }
 

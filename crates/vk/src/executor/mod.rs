@@ -300,13 +300,21 @@ impl Executor {
         // The slot is the frame's from here: a failure ends it (nothing of it is submitted).
         let callbacks = Callbacks { prologue, record };
         let result = self.run_token(ctx, plan, externals, &mut token, &mut stats, callbacks);
-        if let Err(e) = result {
-            if let Err(gave_up) = self.frames.abandon(ctx, &token) {
-                log::error!("giving up the frame after \"{e}\": {gave_up}");
+        let last_waits = match result {
+            Ok(w) => w,
+            Err(e) => {
+                if let Err(gave_up) = self.frames.abandon(ctx, &token) {
+                    log::error!("giving up the frame after \"{e}\": {gave_up}");
+                }
+                return Err(e);
             }
-            return Err(e);
-        }
-        self.frames.submit(ctx, token)?;
+        };
+        // A plan of two queues ends with a graphics part after the async queue's last.
+        let last = (plan.submissions.len() > 1).then_some(crate::frames::QueuePart {
+            queue: tilegraph_graph::Queue::Graphics,
+            waits: &last_waits,
+        });
+        self.frames.submit_last(ctx, token, last.as_ref())?;
         stats.frame = token.frame;
         stats.allocations = ctx.allocation_count() - allocations_before;
         stats.aliasing_used = self.resources.as_ref().is_some_and(|r| r.aliasing_used());
@@ -330,7 +338,7 @@ impl Executor {
         token: &mut FrameToken,
         stats: &mut FrameStats,
         callbacks: Callbacks<'_, '_, '_>,
-    ) -> Result<(), VkError> {
+    ) -> Result<recorder::LastPartWaits, VkError> {
         let Callbacks { prologue, record } = callbacks;
         ctx.injected_fault_at(
             FaultSite::FrameStart,
@@ -365,7 +373,7 @@ impl Executor {
         self.state
             .first_uses
             .begin(placed.resources.len(), token.frame > self.resources_since);
-        FrameRecorder {
+        let last_waits = FrameRecorder {
             ctx,
             plan: placed,
             resources,
@@ -377,9 +385,11 @@ impl Executor {
             token,
             stats,
             record,
+            queue: tilegraph_graph::Queue::Graphics,
         }
         .record_steps()?;
-        self.queries.end_frame(ctx, token.cb, token.slot)
+        self.queries.end_frame(ctx, token.cb, token.slot)?;
+        Ok(last_waits)
     }
 
     /// A different plan: waits for every frame in flight, then builds its resources for the

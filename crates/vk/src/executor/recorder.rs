@@ -9,7 +9,8 @@
 
 use ash::vk;
 use tilegraph_graph::{
-    Attachment, BarrierBatch, LoadOp, PassId, Plan, RenderPass, ResourceId, Step,
+    Attachment, BarrierBatch, LoadOp, PassId, Plan, Queue, QueueTransfer, RenderPass, ResourceId,
+    Step,
 };
 
 use super::render_pass::{clear_value, RenderPassRef, RenderPasses};
@@ -17,7 +18,7 @@ use super::resources::{BufferHandle, External, Externals, ImageHandle, Resources
 use super::sync::{buffer_wait, earlier_work, writes_in, FirstUses};
 use super::FrameStats;
 use crate::error::VkError;
-use crate::frames::{FrameRing, FrameToken, Submission};
+use crate::frames::{FrameRing, FrameToken, QueuePart, Submission};
 use crate::queries::QueryRing;
 use crate::Context;
 
@@ -169,17 +170,92 @@ pub(super) struct FrameRecorder<'a, 'r> {
     pub token: &'a mut FrameToken,
     pub stats: &'a mut FrameStats,
     pub record: &'a mut RecordFn<'r>,
+    /// The queue the current command buffer is for.
+    pub queue: Queue,
 }
 
+/// The waits of a frame's last part on the other queue (empty for a plan of one queue):
+/// (queue, timeline value, stages that wait).
+pub(super) type LastPartWaits = Vec<(Queue, u64, vk::PipelineStageFlags2)>;
+
 impl FrameRecorder<'_, '_> {
-    /// Records every step of the plan.
-    pub fn record_steps(&mut self) -> Result<(), VkError> {
+    /// Records every step of the plan: a plan of two queues part by part, each part submitted
+    /// to its queue (the last is left to the caller, with the waits returned).
+    pub fn record_steps(&mut self) -> Result<LastPartWaits, VkError> {
         let plan = self.plan;
-        for (step_index, step) in plan.steps.iter().enumerate() {
+        if plan.submissions.len() <= 1 {
+            self.record_range(0..plan.steps.len())?;
+            return Ok(Vec::new());
+        }
+        if self.frames.submission() == Submission::Engine {
+            return Err(VkError::Invalid {
+                what: "plan".into(),
+                reason: "a plan of two queues, but the engine submits the frame on one".into(),
+            });
+        }
+        // The timeline value each submitted part signalled.
+        let mut signalled: Vec<u64> = Vec::with_capacity(plan.submissions.len());
+        let mut waits: LastPartWaits = Vec::new();
+        for (k, sub) in plan.submissions.iter().enumerate() {
+            self.queue = sub.queue;
+            self.record_range(sub.steps())?;
+            if self.releases_transfer() {
+                self.barriers(&sub.releases, true)?;
+            }
+            waits.clear();
+            for w in &sub.waits {
+                let on = plan
+                    .submissions
+                    .get(w.submission.index())
+                    .map_or(Queue::Graphics, |s| s.queue);
+                let value = signalled.get(w.submission.index()).copied().unwrap_or(0);
+                waits.push((
+                    on,
+                    value,
+                    vk::PipelineStageFlags2::from_raw(w.dst_stages.bits()),
+                ));
+            }
+            let Some(next) = plan.submissions.get(k + 1) else {
+                break;
+            };
+            let part = QueuePart {
+                queue: sub.queue,
+                waits: &waits,
+            };
+            self.frames
+                .submit_part(self.ctx, self.token, &part, next.queue)?;
+            signalled.push(self.frames.signaled(sub.queue));
+        }
+        Ok(waits)
+    }
+
+    /// Whether ownership transfers are recorded: exclusive sharing between two families.
+    fn releases_transfer(&self) -> bool {
+        self.plan.queue_sharing == tilegraph_profile::QueueSharing::Exclusive
+            && self
+                .ctx
+                .async_queue
+                .is_some_and(|q| q.family != self.ctx.queue_family)
+    }
+
+    /// The queue family of `q`.
+    fn family(&self, q: Queue) -> u32 {
+        match (q, self.ctx.async_queue) {
+            (Queue::AsyncCompute, Some(a)) => a.family,
+            _ => self.ctx.queue_family,
+        }
+    }
+
+    /// Records `range` of the plan's steps.
+    fn record_range(&mut self, range: std::ops::Range<usize>) -> Result<(), VkError> {
+        let plan = self.plan;
+        let start = range.start;
+        for (offset, step) in plan.steps.get(range).unwrap_or(&[]).iter().enumerate() {
+            let step_index = start + offset;
             match step {
                 Step::Barriers(batch) => {
                     self.stats.barriers += batch.len() as u32;
-                    self.barriers(batch)?;
+                    self.barriers(batch, false)?;
                 }
                 Step::Flush(_) => match self.frames.submission() {
                     Submission::Owned => {
@@ -213,9 +289,31 @@ impl FrameRecorder<'_, '_> {
         earlier_work(self.ctx.has_feature(crate::Feature::ConditionalRendering))
     }
 
-    fn barriers(&mut self, batch: &BarrierBatch) -> Result<(), VkError> {
+    /// One batch: `release`, the release halves at the end of a part (recorded only where the
+    /// families differ); the acquire halves in a step's batch carry the families where they
+    /// differ and are plain barriers where not.
+    fn barriers(&mut self, batch: &BarrierBatch, release: bool) -> Result<(), VkError> {
         let (plan, externals, resources) = (self.plan, self.externals, self.resources);
-        let earlier = self.earlier_work();
+        // What earlier frames did is behind the frame's first graphics part, which the async
+        // queue's first part waits on: only the graphics queue widens first uses.
+        let earlier = if self.queue == Queue::Graphics {
+            self.earlier_work()
+        } else {
+            vk::PipelineStageFlags2::NONE
+        };
+        let transfers = self.releases_transfer();
+        let family_of = [
+            self.family(Queue::Graphics),
+            self.family(Queue::AsyncCompute),
+        ];
+        let family = |q: Queue| match q {
+            Queue::Graphics => family_of[0],
+            Queue::AsyncCompute => family_of[1],
+        };
+        let families = |t: Option<QueueTransfer>| match t {
+            Some(t) if transfers => (family(t.from), family(t.to)),
+            _ => (vk::QUEUE_FAMILY_IGNORED, vk::QUEUE_FAMILY_IGNORED),
+        };
         let state = &mut *self.state;
         state.images.clear();
         state.buffers.clear();
@@ -225,12 +323,18 @@ impl FrameRecorder<'_, '_> {
             let old_layout = vk::ImageLayout::from_raw(b.old_layout.vk_raw());
             let mut src_s = vk::PipelineStageFlags2::from_raw(b.src_stages.bits());
             let mut src_a = vk::AccessFlags2::from_raw(b.src_access.bits());
-            if state.first_uses.widens(plan, b.resource) {
+            if state.first_uses.widens(plan, b.resource) && !earlier.is_empty() {
                 src_s |= earlier;
                 src_a |= writes_in(old_layout);
             }
+            let (src_family, dst_family) = families(b.queue_transfer);
+            if release && src_family == dst_family {
+                continue;
+            }
             state.images.push(
                 vk::ImageMemoryBarrier2::default()
+                    .src_queue_family_index(src_family)
+                    .dst_queue_family_index(dst_family)
                     .src_stage_mask(src_s)
                     .src_access_mask(src_a)
                     .dst_stage_mask(vk::PipelineStageFlags2::from_raw(b.dst_stages.bits()))
@@ -252,12 +356,18 @@ impl FrameRecorder<'_, '_> {
                 .ok_or_else(|| missing("barrier", b.resource))?;
             let mut src_s = vk::PipelineStageFlags2::from_raw(b.src_stages.bits());
             let mut src_a = vk::AccessFlags2::from_raw(b.src_access.bits());
-            if state.first_uses.widens(plan, b.resource) {
+            if state.first_uses.widens(plan, b.resource) && !earlier.is_empty() {
                 src_s |= earlier;
                 src_a |= vk::AccessFlags2::MEMORY_WRITE;
             }
+            let (src_family, dst_family) = families(b.queue_transfer);
+            if release && src_family == dst_family {
+                continue;
+            }
             state.buffers.push(
                 vk::BufferMemoryBarrier2::default()
+                    .src_queue_family_index(src_family)
+                    .dst_queue_family_index(dst_family)
                     .src_stage_mask(src_s)
                     .src_access_mask(src_a)
                     .dst_stage_mask(vk::PipelineStageFlags2::from_raw(b.dst_stages.bits()))
@@ -284,7 +394,8 @@ impl FrameRecorder<'_, '_> {
         let (plan, externals, resources) = (self.plan, self.externals, self.resources);
         let earlier = self.earlier_work();
         let state = &mut *self.state;
-        if !state.first_uses.reused() {
+        // On the async queue earlier frames are behind its wait on the frame's start.
+        if !state.first_uses.reused() || self.queue != Queue::Graphics {
             return Ok(());
         }
         state.buffers.clear();
@@ -397,7 +508,11 @@ impl FrameRecorder<'_, '_> {
     ) -> Result<(), VkError> {
         let (ctx, cb, slot) = (self.ctx, self.token.cb, self.token.slot);
         ctx.begin_label(cb, name);
-        let q = self.queries.begin_pass(ctx, cb, slot, name)?;
+        let graphics = self.queue == Queue::Graphics
+            || ctx
+                .async_queue
+                .is_some_and(|a| a.family == ctx.queue_family);
+        let q = self.queries.begin_pass(ctx, cb, slot, (name, graphics))?;
         let mut pc = PassContext {
             ctx,
             cb,

@@ -274,7 +274,21 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
     let d = &ctx.device;
     let mut requirements: Vec<MemoryRequirements> = Vec::with_capacity(plan.resources.len());
     let mut vk_reqs: Vec<Option<vk::MemoryRequirements>> = vec![None; plan.resources.len()];
+    // Concurrent sharing between the two queues' families (where they differ) for what the
+    // async compute queue uses.
+    let families = [
+        ctx.queue_family,
+        ctx.async_queue.map_or(ctx.queue_family, |q| q.family),
+    ];
+    let concurrent_sharing = plan.queue_sharing == tilegraph_profile::QueueSharing::Concurrent
+        && families[0] != families[1];
     for r in &plan.resources {
+        let shared = concurrent_sharing && r.async_queue;
+        let (sharing, sharing_families): (vk::SharingMode, &[u32]) = if shared {
+            (vk::SharingMode::CONCURRENT, &families)
+        } else {
+            (vk::SharingMode::EXCLUSIVE, &[])
+        };
         let owned = matches!(
             r.residency,
             Residency::Exported | Residency::FrameLocal | Residency::Transient
@@ -302,6 +316,8 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
                     .samples(vk::SampleCountFlags::from_raw(desc.samples.vk_bits()))
                     .tiling(vk::ImageTiling::OPTIMAL)
                     .usage(vk::ImageUsageFlags::from_raw(usage.bits()))
+                    .sharing_mode(sharing)
+                    .queue_family_indices(sharing_families)
                     .initial_layout(vk::ImageLayout::UNDEFINED);
                 // SAFETY: valid create info derived from the plan (extent checked by the graph).
                 let raw = unsafe { d.create_image(&info, None) }.vk("vkCreateImage")?;
@@ -334,7 +350,8 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
                 let info = vk::BufferCreateInfo::default()
                     .size(desc.size_bytes.max(4))
                     .usage(vk::BufferUsageFlags::from_raw(usage.bits()))
-                    .sharing_mode(vk::SharingMode::EXCLUSIVE);
+                    .sharing_mode(sharing)
+                    .queue_family_indices(sharing_families);
                 // SAFETY: valid create info.
                 let raw = unsafe { d.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
                 ctx.set_name(raw, &r.name);
