@@ -383,6 +383,13 @@ impl FrameRing {
         })
     }
 
+    fn slot_mut(&mut self, slot: usize) -> Result<&mut FrameSlot, VkError> {
+        self.slots.get_mut(slot).ok_or_else(|| VkError::Invalid {
+            what: "frame ring".into(),
+            reason: format!("slot {slot} does not exist"),
+        })
+    }
+
     /// The device queue a part of `queue` goes to.
     fn device_queue(ctx: &Context, queue: Queue) -> vk::Queue {
         match (queue, ctx.async_queue) {
@@ -454,44 +461,15 @@ impl FrameRing {
             &[submit],
             vk::Fence::null(),
         )?;
-        let s = self
-            .slots
-            .get_mut(token.slot)
-            .ok_or_else(|| VkError::Invalid {
-                what: "frame ring".into(),
-                reason: format!("slot {} does not exist", token.slot),
-            })?;
+        let s = self.slot_mut(token.slot)?;
         s.flushed = true;
         s.async_submitted |= part.queue == Queue::AsyncCompute;
         let own_pool = next == Queue::AsyncCompute && s.async_pool != vk::CommandPool::null();
-        let (pool, cbs, begun) = if own_pool {
-            (s.async_pool, &mut s.async_cbs, &mut s.async_begun)
+        let cb = if own_pool {
+            begin_next(ctx, s.async_pool, &mut s.async_cbs, &mut s.async_begun)?
         } else {
-            (s.pool, &mut s.cbs, &mut s.begun)
+            begin_next(ctx, s.pool, &mut s.cbs, &mut s.begun)?
         };
-        let cb = match cbs.get(*begun) {
-            Some(&cb) => cb,
-            None => {
-                let alloc = vk::CommandBufferAllocateInfo::default()
-                    .command_pool(pool)
-                    .level(vk::CommandBufferLevel::PRIMARY)
-                    .command_buffer_count(1);
-                // SAFETY: live pool; its buffers are freed with it.
-                let cb = unsafe { ctx.device.allocate_command_buffers(&alloc) }
-                    .vk("vkAllocateCommandBuffers")?;
-                let cb = cb.first().copied().ok_or_else(|| VkError::Invalid {
-                    what: "frame ring".into(),
-                    reason: "no command buffer allocated".into(),
-                })?;
-                cbs.push(cb);
-                cb
-            }
-        };
-        *begun += 1;
-        let begin = vk::CommandBufferBeginInfo::default()
-            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-        // SAFETY: fresh (or reset with its pool) command buffer.
-        unsafe { ctx.device.begin_command_buffer(cb, &begin) }.vk("vkBeginCommandBuffer")?;
         token.cb = cb;
         Ok(())
     }
@@ -565,13 +543,7 @@ impl FrameRing {
     /// the same slot (seed 001: a flush before the occlusion-query render pass on Adreno).
     pub fn flush(&mut self, ctx: &Context, token: &mut FrameToken) -> Result<(), VkError> {
         self.expect(Submission::Owned)?;
-        let s = self
-            .slots
-            .get_mut(token.slot)
-            .ok_or_else(|| VkError::Invalid {
-                what: "frame ring".into(),
-                reason: format!("slot {} does not exist", token.slot),
-            })?;
+        let s = self.slot_mut(token.slot)?;
         // SAFETY: recording command buffer of this slot.
         unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
         let cbs = [token.cb];
@@ -585,29 +557,7 @@ impl FrameRing {
         .vk("vkQueueSubmit")?;
         s.flushed = true;
         // The next command buffer of the slot: allocated once, recycled by every pool reset.
-        let cb = match s.cbs.get(s.begun) {
-            Some(&cb) => cb,
-            None => {
-                let alloc = vk::CommandBufferAllocateInfo::default()
-                    .command_pool(s.pool)
-                    .level(vk::CommandBufferLevel::PRIMARY)
-                    .command_buffer_count(1);
-                // SAFETY: live pool; its buffers are freed with it.
-                let cb = unsafe { ctx.device.allocate_command_buffers(&alloc) }
-                    .vk("vkAllocateCommandBuffers")?;
-                let cb = cb.first().copied().ok_or_else(|| VkError::Invalid {
-                    what: "frame ring".into(),
-                    reason: "no command buffer allocated".into(),
-                })?;
-                s.cbs.push(cb);
-                cb
-            }
-        };
-        s.begun += 1;
-        let begin = vk::CommandBufferBeginInfo::default()
-            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-        // SAFETY: fresh command buffer.
-        unsafe { ctx.device.begin_command_buffer(cb, &begin) }.vk("vkBeginCommandBuffer")?;
+        let cb = begin_next(ctx, s.pool, &mut s.cbs, &mut s.begun)?;
         // The slot's final submit uses the new buffer.
         token.cb = cb;
         Ok(())
@@ -717,4 +667,38 @@ impl FrameRing {
             }
         }
     }
+}
+
+/// Begins the next command buffer of `pool` this frame (`cbs[*begun]`, allocated once and
+/// recycled by every reset of the pool).
+fn begin_next(
+    ctx: &Context,
+    pool: vk::CommandPool,
+    cbs: &mut Vec<vk::CommandBuffer>,
+    begun: &mut usize,
+) -> Result<vk::CommandBuffer, VkError> {
+    let cb = match cbs.get(*begun) {
+        Some(&cb) => cb,
+        None => {
+            let alloc = vk::CommandBufferAllocateInfo::default()
+                .command_pool(pool)
+                .level(vk::CommandBufferLevel::PRIMARY)
+                .command_buffer_count(1);
+            // SAFETY: live pool; its buffers are freed with it.
+            let cb = unsafe { ctx.device.allocate_command_buffers(&alloc) }
+                .vk("vkAllocateCommandBuffers")?;
+            let cb = cb.first().copied().ok_or_else(|| VkError::Invalid {
+                what: "frame ring".into(),
+                reason: "no command buffer allocated".into(),
+            })?;
+            cbs.push(cb);
+            cb
+        }
+    };
+    *begun += 1;
+    let begin =
+        vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+    // SAFETY: a fresh command buffer, or one reset with its pool (the slot's fence waited).
+    unsafe { ctx.device.begin_command_buffer(cb, &begin) }.vk("vkBeginCommandBuffer")?;
+    Ok(cb)
 }

@@ -421,6 +421,35 @@ impl<'a> Splitter<'a> {
         stages
     }
 
+    /// The crossing `n` of a step on `queue` in submission `sub`: the wait, the release on the
+    /// other queue, and the acquire in `batch` (the resource's barrier turned, or a barrier of
+    /// its own for a transfer that changes no layout).
+    fn cross(&mut self, sub: usize, queue: Queue, n: &Need, u: &StepUse, batch: &mut BarrierBatch) {
+        let new_layout = acquired_layout(batch, n);
+        let stages = self.wait(sub, queue, n, new_layout);
+        let transfer = n.release.map(|_| QueueTransfer {
+            from: other(queue),
+            to: queue,
+        });
+        if !acquire(batch, n.resource, stages, transfer) && transfer.is_some() {
+            push_transfer(
+                batch,
+                n.resource,
+                self.input.resources[n.resource].is_image,
+                TransferHalf {
+                    src_stages: stages,
+                    src_access: AccessFlags::NONE,
+                    dst_stages: u.stages,
+                    dst_access: u.access,
+                    old_layout: n.old_layout,
+                    new_layout: n.old_layout,
+                    hazard: n.hazard,
+                    transfer,
+                },
+            );
+        }
+    }
+
     fn work(&mut self, step: Step, queue: Queue, mut batch: BarrierBatch) {
         self.gather(&step);
         let uses = std::mem::take(&mut self.uses);
@@ -433,32 +462,8 @@ impl<'a> Splitter<'a> {
         }
         let sub = self.submission_for(queue, !needs.is_empty());
         for n in &needs {
-            let new_layout = acquired_layout(&batch, n);
-            let stages = self.wait(sub, queue, n, new_layout);
-            let transfer = n.release.map(|_| QueueTransfer {
-                from: other(queue),
-                to: queue,
-            });
-            if !acquire(&mut batch, n.resource, stages, transfer) {
-                if let Some(u) = uses.iter().find(|u| u.resource == n.resource) {
-                    if transfer.is_some() {
-                        push_transfer(
-                            &mut batch,
-                            n.resource,
-                            self.input.resources[n.resource].is_image,
-                            TransferHalf {
-                                src_stages: stages,
-                                src_access: AccessFlags::NONE,
-                                dst_stages: u.stages,
-                                dst_access: u.access,
-                                old_layout: n.old_layout,
-                                new_layout: n.old_layout,
-                                hazard: n.hazard,
-                                transfer,
-                            },
-                        );
-                    }
-                }
+            if let Some(u) = uses.iter().find(|u| u.resource == n.resource) {
+                self.cross(sub, queue, n, u, &mut batch);
             }
         }
         if queue == Queue::AsyncCompute {
@@ -546,29 +551,7 @@ impl<'a> Splitter<'a> {
         if !needs.is_empty() || !batch.is_empty() {
             let sub = self.submission_for(queue, !needs.is_empty());
             for (n, u) in &needs {
-                let new_layout = acquired_layout(&batch, n);
-                let stages = self.wait(sub, queue, n, new_layout);
-                let transfer = n.release.map(|_| QueueTransfer {
-                    from: Queue::AsyncCompute,
-                    to: queue,
-                });
-                if !acquire(&mut batch, n.resource, stages, transfer) && transfer.is_some() {
-                    push_transfer(
-                        &mut batch,
-                        n.resource,
-                        self.input.resources[n.resource].is_image,
-                        TransferHalf {
-                            src_stages: stages,
-                            src_access: AccessFlags::NONE,
-                            dst_stages: u.stages,
-                            dst_access: AccessFlags::NONE,
-                            old_layout: n.old_layout,
-                            new_layout: n.old_layout,
-                            hazard: n.hazard,
-                            transfer,
-                        },
-                    );
-                }
+                self.cross(sub, queue, n, u, &mut batch);
                 self.state[n.resource].owner = queue;
             }
             if !batch.is_empty() {
