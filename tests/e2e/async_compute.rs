@@ -1,6 +1,8 @@
-//! Async compute on lavapipe (validation and synchronization validation on): frames whose HiZ
-//! build runs on the async compute queue draw the images they draw on one queue, with
-//! exclusive sharing (ownership transfers) and concurrent sharing, single- and two-phase HiZ.
+//! Async compute on lavapipe (validation and synchronization validation on): frames whose
+//! culling, HiZ build and shadow-caster culling run on the async compute queue draw the images
+//! they draw on one queue, with exclusive sharing (ownership transfers) and concurrent sharing:
+//! single-phase HiZ, two-phase HiZ with cascaded shadows (the cascades drawn while the async
+//! queue builds the pyramid and culls the late phase), and two-phase HiZ with clusters.
 //!
 //! Lavapipe has one queue family of one queue, so the two-queue plans are submitted to that
 //! queue in plan order (`ContextOptions::async_on_one_queue`): every part, its timeline waits
@@ -12,6 +14,7 @@
 use tilegraph_e2e::{options, Gpu};
 use tilegraph_graph::Queue;
 use tilegraph_passes::cull::Culling;
+use tilegraph_passes::shadow::ShadowOptions;
 use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
 use tilegraph_profile::{QueuePolicy, QueueSharing};
 use tilegraph_scene::Scene;
@@ -21,9 +24,14 @@ use tilegraph_vk::{Context, Feature, FeatureRequest};
 const SIZE: (u32, u32) = (160, 90);
 const FRAMES: usize = 5;
 
-/// The scene's first frames under `culling` with the given queue policy (`None`: one queue);
-/// each frame's image, and whether the plans ran the HiZ build on the async queue.
-fn frames(scene: &Scene, culling: Culling, queues: Option<QueuePolicy>) -> (Vec<RgbaImage>, bool) {
+/// The scene's first frames under `culling` (with `cascades` shadow cascades) with the given
+/// queue policy (`None`: one queue); each frame's image, and whether the plans ran the HiZ
+/// build, the culling and the shadow casters' culling on the async queue.
+fn frames(
+    scene: &Scene,
+    (culling, cascades): (Culling, u32),
+    queues: Option<QueuePolicy>,
+) -> (Vec<RgbaImage>, bool) {
     let features = FeatureRequest::default().require([
         Feature::GeometryShader,
         Feature::DrawIndirectCount,
@@ -43,6 +51,11 @@ fn frames(scene: &Scene, culling: Culling, queues: Option<QueuePolicy>) -> (Vec<
         culling,
         width: SIZE.0,
         height: SIZE.1,
+        shadows: ShadowOptions {
+            cascades,
+            resolution: 256,
+            ..ShadowOptions::default()
+        },
         ..Default::default()
     };
     let mut r = SceneRenderer::new(&g, scene, options).unwrap();
@@ -52,8 +65,21 @@ fn frames(scene: &Scene, culling: Culling, queues: Option<QueuePolicy>) -> (Vec<
     for index in 0..FRAMES.min(scene.camera_path().len()) {
         let frame = scene.camera_path().frame(index, aspect).unwrap();
         let report = r.render_frame(&g, scene, &frame).unwrap();
-        let build = report.plan.pass_by_name("hiz-build").expect("a HiZ build");
-        on_async &= build.queue == Queue::AsyncCompute && report.plan.submissions.len() > 2;
+        let mut async_passes = vec!["hiz-build"];
+        async_passes.push(if culling == Culling::Hiz {
+            "cull"
+        } else {
+            "cull-late"
+        });
+        if cascades > 0 {
+            async_passes.push("shadow-cull");
+        }
+        for name in async_passes {
+            let pass = report.plan.pass_by_name(name);
+            assert!(pass.is_some(), "{culling:?}: no pass {name}");
+            on_async &= pass.is_some_and(|p| p.queue == Queue::AsyncCompute);
+        }
+        on_async &= report.plan.submissions.len() > 2;
         images.push(r.read_image(&g).unwrap());
     }
     r.finish(&g).unwrap();
@@ -62,23 +88,31 @@ fn frames(scene: &Scene, culling: Culling, queues: Option<QueuePolicy>) -> (Vec<
 }
 
 #[test]
-fn the_hiz_build_on_the_async_queue_draws_the_same_frames() {
-    let scene = tilegraph_scene::load("city:300").unwrap();
-    for culling in [Culling::Hiz, Culling::HizTwoPhase] {
-        let (one_queue, on_async) = frames(&scene, culling, None);
+fn culling_on_the_async_queue_draws_the_same_frames() {
+    let mut scene = tilegraph_scene::load("city:300").unwrap();
+    let (clusters, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    scene.attach_clusters(clusters).unwrap();
+    let cases = [
+        (Culling::Hiz, 0),
+        (Culling::HizTwoPhase, 3),
+        (Culling::HizTwoPhaseClusters, 2),
+    ];
+    for case in cases {
+        let culling = case.0;
+        let (one_queue, on_async) = frames(&scene, case, None);
         assert!(
             !on_async,
-            "{culling:?}: async compute off, yet the build is on the async queue"
+            "{culling:?}: async compute off, yet the culling is on the async queue"
         );
         for sharing in [QueueSharing::Exclusive, QueueSharing::Concurrent] {
             let policy = QueuePolicy {
                 async_compute: true,
                 sharing,
             };
-            let (two_queues, on_async) = frames(&scene, culling, Some(policy));
+            let (two_queues, on_async) = frames(&scene, case, Some(policy));
             assert!(
                 on_async,
-                "{culling:?} {sharing:?}: the build stayed on the graphics queue"
+                "{culling:?} {sharing:?}: the culling stayed on the graphics queue"
             );
             for (i, (a, b)) in one_queue.iter().zip(&two_queues).enumerate() {
                 assert!(a == b, "{culling:?} {sharing:?}: frame {i} differs");

@@ -24,6 +24,7 @@ mod markup;
 mod pvs;
 mod render;
 mod run;
+mod timeline;
 mod tune;
 mod validate;
 

@@ -13,6 +13,7 @@ use tilegraph_vk::{Context, FeatureRequest};
 use tilegraph_profile::knobs::KnobSettings;
 
 use crate::run::RunArgs;
+use crate::timeline::{overlap, PassSpan, Timeline};
 use crate::{image_io, CliError};
 
 pub struct RenderArgs<'a> {
@@ -51,6 +52,8 @@ struct RenderJson<'a> {
     shadow_casters: Option<[u32; 4]>,
     lint_findings: usize,
     gpu_ms: Vec<TimingJson>,
+    /// Each pass's queue and median start and end in the frame (per-pass timing).
+    timeline: &'a [PassSpan],
     /// Median of the whole frame (timed with two timestamps, no per-pass queries).
     frame_gpu_ms: f64,
     /// The passes' medians summed: the frame without what lies between its passes.
@@ -157,17 +160,23 @@ fn render_with(
         renderer.clear_timings();
         let mut last: Option<FrameReport> = None;
         let mut lint = None;
+        let mut timeline = Timeline::default();
+        let period_ns = f64::from(ctx.physical.limits.timestamp_period_ns);
         renderer.lint_next_frame();
         for _ in 0..frames {
             let report = renderer.render(ctx, world.next()?, &camera)?;
+            timeline.gather(renderer.executor().latest_timings(), period_ns);
             lint = lint.or_else(|| report.lint.clone());
             last = Some(report);
         }
+        renderer.finish(ctx)?;
+        timeline.gather(renderer.executor().latest_timings(), period_ns);
         let image = renderer.read_image(ctx)?;
         let casters = renderer.read_shadow_casters(ctx)?;
         // The same frames again with two timestamps each and no per-pass queries: the frame
         // time, with what lies between the passes (clears, stores, barriers).
         let passes = Timed {
+            spans: timeline.spans(last.as_ref().map(|r| r.plan.as_ref())),
             medians: renderer.medians(),
             latest: renderer.executor().latest_timings().cloned(),
             frames: renderer
@@ -242,6 +251,7 @@ fn render_with(
                 lint_findings: lint.as_ref().map_or(0, |l| l.findings.len()),
                 frame_gpu_ms: timed.frame_ms.unwrap_or(0.0),
                 passes_gpu_ms: medians.iter().map(|m| m.median_gpu_ms).sum(),
+                timeline: &timed.spans,
                 gpu_ms: medians
                     .iter()
                     .map(|m| TimingJson {
@@ -315,23 +325,29 @@ fn render_with(
 /// What `render` timed: each pass over its frames, then the whole frame over as many again.
 struct Timed {
     medians: Vec<PassMedian>,
+    spans: Vec<PassSpan>,
     latest: Option<FrameTimings>,
     /// Frames the pass medians cover.
     frames: u64,
     frame_ms: Option<f64>,
 }
 
-/// The per-pass GPU time table: medians over the frames rendered, with the last frame's
-/// shader invocation counts where the device has pipeline statistics; then the whole frame.
+/// The per-pass GPU time table: medians over the frames rendered (each pass's queue, time, and
+/// start and end since the frame's first timestamp), with the last frame's shader invocation
+/// counts where the device has pipeline statistics; then the async compute queue's overlap with
+/// the graphics queue, and the whole frame.
 fn print_timings(ctx: &Context, timed: &Timed) -> Result<(), CliError> {
     outln!(
         "\nGPU time per pass (median of {} frames, timestamps):",
         timed.frames
     )?;
     outln!(
-        "  {:<22} {:>10} {:>14} {:>14}",
+        "  {:<22} {:<14} {:>8} {:>8} {:>8} {:>14} {:>14}",
         "pass",
+        "queue",
         "gpu ms",
+        "start",
+        "end",
         "vertex inv.",
         "fragment inv."
     )?;
@@ -341,21 +357,38 @@ fn print_timings(ctx: &Context, timed: &Timed) -> Result<(), CliError> {
             .latest
             .as_ref()
             .and_then(|t| t.passes.iter().find(|p| p.name == m.name));
+        let span = timed.spans.iter().find(|s| s.pass == m.name);
         let fmt = |v: Option<u64>| v.map_or("-".to_string(), |x| x.to_string());
+        let at = |v: Option<f64>| v.map_or("-".to_string(), |x| format!("{x:.3}"));
         outln!(
-            "  {:<22} {:>10.3} {:>14} {:>14}",
+            "  {:<22} {:<14} {:>8.3} {:>8} {:>8} {:>14} {:>14}",
             m.name,
+            span.map_or("-", |s| s.queue),
             m.median_gpu_ms,
+            at(span.map(|s| s.start_ms)),
+            at(span.map(|s| s.end_ms)),
             fmt(stats.and_then(|s| s.vertex_invocations)),
             fmt(stats.and_then(|s| s.fragment_invocations))
         )?;
         total += m.median_gpu_ms;
     }
-    outln!("  {:<22} {:>10.3}", "passes", total)?;
+    outln!("  {:<22} {:<14} {:>8.3}", "passes", "", total)?;
+    if let Some((busy, shared)) = overlap(&timed.spans) {
+        outln!(
+            "  async compute queue busy {busy:.3} ms, {shared:.3} ms of it beside graphics work \
+             ({:.0} %)",
+            if busy > 0.0 {
+                100.0 * shared / busy
+            } else {
+                0.0
+            }
+        )?;
+    }
     if let Some(ms) = timed.frame_ms {
         outln!(
-            "  {:<22} {:>10.3}   (timed whole, no per-pass queries: clears, stores, barriers included)",
+            "  {:<22} {:<14} {:>8.3}   (timed whole, no per-pass queries: clears, stores, barriers included)",
             "frame",
+            "",
             ms
         )?;
     }

@@ -891,7 +891,7 @@ fn graph_shows_queues_and_cross_queue_waits() {
         "{out}"
     );
     assert!(
-        out.contains("submission 2 on the async-compute queue"),
+        out.contains("submission 1 on the async-compute queue"),
         "{out}"
     );
     assert!(

@@ -81,7 +81,7 @@ struct Spec {
     dependencies: Vec<(u16, u16)>,
     profile: u8,
     chaos: bool,
-    /// Bit `p % 64`: compute pass `p` may run on an async compute queue.
+    /// Bit `p % 64`: compute or transfer pass `p` may run on an async compute queue.
     async_passes: u64,
 }
 
@@ -432,6 +432,9 @@ fn build(spec: &Spec) -> Built {
                 b.coverage(coverage);
                 if pass.always {
                     b.retention(Retention::Always);
+                }
+                if spec.async_passes & (1 << (p % 64)) != 0 {
+                    b.async_compute();
                 }
                 b.id()
             }
@@ -1016,17 +1019,23 @@ fn submission_of_steps(plan: &Plan) -> Vec<usize> {
 }
 
 /// Whether a conflicting access in step `a` is ordered before one in step `b` on the other
-/// queue: `b`'s submission waits on `a`'s (or a later one of its queue, whose signal comes
-/// after it), at every stage of `b`'s access the queue has.
+/// queue: `b`'s submission, or an earlier one of its queue (a semaphore wait's second scope
+/// takes in every later command of the queue), waits on `a`'s (or a later one of its queue,
+/// whose signal comes after it), at every stage of `b`'s access the queue has.
 fn waits_for(plan: &Plan, of: &[usize], a: usize, b: usize, b_stages: PipelineStages) -> bool {
     let (sa, sb) = (of[a], of[b]);
     let queue_a = plan.submissions[sa].queue;
-    let need = b_stages.intersection(plan.submissions[sb].queue.stages());
-    plan.submissions[sb].waits.iter().any(|w| {
-        w.submission.index() >= sa
-            && plan.submissions[w.submission.index()].queue == queue_a
-            && w.dst_stages.contains(need)
-    })
+    let queue_b = plan.submissions[sb].queue;
+    let need = b_stages.intersection(queue_b.stages());
+    plan.submissions[..=sb]
+        .iter()
+        .filter(|s| s.queue == queue_b)
+        .flat_map(|s| &s.waits)
+        .any(|w| {
+            w.submission.index() >= sa
+                && plan.submissions[w.submission.index()].queue == queue_a
+                && w.dst_stages.contains(need)
+        })
 }
 
 fn check_hazards(plan: &Plan) -> Result<(), String> {
@@ -1509,10 +1518,10 @@ fn check_submissions(plan: &Plan, profile: &Profile) -> Result<(), String> {
         }
         for i in s.steps() {
             let pass_queue = match &plan.steps[i] {
-                Step::Compute { pass } => plan.pass(*pass).map(|p| p.queue),
-                Step::RenderPass(_) | Step::Transfer { .. } | Step::Flush(_) => {
-                    Some(Queue::Graphics)
+                Step::Compute { pass } | Step::Transfer { pass } => {
+                    plan.pass(*pass).map(|p| p.queue)
                 }
+                Step::RenderPass(_) | Step::Flush(_) => Some(Queue::Graphics),
                 Step::Barriers(b) => {
                     if s.queue == Queue::AsyncCompute {
                         let all =

@@ -79,9 +79,9 @@ pub struct QueuePolicy {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum QueueSharing {
-    /// `VK_SHARING_MODE_EXCLUSIVE`: the content moves with an ownership transfer (a release
-    /// barrier on the queue that had it, an acquire on the queue that takes it) wherever the
-    /// families differ.
+    /// `VK_SHARING_MODE_EXCLUSIVE` images: the content moves with an ownership transfer (a
+    /// release barrier on the queue that had it, an acquire on the queue that takes it) wherever
+    /// the families differ. Buffers are concurrent in both modes (nothing to compress).
     #[default]
     Exclusive,
     /// `VK_SHARING_MODE_CONCURRENT`: no transfers; reads on both queues need no wait at all.

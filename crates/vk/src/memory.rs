@@ -52,6 +52,16 @@ impl Image {
 }
 
 impl Context {
+    /// The queue families a buffer is shared between: both, concurrently, where the async
+    /// compute queue is of another family than the graphics queue (either may read any of
+    /// tilegraph's buffers; a buffer has no compression for exclusive ownership to keep);
+    /// `None`: exclusive, one family.
+    pub fn buffer_families(&self) -> Option<[u32; 2]> {
+        self.async_queue
+            .filter(|q| q.family != self.queue_family)
+            .map(|q| [self.queue_family, q.family])
+    }
+
     /// Number of device-memory allocations made through this context so far.
     pub fn allocation_count(&self) -> u64 {
         self.allocations.load(Ordering::Relaxed)
@@ -162,10 +172,15 @@ impl Context {
                 reason: "size is zero".into(),
             });
         }
-        let info = vk::BufferCreateInfo::default()
-            .size(size)
-            .usage(usage)
-            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let families = self.buffer_families();
+        let info = match &families {
+            Some(f) => vk::BufferCreateInfo::default()
+                .sharing_mode(vk::SharingMode::CONCURRENT)
+                .queue_family_indices(f),
+            None => vk::BufferCreateInfo::default().sharing_mode(vk::SharingMode::EXCLUSIVE),
+        }
+        .size(size)
+        .usage(usage);
         // SAFETY: valid create info with non-zero size.
         let raw = unsafe { self.device.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
         // SAFETY: raw is a live buffer of this device.

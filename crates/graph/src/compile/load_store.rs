@@ -297,17 +297,22 @@ fn build_render_pass(
         }
         subpasses.push(subpass);
     }
-    // Store: does anything after this render pass need the content? If so, and the render pass
-    // only read it (loaded, never written), NONE keeps it without a write-back where the
-    // profile's drivers take it.
+    // Store: a render pass that only read the attachment (loaded, never written) ends with
+    // NONE where the profile's drivers take it: no write-back, and no write either, so a pass
+    // on the async compute queue may read the same depth meanwhile (DONT_CARE is a write the
+    // store makes, and would wait for it). Unless nothing needs it after the render pass and a
+    // subpass after its last use drops it (its content undefined there: as good as written).
+    // Otherwise: does anything after this render pass need the content?
+    let last_subpass = subpasses.len().saturating_sub(1) as u32;
     for (i, att) in attachments.iter_mut().enumerate() {
         let track = tables.tracks.get(i);
         let needed = track.is_some_and(|t| t.needed_after);
         let written = att.load_op != LoadOp::Load || track.is_none_or(|t| t.write.is_some());
-        att.store_op = if !needed {
-            StoreOp::DontCare
-        } else if !written && input.store_op_none {
+        let kept_to_the_end = needed || track.is_some_and(|t| t.last_subpass == last_subpass);
+        att.store_op = if !written && input.store_op_none && kept_to_the_end {
             StoreOp::None
+        } else if !needed {
+            StoreOp::DontCare
         } else {
             StoreOp::Store
         };

@@ -19,7 +19,7 @@ use std::collections::{BinaryHeap, VecDeque};
 
 use tilegraph_profile::{PassClass, Profile};
 
-use crate::declare::{PassDecl, PassId};
+use crate::declare::{PassDecl, PassId, PassKind};
 use crate::error::GraphError;
 
 use super::access::PassAccesses;
@@ -234,15 +234,42 @@ pub(crate) fn order_passes(
         }
     }
 
-    // A pass that waits on the async queue: as urgent as its successors only.
+    // A pass that waits on the async queue: as urgent as the raster work that waits on it only.
+    // Compute and transfer passes between it and that raster work do not count (their class
+    // comes first in every profile's order, and would make the wait as urgent as ever: a
+    // late culling chain would go ahead of a shadow map that could draw meanwhile).
     let mut urgency = effective.clone();
-    for p in (0..n).filter(|&p| defer[p]) {
-        urgency[p] = edges
-            .of(p)
+    if defer.iter().any(|&d| d) {
+        let mut raster_effective: Vec<u16> = passes
             .iter()
-            .map(|&s| effective[s as usize])
-            .min()
-            .unwrap_or(rank[p]);
+            .zip(&rank)
+            .map(|(p, &r)| {
+                if p.kind == PassKind::Raster {
+                    r
+                } else {
+                    u16::MAX
+                }
+            })
+            .collect();
+        for &p in topo.iter().rev() {
+            let p = p as usize;
+            for &s in edges.of(p) {
+                raster_effective[p] = raster_effective[p].min(raster_effective[s as usize]);
+            }
+        }
+        for p in (0..n).filter(|&p| defer[p]) {
+            let waiting = edges
+                .of(p)
+                .iter()
+                .map(|&s| raster_effective[s as usize])
+                .min()
+                .unwrap_or(u16::MAX);
+            urgency[p] = if waiting == u16::MAX {
+                rank[p]
+            } else {
+                waiting
+            };
+        }
     }
     // (urgency, waits on the async queue, own rank, declaration index) packed into one integer
     // key.

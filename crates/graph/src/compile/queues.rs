@@ -8,9 +8,12 @@
 //! to one family at a time), the step's submission waits on the other queue's submission of
 //! that use, and its barrier for the resource starts from the wait (its source stages the
 //! wait's, its source access none: the semaphore makes the writes visible). With exclusive
-//! sharing the content moves by an ownership transfer: a release barrier at the end of the
-//! other queue's submission, the acquire in this step's batch. A read after a read needs no
-//! wait where sharing is concurrent.
+//! sharing an image's content moves by an ownership transfer: a release barrier at the end of
+//! the other queue's submission, the acquire in this step's batch. Buffers are always shared
+//! concurrently between the two families (the executor creates them so): exclusive ownership
+//! buys a buffer nothing (no compression to keep), and the scene's buffers outside the graph
+//! (instances, bounds, uniforms), which both queues read, could not be transferred by the graph.
+//! A read after a read needs no wait where sharing is concurrent.
 //!
 //! Every frame starts with an empty graphics submission, which the async queue's first work
 //! waits on (the previous frame's graphics work, and the producers of the imports, are behind
@@ -59,13 +62,13 @@ pub(crate) struct SubmissionInput<'a> {
 /// The queue a step runs on (`None`: a barrier batch, which goes with the step after it).
 fn step_queue(step: &Step, queue_of: &[Queue]) -> Option<Queue> {
     match step {
-        Step::Compute { pass } => Some(
+        Step::Compute { pass } | Step::Transfer { pass } => Some(
             queue_of
                 .get(pass.index())
                 .copied()
                 .unwrap_or(Queue::Graphics),
         ),
-        Step::RenderPass(_) | Step::Transfer { .. } | Step::Flush(_) => Some(Queue::Graphics),
+        Step::RenderPass(_) | Step::Flush(_) => Some(Queue::Graphics),
         Step::Barriers(_) => None,
     }
 }
@@ -301,7 +304,7 @@ impl<'a> Splitter<'a> {
 
     /// What `u` on `queue` needs from the other queue (and forgets what it synchronizes).
     fn need(&mut self, u: &StepUse, queue: Queue, barrier_old: Option<Layout>) -> Option<Need> {
-        let exclusive = self.sharing_exclusive();
+        let exclusive = self.sharing_exclusive() && self.input.resources[u.resource].is_image;
         let st = &mut self.state[u.resource];
         let p = other(queue);
         let theirs = st.unsynced[slot(p)]?;
@@ -363,8 +366,42 @@ impl<'a> Splitter<'a> {
         self.submissions.len() - 1
     }
 
-    /// Adds the wait for `need` to submission `sub` (merged with a wait on the same one), the
-    /// release to the other queue's submission, and returns the wait's stages.
+    /// A wait already on `queue`, in submission `upto` or an earlier one, that orders `need`:
+    /// on its submission or a later one of the other queue (whose signal comes after it), at
+    /// `stages` or more. A semaphore wait's second scope takes in every later command of its
+    /// queue at its stages, and a barrier after it chains from those stages.
+    fn covering_wait(&self, queue: Queue, need: &Need, upto: usize) -> Option<(usize, usize)> {
+        let stages = wait_stages(queue, need);
+        let subs = self.submissions.get(..=upto)?;
+        subs.iter().enumerate().rev().find_map(|(k, s)| {
+            let j = s.waits.iter().position(|w| {
+                s.queue == queue
+                    && w.submission.0 >= need.submission
+                    && w.dst_stages.contains(stages)
+            })?;
+            Some((k, j))
+        })
+    }
+
+    /// Whether the step can take `need` without opening a submission: a wait covers it already,
+    /// or the open submission on `queue` waits on its submission (or a later one) and can wait
+    /// at more stages (a little less overlap for the steps it holds, one submission fewer).
+    fn takes_without_split(&self, queue: Queue, need: &Need) -> bool {
+        let Some(last) = self.submissions.len().checked_sub(1) else {
+            return false;
+        };
+        self.covering_wait(queue, need, last).is_some()
+            || (self.open
+                && self.submissions[last].queue == queue
+                && self.submissions[last]
+                    .waits
+                    .iter()
+                    .any(|w| w.submission.0 >= need.submission))
+    }
+
+    /// Adds the wait for `need` to submission `sub` (a covering wait takes its reason; else one
+    /// on the same or a later submission waits at more stages; else a new one), the release to
+    /// the other queue's submission, and returns the wait's stages.
     fn wait(
         &mut self,
         sub: usize,
@@ -372,30 +409,27 @@ impl<'a> Splitter<'a> {
         need: &Need,
         new_layout: Layout,
     ) -> PipelineStages {
-        let stages = {
-            let s = need.stages.intersection(queue.stages());
-            if s.is_empty() {
-                queue.stages()
-            } else {
-                s
-            }
-        };
+        let stages = wait_stages(queue, need);
         let reason = WaitReason::Resource {
             resource: ResourceId(need.resource as u32),
             hazard: need.hazard,
             transfer: need.release.is_some(),
         };
-        let waits = &mut self.submissions[sub].waits;
-        match waits.iter_mut().find(|w| w.submission.0 == need.submission) {
-            Some(w) => {
-                w.dst_stages |= stages;
-                w.reasons.push(reason);
+        if let Some((k, j)) = self.covering_wait(queue, need, sub) {
+            self.submissions[k].waits[j].reasons.push(reason);
+        } else {
+            let waits = &mut self.submissions[sub].waits;
+            match waits.iter_mut().find(|w| w.submission.0 >= need.submission) {
+                Some(w) => {
+                    w.dst_stages |= stages;
+                    w.reasons.push(reason);
+                }
+                None => waits.push(QueueWait {
+                    submission: SubmissionIndex(need.submission),
+                    dst_stages: stages,
+                    reasons: vec![reason],
+                }),
             }
-            None => waits.push(QueueWait {
-                submission: SubmissionIndex(need.submission),
-                dst_stages: stages,
-                reasons: vec![reason],
-            }),
         }
         if let Some(theirs) = need.release {
             let from = other(queue);
@@ -460,7 +494,8 @@ impl<'a> Splitter<'a> {
                 needs.push(n);
             }
         }
-        let sub = self.submission_for(queue, !needs.is_empty());
+        let split = needs.iter().any(|n| !self.takes_without_split(queue, n));
+        let sub = self.submission_for(queue, split);
         for n in &needs {
             if let Some(u) = uses.iter().find(|u| u.resource == n.resource) {
                 self.cross(sub, queue, n, u, &mut batch);
@@ -470,7 +505,7 @@ impl<'a> Splitter<'a> {
             restrict_to_compute(&mut batch);
         }
         for u in &uses {
-            let exclusive = self.sharing_exclusive();
+            let exclusive = self.sharing_exclusive() && self.input.resources[u.resource].is_image;
             let st = &mut self.state[u.resource];
             let mine = &mut st.unsynced[slot(queue)];
             *mine = Some(match *mine {
@@ -549,7 +584,10 @@ impl<'a> Splitter<'a> {
             }
         }
         if !needs.is_empty() || !batch.is_empty() {
-            let sub = self.submission_for(queue, !needs.is_empty());
+            let split = needs
+                .iter()
+                .any(|(n, _)| !self.takes_without_split(queue, n));
+            let sub = self.submission_for(queue, split);
             for (n, u) in &needs {
                 self.cross(sub, queue, n, u, &mut batch);
                 self.state[n.resource].owner = queue;
@@ -590,6 +628,17 @@ impl<'a> Splitter<'a> {
             }
         }
         (self.steps, self.submissions)
+    }
+}
+
+/// The stages at which `queue` waits for `need`: those of the access the queue has (all of
+/// them where it has none of the access's).
+fn wait_stages(queue: Queue, need: &Need) -> PipelineStages {
+    let s = need.stages.intersection(queue.stages());
+    if s.is_empty() {
+        queue.stages()
+    } else {
+        s
     }
 }
 

@@ -586,8 +586,9 @@ impl<P> ComputePassBuilder<'_, P> {
 
     /// The pass may run on an async compute queue, beside the raster work, where the profile
     /// asks for async compute (`[queues] async_compute`) and the device has such a queue: it
-    /// touches nothing but what it declares, and records nothing a compute-only queue lacks.
-    /// The compiler adds the semaphore waits and ownership transfers its uses need.
+    /// writes nothing but what it declares (it may read buffers no pass of the frame writes,
+    /// such as the scene's), and records nothing a compute-only queue lacks. The compiler adds
+    /// the semaphore waits and ownership transfers its uses need.
     pub fn async_compute(&mut self) -> &mut Self {
         if let Some(decl) = self.graph.pass_mut(self.pass) {
             decl.async_capable = true;
@@ -606,6 +607,17 @@ impl<P> TransferPassBuilder<'_, P> {
     /// The pass's handle.
     pub fn id(&self) -> PassId {
         self.pass
+    }
+
+    /// The pass may run on the async compute queue, as
+    /// [`ComputePassBuilder::async_compute`]: for copies, fills and updates between compute
+    /// passes there (a compute queue has no blits), so that they do not bounce the work back
+    /// to the graphics queue.
+    pub fn async_compute(&mut self) -> &mut Self {
+        if let Some(decl) = self.graph.pass_mut(self.pass) {
+            decl.async_capable = true;
+        }
+        self
     }
 
     pub fn transfer_src(&mut self, resource: impl Into<ResourceId>) -> &mut Self {

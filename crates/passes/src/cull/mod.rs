@@ -247,10 +247,13 @@ pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
             culling.record_work_reset(pc.ctx, pc.cb)
         });
         g.transfer_pass("cluster-work-reset", PassClass::Transfer, reset)
-            .transfer_dst(cl.work);
+            .transfer_dst(cl.work)
+            .async_compute();
     }
+    // Every culling dispatch reads the scene's buffers and writes only what it declares: all
+    // may run on the async compute queue.
     let mut c = g.compute_pass(name, PassClass::Compute, dispatch(0, Step::Mark));
-    c.storage_write(lists.entries);
+    c.async_compute().storage_write(lists.entries);
     if let Some(cl) = lists.clusters {
         c.storage_read_write(cl.work);
     }
@@ -306,7 +309,8 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Cull)),
     );
-    cull.indirect(c.work)
+    cull.async_compute()
+        .indirect(c.work)
         .storage_read(c.work)
         .storage_read(lists.entries)
         .storage_read(lists.visibility)
@@ -322,6 +326,7 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Place)),
     )
+    .async_compute()
     .storage_read(c.runs)
     .storage_write(c.offsets);
     g.compute_pass(
@@ -329,19 +334,22 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Lists)),
     )
+    .async_compute()
     .storage_read_write(c.offsets)
     .storage_write(c.counts);
     if c.clear {
         let commands = c.commands;
         let clear: Payload = Box::new(move |pc, _| zero_fill(pc, commands));
         g.transfer_pass(names[3], PassClass::Transfer, clear)
-            .transfer_dst(c.commands);
+            .transfer_dst(c.commands)
+            .async_compute();
     }
     g.compute_pass(
         names[4],
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Emit)),
     )
+    .async_compute()
     .indirect(c.work)
     .storage_read(c.work)
     // It zeroes the entries' runs once placed, for the next culling to add to.
@@ -370,6 +378,7 @@ fn add_cull_stats(g: &mut FrameGraph, lists: CullLists) {
 /// the commands and counts.
 fn add_compaction(g: &mut FrameGraph, lists: CullLists, which: usize, names: [&'static str; 2]) {
     g.compute_pass(names[0], PassClass::Compute, dispatch(which, Step::Compact))
+        .async_compute()
         .storage_read(lists.entries)
         .storage_write(lists.draw_ids)
         .storage_write(lists.survivors);
@@ -378,6 +387,7 @@ fn add_compaction(g: &mut FrameGraph, lists: CullLists, which: usize, names: [&'
         PassClass::Compute,
         dispatch(which, Step::Commands),
     )
+    .async_compute()
     .storage_read(lists.survivors)
     .storage_write(lists.commands)
     .storage_write(lists.counts);
@@ -389,7 +399,8 @@ fn add_compaction(g: &mut FrameGraph, lists: CullLists, which: usize, names: [&'
 /// next frame's early set.
 pub fn add_cull_late(g: &mut FrameGraph, lists: CullLists) {
     let mut c = g.compute_pass("cull-late", PassClass::Compute, dispatch(1, Step::Mark));
-    c.storage_read_write(lists.entries)
+    c.async_compute()
+        .storage_read_write(lists.entries)
         .storage_read_write(lists.visibility);
     if let Some(p) = lists.pyramid {
         c.storage_read(p);

@@ -608,7 +608,8 @@ pub fn add_shadow_culling(g: &mut FrameGraph, ids: ShadowIds, pyramid: Option<Bu
             Ok(())
         });
         g.transfer_pass("shadow-counts", PassClass::Compute, clear)
-            .transfer_dst(counts);
+            .transfer_dst(counts)
+            .async_compute();
     }
     let with_pyramid = pyramid.is_some();
     let cull: Payload = Box::new(move |pc, res| {
@@ -629,8 +630,11 @@ pub fn add_shadow_culling(g: &mut FrameGraph, ids: ShadowIds, pyramid: Option<Bu
         state.record_cull(pc, set0, cull_set);
         Ok(())
     });
+    // It reads the scene and writes only its lists: it may run on the async compute queue.
     let mut p = g.compute_pass("shadow-cull", PassClass::Compute, cull);
-    p.storage_write(ids.commands).storage_write(ids.casters);
+    p.async_compute()
+        .storage_write(ids.commands)
+        .storage_write(ids.casters);
     if ids.gpu_count {
         p.storage_read_write(ids.counts);
     }

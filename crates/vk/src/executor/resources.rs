@@ -275,7 +275,8 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
     let mut requirements: Vec<MemoryRequirements> = Vec::with_capacity(plan.resources.len());
     let mut vk_reqs: Vec<Option<vk::MemoryRequirements>> = vec![None; plan.resources.len()];
     // Concurrent sharing between the two queues' families (where they differ) for what the
-    // async compute queue uses.
+    // async compute queue uses: images where the plan says so, buffers always (the plan moves
+    // no buffer between families; `Context::buffer_families`).
     let families = [
         ctx.queue_family,
         ctx.async_queue.map_or(ctx.queue_family, |q| q.family),
@@ -283,7 +284,9 @@ fn build_into(ctx: &Context, plan: &Plan, res: &mut Resources) -> Result<(), VkE
     let concurrent_sharing = plan.queue_sharing == tilegraph_profile::QueueSharing::Concurrent
         && families[0] != families[1];
     for r in &plan.resources {
-        let shared = concurrent_sharing && r.async_queue;
+        let is_buffer = matches!(r.desc, ResourceDesc::Buffer(_));
+        let shared =
+            (concurrent_sharing || (is_buffer && families[0] != families[1])) && r.async_queue;
         let (sharing, sharing_families): (vk::SharingMode, &[u32]) = if shared {
             (vk::SharingMode::CONCURRENT, &families)
         } else {
