@@ -13,7 +13,7 @@ use tilegraph_vk::{Context, FeatureRequest};
 use tilegraph_profile::knobs::KnobSettings;
 
 use crate::run::RunArgs;
-use crate::timeline::{overlap, PassSpan, Timeline};
+use crate::timeline::{overlap, Overlap, PassSpan, Timeline};
 use crate::{image_io, CliError};
 
 pub struct RenderArgs<'a> {
@@ -54,6 +54,8 @@ struct RenderJson<'a> {
     gpu_ms: Vec<TimingJson>,
     /// Each pass's queue and median start and end in the frame (per-pass timing).
     timeline: &'a [PassSpan],
+    /// The async compute queue's time against the graphics queue's passes.
+    async_overlap: Option<Overlap>,
     /// Median of the whole frame (timed with two timestamps, no per-pass queries).
     frame_gpu_ms: f64,
     /// The passes' medians summed: the frame without what lies between its passes.
@@ -252,6 +254,7 @@ fn render_with(
                 frame_gpu_ms: timed.frame_ms.unwrap_or(0.0),
                 passes_gpu_ms: medians.iter().map(|m| m.median_gpu_ms).sum(),
                 timeline: &timed.spans,
+                async_overlap: overlap(&timed.spans),
                 gpu_ms: medians
                     .iter()
                     .map(|m| TimingJson {
@@ -373,15 +376,13 @@ fn print_timings(ctx: &Context, timed: &Timed) -> Result<(), CliError> {
         total += m.median_gpu_ms;
     }
     outln!("  {:<22} {:<14} {:>8.3}", "passes", "", total)?;
-    if let Some((busy, shared)) = overlap(&timed.spans) {
+    if let Some(o) = overlap(&timed.spans) {
         outln!(
-            "  async compute queue busy {busy:.3} ms, {shared:.3} ms of it beside graphics work \
-             ({:.0} %)",
-            if busy > 0.0 {
-                100.0 * shared / busy
-            } else {
-                0.0
-            }
+            "  async compute queue busy {:.3} ms: {:.3} beside graphics passes, {:.3} between \
+             them (the graphics queue's barriers, clears, load/store ops, or its waits)",
+            o.busy_ms,
+            o.beside_passes_ms,
+            o.between_passes_ms
         )?;
     }
     if let Some(ms) = timed.frame_ms {

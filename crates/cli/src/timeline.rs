@@ -82,24 +82,46 @@ fn median(samples: &[f64]) -> Option<f64> {
     v.get(v.len() / 2).copied()
 }
 
-/// The async compute queue's busy time and how much of it the graphics queue was busy too
-/// (milliseconds; the union of each queue's spans, then their intersection). `None` when no
-/// pass ran on the async queue.
-pub fn overlap(spans: &[PassSpan]) -> Option<(f64, f64)> {
+/// Where the async compute queue's passes ran against the graphics queue's (milliseconds).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Overlap {
+    /// The async queue's passes, their union.
+    pub busy_ms: f64,
+    /// Of it, while a graphics pass ran.
+    pub beside_passes_ms: f64,
+    /// Of it, between two graphics passes: while the graphics queue ran its barriers, clears
+    /// and load/store operations, or waited.
+    pub between_passes_ms: f64,
+}
+
+/// The async compute queue's busy time against the graphics queue's passes (the union of each
+/// queue's spans, then their intersections). `None` when no pass ran on the async queue.
+pub fn overlap(spans: &[PassSpan]) -> Option<Overlap> {
     let busy = |queue: Queue| union(spans.iter().filter(|s| s.queue == queue.name()));
     let compute = busy(Queue::AsyncCompute);
     if compute.is_empty() {
         return None;
     }
     let graphics = busy(Queue::Graphics);
-    let total: f64 = compute.iter().map(|(a, b)| b - a).sum();
-    let mut shared = 0.0;
-    for &(a, b) in &compute {
-        for &(c, d) in &graphics {
-            shared += (b.min(d) - a.max(c)).max(0.0);
+    let intersect = |x: &[(f64, f64)], y: &[(f64, f64)]| {
+        let mut sum = 0.0;
+        for &(a, b) in x {
+            for &(c, d) in y {
+                sum += (b.min(d) - a.max(c)).max(0.0);
+            }
         }
-    }
-    Some((total, shared))
+        sum
+    };
+    let beside = intersect(&compute, &graphics);
+    let frame = match (graphics.first(), graphics.last()) {
+        (Some(first), Some(last)) => vec![(first.0, last.1)],
+        _ => Vec::new(),
+    };
+    Some(Overlap {
+        busy_ms: compute.iter().map(|(a, b)| b - a).sum(),
+        beside_passes_ms: beside,
+        between_passes_ms: (intersect(&compute, &frame) - beside).max(0.0),
+    })
 }
 
 /// Disjoint intervals covering the spans, in order.
@@ -132,7 +154,7 @@ mod tests {
     }
 
     #[test]
-    fn overlap_is_the_async_time_the_graphics_queue_was_busy_too() {
+    fn overlap_splits_the_async_time_by_what_the_graphics_queue_did() {
         let spans = [
             span(Queue::Graphics, 0.0, 1.0),
             span(Queue::Graphics, 0.5, 1.5),
@@ -141,9 +163,11 @@ mod tests {
             span(Queue::AsyncCompute, 1.2, 1.4),
             span(Queue::AsyncCompute, 2.5, 3.5),
         ];
-        let (busy, shared) = overlap(&spans).unwrap_or_default();
-        assert!((busy - 2.0).abs() < 1e-9, "{busy}");
-        assert!((shared - 1.0).abs() < 1e-9, "{shared}");
+        let o = overlap(&spans).unwrap_or_default();
+        assert!((o.busy_ms - 2.0).abs() < 1e-9, "{o:?}");
+        assert!((o.beside_passes_ms - 1.0).abs() < 1e-9, "{o:?}");
+        // [1.5, 2.0] and [2.5, 3.0] lie between graphics passes.
+        assert!((o.between_passes_ms - 1.0).abs() < 1e-9, "{o:?}");
         assert!(overlap(&spans[..3]).is_none());
     }
 }

@@ -861,18 +861,21 @@ fn auto_times_a_given_visible_set_only_where_the_profile_allows() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// `graph --async-compute` shows the queues: the HiZ build on the async compute queue, each
-/// submission with its waits and their reasons, and the `queue` and `wait` explanations;
-/// `--async-compute off` keeps one queue and says why the build stays on it.
+/// `graph --async-compute` shows the queues: the HiZ build on the async compute queue beside
+/// the shadow cascades, each submission with its waits and their reasons, and the `queue` and
+/// `wait` explanations; `--async-compute off` keeps one queue and says why the build stays on
+/// it.
 #[test]
 fn graph_shows_queues_and_cross_queue_waits() {
     let base = [
         "graph",
         "city:300",
         "--culling",
-        "hiz",
+        "hiz-2phase",
         "--shading",
         "prepass",
+        "--set",
+        "shadow_cascades=2",
     ];
     let with = |flag: &str| {
         let mut args = base.to_vec();

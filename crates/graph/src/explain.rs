@@ -236,6 +236,8 @@ impl Plan {
         for p in self.passes.iter().filter(|p| p.async_capable) {
             let why = if p.queue == Queue::AsyncCompute {
                 "declared async-capable, and async compute is on (the profile's `[queues]`, or the context's override): it runs beside the raster work".to_string()
+            } else if self.async_compute {
+                "declared async-capable and async compute is on, but every raster pass waits on it, comes before it or (exclusive sharing) takes turns with it on an image: on the async queue it would only add waits".to_string()
             } else {
                 format!(
                     "declared async-capable, but async compute is off (profile {}, or a device without a second queue)",

@@ -216,3 +216,54 @@ fn re_placing_memory_keeps_the_submissions() {
     plan.reassign_aliases(&requirements).unwrap();
     assert_eq!(plan.submissions, before);
 }
+
+/// Without the shadow map nothing raster runs beside the build (the colour pass waits on the
+/// culling that waits on it, the pre-pass comes before): it stays on the graphics queue, and the
+/// frame is one submission, async compute on or not.
+#[test]
+fn a_pass_no_raster_work_runs_beside_stays_on_the_graphics_queue() {
+    let mut g: GraphBuilder<&'static str> = GraphBuilder::new();
+    let depth = g.create_image("depth", ImageDesc::new(EXTENT, Format::D32_SFLOAT));
+    let pyramid = g.create_image(
+        "hiz",
+        ImageDesc::new(Extent2d::new(1024, 512), Format::R32_SFLOAT).with_mip_levels(11),
+    );
+    let draws = g.create_buffer("draw_list", 1 << 20);
+    let swapchain = g.import_image(
+        "swapchain",
+        ImageDesc::new(EXTENT, Format::B8G8R8A8_SRGB),
+        Import::SWAPCHAIN,
+    );
+    g.export(swapchain);
+    g.raster_pass("depth_prepass", PassClass::DepthPrepass, "depth_prepass")
+        .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
+    g.compute_pass("hiz_build", PassClass::Compute, "hiz_build")
+        .sampled(depth)
+        .storage_write(pyramid)
+        .async_compute();
+    g.compute_pass("cull", PassClass::Compute, "cull")
+        .sampled(pyramid)
+        .storage_write(draws)
+        .async_compute();
+    g.raster_pass("opaque", PassClass::Opaque, "opaque")
+        .indirect(draws)
+        .depth_stencil_read_only(depth)
+        .color(swapchain)
+        .coverage(Coverage::Full);
+    let plan = g
+        .compile(&with_async(QueueSharing::Concurrent))
+        .unwrap()
+        .plan;
+    assert!(
+        plan.passes.iter().all(|p| p.queue == Queue::Graphics),
+        "{plan}"
+    );
+    assert_eq!(plan.submissions.len(), 1, "{plan}");
+    let why = plan
+        .explain()
+        .into_iter()
+        .find(|r| r.topic == Topic::Queue && r.subject == "cull")
+        .map(|r| r.why)
+        .unwrap_or_default();
+    assert!(why.contains("every raster pass"), "{why}");
+}

@@ -2,8 +2,8 @@
 //! plain data to plain data in the file of its name:
 //!
 //! ```text
-//! validate_declarations -> trace_dataflow -> prune_unused_passes -> order_passes
-//!   -> assign_queues -> merge_render_passes -> resource_lifetimes -> residencies
+//! validate_declarations -> trace_dataflow -> prune_unused_passes -> order_passes (and
+//!   assign_queues) -> merge_render_passes -> resource_lifetimes -> residencies
 //!   -> assign_aliases -> infer_load_store -> plan_barriers -> plan_submissions
 //!   -> (the plan) -> estimate_traffic
 //! ```
@@ -44,7 +44,7 @@ use barriers::{plan_barriers, step_lifetimes, BarrierPlan, ResourceSync};
 use lifetimes::{content_kept_at_end, infer_usage, residencies, resource_lifetimes, ResourceUses};
 use load_store::{infer_load_store, LoadStoreInput};
 use prune::Pruning;
-use queues::{assign_queues, plan_submissions, SubmissionInput};
+use queues::{plan_submissions, SubmissionInput};
 
 /// A compiled frame: the plan, and the payloads of the surviving passes.
 #[derive(Debug, Clone)]
@@ -134,17 +134,14 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
     let accesses = &validated.accesses;
     let dataflow = dataflow::trace_dataflow(&resources, &passes, accesses, &exports)?;
     let pruning = prune::prune_unused_passes(&dataflow, accesses, &passes, &exports);
-    let async_capable: Vec<bool> = passes.iter().map(|p| p.async_capable).collect();
-    let queue_of = assign_queues(&async_capable, profile.queues.async_compute);
-    let on_async: Vec<bool> = queue_of.iter().map(|&q| q == Queue::AsyncCompute).collect();
-    let order = order::order_passes(
+    let order::Ordered { order, queue_of } = order::order_passes(
         accesses,
         &dataflow,
         &passes,
         n_resources,
         &pruning.alive,
         &dependencies,
-        (profile, &on_async),
+        profile,
     )?;
     let async_queue = resources_on(
         Queue::AsyncCompute,
@@ -238,6 +235,7 @@ fn compile<P>(graph: GraphBuilder<P>, profile: &Profile) -> Result<CompiledGraph
             merges,
             submissions,
             queue_sharing: profile.queues.sharing,
+            async_compute: profile.queues.async_compute,
         },
         payloads,
     })

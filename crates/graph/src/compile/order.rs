@@ -9,6 +9,10 @@
 //! profile's order (occlusion queries after transparents) this puts occlusion-query passes
 //! after all opaque, alpha-tested and transparent work that does not depend on them (seed 001).
 //!
+//! It also assigns the queues: with the profile's async compute on, an async-capable pass runs
+//! on the async compute queue where a raster pass may run beside it (neither waits on the other,
+//! directly or not); elsewhere the second queue would only add waits.
+//!
 //! With passes on the async compute queue, a graphics pass that takes what an async pass makes
 //! is only as urgent as the passes that wait on it (its own class does not hurry it), and goes
 //! after the other ready passes of that rank: the graphics queue draws what does not wait
@@ -17,13 +21,16 @@
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, VecDeque};
 
-use tilegraph_profile::{PassClass, Profile};
+use tilegraph_profile::{PassClass, Profile, QueueSharing};
 
 use crate::declare::{PassDecl, PassId, PassKind};
 use crate::error::GraphError;
+use crate::plan::Queue;
+use crate::types::Layout;
 
 use super::access::PassAccesses;
 use super::dataflow::Dataflow;
+use super::queues::assign_queues;
 
 const NONE: u32 = u32::MAX;
 
@@ -157,6 +164,12 @@ fn find_cycle(edges: &Edges, remaining: &[bool], passes: &[PassDecl]) -> GraphEr
     }
 }
 
+/// The passes in execution order, and the queue of each (index: `PassId`).
+pub(crate) struct Ordered {
+    pub order: Vec<PassId>,
+    pub queue_of: Vec<Queue>,
+}
+
 pub(crate) fn order_passes(
     accesses: &PassAccesses,
     dataflow: &Dataflow,
@@ -164,17 +177,10 @@ pub(crate) fn order_passes(
     n_resources: usize,
     alive: &[bool],
     dependencies: &[(PassId, PassId)],
-    (profile, on_async): (&Profile, &[bool]),
-) -> Result<Vec<PassId>, GraphError> {
+    profile: &Profile,
+) -> Result<Ordered, GraphError> {
     let n = passes.len();
     let edges = dependency_edges(accesses, dataflow, n_resources, alive, dependencies);
-    // Graphics passes that wait on an async pass.
-    let mut defer = vec![false; n];
-    for p in (0..n).filter(|&p| on_async.get(p).copied().unwrap_or(false)) {
-        for &s in edges.of(p) {
-            defer[s as usize] = !on_async.get(s as usize).copied().unwrap_or(false);
-        }
-    }
     let mut indegree = vec![0u32; n];
     for &t in &edges.targets {
         indegree[t as usize] += 1;
@@ -209,6 +215,28 @@ pub(crate) fn order_passes(
         }
         topo
     };
+
+    let queue_of = if profile.queues.async_compute {
+        let exclusive = profile.queues.sharing == QueueSharing::Exclusive;
+        let beside = beside_raster(
+            &edges,
+            &topo,
+            (passes, alive),
+            exclusive.then_some(accesses),
+        );
+        let capable: Vec<bool> = passes.iter().map(|p| p.async_capable).collect();
+        assign_queues(&capable, &beside)
+    } else {
+        vec![Queue::Graphics; n]
+    };
+    let on_async: Vec<bool> = queue_of.iter().map(|&q| q == Queue::AsyncCompute).collect();
+    // Graphics passes that wait on an async pass.
+    let mut defer = vec![false; n];
+    for p in (0..n).filter(|&p| on_async[p]) {
+        for &s in edges.of(p) {
+            defer[s as usize] = !on_async[s as usize];
+        }
+    }
 
     // Indexed by the class's discriminant; ranks are clamped to 16 bits for the key below.
     let mut class_rank = [u16::MAX; CLASSES.len()];
@@ -309,7 +337,59 @@ pub(crate) fn order_passes(
             }
         }
     }
-    Ok(order)
+    Ok(Ordered { order, queue_of })
+}
+
+/// Whether each pass has a raster pass beside it: one that neither waits on it nor is waited on
+/// by it, directly or not, and so may run while it does. Only such a pass gains from the async
+/// queue; one that every raster pass waits on (or follows) would only add waits and
+/// submissions to the frame. With exclusive sharing (`accesses` given), two passes that use
+/// one image are not beside each other either: the image belongs to one queue's family at a
+/// time, so even two reads take turns.
+fn beside_raster(
+    edges: &Edges,
+    topo: &[u32],
+    (passes, alive): (&[PassDecl], &[bool]),
+    accesses: Option<&PassAccesses>,
+) -> Vec<bool> {
+    let n = passes.len();
+    let words = n.div_ceil(64);
+    // after[p]: the passes that wait on p, directly or not (a bit set of `words` words).
+    let mut after = vec![0u64; n * words];
+    for &p in topo.iter().rev() {
+        let p = p as usize;
+        for &s in edges.of(p) {
+            let s = s as usize;
+            after[p * words + s / 64] |= 1 << (s % 64);
+            for w in 0..words {
+                let bits = after[s * words + w];
+                after[p * words + w] |= bits;
+            }
+        }
+    }
+    let ordered = |a: usize, b: usize| after[a * words + b / 64] & (1 << (b % 64)) != 0;
+    let share_an_image = |a: usize, b: usize| {
+        accesses.is_some_and(|acc| {
+            let images = |p: usize| {
+                acc.of(PassId(p as u32))
+                    .iter()
+                    .filter(|x| x.layout != Layout::Undefined)
+                    .map(|x| x.resource)
+            };
+            images(a).any(|r| images(b).any(|s| s == r))
+        })
+    };
+    let raster: Vec<usize> = (0..n)
+        .filter(|&r| alive[r] && passes[r].kind == PassKind::Raster)
+        .collect();
+    (0..n)
+        .map(|p| {
+            alive[p]
+                && raster
+                    .iter()
+                    .any(|&r| r != p && !ordered(p, r) && !ordered(r, p) && !share_an_image(p, r))
+        })
+        .collect()
 }
 
 #[cfg(test)]

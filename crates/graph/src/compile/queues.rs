@@ -33,13 +33,15 @@ use crate::types::{AccessFlags, Layout, PipelineStages, StoreOp};
 use super::access::PassAccesses;
 use super::barriers::ResourceSync;
 
-/// The queue of each pass (index: `PassId`): async-capable compute passes on the async queue
-/// when `async_compute` is on, everything else on the graphics queue.
-pub(crate) fn assign_queues(async_capable: &[bool], async_compute: bool) -> Vec<Queue> {
+/// The queue of each pass (index: `PassId`) when the profile asks for async compute:
+/// async-capable passes with raster work beside them (`beside`) on the async queue, everything
+/// else on the graphics queue.
+pub(crate) fn assign_queues(async_capable: &[bool], beside: &[bool]) -> Vec<Queue> {
     async_capable
         .iter()
-        .map(|&capable| {
-            if capable && async_compute {
+        .zip(beside)
+        .map(|(&capable, &beside)| {
+            if capable && beside {
                 Queue::AsyncCompute
             } else {
                 Queue::Graphics

@@ -88,6 +88,9 @@ pub struct Plan {
     pub submissions: Vec<Submission>,
     /// How resources used on both queues are shared (the profile's `[queues] sharing`).
     pub queue_sharing: QueueSharing,
+    /// Whether the profile asked for async compute (`[queues] async_compute`): async-capable
+    /// passes then run on the async queue where raster work can run beside them.
+    pub async_compute: bool,
 }
 
 /// Whether a raster pass joined the render pass of the raster pass before it.
