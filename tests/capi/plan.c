@@ -4,8 +4,10 @@
  * pass sampling the lit image into the engine's target, and a debug pass nothing uses) compiled
  * for three profiles — a Mali and an Adreno tiler and an NVIDIA desktop GPU — and every plan
  * walked whole: steps, each render pass's attachments with their load/store ops and layouts,
- * subpasses, every barrier. The walk is written as text; the test compares it with the same
- * graph compiled through the Rust API, line for line.
+ * subpasses, every barrier, and the submissions (the occlusion pass is async-capable: on the
+ * profiles with async compute it goes to the second queue, beside the G-buffer). The walk is
+ * written as text; the test compares it with the same graph compiled through the Rust API,
+ * line for line.
  *
  * Usage: plan OUT.txt. Exits non-zero on any failure.
  */
@@ -58,11 +60,37 @@ static void walk(TgGraph graph, const char *profile, FILE *out) {
             TG_CHECK(tg_plan_barrier(plan, i, b, &br));
             fprintf(out,
                     "  barrier %u resource %u image %u src %#" PRIx64 "/%#" PRIx64
-                    " dst %#" PRIx64 "/%#" PRIx64 " layouts %d->%d\n",
+                    " dst %#" PRIx64 "/%#" PRIx64 " layouts %d->%d transfer %u\n",
                     b, br.resource, br.is_image, br.src_stages, br.src_access, br.dst_stages,
-                    br.dst_access, br.old_layout, br.new_layout);
+                    br.dst_access, br.old_layout, br.new_layout, br.queue_transfer);
         }
     }
+    /* What to submit where: each submission's queue and steps, what it waits on, the
+     * ownership releases that end it. */
+    for (uint32_t k = 0; k < s.submission_count; k++) {
+        TgSubmission sub;
+        TG_CHECK(tg_plan_submission(plan, k, &sub));
+        fprintf(out, "submission %u queue %u steps %u..%u waits %u releases %u\n", k, sub.queue,
+                sub.first_step, sub.end_step, sub.wait_count, sub.release_count);
+        for (uint32_t w = 0; w < sub.wait_count; w++) {
+            TgQueueWait wait;
+            TG_CHECK(tg_plan_submission_wait(plan, k, w, &wait));
+            fprintf(out, "  wait on %u at 0x%" PRIx64 "\n", wait.submission, wait.dst_stages);
+        }
+        for (uint32_t r = 0; r < sub.release_count; r++) {
+            TgBarrier br;
+            TG_CHECK(tg_plan_submission_release(plan, k, r, &br));
+            fprintf(out,
+                    "  release %u resource %u image %u src 0x%" PRIx64 " layouts %d->%d "
+                    "transfer %u\n",
+                    r, br.resource, br.is_image, br.src_stages, br.old_layout, br.new_layout,
+                    br.queue_transfer);
+        }
+    }
+    TgSubmission past_submission;
+    CHECK(tg_plan_submission(plan, s.submission_count, &past_submission) ==
+              TG_STATUS_INVALID_ARGUMENT,
+          "a submission past the end was returned");
     /* Past the end is a status, not a read out of bounds. */
     TgStep past;
     CHECK(tg_plan_step(plan, s.step_count, &past) == TG_STATUS_INVALID_ARGUMENT,
@@ -93,6 +121,8 @@ int main(int argc, char **argv) {
     uint32_t gbuffer, occlusion, lighting, post, debug;
     TG_CHECK(tg_graph_add_pass(g, "occlusion", 0, TG_PASS_CLASS_COMPUTE, &occlusion));
     TG_CHECK(tg_pass_use(g, occlusion, ao, TG_USE_STORAGE_WRITE));
+    /* Beside the G-buffer: on the async compute queue where the profile asks for it. */
+    TG_CHECK(tg_pass_async_compute(g, occlusion));
     TG_CHECK(tg_graph_add_pass(g, "gbuffer", 1, TG_PASS_CLASS_OPAQUE, &gbuffer));
     TG_CHECK(tg_pass_color(g, gbuffer, albedo, black));
     TG_CHECK(tg_pass_color(g, gbuffer, normal, black));

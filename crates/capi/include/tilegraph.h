@@ -863,6 +863,10 @@ typedef struct {
    * The same estimate with every raster pass alone, loading and storing everything.
    */
   uint64_t naive_attachment_traffic_bytes;
+  /**
+   * Submissions (`tg_plan_submission`): 1 unless passes run on the async compute queue.
+   */
+  uint32_t submission_count;
 } TgPlanSummary;
 
 /**
@@ -945,7 +949,39 @@ typedef struct {
   uint64_t dst_access;
   int32_t old_layout;
   int32_t new_layout;
+  /**
+   * A TgQueueTransfer: the acquire half (in a barrier step) or the release half (a
+   * submission's releases) of an ownership transfer.
+   */
+  uint32_t queue_transfer;
 } TgBarrier;
+
+/**
+ * Steps `first_step..end_step` submitted to one queue: record them into a command buffer of
+ * that queue, then the `release_count` ownership releases (`tg_plan_submission_release`);
+ * submit after waiting on the `wait_count` waits (`tg_plan_submission_wait`), and signal
+ * (a timeline value per queue) what later submissions wait on. The first submission is empty
+ * and on the graphics queue (the async queue's first wait), the last is on the graphics queue.
+ */
+typedef struct {
+  /**
+   * A TgQueue.
+   */
+  uint32_t queue;
+  uint32_t first_step;
+  uint32_t end_step;
+  uint32_t wait_count;
+  uint32_t release_count;
+} TgSubmission;
+
+/**
+ * One wait of a submission: on submission `submission` of the other queue (its signal), at
+ * `dst_stages` (VkPipelineStageFlags2) of this one.
+ */
+typedef struct {
+  uint32_t submission;
+  uint64_t dst_stages;
+} TgQueueWait;
 
 /**
  * A precomputed visible set.
@@ -1559,6 +1595,13 @@ TgStatus tg_graph_add_pass(TgGraph graph,
                            uint32_t *out_pass);
 
 /**
+ * Declares compute pass `pass` async-capable: where the profile asks for async compute and
+ * raster work can run beside it, the plan puts it on the async compute queue
+ * (`tg_plan_submission`). It must write nothing but what it declares.
+ */
+TgStatus tg_pass_async_compute(TgGraph graph, uint32_t pass);
+
+/**
  * Attaches a colour target to raster pass `pass`: cleared to `clear` (four floats) when
  * non-null, else loaded.
  *
@@ -1721,6 +1764,35 @@ TgStatus tg_plan_barrier(TgPlan plan,
  * `out_name` is writable.
  */
 TgStatus tg_plan_pass_name(TgPlan plan, uint32_t pass, const char **out_name);
+
+/**
+ * Submission `index` of the plan, in submission order.
+ *
+ * # Safety
+ * `out_submission` is writable.
+ */
+TgStatus tg_plan_submission(TgPlan plan, uint32_t index, TgSubmission *out_submission);
+
+/**
+ * Wait `wait` of submission `index`.
+ *
+ * # Safety
+ * `out_wait` is writable.
+ */
+TgStatus tg_plan_submission_wait(TgPlan plan, uint32_t index, uint32_t wait, TgQueueWait *out_wait);
+
+/**
+ * Ownership release `release` recorded at the end of submission `index` (images first, then
+ * buffers): the release half of a transfer whose acquire half is a barrier of a later
+ * submission on the other queue.
+ *
+ * # Safety
+ * `out_barrier` is writable.
+ */
+TgStatus tg_plan_submission_release(TgPlan plan,
+                                    uint32_t index,
+                                    uint32_t release,
+                                    TgBarrier *out_barrier);
 
 /**
  * Reads a visible set from the file at `path` (the JSON `tilegraph pvs` writes) and checks

@@ -266,6 +266,22 @@ pub unsafe extern "C" fn tg_graph_add_pass(
     })
 }
 
+/// Declares compute pass `pass` async-capable: where the profile asks for async compute and
+/// raster work can run beside it, the plan puts it on the async compute queue
+/// (`tg_plan_submission`). It must write nothing but what it declares.
+#[no_mangle]
+pub extern "C" fn tg_pass_async_compute(graph: TgGraph, pass: u32) -> TgStatus {
+    boundary("tg_pass_async_compute", || {
+        on_graph(graph, |g| {
+            let mut p = g.compute(PassId(pass)).ok_or_else(|| {
+                Failure::invalid(format!("pass {pass} does not exist or is no compute pass"))
+            })?;
+            p.async_compute();
+            Ok(())
+        })
+    })
+}
+
 /// Attaches a colour target to raster pass `pass`: cleared to `clear` (four floats) when
 /// non-null, else loaded.
 ///

@@ -1,9 +1,11 @@
 //! A compiled plan, walked from C: its steps in recording order, each render pass's
-//! attachments (load/store ops, layouts, residency) and subpasses, each barrier.
+//! attachments (load/store ops, layouts, residency) and subpasses, each barrier, and the
+//! submissions that cut the steps between the graphics and the async compute queue (what to
+//! submit where, what each waits on, which ownership releases end it).
 
 use std::ffi::{c_char, CString};
 
-use tilegraph_graph::{Plan, Residency, Step};
+use tilegraph_graph::{BarrierBatch, Plan, Queue, QueueTransfer, Residency, Step};
 
 use crate::registry::{self, Kind};
 use crate::status::{boundary, out, Failure, TgStatus};
@@ -63,6 +65,54 @@ pub struct TgPlanSummary {
     pub attachment_traffic_bytes: u64,
     /// The same estimate with every raster pass alone, loading and storing everything.
     pub naive_attachment_traffic_bytes: u64,
+    /// Submissions (`tg_plan_submission`): 1 unless passes run on the async compute queue.
+    pub submission_count: u32,
+}
+
+/// The queue a submission goes to.
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TgQueue {
+    /// The queue the frame's raster work runs on (graphics and compute).
+    Graphics = 0,
+    /// A second queue for passes declared async-capable (`tg_pass_async_compute`): of a
+    /// compute-only family where the device has one.
+    AsyncCompute = 1,
+}
+
+/// An ownership transfer a barrier makes between the two queues' families (exclusive
+/// sharing; with one family, record the barrier without it).
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TgQueueTransfer {
+    None = 0,
+    GraphicsToAsyncCompute = 1,
+    AsyncComputeToGraphics = 2,
+}
+
+/// Steps `first_step..end_step` submitted to one queue: record them into a command buffer of
+/// that queue, then the `release_count` ownership releases (`tg_plan_submission_release`);
+/// submit after waiting on the `wait_count` waits (`tg_plan_submission_wait`), and signal
+/// (a timeline value per queue) what later submissions wait on. The first submission is empty
+/// and on the graphics queue (the async queue's first wait), the last is on the graphics queue.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TgSubmission {
+    /// A TgQueue.
+    pub queue: u32,
+    pub first_step: u32,
+    pub end_step: u32,
+    pub wait_count: u32,
+    pub release_count: u32,
+}
+
+/// One wait of a submission: on submission `submission` of the other queue (its signal), at
+/// `dst_stages` (VkPipelineStageFlags2) of this one.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TgQueueWait {
+    pub submission: u32,
+    pub dst_stages: u64,
 }
 
 /// One step of the plan.
@@ -125,6 +175,9 @@ pub struct TgBarrier {
     pub dst_access: u64,
     pub old_layout: i32,
     pub new_layout: i32,
+    /// A TgQueueTransfer: the acquire half (in a barrier step) or the release half (a
+    /// submission's releases) of an ownership transfer.
+    pub queue_transfer: u32,
 }
 
 pub(crate) struct PlanObject {
@@ -191,6 +244,7 @@ pub unsafe extern "C" fn tg_plan_summary(
                     .count() as u32,
                 attachment_traffic_bytes: attachments(&p.traffic.planned),
                 naive_attachment_traffic_bytes: attachments(&p.traffic.naive),
+                submission_count: p.submissions.len() as u32,
             };
             Ok(())
         })
@@ -353,35 +407,12 @@ pub unsafe extern "C" fn tg_plan_barrier(
                     "step {step_index} is no barrier step"
                 )));
             };
-            let i = barrier as usize;
-            let b = if let Some(b) = batch.images.get(i) {
-                TgBarrier {
-                    resource: b.resource.0,
-                    is_image: 1,
-                    src_stages: b.src_stages.bits(),
-                    src_access: b.src_access.bits(),
-                    dst_stages: b.dst_stages.bits(),
-                    dst_access: b.dst_access.bits(),
-                    old_layout: b.old_layout.vk_raw(),
-                    new_layout: b.new_layout.vk_raw(),
-                }
-            } else if let Some(b) = batch.buffers.get(i - batch.images.len()) {
-                TgBarrier {
-                    resource: b.resource.0,
-                    is_image: 0,
-                    src_stages: b.src_stages.bits(),
-                    src_access: b.src_access.bits(),
-                    dst_stages: b.dst_stages.bits(),
-                    dst_access: b.dst_access.bits(),
-                    old_layout: 0,
-                    new_layout: 0,
-                }
-            } else {
-                return Err(Failure::invalid(format!(
+            let b = barrier_of(batch, barrier).ok_or_else(|| {
+                Failure::invalid(format!(
                     "barrier {barrier} is past the step's {}",
                     batch.len()
-                )));
-            };
+                ))
+            })?;
             *out_barrier = b;
             Ok(())
         })
@@ -414,6 +445,149 @@ pub unsafe extern "C" fn tg_plan_pass_name(
                     ))
                 })?;
             *out_name = p.names[i].as_ptr();
+            Ok(())
+        })
+    })
+}
+
+fn transfer_of(t: Option<QueueTransfer>) -> u32 {
+    match t {
+        None => TgQueueTransfer::None as u32,
+        Some(QueueTransfer {
+            to: Queue::AsyncCompute,
+            ..
+        }) => TgQueueTransfer::GraphicsToAsyncCompute as u32,
+        Some(QueueTransfer {
+            to: Queue::Graphics,
+            ..
+        }) => TgQueueTransfer::AsyncComputeToGraphics as u32,
+    }
+}
+
+/// Barrier `index` of `batch` (images first, then buffers).
+fn barrier_of(batch: &BarrierBatch, index: u32) -> Option<TgBarrier> {
+    let i = index as usize;
+    if let Some(b) = batch.images.get(i) {
+        return Some(TgBarrier {
+            resource: b.resource.0,
+            is_image: 1,
+            src_stages: b.src_stages.bits(),
+            src_access: b.src_access.bits(),
+            dst_stages: b.dst_stages.bits(),
+            dst_access: b.dst_access.bits(),
+            old_layout: b.old_layout.vk_raw(),
+            new_layout: b.new_layout.vk_raw(),
+            queue_transfer: transfer_of(b.queue_transfer),
+        });
+    }
+    let b = batch.buffers.get(i.checked_sub(batch.images.len())?)?;
+    Some(TgBarrier {
+        resource: b.resource.0,
+        is_image: 0,
+        src_stages: b.src_stages.bits(),
+        src_access: b.src_access.bits(),
+        dst_stages: b.dst_stages.bits(),
+        dst_access: b.dst_access.bits(),
+        old_layout: 0,
+        new_layout: 0,
+        queue_transfer: transfer_of(b.queue_transfer),
+    })
+}
+
+fn submission(p: &Plan, index: u32) -> Result<&tilegraph_graph::Submission, Failure> {
+    p.submissions.get(index as usize).ok_or_else(|| {
+        Failure::invalid(format!(
+            "submission {index} is past the plan's {} submissions",
+            p.submissions.len()
+        ))
+    })
+}
+
+/// Submission `index` of the plan, in submission order.
+///
+/// # Safety
+/// `out_submission` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn tg_plan_submission(
+    plan: TgPlan,
+    index: u32,
+    out_submission: *mut TgSubmission,
+) -> TgStatus {
+    boundary("tg_plan_submission", || {
+        // SAFETY: the caller's contract.
+        let out_submission = unsafe { out(out_submission, "out_submission") }?;
+        on_plan(plan, |p| {
+            let s = submission(&p.plan, index)?;
+            *out_submission = TgSubmission {
+                queue: match s.queue {
+                    Queue::Graphics => TgQueue::Graphics as u32,
+                    Queue::AsyncCompute => TgQueue::AsyncCompute as u32,
+                },
+                first_step: s.first.0,
+                end_step: s.end.0,
+                wait_count: s.waits.len() as u32,
+                release_count: s.releases.len() as u32,
+            };
+            Ok(())
+        })
+    })
+}
+
+/// Wait `wait` of submission `index`.
+///
+/// # Safety
+/// `out_wait` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn tg_plan_submission_wait(
+    plan: TgPlan,
+    index: u32,
+    wait: u32,
+    out_wait: *mut TgQueueWait,
+) -> TgStatus {
+    boundary("tg_plan_submission_wait", || {
+        // SAFETY: the caller's contract.
+        let out_wait = unsafe { out(out_wait, "out_wait") }?;
+        on_plan(plan, |p| {
+            let s = submission(&p.plan, index)?;
+            let w = s.waits.get(wait as usize).ok_or_else(|| {
+                Failure::invalid(format!(
+                    "wait {wait} is past submission {index}'s {}",
+                    s.waits.len()
+                ))
+            })?;
+            *out_wait = TgQueueWait {
+                submission: w.submission.0,
+                dst_stages: w.dst_stages.bits(),
+            };
+            Ok(())
+        })
+    })
+}
+
+/// Ownership release `release` recorded at the end of submission `index` (images first, then
+/// buffers): the release half of a transfer whose acquire half is a barrier of a later
+/// submission on the other queue.
+///
+/// # Safety
+/// `out_barrier` is writable.
+#[no_mangle]
+pub unsafe extern "C" fn tg_plan_submission_release(
+    plan: TgPlan,
+    index: u32,
+    release: u32,
+    out_barrier: *mut TgBarrier,
+) -> TgStatus {
+    boundary("tg_plan_submission_release", || {
+        // SAFETY: the caller's contract.
+        let out_barrier = unsafe { out(out_barrier, "out_barrier") }?;
+        on_plan(plan, |p| {
+            let s = submission(&p.plan, index)?;
+            *out_barrier = barrier_of(&s.releases, release).ok_or_else(|| {
+                Failure::invalid(format!(
+                    "release {release} is past submission {index}'s {}",
+                    s.releases.len()
+                ))
+            })?;
             Ok(())
         })
     })

@@ -404,7 +404,8 @@ fn rust_plan_walk() -> String {
     let scratch = g.create_image("scratch", desc(Format::R8G8B8A8_UNORM));
     let black = ClearColor::Float([0.0, 0.0, 0.0, 1.0]);
     g.compute_pass("occlusion", PassClass::Compute, ())
-        .storage_write(ao);
+        .storage_write(ao)
+        .async_compute();
     g.raster_pass("gbuffer", PassClass::Opaque, ())
         .color_clear(albedo, black)
         .color_clear(normal, black)
@@ -520,36 +521,93 @@ fn rust_plan_walk() -> String {
                 }
             }
             if let Step::Barriers(b) = step {
-                let images = b.images.iter().map(|x| {
-                    (
-                        x.resource.0,
-                        1,
-                        (x.src_stages.bits(), x.src_access.bits()),
-                        (x.dst_stages.bits(), x.dst_access.bits()),
-                        (x.old_layout.vk_raw(), x.new_layout.vk_raw()),
-                    )
-                });
-                let buffers = b.buffers.iter().map(|x| {
-                    (
-                        x.resource.0,
-                        0,
-                        (x.src_stages.bits(), x.src_access.bits()),
-                        (x.dst_stages.bits(), x.dst_access.bits()),
-                        (0, 0),
-                    )
-                });
-                for (k, (res, image, src, dst, layouts)) in images.chain(buffers).enumerate() {
+                for (k, x) in barrier_rows(b).into_iter().enumerate() {
                     writeln!(
                         out,
-                        "  barrier {k} resource {res} image {image} src {:#x}/{:#x} dst {:#x}/{:#x} layouts {}->{}",
-                        src.0, src.1, dst.0, dst.1, layouts.0, layouts.1
+                        "  barrier {k} resource {} image {} src {:#x}/{:#x} dst {:#x}/{:#x} layouts {}->{} transfer {}",
+                        x.resource, x.image, x.src.0, x.src.1, x.dst.0, x.dst.1, x.layouts.0, x.layouts.1, x.transfer
                     )
                     .unwrap();
                 }
             }
         }
+        for (k, sub) in plan.submissions.iter().enumerate() {
+            let queue = match sub.queue {
+                tilegraph_graph::Queue::Graphics => 0,
+                tilegraph_graph::Queue::AsyncCompute => 1,
+            };
+            writeln!(
+                out,
+                "submission {k} queue {queue} steps {}..{} waits {} releases {}",
+                sub.first.0,
+                sub.end.0,
+                sub.waits.len(),
+                sub.releases.len()
+            )
+            .unwrap();
+            for w in &sub.waits {
+                writeln!(
+                    out,
+                    "  wait on {} at 0x{:x}",
+                    w.submission.0,
+                    w.dst_stages.bits()
+                )
+                .unwrap();
+            }
+            for (r, x) in barrier_rows(&sub.releases).into_iter().enumerate() {
+                writeln!(
+                    out,
+                    "  release {r} resource {} image {} src 0x{:x} layouts {}->{} transfer {}",
+                    x.resource, x.image, x.src.0, x.layouts.0, x.layouts.1, x.transfer
+                )
+                .unwrap();
+            }
+        }
     }
     out
+}
+
+/// One barrier as the C walk prints it.
+struct BarrierRow {
+    resource: u32,
+    image: u32,
+    src: (u64, u64),
+    dst: (u64, u64),
+    layouts: (i32, i32),
+    transfer: u32,
+}
+
+/// A batch's barriers, images first (as `tg_plan_barrier` numbers them).
+fn barrier_rows(b: &tilegraph_graph::BarrierBatch) -> Vec<BarrierRow> {
+    use tilegraph_graph::{Queue, QueueTransfer};
+    let transfer = |t: Option<QueueTransfer>| match t {
+        None => 0,
+        Some(QueueTransfer {
+            to: Queue::AsyncCompute,
+            ..
+        }) => 1,
+        Some(QueueTransfer {
+            to: Queue::Graphics,
+            ..
+        }) => 2,
+    };
+    let images = b.images.iter().map(|x| BarrierRow {
+        resource: x.resource.0,
+        image: 1,
+        src: (x.src_stages.bits(), x.src_access.bits()),
+        dst: (x.dst_stages.bits(), x.dst_access.bits()),
+        layouts: (x.old_layout.vk_raw(), x.new_layout.vk_raw()),
+        transfer: transfer(x.queue_transfer),
+    });
+    let buffers = b.buffers.iter().map(|x| BarrierRow {
+        resource: x.resource.0,
+        image: 0,
+        src: (x.src_stages.bits(), x.src_access.bits()),
+        dst: (x.dst_stages.bits(), x.dst_access.bits()),
+        layouts: (0, 0),
+        transfer: transfer(x.queue_transfer),
+    });
+    images.chain(buffers).collect()
 }
 
 #[test]
@@ -567,6 +625,10 @@ fn the_c_plan_walk_sees_the_rust_plan() {
         "residency 3",
         "barrier 0",
         "1 pruned",
+        // The occlusion pass on the async queue (mali-valhall, desktop-nvidia), and the
+        // graphics queue's wait for it.
+        "queue 1 steps",
+        "  wait on ",
     ] {
         assert!(c.contains(needle), "{needle:?} not in the C walk:\n{c}");
     }

@@ -76,11 +76,9 @@ fn submission_of(plan: &Plan, pass: &str) -> usize {
 
 #[test]
 fn with_async_compute_off_everything_is_one_graphics_submission() {
-    let plan = async_frame()
-        .graph
-        .compile(&profile("desktop-nvidia"))
-        .unwrap()
-        .plan;
+    let mut off = profile("desktop-nvidia");
+    off.queues.async_compute = false;
+    let plan = async_frame().graph.compile(&off).unwrap().plan;
     assert_eq!(plan.submissions.len(), 1);
     assert_eq!(plan.submissions[0].steps(), 0..plan.steps.len());
     assert!(plan.submissions[0].waits.is_empty());
