@@ -682,20 +682,25 @@ fn render_passes_rebuilt_for_another_plan_get_new_serials() {
 }
 
 /// A render pass that loads an attachment another step wrote and only reads it still writes it
-/// with its store op (DONT_CARE and STORE both write): write after write, so the barrier before
+/// with its store op where that is DONT_CARE or STORE: write after write, so the barrier before
 /// the render pass names the store's write in its destination access, not only the load and
 /// the input-attachment read (the property tests' access-mask model asks for it; the layers
 /// accept either here, because the layout transition in that barrier makes the write
-/// available). Run with synchronization validation on two profiles.
+/// available). With STORE_OP_NONE the render pass writes nothing, and the barrier names no
+/// write. Run with synchronization validation on two profiles.
 #[test]
 fn a_loaded_attachment_the_render_pass_only_reads_is_synchronized_with_its_store() {
     use tilegraph_e2e::frames::target_import;
     use tilegraph_graph::{
-        ClearColor, Coverage, Extent2d, Format, GraphBuilder, ImageDesc, PassClass,
+        ClearColor, Coverage, Extent2d, Format, GraphBuilder, ImageDesc, PassClass, StoreOp,
     };
-    // lavapipe keeps nothing of `x` (DONT_CARE store); powervr-b, without store_op_none, keeps
-    // it (STORE) because it is exported.
-    for (profile, export) in [("lavapipe", false), ("powervr-b", true)] {
+    // powervr-b, without store_op_none, keeps nothing of `x` (DONT_CARE) unless it is exported
+    // (STORE); lavapipe keeps it with NONE, exported or not.
+    for (profile, export, store) in [
+        ("powervr-b", false, StoreOp::DontCare),
+        ("powervr-b", true, StoreOp::Store),
+        ("lavapipe", false, StoreOp::None),
+    ] {
         let g = gpu(Some(profile)).unwrap();
         let (image, handle) = target(&g, W, H).unwrap();
         let mut graph: GraphBuilder<()> = GraphBuilder::new();
@@ -722,11 +727,18 @@ fn a_loaded_attachment_the_render_pass_only_reads_is_synchronized_with_its_store
             }),
             _ => None,
         });
-        assert!(
-            before_render_pass.is_some_and(|b| b
+        let stored = plan
+            .render_passes()
+            .flat_map(|(_, rp)| &rp.attachments)
+            .find(|a| a.resource == x.into())
+            .map(|a| a.store_op);
+        assert_eq!(stored, Some(store), "{profile}\n{plan}");
+        assert_eq!(
+            before_render_pass.map(|b| b
                 .dst_access
                 .contains(tilegraph_graph::AccessFlags::COLOR_ATTACHMENT_WRITE)),
-            "{profile}: the barrier before the render pass does not name the store\n{plan}"
+            Some(store != StoreOp::None),
+            "{profile}: the barrier before the render pass and the store disagree\n{plan}"
         );
         let mut exec = Executor::new(&g).unwrap();
         exec.execute(&g, &plan, &externals(out, &handle), &mut |id, pc| {

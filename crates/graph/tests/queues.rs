@@ -18,6 +18,11 @@ struct AsyncFrame {
 /// map, which needs neither; culling reads the pyramid into a draw list; the colour pass draws
 /// the list with the shadow map over the pre-pass's depth into the swapchain image.
 fn async_frame() -> AsyncFrame {
+    frame_of(true)
+}
+
+/// [`async_frame`], with the shadow map, or without it and with the culling async-capable too.
+fn frame_of(shadow_map: bool) -> AsyncFrame {
     let mut g = GraphBuilder::new();
     let depth = g.create_image("depth", ImageDesc::new(EXTENT, Format::D32_SFLOAT));
     let pyramid = g.create_image(
@@ -41,14 +46,21 @@ fn async_frame() -> AsyncFrame {
         .sampled(depth)
         .storage_write(pyramid)
         .async_compute();
-    g.raster_pass("shadow", PassClass::DepthPrepass, "shadow")
-        .depth_stencil_clear(shadow, ClearDepthStencil::REVERSE_Z);
-    g.compute_pass("cull", PassClass::Compute, "cull")
-        .sampled(pyramid)
-        .storage_write(draws);
-    g.raster_pass("opaque", PassClass::Opaque, "opaque")
-        .indirect(draws)
-        .sampled(shadow)
+    if shadow_map {
+        g.raster_pass("shadow", PassClass::DepthPrepass, "shadow")
+            .depth_stencil_clear(shadow, ClearDepthStencil::REVERSE_Z);
+    }
+    let mut cull = g.compute_pass("cull", PassClass::Compute, "cull");
+    cull.sampled(pyramid).storage_write(draws);
+    if !shadow_map {
+        cull.async_compute();
+    }
+    let mut opaque = g.raster_pass("opaque", PassClass::Opaque, "opaque");
+    opaque.indirect(draws);
+    if shadow_map {
+        opaque.sampled(shadow);
+    }
+    opaque
         .depth_stencil_read_only(depth)
         .color(swapchain)
         .coverage(Coverage::Full);
@@ -220,35 +232,8 @@ fn re_placing_memory_keeps_the_submissions() {
 /// frame is one submission, async compute on or not.
 #[test]
 fn a_pass_no_raster_work_runs_beside_stays_on_the_graphics_queue() {
-    let mut g: GraphBuilder<&'static str> = GraphBuilder::new();
-    let depth = g.create_image("depth", ImageDesc::new(EXTENT, Format::D32_SFLOAT));
-    let pyramid = g.create_image(
-        "hiz",
-        ImageDesc::new(Extent2d::new(1024, 512), Format::R32_SFLOAT).with_mip_levels(11),
-    );
-    let draws = g.create_buffer("draw_list", 1 << 20);
-    let swapchain = g.import_image(
-        "swapchain",
-        ImageDesc::new(EXTENT, Format::B8G8R8A8_SRGB),
-        Import::SWAPCHAIN,
-    );
-    g.export(swapchain);
-    g.raster_pass("depth_prepass", PassClass::DepthPrepass, "depth_prepass")
-        .depth_stencil_clear(depth, ClearDepthStencil::REVERSE_Z);
-    g.compute_pass("hiz_build", PassClass::Compute, "hiz_build")
-        .sampled(depth)
-        .storage_write(pyramid)
-        .async_compute();
-    g.compute_pass("cull", PassClass::Compute, "cull")
-        .sampled(pyramid)
-        .storage_write(draws)
-        .async_compute();
-    g.raster_pass("opaque", PassClass::Opaque, "opaque")
-        .indirect(draws)
-        .depth_stencil_read_only(depth)
-        .color(swapchain)
-        .coverage(Coverage::Full);
-    let plan = g
+    let plan = frame_of(false)
+        .graph
         .compile(&with_async(QueueSharing::Concurrent))
         .unwrap()
         .plan;

@@ -68,6 +68,9 @@ pub struct FrameRing {
     /// and the last value signalled; null without async compute.
     timelines: [vk::Semaphore; 2],
     signaled: [u64; 2],
+    /// The semaphore waits of the part being submitted (kept: a steady frame allocates
+    /// nothing).
+    wait_infos: Vec<vk::SemaphoreSubmitInfo<'static>>,
 }
 
 /// One part of a frame for [`FrameRing::submit_part`]: its queue and the other queue's
@@ -129,6 +132,7 @@ impl FrameRing {
             submission,
             timelines: [vk::Semaphore::null(); 2],
             signaled: [0; 2],
+            wait_infos: Vec::new(),
         };
         if submission == Submission::Owned && ctx.async_queue.is_some() {
             for t in &mut ring.timelines {
@@ -398,31 +402,24 @@ impl FrameRing {
         }
     }
 
-    /// `part`'s waits and signal; the value it signals.
-    fn part_sync(
-        &mut self,
-        part: &QueuePart<'_>,
-    ) -> (
-        Vec<vk::SemaphoreSubmitInfo<'static>>,
-        vk::SemaphoreSubmitInfo<'static>,
-    ) {
-        let waits = part
-            .waits
-            .iter()
-            .map(|&(q, value, stages)| {
+    /// `part`'s waits (into `wait_infos`) and its signal, the next value of its queue's
+    /// timeline.
+    fn part_sync(&mut self, part: &QueuePart<'_>) -> vk::SemaphoreSubmitInfo<'static> {
+        let timelines = self.timelines;
+        self.wait_infos.clear();
+        self.wait_infos
+            .extend(part.waits.iter().map(|&(q, value, stages)| {
                 vk::SemaphoreSubmitInfo::default()
-                    .semaphore(self.timelines[timeline_slot(q)])
+                    .semaphore(timelines[timeline_slot(q)])
                     .value(value)
                     .stage_mask(stages)
-            })
-            .collect();
+            }));
         let k = timeline_slot(part.queue);
         self.signaled[k] += 1;
-        let signal = vk::SemaphoreSubmitInfo::default()
+        vk::SemaphoreSubmitInfo::default()
             .semaphore(self.timelines[k])
             .value(self.signaled[k])
-            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS);
-        (waits, signal)
+            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
     }
 
     /// The timeline value the last part submitted to `queue` signalled.
@@ -449,11 +446,11 @@ impl FrameRing {
         }
         // SAFETY: recording command buffer of this slot.
         unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
-        let (waits, signal) = self.part_sync(part);
+        let signal = self.part_sync(part);
         let cbs = [vk::CommandBufferSubmitInfo::default().command_buffer(token.cb)];
         let signals = [signal];
         let submit = vk::SubmitInfo2::default()
-            .wait_semaphore_infos(&waits)
+            .wait_semaphore_infos(&self.wait_infos)
             .command_buffer_infos(&cbs)
             .signal_semaphore_infos(&signals);
         ctx.queue_submit2(
@@ -507,11 +504,11 @@ impl FrameRing {
             // SAFETY: the command buffer is recording (begin or flush gave it to this token).
             unsafe { ctx.device.end_command_buffer(token.cb) }.vk("vkEndCommandBuffer")?;
             ctx.injected_fault_at(FaultSite::Submit, "vkQueueSubmit (injected fault)")?;
-            if let Some((queue, (waits, signal))) = &sync {
+            if let Some((queue, signal)) = &sync {
                 let cbs = [vk::CommandBufferSubmitInfo::default().command_buffer(token.cb)];
                 let signals = [*signal];
                 let submit = vk::SubmitInfo2::default()
-                    .wait_semaphore_infos(waits)
+                    .wait_semaphore_infos(&self.wait_infos)
                     .command_buffer_infos(&cbs)
                     .signal_semaphore_infos(&signals);
                 return ctx.queue_submit2(Self::device_queue(ctx, *queue), &[submit], fence);

@@ -65,6 +65,11 @@ pub const SILENCED: &[Silenced] = &[
     },
     Silenced {
         id: "UNASSIGNED-BestPractices-ImageBarrierAccessLayout",
+        contains: "VK_ACCESS_2_INPUT_ATTACHMENT_READ_BIT|VK_ACCESS_2_COLOR_ATTACHMENT_READ_BIT: accessMask is vkCmdPipelineBarrier2, but for layout VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL",
+        reason: "an input attachment a render pass loads and keeps with STORE_OP_NONE: LOAD of a colour-format attachment is a colour-attachment read (the spec's access for load ops), which the barrier into the pass names whatever layout the subpass reads it in",
+    },
+    Silenced {
+        id: "UNASSIGNED-BestPractices-ImageBarrierAccessLayout",
         contains: "VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT: accessMask is vkCmdPipelineBarrier2, but for layout VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL",
         reason: "a colour attachment written in one subpass and read as an input attachment in a later one (the visibility buffer's ids kept for the oracle, under merging profiles): the barrier after the render pass must name that write, whatever layout the pass left",
     },

@@ -21,8 +21,8 @@ use crate::declare::{
     Import, InitialContent, Origin, PassId, ResourceDesc, ResourceId, ResourceState,
 };
 use crate::plan::{
-    AliasAssignment, BarrierBatch, BufferBarrier, Hazard, ImageBarrier, RenderPass, Step,
-    StepIndex, StepRange,
+    AliasAssignment, BarrierBatch, BufferBarrier, Hazard, ImageBarrier, QueueTransfer, RenderPass,
+    Step, StepIndex, StepRange,
 };
 use crate::types::{AccessFlags, Layout, LoadOp, PipelineStages, StoreOp};
 
@@ -140,14 +140,16 @@ impl SyncUse {
 }
 
 #[derive(Debug, Clone, Copy)]
-struct BarrierParts {
-    src_stages: PipelineStages,
-    src_access: AccessFlags,
-    dst_stages: PipelineStages,
-    dst_access: AccessFlags,
-    old_layout: Layout,
-    new_layout: Layout,
-    hazard: Hazard,
+pub(super) struct BarrierParts {
+    pub src_stages: PipelineStages,
+    pub src_access: AccessFlags,
+    pub dst_stages: PipelineStages,
+    pub dst_access: AccessFlags,
+    pub old_layout: Layout,
+    pub new_layout: Layout,
+    pub hazard: Hazard,
+    /// The half of an ownership transfer between the queues' families (`queues.rs`).
+    pub transfer: Option<QueueTransfer>,
 }
 
 /// The barrier `u` needs given state `st` (and updates `st` for it), or `None`.
@@ -201,6 +203,7 @@ fn sync(st: &mut SyncState, u: &SyncUse, is_image: bool) -> Option<BarrierParts>
             Layout::Undefined
         },
         hazard,
+        transfer: None,
     };
     if layout_change {
         st.layout = u.layout;
@@ -218,7 +221,12 @@ fn sync(st: &mut SyncState, u: &SyncUse, is_image: bool) -> Option<BarrierParts>
     Some(parts)
 }
 
-fn push_barrier(batch: &mut BarrierBatch, resource: usize, is_image: bool, b: BarrierParts) {
+pub(super) fn push_barrier(
+    batch: &mut BarrierBatch,
+    resource: usize,
+    is_image: bool,
+    b: BarrierParts,
+) {
     let resource = ResourceId(resource as u32);
     if is_image {
         batch.images.push(ImageBarrier {
@@ -230,7 +238,7 @@ fn push_barrier(batch: &mut BarrierBatch, resource: usize, is_image: bool, b: Ba
             old_layout: b.old_layout,
             new_layout: b.new_layout,
             hazard: b.hazard,
-            queue_transfer: None,
+            queue_transfer: b.transfer,
         });
     } else {
         batch.buffers.push(BufferBarrier {
@@ -240,7 +248,7 @@ fn push_barrier(batch: &mut BarrierBatch, resource: usize, is_image: bool, b: Ba
             dst_stages: b.dst_stages,
             dst_access: b.dst_access,
             hazard: b.hazard,
-            queue_transfer: None,
+            queue_transfer: b.transfer,
         });
     }
 }

@@ -31,7 +31,7 @@ use crate::plan::{
 use crate::types::{AccessFlags, Layout, PipelineStages, StoreOp};
 
 use super::access::PassAccesses;
-use super::barriers::ResourceSync;
+use super::barriers::{push_barrier, BarrierParts, ResourceSync};
 
 /// The queue of each pass (index: `PassId`) when the profile asks for async compute:
 /// async-capable passes with raster work beside them (`beside`) on the async queue, everything
@@ -437,11 +437,11 @@ impl<'a> Splitter<'a> {
             let from = other(queue);
             let transfer = Some(QueueTransfer { from, to: queue });
             if let Some(producer) = self.submissions.get_mut(need.submission as usize) {
-                push_transfer(
+                push_barrier(
                     &mut producer.releases,
                     need.resource,
                     self.input.resources[need.resource].is_image,
-                    TransferHalf {
+                    BarrierParts {
                         src_stages: theirs.stages.intersection(from.stages()),
                         src_access: theirs.writes,
                         dst_stages: PipelineStages::NONE,
@@ -468,11 +468,11 @@ impl<'a> Splitter<'a> {
             to: queue,
         });
         if !acquire(batch, n.resource, stages, transfer) && transfer.is_some() {
-            push_transfer(
+            push_barrier(
                 batch,
                 n.resource,
                 self.input.resources[n.resource].is_image,
-                TransferHalf {
+                BarrierParts {
                     src_stages: stages,
                     src_access: AccessFlags::NONE,
                     dst_stages: u.stages,
@@ -746,44 +746,5 @@ fn restrict_to_compute(batch: &mut BarrierBatch) {
             &mut b.dst_stages,
             &mut b.dst_access,
         );
-    }
-}
-
-/// One half of an ownership transfer, or an acquire without a barrier to turn.
-struct TransferHalf {
-    src_stages: PipelineStages,
-    src_access: AccessFlags,
-    dst_stages: PipelineStages,
-    dst_access: AccessFlags,
-    old_layout: Layout,
-    new_layout: Layout,
-    hazard: Hazard,
-    transfer: Option<QueueTransfer>,
-}
-
-fn push_transfer(batch: &mut BarrierBatch, resource: usize, is_image: bool, t: TransferHalf) {
-    let resource = ResourceId(resource as u32);
-    if is_image {
-        batch.images.push(crate::plan::ImageBarrier {
-            resource,
-            src_stages: t.src_stages,
-            src_access: t.src_access,
-            dst_stages: t.dst_stages,
-            dst_access: t.dst_access,
-            old_layout: t.old_layout,
-            new_layout: t.new_layout,
-            hazard: t.hazard,
-            queue_transfer: t.transfer,
-        });
-    } else {
-        batch.buffers.push(crate::plan::BufferBarrier {
-            resource,
-            src_stages: t.src_stages,
-            src_access: t.src_access,
-            dst_stages: t.dst_stages,
-            dst_access: t.dst_access,
-            hazard: t.hazard,
-            queue_transfer: t.transfer,
-        });
     }
 }

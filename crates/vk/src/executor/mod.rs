@@ -300,19 +300,19 @@ impl Executor {
         // The slot is the frame's from here: a failure ends it (nothing of it is submitted).
         let callbacks = Callbacks { prologue, record };
         let result = self.run_token(ctx, plan, externals, &mut token, &mut stats, callbacks);
-        let last_waits = match result {
-            Ok(w) => w,
+        match result {
+            Ok(()) => {}
             Err(e) => {
                 if let Err(gave_up) = self.frames.abandon(ctx, &token) {
                     log::error!("giving up the frame after \"{e}\": {gave_up}");
                 }
                 return Err(e);
             }
-        };
+        }
         // A plan of two queues ends with a graphics part after the async queue's last.
         let last = (plan.submissions.len() > 1).then_some(crate::frames::QueuePart {
             queue: tilegraph_graph::Queue::Graphics,
-            waits: &last_waits,
+            waits: &self.state.last_waits,
         });
         self.frames.submit_last(ctx, token, last.as_ref())?;
         stats.frame = token.frame;
@@ -338,7 +338,7 @@ impl Executor {
         token: &mut FrameToken,
         stats: &mut FrameStats,
         callbacks: Callbacks<'_, '_, '_>,
-    ) -> Result<recorder::LastPartWaits, VkError> {
+    ) -> Result<(), VkError> {
         let Callbacks { prologue, record } = callbacks;
         ctx.injected_fault_at(
             FaultSite::FrameStart,
@@ -373,7 +373,7 @@ impl Executor {
         self.state
             .first_uses
             .begin(placed.resources.len(), token.frame > self.resources_since);
-        let last_waits = FrameRecorder {
+        FrameRecorder {
             ctx,
             plan: placed,
             resources,
@@ -388,8 +388,7 @@ impl Executor {
             queue: tilegraph_graph::Queue::Graphics,
         }
         .record_steps()?;
-        self.queries.end_frame(ctx, token.cb, token.slot)?;
-        Ok(last_waits)
+        self.queries.end_frame(ctx, token.cb, token.slot)
     }
 
     /// A different plan: waits for every frame in flight, then builds its resources for the

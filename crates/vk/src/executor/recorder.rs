@@ -154,6 +154,10 @@ pub(super) struct RecorderState {
     views: Vec<vk::ImageView>,
     clears: Vec<vk::ClearValue>,
     pub first_uses: FirstUses,
+    /// A plan of two queues: the timeline value each part submitted so far signalled, and the
+    /// waits of the frame's last part (left to the caller to submit).
+    signalled: Vec<u64>,
+    pub last_waits: LastPartWaits,
 }
 
 /// One frame's recording.
@@ -180,12 +184,13 @@ pub(super) type LastPartWaits = Vec<(Queue, u64, vk::PipelineStageFlags2)>;
 
 impl FrameRecorder<'_, '_> {
     /// Records every step of the plan: a plan of two queues part by part, each part submitted
-    /// to its queue (the last is left to the caller, with the waits returned).
-    pub fn record_steps(&mut self) -> Result<LastPartWaits, VkError> {
+    /// to its queue (the last is left to the caller, with its waits in
+    /// `RecorderState::last_waits`).
+    pub fn record_steps(&mut self) -> Result<(), VkError> {
         let plan = self.plan;
+        self.state.last_waits.clear();
         if plan.submissions.len() <= 1 {
-            self.record_range(0..plan.steps.len())?;
-            return Ok(Vec::new());
+            return self.record_range(0..plan.steps.len());
         }
         if self.frames.submission() == Submission::Engine {
             return Err(VkError::Invalid {
@@ -193,15 +198,18 @@ impl FrameRecorder<'_, '_> {
                 reason: "a plan of two queues, but the engine submits the frame on one".into(),
             });
         }
-        // The timeline value each submitted part signalled.
-        let mut signalled: Vec<u64> = Vec::with_capacity(plan.submissions.len());
-        let mut waits: LastPartWaits = Vec::new();
+        self.state.signalled.clear();
         for (k, sub) in plan.submissions.iter().enumerate() {
             self.queue = sub.queue;
             self.record_range(sub.steps())?;
             if self.releases_transfer() {
                 self.barriers(&sub.releases, true)?;
             }
+            let RecorderState {
+                signalled,
+                last_waits: waits,
+                ..
+            } = &mut *self.state;
             waits.clear();
             for w in &sub.waits {
                 let on = plan
@@ -220,13 +228,13 @@ impl FrameRecorder<'_, '_> {
             };
             let part = QueuePart {
                 queue: sub.queue,
-                waits: &waits,
+                waits,
             };
             self.frames
                 .submit_part(self.ctx, self.token, &part, next.queue)?;
             signalled.push(self.frames.signaled(sub.queue));
         }
-        Ok(waits)
+        Ok(())
     }
 
     /// Whether ownership transfers are recorded: exclusive sharing between two families.
