@@ -3,7 +3,8 @@
 //! seed 002: measure GPU time with timer queries from a *pool* that is read frames later, never
 //! waiting for the GPU — a frame's results are read only after that frame's fence has signalled,
 //! with `vkGetQueryPoolResults` and no WAIT flag. What a frame measures is its [`GpuTiming`]: a
-//! timestamp before and after each pass, with (where the device supports them) a
+//! timestamp before and after each pass (around the whole render pass, its load and store
+//! operations included, when the pass is its only subpass), with (where the device supports them) a
 //! pipeline-statistics query counting vertex and fragment shader invocations; or two timestamps
 //! around the whole frame; or nothing. Medians over frames come from [`TimingHistory`].
 

@@ -276,7 +276,7 @@ impl FrameRecorder<'_, '_> {
                     self.wait_for_earlier_frames(std::slice::from_ref(pass).iter().copied())?;
                     self.state.first_uses.mark(plan, *pass);
                     let name = plan.pass(*pass).map_or("?", |p| p.name.as_str());
-                    self.run_pass(*pass, name, None, vk::Extent2D::default())?;
+                    self.run_pass(*pass, name, None, vk::Extent2D::default(), true)?;
                 }
                 Step::RenderPass(rp) => {
                     self.stats.render_passes += 1;
@@ -440,6 +440,25 @@ impl FrameRecorder<'_, '_> {
             width: rp.render_area_px.width_px,
             height: rp.render_area_px.height_px,
         };
+        // A render pass of one subpass is timed whole, its load and store operations (an
+        // attachment's clear, its write-back) with it; the subpasses of a merged render pass
+        // are timed inside it, each from its first command.
+        let whole = match rp.subpasses.as_slice() {
+            [only] => Some(plan.pass(only.pass).map_or("?", |p| p.name.as_str())),
+            _ => None,
+        };
+        let timed_whole = match whole {
+            Some(name) => {
+                let graphics = self.graphics_queries();
+                self.queries.begin_pass(
+                    self.ctx,
+                    self.token.cb,
+                    self.token.slot,
+                    (name, graphics),
+                )?
+            }
+            None => None,
+        };
         let (externals, resources) = (self.externals, self.resources);
         let state = &mut *self.state;
         state.views.clear();
@@ -494,7 +513,7 @@ impl FrameRecorder<'_, '_> {
                 subpass: i as u32,
                 serial,
             };
-            self.run_pass(s.pass, name, Some(target), extent)?;
+            self.run_pass(s.pass, name, Some(target), extent, whole.is_none())?;
         }
         // SAFETY: matches cmd_begin_render_pass2.
         unsafe {
@@ -502,25 +521,37 @@ impl FrameRecorder<'_, '_> {
                 .device
                 .cmd_end_render_pass2(cb, &vk::SubpassEndInfo::default())
         };
-        Ok(())
+        self.queries
+            .end_pass(self.ctx, cb, self.token.slot, timed_whole)
     }
 
-    /// Records one pass through its payload, in a debug label (and between two timestamps when
-    /// the frame times its passes).
+    /// Whether the current queue counts graphics pipeline statistics (not a compute-only one).
+    fn graphics_queries(&self) -> bool {
+        self.queue == Queue::Graphics
+            || self
+                .ctx
+                .async_queue
+                .is_some_and(|a| a.family == self.ctx.queue_family)
+    }
+
+    /// Records one pass through its payload, in a debug label (and, when `timed`, between two
+    /// timestamps if the frame times its passes).
     fn run_pass(
         &mut self,
         pass: PassId,
         name: &str,
         render_pass: Option<RenderPassRef>,
         render_area: vk::Extent2D,
+        timed: bool,
     ) -> Result<(), VkError> {
         let (ctx, cb, slot) = (self.ctx, self.token.cb, self.token.slot);
         ctx.begin_label(cb, name);
-        let graphics = self.queue == Queue::Graphics
-            || ctx
-                .async_queue
-                .is_some_and(|a| a.family == ctx.queue_family);
-        let q = self.queries.begin_pass(ctx, cb, slot, (name, graphics))?;
+        let graphics = self.graphics_queries();
+        let q = if timed {
+            self.queries.begin_pass(ctx, cb, slot, (name, graphics))?
+        } else {
+            None
+        };
         let mut pc = PassContext {
             ctx,
             cb,
