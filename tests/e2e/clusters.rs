@@ -2,7 +2,9 @@
 //! `hiz-2phase-clusters` never cull a visible instance and leave every frame's image equal to
 //! the unculled one on the shipped scenes, FlightHelmet and one Godot room; back-facing cones
 //! remove clusters of closed meshes (and leave mirrored and double-sided ones alone); the
-//! fixed draw count (a profile without `drawIndirectCount`) draws the same.
+//! fixed draw count (a profile without `drawIndirectCount`) draws the same; deferred texturing
+//! (whose G-buffer, unlike the visibility buffer's ids, holds no primitive id) stays exact
+//! under cluster culling, its G-buffer drawn in both phases.
 
 use tilegraph_e2e::gpu_with;
 use tilegraph_passes::cull::{ClusterEarly, Culling, DrawCount};
@@ -146,6 +148,41 @@ fn cluster_culling_never_culls_a_visible_pixel() {
         }
     }
     println!("{}", lines.join("\n"));
+}
+
+/// Deferred texturing draws its G-buffer in both phases of two-phase culling (the early phase
+/// from the instance lists where the cluster stage runs late only): FN 0 at cluster level and
+/// images equal to its unculled frame, with the resolve sampled (lavapipe) and as a tiler's
+/// subpass (mali-valhall).
+#[test]
+fn deferred_texturing_keeps_cluster_culling_exact() {
+    let mut specs = vec!["city:1500".to_string()];
+    match tilegraph_e2e::test_data("scenes/FlightHelmet/FlightHelmet.gltf") {
+        Some(p) => specs.push(p.display().to_string()),
+        None => eprintln!(
+            "skipping FlightHelmet: {} not found",
+            tilegraph_e2e::test_data_dir().display()
+        ),
+    }
+    for spec in &specs {
+        let scene = with_clusters(spec);
+        for (profile, culling) in [
+            (None, Culling::HizTwoPhase),
+            (None, Culling::FrustumClusters),
+            (None, Culling::HizTwoPhaseClusters),
+            (Some("mali-valhall"), Culling::HizTwoPhaseClusters),
+        ] {
+            let options = RenderOptions {
+                width: SIZE.0,
+                height: SIZE.1,
+                culling,
+                technique: Technique::DeferredTexturing,
+                ..Default::default()
+            };
+            let r = check_with(profile, &scene, options, &path(&scene, 6));
+            assert_exact(&format!("{spec} deferred texturing {profile:?}"), &r);
+        }
+    }
 }
 
 /// `levels` (scene spec, walk seed) and the Godot room with walk seed 5 where the test data

@@ -120,11 +120,20 @@ fn scenes() -> Vec<(String, Scene)> {
 
 #[test]
 fn forward_and_prepass_match_exactly_and_visbuf_within_40db() {
-    let mut table = String::from("scene         prepass==forward  visbuf PSNR (dB)\n");
+    let mut table = String::from(
+        "scene         prepass==forward  visbuf PSNR (dB)  deferred texturing PSNR (dB)\n",
+    );
     for (name, scene) in scenes() {
         let forward = render("lavapipe", &scene, Technique::Forward);
         let prepass = render("lavapipe", &scene, Technique::Prepass);
         let visbuf = render("lavapipe", &scene, Technique::Visbuf);
+        let deferred = render("lavapipe", &scene, Technique::DeferredTexturing);
+        assert!(
+            pass_names(&deferred.report.plan).contains(&"gbuffer-resolve")
+                && !pass_names(&deferred.report.plan).contains(&"opaque"),
+            "{name}: {:?}",
+            pass_names(&deferred.report.plan)
+        );
         assert!(
             pass_names(&prepass.report.plan).contains(&"depth-prepass"),
             "{name}: {:?}",
@@ -149,16 +158,54 @@ fn forward_and_prepass_match_exactly_and_visbuf_within_40db() {
             "{name}: forward and pre-pass images differ"
         );
         let p = psnr(&forward.image, &visbuf.image);
+        // The G-buffer's normal of 10 bits a component shades a level off here and there.
+        let d = psnr(&forward.image, &deferred.image);
         table.push_str(&format!(
-            "{name:<13} {:<17} {p:.1}\n",
+            "{name:<13} {:<17} {p:<17.1} {d:.1}\n",
             forward.image == prepass.image
         ));
         assert!(
             p >= 40.0,
             "{name}: visibility buffer PSNR {p:.1} dB < 40 dB"
         );
+        assert!(
+            d >= 40.0,
+            "{name}: deferred texturing PSNR {d:.1} dB < 40 dB"
+        );
     }
     println!("{table}");
+}
+
+/// Deferred texturing on a tiler: the resolve is a subpass of the G-buffer's render pass
+/// reading G-buffer and depth as input attachments, so the 128-bit G-buffer never leaves tile
+/// memory (transient, nothing loaded or stored); on lavapipe (immediate) the resolve samples
+/// it in a render pass of its own.
+#[test]
+fn deferred_texturing_keeps_its_gbuffer_on_chip_on_tilers() {
+    let scene = tilegraph_scene::load("interior:300").unwrap();
+    let tiler = render("mali-valhall", &scene, Technique::DeferredTexturing);
+    let plan = &tiler.report.plan;
+    let gbuffer = plan.resource_by_name("gbuffer").unwrap();
+    assert_eq!(
+        gbuffer.residency,
+        tilegraph_graph::Residency::Transient,
+        "{plan}"
+    );
+    let id = |name: &str| plan.passes.iter().find(|p| p.name == name).map(|p| p.id);
+    let (write, resolve) = (id("gbuffer").unwrap(), id("gbuffer-resolve").unwrap());
+    assert!(
+        plan.render_passes().any(|(_, rp)| [write, resolve]
+            .iter()
+            .all(|p| rp.subpasses.iter().any(|s| s.pass == *p))),
+        "G-buffer and resolve in one render pass: {plan}"
+    );
+    let desktop = render("lavapipe", &scene, Technique::DeferredTexturing);
+    let gbuffer = desktop.report.plan.resource_by_name("gbuffer").unwrap();
+    assert_ne!(gbuffer.residency, tilegraph_graph::Residency::Transient);
+    assert!(
+        tiler.image == desktop.image,
+        "the subpass resolve shades differently"
+    );
 }
 
 /// One frame of `scene` under `profile` with `options` (camera 0), its image.
@@ -535,7 +582,11 @@ fn the_experiments_separate_prepass_and_random_reads_keep_the_image() {
     assert_eq!((merged_passes, separate_passes), (1, 2));
 
     let textured = seed_grid(false, 3);
-    for technique in [Technique::Forward, Technique::Visbuf] {
+    for technique in [
+        Technique::Forward,
+        Technique::Visbuf,
+        Technique::DeferredTexturing,
+    ] {
         for binding in [TextureBinding::Indexed, TextureBinding::Layers] {
             let options = |random_reads| {
                 let mut o = RenderOptions {

@@ -36,6 +36,7 @@ const FRAMES: &[(Technique, Culling, u32, u32)] = &[
     (Technique::Forward, Culling::Hiz, 1, 0),
     (Technique::Prepass, Culling::HizTwoPhase, 1, 0),
     (Technique::Visbuf, Culling::HizTwoPhase, 1, 0),
+    (Technique::DeferredTexturing, Culling::HizTwoPhase, 1, 0),
     (Technique::Forward, Culling::Oq, 1, 0),
     (Technique::Forward, Culling::OqConditional, 1, 0),
     (Technique::Prepass, Culling::RasterOcclusion, 1, 0),
@@ -44,6 +45,7 @@ const FRAMES: &[(Technique, Culling, u32, u32)] = &[
     (Technique::Forward, Culling::None, 1, 3),
     (Technique::Prepass, Culling::HizTwoPhase, 1, 3),
     (Technique::Visbuf, Culling::HizTwoPhase, 1, 3),
+    (Technique::DeferredTexturing, Culling::HizTwoPhase, 1, 3),
 ];
 
 /// The shipped procedural scenes: opaque, alpha-tested (forest, field, interior) and blended

@@ -135,6 +135,7 @@ fn three_cascades_match_their_golden_images_and_only_take_light_away() {
             ("forward", Technique::Forward, false),
             ("prepass", Technique::Forward, true),
             ("visbuf", Technique::Visbuf, false),
+            ("deferred-texturing", Technique::DeferredTexturing, false),
         ] {
             let unshadowed = options(technique, prepass, off);
             let unshadowed = render_path(&scene, unshadowed, &path, &frame, lit);
@@ -305,7 +306,11 @@ fn caster_culling_is_exact_while_the_scene_moves() {
         spawns: 6,
         seed: 7,
     };
-    for technique in [Technique::Forward, Technique::Visbuf] {
+    for technique in [
+        Technique::Forward,
+        Technique::Visbuf,
+        Technique::DeferredTexturing,
+    ] {
         let base = two_phase(technique);
         let what = format!("moving city, {technique:?}");
         let run = (&still, frames.as_slice());

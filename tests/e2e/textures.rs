@@ -1,9 +1,11 @@
 //! Textured materials on lavapipe (validation on): the gallery (tests/src/textured.rs) under
-//! forward, forward with depth pre-passes and the visibility buffer matches its golden images;
-//! the pre-pass frame equals the forward frame exactly (alpha-tested discards agree); the
-//! visibility buffer's resolve, with analytic UV derivatives, stays within the stated tolerance
-//! of forward's hardware derivatives; textures bound as layers of one image (the fallback)
-//! render what the indexed binding renders, within the resampling's error.
+//! forward, forward with depth pre-passes, the visibility buffer and deferred texturing matches
+//! its golden images; the pre-pass frame equals the forward frame exactly (alpha-tested
+//! discards agree); the visibility buffer's resolve, with analytic UV derivatives, and deferred
+//! texturing's, with the G-buffer's packed UV, derivatives and normal, stay within the stated
+//! tolerance of forward; deferred texturing's resolve as a tiler's subpass (input attachments)
+//! renders what the sampled resolve renders; textures bound as layers of one image (the
+//! fallback) render what the indexed binding renders, within the resampling's error.
 
 use tilegraph_e2e::gpu_with;
 use tilegraph_e2e::textured::textured_gallery;
@@ -77,6 +79,9 @@ fn difference(a: &RgbaImage, b: &RgbaImage) -> (usize, u8) {
         .fold((0, 0), |(n, m), d| (n + usize::from(d > 0), m.max(d)))
 }
 
+/// The largest channel difference deferred texturing may show against forward.
+const DEFERRED_LARGEST: u8 = 2;
+
 #[test]
 fn textured_gallery_matches_its_golden_images() {
     let scene = textured_gallery().load();
@@ -87,11 +92,21 @@ fn textured_gallery_matches_its_golden_images() {
     assert_eq!(binding, indexed_here());
     let (prepass, _) = image_of("lavapipe", &scene, options(Technique::Forward, true));
     let (visbuf, _) = image_of("lavapipe", &scene, options(Technique::Visbuf, false));
+    let dtex = options(Technique::DeferredTexturing, false);
+    let (deferred, _) = image_of("lavapipe", &scene, dtex.clone());
+    // mali-valhall merges the resolve into the G-buffer's render pass, reading G-buffer and
+    // depth as input attachments: the same arithmetic on the same values.
+    let (subpass, _) = image_of("mali-valhall", &scene, dtex);
+    assert!(
+        subpass == deferred,
+        "deferred texturing: the subpass resolve differs from the sampled one"
+    );
     let mut failures = Vec::new();
     for (name, img) in [
         ("forward", &forward),
         ("prepass", &prepass),
         ("visbuf", &visbuf),
+        ("deferred-texturing", &deferred),
     ] {
         let path = dir.join(format!("textured-gallery-{name}.png"));
         if bless {
@@ -130,6 +145,20 @@ fn textured_gallery_matches_its_golden_images() {
             pixels <= (W * H / 10) as usize && largest <= 2,
             "frame {frame}: visbuf vs forward: {pixels} pixels differ, by up to {largest}"
         );
+        // Deferred texturing samples with the G-buffer pass's own hardware derivatives (as
+        // halves), a UV of 16 bits over two periods and a normal of 10 bits a component
+        // (ACCURACY.md, "Deferred texturing").
+        let dtex = options(Technique::DeferredTexturing, false);
+        let (deferred, _) = image_at("lavapipe", &scene, dtex, frame);
+        let (pixels, largest) = difference(&forward, &deferred);
+        println!(
+            "frame {frame}: deferred texturing vs forward: {pixels} of {} pixels differ, by at most {largest}",
+            W * H
+        );
+        assert!(
+            pixels <= (W * H / 10) as usize && largest <= DEFERRED_LARGEST,
+            "frame {frame}: deferred texturing vs forward: {pixels} pixels differ, by up to {largest}"
+        );
     }
 }
 
@@ -141,7 +170,11 @@ fn textured_gallery_matches_its_golden_images() {
 fn textures_as_layers_render_what_indexed_textures_render() {
     let scene = textured_gallery().load();
     let here = indexed_here();
-    for technique in [Technique::Forward, Technique::Visbuf] {
+    for technique in [
+        Technique::Forward,
+        Technique::Visbuf,
+        Technique::DeferredTexturing,
+    ] {
         let (indexed, a) = image_of("lavapipe", &scene, options(technique, false));
         let forced = RenderOptions {
             texture_binding: Some(TextureBinding::Layers),

@@ -118,6 +118,11 @@ enum TgTechnique
    * Visibility buffer: id pass, then resolve.
    */
   TG_TECHNIQUE_VISBUF = 2,
+  /**
+   * Deferred texturing: G-buffer of material, normal, UV and UV derivatives, then one
+   * full-screen pass sampling the textures and shading.
+   */
+  TG_TECHNIQUE_DEFERRED_TEXTURING = 3,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

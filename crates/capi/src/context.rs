@@ -37,6 +37,9 @@ pub enum TgTechnique {
     Prepass = 1,
     /// Visibility buffer: id pass, then resolve.
     Visbuf = 2,
+    /// Deferred texturing: G-buffer of material, normal, UV and UV derivatives, then one
+    /// full-screen pass sampling the textures and shading.
+    DeferredTexturing = 3,
 }
 
 /// Which culling runs before drawing (docs/CULLING.md measures each).
@@ -168,6 +171,7 @@ pub(crate) fn technique(raw: u32) -> Result<Technique, Failure> {
         0 => Ok(Technique::Forward),
         1 => Ok(Technique::Prepass),
         2 => Ok(Technique::Visbuf),
+        3 => Ok(Technique::DeferredTexturing),
         _ => Err(Failure::invalid(format!(
             "technique {raw} is no TgTechnique"
         ))),

@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use tilegraph_passes::cull::Culling;
-use tilegraph_passes::{GpuTiming, RenderOptions, SceneRenderer, StageProbe, Technique};
+use tilegraph_passes::{GpuTiming, RenderOptions, SceneRenderer, StageProbe};
 use tilegraph_profile::knobs::KnobSettings;
 use tilegraph_scene::{CameraPath, Scene};
 use tilegraph_vk::queries::FRAME_TIMING;
@@ -276,13 +276,13 @@ pub fn run(args: &BottleneckArgs<'_>) -> Result<(), CliError> {
             ..Default::default()
         };
         RunArgs::resolve(ctx, args.scene, args.knobs, &mut options)?;
-        if options.technique == Technique::Visbuf {
-            return Err(CliError::Usage(
+        if options.technique.screen_space() {
+            return Err(CliError::Usage(format!(
                 "bottleneck: its probes make the forward colour and vertex shaders trivial, and \
-                 visbuf shading resolves in shaders of its own: run it with --shading forward \
-                 or prepass"
-                    .into(),
-            ));
+                 {} shading resolves in shaders of its own: run it with --shading forward \
+                 or prepass",
+                options.technique.name()
+            )));
         }
         options.lighting.heavy_iterations = args.heavy;
         let configured = options.clone();

@@ -32,7 +32,7 @@ pub struct RunArgs {
     /// (default: the profile's `culling` knob; `auto` picks from what the scene holds).
     #[arg(long)]
     pub culling: Option<String>,
-    /// forward | prepass | visbuf (default: the profile's `shading` knob).
+    /// forward | prepass | visbuf | deferred-texturing (default: the profile's `shading` knob).
     #[arg(long)]
     pub shading: Option<String>,
     /// Set a knob for this run, e.g. `--set oq_group=16` (`tilegraph knobs` lists them).

@@ -377,7 +377,9 @@ fn tune_on(
     }
     let m2 = Matrix {
         culling: vec![best1.culling.clone()],
-        shading: vec!["forward".into(), "prepass".into(), "visbuf".into()],
+        shading: ["forward", "prepass", "visbuf", "deferred-texturing"]
+            .map(String::from)
+            .into(),
         axes,
         ..base.clone()
     };

@@ -29,6 +29,7 @@ pub enum Format {
     R32_UINT,
     R32_SFLOAT,
     R32G32_UINT,
+    R32G32B32A32_UINT,
     D16_UNORM,
     D32_SFLOAT,
     D24_UNORM_S8_UINT,
@@ -36,7 +37,7 @@ pub enum Format {
 }
 
 impl Format {
-    pub const ALL: [Format; 17] = [
+    pub const ALL: [Format; 18] = [
         Format::R8_UNORM,
         Format::R8G8B8A8_UNORM,
         Format::R8G8B8A8_SRGB,
@@ -50,6 +51,7 @@ impl Format {
         Format::R32_UINT,
         Format::R32_SFLOAT,
         Format::R32G32_UINT,
+        Format::R32G32B32A32_UINT,
         Format::D16_UNORM,
         Format::D32_SFLOAT,
         Format::D24_UNORM_S8_UINT,
@@ -76,6 +78,7 @@ impl Format {
             Format::R32_UINT => 98,
             Format::R32_SFLOAT => 100,
             Format::R32G32_UINT => 101,
+            Format::R32G32B32A32_UINT => 107,
             Format::B10G11R11_UFLOAT_PACK32 => 122,
             Format::D16_UNORM => 124,
             Format::D32_SFLOAT => 126,
@@ -103,6 +106,7 @@ impl Format {
             | Format::D24_UNORM_S8_UINT => 4,
             Format::D32_SFLOAT_S8_UINT => 5,
             Format::R16G16B16A16_SFLOAT | Format::R32G32_UINT => 8,
+            Format::R32G32B32A32_UINT => 16,
         }
     }
 
@@ -141,6 +145,7 @@ impl Format {
             Format::R32_UINT => "R32_UINT",
             Format::R32_SFLOAT => "R32_SFLOAT",
             Format::R32G32_UINT => "RG32_UINT",
+            Format::R32G32B32A32_UINT => "RGBA32_UINT",
             Format::D16_UNORM => "D16_UNORM",
             Format::D32_SFLOAT => "D32_SFLOAT",
             Format::D24_UNORM_S8_UINT => "D24S8",

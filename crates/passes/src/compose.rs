@@ -15,6 +15,7 @@ use crate::cull::{add_cull, add_cull_late, import_cull_buffers, CullLists, CullS
 use crate::draws::DrawClass;
 use crate::forward::{add_clear, add_forward, add_transparent};
 use crate::frame::{DrawSource, FrameGraph, States};
+use crate::gbuffer::{add_gbuffer_resolve, add_gbuffer_write};
 use crate::hiz::{
     add_hiz_build, add_reprojection, import_reprojection, HizState, ReprojectState, Reprojected,
 };
@@ -126,7 +127,7 @@ pub(crate) fn declare_scene(
     let after_pyramid = shadows.is_some_and(|(_, hiz)| hiz)
         && spec.options.shadows.culling == CasterCulling::ReceiversHiz
         && two_phase
-        && (c.split_depth() || spec.setup.includes(PassKind::VisbufWrite));
+        && (c.split_depth() || spec.setup.technique.screen_space());
     if let (Some((ids, _)), false) = (shadows, after_pyramid) {
         add_shadow_culling(c.g, ids, None);
         add_shadow_maps(c.g, ids);
@@ -322,11 +323,17 @@ impl<'a> Composition<'a> {
             }
             // Raster occlusion tests boxes against the depth of everything: its pre-pass
             // draws the CPU lists; everything else draws the culling shader's lists.
+            // What writes depth in the early phase: the pre-pass, or the screen-space
+            // techniques' id or G-buffer pass.
+            let early_depth =
+                depth_only || matches!(pass, PassKind::VisbufWrite | PassKind::GbufferWrite);
             let source = match (self.lists, culling, depth_only) {
                 (Some(_), Culling::RasterOcclusion, true) | (None, _, _) => DrawSource::Cpu,
                 // Two-phase culling's early depth: where the cluster stage runs late only, the
                 // instance compaction's lists.
-                (Some(lists), _, true) if two_phase && phase == 0 => lists.early_depth_source(),
+                (Some(lists), _, _) if early_depth && two_phase && phase == 0 => {
+                    lists.early_depth_source()
+                }
                 (Some(lists), _, _) => lists.source(phase),
             };
             let name = format!("{}{suffix}", pass.name());
@@ -392,7 +399,7 @@ impl<'a> Composition<'a> {
         }
     }
 
-    /// After the geometry: the visibility buffer's resolve, blended geometry, next frame's
+    /// After the geometry: the visibility buffer's or the G-buffer's resolve, blended geometry, next frame's
     /// occluders (single-phase HiZ: this frame's depth; occlusion queries read next frame,
     /// after all opaque work by the graph's class order), and a clear when nothing drew (an
     /// empty view of an empty scene still produces a cleared image).
@@ -405,6 +412,9 @@ impl<'a> Composition<'a> {
             let input = self.spec.profile.is_tiler();
             let plan = ResolvePlan::new(mode, input, self.spec.key.materials, tile);
             add_visbuf_resolve(g, t, ids, plan);
+        }
+        if let (true, Some(gbuffer)) = (setup.includes(PassKind::GbufferResolve), t.gbuffer) {
+            add_gbuffer_resolve(g, t, gbuffer, self.spec.profile.is_tiler());
         }
         if setup.includes(PassKind::Transparent) {
             add_transparent(g, t);
@@ -475,6 +485,10 @@ fn declare_geometry(
         PassKind::VisbufWrite => {
             add_visbuf_write(g, t, phase, source, name);
         }
-        PassKind::VisbufResolve | PassKind::Transparent => {} // after the geometry phases
+        PassKind::GbufferWrite => {
+            add_gbuffer_write(g, t, phase, source, name);
+        }
+        // After the geometry phases.
+        PassKind::VisbufResolve | PassKind::GbufferResolve | PassKind::Transparent => {}
     }
 }

@@ -392,12 +392,13 @@ pub fn auto_culling(scene: &Scene, inputs: AutoInputs, technique: Technique) -> 
         format!(
             "auto: {drawn} instances of {per_instance} triangles on average: two-phase HiZ, the cheapest conservative culling{}",
             match (per_instance >= AUTO_QUERY_TRIANGLES_PER_INSTANCE, queries_run) {
-                (false, _) => "",
-                (true, false) => {
-                    " (same-frame queries would suit heavy instances, but the visibility buffer has no depth pre-pass for them)"
-                }
+                (false, _) => String::new(),
+                (true, false) => format!(
+                    " (same-frame queries would suit heavy instances, but shading {} has no depth pre-pass for them)",
+                    technique.name()
+                ),
                 (true, true) => {
-                    " (same-frame queries would suit heavy instances, but the device lacks conditional rendering)"
+                    " (same-frame queries would suit heavy instances, but the device lacks conditional rendering)".to_string()
                 }
             }
         ),
@@ -480,9 +481,10 @@ pub fn resolve(
         }
         if k.name == "depth_prepass" {
             let inert = match technique {
-                Technique::Visbuf => {
-                    Some("the visibility buffer has no depth pre-pass".to_string())
-                }
+                Technique::Visbuf | Technique::DeferredTexturing => Some(format!(
+                    "shading {} has no depth pre-pass",
+                    technique.name()
+                )),
                 Technique::Prepass => Some("shading prepass always draws one".to_string()),
                 Technique::Forward if culling.needs_prepass() => Some(format!(
                     "culling {} draws its own depth pre-pass",
@@ -499,8 +501,11 @@ pub fn resolve(
             }
         }
         if k.name == "alpha_prepass" {
-            let inert = if technique == Technique::Visbuf {
-                Some("the visibility buffer has no depth pre-pass".to_string())
+            let inert = if technique.screen_space() {
+                Some(format!(
+                    "shading {} has no depth pre-pass",
+                    technique.name()
+                ))
             } else if culling.needs_prepass() {
                 Some(format!(
                     "culling {} draws alpha-tested depth in its own pre-pass",
@@ -954,7 +959,10 @@ mod tests {
         assert_eq!(c, Culling::OqConditional, "{why}");
         let (c, why) = auto_culling(&heavy, inputs, Technique::Visbuf);
         assert_eq!(c, Culling::HizTwoPhase, "{why}");
-        assert!(why.contains("visibility buffer"), "{why}");
+        assert!(
+            why.contains("shading visbuf has no depth pre-pass"),
+            "{why}"
+        );
         assert_eq!(c.unsupported_with(Technique::Visbuf), None);
     }
 }

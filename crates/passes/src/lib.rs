@@ -6,7 +6,7 @@
 //! same functions with its own passes in between.
 //!
 //! - passes: [`prepass`] (depth pre-pass), [`forward`] (colour, blended, clear), [`visbuf`] (ids
-//!   and resolve), [`cull`] (GPU frustum, HiZ and two-phase culling into indirect lists), [`hiz`]
+//!   and resolve), [`gbuffer`] (deferred texturing's G-buffer and resolve), [`cull`] (GPU frustum, HiZ and two-phase culling into indirect lists), [`hiz`]
 //!   (the pyramid build), [`occlusion`] (hardware queries, raster occlusion);
 //! - what they share: [`targets`] (colour, depth, ids and their first-use clears), [`draws`]
 //!   (draw lists), [`recording`] (draw recording), [`pipelines`] (every graphics pipeline, in one
@@ -22,6 +22,7 @@ mod depth_test;
 pub mod draws;
 pub mod forward;
 pub mod frame;
+pub mod gbuffer;
 pub mod gpu_scene;
 pub mod hiz;
 mod images;

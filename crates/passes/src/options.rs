@@ -28,6 +28,8 @@ pub enum RenderError {
         instances: usize,
         max_triangles: u32,
     },
+    #[error("deferred texturing: the scene has {materials} materials; the G-buffer holds ids of {max} (12 bits, one kept for the background)")]
+    GbufferMaterials { materials: usize, max: u32 },
     #[error("{wanted_by} needs device feature {feature}, which {device:?} does not have or was not created with (ask RenderOptions::device_features before creating the device)")]
     MissingFeature {
         feature: Feature,
@@ -367,6 +369,7 @@ pub(crate) fn check_device(
             max_triangles: max_tris,
         });
     }
+    check_gbuffer_materials(options.technique, scene)?;
     if let Some(reason) = options.culling.unsupported_with(options.technique) {
         return Err(RenderError::UnsupportedCulling {
             culling: options.culling.name(),
@@ -406,4 +409,18 @@ pub(crate) fn check_device(
         });
     }
     Ok(instance_bits)
+}
+
+/// Deferred texturing's G-buffer holds 12-bit material ids: a scene of more materials cannot
+/// be drawn with it (checked at creation and each frame: materials may be added).
+pub(crate) fn check_gbuffer_materials(
+    technique: Technique,
+    scene: &Scene,
+) -> Result<(), RenderError> {
+    let max = crate::gbuffer::GBUFFER_MATERIALS;
+    let materials = scene.materials().len();
+    if technique == Technique::DeferredTexturing && materials > max as usize {
+        return Err(RenderError::GbufferMaterials { materials, max });
+    }
+    Ok(())
 }

@@ -16,6 +16,10 @@ pub enum Technique {
     Prepass,
     /// Visibility buffer: id pass, then resolve.
     Visbuf,
+    /// Deferred texturing (seed 000): a G-buffer of material, packed normal, UV and UV
+    /// derivatives (128 bits beside the depth, on chip on tilers), then one full-screen pass
+    /// that samples the textures and shades each pixel once.
+    DeferredTexturing,
 }
 
 impl Technique {
@@ -24,6 +28,7 @@ impl Technique {
             "forward" => Some(Technique::Forward),
             "prepass" => Some(Technique::Prepass),
             "visbuf" => Some(Technique::Visbuf),
+            "deferred-texturing" => Some(Technique::DeferredTexturing),
             _ => None,
         }
     }
@@ -33,7 +38,14 @@ impl Technique {
             Technique::Forward => "forward",
             Technique::Prepass => "prepass",
             Technique::Visbuf => "visbuf",
+            Technique::DeferredTexturing => "deferred-texturing",
         }
+    }
+
+    /// Whether the frame shades in screen space after its geometry passes (an id or G-buffer
+    /// pass, then a full-screen resolve): no depth pre-pass, no forward opaque colour.
+    pub fn screen_space(self) -> bool {
+        matches!(self, Technique::Visbuf | Technique::DeferredTexturing)
     }
 }
 
@@ -254,14 +266,14 @@ impl Culling {
 
     /// Why this culling cannot run with `technique`, or `None` when it can.
     pub fn unsupported_with(self, technique: Technique) -> Option<&'static str> {
-        if technique != Technique::Visbuf {
+        if !technique.screen_space() {
             return None;
         }
         if matches!(self, Culling::OqConditional | Culling::RasterOcclusion) {
-            // Both test boxes against a depth pre-pass before colour; the visibility buffer has
-            // no pre-pass to test against.
+            // Both test boxes against a depth pre-pass before colour; the visibility buffer
+            // and the G-buffer have no pre-pass to test against.
             Some("it needs a depth pre-pass before colour")
-        } else if self.clusters() {
+        } else if self.clusters() && technique == Technique::Visbuf {
             // The ids pass stores gl_PrimitiveID, which a cluster command restarts at its range.
             Some("its ids hold primitive ids, which restart at each cluster range")
         } else {
@@ -288,6 +300,8 @@ pub enum PassKind {
     Transparent,
     VisbufWrite,
     VisbufResolve,
+    GbufferWrite,
+    GbufferResolve,
 }
 
 impl PassKind {
@@ -300,6 +314,17 @@ impl PassKind {
             PassKind::Transparent => "transparent",
             PassKind::VisbufWrite => "visbuf-write",
             PassKind::VisbufResolve => "visbuf-resolve",
+            PassKind::GbufferWrite => "gbuffer",
+            PassKind::GbufferResolve => "gbuffer-resolve",
+        }
+    }
+
+    /// The screen-space technique whose pass this is (`None`: a forward or pre-pass pass).
+    fn screen_space_technique(self) -> Option<Technique> {
+        match self {
+            PassKind::VisbufWrite | PassKind::VisbufResolve => Some(Technique::Visbuf),
+            PassKind::GbufferWrite | PassKind::GbufferResolve => Some(Technique::DeferredTexturing),
+            _ => None,
         }
     }
 }
@@ -358,7 +383,7 @@ impl FrameSetup {
     /// two phases with a pyramid build between them, so the depth pre-pass is left out (it
     /// would need two phases of its own to stay exact).
     pub fn with_culling(mut self, culling: Culling) -> FrameSetup {
-        if !culling.needs_prepass() || self.technique == Technique::Visbuf {
+        if !culling.needs_prepass() || self.technique.screen_space() {
             return self;
         }
         // Two-phase culling draws depth twice (last frame's visible set, then the newly visible)
@@ -543,75 +568,71 @@ pub fn decide(content: SceneContent, profile: &Profile, technique: Technique) ->
                     "the scene has no alpha-tested instances".into(),
                 );
             }
-            say(
-                PassKind::VisbufWrite,
-                false,
-                format!(
-                    "technique {} does not use a visibility buffer",
-                    technique.name()
-                ),
-            );
-            say(
-                PassKind::VisbufResolve,
-                false,
-                format!(
-                    "technique {} does not use a visibility buffer",
-                    technique.name()
-                ),
-            );
         }
-        Technique::Visbuf => {
+        Technique::Visbuf | Technique::DeferredTexturing => {
             for p in [PassKind::DepthPrepassOpaque, PassKind::DepthPrepassAlpha] {
                 say(
                     p,
                     false,
-                    "the visibility buffer shades each pixel once already".into(),
+                    "the resolve shades each pixel once already".into(),
                 );
             }
             for p in [PassKind::Opaque, PassKind::AlphaTested] {
                 say(
                     p,
                     false,
-                    "opaque and alpha-tested geometry is shaded by the visibility-buffer resolve"
-                        .into(),
-                );
-            }
-            if any_depth_geometry {
-                say(
-                    PassKind::VisbufWrite,
-                    true,
                     format!(
-                        "{} instances write ids",
-                        content.opaque + content.alpha_tested
+                        "opaque and alpha-tested geometry is shaded by the {} resolve",
+                        technique.name()
                     ),
                 );
-                say(
-                    PassKind::VisbufResolve,
-                    true,
-                    if profile.is_tiler() {
-                        format!(
-                            "subpass reading the id as an input attachment: ids stay on chip on {}",
-                            profile.name
-                        )
-                    } else {
-                        format!(
-                            "full-screen pass sampling the id ({} is immediate-mode)",
-                            profile.name
-                        )
-                    },
-                );
-            } else {
-                say(
-                    PassKind::VisbufWrite,
-                    false,
-                    "no opaque or alpha-tested instances".into(),
-                );
-                say(
-                    PassKind::VisbufResolve,
-                    false,
-                    "no opaque or alpha-tested instances".into(),
-                );
             }
+        }
+    }
+    // The screen-space passes: the technique's own, or none.
+    let (write, resolve, what) = match technique {
+        Technique::DeferredTexturing => (
+            PassKind::GbufferWrite,
+            PassKind::GbufferResolve,
+            "the G-buffer",
+        ),
+        _ => (PassKind::VisbufWrite, PassKind::VisbufResolve, "the id"),
+    };
+    for p in [
+        PassKind::VisbufWrite,
+        PassKind::VisbufResolve,
+        PassKind::GbufferWrite,
+        PassKind::GbufferResolve,
+    ] {
+        if p.screen_space_technique() != Some(technique) {
+            say(
+                p,
+                false,
+                format!("technique {} does not draw it", technique.name()),
+            );
+        } else if !any_depth_geometry {
+            say(p, false, "no opaque or alpha-tested instances".into());
+        } else if p == write {
+            let n = content.opaque + content.alpha_tested;
+            say(p, true, format!("{n} instances write {what}"));
+        } else if p == resolve && profile.is_tiler() {
+            say(
+                p,
+                true,
+                format!(
+                    "subpass reading {what} as an input attachment: it stays on chip on {}",
+                    profile.name
+                ),
+            );
+        } else {
+            say(
+                p,
+                true,
+                format!(
+                    "full-screen pass sampling {what} ({} is immediate-mode)",
+                    profile.name
+                ),
+            );
         }
     }
     if content.blended > 0 {
@@ -706,6 +727,46 @@ mod tests {
             assert!(!d.included, "{p:?}");
             assert!(!d.reason.is_empty());
         }
+    }
+
+    /// Deferred texturing: G-buffer and resolve in place of the pre-pass and colour passes; the
+    /// resolve reads the G-buffer as an input attachment on tilers; clusters are fine (no
+    /// primitive ids), pre-pass-based cullings are not.
+    #[test]
+    fn deferred_texturing_replaces_the_colour_passes() {
+        let t = Technique::DeferredTexturing;
+        assert_eq!(Technique::parse(t.name()), Some(t));
+        let s = decide(MIXED, &profile("mali-valhall"), t);
+        assert!(s.includes(PassKind::GbufferWrite) && s.includes(PassKind::GbufferResolve));
+        assert!(!s.includes(PassKind::VisbufWrite) && !s.includes(PassKind::Opaque));
+        assert!(!s.has_prepass() && s.includes(PassKind::Transparent));
+        let reason = |s: &FrameSetup| {
+            let d = s
+                .decisions
+                .iter()
+                .find(|d| d.pass == PassKind::GbufferResolve);
+            d.map(|d| d.reason.clone()).unwrap_or_default()
+        };
+        assert!(reason(&s).contains("input attachment"), "{}", reason(&s));
+        let desktop = decide(MIXED, &profile("desktop-nvidia"), t);
+        assert!(
+            reason(&desktop).contains("sampling"),
+            "{}",
+            reason(&desktop)
+        );
+        let none = SceneContent {
+            opaque: 0,
+            alpha_tested: 0,
+            blended: 3,
+        };
+        assert!(!decide(none, &profile("mali-valhall"), t).includes(PassKind::GbufferWrite));
+        assert_eq!(Culling::HizTwoPhaseClusters.unsupported_with(t), None);
+        assert!(Culling::RasterOcclusion.unsupported_with(t).is_some());
+        assert!(Culling::HizTwoPhaseClusters
+            .unsupported_with(Technique::Visbuf)
+            .is_some());
+        let with = decide(MIXED, &profile("lavapipe"), t).with_culling(Culling::HizTwoPhase);
+        assert!(!with.has_prepass());
     }
 
     #[test]

@@ -18,6 +18,12 @@ pub const RESOLVE_INPUT_FS: &[u8] =
     include_bytes!("../../../shaders/spv/visbuf_resolve_input.frag.spv");
 pub const RESOLVE_SAMPLED_FS: &[u8] =
     include_bytes!("../../../shaders/spv/visbuf_resolve_sampled.frag.spv");
+pub const GBUFFER_VS: &[u8] = include_bytes!("../../../shaders/spv/gbuffer.vert.spv");
+pub const GBUFFER_FS: &[u8] = include_bytes!("../../../shaders/spv/gbuffer.frag.spv");
+pub const GBUFFER_INPUT_FS: &[u8] =
+    include_bytes!("../../../shaders/spv/gbuffer_resolve_input.frag.spv");
+pub const GBUFFER_SAMPLED_FS: &[u8] =
+    include_bytes!("../../../shaders/spv/gbuffer_resolve_sampled.frag.spv");
 // The same with the textures as layers of one image (TEXTURE_LAYERS).
 pub const DEPTH_ALPHA_LAYERS_FS: &[u8] =
     include_bytes!("../../../shaders/spv/depth_alpha_layers.frag.spv");
@@ -35,6 +41,11 @@ pub const RESOLVE_INPUT_LAYERS_FS: &[u8] =
     include_bytes!("../../../shaders/spv/visbuf_resolve_input_layers.frag.spv");
 pub const RESOLVE_SAMPLED_LAYERS_FS: &[u8] =
     include_bytes!("../../../shaders/spv/visbuf_resolve_sampled_layers.frag.spv");
+pub const GBUFFER_LAYERS_FS: &[u8] = include_bytes!("../../../shaders/spv/gbuffer_layers.frag.spv");
+pub const GBUFFER_INPUT_LAYERS_FS: &[u8] =
+    include_bytes!("../../../shaders/spv/gbuffer_resolve_input_layers.frag.spv");
+pub const GBUFFER_SAMPLED_LAYERS_FS: &[u8] =
+    include_bytes!("../../../shaders/spv/gbuffer_resolve_sampled_layers.frag.spv");
 pub const OQ_BOX_VS: &[u8] = include_bytes!("../../../shaders/spv/oq_box.vert.spv");
 pub const RASTER_VS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.vert.spv");
 pub const RASTER_FS: &[u8] = include_bytes!("../../../shaders/spv/raster_occlusion.frag.spv");

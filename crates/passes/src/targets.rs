@@ -1,7 +1,7 @@
-//! The images the scene passes draw into — colour, depth, and the visibility buffer's ids — and
-//! which of them a pass of this frame has written yet: the first use of each clears it, every
-//! later one keeps what is there. The render targets a renderer owns across frames are made in
-//! `images.rs` (re-exported here).
+//! The images the scene passes draw into — colour, depth, the visibility buffer's ids, deferred
+//! texturing's G-buffer — and which of them a pass of this frame has written yet: the first use
+//! of each clears it, every later one keeps what is there. The render targets a renderer owns
+//! across frames are made in `images.rs` (re-exported here).
 
 use tilegraph_graph::{ClearColor, ClearDepthStencil, Extent2d, ImageId, RasterPassBuilder};
 use tilegraph_scene::DepthConvention;
@@ -16,6 +16,8 @@ pub struct SceneTargets {
     /// The visibility buffer's ids: imported when the caller keeps them, else created by the
     /// first id pass.
     pub ids: Option<ImageId>,
+    /// Deferred texturing's G-buffer, created by the first G-buffer pass.
+    pub gbuffer: Option<ImageId>,
     /// The light's shadow atlas, when the frame has shadows: every colour pass samples it.
     pub shadow: Option<ImageId>,
     pub extent: Extent2d,
@@ -39,6 +41,7 @@ impl SceneTargets {
             color,
             depth,
             ids: None,
+            gbuffer: None,
             shadow: None,
             extent,
             color_clear: ClearColor::Float(clear_color),

@@ -132,10 +132,10 @@ pub const KNOBS: &[KnobSpec] = &[
     },
     KnobSpec {
         name: "shading",
-        domain: Domain::Choice(&["forward", "prepass", "visbuf"]),
+        domain: Domain::Choice(&["forward", "prepass", "visbuf", "deferred-texturing"]),
         default: DefaultValue::Name("forward"),
         applies: Applies::Always,
-        help: "forward (pre-pass as the profile says), forward with a forced depth pre-pass, or visibility buffer",
+        help: "forward (pre-pass as the profile says), forward with a forced depth pre-pass, visibility buffer, or deferred texturing (G-buffer of material, normal, UV and derivatives, then one shading pass)",
     },
     KnobSpec {
         name: "opaque_sort",

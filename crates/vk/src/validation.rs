@@ -75,6 +75,11 @@ pub const SILENCED: &[Silenced] = &[
     },
     Silenced {
         id: "UNASSIGNED-BestPractices-ImageBarrierAccessLayout",
+        contains: "VK_ACCESS_2_INPUT_ATTACHMENT_READ_BIT|VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT|VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT: accessMask is vkCmdPipelineBarrier2, but for layout VK_IMAGE_LAYOUT_DEPTH_STENCIL_ATTACHMENT_OPTIMAL",
+        reason: "the barrier into a render pass names every access the pass makes to the depth (tested and written, then read as an input attachment by deferred texturing's resolve on tilers), in the layout of its first use",
+    },
+    Silenced {
+        id: "UNASSIGNED-BestPractices-ImageBarrierAccessLayout",
         contains: "VK_ACCESS_2_INPUT_ATTACHMENT_READ_BIT|VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT: accessMask is vkCmdPipelineBarrier2, but for layout VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL",
         reason: "the barrier into a render pass names every access the pass makes to the image (written as a colour attachment, then read as an input attachment), in the layout of its first use",
     },

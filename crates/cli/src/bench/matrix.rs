@@ -280,7 +280,7 @@ fn applies(k: &str, culling: &str, shading: &str, content: SceneContent) -> bool
             culling != PROFILE_CHOICE
                 && shading != PROFILE_CHOICE
                 && content.alpha_tested > 0
-                && Technique::parse(shading) != Some(Technique::Visbuf)
+                && !Technique::parse(shading).is_some_and(Technique::screen_space)
                 && !Culling::parse(culling).is_some_and(Culling::needs_prepass)
         }
     }

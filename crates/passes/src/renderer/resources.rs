@@ -194,6 +194,9 @@ fn add_states(
         let shadows = ShadowState::new(ctx, set_layout, cull_sets, atlas, instances)?;
         res.states.insert(shadows);
     }
+    if options.technique == Technique::DeferredTexturing {
+        res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);
+    }
     if options.technique == Technique::Visbuf {
         res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);
         // Also where the resolve is not classified: its set layout is what an engine's

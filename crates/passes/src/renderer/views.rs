@@ -476,6 +476,7 @@ impl SceneRenderer {
                 max_triangles: scene.max_mesh_triangles(),
             });
         }
+        crate::options::check_gbuffer_materials(view.options.technique, scene)?;
         let mut uniforms = FrameUniforms::new(
             m.view_projection,
             m.depth,

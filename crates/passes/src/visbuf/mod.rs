@@ -128,28 +128,34 @@ pub fn add_visbuf_resolve(
     p.id()
 }
 
-/// The resolve's descriptor sets (set 1: the ids), one per frame slot and way of reading.
+/// The resolves' descriptor sets (set 1: the visibility buffer's ids, or deferred texturing's
+/// G-buffer and depth), one per frame slot, way of reading and image count.
 pub struct ResolveSets {
     pool: vk::DescriptorPool,
     sampler: vk::Sampler,
-    sets: HashMap<(usize, bool), vk::DescriptorSet>,
+    sets: HashMap<(usize, bool, usize), vk::DescriptorSet>,
 }
+
+/// The most images a resolve reads (deferred texturing: G-buffer and depth).
+const MAX_RESOLVE_IMAGES: usize = 2;
 
 impl ResolveSets {
     pub fn new(ctx: &Context, frames_in_flight: usize) -> Result<Self, VkError> {
         let n = frames_in_flight.max(1) as u32;
+        // A set of each image count (1..=MAX) per slot and way of reading.
+        let per_way = n * (1..=MAX_RESOLVE_IMAGES as u32).sum::<u32>();
         let sizes = [
             vk::DescriptorPoolSize {
                 ty: vk::DescriptorType::INPUT_ATTACHMENT,
-                descriptor_count: n,
+                descriptor_count: per_way,
             },
             vk::DescriptorPoolSize {
                 ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
-                descriptor_count: n,
+                descriptor_count: per_way,
             },
         ];
         let pool_info = vk::DescriptorPoolCreateInfo::default()
-            .max_sets(2 * n)
+            .max_sets(2 * n * MAX_RESOLVE_IMAGES as u32)
             .pool_sizes(&sizes);
         // SAFETY: valid create info.
         let pool = unsafe { ctx.device.create_descriptor_pool(&pool_info, None) }
@@ -167,6 +173,82 @@ impl ResolveSets {
             sampler,
             sets: HashMap::new(),
         })
+    }
+
+    /// Binds the scene's set and set 1 holding `images` (view and layout, at bindings 0..),
+    /// read as input attachments (`input`) or sampled, for the resolve `pc` records; the
+    /// frame slot's set, allocated on first use. Returns the pipeline layout bound.
+    pub(crate) fn bind(
+        pc: &PassContext<'_>,
+        res: &mut SceneResources,
+        input: bool,
+        images: &[(ImageId, vk::ImageLayout)],
+    ) -> Result<vk::PipelineLayout, VkError> {
+        debug_assert!(!images.is_empty() && images.len() <= MAX_RESOLVE_IMAGES);
+        let scene_set = scene_set(pc, res)?;
+        let (set_layout, layout) = if input {
+            (res.pipelines.input_set_layout, res.pipelines.input_layout)
+        } else {
+            (
+                res.pipelines.sampled_set_layout,
+                res.pipelines.sampled_layout,
+            )
+        };
+        let mut infos = [vk::DescriptorImageInfo::default(); MAX_RESOLVE_IMAGES];
+        for (info, &(image, image_layout)) in infos.iter_mut().zip(images) {
+            *info = vk::DescriptorImageInfo {
+                sampler: vk::Sampler::null(),
+                image_view: pc.image(image)?.view,
+                image_layout,
+            };
+        }
+        let sets = res.states.require_mut::<ResolveSets>(pc.pass_name)?;
+        let key = (pc.frame_slot, input, images.len());
+        let set = match sets.sets.get(&key) {
+            Some(s) => *s,
+            None => {
+                // The pool holds a set per slot, way of reading and image count.
+                let s = allocate_set(pc.ctx, sets.pool, set_layout)?;
+                sets.sets.insert(key, s);
+                s
+            }
+        };
+        let ty = if input {
+            vk::DescriptorType::INPUT_ATTACHMENT
+        } else {
+            vk::DescriptorType::COMBINED_IMAGE_SAMPLER
+        };
+        let infos = &mut infos[..images.len()];
+        for info in infos.iter_mut() {
+            info.sampler = sets.sampler;
+        }
+        // Every binding written, the ones past `images` with its first (unread by the
+        // shader): lavapipe of Mesa 22.3 reads every descriptor of a bound set and crashes on
+        // one never written.
+        let writes: [vk::WriteDescriptorSet<'_>; MAX_RESOLVE_IMAGES] = std::array::from_fn(|b| {
+            vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(b as u32)
+                .descriptor_type(ty)
+                .image_info(std::slice::from_ref(
+                    &infos[if b < infos.len() { b } else { 0 }],
+                ))
+        });
+        let d = &pc.ctx.device;
+        // SAFETY: the slot's previous frame completed (executor guarantee), so the set is
+        // idle; recording inside the resolve's subpass.
+        unsafe {
+            d.update_descriptor_sets(&writes, &[]);
+            d.cmd_bind_descriptor_sets(
+                pc.cb,
+                vk::PipelineBindPoint::GRAPHICS,
+                layout,
+                0,
+                &[scene_set, set],
+                &[],
+            );
+        }
+        Ok(layout)
     }
 }
 
@@ -200,57 +282,13 @@ fn record_resolve(
         ),
         Some(_) => None,
     };
-    let scene_set = scene_set(pc, res)?;
-    let (set_layout, layout) = if input {
-        (res.pipelines.input_set_layout, res.pipelines.input_layout)
-    } else {
-        (
-            res.pipelines.sampled_set_layout,
-            res.pipelines.sampled_layout,
-        )
-    };
-    let sets = res.states.require_mut::<ResolveSets>(pc.pass_name)?;
-    let key = (pc.frame_slot, input);
-    let set = match sets.sets.get(&key) {
-        Some(s) => *s,
-        None => {
-            // The pool holds a set per slot and way of reading.
-            let s = allocate_set(pc.ctx, sets.pool, set_layout)?;
-            sets.sets.insert(key, s);
-            s
-        }
-    };
-    let view = pc.image(ids)?.view;
-    let info = [vk::DescriptorImageInfo {
-        sampler: sets.sampler,
-        image_view: view,
-        image_layout: vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL,
-    }];
-    let ty = if input {
-        vk::DescriptorType::INPUT_ATTACHMENT
-    } else {
-        vk::DescriptorType::COMBINED_IMAGE_SAMPLER
-    };
-    let write = vk::WriteDescriptorSet::default()
-        .dst_set(set)
-        .dst_binding(0)
-        .descriptor_type(ty)
-        .image_info(&info);
     pc.set_full_viewport();
-    let d = &pc.ctx.device;
-    // SAFETY: the slot's previous frame completed (executor guarantee), so the set is idle;
-    // recording inside the resolve subpass.
-    unsafe {
-        d.update_descriptor_sets(&[write], &[]);
-        d.cmd_bind_descriptor_sets(
-            pc.cb,
-            vk::PipelineBindPoint::GRAPHICS,
-            layout,
-            0,
-            &[scene_set, set],
-            &[],
-        );
-        if let Some(pipeline) = uber {
+    let ids = [(ids, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)];
+    let layout = ResolveSets::bind(pc, res, input, &ids)?;
+    if let Some(pipeline) = uber {
+        let d = &pc.ctx.device;
+        // SAFETY: recording inside the resolve subpass, its sets bound.
+        unsafe {
             d.cmd_bind_pipeline(pc.cb, vk::PipelineBindPoint::GRAPHICS, pipeline);
             d.cmd_draw(pc.cb, 3, 1, 0, 0);
         }

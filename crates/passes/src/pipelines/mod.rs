@@ -23,16 +23,18 @@ use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::{PassContext, RenderPassRef};
 use tilegraph_vk::pipeline::{
     create_described_pipeline, create_pipeline_layout, create_set_layout, Blend, DepthState,
-    DescribedPipeline, GraphicsDesc, RenderTarget, Stage, VertexLayout,
+    DescribedPipeline, GraphicsDesc, RenderTarget, Stage,
 };
 use tilegraph_vk::{Context, VkError};
 
 pub use crate::depth_test::ColourDepth;
-use crate::depth_test::{nearer, nearer_or_equal};
 use crate::draws::DrawClass;
-use crate::materials::{EngineMaterial, MaterialPass, MaterialShaders};
+use crate::materials::{EngineMaterial, MaterialPass};
 use crate::probe::StageProbe;
 use crate::spv;
+
+mod variants;
+use variants::scene_pipeline;
 
 /// How far occlusion proxies are pulled toward the eye, in units of the depth format (a D32
 /// float's ulp at the box's largest depth, 1/65535 for D16): a few, against interpolation and
@@ -60,16 +62,26 @@ pub enum Variant {
     ResolveInput,
     /// ... or sampling them.
     ResolveSampled,
+    /// Deferred texturing's G-buffer of opaque or alpha-tested geometry.
+    Gbuffer { alpha: bool },
+    /// Deferred texturing's resolve, reading the G-buffer and depth as input attachments
+    /// (`input`, tilers) or sampling them.
+    GbufferResolve { input: bool },
 }
 
 /// The engine-material raster pass kind a variant belongs to; `None` for the visibility
-/// buffer's passes: its id pass is tilegraph's, and an engine's resolve shader runs per
-/// material after classification (`visbuf::classify`), not through a variant.
+/// buffer's passes — its id pass is tilegraph's, and an engine's resolve shader runs per
+/// material after classification (`visbuf::classify`), not through a variant — and for
+/// deferred texturing's, whose G-buffer layout is tilegraph's.
 pub fn material_pass(variant: Variant) -> Option<MaterialPass> {
     match variant {
         Variant::DepthOpaque | Variant::DepthAlpha => Some(MaterialPass::Depth),
         Variant::Forward { .. } => Some(MaterialPass::Color),
-        Variant::Visbuf { .. } | Variant::ResolveInput | Variant::ResolveSampled => None,
+        Variant::Visbuf { .. }
+        | Variant::ResolveInput
+        | Variant::ResolveSampled
+        | Variant::Gbuffer { .. }
+        | Variant::GbufferResolve { .. } => None,
     }
 }
 
@@ -143,7 +155,8 @@ pub struct Pipelines {
     materials: Vec<Rc<EngineMaterial>>,
     /// Set 0: the scene (`GpuScene::set_layout`, owned by the scene).
     pub scene_layout: vk::PipelineLayout,
-    /// Set 1 of the resolve: the ids as an input attachment, or sampled.
+    /// Set 1 of the resolves: the ids or the G-buffer (binding 0) and the depth (binding 1,
+    /// deferred texturing's) as input attachments, or sampled.
     pub input_set_layout: vk::DescriptorSetLayout,
     pub sampled_set_layout: vk::DescriptorSetLayout,
     pub input_layout: vk::PipelineLayout,
@@ -187,16 +200,14 @@ impl Pipelines {
     ) -> Result<(), VkError> {
         let all = vk::ShaderStageFlags::VERTEX | vk::ShaderStageFlags::FRAGMENT;
         self.scene_layout = create_pipeline_layout(ctx, &[scene_set_layout], None)?;
-        self.input_set_layout = create_set_layout(
-            ctx,
-            &[(
-                0,
-                vk::DescriptorType::INPUT_ATTACHMENT,
-                vk::ShaderStageFlags::FRAGMENT,
-            )],
-        )?;
-        self.sampled_set_layout =
-            create_set_layout(ctx, &[(0, vk::DescriptorType::COMBINED_IMAGE_SAMPLER, all)])?;
+        // Binding 0: the visibility buffer's ids or deferred texturing's G-buffer; 1: the
+        // depth (deferred texturing's resolve only).
+        let fragment = vk::ShaderStageFlags::FRAGMENT;
+        let input = vk::DescriptorType::INPUT_ATTACHMENT;
+        self.input_set_layout =
+            create_set_layout(ctx, &[(0, input, fragment), (1, input, fragment)])?;
+        let sampled = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
+        self.sampled_set_layout = create_set_layout(ctx, &[(0, sampled, all), (1, sampled, all)])?;
         self.input_layout =
             create_pipeline_layout(ctx, &[scene_set_layout, self.input_set_layout], None)?;
         self.sampled_layout =
@@ -525,267 +536,4 @@ pub(crate) fn with_colors(
         },
         other => other,
     }
-}
-
-/// (vertex stage, fragment stage, vertex attributes, depth state, blend, layout) of a variant.
-type VariantState<'a> = (
-    Stage<'a>,
-    Option<Stage<'a>>,
-    &'a [(u32, vk::Format, u32)],
-    DepthState,
-    Blend,
-    vk::PipelineLayout,
-);
-
-/// Describes and creates one scene variant's pipeline.
-fn scene_pipeline(
-    pc: &PassContext<'_>,
-    target: RenderTarget<'_>,
-    (scene_layout, input_layout, sampled_layout): (
-        vk::PipelineLayout,
-        vk::PipelineLayout,
-        vk::PipelineLayout,
-    ),
-    (variant, double_sided, depth): (Variant, bool, DepthConvention),
-    (count_fragments, probe): (bool, StageProbe),
-    (texture_binding, texture_slots): (TextureBinding, u32),
-    engine: Option<(&MaterialShaders, vk::PipelineLayout)>,
-) -> Result<DescribedPipeline, VkError> {
-    // Specialization 1 of every fragment shader: TEXTURE_SLOTS (textures.glsl, ignored by the
-    // layers builds); 0 is the variant's own where it has one.
-    let slots_spec = [(1, texture_slots)];
-    let layers = texture_binding == TextureBinding::Layers;
-    let pick = |indexed: &'static [u8], with_layers: &'static [u8]| {
-        if layers {
-            with_layers
-        } else {
-            indexed
-        }
-    };
-    let write = DepthState {
-        test: true,
-        write: true,
-        compare: nearer(depth),
-        bias: 0,
-        slope_bias: 0.0,
-        clamp: false,
-    };
-    let pos_only = [POSITION];
-    let pos_uv = [POSITION, UV];
-    let all = [POSITION, NORMAL, UV];
-    let class_spec: [(u32, u32); 2];
-    let forward_spec: [(u32, u32); 3];
-    let vertex_spec = [(0, u32::from(probe.trivial_vertex))];
-    let (vs, fs, attrs, depth_state, blend, layout): VariantState<'_> = match variant {
-        Variant::DepthOpaque => (
-            Stage {
-                name: "depth.vert",
-                spirv: spv::DEPTH_VS,
-                specialization: &vertex_spec,
-            },
-            None,
-            &pos_only,
-            write,
-            Blend::NoColorWrites,
-            scene_layout,
-        ),
-        Variant::DepthAlpha => (
-            stage("depth_alpha.vert", spv::DEPTH_ALPHA_VS),
-            Some(Stage {
-                name: "depth_alpha.frag",
-                spirv: pick(spv::DEPTH_ALPHA_FS, spv::DEPTH_ALPHA_LAYERS_FS),
-                specialization: &slots_spec,
-            }),
-            &pos_uv,
-            write,
-            Blend::NoColorWrites,
-            scene_layout,
-        ),
-        Variant::Forward {
-            class,
-            depth: colour_depth,
-        } => {
-            forward_spec = [
-                (0, class.index()),
-                (1, texture_slots),
-                (2, u32::from(probe.trivial_fragment)),
-            ];
-            let depth_state = match (class, colour_depth) {
-                (DrawClass::Blended, _) => DepthState {
-                    test: true,
-                    write: false,
-                    compare: nearer(depth),
-                    bias: 0,
-                    slope_bias: 0.0,
-                    clamp: false,
-                },
-                (_, ColourDepth::Equal) => DepthState {
-                    test: true,
-                    write: false,
-                    compare: vk::CompareOp::EQUAL,
-                    bias: 0,
-                    slope_bias: 0.0,
-                    clamp: false,
-                },
-                (_, ColourDepth::WriteOrEqual) => DepthState {
-                    test: true,
-                    write: true,
-                    compare: nearer_or_equal(depth),
-                    bias: 0,
-                    slope_bias: 0.0,
-                    clamp: false,
-                },
-                (_, ColourDepth::Write) => write,
-            };
-            let depth_state = if probe.no_depth_test {
-                DepthState::OFF
-            } else {
-                depth_state
-            };
-            let blend = if class == DrawClass::Blended {
-                Blend::Alpha
-            } else {
-                Blend::Opaque
-            };
-            // Early fragment tests unless a discard decides what depth is written (alpha
-            // tested without a pre-pass): seed 003, discard disables early-Z.
-            let late = class == DrawClass::AlphaTested && colour_depth != ColourDepth::Equal;
-            let (fs_name, fs) = match (late, count_fragments) {
-                _ if probe.late_depth => (
-                    "forward_late_depth.frag",
-                    pick(
-                        spv::FORWARD_LATE_DEPTH_FS,
-                        spv::FORWARD_LATE_DEPTH_LAYERS_FS,
-                    ),
-                ),
-                (true, true) => (
-                    "forward_count_late.frag",
-                    pick(
-                        spv::FORWARD_COUNT_LATE_FS,
-                        spv::FORWARD_COUNT_LATE_LAYERS_FS,
-                    ),
-                ),
-                (true, false) => (
-                    "forward.frag",
-                    pick(spv::FORWARD_FS, spv::FORWARD_LAYERS_FS),
-                ),
-                (false, true) => (
-                    "forward_count.frag",
-                    pick(spv::FORWARD_COUNT_FS, spv::FORWARD_COUNT_LAYERS_FS),
-                ),
-                (false, false) => (
-                    "forward_early.frag",
-                    pick(spv::FORWARD_EARLY_FS, spv::FORWARD_EARLY_LAYERS_FS),
-                ),
-            };
-            (
-                Stage {
-                    name: "forward.vert",
-                    spirv: spv::FORWARD_VS,
-                    specialization: &vertex_spec,
-                },
-                Some(Stage {
-                    name: fs_name,
-                    spirv: fs,
-                    specialization: &forward_spec,
-                }),
-                &all,
-                depth_state,
-                blend,
-                scene_layout,
-            )
-        }
-        Variant::Visbuf { alpha } => {
-            class_spec = [(0, u32::from(alpha)), (1, texture_slots)];
-            (
-                stage("visbuf.vert", spv::VISBUF_VS),
-                Some(Stage {
-                    name: "visbuf.frag",
-                    spirv: pick(spv::VISBUF_FS, spv::VISBUF_LAYERS_FS),
-                    specialization: &class_spec,
-                }),
-                &pos_uv,
-                write,
-                Blend::Opaque,
-                scene_layout,
-            )
-        }
-        Variant::ResolveInput => (
-            stage("fullscreen.vert", spv::FULLSCREEN_VS),
-            Some(Stage {
-                name: "visbuf_resolve_input.frag",
-                spirv: pick(spv::RESOLVE_INPUT_FS, spv::RESOLVE_INPUT_LAYERS_FS),
-                specialization: &slots_spec,
-            }),
-            &[],
-            DepthState::OFF,
-            Blend::Opaque,
-            input_layout,
-        ),
-        Variant::ResolveSampled => (
-            stage("fullscreen.vert", spv::FULLSCREEN_VS),
-            Some(Stage {
-                name: "visbuf_resolve_sampled.frag",
-                spirv: pick(spv::RESOLVE_SAMPLED_FS, spv::RESOLVE_SAMPLED_LAYERS_FS),
-                specialization: &slots_spec,
-            }),
-            &[],
-            DepthState::OFF,
-            Blend::Opaque,
-            sampled_layout,
-        ),
-    };
-    // An engine material runs its shaders, with its layout, in this variant's fixed-function
-    // state; its vertex shader gets every attribute.
-    let (vs, fs, attrs, layout) = match engine {
-        None => (vs, fs, attrs, layout),
-        Some((shaders, engine_layout)) => {
-            if shaders.fragment.is_none()
-                && (variant == Variant::DepthAlpha || matches!(variant, Variant::Forward { .. }))
-            {
-                return Err(VkError::Invalid {
-                    what: format!("engine material shaders {:?}", shaders.vertex.name),
-                    reason: "a colour or alpha-tested depth pass needs a fragment shader".into(),
-                });
-            }
-            (
-                Stage {
-                    name: &shaders.vertex.name,
-                    spirv: &shaders.vertex.spirv,
-                    specialization: &[],
-                },
-                shaders.fragment.as_ref().map(|f| Stage {
-                    name: &f.name,
-                    spirv: &f.spirv,
-                    specialization: &[],
-                }),
-                &all[..],
-                engine_layout,
-            )
-        }
-    };
-    let vertex_layout = (!attrs.is_empty()).then_some(VertexLayout {
-        stride: VERTEX_STRIDE,
-        attributes: attrs,
-    });
-    let fullscreen = matches!(variant, Variant::ResolveInput | Variant::ResolveSampled);
-    create_described_pipeline(
-        pc.ctx,
-        &GraphicsDesc {
-            name: pc.pass_name,
-            vertex: vs,
-            fragment: fs,
-            vertex_layout,
-            layout,
-            target,
-            depth: depth_state,
-            blend,
-            cull: if double_sided || fullscreen {
-                vk::CullModeFlags::NONE
-            } else {
-                vk::CullModeFlags::BACK
-            },
-            samples: vk::SampleCountFlags::TYPE_1,
-        },
-    )
 }
