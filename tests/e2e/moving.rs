@@ -4,7 +4,8 @@
 //! two-phase HiZ, raster occlusion, same-frame queries, and the cluster techniques — culls no
 //! visible instance and draws the unculled image bit for bit on every frame: with the camera
 //! still (every newly visible instance was revealed by motion: the frame an object leaves an
-//! occluder is the case two-phase culling exists for), and along a hard path of jumps and cuts.
+//! occluder is the case two-phase culling exists for), and along a hard path of jumps and cuts;
+//! deferred texturing, whose G-buffer both phases draw, likewise.
 
 use tilegraph_e2e::{culling_features, gpu_with};
 use tilegraph_passes::cull::Culling;
@@ -59,8 +60,17 @@ fn motion() -> MotionParams {
 }
 
 fn check(g: &tilegraph_e2e::Gpu, scene: &Scene, path: &CameraPath, culling: Culling) -> CullCheck {
+    check_shaded(g, scene, path, (Technique::Prepass, culling))
+}
+
+fn check_shaded(
+    g: &tilegraph_e2e::Gpu,
+    scene: &Scene,
+    path: &CameraPath,
+    (technique, culling): (Technique, Culling),
+) -> CullCheck {
     let options = RenderOptions {
-        technique: Technique::Prepass,
+        technique,
         culling,
         width: SIZE.0,
         height: SIZE.1,
@@ -155,6 +165,11 @@ fn objects_leaving_occluders_are_drawn_the_frame_they_appear() {
     for culling in CONSERVATIVE {
         assert_exact("city, still camera", &check(&g, &scene, &path, culling));
     }
+    // Deferred texturing draws its G-buffer in both phases: what moved into view in the late
+    // phase is in it.
+    let shaded = (Technique::DeferredTexturing, Culling::HizTwoPhase);
+    let r = check_shaded(&g, &scene, &path, shaded);
+    assert_exact("city, still camera", &r);
 }
 
 #[test]
@@ -177,6 +192,9 @@ fn cluster_techniques_stay_exact_while_the_scene_moves() {
     for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
         assert_exact("closed spheres, walk", &check(&g, &scene, &path, culling));
     }
+    let shaded = (Technique::DeferredTexturing, Culling::HizTwoPhaseClusters);
+    let r = check_shaded(&g, &scene, &path, shaded);
+    assert_exact("closed spheres, walk", &r);
 }
 
 /// A million instances build, load, cull and render on lavapipe (small): two-phase HiZ draws

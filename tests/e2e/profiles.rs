@@ -37,6 +37,8 @@ const FRAMES: &[(Technique, Culling, u32, u32)] = &[
     (Technique::Prepass, Culling::HizTwoPhase, 1, 0),
     (Technique::Visbuf, Culling::HizTwoPhase, 1, 0),
     (Technique::DeferredTexturing, Culling::HizTwoPhase, 1, 0),
+    // After the merged resolve read the depth as an input attachment, the pyramid reads it.
+    (Technique::DeferredTexturing, Culling::Hiz, 1, 0),
     (Technique::Forward, Culling::Oq, 1, 0),
     (Technique::Forward, Culling::OqConditional, 1, 0),
     (Technique::Prepass, Culling::RasterOcclusion, 1, 0),

@@ -80,6 +80,11 @@ pub const SILENCED: &[Silenced] = &[
     },
     Silenced {
         id: "UNASSIGNED-BestPractices-ImageBarrierAccessLayout",
+        contains: "VK_ACCESS_2_INPUT_ATTACHMENT_READ_BIT|VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT: accessMask is vkCmdPipelineBarrier2, but for layout VK_IMAGE_LAYOUT_DEPTH_STENCIL_READ_ONLY_OPTIMAL",
+        reason: "depth read as an input attachment in the read-only depth layout (deferred texturing's resolve on tilers), which the spec allows there: the barrier after the pass names that read; the 1.3.239 layer's table of accesses per layout lists shader reads and depth reads only",
+    },
+    Silenced {
+        id: "UNASSIGNED-BestPractices-ImageBarrierAccessLayout",
         contains: "VK_ACCESS_2_INPUT_ATTACHMENT_READ_BIT|VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT: accessMask is vkCmdPipelineBarrier2, but for layout VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL",
         reason: "the barrier into a render pass names every access the pass makes to the image (written as a colour attachment, then read as an input attachment), in the layout of its first use",
     },
