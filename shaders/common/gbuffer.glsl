@@ -3,7 +3,7 @@
 //   x: material + 1 (bits 0-11) | octahedral normal, 10 bits a component (bits 12-21, 22-31)
 //   y: UV, 16-bit unorm each, reduced to one period of 2 around [0, 1] (see gbuffer_pack_uv)
 //   z: d(UV)/dx, two halves;  w: d(UV)/dy, two halves
-// A cleared pixel (zero: the clear value GPUs clear fastest) holds GBUFFER_BACKGROUND in place
+// A cleared pixel (zero, the value fast clears most commonly take) holds GBUFFER_BACKGROUND in place
 // of a material: nothing drew there.
 #ifndef TILEGRAPH_GBUFFER_GLSL
 #define TILEGRAPH_GBUFFER_GLSL

@@ -13,12 +13,10 @@ use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::PassContext;
 use tilegraph_vk::VkError;
 
-use crate::draws::DrawClass;
 use crate::frame::{DrawSource, FrameGraph, Payload, SceneResources};
 use crate::pipelines::Variant;
-use crate::recording::{record_class, Predicate};
 use crate::targets::SceneTargets;
-use crate::visbuf::ResolveSets;
+use crate::visbuf::{add_screen_write, ResolveSets};
 
 /// The G-buffer's format: 128 bits a pixel (material and normal, UV, two UV derivatives).
 pub const GBUFFER_FORMAT: Format = Format::R32G32B32A32_UINT;
@@ -40,30 +38,11 @@ pub fn add_gbuffer_write(
     let gbuffer = *targets
         .gbuffer
         .get_or_insert_with(|| g.create_image("gbuffer", ImageDesc::new(extent, GBUFFER_FORMAT)));
-    let record: Payload = Box::new(move |pc, res| {
-        for (class, alpha) in [(DrawClass::Opaque, false), (DrawClass::AlphaTested, true)] {
-            record_class(
-                pc,
-                res,
-                Variant::Gbuffer { alpha },
-                class,
-                source,
-                1,
-                Predicate::None,
-            )?;
-        }
-        Ok(())
-    });
-    let mut p = g.raster_pass(name, PassClass::Opaque, record);
-    if phase == 0 {
-        // Zero, the background (and the clear value GPUs clear fastest: on the H200 the
-        // G-buffer pass took 0.89 ms of a FlightHelmet frame cleared to all ones).
-        p.color_clear(gbuffer, ClearColor::Uint([0; 4]));
-    } else {
-        p.color(gbuffer);
-    }
-    targets.attach_depth(&mut p, false);
-    source.declare_reads(&mut p);
+    // Zero, the background: materials are stored + 1 so that the clear is all zeros, the value
+    // fast clears most commonly take (on the H200 it measured the same as all ones).
+    let clear = ClearColor::Uint([0; 4]);
+    let variant = |alpha| Variant::Gbuffer { alpha };
+    add_screen_write(g, targets, (gbuffer, clear), (phase, source, name), variant);
     gbuffer
 }
 

@@ -37,29 +37,37 @@ pub fn add_visbuf_write(
     let ids = *targets.ids.get_or_insert_with(|| {
         g.create_image("visbuf-id", ImageDesc::new(extent, Format::R32_UINT))
     });
+    let clear = ClearColor::Uint([u32::MAX; 4]);
+    let variant = |alpha| Variant::Visbuf { alpha };
+    add_screen_write(g, targets, (ids, clear), (phase, source, name), variant);
+    ids
+}
+
+/// The geometry pass of a screen-space shading (the visibility buffer's ids, deferred
+/// texturing's G-buffer): opaque then alpha-tested geometry from `source` drawn with
+/// `variant(alpha)` into `image` and the depth, `image` cleared to `clear` by phase 0 (two-phase
+/// culling's second phase adds to it).
+pub(crate) fn add_screen_write(
+    g: &mut FrameGraph,
+    targets: &mut SceneTargets,
+    (image, clear): (ImageId, ClearColor),
+    (phase, source, name): (u32, DrawSource, &str),
+    variant: fn(bool) -> Variant,
+) {
     let record: Payload = Box::new(move |pc, res| {
         for (class, alpha) in [(DrawClass::Opaque, false), (DrawClass::AlphaTested, true)] {
-            record_class(
-                pc,
-                res,
-                Variant::Visbuf { alpha },
-                class,
-                source,
-                1,
-                Predicate::None,
-            )?;
+            record_class(pc, res, variant(alpha), class, source, 1, Predicate::None)?;
         }
         Ok(())
     });
     let mut p = g.raster_pass(name, PassClass::Opaque, record);
     if phase == 0 {
-        p.color_clear(ids, ClearColor::Uint([u32::MAX; 4]));
+        p.color_clear(image, clear);
     } else {
-        p.color(ids);
+        p.color(image);
     }
     targets.attach_depth(&mut p, false);
     source.declare_reads(&mut p);
-    ids
 }
 
 /// How a frame resolves the visibility buffer.
