@@ -3,10 +3,11 @@
  * synchronization validation on, every message counted) hands them to tilegraph, renders the
  * city with two-phase HiZ culling and three shadow cascades of its sun into its own image, and
  * in the same frames a second camera further along the path (the visibility buffer, HiZ, two
- * cascades of its own) into an image of tilegraph's — recording into its own command buffers,
- * two frames in flight, submitting itself — reads both back, and writes them to the files
- * named by argv[1] and argv[1] + ".view" (raw RGBA8) for the test to compare with the Rust
- * path's.
+ * cascades of its own) into an image of tilegraph's, and from the same camera a third view shaded
+ * with deferred texturing (two-phase HiZ, no shadows) — recording into its own command buffers,
+ * two frames in flight, submitting itself — reads all three back, and writes them to the files
+ * named by argv[1], argv[1] + ".view" and argv[1] + ".deferred" (raw RGBA8) for the test to
+ * compare with the Rust path's.
  *
  * Usage: sample OUT.rgba [PROFILE]. Exits non-zero on any failure or validation message.
  */
@@ -75,6 +76,14 @@ int main(int argc, char **argv) {
     uint32_t view;
     TG_CHECK(tg_renderer_add_view(renderer, &view_desc, &view_camera, &view));
     CHECK(view == 1, "the first further view is %u, not 1", view);
+    TgViewDesc deferred_desc = {.technique = TG_TECHNIQUE_DEFERRED_TEXTURING,
+                                .culling = TG_CULLING_HIZ_TWO_PHASE,
+                                .width = VIEW_WIDTH,
+                                .height = VIEW_HEIGHT,
+                                .clear_color = {0.1f, 0.2f, 0.3f, 1.0f}};
+    uint32_t deferred;
+    TG_CHECK(tg_renderer_add_view(renderer, &deferred_desc, &view_camera, &deferred));
+    CHECK(deferred == 2, "the deferred-texturing view is %u, not 2", deferred);
     /* A view the renderer does not have is refused. */
     CHECK(tg_renderer_set_view_camera(renderer, 7, &view_camera, 0) ==
               TG_STATUS_INVALID_ARGUMENT,
@@ -99,6 +108,7 @@ int main(int argc, char **argv) {
         }
         TG_CHECK(tg_scene_path_camera(scene, VIEW_AHEAD + i, &view_camera, &view_cut));
         TG_CHECK(tg_renderer_set_view_camera(renderer, view, &view_camera, view_cut));
+        TG_CHECK(tg_renderer_set_view_camera(renderer, deferred, &view_camera, view_cut));
         TG_CHECK(tg_renderer_record(renderer, &camera, cut, &frame, &t));
         engine_submit(&e, s);
 
@@ -141,6 +151,11 @@ int main(int argc, char **argv) {
     snprintf(view_path, sizeof view_path, "%s.view", argv[1]);
     EngineImage view_target = {.image = (VkImage)(uintptr_t)view_image.image};
     engine_read_back(&e, &view_target, VIEW_WIDTH, VIEW_HEIGHT, view_path);
+    TgViewImage deferred_image;
+    TG_CHECK(tg_renderer_view_image(renderer, deferred, &deferred_image));
+    snprintf(view_path, sizeof view_path, "%s.deferred", argv[1]);
+    EngineImage deferred_target = {.image = (VkImage)(uintptr_t)deferred_image.image};
+    engine_read_back(&e, &deferred_target, VIEW_WIDTH, VIEW_HEIGHT, view_path);
 
     TG_CHECK(tg_renderer_destroy(renderer));
     TG_CHECK(tg_scene_destroy(scene));

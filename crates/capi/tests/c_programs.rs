@@ -139,8 +139,9 @@ fn assert_equals_rust_image(what: &str, path: &Path, reference: &[u8]) {
 }
 
 /// The Rust path: tilegraph's own device and submission, the same frames — the main camera's
-/// image, and the second camera's rendered alone (on a device with the same features).
-fn rust_reference() -> (Vec<u8>, Vec<u8>) {
+/// image, and the second camera's rendered alone with the visibility buffer and with deferred
+/// texturing (on a device with the same features).
+fn rust_reference() -> (Vec<u8>, Vec<u8>, Vec<u8>) {
     let scene = tilegraph_scene::load("city:300").unwrap();
     let options = RenderOptions {
         technique: Technique::Prepass,
@@ -195,7 +196,26 @@ fn rust_reference() -> (Vec<u8>, Vec<u8>) {
     }
     let view_image = r.read_image(&g).unwrap();
     r.destroy(&g);
-    (image.pixels, view_image.pixels)
+    let deferred = RenderOptions {
+        technique: Technique::DeferredTexturing,
+        culling: Culling::HizTwoPhase,
+        width: 96,
+        height: 64,
+        clear_color: [0.1, 0.2, 0.3, 1.0],
+        ..Default::default()
+    };
+    let mut r = SceneRenderer::new(&g, &scene, deferred).unwrap();
+    r.set_light_direction(light);
+    r.set_light_color(sun);
+    for i in 0..6 {
+        let key = keys[20 + i];
+        let previous = (i > 0 && !key.cut).then(|| keys[19 + i].camera);
+        let frame = CameraFrame::new(i, key.camera, previous.as_ref(), 96.0 / 64.0);
+        r.render_frame(&g, &scene, &frame).unwrap();
+    }
+    let deferred_image = r.read_image(&g).unwrap();
+    r.destroy(&g);
+    (image.pixels, view_image.pixels, deferred_image.pixels)
 }
 
 #[test]
@@ -209,11 +229,18 @@ fn the_c_sample_renders_the_rust_paths_image() {
     assert!(log.contains("  depth-prepass"), "{log}");
     assert!(log.contains("  view1/visbuf"), "{log}");
     assert!(log.lines().any(|l| l.starts_with("  frame ")), "{log}");
-    let (reference, view_reference) = rust_reference();
+    assert!(log.contains("  view2/gbuffer-resolve"), "{log}");
+    let (reference, view_reference, deferred_reference) = rust_reference();
     let view_out = target_dir().join("capi-sample.rgba.view");
+    let deferred_out = target_dir().join("capi-sample.rgba.deferred");
     for (what, path, reference) in [
         ("main camera", &out, &reference),
         ("second camera", &view_out, &view_reference),
+        (
+            "deferred-texturing view",
+            &deferred_out,
+            &deferred_reference,
+        ),
     ] {
         assert_equals_rust_image(what, path, reference);
     }
