@@ -184,37 +184,31 @@ fn rust_reference() -> (Vec<u8>, Vec<u8>, Vec<u8>) {
     }
     let image = r.read_image(&g).unwrap();
     r.destroy(&g);
-    let mut r = SceneRenderer::new(&g, &scene, view).unwrap();
-    r.set_light_direction(light);
-    r.set_light_color(sun);
-    let keys = scene.camera_path().keys();
-    for i in 0..6 {
-        let key = keys[20 + i];
-        let previous = (i > 0 && !key.cut).then(|| keys[19 + i].camera);
-        let frame = CameraFrame::new(i, key.camera, previous.as_ref(), 96.0 / 64.0);
-        r.render_frame(&g, &scene, &frame).unwrap();
-    }
-    let view_image = r.read_image(&g).unwrap();
-    r.destroy(&g);
-    let deferred = RenderOptions {
+    // The second camera's frames, further along the path, rendered alone under `options`.
+    let ahead = |options: RenderOptions| {
+        let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+        r.set_light_direction(light);
+        r.set_light_color(sun);
+        let keys = scene.camera_path().keys();
+        for i in 0..6 {
+            let key = keys[20 + i];
+            let previous = (i > 0 && !key.cut).then(|| keys[19 + i].camera);
+            let frame = CameraFrame::new(i, key.camera, previous.as_ref(), 96.0 / 64.0);
+            r.render_frame(&g, &scene, &frame).unwrap();
+        }
+        let image = r.read_image(&g).unwrap();
+        r.destroy(&g);
+        image
+    };
+    let view_image = ahead(view);
+    let deferred_image = ahead(RenderOptions {
         technique: Technique::DeferredTexturing,
         culling: Culling::HizTwoPhase,
         width: 96,
         height: 64,
         clear_color: [0.1, 0.2, 0.3, 1.0],
         ..Default::default()
-    };
-    let mut r = SceneRenderer::new(&g, &scene, deferred).unwrap();
-    r.set_light_direction(light);
-    r.set_light_color(sun);
-    for i in 0..6 {
-        let key = keys[20 + i];
-        let previous = (i > 0 && !key.cut).then(|| keys[19 + i].camera);
-        let frame = CameraFrame::new(i, key.camera, previous.as_ref(), 96.0 / 64.0);
-        r.render_frame(&g, &scene, &frame).unwrap();
-    }
-    let deferred_image = r.read_image(&g).unwrap();
-    r.destroy(&g);
+    });
     (image.pixels, view_image.pixels, deferred_image.pixels)
 }
 

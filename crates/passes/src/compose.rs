@@ -399,10 +399,10 @@ impl<'a> Composition<'a> {
         }
     }
 
-    /// After the geometry: the visibility buffer's or the G-buffer's resolve, blended geometry, next frame's
-    /// occluders (single-phase HiZ: this frame's depth; occlusion queries read next frame,
-    /// after all opaque work by the graph's class order), and a clear when nothing drew (an
-    /// empty view of an empty scene still produces a cleared image).
+    /// After the geometry: the visibility buffer's or the G-buffer's resolve, blended
+    /// geometry, next frame's occluders (single-phase HiZ: this frame's depth; occlusion
+    /// queries read next frame, after all opaque work by the graph's class order), and a clear
+    /// when nothing drew (an empty view of an empty scene still produces a cleared image).
     fn after_geometry(&mut self) {
         let setup = self.spec.setup;
         let culling = self.culling();

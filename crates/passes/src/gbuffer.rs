@@ -8,7 +8,7 @@
 //! depth as input attachments: 128 + 32 bits a pixel, within what tile memory holds, so the
 //! G-buffer is transient and never written to memory; on immediate GPUs it samples them.
 
-use tilegraph_graph::{ClearColor, Format, ImageDesc, ImageId, PassClass, PassId};
+use tilegraph_graph::{ClearColor, Format, ImageDesc, ImageId, PassId};
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::executor::PassContext;
 use tilegraph_vk::VkError;
@@ -16,7 +16,7 @@ use tilegraph_vk::VkError;
 use crate::frame::{DrawSource, FrameGraph, Payload, SceneResources};
 use crate::pipelines::Variant;
 use crate::targets::SceneTargets;
-use crate::visbuf::{add_screen_write, ResolveSets};
+use crate::visbuf::{add_screen_resolve, add_screen_write, ResolveSets};
 
 /// The G-buffer's format: 128 bits a pixel (material and normal, UV, two UV derivatives).
 pub const GBUFFER_FORMAT: Format = Format::R32G32B32A32_UINT;
@@ -57,17 +57,9 @@ pub fn add_gbuffer_resolve(
 ) -> PassId {
     let depth = targets.depth;
     let record: Payload = Box::new(move |pc, res| record_resolve(pc, res, [gbuffer, depth], input));
-    let mut p = g.raster_pass("gbuffer-resolve", PassClass::Opaque, record);
-    // Declared in the shader's input_attachment_index order: G-buffer 0, depth 1.
-    for image in [gbuffer, depth] {
-        if input {
-            p.input(image);
-        } else {
-            p.sampled(image);
-        }
-    }
-    targets.attach_color(&mut p);
-    p.id()
+    // G-buffer at input_attachment_index 0, depth at 1.
+    let images = [gbuffer, depth];
+    add_screen_resolve(g, targets, "gbuffer-resolve", (&images, input), record)
 }
 
 /// One full-screen triangle of the resolve.

@@ -6,8 +6,9 @@
 //! same functions with its own passes in between.
 //!
 //! - passes: [`prepass`] (depth pre-pass), [`forward`] (colour, blended, clear), [`visbuf`] (ids
-//!   and resolve), [`gbuffer`] (deferred texturing's G-buffer and resolve), [`cull`] (GPU frustum, HiZ and two-phase culling into indirect lists), [`hiz`]
-//!   (the pyramid build), [`occlusion`] (hardware queries, raster occlusion);
+//!   and resolve), [`gbuffer`] (deferred texturing's G-buffer and resolve), [`cull`] (GPU
+//!   frustum, HiZ and two-phase culling into indirect lists), [`hiz`] (the pyramid build),
+//!   [`occlusion`] (hardware queries, raster occlusion);
 //! - what they share: [`targets`] (colour, depth, ids and their first-use clears), [`draws`]
 //!   (draw lists), [`recording`] (draw recording), [`pipelines`] (every graphics pipeline, in one
 //!   cache), [`gpu_scene`] (the scene's buffers);

@@ -194,11 +194,10 @@ fn add_states(
         let shadows = ShadowState::new(ctx, set_layout, cull_sets, atlas, instances)?;
         res.states.insert(shadows);
     }
-    if options.technique == Technique::DeferredTexturing {
+    if options.technique.screen_space() {
         res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);
     }
     if options.technique == Technique::Visbuf {
-        res.states.insert(ResolveSets::new(ctx, frames_in_flight)?);
         // Also where the resolve is not classified: its set layout is what an engine's
         // resolve layout is made with (`SceneRenderer::resolve_set_layout`); the compute
         // pipeline is made on first use.

@@ -126,11 +126,26 @@ pub fn add_visbuf_resolve(
     let input = plan.input;
     let record: Payload =
         Box::new(move |pc, res| record_resolve(pc, res, (ids, input), per_material));
-    let mut p = g.raster_pass("visbuf-resolve", PassClass::Opaque, record);
-    if input {
-        p.input(ids);
-    } else {
-        p.sampled(ids);
+    add_screen_resolve(g, targets, "visbuf-resolve", (&[ids], input), record)
+}
+
+/// A screen-space shading's full-screen resolve named `name`: reads `images` as input
+/// attachments (`input`, in the shader's `input_attachment_index` order) or sampled, and
+/// shades the colour target.
+pub(crate) fn add_screen_resolve(
+    g: &mut FrameGraph,
+    targets: &mut SceneTargets,
+    name: &str,
+    (images, input): (&[ImageId], bool),
+    record: Payload,
+) -> PassId {
+    let mut p = g.raster_pass(name, PassClass::Opaque, record);
+    for &image in images {
+        if input {
+            p.input(image);
+        } else {
+            p.sampled(image);
+        }
     }
     targets.attach_color(&mut p);
     p.id()
