@@ -19,7 +19,7 @@ use tilegraph_passes::{RenderOptions, SceneRenderer, Technique};
 use tilegraph_profile::{QueuePolicy, QueueSharing};
 use tilegraph_scene::Scene;
 use tilegraph_vk::readback::RgbaImage;
-use tilegraph_vk::{Context, Feature, FeatureRequest};
+use tilegraph_vk::{Feature, FeatureRequest};
 
 const SIZE: (u32, u32) = (160, 90);
 const FRAMES: usize = 5;
@@ -41,7 +41,7 @@ fn frames(
     o.queues = queues;
     o.async_on_one_queue = true;
     tilegraph_e2e::init_logging();
-    let g = Gpu::new(Context::new(o).unwrap());
+    let g = Gpu::new(tilegraph_e2e::context(o).unwrap());
     assert_eq!(
         g.async_queue.is_some(),
         queues.is_some_and(|q| q.async_compute)

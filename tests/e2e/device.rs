@@ -113,7 +113,7 @@ fn an_unknown_device_name_is_a_typed_error() {
     tilegraph_e2e::init_logging();
     let mut o = tilegraph_e2e::options(None, FeatureRequest::default());
     o.device = Some("no such gpu 9000".into());
-    match tilegraph_vk::Context::new(o) {
+    match tilegraph_e2e::context(o) {
         Err(tilegraph_vk::VkError::DeviceNotFound { wanted, available }) => {
             assert_eq!(wanted, "no such gpu 9000");
             assert!(!available.is_empty());

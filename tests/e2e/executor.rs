@@ -531,7 +531,7 @@ fn framebuffers_of_external_views_are_forgotten_on_request() {
 fn the_executor_needs_synchronization2() {
     let mut options = tilegraph_e2e::options(Some("lavapipe"), Default::default());
     options.features = tilegraph_vk::FeatureRequest::default();
-    let g = tilegraph_e2e::Gpu::new(tilegraph_vk::Context::new(options).unwrap());
+    let g = tilegraph_e2e::Gpu::new(tilegraph_e2e::context(options).unwrap());
     assert!(!g.has_feature(tilegraph_vk::Feature::Synchronization2));
     let err = Executor::new(&g)
         .err()

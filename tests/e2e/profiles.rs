@@ -460,7 +460,7 @@ fn every_technique_passes_best_practices_under_the_vendors_profile() {
 #[test]
 fn a_best_practices_warning_fails_the_test() {
     tilegraph_e2e::init_logging();
-    let ctx = tilegraph_vk::Context::new(tilegraph_e2e::options(None, Default::default())).unwrap();
+    let ctx = tilegraph_e2e::context(tilegraph_e2e::options(None, Default::default())).unwrap();
     let info = tilegraph_vk::ash::vk::CommandPoolCreateInfo::default()
         .queue_family_index(ctx.queue_family)
         .flags(tilegraph_vk::ash::vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
@@ -469,7 +469,9 @@ fn a_best_practices_warning_fails_the_test() {
         let pool = ctx.device.create_command_pool(&info, None).unwrap();
         ctx.device.destroy_command_pool(pool, None);
     }
-    let e = ctx.destroy_checked().unwrap_err().to_string();
+    let e = tilegraph_e2e::lifecycle(|| ctx.destroy_checked())
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("BestPractices-vkCreateCommandPool-command-buffer-reset"),
         "{e}"

@@ -97,7 +97,8 @@ impl Engine {
             .enabled_extension_names(&extensions)
             .push_next(&mut features);
         // SAFETY: every pointer refers to locals that outlive the call.
-        let instance = unsafe { entry.create_instance(&info, None) }.expect("vkCreateInstance");
+        let instance = crate::lifecycle(|| unsafe { entry.create_instance(&info, None) })
+            .expect("vkCreateInstance");
         let debug_utils = ash::ext::debug_utils::Instance::new(&entry, &instance);
         // SAFETY: the messages box outlives the messenger (destroyed in `destroy`).
         let messenger = unsafe { debug_utils.create_debug_utils_messenger(&messenger_info, None) }
@@ -152,8 +153,9 @@ impl Engine {
             .queue_priorities(&priorities)];
         let info = config.chain(vk::DeviceCreateInfo::default().queue_create_infos(&queues));
         // SAFETY: features and extensions as the physical device reported them.
-        let device = unsafe { self.instance.create_device(self.physical, &info, None) }
-            .expect("vkCreateDevice");
+        let device =
+            crate::lifecycle(|| unsafe { self.instance.create_device(self.physical, &info, None) })
+                .expect("vkCreateDevice");
         let handle = device.handle();
         self.device = Some(device);
         let adopted = AdoptedDevice {
@@ -181,7 +183,11 @@ impl Engine {
 
     /// Destroys the device, the messenger and the instance, in that order, and returns every
     /// message the layer reported, including those of the teardown (objects left alive).
-    pub fn destroy(mut self) -> Vec<String> {
+    pub fn destroy(self) -> Vec<String> {
+        crate::lifecycle(|| self.teardown())
+    }
+
+    fn teardown(mut self) -> Vec<String> {
         if let Some(device) = self.device.take() {
             // SAFETY: tilegraph is gone; the engine waits, then destroys its device.
             unsafe {

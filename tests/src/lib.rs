@@ -27,15 +27,36 @@ impl std::ops::Deref for Gpu {
     }
 }
 
+/// Held while a test creates or destroys an instance and device: the tests of a binary run on
+/// several threads, and a rare SIGSEGV of whole test binaries under `cargo test` (twice in CI,
+/// never in a single-threaded run, no memcheck error) points at the loader, layer or driver
+/// setting up or tearing down two devices at once. Serialized, they cost nothing measurable;
+/// the frames in between still run in parallel.
+static LIFECYCLE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Runs `f` with [`LIFECYCLE`] held (a test that panicked holding it does not poison the rest).
+pub fn lifecycle<T>(f: impl FnOnce() -> T) -> T {
+    let _held = LIFECYCLE
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    f()
+}
+
+/// A context with `options`, created under [`lifecycle`].
+pub fn context(options: ContextOptions) -> Result<Context, VkError> {
+    lifecycle(|| Context::new(options))
+}
+
 impl Drop for Gpu {
     fn drop(&mut self) {
         let Some(ctx) = self.ctx.take() else {
             return;
         };
         if std::thread::panicking() {
+            lifecycle(|| drop(ctx));
             return;
         }
-        if let Err(e) = ctx.wait_idle().and_then(|_| ctx.destroy_checked()) {
+        if let Err(e) = lifecycle(|| ctx.wait_idle().and_then(|_| ctx.destroy_checked())) {
             panic!("Vulkan validation failed the test: {e}");
         }
     }
@@ -61,7 +82,7 @@ pub fn options(profile: Option<&str>, features: FeatureRequest) -> ContextOption
 /// A validated context on the default device (lavapipe in CI), optionally forcing a profile.
 pub fn gpu(profile: Option<&str>) -> Result<Gpu, VkError> {
     init_logging();
-    Ok(Gpu::new(Context::new(options(
+    Ok(Gpu::new(context(options(
         profile,
         FeatureRequest::default(),
     ))?))
@@ -83,7 +104,7 @@ pub fn culling_features() -> FeatureRequest {
 /// Same as [`gpu`] with extra features.
 pub fn gpu_with(profile: Option<&str>, features: FeatureRequest) -> Result<Gpu, VkError> {
     init_logging();
-    Ok(Gpu::new(Context::new(options(profile, features))?))
+    Ok(Gpu::new(context(options(profile, features))?))
 }
 
 pub mod engine;

@@ -51,7 +51,13 @@ impl ClusterData {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|source| io(path, source))?;
         }
-        std::fs::write(path, out).map_err(|source| io(path, source))
+        // Written whole under a name no other writer uses, then renamed: a reader in another
+        // thread or process (tests run in parallel) sees the old file, none, or all of the new.
+        static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let tmp = path.with_extension(format!("tmp{}-{n}", std::process::id()));
+        std::fs::write(&tmp, out).map_err(|source| io(&tmp, source))?;
+        std::fs::rename(&tmp, path).map_err(|source| io(path, source))
     }
 
     /// Reads data [`ClusterData::write`] wrote; a wrong magic or a short file is an error naming

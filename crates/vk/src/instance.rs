@@ -190,8 +190,14 @@ impl Instance {
             vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION,
             vk::ValidationFeatureEnableEXT::BEST_PRACTICES,
         ];
-        let mut features =
-            vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
+        // The layer's shader validation cache is one file per user that every device reads at
+        // creation and rewrites at destruction; devices of parallel tests share it, and it is
+        // one suspect of a rare crash of test binaries. Off: the layer validates each shader
+        // module again instead (milliseconds for tilegraph's shaders).
+        let disables = [vk::ValidationFeatureDisableEXT::SHADER_VALIDATION_CACHE];
+        let mut features = vk::ValidationFeaturesEXT::default()
+            .enabled_validation_features(&enables)
+            .disabled_validation_features(&disables);
         let flags = if has_ext(ash::khr::portability_enumeration::NAME) {
             vk::InstanceCreateFlags::ENUMERATE_PORTABILITY_KHR
         } else {
