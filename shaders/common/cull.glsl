@@ -29,6 +29,9 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
     uvec4 cmd_base[2];     // per list (0-7): its first cluster command
     uvec4 commands;        // x: command slots per list (the most draw groups a list holds); clusters:
                            // y first chunks in cluster_base, z chunk instances there, w chunks
+    uvec4 triangles;       // per-triangle culling (common/triangles.glsl): x the tail's first index
+                           // in the scene's index buffer, y its capacity in indices, z the snapping
+                           // step in pixels (f32 bits), w where the tail places start in its buffer
 } cull;
 
 // A draw group: `len` consecutive entries of list `list` (of a phase) from `position`, all of

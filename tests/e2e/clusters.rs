@@ -403,3 +403,75 @@ fn cluster_techniques_say_what_they_need() {
         }
     }
 }
+
+/// Per-triangle culling (knob `triangle_culling`) after both cluster techniques: on the city,
+/// the interior, FlightHelmet and the Godot room along their paths, and on a one-mesh level's
+/// eye-height walk with yaw sweeps and cuts, FN 0 and every frame's image equal to the
+/// unculled one; no frame draws more triangles than the same technique without it, and each
+/// run draws fewer. (The cluster comparison does not apply: a packed command's range names no
+/// cluster; the images carry exactness.)
+#[test]
+fn triangle_culling_keeps_images_equal_and_draws_fewer_triangles() {
+    let mut runs: Vec<(String, CameraPath)> = Vec::new();
+    let mut specs: Vec<String> = vec!["city:1500".into(), "interior:800".into()];
+    for data in [
+        "scenes/FlightHelmet/FlightHelmet.gltf",
+        "bench/GodotRooms/room.gltf",
+    ] {
+        match tilegraph_e2e::test_data(data) {
+            Some(p) => specs.push(p.display().to_string()),
+            None => eprintln!(
+                "skipping {data}: {} not found",
+                tilegraph_e2e::test_data_dir().display()
+            ),
+        }
+    }
+    for spec in specs {
+        let scene = tilegraph_scene::load(&spec).unwrap();
+        let p = path(&scene, 6);
+        runs.push((spec, p));
+    }
+    let walk_spec = "interior:700@one-mesh";
+    let walk_scene = tilegraph_scene::load(walk_spec).unwrap();
+    runs.push((
+        walk_spec.into(),
+        CameraPath::eye_height_walk(&walk_scene.bounds(), 10, 7),
+    ));
+    for (spec, path) in &runs {
+        let scene = with_clusters(spec);
+        for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
+            let options = |triangles| RenderOptions {
+                width: SIZE.0,
+                height: SIZE.1,
+                culling,
+                triangle_culling: triangles,
+                ..Default::default()
+            };
+            let clusters = check_with(None, &scene, options(false), path);
+            let r = check_with(None, &scene, options(true), path);
+            for (a, b) in clusters.frames.iter().zip(&r.frames) {
+                assert_eq!(b.false_negatives, 0, "{spec} {culling:?} frame {}", b.frame);
+                assert!(
+                    b.image_equal,
+                    "{spec} {culling:?} + triangles: frame {} differs in {} pixels",
+                    b.frame, b.image_diff_pixels
+                );
+                assert!(
+                    b.triangles_drawn <= a.triangles_drawn,
+                    "{spec} {culling:?} frame {}: {} triangles with triangle culling, {} without",
+                    b.frame,
+                    b.triangles_drawn,
+                    a.triangles_drawn
+                );
+            }
+            println!(
+                "{spec:<60} {:<20} triangles {:>9} -> {:>9}",
+                r.technique, clusters.totals.triangles_drawn, r.totals.triangles_drawn
+            );
+            assert!(
+                r.totals.triangles_drawn < clusters.totals.triangles_drawn,
+                "{spec} {culling:?}: per-triangle culling removed no triangle"
+            );
+        }
+    }
+}

@@ -46,6 +46,9 @@ pub(crate) struct DeclarationKey {
     /// The scene's materials where the visibility buffer resolves per material (their
     /// resolves and tile lists), else 0.
     pub materials: u32,
+    /// Per-triangle culling: the scene's index buffer (its handle and size), whose tail the
+    /// culling writes; replaced when the geometry grows.
+    pub indices: Option<(tilegraph_vk::ash::vk::Buffer, u64)>,
 }
 
 /// The colour target as the frame declares it.
@@ -226,7 +229,8 @@ impl<'a> Composition<'a> {
             ids
         });
         let lists = states.get::<CullState>().map(|c| {
-            let lists = import_cull_buffers(g, c, hiz, reprojected.map(|r| r.pyramid));
+            let index_bytes = key.indices.map(|(_, size)| size);
+            let lists = import_cull_buffers(g, c, hiz, reprojected.map(|r| r.pyramid), index_bytes);
             for (id, buffer) in [
                 (lists.commands, &c.commands),
                 (lists.counts, &c.counts),
@@ -248,6 +252,15 @@ impl<'a> Composition<'a> {
                     (l.work, &s.work),
                 ] {
                     externals.insert(id, External::Buffer(CullState::handle(buffer)));
+                }
+                let triangles = s.triangles.as_ref();
+                if let (Some(t), Some(ts), Some((raw, size))) =
+                    (l.triangles, triangles, key.indices)
+                {
+                    let handle = CullState::handle(&ts.triangles);
+                    externals.insert(t.triangles, External::Buffer(handle));
+                    let indices = tilegraph_vk::executor::BufferHandle { raw, size };
+                    externals.insert(t.indices, External::Buffer(indices));
                 }
             }
             if let (Some(id), Some(h)) = (lists.pyramid, hiz) {

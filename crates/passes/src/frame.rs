@@ -241,6 +241,8 @@ pub enum DrawSource {
         draw_ids: BufferId,
         phase: u32,
         clusters: bool,
+        /// Per-triangle culling: the scene's index buffer, whose tail the commands draw.
+        indices: Option<BufferId>,
     },
 }
 
@@ -252,10 +254,14 @@ impl DrawSource {
             commands,
             counts,
             draw_ids,
+            indices,
             ..
         } = self
         {
             p.indirect(commands).indirect(counts).storage_read(draw_ids);
+            if let Some(i) = indices {
+                p.index(i);
+            }
         }
     }
 }

@@ -579,6 +579,7 @@ impl Resolved {
             _ => CullBounds::Aabb,
         };
         options.cluster_early = ClusterEarly::parse(name("cluster_early")).unwrap_or_default();
+        options.triangle_culling = name("triangle_culling") == "on";
         options.visbuf_resolve = VisbufResolve::parse(name("visbuf_resolve"));
         if let Some(t) = self.get("classify_tile").and_then(KnobValue::as_integer) {
             options.classify_tile = Some(t);
@@ -683,6 +684,7 @@ mod tests {
                     "hiz_npot" => ["edge-aware", "pad-to-pow2"].contains(&s.as_str()),
                     "hiz_resolution" => ["full", "half", "quarter"].contains(&s.as_str()),
                     "cull_bounds" => ["aabb", "sphere"].contains(&s.as_str()),
+                    "triangle_culling" => ["off", "on"].contains(&s.as_str()),
                     "cluster_early" => ClusterEarly::parse(&s).is_some(),
                     "visbuf_resolve" => VisbufResolve::parse(&s).is_some(),
                     "classify_tile" => matches!(k.domain, Domain::Integers(_)),

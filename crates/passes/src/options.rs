@@ -143,6 +143,8 @@ pub struct RenderOptions {
     /// Cluster techniques: the longest gap of culled clusters a command draws through (knob
     /// `cluster_gap`; 0 draws exactly the surviving clusters).
     pub cluster_gap: u32,
+    /// Cluster techniques: per-triangle culling after the clusters (knob `triangle_culling`).
+    pub triangle_culling: bool,
     /// Keep the visibility buffer's ids after the frame (the oracle reads them back):
     /// the id attachment becomes an imported image, so it is stored.
     pub capture_ids: bool,
@@ -228,6 +230,7 @@ impl Default for RenderOptions {
             cull_bounds: CullBounds::Aabb,
             cluster_early: ClusterEarly::Instances,
             cluster_gap: CLUSTER_GAP,
+            triangle_culling: false,
             capture_ids: false,
             oq_group: 16,
             occlusion_recheck: 8,

@@ -208,6 +208,13 @@ pub const KNOBS: &[KnobSpec] = &[
         help: "the longest gap of culled clusters (within a chunk of 64) one indirect command draws through: fewer commands for a few more triangles (0 draws exactly the surviving clusters)",
     },
     KnobSpec {
+        name: "triangle_culling",
+        domain: Domain::Choice(&["off", "on"]),
+        default: DefaultValue::Name("off"),
+        applies: Applies::WithCulling(&["frustum-clusters", "hiz-2phase-clusters"]),
+        help: "per-triangle culling after the clusters (seed 000, Wihlidal 2016): every surviving cluster's triangles tested (clip volume, back-facing, zero-area, no sample covered, the late phase's pyramid) and packed by a prefix sum into a reserved index-buffer tail; exact, three dispatches per phase, for fewer triangles set up and rasterized",
+    },
+    KnobSpec {
         name: "oq_group",
         domain: Domain::Integers(&[1, 2, 4, 8, 16, 32, 64]),
         default: DefaultValue::Integer(16),

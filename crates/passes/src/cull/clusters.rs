@@ -24,6 +24,7 @@ use tilegraph_vk::pipeline::write_buffer_set;
 use tilegraph_vk::{Buffer, Context, VkError};
 
 use super::compute::ComputeStage;
+use super::triangles::{TriangleInputs, TriangleStage, TriangleStep};
 use super::{list_index, LISTS_PER_PHASE, LIST_COUNT};
 use crate::gpu_scene::{upload, Capacity};
 
@@ -138,6 +139,8 @@ pub(super) struct Shared<'a> {
     pub pyramid: vk::Buffer,
     pub levels: vk::Buffer,
     pub scene: &'a Scene,
+    /// Knob `triangle_culling`: the triangle stage follows each emit.
+    pub triangle_culling: bool,
 }
 
 /// The cluster stage's buffers, pipelines and descriptor sets.
@@ -163,6 +166,8 @@ pub struct ClusterStage {
     compute: ComputeStage<4>,
     /// Two per slot: the early (or only) and the late phase.
     sets: Vec<vk::DescriptorSet>,
+    /// Per-triangle culling after each emit (knob `triangle_culling`).
+    pub triangles: Option<TriangleStage>,
 }
 
 /// A buffer of the stage: uploaded from the scene, or made empty.
@@ -261,6 +266,8 @@ pub enum ClusterStep {
     Lists,
     /// `cluster_emit.comp`: a workgroup per chunk writes its runs' commands.
     Emit,
+    /// Per-triangle culling of the commands just written (knob `triangle_culling`).
+    Triangles(TriangleStep),
 }
 
 impl ClusterStage {
@@ -292,6 +299,7 @@ impl ClusterStage {
             work,
             compute: ComputeStage::EMPTY,
             sets: Vec::new(),
+            triangles: None,
         };
         match stage.init(ctx, shared, scene_set_layout) {
             Ok(()) => Ok(Some(stage)),
@@ -361,6 +369,18 @@ impl ClusterStage {
                 self.sets.push(set);
             }
         }
+        if shared.triangle_culling {
+            let inputs = TriangleInputs {
+                params: shared.slots.iter().map(|s| s.0).collect(),
+                commands: self.commands.raw,
+                counts: self.counts.raw,
+                draw_ids: shared.draw_ids,
+                pyramid: shared.pyramid,
+                levels: shared.levels,
+                command_slots: self.layout.commands(),
+            };
+            self.triangles = Some(TriangleStage::new(ctx, &inputs, scene_set_layout)?);
+        }
         Ok(())
     }
 
@@ -408,6 +428,13 @@ impl ClusterStage {
                 (regions * LISTS_PER_PHASE, 1),
             ),
             ClusterStep::Emit => listed(self.compute.pipelines[3]),
+            ClusterStep::Triangles(step) => {
+                let t = self.triangles.as_ref().ok_or_else(|| VkError::Invalid {
+                    what: "triangle culling".into(),
+                    reason: "the cluster stage has no triangle stage".into(),
+                })?;
+                t.record_dispatch(ctx, cb, scene_set, slot, which, step)?;
+            }
         }
         Ok(())
     }
@@ -426,6 +453,9 @@ impl ClusterStage {
 
     pub(super) fn destroy(self, ctx: &Context) {
         self.compute.destroy(ctx);
+        if let Some(t) = self.triangles {
+            t.destroy(ctx);
+        }
         for b in [
             self.clusters,
             self.mesh_clusters,

@@ -34,12 +34,14 @@ pub use crate::setup::Culling;
 
 use crate::frame::{scene_set, DrawSource, FrameGraph, Payload};
 use crate::hiz::HizState;
+use triangles::TriangleStep;
 
 pub mod clusters;
 mod compute;
 mod layout;
 mod readback;
 mod state;
+pub mod triangles;
 
 pub use layout::GpuLayout;
 pub use readback::{GpuLists, IndirectDraw};
@@ -118,6 +120,17 @@ pub struct ClusterLists {
     /// A fixed draw count draws every list's whole capacity: the commands past this frame's
     /// count must be empty, so each emit is preceded by a clear.
     pub clear: bool,
+    /// Per-triangle culling's buffers (knob `triangle_culling`).
+    pub triangles: Option<TriangleLists>,
+}
+
+/// Per-triangle culling's buffers in one frame's graph.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TriangleLists {
+    /// Per command slot: its kept triangles, then its place in the tail.
+    pub triangles: BufferId,
+    /// The scene's index buffer: the commands' cluster ranges are read, the tail written.
+    pub indices: BufferId,
 }
 
 impl CullLists {
@@ -133,6 +146,7 @@ impl CullLists {
             draw_ids: self.draw_ids,
             phase,
             clusters: self.clusters.is_some(),
+            indices: self.clusters.and_then(|c| c.triangles).map(|t| t.indices),
         }
     }
 
@@ -146,18 +160,21 @@ impl CullLists {
                 draw_ids: self.draw_ids,
                 phase: 0,
                 clusters: false,
+                indices: None,
             },
             _ => self.source(0),
         }
     }
 }
 
-/// Imports `state`'s buffers (and `hiz`'s pyramid) into the frame's graph.
+/// Imports `state`'s buffers (and `hiz`'s pyramid) into the frame's graph; per-triangle
+/// culling's with the scene's index buffer of `index_bytes`.
 pub fn import_cull_buffers(
     g: &mut FrameGraph,
     state: &CullState,
     hiz: Option<&HizState>,
     reprojected: Option<BufferId>,
+    index_bytes: Option<u64>,
 ) -> CullLists {
     // Conservative boundary states: whatever touched them last frame, this frame waits for.
     let any = ResourceState::buffer(
@@ -189,6 +206,14 @@ pub fn import_cull_buffers(
             work: g.import_buffer("cluster-work", c.work.size, discard),
             whole_early: state.cluster_early == ClusterEarly::Instances,
             clear: matches!(state.draw_count, DrawCount::Fixed { .. }),
+            triangles: c.triangles.as_ref().zip(index_bytes).map(|(t, bytes)| {
+                let lists = TriangleLists {
+                    triangles: g.import_buffer("cluster-triangles", t.triangles.size, discard),
+                    indices: g.import_buffer("scene-indices", bytes, keep),
+                };
+                g.export(lists.indices);
+                lists
+            }),
         };
         g.export(lists.visibility);
         g.export(lists.commands);
@@ -358,6 +383,56 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
     .storage_read(c.flags)
     .storage_read_write(c.commands)
     .storage_write(lists.draw_ids);
+    if let Some(t) = c.triangles {
+        add_triangle_stage(g, lists, c, t, which);
+    }
+}
+
+/// Per-triangle culling of phase `which` after its cluster commands: count, place, pack
+/// (docs/CULLING.md, "Triangles").
+fn add_triangle_stage(
+    g: &mut FrameGraph,
+    lists: CullLists,
+    c: ClusterLists,
+    t: TriangleLists,
+    which: usize,
+) {
+    let names = if which == 0 {
+        ["triangle-count", "triangle-scan", "triangle-write"]
+    } else {
+        [
+            "triangle-count-late",
+            "triangle-scan-late",
+            "triangle-write-late",
+        ]
+    };
+    let step = |s| dispatch(which, Step::Cluster(clusters::ClusterStep::Triangles(s)));
+    let mut count = g.compute_pass(names[0], PassClass::Compute, step(TriangleStep::Count));
+    count
+        .async_compute()
+        .storage_read(c.commands)
+        .storage_read(c.counts)
+        .storage_read(lists.draw_ids)
+        .storage_read(t.indices)
+        .storage_read_write(t.triangles);
+    if let Some(p) = lists.pyramid {
+        count.storage_read(p);
+    }
+    g.compute_pass(names[1], PassClass::Compute, step(TriangleStep::Scan))
+        .async_compute()
+        .storage_read(c.counts)
+        .storage_read_write(t.triangles);
+    let mut write = g.compute_pass(names[2], PassClass::Compute, step(TriangleStep::Write));
+    write
+        .async_compute()
+        .storage_read_write(c.commands)
+        .storage_read(c.counts)
+        .storage_read(lists.draw_ids)
+        .storage_read_write(t.indices)
+        .storage_read_write(t.triangles);
+    if let Some(p) = lists.pyramid {
+        write.storage_read(p);
+    }
 }
 
 /// Declares the copy of the frame's draw and instance counts to the slot's host-visible
@@ -479,6 +554,9 @@ pub struct CullParams {
     /// the instances' first chunks are kept in the cluster base buffer, z where the chunks'
     /// instances are, w the chunks.
     pub commands: [u32; 4],
+    /// Per-triangle culling: x the index buffer tail's first index, y its length, z the
+    /// snapping step in pixels (f32 bits), w where the tail places start in its buffer.
+    pub triangles: [u32; 4],
 }
 
 /// The bounding volume culling tests an instance by (knob `cull_bounds`). Both are conservative

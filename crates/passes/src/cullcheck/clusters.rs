@@ -79,7 +79,9 @@ pub fn visible_clusters(
 pub(super) struct Below {
     /// The triangles its colour lists drew.
     pub triangles: u64,
-    /// Its clusters against the oracle's (`None`: the oracle has no triangle ids).
+    /// Its clusters against the oracle's (`None`: the oracle has no triangle ids, or
+    /// per-triangle culling packed the commands' triangles, whose ranges then name no cluster:
+    /// the frame's images carry its exactness).
     pub check: Option<ClusterCheck>,
     /// The oracle's visible clusters ([`visible_clusters`]), for the ideal frame.
     pub visible: Option<Vec<u64>>,
@@ -105,8 +107,10 @@ pub(super) fn of_technique(
         .collect();
     let (ids, triangles) = owners;
     let visible = triangles.and_then(|t| visible_clusters(scene, ids, t, compare));
+    let packed = tested.options().triangle_culling;
     let check = visible
         .as_deref()
+        .filter(|_| !packed)
         .map(|v| cluster_check(scene, v, compare, &colour));
     Ok(Below {
         triangles: lists.colour_triangles(),

@@ -124,13 +124,14 @@ impl GpuScene {
         let changes = self.geometry_cursor.and_then(|c| scene.changes_since(c));
         self.geometry_cursor = Some(scene.cursor());
         let grow_vertices = vertex_bytes > self.vertices.size;
-        let grow_indices = index_bytes > self.indices.size;
+        let tail_bytes = self.index_tail * 4;
+        let grow_indices = index_bytes + tail_bytes > self.indices.size;
         let everything = changes.is_none_or(|l| l.contains(&Change::Everything));
         if grow_vertices {
             self.grow(ctx, true, grown(vertex_bytes / 32) * 32)?;
         }
         if grow_indices {
-            self.grow(ctx, false, grown(index_bytes / 4) * 4)?;
+            self.grow(ctx, false, grown(index_bytes / 4) * 4 + tail_bytes)?;
         }
         let vertices: &[u8] = bytemuck::cast_slice(scene.vertices());
         let indices: &[u8] = bytemuck::cast_slice(scene.indices());
@@ -243,6 +244,26 @@ impl GpuScene {
         Ok(())
     }
 
+    /// Keeps `indices` free at the end of the index buffer from the next frame on (grown then
+    /// if needed), where per-triangle culling packs the triangles it keeps.
+    pub fn reserve_index_tail(&mut self, indices: u64) {
+        self.index_tail = indices;
+    }
+
+    /// The reserved tail of the index buffer: its first index and its length in indices
+    /// (`(0, 0)` without one).
+    pub fn index_tail(&self) -> (u32, u32) {
+        if self.index_tail == 0 {
+            return (0, 0);
+        }
+        let total = self.indices.size / 4;
+        let first = total.saturating_sub(self.index_tail);
+        match (u32::try_from(first), u32::try_from(total - first)) {
+            (Ok(first), Ok(len)) => (first, len),
+            _ => (0, 0), // past what an index can address: no tail
+        }
+    }
+
     pub(super) fn destroy_retired(&mut self, ctx: &Context) {
         let now = self.frames_written;
         let mut i = 0;
@@ -299,9 +320,11 @@ impl GeometryUpload {
         if self.copies.is_empty() {
             return Ok(());
         }
+        // Per-triangle culling writes the index buffer's tail from compute shaders: a growth
+        // copy reads it after them.
         let before = [vk::MemoryBarrier2::default()
             .src_stage_mask(readers | copy)
-            .src_access_mask(write)
+            .src_access_mask(write | vk::AccessFlags2::SHADER_STORAGE_WRITE)
             .dst_stage_mask(copy)
             .dst_access_mask(write | vk::AccessFlags2::TRANSFER_READ)];
         let after = [vk::MemoryBarrier2::default()

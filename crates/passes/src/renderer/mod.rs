@@ -330,6 +330,12 @@ impl SceneRenderer {
                 },
             },
             materials: self.resolve_materials(ctx, &view.options),
+            indices: (view.options.triangle_culling && view.options.culling.clusters()).then(
+                || {
+                    let b = &self.resources.scene.indices;
+                    (b.raw, b.size)
+                },
+            ),
         })
     }
 

@@ -141,8 +141,13 @@ fn add_states(
                 cluster_early: options.cluster_early,
                 cluster_gap: options.cluster_gap,
                 capacity,
+                triangle_culling: options.triangle_culling,
             },
         )?;
+        if c.clusters.as_ref().is_some_and(|s| s.triangles.is_some()) {
+            res.scene
+                .reserve_index_tail(crate::cull::triangles::tail_indices(scene));
+        }
         c.set_recheck_interval(options.occlusion_recheck);
         let draw_ids = c.draw_ids.raw;
         res.states.insert(c);

@@ -513,6 +513,9 @@ impl SceneRenderer {
                 stride: scene.buckets().stride(),
                 instance_slots: scene.instances().len() as u32,
             };
+            // Per-triangle culling packs into the index buffer's tail, where this frame's
+            // geometry (grown if need be) left it.
+            cull.index_tail = res.scene.index_tail();
             cull.write_frame(ctx, slot, frame, lists, (w, h), pyramid)?;
         }
         let recheck = res.states.get::<CullState>().map(CullState::recheck);

@@ -100,6 +100,8 @@ pub struct CullInputs<'a> {
     pub cluster_gap: u32,
     /// Room for instance slots and list entries.
     pub capacity: Capacity,
+    /// Per-triangle culling after the cluster stage (knob `triangle_culling`).
+    pub triangle_culling: bool,
 }
 
 /// The persistent culling state of one renderer.
@@ -143,6 +145,8 @@ pub struct CullState {
     /// Keep a command per draw group this frame (engine materials draw runs of groups with
     /// their own pipelines: [`CullState::record_group_run`]).
     pub group_runs: bool,
+    /// Per-triangle culling: the index buffer's tail this frame (first index, length).
+    pub index_tail: (u32, u32),
 }
 
 const CULL_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull.comp.spv");
@@ -192,6 +196,7 @@ impl CullState {
             cluster_early,
             cluster_gap,
             capacity,
+            triangle_culling,
         } = inputs;
         // The cluster commands' draw ids follow the instance lists'.
         let cluster_commands = if culling.clusters() {
@@ -257,6 +262,7 @@ impl CullState {
             sets: Vec::new(),
             clusters: None,
             group_runs: false,
+            index_tail: (0, 0),
         };
         // A new renderer's visibility starts empty, not as whatever the memory held (another
         // renderer's last frame, say): two-phase culling's first early phase draws nothing and
@@ -283,6 +289,7 @@ impl CullState {
                     pyramid: occluder.map_or(state.no_pyramid.raw, |o| o.pyramid),
                     levels: occluder.map_or(state.no_pyramid.raw, |o| o.levels),
                     scene,
+                    triangle_culling,
                 };
                 state.clusters = ClusterStage::new(ctx, &shared, capacity, scene_set_layout)?;
                 // cull_clusters.comp lists each phase's chunks: the cluster base and the work
@@ -471,6 +478,16 @@ impl CullState {
             }
             None => ([0; 4], [[0; 4]; 2]),
         };
+        let triangles = self
+            .clusters
+            .as_ref()
+            .and_then(|c| c.triangles.as_ref())
+            .map_or([0; 4], |t| {
+                t.params(
+                    self.index_tail,
+                    ctx.physical.limits.sub_pixel_precision_bits,
+                )
+            });
         // The pyramid's frame as the sphere test sees it: last frame's view (moved to the
         // current eye, as `reproject` is) for single-phase HiZ, this frame's for the late phase.
         let previous_view = frame.previous.view
@@ -499,6 +516,7 @@ impl CullState {
                 clusters: cluster_info,
                 cmd_base,
                 commands: [self.capacity.groups.max(1), c1, c2, c3],
+                triangles,
             }
         };
         let first = match self.culling.base() {

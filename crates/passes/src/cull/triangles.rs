@@ -1,0 +1,194 @@
+//! Per-triangle culling (knob `triangle_culling`; seed 000, after Wihlidal's "Optimizing the
+//! Graphics Pipeline with Compute", GDC 2016): after each phase's cluster commands, three
+//! dispatches (`cluster_tri_count.comp`, `cluster_tri_scan.comp`, `cluster_tri_write.comp`)
+//! test every triangle of every command — clip volume, back-facing, zero-area, no sample
+//! covered, and in two-phase culling's late phase the pyramid — and pack the indices of those
+//! that may be drawn, in their order, into a tail reserved at the end of the scene's index
+//! buffer ([`crate::GpuScene::reserve_index_tail`]); each command then draws its packed range.
+//! Exact: a triangle goes only where the rasterizer would make no fragment of it or every
+//! fragment would fail the depth test (common/triangles.glsl keeps the snapping margins), and
+//! the order is the unculled one. A command that would run past the tail keeps its cluster
+//! range.
+
+use ash::vk;
+use tilegraph_profile::MemoryUse;
+use tilegraph_vk::ash;
+use tilegraph_vk::pipeline::write_buffer_set;
+use tilegraph_vk::{Buffer, Context, VkError};
+
+use super::compute::ComputeStage;
+
+const COUNT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_tri_count.comp.spv");
+const SCAN_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_tri_scan.comp.spv");
+const WRITE_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_tri_write.comp.spv");
+
+/// The stage's storage bindings 1-6 (common/triangles.glsl).
+const STORAGE_BINDINGS: u32 = 6;
+
+/// The most workgroups a count or write dispatch starts (each strides over the commands).
+const MAX_WORKGROUPS: u32 = 4096;
+
+/// The most indices the tail holds: 2^23 (32 MiB); a frame that keeps more draws the rest of
+/// its commands whole.
+pub const MAX_TAIL_INDICES: u64 = 1 << 23;
+
+/// The tail per-triangle culling reserves for `scene`: what its instances draw unculled (the
+/// most one frame's commands can keep), at most [`MAX_TAIL_INDICES`].
+pub fn tail_indices(scene: &tilegraph_scene::Scene) -> u64 {
+    let meshes = scene.meshes();
+    let total: u64 = scene
+        .instances()
+        .iter()
+        .filter_map(|i| meshes.get(i.mesh.0 as usize))
+        .map(|m| u64::from(m.index_count))
+        .sum();
+    total.clamp(3, MAX_TAIL_INDICES)
+}
+
+/// One of the three dispatches of a phase.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TriangleStep {
+    /// `cluster_tri_count.comp`: a workgroup per command counts the triangles it keeps.
+    Count,
+    /// `cluster_tri_scan.comp`: one workgroup places the commands' triangles in the tail.
+    Scan,
+    /// `cluster_tri_write.comp`: a workgroup per command packs its triangles and rewrites it.
+    Write,
+}
+
+/// The buffers the stage binds that the cluster stage and the instance culling own, per frame
+/// slot the phases' parameter blocks.
+pub(super) struct TriangleInputs {
+    pub params: Vec<[vk::Buffer; 2]>,
+    pub commands: vk::Buffer,
+    pub counts: vk::Buffer,
+    pub draw_ids: vk::Buffer,
+    pub pyramid: vk::Buffer,
+    pub levels: vk::Buffer,
+    /// Command slots of both phases' lists.
+    pub command_slots: u32,
+}
+
+/// The stage's buffer (per command slot: its kept triangles, then its place in the tail), its
+/// pipelines and sets.
+pub struct TriangleStage {
+    pub triangles: Buffer,
+    command_slots: u32,
+    compute: ComputeStage<3>,
+    /// Two per slot: the early (or only) and the late phase.
+    sets: Vec<vk::DescriptorSet>,
+}
+
+impl TriangleStage {
+    pub(super) fn new(
+        ctx: &Context,
+        inputs: &TriangleInputs,
+        scene_set_layout: vk::DescriptorSetLayout,
+    ) -> Result<Self, VkError> {
+        let slots = u64::from(inputs.command_slots.max(1));
+        let triangles = ctx.create_buffer(
+            "cluster triangles",
+            2 * slots * 4,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryUse::GpuOnly,
+        )?;
+        let mut stage = TriangleStage {
+            triangles,
+            command_slots: inputs.command_slots,
+            compute: ComputeStage::EMPTY,
+            sets: Vec::new(),
+        };
+        match stage.init(ctx, inputs, scene_set_layout) {
+            Ok(()) => Ok(stage),
+            Err(e) => {
+                stage.destroy(ctx);
+                Err(e)
+            }
+        }
+    }
+
+    fn init(
+        &mut self,
+        ctx: &Context,
+        inputs: &TriangleInputs,
+        scene_set_layout: vk::DescriptorSetLayout,
+    ) -> Result<(), VkError> {
+        let shaders = [
+            ("cluster_tri_count.comp", COUNT_SPV),
+            ("cluster_tri_scan.comp", SCAN_SPV),
+            ("cluster_tri_write.comp", WRITE_SPV),
+        ];
+        let sets = 2 * inputs.params.len() as u32;
+        self.compute
+            .init(ctx, scene_set_layout, STORAGE_BINDINGS, shaders, sets)?;
+        let ssbo = vk::DescriptorType::STORAGE_BUFFER;
+        for params in &inputs.params {
+            for p in params {
+                let set = self.compute.allocate_set(ctx)?;
+                write_buffer_set(
+                    ctx,
+                    set,
+                    &[
+                        (0, vk::DescriptorType::UNIFORM_BUFFER, *p),
+                        (1, ssbo, inputs.commands),
+                        (2, ssbo, inputs.counts),
+                        (3, ssbo, inputs.draw_ids),
+                        (4, ssbo, self.triangles.raw),
+                        (5, ssbo, inputs.pyramid),
+                        (6, ssbo, inputs.levels),
+                    ],
+                );
+                self.sets.push(set);
+            }
+        }
+        Ok(())
+    }
+
+    /// `CullParams::triangles`: the tail's first index and length, the snapping step in pixels
+    /// (f32 bits) of a rasterizer of `sub_pixel_bits`, where the places start.
+    pub fn params(&self, tail: (u32, u32), sub_pixel_bits: u32) -> [u32; 4] {
+        let step = 1.0 / (1u64 << sub_pixel_bits.min(16)) as f32;
+        [tail.0, tail.1, step.to_bits(), self.command_slots.max(1)]
+    }
+
+    /// Records dispatch `step` of phase `which` (0 early or only, 1 late); the graph put the
+    /// barriers around it.
+    pub(super) fn record_dispatch(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        scene_set: vk::DescriptorSet,
+        slot: usize,
+        which: usize,
+        step: TriangleStep,
+    ) -> Result<(), VkError> {
+        let set = *self
+            .sets
+            .get(2 * slot + which)
+            .ok_or_else(|| VkError::Invalid {
+                what: "triangle culling".into(),
+                reason: format!("no set for slot {slot}"),
+            })?;
+        // A workgroup per command at most: the phase's lists hold at most half the slots (the
+        // early phase's), or all of them (the late phase rewrites the union and writes its own).
+        let commands = self.command_slots / 2 * (which as u32 + 1);
+        let (pipeline, groups) = match step {
+            TriangleStep::Count => (0, commands.clamp(1, MAX_WORKGROUPS)),
+            TriangleStep::Scan => (1, 1),
+            TriangleStep::Write => (2, commands.clamp(1, MAX_WORKGROUPS)),
+        };
+        self.compute.dispatch(
+            ctx,
+            cb,
+            self.compute.pipelines[pipeline],
+            [scene_set, set],
+            (groups, 1),
+        );
+        Ok(())
+    }
+
+    pub(super) fn destroy(self, ctx: &Context) {
+        self.compute.destroy(ctx);
+        ctx.destroy_buffer(self.triangles);
+    }
+}
