@@ -32,18 +32,26 @@ layout(set = 1, binding = 1, std430) TRI_WRITES buffer Commands { uint commands[
 // Per list (0-7): its draw count (cluster_lists.comp's).
 layout(set = 1, binding = 2, std430) readonly buffer Counts { uint counts[]; };
 layout(set = 1, binding = 3, std430) readonly buffer DrawIds { uint draw_ids[]; };
-// Per command slot: its surviving triangles (count step), then from cull.triangles.w per
-// command slot its first index in the tail (scan step; 0xFFFFFFFF: the tail is full, the
-// command keeps its cluster range).
+// A command's triangles are tested in slices of TRI_SLICE, a workgroup each (a run of 64
+// clusters is up to 7,936 triangles: one workgroup per command would leave a few long commands
+// to a few cores). Per command slot (w = cull.triangles.w slots): its slices' kept triangles
+// (count step), then its first index in the tail (scan step; 0xFFFFFFFF: the tail is full or
+// the command is longer than TRI_SLICES slices: it keeps its cluster range), then its index
+// count and first index as the emit wrote them (the write step rewrites the command).
+const uint TRI_SLICE = 1024u;
+const uint TRI_SLICES = 8u;
+const uint TRI_GROUP = 256u; // threads of the count and write workgroups
 layout(set = 1, binding = 4, std430) buffer Triangles { uint tri[]; };
+
+uint tri_slice_slot(uint cmd, uint s) { return cmd * TRI_SLICES + s; }
+uint tri_place_slot(uint cmd) { return TRI_SLICES * cull.triangles.w + cmd; }
+uint tri_source_slot(uint cmd) { return (TRI_SLICES + 1u) * cull.triangles.w + 2u * cmd; }
 
 // The lists a phase's triangle stage packs: the early (or only) phase's 0-3; the late phase
 // rewrote the union's (0-3) and wrote its own (4-7).
 uint tri_lists() {
     return cull.info.y == 3u ? 8u : 4u;
 }
-
-uint tri_offset_slot(uint cmd) { return cull.triangles.w + cmd; }
 
 // The c-th command of the phase's lists (in list order): its slot and list; x = 0xFFFFFFFF
 // past the last.
@@ -131,7 +139,15 @@ bool triangle_visible(Instance inst, vec3 a, vec3 b, vec3 c, bool cull_back) {
     vec2 s0 = (h[0].xy / h[0].w * 0.5 + 0.5) * size;
     vec2 s1 = (h[1].xy / h[1].w * 0.5 + 0.5) * size;
     vec2 s2 = (h[2].xy / h[2].w * 0.5 + 0.5) * size;
-    float slack = tri_slack();
+    // The vertex shader's clip position may differ from this one by a few ulps of its terms;
+    // after the division that is a few ulps of the vertex's distance from the screen's centre
+    // in units of w, which for a vertex far off screen (near the eye's plane) is more than the
+    // snapping step.
+    float reach = 0.0;
+    for (uint i = 0u; i < 3u; ++i) {
+        reach = max(reach, (abs(h[i].x) + abs(h[i].y) + abs(h[i].z) + abs(h[i].w)) / h[i].w);
+    }
+    float slack = tri_slack() + 4e-6 * reach * max(size.x, size.y);
     vec2 lo = min(s0, min(s1, s2)) - slack;
     vec2 hi = max(s0, max(s1, s2)) + slack;
     // No sample: no pixel centre k + 0.5 inside the box on one axis, or none on screen.
@@ -167,6 +183,9 @@ bool triangle_visible(Instance inst, vec3 a, vec3 b, vec3 c, bool cull_back) {
         p.lo = vec2(1e30);
         p.hi = vec2(-1e30);
         p.nearest = reverse ? 0.0 : 1.0;
+        float farthest = reverse ? 1.0 : 0.0;
+        vec2 px[3];
+        vec2 screen = vec2(cull.screen.xy);
         for (uint i = 0u; i < 3u; ++i) {
             if (q[i].w <= 1e-6) {
                 return true;
@@ -178,24 +197,40 @@ bool triangle_visible(Instance inst, vec3 a, vec3 b, vec3 c, bool cull_back) {
             p.lo = min(p.lo, ndc.xy);
             p.hi = max(p.hi, ndc.xy);
             p.nearest = reverse ? max(p.nearest, ndc.z) : min(p.nearest, ndc.z);
+            farthest = reverse ? min(farthest, ndc.z) : max(farthest, ndc.z);
+            px[i] = (ndc.xy * 0.5 + 0.5) * screen;
         }
-        // The rect grown by the snapping slack (a sample just outside the computed triangle
-        // can be inside the snapped one).
-        vec2 grow = 2.0 * slack / vec2(cull.screen.xy);
+        // A sample inside the snapped triangle but outside this one takes its depth from the
+        // triangle's plane, extrapolated: nearer than every vertex by up to the depth's slope
+        // times the slack. The slope is at most the depth range over the triangle's least
+        // height (twice its area over its longest edge); a sliver too thin to bound is kept.
+        vec2 e1 = px[1] - px[0];
+        vec2 e2 = px[2] - px[0];
+        vec2 e3 = px[2] - px[1];
+        float twice = abs(e1.x * e2.y - e1.y * e2.x);
+        float longest = max(length(e1), max(length(e2), length(e3)));
+        float height = twice / max(longest, 1e-30);
+        if (!(height > 4.0 * slack)) {
+            return true;
+        }
+        float reach = abs(farthest - p.nearest) * (2.0 * slack / height) * 1.001;
+        p.nearest = reverse ? p.nearest + reach : p.nearest - reach;
+        // The rect grown by the slack too.
+        vec2 grow = 2.0 * slack / screen;
         p.lo -= grow;
         p.hi += grow;
-        return hiz_rect_visible(p, 4u);
+        return hiz_rect_visible(p, 8u);
     }
     return true;
 }
 
-// Whether triangle t (0-based) of command slot `cmd` may be drawn.
-bool command_triangle_visible(uint cmd, Instance inst, uint t, bool cull_back) {
-    uint first = commands[5u * cmd + 2u] + 3u * t;
-    uint base = commands[5u * cmd + 3u];
-    vec3 a = tri_position(index_data[first] + base);
-    vec3 b = tri_position(index_data[first + 1u] + base);
-    vec3 c = tri_position(index_data[first + 2u] + base);
+// Whether triangle t (0-based) of the range from index `first`, vertex offset `base`, may be
+// drawn.
+bool range_triangle_visible(uint first, uint base, Instance inst, uint t, bool cull_back) {
+    uint i = first + 3u * t;
+    vec3 a = tri_position(index_data[i] + base);
+    vec3 b = tri_position(index_data[i + 1u] + base);
+    vec3 c = tri_position(index_data[i + 2u] + base);
     return triangle_visible(inst, a, b, c, cull_back);
 }
 

@@ -76,6 +76,15 @@ fn check_shaded(
         height: SIZE.1,
         ..Default::default()
     };
+    check_options(g, scene, path, options)
+}
+
+fn check_options(
+    g: &tilegraph_e2e::Gpu,
+    scene: &Scene,
+    path: &CameraPath,
+    options: RenderOptions,
+) -> CullCheck {
     let extras = CheckExtras {
         motion: Some(motion()),
         ..Default::default()
@@ -195,6 +204,19 @@ fn cluster_techniques_stay_exact_while_the_scene_moves() {
     let shaded = (Technique::DeferredTexturing, Culling::HizTwoPhaseClusters);
     let r = check_shaded(&g, &scene, &path, shaded);
     assert_exact("closed spheres, walk", &r);
+    // Per-triangle culling packs into the index buffer's tail while the scene moves.
+    for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
+        let options = RenderOptions {
+            technique: Technique::Prepass,
+            culling,
+            triangle_culling: true,
+            width: SIZE.0,
+            height: SIZE.1,
+            ..Default::default()
+        };
+        let r = check_options(&g, &scene, &path, options);
+        assert_exact("closed spheres, walk, triangle culling", &r);
+    }
 }
 
 /// A million instances build, load, cull and render on lavapipe (small): two-phase HiZ draws

@@ -25,8 +25,17 @@ const WRITE_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_tri_wri
 /// The stage's storage bindings 1-6 (common/triangles.glsl).
 const STORAGE_BINDINGS: u32 = 6;
 
-/// The most workgroups a count or write dispatch starts (each strides over the commands).
+/// The most workgroups a count or write dispatch starts per slice (each strides over the
+/// commands): enough to fill a GPU; on a CPU device (lavapipe) every workgroup is a task, and
+/// the slices of the short commands that most are would start thousands for nothing.
 const MAX_WORKGROUPS: u32 = 4096;
+const MAX_WORKGROUPS_CPU: u32 = 256;
+
+/// Slices of a command, a workgroup each (common/triangles.glsl's `TRI_SLICES`).
+const SLICES: u32 = 8;
+
+/// Words of the stage's buffer per command slot: its slices' counts, its place, its range.
+const WORDS_PER_SLOT: u64 = SLICES as u64 + 3;
 
 /// The most indices the tail holds: 2^23 (32 MiB); a frame that keeps more draws the rest of
 /// its commands whole.
@@ -48,11 +57,13 @@ pub fn tail_indices(scene: &tilegraph_scene::Scene) -> u64 {
 /// One of the three dispatches of a phase.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TriangleStep {
-    /// `cluster_tri_count.comp`: a workgroup per command counts the triangles it keeps.
+    /// `cluster_tri_count.comp`: a workgroup per slice of 1,024 triangles of a command counts
+    /// the triangles it keeps.
     Count,
     /// `cluster_tri_scan.comp`: one workgroup places the commands' triangles in the tail.
     Scan,
-    /// `cluster_tri_write.comp`: a workgroup per command packs its triangles and rewrites it.
+    /// `cluster_tri_write.comp`: a workgroup per slice packs its triangles; the first slice's
+    /// rewrites the command.
     Write,
 }
 
@@ -69,11 +80,13 @@ pub(super) struct TriangleInputs {
     pub command_slots: u32,
 }
 
-/// The stage's buffer (per command slot: its kept triangles, then its place in the tail), its
-/// pipelines and sets.
+/// The stage's buffer (per command slot: its slices' kept triangles, its place in the tail,
+/// its range as emitted), its pipelines and sets.
 pub struct TriangleStage {
     pub triangles: Buffer,
     command_slots: u32,
+    /// The most workgroups per slice of a count or write dispatch.
+    workgroups: u32,
     compute: ComputeStage<3>,
     /// Two per slot: the early (or only) and the late phase.
     sets: Vec<vk::DescriptorSet>,
@@ -88,13 +101,19 @@ impl TriangleStage {
         let slots = u64::from(inputs.command_slots.max(1));
         let triangles = ctx.create_buffer(
             "cluster triangles",
-            2 * slots * 4,
+            WORDS_PER_SLOT * slots * 4,
             vk::BufferUsageFlags::STORAGE_BUFFER,
             MemoryUse::GpuOnly,
         )?;
+        let cpu = ctx.physical.identity.device_type == tilegraph_profile::DeviceType::Cpu;
         let mut stage = TriangleStage {
             triangles,
             command_slots: inputs.command_slots,
+            workgroups: if cpu {
+                MAX_WORKGROUPS_CPU
+            } else {
+                MAX_WORKGROUPS
+            },
             compute: ComputeStage::EMPTY,
             sets: Vec::new(),
         };
@@ -169,20 +188,21 @@ impl TriangleStage {
                 what: "triangle culling".into(),
                 reason: format!("no set for slot {slot}"),
             })?;
-        // A workgroup per command at most: the phase's lists hold at most half the slots (the
-        // early phase's), or all of them (the late phase rewrites the union and writes its own).
-        let commands = self.command_slots / 2 * (which as u32 + 1);
+        // A workgroup per command and slice at most: the phase's lists hold at most half the
+        // slots (the early phase's), or all of them (the late phase rewrites the union and
+        // writes its own).
+        let commands = (self.command_slots / 2 * (which as u32 + 1)).clamp(1, self.workgroups);
         let (pipeline, groups) = match step {
-            TriangleStep::Count => (0, commands.clamp(1, MAX_WORKGROUPS)),
-            TriangleStep::Scan => (1, 1),
-            TriangleStep::Write => (2, commands.clamp(1, MAX_WORKGROUPS)),
+            TriangleStep::Count => (0, (commands, SLICES)),
+            TriangleStep::Scan => (1, (1, 1)),
+            TriangleStep::Write => (2, (commands, SLICES)),
         };
         self.compute.dispatch(
             ctx,
             cb,
             self.compute.pipelines[pipeline],
             [scene_set, set],
-            (groups, 1),
+            groups,
         );
         Ok(())
     }
