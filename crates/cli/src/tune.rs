@@ -8,7 +8,8 @@
 //! them: the standard ones, and the cluster techniques on a scene `auto` would try them on) with
 //! its own knobs (`hiz_npot`, `hiz_resolution`, `cull_bounds`, `oq_group`, `occlusion_recheck`,
 //! `raster_occlusion_scale`, `software_resolution`, `software_occluder_triangles`,
-//! `software_threads`; the cluster techniques' `cluster_early` × `cluster_gap` as a coordinate
+//! `software_threads`; the cluster techniques' `cluster_early` × `cluster_gap` ×
+//! `triangle_culling` as a coordinate
 //! of their own, their other knobs at the profile's values) under
 //! the profile's shading and draw order; then, with the best of those fixed, every shading ×
 //! draw order (× alpha pre-pass where the scene has alpha-tested geometry; × caster culling
@@ -270,7 +271,7 @@ fn tune_on(
             .filter(|c| Culling::parse(c).is_some_and(Culling::clusters))
             .cloned()
             .collect(),
-        axes: ["cluster_early", "cluster_gap"]
+        axes: ["cluster_early", "cluster_gap", "triangle_culling"]
             .iter()
             .filter_map(|k| tilegraph_profile::knobs::spec(k))
             .map(|k| (k.name.to_string(), k.domain.values()))
