@@ -91,18 +91,10 @@ fn assert_exact(what: &str, r: &CullCheck) {
     }
 }
 
-fn with_clusters(spec: &str) -> Scene {
-    let mut scene = tilegraph_scene::load(spec).unwrap();
-    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
-    scene.attach_clusters(data).unwrap();
-    scene
-}
-
-#[test]
-fn cluster_culling_never_culls_a_visible_pixel() {
-    let mut specs: Vec<String> = ["city:1500", "forest:800", "interior:800"]
-        .map(String::from)
-        .to_vec();
+/// `specs`, then FlightHelmet and the Godot room where the test data has them (a skip said
+/// where not).
+fn with_helmet_and_room(specs: &[&str]) -> Vec<String> {
+    let mut specs: Vec<String> = specs.iter().map(|s| s.to_string()).collect();
     for data in [
         "scenes/FlightHelmet/FlightHelmet.gltf",
         "bench/GodotRooms/room.gltf",
@@ -115,6 +107,19 @@ fn cluster_culling_never_culls_a_visible_pixel() {
             ),
         }
     }
+    specs
+}
+
+fn with_clusters(spec: &str) -> Scene {
+    let mut scene = tilegraph_scene::load(spec).unwrap();
+    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    scene.attach_clusters(data).unwrap();
+    scene
+}
+
+#[test]
+fn cluster_culling_never_culls_a_visible_pixel() {
+    let specs = with_helmet_and_room(&["city:1500", "forest:800", "interior:800"]);
     let mut lines = Vec::new();
     for spec in &specs {
         let scene = with_clusters(spec);
@@ -413,20 +418,7 @@ fn cluster_techniques_say_what_they_need() {
 #[test]
 fn triangle_culling_keeps_images_equal_and_draws_fewer_triangles() {
     let mut runs: Vec<(String, CameraPath)> = Vec::new();
-    let mut specs: Vec<String> = vec!["city:1500".into(), "interior:800".into()];
-    for data in [
-        "scenes/FlightHelmet/FlightHelmet.gltf",
-        "bench/GodotRooms/room.gltf",
-    ] {
-        match tilegraph_e2e::test_data(data) {
-            Some(p) => specs.push(p.display().to_string()),
-            None => eprintln!(
-                "skipping {data}: {} not found",
-                tilegraph_e2e::test_data_dir().display()
-            ),
-        }
-    }
-    for spec in specs {
+    for spec in with_helmet_and_room(&["city:1500", "interior:800"]) {
         let scene = tilegraph_scene::load(&spec).unwrap();
         let p = path(&scene, 6);
         runs.push((spec, p));

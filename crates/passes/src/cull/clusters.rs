@@ -23,7 +23,7 @@ use tilegraph_vk::ash;
 use tilegraph_vk::pipeline::write_buffer_set;
 use tilegraph_vk::{Buffer, Context, VkError};
 
-use super::compute::ComputeStage;
+use super::compute::{phase_set, ComputeStage};
 use super::triangles::{TriangleInputs, TriangleStage, TriangleStep};
 use super::{list_index, LISTS_PER_PHASE, LIST_COUNT};
 use crate::gpu_scene::{upload, Capacity};
@@ -395,13 +395,7 @@ impl ClusterStage {
         (which, groups): (usize, u32),
         step: ClusterStep,
     ) -> Result<(), VkError> {
-        let set = *self
-            .sets
-            .get(2 * slot + which)
-            .ok_or_else(|| VkError::Invalid {
-                what: "cluster culling".into(),
-                reason: format!("no set for slot {slot}"),
-            })?;
+        let set = phase_set(&self.sets, slot, which, "cluster culling")?;
         let sets = [scene_set, set];
         let regions = which as u32 + 1; // the late phase places the union's runs again
                                         // The chunk steps run over the phase's chunk list, a workgroup per chunk (at most

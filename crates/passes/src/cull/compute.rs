@@ -11,6 +11,22 @@ use tilegraph_vk::pipeline::{
 };
 use tilegraph_vk::{Context, VkError};
 
+/// The set of frame slot `slot` and phase `which` (0 early or only, 1 late) among a stage's
+/// sets, two per slot; an error naming the stage (`what`) for a slot it has no set for.
+pub(super) fn phase_set(
+    sets: &[vk::DescriptorSet],
+    slot: usize,
+    which: usize,
+    what: &str,
+) -> Result<vk::DescriptorSet, VkError> {
+    sets.get(2 * slot + which)
+        .copied()
+        .ok_or_else(|| VkError::Invalid {
+            what: what.into(),
+            reason: format!("no set for slot {slot}"),
+        })
+}
+
 /// A compute shader of a stage: its name (for errors and debug names) and SPIR-V.
 pub(super) type Shader = (&'static str, &'static [u8]);
 

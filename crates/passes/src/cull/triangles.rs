@@ -16,7 +16,7 @@ use tilegraph_vk::ash;
 use tilegraph_vk::pipeline::write_buffer_set;
 use tilegraph_vk::{Buffer, Context, VkError};
 
-use super::compute::ComputeStage;
+use super::compute::{phase_set, ComputeStage};
 
 const COUNT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_tri_count.comp.spv");
 const SCAN_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_tri_scan.comp.spv");
@@ -181,13 +181,7 @@ impl TriangleStage {
         which: usize,
         step: TriangleStep,
     ) -> Result<(), VkError> {
-        let set = *self
-            .sets
-            .get(2 * slot + which)
-            .ok_or_else(|| VkError::Invalid {
-                what: "triangle culling".into(),
-                reason: format!("no set for slot {slot}"),
-            })?;
+        let set = phase_set(&self.sets, slot, which, "triangle culling")?;
         // A workgroup per command and slice at most: the phase's lists hold at most half the
         // slots (the early phase's), or all of them (the late phase rewrites the union and
         // writes its own).

@@ -10,7 +10,7 @@ use tilegraph_vk::pipeline::write_buffer_set;
 use tilegraph_vk::{Buffer, Context, Feature, VkError};
 
 use super::clusters::{cone_steps, ClusterStage, Shared};
-use super::compute::ComputeStage;
+use super::compute::{phase_set, ComputeStage};
 use super::{
     gpu_planes, sphere_projection, ClusterEarly, CullBounds, CullParams, Culling, DrawCount,
     GpuLayout, Phase, Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
@@ -598,13 +598,7 @@ impl CullState {
         which: usize,
         step: Step,
     ) -> Result<(), VkError> {
-        let set = *self
-            .sets
-            .get(2 * slot + which)
-            .ok_or_else(|| VkError::Invalid {
-                what: "cull".into(),
-                reason: format!("no set for slot {slot}"),
-            })?;
+        let set = phase_set(&self.sets, slot, which, "cull")?;
         let inputs = self.slot(slot)?;
         let phases = which as u32 + 1; // the late phase compacts the early lists again
         let (pipeline, groups) = match step {
