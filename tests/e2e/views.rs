@@ -335,3 +335,53 @@ fn views_follow_a_scene_that_grows_and_moves() {
         alone.destroy(&g);
     }
 }
+
+/// Two views that both cull per triangle pack into regions of their own of the index buffer's
+/// tail: in one graph, each equals the view rendered alone.
+#[test]
+fn two_views_culling_per_triangle_each_equal_to_rendering_it_alone() {
+    let mut scene = tilegraph_scene::load("city:300").unwrap();
+    let (clusters, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    scene.attach_clusters(clusters).unwrap();
+    let path = scene.camera_path().clone();
+    let n = 4.min(path.len());
+    let triangles = |o: RenderOptions, culling| RenderOptions {
+        culling,
+        triangle_culling: true,
+        shadows: ShadowOptions::default(),
+        ..o
+    };
+    let main = triangles(main_options(), Culling::HizTwoPhaseClusters);
+    let second = RenderOptions {
+        // The visibility buffer has no cluster path.
+        technique: Technique::Forward,
+        ..triangles(second_options(), Culling::FrustumClusters)
+    };
+    let main_frames: Vec<_> = (0..n)
+        .map(|i| path_frame(&path, i, 0, aspect(&main)))
+        .collect();
+    let second_frames: Vec<_> = (0..n)
+        .map(|i| path_frame(&path, i, path.len() / 2, aspect(&second)))
+        .collect();
+    let g = gpu_with(Some("lavapipe"), tilegraph_e2e::culling_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, &scene, main.clone()).unwrap();
+    let v2 = r
+        .add_view(&g, &scene, second.clone(), &second_frames[0].camera)
+        .unwrap();
+    let mut together = Vec::new();
+    for i in 0..n {
+        r.set_view_frame(v2, &second_frames[i]).unwrap();
+        r.render_frame(&g, &scene, &main_frames[i]).unwrap();
+        together.push((
+            r.read_image(&g).unwrap(),
+            r.read_view_image(&g, v2).unwrap(),
+        ));
+    }
+    r.destroy(&g);
+    let main_alone = alone(&scene, main, &main_frames);
+    let second_alone = alone(&scene, second, &second_frames);
+    for (i, (m, s)) in together.iter().enumerate() {
+        assert_same("main view, triangle culling", i, m, &main_alone[i]);
+        assert_same("second camera, triangle culling", i, s, &second_alone[i]);
+    }
+}

@@ -124,7 +124,7 @@ impl GpuScene {
         let changes = self.geometry_cursor.and_then(|c| scene.changes_since(c));
         self.geometry_cursor = Some(scene.cursor());
         let grow_vertices = vertex_bytes > self.vertices.size;
-        let tail_bytes = self.index_tail * 4;
+        let tail_bytes = self.index_tails.iter().sum::<u64>() * 4;
         let grow_indices = index_bytes + tail_bytes > self.indices.size;
         let everything = changes.is_none_or(|l| l.contains(&Change::Everything));
         if grow_vertices {
@@ -244,22 +244,32 @@ impl GpuScene {
         Ok(())
     }
 
-    /// Keeps `indices` free at the end of the index buffer from the next frame on (grown then
-    /// if needed), where per-triangle culling packs the triangles it keeps.
+    /// Keeps `indices` free at the end of the index buffer for the current view from the next
+    /// frame on (grown then if needed), where its per-triangle culling packs the triangles it
+    /// keeps. Each view has a region of its own: their packings never overwrite each other.
     pub fn reserve_index_tail(&mut self, indices: u64) {
-        self.index_tail = indices;
+        let view = self.view;
+        if self.index_tails.len() <= view {
+            self.index_tails.resize(view + 1, 0);
+        }
+        if let Some(t) = self.index_tails.get_mut(view) {
+            *t = indices;
+        }
     }
 
-    /// The reserved tail of the index buffer: its first index and its length in indices
-    /// (`(0, 0)` without one).
-    pub fn index_tail(&self) -> (u32, u32) {
-        if self.index_tail == 0 {
+    /// View `view`'s region of the index buffer's tail: its first index and its length in
+    /// indices (`(0, 0)` without one).
+    pub fn index_tail(&self, view: usize) -> (u32, u32) {
+        let len = self.index_tails.get(view).copied().unwrap_or(0);
+        if len == 0 {
             return (0, 0);
         }
         let total = self.indices.size / 4;
-        let first = total.saturating_sub(self.index_tail);
-        match (u32::try_from(first), u32::try_from(total - first)) {
-            (Ok(first), Ok(len)) => (first, len),
+        let before: u64 = self.index_tails.iter().take(view).sum();
+        let all: u64 = self.index_tails.iter().sum();
+        let first = total.saturating_sub(all) + before;
+        match (u32::try_from(first), u32::try_from(len)) {
+            (Ok(first), Ok(len)) if first as u64 + len as u64 <= total => (first, len),
             _ => (0, 0), // past what an index can address: no tail
         }
     }

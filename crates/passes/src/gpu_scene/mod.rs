@@ -266,9 +266,9 @@ pub struct GpuScene {
     geometry_cursor: Option<SceneCursor>,
     /// Bumped whenever the geometry buffers are replaced.
     geometry_serial: u64,
-    /// Indices kept free at the end of the index buffer for per-triangle culling's packed
-    /// triangles ([`Self::reserve_index_tail`]).
-    index_tail: u64,
+    /// Per view, the indices kept free at the end of the index buffer for per-triangle
+    /// culling's packed triangles ([`Self::reserve_index_tail`]), one region after another.
+    index_tails: Vec<u64>,
     /// Copies for the next frame's upload (kept: no allocation per frame).
     copies: Vec<Copy>,
     /// Bytes staged this frame (CPU side, copied into the slot's staging buffer).
@@ -413,7 +413,7 @@ impl GpuScene {
             view: 0,
             geometry_cursor: Some(scene.cursor()),
             geometry_serial: 0,
-            index_tail: 0,
+            index_tails: Vec::new(),
             copies: Vec::new(),
             staged: Vec::new(),
             retired: Vec::new(),

@@ -515,7 +515,7 @@ impl SceneRenderer {
             };
             // Per-triangle culling packs into the index buffer's tail, where this frame's
             // geometry (grown if need be) left it.
-            cull.index_tail = res.scene.index_tail();
+            cull.index_tail = res.scene.index_tail(k);
             cull.write_frame(ctx, slot, frame, lists, (w, h), pyramid)?;
         }
         let recheck = res.states.get::<CullState>().map(CullState::recheck);
