@@ -1,6 +1,7 @@
 #version 450
 // Ordered compaction, second half: one workgroup per list writes one instanced
-// VkDrawIndexedIndirectCommand per group of the list that kept an instance, in group order,
+// VkDrawIndexedIndirectCommand per group of the list that kept an instance, in group order
+// (with levels of detail, one per group and level, the level's index range; level by level),
 // and the list's draw count (vkCmdDrawIndexedIndirectCount). With a fixed draw count
 // (cull.groups.y = 1: the device or the profile does without drawIndirectCount), every group
 // keeps its command, empty ones with instanceCount 0, and the CPU draws the list's group count.
@@ -15,6 +16,7 @@ layout(set = 1, binding = 1, std430) writeonly buffer Commands { uint commands[]
 layout(set = 1, binding = 2, std430) writeonly buffer Counts { uint counts[]; };
 layout(set = 1, binding = 9, std430) readonly buffer Groups { Group groups[]; };
 layout(set = 1, binding = 10, std430) readonly buffer Survivors { uint survivors[]; };
+layout(set = 1, binding = 13, std430) readonly buffer Lods { Lod lods[]; };
 
 // Each thread owns PER_THREAD consecutive groups of a chunk (as cull_compact.comp).
 const uint PER_THREAD = 8u;
@@ -30,6 +32,8 @@ void main() {
     uint start = cull.group_start[local_list];
     uint n = cull.group_count[local_list];
     bool keep_empty = cull.groups.y == 1u;
+    // A command per group and level of detail (1 level: none), survivors counted likewise.
+    uint levels = max(cull.lod_info.x, 1u);
     uint t = gl_LocalInvocationID.x;
     if (t == 0u) {
         drawn_total = 0u;
@@ -41,7 +45,10 @@ void main() {
         uint last = min(first + PER_THREAD, n);
         uint kept = 0u;
         for (uint j = first; j < last; ++j) {
-            kept += keep_empty || survivors[phase * cull.groups.x + start + j] != 0u ? 1u : 0u;
+            for (uint level = 0u; level < levels; ++level) {
+                uint count = survivors[(phase * cull.groups.x + start + j) * levels + level];
+                kept += keep_empty || count != 0u ? 1u : 0u;
+            }
         }
         scan[t] = kept;
         barrier();
@@ -55,20 +62,31 @@ void main() {
         uint drawn = 0u;
         for (uint j = first; j < last; ++j) {
             uint g = start + j;
-            uint count = survivors[phase * cull.groups.x + g];
-            drawn += count;
-            if (count == 0u && !keep_empty) {
-                continue;
-            }
             Group group = groups[g];
             Mesh m = meshes[group.mesh];
-            uint at = list * cull.commands.x + k;
-            commands[5u * at + 0u] = m.index_count;
-            commands[5u * at + 1u] = count;
-            commands[5u * at + 2u] = m.first_index;
-            commands[5u * at + 3u] = uint(m.vertex_offset);
-            commands[5u * at + 4u] = list * cull.screen.z + group.position; // firstInstance
-            k += 1u;
+            uint offset = 0u; // the group's survivors of the levels before
+            for (uint level = 0u; level < levels; ++level) {
+                uint count = survivors[(phase * cull.groups.x + g) * levels + level];
+                drawn += count;
+                if (count == 0u && !keep_empty) {
+                    continue;
+                }
+                uint first_index = m.first_index;
+                uint index_count = m.index_count;
+                if (level > 0u) {
+                    Lod l = lods[group.mesh * MAX_LODS + level - 1u];
+                    first_index = l.first_index;
+                    index_count = l.index_count;
+                }
+                uint at = list * cull.commands.x + k;
+                commands[5u * at + 0u] = index_count;
+                commands[5u * at + 1u] = count;
+                commands[5u * at + 2u] = first_index;
+                commands[5u * at + 3u] = uint(m.vertex_offset);
+                commands[5u * at + 4u] = list * cull.screen.z + group.position + offset; // firstInstance
+                offset += count;
+                k += 1u;
+            }
         }
         if (drawn != 0u) {
             atomicAdd(drawn_total, drawn);

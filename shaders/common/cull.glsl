@@ -32,7 +32,25 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
     uvec4 triangles;       // per-triangle culling (common/triangles.glsl): x the tail's first index
                            // in the scene's index buffer, y its capacity in indices, z the snapping
                            // step in pixels (f32 bits), w where the tail places start in its buffer
+    vec4 lod;              // level of detail (knob lod_error_px): x the largest error in pixels (0: off),
+                           // y pixels per unit of length at distance 1 (perspective) or anywhere
+                           // (orthographic), z 1 perspective
+    uvec4 lod_info;        // x levels per draw group (1: off; commands per group), y meshes in the level table
 } cull;
+
+// Levels of detail of a mesh coarser than its own (tilegraph_scene::GpuLod; MAX_LODS per mesh).
+const uint MAX_LODS = 4u;
+struct Lod {
+    uint first_index;
+    uint index_count;      // 0: no such level
+    float error;           // in the mesh's units
+    uint pad;
+};
+
+// An entry of a list (cull.comp -> cull_compact.comp): 0 culled, else the instance id + 1 and,
+// from bit ENTRY_LEVEL_SHIFT, the level of detail it is drawn with.
+const uint ENTRY_LEVEL_SHIFT = 29u;
+const uint ENTRY_ID_MASK = (1u << ENTRY_LEVEL_SHIFT) - 1u;
 
 // A draw group: `len` consecutive entries of list `list` (of a phase) from `position`, all of
 // mesh `mesh` (a bucket of the scene: the unculled frame's instanced draw). `first`: the entries

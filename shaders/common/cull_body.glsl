@@ -31,6 +31,45 @@ layout(set = 1, binding = 4, std430) buffer Visibility { uint visible_last[]; };
 // and ties between coplanar surfaces resolve the same way. ~0u for blended instances.
 layout(set = 1, binding = 7, std430) readonly buffer Order { uint order[]; };
 
+// Per mesh, MAX_LODS coarser levels (cull.lod_info.y meshes; a mesh past them has none).
+layout(set = 1, binding = 13, std430) readonly buffer Lods { Lod lods[]; };
+
+// The coarsest level of detail of `inst` whose error, projected, stays within cull.lod.x
+// pixels (0: the mesh itself). The error is scaled by the model matrix's largest stretch (its
+// longest column where the columns are orthogonal, else their Frobenius norm, a bound) and
+// projected at the nearest point of the instance's bounding sphere: exact on the view axis,
+// under by up to the secant of the angle off it at the edge of the view. An eye inside the
+// sphere draws the mesh itself.
+uint lod_level(Instance inst) {
+    if (cull.lod.x <= 0.0 || inst.mesh >= cull.lod_info.y) {
+        return 0u;
+    }
+    vec3 c0 = vec3(inst.model_rows[0].x, inst.model_rows[1].x, inst.model_rows[2].x);
+    vec3 c1 = vec3(inst.model_rows[0].y, inst.model_rows[1].y, inst.model_rows[2].y);
+    vec3 c2 = vec3(inst.model_rows[0].z, inst.model_rows[1].z, inst.model_rows[2].z);
+    vec3 sq = vec3(dot(c0, c0), dot(c1, c1), dot(c2, c2));
+    float largest = max(sq.x, max(sq.y, sq.z));
+    float skew = max(abs(dot(c0, c1)), max(abs(dot(c1, c2)), abs(dot(c0, c2))));
+    float stretch = sqrt(skew <= 1e-6 * largest ? largest : sq.x + sq.y + sq.z);
+    float per_unit = cull.lod.y;
+    if (cull.lod.z == 1.0) {
+        float distance = length(inst.center) - inst.radius;
+        if (!(distance > 0.0)) {
+            return 0u;
+        }
+        per_unit /= distance;
+    }
+    uint level = 0u;
+    for (uint k = 0u; k < MAX_LODS; ++k) {
+        Lod l = lods[inst.mesh * MAX_LODS + k];
+        if (l.index_count == 0u || l.error * stretch * per_unit > cull.lod.x) {
+            break;
+        }
+        level = k + 1u;
+    }
+    return level;
+}
+
 #ifdef CLUSTER_WORK
 // Cluster techniques (cull_clusters.comp): the chunks of the instances whose clusters the phase
 // tests, appended to the phase's work list (cluster.glsl's Work) for the cluster dispatches,
@@ -57,8 +96,10 @@ void append_chunks(uint p, uint id) {
 
 // Marks the instance's entry of list `list`: drawn or not. Entries never move, so the frame is
 // deterministic (no atomic append order); the compaction packs them in entry order.
-void mark(uint list, uint id, bool draw) {
-    entries[list * cull.screen.z + order[id] % cull.screen.z] = draw ? id + 1u : 0u;
+// With levels of detail (cull.lod_info.x > 1) the entry carries the level drawn.
+void mark(uint list, uint id, bool draw, uint level) {
+    entries[list * cull.screen.z + order[id] % cull.screen.z] =
+        draw ? (id + 1u) | (level << ENTRY_LEVEL_SHIFT) : 0u;
 }
 
 void main() {
@@ -72,16 +113,17 @@ void main() {
     }
     uint list = order[id] / cull.screen.z;
     uint phase = cull.info.y;
+    uint level = lod_level(inst);
     bool in_frustum = frustum_visible(inst);
     if (phase == 0u) {
-        mark(list, id, in_frustum);
+        mark(list, id, in_frustum, level);
 #ifdef CLUSTER_WORK
         if (in_frustum) {
             append_chunks(0u, id);
         }
 #endif
     } else if (phase == 1u) {
-        mark(list, id, in_frustum && hiz_visible(inst));
+        mark(list, id, in_frustum && hiz_visible(inst), level);
     } else if (phase == 2u && cull.groups.w != 0u) {
         // Raster occlusion (cull.groups.w: the packed recheck): a box fragment passed, or the
         // instance was drawn last frame and its box was not tested (recheck.glsl). The word
@@ -92,10 +134,10 @@ void main() {
         bool near = proxy_crosses_near(inst.center, raster_proxy_half_size(inst.half_extents), 1e-5);
         bool draw = in_frustum && ((word & FLAG_PASSED) != 0u || near
                                    || raster_carried(word, cull.groups.w, id));
-        mark(list, id, draw);
+        mark(list, id, draw, level);
         visible_last[id] = draw ? FLAG_DRAWN : 0u;
     } else if (phase == 2u) {
-        mark(list, id, in_frustum && visible_last[id] != 0u);
+        mark(list, id, in_frustum && visible_last[id] != 0u, level);
 #ifdef CLUSTER_WORK
         // cluster_early = "instances" (cull.clusters.y bit 1): the early phase draws whole
         // instances, no cluster stage runs early.
@@ -106,11 +148,11 @@ void main() {
     } else {
         bool visible = in_frustum && hiz_visible(inst);
         bool late = visible && visible_last[id] == 0u;
-        mark(4u + list, id, late);
+        mark(4u + list, id, late, level);
         if (late) {
             // The colour pass draws the early lists completed with the newly visible: the union,
             // in the unculled order (the late compaction packs the early lists again).
-            mark(list, id, true);
+            mark(list, id, true, level);
         }
         visible_last[id] = visible ? 1u : 0u;
 #ifdef CLUSTER_WORK

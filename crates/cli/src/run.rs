@@ -226,9 +226,16 @@ pub enum Clusters {
     ForAuto,
 }
 
-/// The clusters the culling `knobs` name needs: a cluster technique, them; `auto` (named, or
-/// left to the profile), them where it would try cluster culling.
+/// The clusters the culling `knobs` name needs: a cluster technique or levels of detail, them;
+/// `auto` (named, or left to the profile), them where it would try cluster culling.
 pub fn wants_clusters(knobs: &KnobSettings) -> Clusters {
+    // Levels of detail come with the clusters.
+    if knobs
+        .get("lod_error_px")
+        .is_some_and(|v| v.to_string() != "0")
+    {
+        return Clusters::Yes;
+    }
     match knobs.get("culling").map(|v| v.to_string()) {
         None => Clusters::ForAuto,
         Some(name) => match Culling::parse(&name) {

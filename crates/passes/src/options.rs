@@ -50,6 +50,9 @@ pub enum RenderError {
         culling: &'static str,
         scene: String,
     },
+    /// Levels of detail asked for where they cannot be drawn.
+    #[error("level of detail (lod_error_px = {error_px}): {reason}")]
+    Lod { error_px: f32, reason: &'static str },
     #[error("the engine's colour target: {0}")]
     Target(String),
     /// Software occlusion could not take the frame's camera or an occluder mesh.
@@ -145,6 +148,10 @@ pub struct RenderOptions {
     pub cluster_gap: u32,
     /// Cluster techniques: per-triangle culling after the clusters (knob `triangle_culling`).
     pub triangle_culling: bool,
+    /// Level of detail (knob `lod_error_px`): each instance drawn with the coarsest of its
+    /// mesh's simplified levels whose error projects to at most this many pixels; 0 (the
+    /// default) draws every mesh at full detail. GPU instance culling chooses the levels.
+    pub lod_error_px: f32,
     /// Keep the visibility buffer's ids after the frame (the oracle reads them back):
     /// the id attachment becomes an imported image, so it is stored.
     pub capture_ids: bool,
@@ -231,6 +238,7 @@ impl Default for RenderOptions {
             cluster_early: ClusterEarly::Instances,
             cluster_gap: CLUSTER_GAP,
             triangle_culling: false,
+            lod_error_px: 0.0,
             capture_ids: false,
             oq_group: 16,
             occlusion_recheck: 8,
@@ -394,6 +402,7 @@ pub(crate) fn check_device(
             return Err(RenderError::Pvs { reason });
         }
     }
+    check_lod(options, scene)?;
     if options.culling.clusters() && scene.clusters().is_none() {
         return Err(RenderError::NoClusters {
             culling: options.culling.name(),
@@ -412,6 +421,41 @@ pub(crate) fn check_device(
         });
     }
     Ok(instance_bits)
+}
+
+/// Checks that levels of detail, if asked for, can be drawn: GPU instance culling chooses them
+/// (its list entries carry the level in their top 3 bits), the scene carries them (with its
+/// clusters), and the shading draws what the commands say (the visibility buffer's resolve
+/// refetches each pixel's triangle from the mesh's full-detail indices).
+fn check_lod(options: &RenderOptions, scene: &Scene) -> Result<(), RenderError> {
+    let error_px = options.lod_error_px;
+    if error_px == 0.0 {
+        return Ok(());
+    }
+    let refuse = |reason| Err(RenderError::Lod { error_px, reason });
+    if !(error_px.is_finite() && error_px > 0.0) {
+        return refuse("a positive number of pixels, or 0 for full detail");
+    }
+    if !matches!(
+        options.culling,
+        Culling::Frustum | Culling::Hiz | Culling::HizTwoPhase | Culling::Reproject
+    ) {
+        return refuse(
+            "levels are chosen by GPU instance culling: frustum, hiz, hiz-2phase or reproject",
+        );
+    }
+    if options.technique == Technique::Visbuf {
+        return refuse("the visibility buffer's resolve refetches triangles from the full-detail mesh; shade with forward, prepass or deferred-texturing");
+    }
+    if scene.clusters().is_none() {
+        return refuse("the scene's levels of detail come with its clusters: attach them (tilegraph_scene::clusters::cached, or a prebuilt file)");
+    }
+    if scene.instances().len() as u64 + u64::from(options.instance_capacity) >= 1 << 29 {
+        return refuse(
+            "more than 2^29 instance slots: the list entries keep the level in their top bits",
+        );
+    }
+    Ok(())
 }
 
 /// Deferred texturing's G-buffer holds 12-bit material ids: a scene of more materials cannot

@@ -36,7 +36,11 @@ impl Domain {
                 .ok()
                 .filter(|i| ints.contains(i))
                 .map(KnobValue::Integer),
-            (Domain::Choice(_), KnobValue::Integer(_)) => None,
+            // A number among the names ("1" of 0, 0.5, 1, 2) as the name.
+            (Domain::Choice(names), KnobValue::Integer(i)) => {
+                let n = i.to_string();
+                names.contains(&n.as_str()).then_some(KnobValue::Name(n))
+            }
         }
     }
 
@@ -213,6 +217,13 @@ pub const KNOBS: &[KnobSpec] = &[
         default: DefaultValue::Name("off"),
         applies: Applies::WithCulling(&["frustum-clusters", "hiz-2phase-clusters"]),
         help: "per-triangle culling after the clusters (seed 000, Wihlidal 2016): every surviving cluster's triangles tested (clip volume, back-facing, zero-area, no sample covered, the late phase's pyramid) and packed by a prefix sum into a reserved index-buffer tail; exact, three dispatches per phase, for fewer triangles set up and rasterized",
+    },
+    KnobSpec {
+        name: "lod_error_px",
+        domain: Domain::Choice(&["0", "0.5", "1", "2", "4", "8"]),
+        default: DefaultValue::Name("0"),
+        applies: Applies::WithCulling(&["frustum", "hiz", "hiz-2phase", "reproject"]),
+        help: "level of detail by screen error: each instance drawn with the coarsest of its mesh's simplified levels (meshoptimizer, kept with the clusters) whose error projects to at most this many pixels; fewer triangles for image error (cull-check reports it against the full-detail frame; 0: full detail)",
     },
     KnobSpec {
         name: "oq_group",

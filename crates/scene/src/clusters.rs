@@ -19,22 +19,28 @@ use bytemuck::Pod;
 use crate::error::SceneError;
 #[cfg(feature = "meshopt")]
 use crate::scene::Scene;
-pub use crate::scene::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VERTICES};
+pub use crate::scene::{
+    ClusterData, Clusters, GpuCluster, GpuLod, MAX_LODS, MAX_TRIANGLES, MAX_VERTICES,
+};
 
 const CLUSTER_BYTES: usize = std::mem::size_of::<GpuCluster>();
+const LOD_BYTES: usize = std::mem::size_of::<GpuLod>();
+const HEADER_BYTES: usize = 48;
 
-/// Version 4: 80-byte clusters with the snapping-safe cone (`crate::cone`), each cluster's
-/// triangles in vertex-cache order, each mesh's clusters outermost first (an older file is
-/// rebuilt).
-const MAGIC: &[u8; 8] = b"TGCLUST4";
+/// Version 5: 80-byte clusters with the snapping-safe cone (`crate::cone`), each cluster's
+/// triangles in vertex-cache order, each mesh's clusters outermost first, then the meshes'
+/// levels of detail (an older file is rebuilt).
+const MAGIC: &[u8; 8] = b"TGCLUST5";
 
 impl ClusterData {
     /// Writes the data to `path` (little-endian: magic, fingerprint, counts, then the arrays).
     pub fn write(&self, path: &Path) -> Result<(), SceneError> {
         let mut out = Vec::with_capacity(
-            40 + self.indices.len() * 4
+            HEADER_BYTES
+                + self.indices.len() * 4
                 + self.clusters.len() * CLUSTER_BYTES
-                + self.mesh_clusters.len() * 8,
+                + self.mesh_clusters.len() * 8
+                + self.lods.len() * LOD_BYTES,
         );
         out.extend_from_slice(MAGIC);
         out.extend_from_slice(&self.fingerprint.to_le_bytes());
@@ -42,12 +48,14 @@ impl ClusterData {
             self.indices.len(),
             self.clusters.len(),
             self.mesh_clusters.len(),
+            self.lods.len(),
         ] {
             out.extend_from_slice(&(n as u64).to_le_bytes());
         }
         out.extend_from_slice(bytemuck::cast_slice(&self.indices));
         out.extend_from_slice(bytemuck::cast_slice(&self.clusters));
         out.extend_from_slice(bytemuck::cast_slice(&self.mesh_clusters));
+        out.extend_from_slice(bytemuck::cast_slice(&self.lods));
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|source| io(path, source))?;
         }
@@ -77,24 +85,27 @@ impl ClusterData {
                 .and_then(|b| b.try_into().ok())
                 .map(u64::from_le_bytes)
         };
-        let header = (word(0), word(1), word(2), word(3));
-        let (Some(fingerprint), Some(ni), Some(nc), Some(nm)) = header else {
+        let header = (word(0), word(1), word(2), word(3), word(4));
+        let (Some(fingerprint), Some(ni), Some(nc), Some(nm), Some(nl)) = header else {
             return Err(bad("header cut short".into()));
         };
         let sizes = [
             ni.checked_mul(4),
             nc.checked_mul(CLUSTER_BYTES as u64),
             nm.checked_mul(8),
+            nl.checked_mul(LOD_BYTES as u64),
         ];
-        let [Some(si), Some(sc), Some(sm)] = sizes.map(|s| s.and_then(|s| usize::try_from(s).ok()))
+        let [Some(si), Some(sc), Some(sm), Some(sl)] =
+            sizes.map(|s| s.and_then(|s| usize::try_from(s).ok()))
         else {
             return Err(bad("counts overflow".into()));
         };
-        let start = 40usize;
+        let start = HEADER_BYTES;
         let expected = start
             .checked_add(si)
             .and_then(|n| n.checked_add(sc))
-            .and_then(|n| n.checked_add(sm));
+            .and_then(|n| n.checked_add(sm))
+            .and_then(|n| n.checked_add(sl));
         if expected != Some(bytes.len()) {
             return Err(bad(format!(
                 "{} bytes, the header's counts need {}",
@@ -103,12 +114,14 @@ impl ClusterData {
             )));
         }
         let (a, rest) = bytes[start..].split_at(si);
-        let (b, c) = rest.split_at(sc);
+        let (b, rest) = rest.split_at(sc);
+        let (c, d) = rest.split_at(sm);
         Ok(ClusterData {
             fingerprint,
             indices: read_pods(a),
             clusters: read_pods(b),
             mesh_clusters: read_pods(c),
+            lods: read_pods(d),
         })
     }
 }
@@ -148,6 +161,7 @@ pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
         indices: scene.indices().to_vec(),
         clusters: Vec::new(),
         mesh_clusters: Vec::with_capacity(scene.meshes().len()),
+        lods: Vec::with_capacity(scene.meshes().len() * MAX_LODS),
     };
     for (m, mesh) in scene.meshes().iter().enumerate() {
         let bad = |reason: String| SceneError::Clusters {
@@ -237,11 +251,74 @@ pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
         data.mesh_clusters
             .push([first_cluster, data.clusters.len() as u32 - first_cluster]);
     }
+    // The levels of detail, each from the full mesh (its error is the full mesh's distance),
+    // their indices after the scene's.
+    for mesh in scene.meshes() {
+        let range = mesh.first_index as usize..(mesh.first_index + mesh.index_count) as usize;
+        let vrange = mesh.vertex_offset.max(0) as usize
+            ..mesh.vertex_offset.max(0) as usize + mesh.vertex_count as usize;
+        let levels = match (data.indices.get(range), vertices.get(vrange)) {
+            (Some(indices), Some(verts)) => simplified_levels(indices, verts),
+            _ => Vec::new(),
+        };
+        let mut slots = [GpuLod::default(); MAX_LODS];
+        for (slot, (indices, error)) in slots.iter_mut().zip(levels) {
+            *slot = GpuLod {
+                first_index: data.indices.len() as u32,
+                index_count: indices.len() as u32,
+                error,
+                _pad: 0,
+            };
+            data.indices.extend_from_slice(&indices);
+        }
+        data.lods.extend_from_slice(&slots);
+    }
     let stats = BuildStats {
         milliseconds: start.elapsed().as_secs_f64() * 1e3,
         clusters: data.clusters.len() as u64,
     };
     Ok((data, stats))
+}
+
+/// A level is kept only if it has at most this share of the previous level's triangles.
+#[cfg(feature = "meshopt")]
+const LOD_STEP: f64 = 0.75;
+
+/// Up to [`MAX_LODS`] simplified versions of a mesh's `indices` (meshoptimizer's
+/// `meshopt_simplify`, border vertices locked so that meshes that meet stay closed), each aiming
+/// at half the triangles of the one before, with its error in the mesh's units; a level that
+/// does not get below [`LOD_STEP`] of the one before ends the list. Each is in vertex-cache
+/// order, errors never decrease.
+#[cfg(feature = "meshopt")]
+fn simplified_levels(indices: &[u32], verts: &[crate::Vertex]) -> Vec<(Vec<u32>, f32)> {
+    let mut levels = Vec::new();
+    let Ok(adapter) = meshopt::VertexDataAdapter::new(
+        bytemuck::cast_slice(verts),
+        std::mem::size_of::<crate::Vertex>(),
+        0,
+    ) else {
+        return levels;
+    };
+    // No error limit: the triangle count decides, the error is what it costs.
+    let limit = f32::MAX;
+    let options = meshopt::SimplifyOptions::ErrorAbsolute | meshopt::SimplifyOptions::LockBorder;
+    let mut previous = indices.len();
+    let mut error_floor = 0.0f32;
+    while levels.len() < MAX_LODS && previous >= 6 {
+        let target = (previous / 2) / 3 * 3;
+        let mut error = 0.0f32;
+        let mut level =
+            meshopt::simplify(indices, &adapter, target, limit, options, Some(&mut error));
+        if level.is_empty() || level.len() as f64 > LOD_STEP * previous as f64 || !error.is_finite()
+        {
+            break;
+        }
+        meshopt::optimize_vertex_cache_in_place(&mut level, verts.len());
+        error_floor = error_floor.max(error);
+        previous = level.len();
+        levels.push((level, error_floor));
+    }
+    levels
 }
 
 /// The mesh's meshlets in the order that draws its outer surface first (view-independent
@@ -475,6 +552,69 @@ mod tests {
         }
     }
 
+    /// A `n` x `n` grid of quads over [-1, 1]^2 at height `height(x, y)`, facing +z.
+    fn height_field(n: u32, height: impl Fn(f32, f32) -> f32) -> (Vec<crate::Vertex>, Vec<u32>) {
+        let mut vertices = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, y) = (
+                    2.0 * i as f32 / n as f32 - 1.0,
+                    2.0 * j as f32 / n as f32 - 1.0,
+                );
+                vertices.push(crate::Vertex {
+                    position: [x, y, height(x, y)],
+                    normal: [0.0, 0.0, 1.0],
+                    uv: [0.5 * x + 0.5, 0.5 * y + 0.5],
+                });
+            }
+        }
+        let mut indices = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let k = j * (n + 1) + i;
+                indices.extend([k, k + 1, k + n + 2, k, k + n + 2, k + n + 1]);
+            }
+        }
+        (vertices, indices)
+    }
+
+    #[test]
+    fn levels_of_detail_halve_triangles_with_growing_error_over_the_mesh_vertices() {
+        let (vertices, indices) = height_field(32, |x, y| 0.2 * (3.0 * x).sin() * (2.0 * y).cos());
+        let levels = simplified_levels(&indices, &vertices);
+        assert!(levels.len() >= 3, "{} levels", levels.len());
+        let mut previous = (indices.len(), 0.0f32);
+        for (level, error) in &levels {
+            assert!(level.len() % 3 == 0 && !level.is_empty());
+            assert!(level.len() as f64 <= LOD_STEP * previous.0 as f64);
+            assert!(*error >= previous.1 && error.is_finite());
+            assert!(level.iter().all(|&i| (i as usize) < vertices.len()));
+            previous = (level.len(), *error);
+        }
+        // Curved: the coarsest level moved the surface. Its border is locked: every border
+        // vertex of the full mesh is still used.
+        assert!(previous.1 > 1e-3, "error {}", previous.1);
+        let coarsest = &levels[levels.len() - 1].0;
+        for (k, v) in vertices.iter().enumerate() {
+            let on_border = v.position[0].abs() == 1.0 || v.position[1].abs() == 1.0;
+            let corner = v.position[0].abs() == 1.0 && v.position[1].abs() == 1.0;
+            if on_border && corner {
+                assert!(coarsest.contains(&(k as u32)), "corner {k} gone");
+            }
+        }
+        // Flat: simplified with no error to speak of.
+        let (vertices, indices) = height_field(16, |_, _| 0.0);
+        let levels = simplified_levels(&indices, &vertices);
+        assert!(!levels.is_empty());
+        assert!(
+            levels.iter().all(|(_, e)| *e < 1e-3),
+            "{:?}",
+            levels.iter().map(|l| l.1).collect::<Vec<_>>()
+        );
+        // Too small to simplify: none.
+        assert!(simplified_levels(&indices[..3], &vertices).is_empty());
+    }
+
     #[test]
     fn cluster_files_round_trip_and_bad_ones_are_named() {
         let mut scene =
@@ -511,5 +651,44 @@ mod tests {
             Some(data.clusters.len())
         );
         assert_eq!(scene.indices(), &data.indices[..]);
+    }
+
+    #[test]
+    fn levels_of_detail_round_trip_and_bad_ones_are_refused() {
+        let (vertices, indices) = height_field(24, |x, y| 0.3 * (2.0 * x).sin() * y.cos());
+        let mut b = crate::SceneBuilder::new("hills");
+        let m = b.add_material(crate::Material::opaque([0.5, 0.5, 0.5, 1.0]));
+        let mesh = b.add_mesh(&vertices, &indices, m).unwrap();
+        b.add_instance(crate::Transform::IDENTITY, mesh).unwrap();
+        let scene = b.build(None).unwrap();
+        let (data, _) = build(&scene).unwrap();
+        assert_eq!(data.lods.len(), MAX_LODS);
+        assert!(data.lods[1].index_count > 0 && data.lods[1].error >= data.lods[0].error);
+        let level_indices: u32 = data.lods.iter().map(|l| l.index_count).sum();
+        assert_eq!(data.indices.len(), indices.len() + level_indices as usize);
+        let dir = std::env::temp_dir().join(format!("tilegraph-lods-{}", std::process::id()));
+        let path = dir.join("hills.tgclusters");
+        data.write(&path).unwrap();
+        assert_eq!(ClusterData::read(&path).unwrap(), data);
+        std::fs::remove_dir_all(&dir).unwrap();
+        let mut attached = scene.clone();
+        attached.attach_clusters(data.clone()).unwrap();
+        let clusters = attached.clusters().unwrap();
+        assert!(clusters.has_lods());
+        let levels = data.lods.iter().filter(|l| l.index_count > 0).count();
+        assert_eq!(clusters.lods_of(0).len(), levels);
+        assert!(clusters.lods_of(7).is_empty());
+        // Levels that reach into the scene's own indices, or shrink their error, are refused.
+        let mut bad = data.clone();
+        bad.lods[0].first_index = 0;
+        let e = scene.clone().attach_clusters(bad).unwrap_err().to_string();
+        assert!(e.contains("level tail"), "{e}");
+        let mut bad = data.clone();
+        bad.lods[1].error = -1.0;
+        let e = scene.clone().attach_clusters(bad).unwrap_err().to_string();
+        assert!(e.contains("error"), "{e}");
+        let mut bad = data;
+        bad.lods.pop();
+        assert!(scene.clone().attach_clusters(bad).is_err());
     }
 }

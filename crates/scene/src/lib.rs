@@ -66,10 +66,10 @@ pub use procedural::seed_grid;
 pub use procedural::{generate, ProceduralKind, ProceduralParams};
 pub use scene::{
     BoundsInfo, CellRun, Change, ClassCounts, DrawBuckets, DrawGroup, GltfCounts, GpuInstance,
-    GpuMaterial, GpuMesh, GridMember, Instance, InstanceBounds, InstanceFlags, InstanceHandle,
-    InstanceId, LooseGrid, Material, MaterialClass, MaterialId, Mesh, MeshHandle, MeshId, Overlap,
-    RelativeInstance, Scene, SceneBuilder, SceneCursor, SceneInfo, SceneSource, SplitPoint,
-    Transform, Vertex, DRAW_LISTS,
+    GpuLod, GpuMaterial, GpuMesh, GridMember, Instance, InstanceBounds, InstanceFlags,
+    InstanceHandle, InstanceId, LooseGrid, Material, MaterialClass, MaterialId, Mesh, MeshHandle,
+    MeshId, Overlap, RelativeInstance, Scene, SceneBuilder, SceneCursor, SceneInfo, SceneSource,
+    SplitPoint, Transform, Vertex, DRAW_LISTS, MAX_LODS,
 };
 pub use texture::{Texture, TextureId};
 /// Shared with the culling references and the passes (tilegraph-types); re-exported so scene

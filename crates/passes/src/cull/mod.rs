@@ -557,6 +557,12 @@ pub struct CullParams {
     /// Per-triangle culling: x the index buffer tail's first index, y its length, z the
     /// snapping step in pixels (f32 bits), w where the tail places start in its buffer.
     pub triangles: [u32; 4],
+    /// Level of detail: x the largest error in pixels (0 off), y pixels per unit of length at
+    /// distance 1 (perspective) or anywhere (orthographic), z 1 perspective.
+    pub lod: [f32; 4],
+    /// Level of detail: x levels per draw group (1 off: the commands per group), y meshes in
+    /// the level table.
+    pub lod_info: [u32; 4],
 }
 
 /// The bounding volume culling tests an instance by (knob `cull_bounds`). Both are conservative

@@ -56,7 +56,7 @@ impl CullState {
             b.get(4 * i..4 * i + 4)
                 .map_or(0, |w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
         };
-        let slots = self.capacity.groups.max(1) as usize;
+        let slots = self.command_slots() as usize;
         // Per list: where its commands start and how many it can hold.
         let place = |list: usize| match &self.clusters {
             Some(c) => (

@@ -193,6 +193,7 @@ mod tests {
             indices: scene.indices().to_vec(),
             clusters: vec![cluster(0), cluster(6), cluster(12)],
             mesh_clusters: vec![[0, 3]],
+            lods: vec![tilegraph_scene::GpuLod::default(); tilegraph_scene::MAX_LODS],
         };
         scene.attach_clusters(data).unwrap();
         scene

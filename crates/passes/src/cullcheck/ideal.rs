@@ -38,9 +38,12 @@ pub(super) fn ideal_frame(
     let mut renderer = SceneRenderer::new(
         ctx,
         &scene,
+        // At full detail: levels of detail are chosen by GPU culling, which this frame has
+        // none of (a technique with them can beat its ceiling).
         RenderOptions {
             culling: Culling::None,
             gpu_timing: GpuTiming::Frame,
+            lod_error_px: 0.0,
             ..options
         },
     )?;

@@ -26,6 +26,7 @@ use crate::shadow::{CasterCulling, ShadowOptions};
 pub mod casters;
 mod clusters;
 mod ideal;
+mod image;
 mod world;
 
 use ideal::{ideal_frame, FrameVisible};
@@ -33,6 +34,8 @@ use world::{run_trial, Timing, World};
 
 pub use casters::CasterCheck;
 pub use clusters::{cluster_check, ClusterCheck};
+pub use image::ImageError;
+use image::{diff_image, summed};
 
 /// One frame's comparison.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -52,7 +55,10 @@ pub struct FrameCheck {
     /// second phase), not a culling error. A culling error shows as a difference at a pixel whose
     /// owner was culled.
     pub image_diff_pixels_owner_drawn: usize,
-    /// Triangles of the drawn instances.
+    /// How far the image lies from the reference (levels of detail trade this for triangles;
+    /// an exact technique's is zero).
+    pub image_error: ImageError,
+    /// Triangles of the drawn instances (with levels of detail, of the levels drawn).
     pub triangles_drawn: u64,
     /// Up to 8 instance ids that were visible but culled (for debugging).
     pub false_negative_ids: Vec<u32>,
@@ -90,6 +96,9 @@ pub struct Totals {
     /// Clusters drawn that owned no pixel (cluster techniques).
     pub cluster_false_positives: usize,
     pub frames_image_equal: usize,
+    /// The frames' images against the references', together (mean squared error over the
+    /// path, the largest difference).
+    pub image_error: ImageError,
     pub triangles_drawn: u64,
     /// Median GPU milliseconds of the culling passes (culling compute, pyramid builds, query,
     /// result-copy and raster-occlusion passes), summed, from timestamps around each pass in
@@ -268,6 +277,8 @@ pub fn cull_check_options(
     let mut world = World::new(scene, path, motion);
     let scene = world.scene();
     let size = (tested.width, tested.height);
+    // The oracle and the reference draw every mesh at full detail: levels of detail are
+    // measured as image error against them.
     let oracle = SceneRenderer::new(
         ctx,
         scene,
@@ -275,6 +286,7 @@ pub fn cull_check_options(
             technique: Technique::Visbuf,
             capture_ids: true,
             culling: Culling::None,
+            lod_error_px: 0.0,
             opaque_order: None,
             alpha_prepass: None,
             depth_prepass: None,
@@ -286,6 +298,7 @@ pub fn cull_check_options(
     // instance culling.
     let reference = RenderOptions {
         culling: Culling::None,
+        lod_error_px: 0.0,
         shadows: ShadowOptions {
             culling: CasterCulling::None,
             ..tested.shadows
@@ -541,6 +554,7 @@ impl Run<'_> {
                 image_equal: got == want,
                 image_diff_pixels: 0,
                 image_diff_pixels_owner_drawn: 0,
+                image_error: ImageError::between(&got, &want),
                 triangles_drawn: 0,
                 false_negative_ids: Vec::new(),
                 clusters,
@@ -581,6 +595,12 @@ impl Run<'_> {
             }
             if let Some(t) = cluster_triangles {
                 check.triangles_drawn = t;
+            }
+            // Levels of detail: the triangles of the levels the commands drew.
+            if tested.options().lod_error_px > 0.0 {
+                if let Some(lists) = tested.gpu_lists(ctx)? {
+                    check.triangles_drawn = lists.colour_triangles();
+                }
             }
             if let Some(save) = on_failure.as_mut() {
                 let cluster_fn = check.clusters.is_some_and(|c| c.false_negatives > 0);
@@ -684,6 +704,7 @@ impl Run<'_> {
                 .map(|c| c.false_positives)
                 .sum(),
             frames_image_equal: frames.iter().filter(|f| f.image_equal).count(),
+            image_error: ImageError::over(frames.iter().map(|f| &f.image_error)),
             triangles_drawn: frames.iter().map(|f| f.triangles_drawn).sum(),
             // Folded from +0.0: an empty f64 sum is -0.0, which prints as "-0.0 ms".
             cull_gpu_ms: medians
@@ -753,46 +774,4 @@ fn compared_instances(scene: &Scene) -> Vec<bool> {
                     .is_some_and(|m| matches!(m.class, tilegraph_scene::MaterialClass::Blended))
         })
         .collect()
-}
-
-/// The diff image of a failed frame: the reference in dim grey, differing pixels red, pixels
-/// owned (in the oracle) by a visible instance the technique did not draw magenta.
-fn diff_image(
-    got: &RgbaImage,
-    want: &RgbaImage,
-    ids: &[u32],
-    visible: &[bool],
-    drawn: &[bool],
-) -> RgbaImage {
-    let mut pixels = Vec::with_capacity(want.pixels.len());
-    for (p, (a, b)) in got
-        .pixels
-        .chunks_exact(4)
-        .zip(want.pixels.chunks_exact(4))
-        .enumerate()
-    {
-        let owner = ids.get(p).map(|&id| id as usize);
-        let culled = owner.is_some_and(|o| {
-            visible.get(o).copied().unwrap_or(false) && !drawn.get(o).copied().unwrap_or(true)
-        });
-        let rgba = if culled {
-            [255, 0, 255, 255]
-        } else if a != b {
-            [255, 0, 0, 255]
-        } else {
-            let grey = ((u32::from(b[0]) + u32::from(b[1]) + u32::from(b[2])) / 6) as u8;
-            [grey, grey, grey, 255]
-        };
-        pixels.extend_from_slice(&rgba);
-    }
-    RgbaImage {
-        width: want.width,
-        height: want.height,
-        pixels,
-    }
-}
-
-/// The sum of per-frame counts, `None` when a frame has none.
-fn summed(counts: impl Iterator<Item = Option<u32>>) -> Option<u64> {
-    counts.map(|c| c.map(u64::from)).sum()
 }

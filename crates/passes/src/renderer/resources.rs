@@ -142,6 +142,7 @@ fn add_states(
                 cluster_gap: options.cluster_gap,
                 capacity,
                 triangle_culling: options.triangle_culling,
+                lod_error_px: options.lod_error_px,
             },
         )?;
         if c.clusters.as_ref().is_some_and(|s| s.triangles.is_some()) {

@@ -44,15 +44,36 @@ impl GpuCluster {
     }
 }
 
+/// Coarser levels of detail kept per mesh (each about half the triangles of the one before).
+pub const MAX_LODS: usize = 4;
+
+/// One simplified level of a mesh (`Lod` of shaders/common/cull.glsl; 16 bytes): a range of
+/// the scene's index buffer over the mesh's own vertices, and how far its surface may lie from
+/// the full mesh's, in the mesh's local units (meshoptimizer's error estimate).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLod {
+    pub first_index: u32,
+    /// 0: no such level.
+    pub index_count: u32,
+    pub error: f32,
+    pub _pad: u32,
+}
+
 /// A scene's clusters: the index buffer in cluster order, the clusters, and each mesh's range
-/// of them. `fingerprint` is [`Scene::geometry_fingerprint`] of the scene they were built from.
+/// of them; then each mesh's levels of detail, whose indices follow the scene's. `fingerprint`
+/// is [`Scene::geometry_fingerprint`] of the scene they were built from.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ClusterData {
     pub fingerprint: u64,
+    /// The scene's indices in cluster order, then the levels of detail's.
     pub indices: Vec<u32>,
     pub clusters: Vec<GpuCluster>,
     /// Per mesh: first cluster, cluster count.
     pub mesh_clusters: Vec<[u32; 2]>,
+    /// Per mesh, [`MAX_LODS`] levels, coarser and coarser (error never decreasing); unused ones
+    /// have no indices.
+    pub lods: Vec<GpuLod>,
 }
 
 /// The clusters a scene carries once attached (its index buffer is then in cluster order).
@@ -60,13 +81,30 @@ pub struct ClusterData {
 pub struct Clusters {
     pub clusters: Vec<GpuCluster>,
     pub mesh_clusters: Vec<[u32; 2]>,
+    /// Per mesh, [`MAX_LODS`] levels of detail ([`ClusterData::lods`]).
+    pub lods: Vec<GpuLod>,
 }
 
 impl Clusters {
-    /// Bytes the cluster records and mesh ranges take (GPU and CPU alike).
+    /// Bytes the cluster records, mesh ranges and level table take (GPU and CPU alike).
     pub fn bytes(&self) -> u64 {
-        (self.clusters.len() * std::mem::size_of::<GpuCluster>() + self.mesh_clusters.len() * 8)
-            as u64
+        (self.clusters.len() * std::mem::size_of::<GpuCluster>()
+            + self.mesh_clusters.len() * 8
+            + self.lods.len() * std::mem::size_of::<GpuLod>()) as u64
+    }
+
+    /// The levels of detail of mesh `mesh` that exist, coarser and coarser (empty for an
+    /// unknown mesh or one that does not simplify).
+    pub fn lods_of(&self, mesh: u32) -> &[GpuLod] {
+        let first = mesh as usize * MAX_LODS;
+        let levels = self.lods.get(first..first + MAX_LODS).unwrap_or(&[]);
+        let n = levels.iter().take_while(|l| l.index_count > 0).count();
+        &levels[..n]
+    }
+
+    /// Whether any mesh has a level of detail.
+    pub fn has_lods(&self) -> bool {
+        self.lods.iter().any(|l| l.index_count > 0)
     }
 
     /// Clusters of mesh `mesh` (empty for an unknown mesh).

@@ -25,7 +25,9 @@ mod pool;
 mod variants;
 
 pub use buckets::{DrawBuckets, DrawGroup, DRAW_LISTS};
-pub use clusters::{ClusterData, Clusters, GpuCluster, MAX_TRIANGLES, MAX_VERTICES};
+pub use clusters::{
+    ClusterData, Clusters, GpuCluster, GpuLod, MAX_LODS, MAX_TRIANGLES, MAX_VERTICES,
+};
 pub use elements::{
     Instance, InstanceBounds, InstanceFlags, InstanceHandle, InstanceId, Material, MaterialClass,
     MaterialId, Mesh, MeshHandle, MeshId, Transform, Vertex,
@@ -188,6 +190,7 @@ impl Scene {
         self.clusters = Some(Clusters {
             clusters: data.clusters,
             mesh_clusters: data.mesh_clusters,
+            lods: data.lods,
         });
         Ok(())
     }
@@ -261,7 +264,7 @@ fn validate_clusters(scene: &Scene, data: &ClusterData) -> Result<(), SceneError
         what: scene.name().to_string(),
         reason,
     };
-    if data.indices.len() != scene.indices().len() {
+    if data.indices.len() < scene.indices().len() {
         return Err(bad(format!(
             "{} indices for a scene of {}",
             data.indices.len(),
@@ -311,6 +314,59 @@ fn validate_clusters(scene: &Scene, data: &ClusterData) -> Result<(), SceneError
                 "mesh {m}: index {i} past its {} vertices",
                 mesh.vertex_count
             )));
+        }
+    }
+    validate_lods(scene, data).map_err(bad)
+}
+
+/// Checks the levels of detail of `data`: [`MAX_LODS`] per mesh, each a range of whole
+/// triangles after the scene's indices over the mesh's vertices, errors finite and never
+/// decreasing.
+fn validate_lods(scene: &Scene, data: &ClusterData) -> Result<(), String> {
+    if data.lods.len() != scene.meshes().len() * MAX_LODS {
+        return Err(format!(
+            "{} levels of detail for {} meshes ({MAX_LODS} each)",
+            data.lods.len(),
+            scene.meshes().len()
+        ));
+    }
+    let tail = scene.indices().len() as u64..data.indices.len() as u64;
+    for (m, (mesh, levels)) in scene
+        .meshes()
+        .iter()
+        .zip(data.lods.chunks_exact(MAX_LODS))
+        .enumerate()
+    {
+        let mut error = 0.0f32;
+        for (k, l) in levels.iter().enumerate() {
+            if l.index_count == 0 {
+                continue;
+            }
+            let start = u64::from(l.first_index);
+            let end = start + u64::from(l.index_count);
+            if l.index_count % 3 != 0 || !tail.contains(&start) || end > tail.end {
+                return Err(format!(
+                    "mesh {m} level {}: indices {start}+{} outside the level tail {tail:?}",
+                    k + 1,
+                    l.index_count
+                ));
+            }
+            if !(l.error.is_finite() && l.error >= error) {
+                return Err(format!(
+                    "mesh {m} level {}: error {} after {error}",
+                    k + 1,
+                    l.error
+                ));
+            }
+            error = l.error;
+            let indices = &data.indices[start as usize..end as usize];
+            if let Some(i) = indices.iter().find(|&&i| i >= mesh.vertex_count) {
+                return Err(format!(
+                    "mesh {m} level {}: index {i} past its {} vertices",
+                    k + 1,
+                    mesh.vertex_count
+                ));
+            }
         }
     }
     Ok(())

@@ -102,6 +102,8 @@ pub struct CullInputs<'a> {
     pub capacity: Capacity,
     /// Per-triangle culling after the cluster stage (knob `triangle_culling`).
     pub triangle_culling: bool,
+    /// Level of detail: the largest projected error in pixels (knob `lod_error_px`; 0 off).
+    pub lod_error_px: f32,
 }
 
 /// The persistent culling state of one renderer.
@@ -147,6 +149,14 @@ pub struct CullState {
     pub group_runs: bool,
     /// Per-triangle culling: the index buffer's tail this frame (first index, length).
     pub index_tail: (u32, u32),
+    /// Level of detail: the largest projected error in pixels (0 off).
+    pub lod_error_px: f32,
+    /// Level of detail: the scene's level table (`Lods` of cull_body.glsl) and the meshes it
+    /// covers; none when off.
+    lod_table: Option<(Buffer, u32)>,
+    /// Commands per draw group: 1, or with levels of detail one per level (the mesh's own and
+    /// [`tilegraph_scene::MAX_LODS`] coarser).
+    pub lod_levels: u32,
 }
 
 const CULL_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull.comp.spv");
@@ -156,8 +166,8 @@ const COMPACT_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull_compa
 const COMMANDS_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull_commands.comp.spv");
 
 /// The culling descriptor set's storage buffers (bindings 1-10; 11 and 12 the cluster techniques' base
-/// and chunk lists, `cull_clusters.comp`).
-const STORAGE_BINDINGS: u32 = 12;
+/// and chunk lists, `cull_clusters.comp`; 13 the level-of-detail table).
+const STORAGE_BINDINGS: u32 = 13;
 
 impl PassState for CullState {
     fn destroy(self: Box<Self>, ctx: &Context) {
@@ -197,7 +207,17 @@ impl CullState {
             cluster_gap,
             capacity,
             triangle_culling,
+            lod_error_px,
         } = inputs;
+        let lods = scene
+            .clusters()
+            .filter(|c| lod_error_px > 0.0 && c.has_lods())
+            .map(|c| (c.lods.as_slice(), c.mesh_clusters.len() as u32));
+        let lod_levels = if lods.is_some() {
+            1 + tilegraph_scene::MAX_LODS as u32
+        } else {
+            1
+        };
         // The cluster commands' draw ids follow the instance lists'.
         let cluster_commands = if culling.clusters() {
             let layout =
@@ -212,7 +232,7 @@ impl CullState {
         } else {
             0
         };
-        let specs = Self::buffer_specs(capacity, cluster_commands);
+        let specs = Self::buffer_specs(capacity, cluster_commands, lod_levels);
         let mut made: Vec<Buffer> = Vec::with_capacity(specs.len());
         for (name, size, usage) in specs {
             match ctx.create_buffer(name, size, usage, MemoryUse::GpuOnly) {
@@ -263,13 +283,27 @@ impl CullState {
             clusters: None,
             group_runs: false,
             index_tail: (0, 0),
+            lod_error_px,
+            lod_table: None,
+            lod_levels,
         };
         // A new renderer's visibility starts empty, not as whatever the memory held (another
         // renderer's last frame, say): two-phase culling's first early phase draws nothing and
         // its late phase everything the frustum keeps, on every run alike. Once, at creation,
         // so that no frame's declaration differs.
-        let zeroed = state
-            .init(ctx, scene_set_layout, orders, occluder)
+        let zeroed = lods
+            .map_or(Ok(()), |(table, meshes)| {
+                let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+                let b = crate::gpu_scene::upload(
+                    ctx,
+                    "lod table",
+                    bytemuck::cast_slice(table),
+                    storage,
+                )?;
+                state.lod_table = Some((b, meshes));
+                Ok(())
+            })
+            .and_then(|()| state.init(ctx, scene_set_layout, orders, occluder))
             .and_then(|()| {
                 if !culling.clusters() {
                     return Ok(());
@@ -400,6 +434,13 @@ impl CullState {
                 (8, ssbo, self.entries.raw),
                 (9, ssbo, inputs.groups.raw),
                 (10, ssbo, self.survivors.raw),
+                (
+                    13,
+                    ssbo,
+                    self.lod_table
+                        .as_ref()
+                        .map_or(self.no_pyramid.raw, |t| t.0.raw),
+                ),
             ],
         );
         Ok(set)
@@ -492,6 +533,21 @@ impl CullState {
         // current eye, as `reproject` is) for single-phase HiZ, this frame's for the late phase.
         let previous_view = frame.previous.view
             * Mat4::from_translation((frame.current.eye - frame.previous.eye).as_vec3());
+        // Level of detail: pixels per unit of length, as the sphere test reads the projection.
+        let (proj, _) = sphere_projection(m.projection);
+        let half_height = 0.5 * extent.1 as f32;
+        let lod_meshes = self.lod_table.as_ref().map_or(0, |t| t.1);
+        let lod = if lod_meshes > 0 {
+            let perspective = proj[2] != 0.0;
+            [
+                self.lod_error_px,
+                proj[1].abs() * half_height,
+                if perspective { 1.0 } else { 0.0 },
+                0.0,
+            ]
+        } else {
+            [0.0; 4]
+        };
         // Raster occlusion's early phase reads the box flags with this frame's turns.
         self.recheck = Recheck::new(self.recheck_interval, self.frames_written);
         let recheck = (self.culling == Culling::RasterOcclusion).then(|| self.recheck.packed());
@@ -515,8 +571,10 @@ impl CullState {
                 hiz_depth,
                 clusters: cluster_info,
                 cmd_base,
-                commands: [self.capacity.groups.max(1), c1, c2, c3],
+                commands: [self.command_slots(), c1, c2, c3],
                 triangles,
+                lod,
+                lod_info: [self.lod_levels, lod_meshes, 0, 0],
             }
         };
         let first = match self.culling.base() {
@@ -648,7 +706,7 @@ impl CullState {
         if groups == 0 {
             return Ok(());
         }
-        let slots = u64::from(self.capacity.groups.max(1));
+        let slots = u64::from(self.command_slots());
         let clusters = self.clusters.as_ref().filter(|_| from_clusters);
         let (commands, counts, offset, groups) = match clusters {
             // Cluster lists: the list's commands from its base, up to its capacity.
@@ -665,7 +723,7 @@ impl CullState {
                 &self.commands,
                 &self.counts,
                 u64::from(list) * slots * 20,
-                groups,
+                groups * self.lod_levels,
             ),
         };
         let d = &ctx.device;
@@ -705,9 +763,17 @@ impl CullState {
         }
     }
 
+    /// Command slots per list: a command per draw group and level of detail.
+    pub fn command_slots(&self) -> u32 {
+        self.capacity.groups.max(1) * self.lod_levels
+    }
+
     fn destroy_all(self, ctx: &Context) {
         if let Some(c) = self.clusters {
             c.destroy(ctx);
+        }
+        if let Some((t, _)) = self.lod_table {
+            ctx.destroy_buffer(t);
         }
         self.compute.destroy(ctx);
         let buffers = [

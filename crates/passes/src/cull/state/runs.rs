@@ -47,8 +47,11 @@ impl CullState {
         if count == 0 || first + count > groups {
             return Ok(());
         }
-        let slots = u64::from(self.capacity.groups.max(1));
-        let offset = (u64::from(list) * slots + u64::from(first)) * 20;
+        // With levels of detail a group is `lod_levels` consecutive commands.
+        let slots = u64::from(self.command_slots());
+        let levels = self.lod_levels.max(1);
+        let offset = (u64::from(list) * slots + u64::from(first * levels)) * 20;
+        let count = count * levels;
         let d = &ctx.device;
         if ctx.has_feature(tilegraph_vk::Feature::MultiDrawIndirect) {
             // SAFETY: inside a render pass with the pipeline, buffers and sets bound; commands

@@ -10,11 +10,13 @@ use crate::gpu_scene::Capacity;
 
 impl CullState {
     /// The shared buffers for `capacity` (`cluster_commands`: the cluster stage's command
-    /// slots): name, bytes, usage.
+    /// slots; `lod_levels`: commands per draw group): name, bytes, usage.
     pub(super) fn buffer_specs(
         capacity: Capacity,
         cluster_commands: u64,
+        lod_levels: u32,
     ) -> [(&'static str, u64, vk::BufferUsageFlags); 7] {
+        let levels = u64::from(lod_levels.max(1));
         let n = u64::from(capacity.instances.max(1));
         let stride = u64::from(capacity.stride.max(1));
         let lists = u64::from(LIST_COUNT);
@@ -25,7 +27,7 @@ impl CullState {
         [
             (
                 "cull commands",
-                u64::from(capacity.groups.max(1)) * lists * 20,
+                u64::from(capacity.groups.max(1)) * levels * lists * 20,
                 storage | indirect | src,
             ),
             // Draw count, then instances drawn, per list.
@@ -37,8 +39,8 @@ impl CullState {
             ),
             ("visibility", n * 4, storage | dst),
             ("cull entries", stride * lists * 4, storage),
-            // At most one group per instance and phase.
-            ("cull survivors", 2 * n * 4, storage),
+            // At most one group per instance and phase; a count per level.
+            ("cull survivors", 2 * n * levels * 4, storage),
             // Bound as the pyramid without one: never written, never read (the levels say 0).
             ("cull no pyramid", 16, storage),
         ]
@@ -60,13 +62,19 @@ impl CullState {
             .slots
             .iter()
             .flat_map(|s| [&s.params[0], &s.params[1], &s.groups, &s.stats]);
-        shared.into_iter().chain(slots).map(|b| b.size).sum()
+        let table = self.lod_table.iter().map(|t| &t.0);
+        shared
+            .into_iter()
+            .chain(slots)
+            .chain(table)
+            .map(|b| b.size)
+            .sum()
     }
 
     /// Device memory of the instance lists' buffers for `capacity` with `frames_in_flight`
     /// slots (the shared buffers and each slot's parameters, groups and counts).
     pub fn list_bytes(capacity: Capacity, frames_in_flight: usize) -> u64 {
-        let shared: u64 = Self::buffer_specs(capacity, 0).iter().map(|s| s.1).sum();
+        let shared: u64 = Self::buffer_specs(capacity, 0, 1).iter().map(|s| s.1).sum();
         let slot: u64 = SlotInputs::specs(u64::from(capacity.instances.max(1)))
             .iter()
             .map(|s| s.1)
