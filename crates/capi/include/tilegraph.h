@@ -1069,6 +1069,10 @@ typedef struct {
    */
   TgPvs pvs;
   uint32_t pvs_dilation;
+  /**
+   * As `TgViewDesc::lod_error_px`.
+   */
+  float lod_error_px;
 } TgRendererDesc;
 
 /**
@@ -1294,6 +1298,13 @@ typedef struct {
    */
   TgPvs pvs;
   uint32_t pvs_dilation;
+  /**
+   * Level of detail: each instance drawn with the coarsest simplified level of its mesh
+   * whose error projects to at most this many pixels (0: full detail). The levels come with
+   * the scene's clusters (`tg_scene_attach_clusters`); TG_CULLING_FRUSTUM, _HIZ,
+   * _HIZ_TWO_PHASE and _REPROJECT choose them (docs/CULLING.md, "Levels of detail").
+   */
+  float lod_error_px;
 } TgViewDesc;
 
 /**

@@ -35,6 +35,11 @@ pub struct TgViewDesc {
     /// misses, docs/ACCURACY.md).
     pub pvs: TgPvs,
     pub pvs_dilation: u32,
+    /// Level of detail: each instance drawn with the coarsest simplified level of its mesh
+    /// whose error projects to at most this many pixels (0: full detail). The levels come with
+    /// the scene's clusters (`tg_scene_attach_clusters`); TG_CULLING_FRUSTUM, _HIZ,
+    /// _HIZ_TWO_PHASE and _REPROJECT choose them (docs/CULLING.md, "Levels of detail").
+    pub lod_error_px: f32,
 }
 
 /// The options of a view (the renderer's own camera's too): technique, culling, size, clear
@@ -54,6 +59,7 @@ pub(crate) fn view_options(desc: &TgViewDesc) -> Result<RenderOptions, Failure> 
         )?,
         pvs: crate::pvs::of(desc.pvs, "desc->pvs")?,
         pvs_dilation: desc.pvs_dilation,
+        lod_error_px: desc.lod_error_px,
         ..RenderOptions::default()
     })
 }
@@ -106,4 +112,36 @@ fn shadows(cascades: u32, resolution: u32, culling: u32) -> Result<ShadowOptions
         culling,
         ..ShadowOptions::default()
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_view_asks_for_levels_of_detail_by_error_in_pixels() {
+        let desc = TgViewDesc {
+            technique: 0,
+            culling: 3,
+            width: 64,
+            height: 32,
+            clear_color: [0.0; 4],
+            visbuf_resolve: 0,
+            shadow_cascades: 0,
+            shadow_resolution: 0,
+            shadow_culling: 0,
+            pvs: TgPvs { raw: 0 },
+            pvs_dilation: 0,
+            lod_error_px: 2.0,
+        };
+        let Ok(options) = view_options(&desc) else {
+            panic!("refused");
+        };
+        assert_eq!(options.lod_error_px, 2.0);
+        let full = TgViewDesc {
+            lod_error_px: 0.0,
+            ..desc
+        };
+        assert!(view_options(&full).is_ok_and(|o| o.lod_error_px == 0.0));
+    }
 }

@@ -55,6 +55,8 @@ pub struct TgRendererDesc {
     /// As `TgViewDesc::pvs` and `pvs_dilation`: the visible set TG_CULLING_PVS draws from.
     pub pvs: TgPvs,
     pub pvs_dilation: u32,
+    /// As `TgViewDesc::lod_error_px`.
+    pub lod_error_px: f32,
 }
 
 /// Which shadow casters each cascade draws (docs/CULLING.md, "Shadow casters"). All exact.
@@ -227,6 +229,7 @@ pub unsafe extern "C" fn tg_renderer_create(
                 shadow_culling: desc.shadow_culling,
                 pvs: desc.pvs,
                 pvs_dilation: desc.pvs_dilation,
+                lod_error_px: desc.lod_error_px,
             })?
         };
         let renderer = registry::with2(
