@@ -216,3 +216,70 @@ fn a_results_file_it_cannot_read_is_not_overwritten() {
     );
     std::fs::remove_dir_all(&out).ok();
 }
+
+/// A sweep of `lod_error_px` on FlightHelmet: the full-detail run is exact, the coarser one
+/// draws fewer triangles for a measured image error, and the report has the levels-of-detail
+/// plot and table.
+#[test]
+fn a_level_of_detail_sweep_plots_image_error_against_cost() {
+    let Some(helmet) = test_data("scenes/FlightHelmet/FlightHelmet.gltf") else {
+        return;
+    };
+    let out = std::env::temp_dir().join(format!("tilegraph-bench-lod-{}", std::process::id()));
+    std::fs::remove_dir_all(&out).ok();
+    let args: Vec<String> = [
+        "bench",
+        "--scenes",
+        helmet.to_str().unwrap(),
+        "--culling",
+        "hiz-2phase",
+        "--set",
+        "lod_error_px=0,2",
+        "--sizes",
+        "160x90",
+        "--frames",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let (ok, stdout, err) = tilegraph(&args);
+    assert!(ok, "{err}");
+    assert!(
+        stdout.contains("lod-FlightHelmet-gltf-160x90.svg"),
+        "{stdout}"
+    );
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let run = |px: &str| {
+        results["runs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["settings"]["knobs"]["lod_error_px"] == px)
+            .unwrap_or_else(|| panic!("no run at {px} px"))["totals"]
+            .clone()
+    };
+    let (full, coarse) = (run("0"), run("2"));
+    assert_eq!(full["frames_image_equal"], 2, "{full}");
+    assert!(
+        full["image_psnr_db"].is_null() && full["image_rmse"] == 0.0,
+        "{full}"
+    );
+    assert!(
+        coarse["triangles_drawn"].as_u64() < full["triangles_drawn"].as_u64(),
+        "{coarse} {full}"
+    );
+    assert!(
+        coarse["image_psnr_db"].as_f64().is_some_and(|p| p > 20.0),
+        "{coarse}"
+    );
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("![Levels of detail](lod-FlightHelmet-gltf-160x90.svg)"));
+    assert!(report.contains("| hiz-2phase lod_error_px=2 |"), "{report}");
+    let svg = std::fs::read_to_string(out.join("lod-FlightHelmet-gltf-160x90.svg")).unwrap();
+    assert!(svg.contains("lod_error_px=2"), "the plot names its points");
+    std::fs::remove_dir_all(&out).ok();
+}

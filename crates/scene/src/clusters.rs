@@ -27,10 +27,10 @@ const CLUSTER_BYTES: usize = std::mem::size_of::<GpuCluster>();
 const LOD_BYTES: usize = std::mem::size_of::<GpuLod>();
 const HEADER_BYTES: usize = 48;
 
-/// Version 5: 80-byte clusters with the snapping-safe cone (`crate::cone`), each cluster's
+/// Version 6: 80-byte clusters with the snapping-safe cone (`crate::cone`), each cluster's
 /// triangles in vertex-cache order, each mesh's clusters outermost first, then the meshes'
 /// levels of detail (an older file is rebuilt).
-const MAGIC: &[u8; 8] = b"TGCLUST5";
+const MAGIC: &[u8; 8] = b"TGCLUST6";
 
 impl ClusterData {
     /// Writes the data to `path` (little-endian: magic, fingerprint, counts, then the arrays).
@@ -280,6 +280,10 @@ pub fn build(scene: &Scene) -> Result<(ClusterData, BuildStats), SceneError> {
     Ok((data, stats))
 }
 
+/// How much a unit of normal change weighs in a level's error, as a share of the mesh's extent.
+#[cfg(feature = "meshopt")]
+const NORMAL_WEIGHT: f32 = 0.25;
+
 /// A level is kept only if it has at most this share of the previous level's triangles.
 #[cfg(feature = "meshopt")]
 const LOD_STEP: f64 = 0.75;
@@ -302,13 +306,31 @@ fn simplified_levels(indices: &[u32], verts: &[crate::Vertex]) -> Vec<(Vec<u32>,
     // No error limit: the triangle count decides, the error is what it costs.
     let limit = f32::MAX;
     let options = meshopt::SimplifyOptions::ErrorAbsolute | meshopt::SimplifyOptions::LockBorder;
+    // Normals weigh in the error as lengths (a unit of normal change is NORMAL_WEIGHT of the
+    // mesh's extent): a level that bends the shading counts as far off as one that moves the
+    // surface by that much, so it is chosen only where that is small on screen.
+    let floats: &[f32] = bytemuck::cast_slice(verts);
+    let normals = floats.get(3..).unwrap_or(&[]);
+    let weight = NORMAL_WEIGHT * meshopt::simplify_scale(&adapter);
+    let weights = [weight; 3];
+    let locks = vec![false; verts.len()];
     let mut previous = indices.len();
     let mut error_floor = 0.0f32;
     while levels.len() < MAX_LODS && previous >= 6 {
         let target = (previous / 2) / 3 * 3;
         let mut error = 0.0f32;
-        let mut level =
-            meshopt::simplify(indices, &adapter, target, limit, options, Some(&mut error));
+        let mut level = meshopt::simplify_with_attributes_and_locks(
+            indices,
+            &adapter,
+            normals,
+            &weights,
+            std::mem::size_of::<crate::Vertex>(),
+            &locks,
+            target,
+            limit,
+            options,
+            Some(&mut error),
+        );
         if level.is_empty() || level.len() as f64 > LOD_STEP * previous as f64 || !error.is_finite()
         {
             break;

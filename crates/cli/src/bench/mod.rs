@@ -161,10 +161,16 @@ pub(crate) fn load_scenes(matrix: &Matrix) -> Result<HashMap<String, Scene>, Cli
     let mut scenes = HashMap::new();
     // Clusters change the index order: every technique of the sweep draws the same one. `auto`
     // tries cluster culling on scenes of big instances: they get their clusters too.
-    let clusters = if matrix
-        .culling
+    // Levels of detail come with the clusters.
+    let lod = matrix
+        .axes
         .iter()
-        .any(|c| Culling::parse(c).is_some_and(Culling::clusters))
+        .any(|(k, values)| k == "lod_error_px" && values.iter().any(|v| v.to_string() != "0"));
+    let clusters = if lod
+        || matrix
+            .culling
+            .iter()
+            .any(|c| Culling::parse(c).is_some_and(Culling::clusters))
     {
         crate::run::Clusters::Yes
     } else if matrix.culling.iter().any(|c| Culling::parse(c).is_none()) {
@@ -313,6 +319,9 @@ pub(crate) fn write_outputs(
         written.push(plot::passes(out, &group, &labels)?);
         if group.has_shadows() {
             written.push(plot::casters(out, &group, &labels)?);
+        }
+        if plot::has_lod(&group) {
+            written.push(plot::lod(out, &group, &labels)?);
         }
     }
     let report_path = out.join("report.md");

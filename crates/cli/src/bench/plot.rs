@@ -240,3 +240,113 @@ pub fn passes(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, Cli
     }
     Ok(path)
 }
+
+/// Whether a group's runs swept levels of detail (knob `lod_error_px` set on one of them).
+pub fn has_lod(g: &Group<'_>) -> bool {
+    g.runs
+        .iter()
+        .any(|r| r.settings.knobs.contains_key("lod_error_px"))
+}
+
+/// A setting of a levels-of-detail plot: its label, image error (RMSE), frame ms, triangles
+/// per frame.
+struct LodPoint {
+    label: String,
+    error: f64,
+    ms: f64,
+    triangles: f64,
+}
+
+/// What a panel's y axis reads of a point.
+type Axis = fn(&LodPoint) -> f64;
+
+/// `lod-<scene>-<WxH>.svg`: levels of detail's trade, two panels sharing the x axis — the
+/// image error against the full-detail, unculled frame (RMSE per channel over the path, 8-bit
+/// levels; 0 exact) — with the frame's GPU ms (median) left and the triangles drawn per frame
+/// right; a point per setting, each panel's Pareto front (no other point has less error and
+/// less cost) joined.
+pub fn lod(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, CliError> {
+    let path = out.join(format!("lod-{}.svg", g.stem()));
+    let err = write_err(&path);
+    let points: Vec<LodPoint> = g
+        .measured()
+        .into_iter()
+        .filter_map(|(r, _)| {
+            let t = r.totals.as_ref()?;
+            let psnr = t
+                .image_psnr_db
+                .map_or("exact".to_string(), |p| format!("{p:.1} dB"));
+            Some(LodPoint {
+                label: format!("{} ({psnr})", labels.label(&r.settings)),
+                error: t.image_rmse,
+                ms: t.frame_gpu_ms,
+                triangles: t.triangles_drawn as f64 / t.frames.max(1) as f64,
+            })
+        })
+        .collect();
+    let max_error = points.iter().map(|p| p.error).fold(1e-3, f64::max) * 1.15;
+    let short = g.scene.rsplit(['/', '\\']).next().unwrap_or(&g.scene);
+    let height = 460 + 18 * points.len() as u32;
+    {
+        let root = SVGBackend::new(&path, (1200, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        let (top, legend) = root.split_vertically(420);
+        let panels = top.split_evenly((1, 2));
+        let axes: [(&str, Axis); 2] = [
+            ("frame GPU ms (median)", |p| p.ms),
+            ("triangles drawn per frame", |p| p.triangles),
+        ];
+        for (panel, (y_desc, y)) in panels.iter().zip(axes) {
+            let max_y = points.iter().map(y).fold(1e-3, f64::max) * 1.15;
+            let mut chart = ChartBuilder::on(panel)
+                .caption(
+                    format!("{short} {}x{}: {y_desc}", g.size[0], g.size[1]),
+                    ("sans-serif", 15),
+                )
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(72)
+                .build_cartesian_2d(0.0..max_error, 0.0..max_y)
+                .map_err(|e| err(e.to_string()))?;
+            chart
+                .configure_mesh()
+                .x_desc("image error vs full detail: RMSE per channel (8-bit levels)")
+                .y_desc(y_desc)
+                .draw()
+                .map_err(|e| err(e.to_string()))?;
+            for (i, p) in points.iter().enumerate() {
+                chart
+                    .draw_series([Circle::new((p.error, y(p)), 6, colour(i).filled())])
+                    .map_err(|e| err(e.to_string()))?;
+            }
+            let mut front: Vec<(f64, f64)> = points
+                .iter()
+                .filter(|p| {
+                    !points.iter().any(|o| {
+                        o.error <= p.error && y(o) <= y(p) && (o.error < p.error || y(o) < y(p))
+                    })
+                })
+                .map(|p| (p.error, y(p)))
+                .collect();
+            front.sort_by(|a, b| a.0.total_cmp(&b.0));
+            chart
+                .draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
+                .map_err(|e| err(e.to_string()))?;
+        }
+        for (i, p) in points.iter().enumerate() {
+            let at = (24, 8 + 18 * i as i32);
+            legend
+                .draw(&Circle::new(at, 5, colour(i).filled()))
+                .map_err(|e| err(e.to_string()))?;
+            let text = format!(
+                "{}: {:.3} ms, {:.0} triangles, RMSE {:.2}",
+                p.label, p.ms, p.triangles, p.error
+            );
+            legend
+                .draw(&Text::new(text, (at.0 + 14, at.1 - 7), ("sans-serif", 13)))
+                .map_err(|e| err(e.to_string()))?;
+        }
+        root.present().map_err(|e| err(e.to_string()))?;
+    }
+    Ok(path)
+}

@@ -131,6 +131,41 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
             md.push_str(&caster_table(&g, labels));
             md.push('\n');
         }
+        if super::plot::has_lod(&g) {
+            let _ = writeln!(md, "![Levels of detail](lod-{}.svg)\n", g.stem());
+            md.push_str(&lod_table(&g, labels));
+            md.push('\n');
+        }
+    }
+    md
+}
+
+/// One group's image error against the full-detail, unculled frames (levels of detail trade
+/// it for triangles): per setting, triangles per frame, frame ms, RMSE, PSNR (worst frame
+/// too) and the largest channel difference.
+pub fn lod_table(g: &Group<'_>, labels: &Labels) -> String {
+    let mut md = String::from(
+        "| setting | triangles / frame | frame ms | RMSE | PSNR dB | worst frame dB | largest difference |\n|---|---|---|---|---|---|---|\n",
+    );
+    let db = |p: Option<f64>| p.map_or("exact".to_string(), |p| format!("{p:.1}"));
+    for (r, _) in g.measured() {
+        let Some(t) = &r.totals else { continue };
+        let worst = r
+            .frames
+            .iter()
+            .filter_map(|f| f.image_psnr_db)
+            .min_by(f64::total_cmp);
+        let _ = writeln!(
+            md,
+            "| {} | {:.0} | {:.3} | {:.2} | {} | {} | {} |",
+            labels.label(&r.settings),
+            t.triangles_drawn as f64 / t.frames.max(1) as f64,
+            t.frame_gpu_ms,
+            t.image_rmse,
+            db(t.image_psnr_db),
+            db(worst),
+            t.image_max_channel_diff,
+        );
     }
     md
 }

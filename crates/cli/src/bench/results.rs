@@ -44,6 +44,10 @@ pub struct FrameRecord {
     pub false_positives: usize,
     pub triangles_drawn: u64,
     pub image_equal: bool,
+    /// PSNR of the frame's image against the full-detail, unculled one (absent where equal,
+    /// and in results written before it).
+    #[serde(default)]
+    pub image_psnr_db: Option<f64>,
     /// With shadows: the casters drawn into the cascades, summed (absent without shadows and
     /// in results written before them).
     #[serde(default)]
@@ -86,6 +90,16 @@ pub struct TotalsRecord {
     pub fp_rate: f64,
     pub frames_with_false_negatives: usize,
     pub frames_image_equal: usize,
+    /// The images against the full-detail, unculled ones over the path: root mean squared
+    /// difference per channel (8-bit levels; 0 for an exact technique), PSNR (absent where
+    /// every frame was equal) and the largest difference (levels of detail trade these for
+    /// triangles; absent in results written before them).
+    #[serde(default)]
+    pub image_rmse: f64,
+    #[serde(default)]
+    pub image_psnr_db: Option<f64>,
+    #[serde(default)]
+    pub image_max_channel_diff: u8,
     pub triangles_drawn: u64,
     /// Median of the whole frame (two timestamps around it, no per-pass queries).
     pub frame_gpu_ms: f64,
@@ -207,6 +221,9 @@ impl RunRecord {
                 })
                 .count(),
             frames_image_equal: t.frames_image_equal,
+            image_rmse: t.image_error.mse.sqrt(),
+            image_psnr_db: t.image_error.psnr_db,
+            image_max_channel_diff: t.image_error.max_channel_diff,
             triangles_drawn: t.triangles_drawn,
             frame_gpu_ms: t.frame_gpu_ms,
             frame_gpu_ms_p95: t.frame_gpu_ms_p95,
@@ -260,6 +277,7 @@ impl RunRecord {
                     false_positives: f.false_positives,
                     triangles_drawn: f.triangles_drawn,
                     image_equal: f.image_equal,
+                    image_psnr_db: f.image_error.psnr_db,
                     shadow_casters: f.shadow_casters,
                     shadow_casters_needed: f.casters.map(|c| c.needed as u32),
                     shadow_caster_false_positives: f.casters.map(|c| c.false_positives as u32),
