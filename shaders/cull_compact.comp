@@ -15,12 +15,21 @@ layout(set = 1, binding = 9, std430) readonly buffer Groups { Group groups[]; };
 layout(set = 1, binding = 10, std430) writeonly buffer Survivors { uint survivors[]; };
 
 // Each thread owns PER_THREAD consecutive entries of a chunk: a group of up to 1,024 entries is
-// one pass of loads, one 64-wide scan and one pass of stores (the scan's barriers are the
-// latency; few groups run at once when a scene has few meshes).
+// one pass of loads, one 64-wide scan (of every level's counts at once) and one pass of stores
+// (the scan's barriers are the latency; few groups run at once when a scene has few meshes).
 const uint PER_THREAD = 16u;
 const uint CHUNK = 64u * PER_THREAD;
+// The mesh itself and its coarser levels.
+const uint MAX_LEVELS = 1u + MAX_LODS;
 
-shared uint scan[64];
+shared uint scan[64u * MAX_LEVELS];
+// Per level, the group's survivors (where each level's run starts follows from them).
+shared uint totals[MAX_LEVELS];
+
+// Level `e`'s entry is drawn with (0 without levels of detail: the entry is the id + 1).
+uint entry_level(uint e) {
+    return e >> ENTRY_LEVEL_SHIFT;
+}
 
 void main() {
     uint g = gl_WorkGroupID.x % cull.groups.x;
@@ -28,44 +37,86 @@ void main() {
     Group group = groups[g];
     uint base = (4u * phase + group.list) * cull.screen.z + group.position;
     uint t = gl_LocalInvocationID.x;
-    // With levels of detail, the group's survivors are packed level by level (each level its
-    // own command, in entry order within it); without, one level holds them all.
-    uint levels = max(cull.lod_info.x, 1u);
-    uint packed = 0u;
-    for (uint level = 0u; level < levels; ++level) {
-        uint level_packed = 0u;
+    // With levels of detail the group's survivors are packed level by level, each level a run
+    // in entry order (its own command); without, one level holds them all.
+    uint levels = clamp(cull.lod_info.x, 1u, MAX_LEVELS);
+    if (t < MAX_LEVELS) {
+        totals[t] = 0u;
+    }
+    barrier();
+    // A group of several chunks counts its levels first: a level's run starts after every
+    // survivor of the levels before it. (One chunk's scan gives the counts itself.)
+    bool chunks = group.len > CHUNK;
+    if (chunks && levels > 1u) {
         for (uint chunk = 0u; chunk < group.len; chunk += CHUNK) {
             uint first = chunk + t * PER_THREAD;
             uint last = min(first + PER_THREAD, group.len);
-            uint kept = 0u;
             for (uint i = first; i < last; ++i) {
                 uint e = entries[base + i];
-                kept += e != 0u && (e >> ENTRY_LEVEL_SHIFT) == level ? 1u : 0u;
-            }
-            // Inclusive scan of the threads' counts (Hillis-Steele in shared memory: portable,
-            // no subgroup size assumptions).
-            scan[t] = kept;
-            barrier();
-            for (uint d = 1u; d < 64u; d <<= 1u) {
-                uint add = t >= d ? scan[t - d] : 0u;
-                barrier();
-                scan[t] += add;
-                barrier();
-            }
-            uint at = base + packed + level_packed + scan[t] - kept;
-            for (uint i = first; i < last; ++i) {
-                uint e = entries[base + i];
-                if (e != 0u && (e >> ENTRY_LEVEL_SHIFT) == level) {
-                    draw_ids[at] = (e & ENTRY_ID_MASK) - 1u;
-                    at += 1u;
+                if (e != 0u) {
+                    atomicAdd(totals[entry_level(e)], 1u);
                 }
             }
-            level_packed += scan[63];
-            barrier(); // every thread read scan[63] before the next chunk overwrites it
         }
-        if (t == 0u) {
-            survivors[gl_WorkGroupID.x * levels + level] = level_packed;
+        barrier();
+    }
+    uint done[MAX_LEVELS]; // per level, the survivors placed by the chunks before
+    for (uint l = 0u; l < MAX_LEVELS; ++l) {
+        done[l] = 0u;
+    }
+    for (uint chunk = 0u; chunk < group.len; chunk += CHUNK) {
+        uint first = chunk + t * PER_THREAD;
+        uint last = min(first + PER_THREAD, group.len);
+        uint kept[MAX_LEVELS];
+        for (uint l = 0u; l < MAX_LEVELS; ++l) {
+            kept[l] = 0u;
         }
-        packed += level_packed;
+        for (uint i = first; i < last; ++i) {
+            uint e = entries[base + i];
+            if (e != 0u) {
+                kept[min(entry_level(e), MAX_LEVELS - 1u)] += 1u;
+            }
+        }
+        // Inclusive scan of the threads' counts, every level at once (Hillis-Steele in shared
+        // memory: portable, no subgroup size assumptions).
+        for (uint l = 0u; l < levels; ++l) {
+            scan[l * 64u + t] = kept[l];
+        }
+        barrier();
+        for (uint d = 1u; d < 64u; d <<= 1u) {
+            uint add[MAX_LEVELS];
+            for (uint l = 0u; l < levels; ++l) {
+                add[l] = t >= d ? scan[l * 64u + t - d] : 0u;
+            }
+            barrier();
+            for (uint l = 0u; l < levels; ++l) {
+                scan[l * 64u + t] += add[l];
+            }
+            barrier();
+        }
+        // Where this thread's survivors of each level go: after the levels before, the chunks
+        // before and the threads before.
+        uint cursor[MAX_LEVELS];
+        uint start = 0u;
+        for (uint l = 0u; l < levels; ++l) {
+            uint total = chunks ? totals[l] : scan[l * 64u + 63u];
+            cursor[l] = base + start + done[l] + scan[l * 64u + t] - kept[l];
+            start += total;
+        }
+        for (uint i = first; i < last; ++i) {
+            uint e = entries[base + i];
+            if (e != 0u) {
+                uint l = min(entry_level(e), levels - 1u);
+                draw_ids[cursor[l]] = (e & ENTRY_ID_MASK) - 1u;
+                cursor[l] += 1u;
+            }
+        }
+        for (uint l = 0u; l < levels; ++l) {
+            done[l] += scan[l * 64u + 63u];
+        }
+        barrier(); // every thread read the scan before the next chunk overwrites it
+    }
+    if (t < levels) {
+        survivors[gl_WorkGroupID.x * levels + t] = done[t];
     }
 }

@@ -39,7 +39,7 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
 } cull;
 
 // Levels of detail of a mesh coarser than its own (tilegraph_scene::GpuLod; MAX_LODS per mesh).
-const uint MAX_LODS = 4u;
+const uint MAX_LODS = 6u;
 struct Lod {
     uint first_index;
     uint index_count;      // 0: no such level

@@ -217,3 +217,75 @@ fn levels_of_detail_say_what_they_need() {
     let plain = tilegraph_scene::load("city:200").unwrap();
     assert!(refused(&plain, options(Culling::Frustum, 1.0)).contains("clusters"));
 }
+
+/// A draw group longer than one compaction chunk (1,296 spheres of one mesh, the chunk is
+/// 1,024 entries): every instance the frustum keeps is drawn exactly once, by a command whose
+/// index range is one of its mesh's levels, several levels in use; the same instances as at
+/// full detail; two-phase culling draws the same image as frustum culling.
+#[test]
+fn long_groups_pack_each_level_once() {
+    let scene = tilegraph_e2e::closed_spheres(36, 36, false);
+    let g = gpu_with(None, tilegraph_e2e::culling_features()).unwrap();
+    // From a corner at eye height across the grid: near spheres fine, far ones coarse.
+    let cam = tilegraph_scene::Camera::looking_at(
+        glam::DVec3::new(-46.0, 1.5, -46.0),
+        glam::DVec3::new(0.0, 0.0, 0.0),
+    );
+    let drawn = |px: f32| {
+        let mut r = SceneRenderer::new(&g, &scene, options(Culling::Frustum, px)).unwrap();
+        r.render(&g, &scene, &cam).unwrap();
+        let lists = r.gpu_lists(&g).unwrap().unwrap();
+        let image = r.read_image(&g).unwrap().pixels;
+        r.destroy(&g);
+        (lists, image)
+    };
+    let (full, _) = drawn(0.0);
+    let (lod, lod_image) = drawn(1.0);
+    let ids = |lists: &tilegraph_passes::cull::GpuLists| {
+        let mut ids: Vec<u32> = lists.lists[..4]
+            .iter()
+            .flatten()
+            .flat_map(|d| d.instances.iter().copied())
+            .collect();
+        ids.sort_unstable();
+        ids
+    };
+    let (full_ids, lod_ids) = (ids(&full), ids(&lod));
+    assert!(
+        full_ids.len() > 1024,
+        "{} drawn: the group fits one chunk",
+        full_ids.len()
+    );
+    let mut unique = lod_ids.clone();
+    unique.dedup();
+    assert_eq!(unique.len(), lod_ids.len(), "an instance drawn twice");
+    assert_eq!(lod_ids, full_ids, "levels changed what the frustum keeps");
+    let clusters = scene.clusters().unwrap();
+    let mut ranges_used = std::collections::BTreeSet::new();
+    for d in lod.lists[..4].iter().flatten() {
+        for &id in &d.instances {
+            let m = scene.instances()[id as usize].mesh;
+            let mesh = scene.mesh(m).unwrap();
+            let own = (mesh.first_index, mesh.index_count);
+            let levels: Vec<(u32, u32)> = clusters
+                .lods_of(m.0)
+                .iter()
+                .map(|l| (l.first_index, l.index_count))
+                .collect();
+            let range = (d.first_index, d.index_count);
+            assert!(
+                range == own || levels.contains(&range),
+                "instance {id}: range {range:?}"
+            );
+        }
+        ranges_used.insert((d.first_index, d.index_count));
+    }
+    assert!(ranges_used.len() > 2, "levels used: {ranges_used:?}");
+    let mut r = SceneRenderer::new(&g, &scene, options(Culling::HizTwoPhase, 1.0)).unwrap();
+    r.render(&g, &scene, &cam).unwrap();
+    assert!(
+        r.read_image(&g).unwrap().pixels == lod_image,
+        "two-phase drew another image"
+    );
+    r.destroy(&g);
+}

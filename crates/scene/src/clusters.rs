@@ -27,10 +27,10 @@ const CLUSTER_BYTES: usize = std::mem::size_of::<GpuCluster>();
 const LOD_BYTES: usize = std::mem::size_of::<GpuLod>();
 const HEADER_BYTES: usize = 48;
 
-/// Version 6: 80-byte clusters with the snapping-safe cone (`crate::cone`), each cluster's
+/// Version 7: 80-byte clusters with the snapping-safe cone (`crate::cone`), each cluster's
 /// triangles in vertex-cache order, each mesh's clusters outermost first, then the meshes'
 /// levels of detail (an older file is rebuilt).
-const MAGIC: &[u8; 8] = b"TGCLUST6";
+const MAGIC: &[u8; 8] = b"TGCLUST7";
 
 impl ClusterData {
     /// Writes the data to `path` (little-endian: magic, fingerprint, counts, then the arrays).

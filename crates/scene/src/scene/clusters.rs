@@ -45,7 +45,7 @@ impl GpuCluster {
 }
 
 /// Coarser levels of detail kept per mesh (each about half the triangles of the one before).
-pub const MAX_LODS: usize = 4;
+pub const MAX_LODS: usize = 6;
 
 /// One simplified level of a mesh (`Lod` of shaders/common/cull.glsl; 16 bytes): a range of
 /// the scene's index buffer over the mesh's own vertices, and how far its surface may lie from
