@@ -164,6 +164,11 @@ const CULL_CLUSTERS_SPV: &[u8] =
     include_bytes!("../../../../../shaders/spv/cull_clusters.comp.spv");
 const COMPACT_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull_compact.comp.spv");
 const COMMANDS_SPV: &[u8] = include_bytes!("../../../../../shaders/spv/cull_commands.comp.spv");
+// With levels of detail: a command per group and level.
+const COMPACT_LOD_SPV: &[u8] =
+    include_bytes!("../../../../../shaders/spv/cull_compact_lod.comp.spv");
+const COMMANDS_LOD_SPV: &[u8] =
+    include_bytes!("../../../../../shaders/spv/cull_commands_lod.comp.spv");
 
 /// The culling descriptor set's storage buffers (bindings 1-10; 11 and 12 the cluster techniques' base
 /// and chunk lists, `cull_clusters.comp`; 13 the level-of-detail table).
@@ -376,8 +381,16 @@ impl CullState {
             } else {
                 ("cull.comp", CULL_SPV)
             },
-            ("cull_compact.comp", COMPACT_SPV),
-            ("cull_commands.comp", COMMANDS_SPV),
+            if self.lod_levels > 1 {
+                ("cull_compact_lod.comp", COMPACT_LOD_SPV)
+            } else {
+                ("cull_compact.comp", COMPACT_SPV)
+            },
+            if self.lod_levels > 1 {
+                ("cull_commands_lod.comp", COMMANDS_LOD_SPV)
+            } else {
+                ("cull_commands.comp", COMMANDS_SPV)
+            },
         ];
         self.compute
             .init(ctx, scene_set_layout, STORAGE_BINDINGS, shaders, 2 * slots)?;
