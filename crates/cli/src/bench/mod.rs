@@ -320,7 +320,7 @@ pub(crate) fn write_outputs(
         if group.has_shadows() {
             written.push(plot::casters(out, &group, &labels)?);
         }
-        if plot::has_lod(&group) {
+        if group.has_lod() {
             written.push(plot::lod(out, &group, &labels)?);
         }
     }

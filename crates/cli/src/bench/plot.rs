@@ -7,7 +7,7 @@ use plotters::prelude::*;
 
 use super::matrix::Labels;
 use super::report::Group;
-use super::RunRecord;
+use super::{RunRecord, Setting};
 use crate::CliError;
 
 fn colour(i: usize) -> RGBColor {
@@ -241,13 +241,6 @@ pub fn passes(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, Cli
     Ok(path)
 }
 
-/// Whether a group's runs swept levels of detail (knob `lod_error_px` set on one of them).
-pub fn has_lod(g: &Group<'_>) -> bool {
-    g.runs
-        .iter()
-        .any(|r| r.settings.knobs.contains_key("lod_error_px"))
-}
-
 /// A setting of a levels-of-detail plot: its label, image error (RMSE), frame ms, triangles
 /// per frame.
 struct LodPoint {
@@ -255,6 +248,8 @@ struct LodPoint {
     error: f64,
     ms: f64,
     triangles: f64,
+    /// Its series: the settings that differ in `lod_error_px` only share one.
+    series: usize,
 }
 
 /// What a panel's y axis reads of a point.
@@ -263,11 +258,13 @@ type Axis = fn(&LodPoint) -> f64;
 /// `lod-<scene>-<WxH>.svg`: levels of detail's trade, two panels sharing the x axis — the
 /// image error against the full-detail, unculled frame (RMSE per channel over the path, 8-bit
 /// levels; 0 exact) — with the frame's GPU ms (median) left and the triangles drawn per frame
-/// right; a point per setting, each panel's Pareto front (no other point has less error and
-/// less cost) joined.
+/// right; a point per setting, a colour per series (settings equal but for `lod_error_px`: one
+/// camera path, culling, shading…), each series' Pareto front (no other of its points has less
+/// error and less cost) joined.
 pub fn lod(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, CliError> {
     let path = out.join(format!("lod-{}.svg", g.stem()));
     let err = write_err(&path);
+    let mut series: Vec<Setting> = Vec::new();
     let points: Vec<LodPoint> = g
         .measured()
         .into_iter()
@@ -276,11 +273,18 @@ pub fn lod(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, CliErr
             let psnr = t
                 .image_psnr_db
                 .map_or("exact".to_string(), |p| format!("{p:.1} dB"));
+            let mut key = r.settings.clone();
+            key.knobs.remove("lod_error_px");
+            let index = series.iter().position(|s| *s == key).unwrap_or_else(|| {
+                series.push(key);
+                series.len() - 1
+            });
             Some(LodPoint {
                 label: format!("{} ({psnr})", labels.label(&r.settings)),
                 error: t.image_rmse,
                 ms: t.frame_gpu_ms,
                 triangles: t.triangles_drawn as f64 / t.frames.max(1) as f64,
+                series: index,
             })
         })
         .collect();
@@ -314,29 +318,32 @@ pub fn lod(out: &Path, g: &Group<'_>, labels: &Labels) -> Result<PathBuf, CliErr
                 .y_desc(y_desc)
                 .draw()
                 .map_err(|e| err(e.to_string()))?;
-            for (i, p) in points.iter().enumerate() {
+            for p in &points {
                 chart
-                    .draw_series([Circle::new((p.error, y(p)), 6, colour(i).filled())])
+                    .draw_series([Circle::new((p.error, y(p)), 6, colour(p.series).filled())])
                     .map_err(|e| err(e.to_string()))?;
             }
-            let mut front: Vec<(f64, f64)> = points
-                .iter()
-                .filter(|p| {
-                    !points.iter().any(|o| {
-                        o.error <= p.error && y(o) <= y(p) && (o.error < p.error || y(o) < y(p))
+            for k in 0..series.len() {
+                let own: Vec<&LodPoint> = points.iter().filter(|p| p.series == k).collect();
+                let mut front: Vec<(f64, f64)> = own
+                    .iter()
+                    .filter(|p| {
+                        !own.iter().any(|o| {
+                            o.error <= p.error && y(o) <= y(p) && (o.error < p.error || y(o) < y(p))
+                        })
                     })
-                })
-                .map(|p| (p.error, y(p)))
-                .collect();
-            front.sort_by(|a, b| a.0.total_cmp(&b.0));
-            chart
-                .draw_series(LineSeries::new(front, BLACK.stroke_width(1)))
-                .map_err(|e| err(e.to_string()))?;
+                    .map(|p| (p.error, y(p)))
+                    .collect();
+                front.sort_by(|a, b| a.0.total_cmp(&b.0));
+                chart
+                    .draw_series(LineSeries::new(front, colour(k).stroke_width(1)))
+                    .map_err(|e| err(e.to_string()))?;
+            }
         }
         for (i, p) in points.iter().enumerate() {
             let at = (24, 8 + 18 * i as i32);
             legend
-                .draw(&Circle::new(at, 5, colour(i).filled()))
+                .draw(&Circle::new(at, 5, colour(p.series).filled()))
                 .map_err(|e| err(e.to_string()))?;
             let text = format!(
                 "{}: {:.3} ms, {:.0} triangles, RMSE {:.2}",

@@ -26,6 +26,13 @@ impl<'a> Group<'a> {
         format!("{scene}-{}x{}", self.size[0], self.size[1])
     }
 
+    /// Whether its runs swept levels of detail (knob `lod_error_px` set on one of them).
+    pub fn has_lod(&self) -> bool {
+        self.runs
+            .iter()
+            .any(|r| r.settings.knobs.contains_key("lod_error_px"))
+    }
+
     /// Whether a run measured shadow casters against the oracle.
     pub fn has_shadows(&self) -> bool {
         self.runs.iter().any(|r| {
@@ -131,7 +138,7 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
             md.push_str(&caster_table(&g, labels));
             md.push('\n');
         }
-        if super::plot::has_lod(&g) {
+        if g.has_lod() {
             let _ = writeln!(md, "![Levels of detail](lod-{}.svg)\n", g.stem());
             md.push_str(&lod_table(&g, labels));
             md.push('\n');
