@@ -785,6 +785,7 @@ mod tests {
                 image_rmse: 0.0,
                 image_psnr_db: None,
                 image_max_channel_diff: 0,
+                image_max_depth_rel_diff: None,
                 triangles_drawn: 0,
                 frame_gpu_ms: 1.0,
                 frame_gpu_ms_p95: 1.0,

@@ -92,6 +92,8 @@ pub(crate) struct SceneFrame<'a> {
     /// The renderer's colour target, and its id target when it keeps the ids.
     pub target: &'a ImageHandle,
     pub ids_target: Option<&'a ImageHandle>,
+    /// The depth image it keeps (`capture_depth`); else the depth is the frame's own.
+    pub depth_target: Option<&'a ImageHandle>,
     /// The light's shadow atlas (imported when the renderer has shadows).
     pub atlas: &'a crate::gpu_scene::shadow_atlas::ShadowAtlas,
 }
@@ -196,6 +198,7 @@ impl<'a> Composition<'a> {
             states,
             target,
             ids_target,
+            depth_target,
             ..
         } = *spec;
         let extent = Extent2d::new(options.width, options.height);
@@ -209,7 +212,19 @@ impl<'a> Composition<'a> {
             tilegraph_cull::DepthFormat::D16Unorm => Format::D16_UNORM,
             tilegraph_cull::DepthFormat::D32Float => Format::D32_SFLOAT,
         };
-        let depth = g.create_image("depth", ImageDesc::new(extent, depth_format));
+        let depth = match depth_target {
+            Some(handle) => {
+                let depth = g.import_image(
+                    "depth",
+                    ImageDesc::new(extent, depth_format),
+                    kept_import(key.first_frame),
+                );
+                g.export(depth);
+                externals.insert(depth, External::Image(handle.clone()));
+                depth
+            }
+            None => g.create_image("depth", ImageDesc::new(extent, depth_format)),
+        };
         let mut t = SceneTargets::new(color, depth, extent, options.clear_color, key.depth);
         if let Some(handle) = ids_target {
             let ids = g.import_image(

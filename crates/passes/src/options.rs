@@ -155,6 +155,10 @@ pub struct RenderOptions {
     /// Keep the visibility buffer's ids after the frame (the oracle reads them back):
     /// the id attachment becomes an imported image, so it is stored.
     pub capture_ids: bool,
+    /// Keep the main view's depth after the frame (`cull-check` compares a level-of-detail
+    /// frame's depth with the full-detail one's): the depth becomes an imported image, so it
+    /// is stored (on a tiler, traffic the frame otherwise saves).
+    pub capture_depth: bool,
     /// Occlusion queries: instances per query (groups of nearby instances share one box).
     pub oq_group: usize,
     /// Occlusion queries and raster occlusion (knob `occlusion_recheck`): what was visible is
@@ -240,6 +244,7 @@ impl Default for RenderOptions {
             triangle_culling: false,
             lod_error_px: 0.0,
             capture_ids: false,
+            capture_depth: false,
             oq_group: 16,
             occlusion_recheck: 8,
             raster_occlusion_scale: 1,

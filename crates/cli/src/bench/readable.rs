@@ -171,6 +171,7 @@ fn sweep(out: &Path) -> (Vec<Setting>, Results) {
                     image_rmse: 0.0,
                     image_psnr_db: None,
                     image_max_channel_diff: 0,
+                    image_max_depth_rel_diff: None,
                     triangles_drawn: 1_000_000,
                     frame_gpu_ms: ms,
                     frame_gpu_ms_p95: ms * 1.1,

@@ -152,7 +152,7 @@ pub fn markdown(runs: &[&RunRecord], labels: &Labels) -> String {
 /// too) and the largest channel difference.
 pub fn lod_table(g: &Group<'_>, labels: &Labels) -> String {
     let mut md = String::from(
-        "| setting | triangles / frame | frame ms | RMSE | PSNR dB | worst frame dB | largest difference |\n|---|---|---|---|---|---|---|\n",
+        "| setting | triangles / frame | frame ms | RMSE | PSNR dB | worst frame dB | largest difference | largest depth difference |\n|---|---|---|---|---|---|---|---|\n",
     );
     let db = |p: Option<f64>| p.map_or("exact".to_string(), |p| format!("{p:.1}"));
     for (r, _) in g.measured() {
@@ -164,7 +164,7 @@ pub fn lod_table(g: &Group<'_>, labels: &Labels) -> String {
             .min_by(f64::total_cmp);
         let _ = writeln!(
             md,
-            "| {} | {:.0} | {:.3} | {:.2} | {} | {} | {} |",
+            "| {} | {:.0} | {:.3} | {:.2} | {} | {} | {} | {} |",
             labels.label(&r.settings),
             t.triangles_drawn as f64 / t.frames.max(1) as f64,
             t.frame_gpu_ms,
@@ -172,6 +172,8 @@ pub fn lod_table(g: &Group<'_>, labels: &Labels) -> String {
             db(t.image_psnr_db),
             db(worst),
             t.image_max_channel_diff,
+            t.image_max_depth_rel_diff
+                .map_or("-".to_string(), |d| format!("{:.2} %", 100.0 * d)),
         );
     }
     md

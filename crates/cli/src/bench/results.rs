@@ -100,6 +100,10 @@ pub struct TotalsRecord {
     pub image_psnr_db: Option<f64>,
     #[serde(default)]
     pub image_max_channel_diff: u8,
+    /// Levels of detail: the largest relative difference of view distance at a pixel both the
+    /// setting and the full-detail frame cover (absent without levels).
+    #[serde(default)]
+    pub image_max_depth_rel_diff: Option<f64>,
     pub triangles_drawn: u64,
     /// Median of the whole frame (two timestamps around it, no per-pass queries).
     pub frame_gpu_ms: f64,
@@ -224,6 +228,7 @@ impl RunRecord {
             image_rmse: t.image_error.mse.sqrt(),
             image_psnr_db: t.image_error.psnr_db,
             image_max_channel_diff: t.image_error.max_channel_diff,
+            image_max_depth_rel_diff: t.image_error.max_depth_rel_diff,
             triangles_drawn: t.triangles_drawn,
             frame_gpu_ms: t.frame_gpu_ms,
             frame_gpu_ms_p95: t.frame_gpu_ms_p95,

@@ -3,6 +3,7 @@
 //! the diff image of a failed frame.
 
 use serde::Serialize;
+use tilegraph_scene::{DepthConvention, FrameMatrices};
 
 use tilegraph_vk::readback::RgbaImage;
 
@@ -15,6 +16,10 @@ pub struct ImageError {
     pub mse: f64,
     /// Peak signal-to-noise ratio, 10 log10(255^2 / mse) dB; `None` where the images are equal.
     pub psnr_db: Option<f64>,
+    /// Where both frames' depth was kept (levels of detail): the largest difference of the
+    /// distance along the view axis at a pixel both cover, relative to the reference's (a
+    /// pixel one covers and the other does not shows in the colours).
+    pub max_depth_rel_diff: Option<f64>,
 }
 
 impl ImageError {
@@ -40,24 +45,64 @@ impl ImageError {
             max_channel_diff: max,
             mse,
             psnr_db: psnr(mse),
+            max_depth_rel_diff: None,
+        }
+    }
+
+    /// With the depth of both frames (values in [0, 1] a pixel) and the frame's matrices.
+    pub fn with_depth(self, got: &[f32], want: &[f32], m: &FrameMatrices) -> Self {
+        ImageError {
+            max_depth_rel_diff: Some(depth_difference(got, want, m)),
+            ..self
         }
     }
 
     /// Frames of one size together: their mean squared error, the largest difference.
     pub fn over<'a>(frames: impl Iterator<Item = &'a ImageError>) -> Self {
         let (mut n, mut sum, mut max) = (0usize, 0.0, 0u8);
+        let mut depth: Option<f64> = None;
         for f in frames {
             n += 1;
             sum += f.mse;
             max = max.max(f.max_channel_diff);
+            if let Some(d) = f.max_depth_rel_diff {
+                depth = Some(depth.map_or(d, |m| m.max(d)));
+            }
         }
         let mse = if n == 0 { 0.0 } else { sum / n as f64 };
         ImageError {
             max_channel_diff: max,
             mse,
             psnr_db: psnr(mse),
+            max_depth_rel_diff: depth,
         }
     }
+}
+
+/// The largest relative difference of view-axis distance between two depth images at the
+/// pixels both cover (the clear value, the far plane, marks a pixel neither drew).
+fn depth_difference(got: &[f32], want: &[f32], m: &FrameMatrices) -> f64 {
+    let background = match m.depth {
+        DepthConvention::Reverse => 0.0,
+        DepthConvention::Standard => 1.0,
+    };
+    let inverse = m.projection.inverse();
+    let distance = |d: f32| {
+        let p = inverse * glam::Vec4::new(0.0, 0.0, d, 1.0);
+        f64::from((p.z / p.w).abs())
+    };
+    got.iter()
+        .zip(want)
+        .filter(|(&a, &b)| a != background && b != background && a != b)
+        .map(|(&a, &b)| {
+            let (da, db) = (distance(a), distance(b));
+            if db > 0.0 && da.is_finite() && db.is_finite() {
+                (da - db).abs() / db
+            } else {
+                0.0
+            }
+        })
+        .fold(0.0, f64::max)
 }
 
 fn psnr(mse: f64) -> Option<f64> {
@@ -104,4 +149,64 @@ pub(super) fn diff_image(
 /// The sum of per-frame counts, `None` when a frame has none.
 pub(super) fn summed(counts: impl Iterator<Item = Option<u32>>) -> Option<u64> {
     counts.map(|c| c.map(u64::from)).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tilegraph_scene::Projection;
+
+    #[test]
+    fn depth_difference_is_relative_view_distance_where_both_drew() {
+        for depth in [DepthConvention::Reverse, DepthConvention::Standard] {
+            let projection = Projection::Perspective {
+                fov_y_rad: 1.0,
+                near: 0.1,
+                far: Some(100.0),
+                depth,
+            }
+            .matrix(1.0);
+            let m = FrameMatrices {
+                eye: glam::DVec3::ZERO,
+                view: glam::Mat4::IDENTITY,
+                projection,
+                view_projection: projection,
+                depth,
+            };
+            // The stored depth of a point `z` in front of the eye.
+            let at = |z: f32| {
+                let c = projection * glam::Vec4::new(0.0, 0.0, -z, 1.0);
+                c.z / c.w
+            };
+            let background = match depth {
+                DepthConvention::Reverse => 0.0,
+                DepthConvention::Standard => 1.0,
+            };
+            // 10 against 10.5: 5 %; a pixel only one drew does not count; equal pixels none.
+            let got = [at(10.5), at(3.0), background, at(7.0)];
+            let want = [at(10.0), background, at(2.0), at(7.0)];
+            let d = depth_difference(&got, &want, &m);
+            assert!((d - 0.05).abs() < 1e-3, "{depth:?}: {d}");
+            assert_eq!(depth_difference(&want, &want, &m), 0.0);
+        }
+        // Over frames: the largest.
+        let frames = [
+            ImageError {
+                max_depth_rel_diff: Some(0.01),
+                ..ImageError::default()
+            },
+            ImageError {
+                max_depth_rel_diff: Some(0.03),
+                ..ImageError::default()
+            },
+        ];
+        assert_eq!(
+            ImageError::over(frames.iter()).max_depth_rel_diff,
+            Some(0.03)
+        );
+        assert_eq!(
+            ImageError::over([ImageError::default()].iter()).max_depth_rel_diff,
+            None
+        );
+    }
 }

@@ -296,9 +296,12 @@ pub fn cull_check_options(
     )?;
     // Every caster into every cascade: the technique's caster culling is checked with its
     // instance culling.
+    // Levels of detail: the reference's and the technique's depth are kept and compared.
+    let lod = tested.lod_error_px > 0.0;
     let reference = RenderOptions {
         culling: Culling::None,
         lod_error_px: 0.0,
+        capture_depth: lod,
         shadows: ShadowOptions {
             culling: CasterCulling::None,
             ..tested.shadows
@@ -334,6 +337,10 @@ pub fn cull_check_options(
         None => (tested, None),
     };
     let culling = tested.culling;
+    let tested = RenderOptions {
+        capture_depth: lod,
+        ..tested
+    };
     let tested = match SceneRenderer::new(ctx, world.scene(), tested) {
         Ok(r) => r,
         Err(e) => {
@@ -554,7 +561,12 @@ impl Run<'_> {
                 image_equal: got == want,
                 image_diff_pixels: 0,
                 image_diff_pixels_owner_drawn: 0,
-                image_error: ImageError::between(&got, &want),
+                image_error: match (tested.read_depth(ctx)?, reference.read_depth(ctx)?) {
+                    (Some(a), Some(b)) => {
+                        ImageError::between(&got, &want).with_depth(&a, &b, &frame.current)
+                    }
+                    _ => ImageError::between(&got, &want),
+                },
                 triangles_drawn: 0,
                 false_negative_ids: Vec::new(),
                 clusters,

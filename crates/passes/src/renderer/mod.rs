@@ -319,9 +319,9 @@ impl SceneRenderer {
         let first = view.frames == 0;
         Some(DeclarationKey {
             depth: view.depth,
-            // Only the id target the renderer keeps is imported differently on the first
-            // frame (the colour target's import is in `color`).
-            first_frame: first && view.ids_target.is_some(),
+            // Only the id and depth targets the renderer keeps are imported differently on the
+            // first frame (the colour target's import is in `color`).
+            first_frame: first && (view.ids_target.is_some() || view.depth_target.is_some()),
             color: match k {
                 0 => color,
                 _ => ColorTarget {
@@ -385,6 +385,7 @@ impl SceneRenderer {
                     states,
                     target,
                     ids_target: view.ids_target.as_ref().map(|(_, h)| h),
+                    depth_target: view.depth_target.as_ref().map(|(_, h)| h),
                     atlas,
                 },
             );

@@ -41,6 +41,28 @@ impl SceneRenderer {
         }
     }
 
+    /// The last frame's depth, one value in [0, 1] a pixel, row by row (waits; `None` without
+    /// `capture_depth`).
+    pub fn read_depth(&mut self, ctx: &Context) -> Result<Option<Vec<f32>>, RenderError> {
+        self.executor.finish(ctx)?;
+        let Some((_, h)) = &self.views.main.depth_target else {
+            return Ok(None);
+        };
+        let bytes =
+            tilegraph_vk::readback::read_image(ctx, h, vk::ImageLayout::TRANSFER_SRC_OPTIMAL, 0)?;
+        let depth = match self.views.main.options.depth_format {
+            tilegraph_cull::DepthFormat::D16Unorm => bytes
+                .chunks_exact(2)
+                .map(|b| f32::from(u16::from_le_bytes([b[0], b[1]])) / 65535.0)
+                .collect(),
+            tilegraph_cull::DepthFormat::D32Float => bytes
+                .chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect(),
+        };
+        Ok(Some(depth))
+    }
+
     /// The instance owning each pixel of the last frame (`u32::MAX` for background), from the
     /// captured visibility buffer (`capture_ids`); waits for the GPU.
     pub fn read_instance_ids(&mut self, ctx: &Context) -> Result<Option<Vec<u32>>, RenderError> {

@@ -57,6 +57,8 @@ pub(super) struct View {
     pub(super) target: Option<Target>,
     /// The captured id image (with `capture_ids`).
     pub(super) ids_target: Option<Target>,
+    /// The captured depth (with `capture_depth`).
+    pub(super) depth_target: Option<Target>,
     pub(super) instance_bits: Option<u32>,
     /// What the CPU decides per frame, kept from frame to frame (no allocation per frame).
     pub(super) cpu: CpuLists,
@@ -100,12 +102,25 @@ impl View {
     ) -> Result<Self, RenderError> {
         let instance_bits = check_device(ctx, &options, scene)?;
         let (target, ids_target) = create_targets(ctx, &options, submission)?;
+        let depth_target = match options.capture_depth {
+            true => match create_depth_target(ctx, &options) {
+                Ok(t) => Some(t),
+                Err(e) => {
+                    for t in [target, ids_target].into_iter().flatten() {
+                        destroy_target(ctx, t);
+                    }
+                    return Err(e);
+                }
+            },
+            false => None,
+        };
         let setup = decide_setup(&options, ctx, content);
         Ok(View {
             options,
             setup: Arc::new(setup),
             target,
             ids_target,
+            depth_target,
             instance_bits,
             cpu: CpuLists::default(),
             oq_cursor: Some(scene.cursor()),
@@ -120,7 +135,10 @@ impl View {
     }
 
     pub(super) fn destroy(self, ctx: &Context) {
-        for t in [self.target, self.ids_target].into_iter().flatten() {
+        for t in [self.target, self.ids_target, self.depth_target]
+            .into_iter()
+            .flatten()
+        {
             destroy_target(ctx, t);
         }
     }
@@ -215,6 +233,27 @@ fn create_targets(
             Err(e.into())
         }
     }
+}
+
+/// The depth image a view keeps with `capture_depth`: its depth format, every use a frame may
+/// make of the depth (attachment, input attachment, sampled), and a copy source.
+fn create_depth_target(ctx: &Context, options: &RenderOptions) -> Result<Target, RenderError> {
+    let format = match options.depth_format {
+        tilegraph_cull::DepthFormat::D16Unorm => vk::Format::D16_UNORM,
+        tilegraph_cull::DepthFormat::D32Float => vk::Format::D32_SFLOAT,
+    };
+    let usage = vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT
+        | vk::ImageUsageFlags::INPUT_ATTACHMENT
+        | vk::ImageUsageFlags::SAMPLED
+        | vk::ImageUsageFlags::TRANSFER_SRC;
+    Ok(crate::images::create_image_2d(
+        ctx,
+        "captured depth",
+        (options.width, options.height),
+        format,
+        usage,
+        vk::ImageAspectFlags::DEPTH,
+    )?)
 }
 
 impl SceneRenderer {
