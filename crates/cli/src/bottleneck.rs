@@ -306,7 +306,7 @@ pub fn run(args: &BottleneckArgs<'_>) -> Result<(), CliError> {
             let mut s = args.scene.thinned(triangles, instances)?;
             if args.scene.clusters().is_some() {
                 let name = s.name().to_string();
-                crate::run::attach_clusters(&mut s, &name)?;
+                crate::run::attach_clusters(&mut s, &name, false)?;
             }
             Ok(s)
         };

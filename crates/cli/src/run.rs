@@ -222,6 +222,9 @@ pub fn named_camera_path(spec: &str, scene: &Scene) -> Result<CameraPath, CliErr
 pub enum Clusters {
     No,
     Yes,
+    /// With the levels of detail they carry (knob `lod_error_px`): without, the scene's index
+    /// buffer holds the full meshes only.
+    WithLevels,
     /// Where `auto` would try cluster culling on it (`knobs::auto_wants_clusters`).
     ForAuto,
 }
@@ -234,7 +237,7 @@ pub fn wants_clusters(knobs: &KnobSettings) -> Clusters {
         .get("lod_error_px")
         .is_some_and(|v| v.to_string() != "0")
     {
-        return Clusters::Yes;
+        return Clusters::WithLevels;
     }
     match knobs.get("culling").map(|v| v.to_string()) {
         None => Clusters::ForAuto,
@@ -291,20 +294,23 @@ pub fn split_motion(spec: &str) -> Result<(&str, Option<MotionParams>), CliError
 pub fn load_scene(spec: &str, clusters: impl Into<Clusters>) -> Result<Scene, CliError> {
     let (spec, _) = split_motion(spec)?;
     let mut scene = tilegraph_scene::load(spec)?;
-    let attach = match clusters.into() {
+    let clusters = clusters.into();
+    let attach = match clusters {
         Clusters::No => false,
-        Clusters::Yes => true,
+        Clusters::Yes | Clusters::WithLevels => true,
         Clusters::ForAuto => knobs::auto_wants_clusters(&scene),
     };
     if attach {
-        attach_clusters(&mut scene, spec)?;
+        attach_clusters(&mut scene, spec, clusters == Clusters::WithLevels)?;
     }
     Ok(scene)
 }
 
-/// Attaches `scene`'s clusters (`what` names it in the log): from the cache, else built.
-pub fn attach_clusters(scene: &mut Scene, what: &str) -> Result<(), CliError> {
+/// Attaches `scene`'s clusters (`what` names it in the log): from the cache, else built; with
+/// their levels of detail where `levels` says so.
+pub fn attach_clusters(scene: &mut Scene, what: &str, levels: bool) -> Result<(), CliError> {
     let (data, how) = tilegraph_scene::clusters::cached(scene)?;
+    let data = if levels { data } else { data.without_lods() };
     match how {
         tilegraph_scene::clusters::Provenance::Cache(path) => {
             log::info!("{what}: clusters from {}", path.display())

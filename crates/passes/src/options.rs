@@ -428,6 +428,18 @@ pub(crate) fn check_device(
     Ok(instance_bits)
 }
 
+/// Commands per draw group `options` make GPU culling write for `scene`: one, or with levels of
+/// detail (asked for, and the scene has some) one per level — the mesh's own and
+/// [`tilegraph_scene::MAX_LODS`] coarser.
+pub(crate) fn lod_levels(options: &RenderOptions, scene: &Scene) -> u32 {
+    let lods = scene.clusters().is_some_and(|c| c.has_lods());
+    if options.lod_error_px > 0.0 && lods {
+        1 + tilegraph_scene::MAX_LODS as u32
+    } else {
+        1
+    }
+}
+
 /// Checks that levels of detail, if asked for, can be drawn: GPU instance culling chooses them
 /// (its list entries carry the level in their top 3 bits), the scene carries them (with its
 /// clusters), and the shading draws what the commands say (the visibility buffer's resolve

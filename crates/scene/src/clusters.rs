@@ -68,6 +68,21 @@ impl ClusterData {
         std::fs::rename(&tmp, path).map_err(|source| io(path, source))
     }
 
+    /// The data without its levels of detail: the scene's indices only, no level table (a
+    /// renderer that never draws levels keeps the index buffer it had before they existed:
+    /// the levels add about as many indices again).
+    pub fn without_lods(mut self) -> ClusterData {
+        let tail = (self.lods.iter())
+            .filter(|l| l.index_count > 0)
+            .map(|l| l.first_index as usize)
+            .min();
+        if let Some(start) = tail {
+            self.indices.truncate(start);
+        }
+        self.lods.clear();
+        self
+    }
+
     /// Reads data [`ClusterData::write`] wrote; a wrong magic or a short file is an error naming
     /// the file. (Whether it fits a scene is [`Scene::attach_clusters`]'s check.)
     pub fn read(path: &Path) -> Result<ClusterData, SceneError> {
@@ -709,8 +724,17 @@ mod tests {
         bad.lods[1].error = -1.0;
         let e = scene.clone().attach_clusters(bad).unwrap_err().to_string();
         assert!(e.contains("error"), "{e}");
-        let mut bad = data;
+        let mut bad = data.clone();
         bad.lods.pop();
         assert!(scene.clone().attach_clusters(bad).is_err());
+        // Without levels: the scene's indices only, as before levels existed.
+        let mut plain = scene.clone();
+        plain.attach_clusters(data.clone().without_lods()).unwrap();
+        assert_eq!(plain.indices().len(), indices.len());
+        assert!(!plain.clusters().unwrap().has_lods());
+        let mut bad = data.without_lods();
+        bad.indices.push(0);
+        let e = scene.clone().attach_clusters(bad).unwrap_err().to_string();
+        assert!(e.contains("no levels of detail"), "{e}");
     }
 }

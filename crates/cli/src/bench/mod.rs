@@ -166,11 +166,12 @@ pub(crate) fn load_scenes(matrix: &Matrix) -> Result<HashMap<String, Scene>, Cli
         .axes
         .iter()
         .any(|(k, values)| k == "lod_error_px" && values.iter().any(|v| v.to_string() != "0"));
-    let clusters = if lod
-        || matrix
-            .culling
-            .iter()
-            .any(|c| Culling::parse(c).is_some_and(Culling::clusters))
+    let clusters = if lod {
+        crate::run::Clusters::WithLevels
+    } else if matrix
+        .culling
+        .iter()
+        .any(|c| Culling::parse(c).is_some_and(Culling::clusters))
     {
         crate::run::Clusters::Yes
     } else if matrix.culling.iter().any(|c| Culling::parse(c).is_none()) {

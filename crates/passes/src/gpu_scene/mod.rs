@@ -208,13 +208,17 @@ impl Capacity {
 
     /// The largest storage buffer a renderer of this capacity binds, in bytes: what must fit
     /// the device's `maxStorageBufferRange` (2^27 on many phones and on lavapipe).
-    pub fn largest_storage_buffer(&self) -> u64 {
+    /// `commands_per_group`: 1, or with levels of detail a command per group and level.
+    pub fn largest_storage_buffer(&self, commands_per_group: u32) -> u64 {
         let lists = 2 * DRAW_LISTS as u64;
+        let per_group = u64::from(commands_per_group.max(1));
         [
             u64::from(self.instances) * std::mem::size_of::<GpuInstance>() as u64,
             self.entries() * 4,
             u64::from(self.stride) * lists * 4,
-            u64::from(self.groups) * lists * 20,
+            u64::from(self.groups) * per_group * lists * 20,
+            // Survivors: a count per instance, phase and level.
+            2 * u64::from(self.instances) * per_group * 4,
         ]
         .into_iter()
         .max()

@@ -188,7 +188,13 @@ impl SceneRenderer {
             .instance_capacity
             .max(self.resources.scene.capacity().instances);
         let capacity = Capacity::for_scene(scene, hint).with_views(self.views.len());
-        super::check_capacity(ctx, capacity)?;
+        let lod_levels = self
+            .views
+            .iter()
+            .map(|v| crate::options::lod_levels(&v.options, scene))
+            .max()
+            .unwrap_or(1);
+        super::check_capacity(ctx, capacity, lod_levels)?;
         log::info!(
             "renderer: new buffers for {} instance slots, list stride {}, {} views ({:?})",
             scene.instances().len(),

@@ -144,7 +144,9 @@ impl SceneRenderer {
         let made = executor
             .set_timing(ctx, options.gpu_timing)
             .map_err(RenderError::from)
-            .and_then(|()| check_capacity(ctx, capacity))
+            .and_then(|()| {
+                check_capacity(ctx, capacity, crate::options::lod_levels(options, scene))
+            })
             .and_then(|()| {
                 create_resources(
                     ctx,
@@ -716,9 +718,10 @@ impl SceneRenderer {
     }
 }
 
-/// Whether the buffers of `capacity` fit the device's storage buffer range.
-fn check_capacity(ctx: &Context, capacity: Capacity) -> Result<(), RenderError> {
-    let needed_bytes = capacity.largest_storage_buffer();
+/// Whether the buffers of `capacity` fit the device's storage buffer range (`lod_levels`:
+/// commands per draw group).
+fn check_capacity(ctx: &Context, capacity: Capacity, lod_levels: u32) -> Result<(), RenderError> {
+    let needed_bytes = capacity.largest_storage_buffer(lod_levels);
     let limit_bytes = u64::from(ctx.physical.limits.max_storage_buffer_range);
     if needed_bytes > limit_bytes {
         return Err(RenderError::SceneTooLarge {

@@ -72,7 +72,7 @@ pub struct ClusterData {
     /// Per mesh: first cluster, cluster count.
     pub mesh_clusters: Vec<[u32; 2]>,
     /// Per mesh, [`MAX_LODS`] levels, coarser and coarser (error never decreasing); unused ones
-    /// have no indices.
+    /// have no indices. Empty: no levels ([`ClusterData::without_lods`]).
     pub lods: Vec<GpuLod>,
 }
 

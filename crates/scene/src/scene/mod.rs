@@ -323,6 +323,17 @@ fn validate_clusters(scene: &Scene, data: &ClusterData) -> Result<(), SceneError
 /// triangles after the scene's indices over the mesh's vertices, errors finite and never
 /// decreasing.
 fn validate_lods(scene: &Scene, data: &ClusterData) -> Result<(), String> {
+    // Without levels (`ClusterData::without_lods`): the scene's indices only.
+    if data.lods.is_empty() {
+        return match data.indices.len() == scene.indices().len() {
+            true => Ok(()),
+            false => Err(format!(
+                "{} indices and no levels of detail for a scene of {}",
+                data.indices.len(),
+                scene.indices().len()
+            )),
+        };
+    }
     if data.lods.len() != scene.meshes().len() * MAX_LODS {
         return Err(format!(
             "{} levels of detail for {} meshes ({MAX_LODS} each)",

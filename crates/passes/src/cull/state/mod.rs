@@ -547,15 +547,15 @@ impl CullState {
         // current eye, as `reproject` is) for single-phase HiZ, this frame's for the late phase.
         let previous_view = frame.previous.view
             * Mat4::from_translation((frame.current.eye - frame.previous.eye).as_vec3());
-        // Level of detail: pixels per unit of length, as the sphere test reads the projection.
-        let (proj, _) = sphere_projection(m.projection);
+        // Level of detail: pixels per unit of length, P11 * H / 2 (over the distance where clip
+        // w grows with depth: perspective, off-centre or not).
         let half_height = 0.5 * extent.1 as f32;
         let lod_meshes = self.lod_table.as_ref().map_or(0, |t| t.1);
         let lod = if lod_meshes > 0 {
-            let perspective = proj[2] != 0.0;
+            let perspective = m.projection.z_axis.w != 0.0;
             [
                 self.lod_error_px,
-                proj[1].abs() * half_height,
+                m.projection.y_axis.y.abs() * half_height,
                 if perspective { 1.0 } else { 0.0 },
                 0.0,
             ]
