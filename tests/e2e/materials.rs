@@ -342,3 +342,48 @@ fn an_unregistered_engine_material_is_a_typed_error() {
     r.destroy(&g);
     side.destroy(&g);
 }
+
+/// With levels of detail an engine material's run of draw groups is seven commands a group
+/// (one per level): its draws of closed spheres (their opaque material the engine's) under
+/// `hiz-2phase` equal those under `frustum` frame by frame, and differ from full detail.
+#[test]
+fn an_engine_material_draws_the_levels_culling_chose() {
+    use tilegraph_passes::cull::Culling;
+    let mut scene = tilegraph_e2e::closed_spheres(3, 4, false);
+    let opaque: Vec<MaterialId> = (scene.materials().iter().enumerate())
+        .filter(|(_, m)| m.class == MaterialClass::Opaque)
+        .map(|(i, _)| MaterialId(i as u32))
+        .collect();
+    for id in opaque {
+        scene.set_engine_material(id, Some(0)).unwrap();
+    }
+    let run = |culling, lod_error_px| {
+        let options = RenderOptions {
+            width: 160,
+            height: 90,
+            culling,
+            lod_error_px,
+            ..Default::default()
+        };
+        let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+        let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+        let side = EngineSide::new(&g, &r);
+        assert_eq!(r.add_material(material(&side, false)), 0);
+        let mut images = Vec::new();
+        for i in 0..scene.camera_path().len().min(4) {
+            let cam = scene.camera_path().camera(i).unwrap();
+            r.render(&g, &scene, &cam).unwrap();
+            images.push(r.read_image(&g).unwrap());
+        }
+        r.destroy(&g);
+        side.destroy(&g);
+        images
+    };
+    let frustum = run(Culling::Frustum, 2.0);
+    let two_phase = run(Culling::HizTwoPhase, 2.0);
+    assert_eq!(differing(&frustum, &two_phase), 0);
+    assert!(
+        differing(&frustum, &run(Culling::Frustum, 0.0)) > 0,
+        "no level was drawn"
+    );
+}
