@@ -2,27 +2,62 @@
 // Cluster culling, second step: one workgroup per draw group and region places the runs of the
 // group's entries (an exclusive prefix sum in entry order, relative to the group's first
 // command) and writes the group's runs and how many of its entries have any (cluster.glsl's
-// group_slot), and, in region 0, each entry's group (cluster_emit.comp's lookup). The entries' runs are their chunks' (cluster_cull.comp adds them;
-// cluster_emit.comp zeroes them for the next culling to add to). An entry whose instance is
-// culled has none: the group's entries need no test, and the instance compaction does not run.
+// group_slot), and, in region 0, each entry's group (cluster_emit.comp's lookup). The entries'
+// runs are their chunks' (cluster_cull.comp adds them; cluster_emit.comp zeroes them for the
+// next culling to add to). An entry whose instance is culled has none: the group's entries
+// need no test, and the instance compaction does not run.
+//
+// The last workgroup to finish a list's groups (a counter per phase and list in the work
+// buffer, which a transfer zeroes every frame) then places the list's groups: each group's
+// first command among the list's (an exclusive prefix sum in the frame's group order, in
+// place), and writes the list's draw count and the instances its commands draw. One dispatch
+// instead of two: which workgroup finishes last does not matter, only that every group's
+// places are written and visible before it reads them (coherent writes, a buffer memory
+// barrier, then the counter's atomic; the reader orders its reads after the atomic the same
+// way), the pattern of single-pass reductions that needs no forward progress between
+// workgroups.
+//
 // Workgroup w is group w % groups of region w / groups: the early (or only) dispatch runs
-// region 0, the late one both (the colour pass's union, then the late depth pass's).
+// region 0 (lists 0-3) and empties the late lists' counts, the late one both regions (lists
+// 0-7: the colour pass's union, then the late depth pass's).
+#define CLUSTER_WORK_COUNTERS
 #include "cull.glsl"
 #include "cluster.glsl"
 
 layout(local_size_x = 64) in;
 
+// Per list: the draw count (0-7), then the instances its commands draw (8-15).
+layout(set = 1, binding = 2, std430) writeonly buffer Counts { uint counts[]; };
+
 // Each thread owns PER_THREAD consecutive entries of a chunk (as cull_compact.comp): a group of
 // up to 1,024 entries is one pass of loads, one 64-wide scan and one pass of stores.
 const uint PER_THREAD = 16u;
 const uint CHUNK = 64u * PER_THREAD;
+// Groups a thread owns in a chunk of the list's groups (as cull_commands.comp).
+const uint GROUPS_PER_THREAD = 8u;
+const uint GROUP_CHUNK = 64u * GROUPS_PER_THREAD;
 
 // Per thread: its entries' runs (x) and how many of them have any (y).
 shared uvec2 scan[64];
+shared bool last_of_list;
+shared uint instances;
 
-void main() {
-    uint g = gl_WorkGroupID.x % cull.groups.x;
-    uint r = gl_WorkGroupID.x / cull.groups.x;
+// Inclusive scan of the threads' values in `scan` (Hillis-Steele in shared memory: portable, no
+// subgroup size assumptions).
+void scan_threads() {
+    uint t = gl_LocalInvocationID.x;
+    barrier();
+    for (uint d = 1u; d < 64u; d <<= 1u) {
+        uvec2 add = t >= d ? scan[t - d] : uvec2(0u);
+        barrier();
+        scan[t] += add;
+        barrier();
+    }
+}
+
+// Places the runs of group g's entries in region r; returns the group's runs and entries with
+// runs (thread 0's is the one that counts).
+uvec2 place_group(uint r, uint g) {
     Group group = cluster_groups[g];
     uint base = r * 4u * cull.screen.z + group.list * cull.screen.z + group.position;
     uint t = gl_LocalInvocationID.x;
@@ -35,16 +70,8 @@ void main() {
             uint n = runs[base + i];
             mine += uvec2(n, n != 0u ? 1u : 0u);
         }
-        // Inclusive scan of the threads' sums (Hillis-Steele in shared memory: portable, no
-        // subgroup size assumptions).
         scan[t] = mine;
-        barrier();
-        for (uint d = 1u; d < 64u; d <<= 1u) {
-            uvec2 add = t >= d ? scan[t - d] : uvec2(0u);
-            barrier();
-            scan[t] += add;
-            barrier();
-        }
+        scan_threads();
         uint at = placed.x + scan[t].x - mine.x;
         for (uint i = first; i < last; ++i) {
             offsets[base + i] = at;
@@ -56,8 +83,80 @@ void main() {
         placed += scan[63];
         barrier(); // every thread read scan[63] before the next chunk overwrites it
     }
+    return placed;
+}
+
+// Turns the runs of list `list`'s groups into their first commands and writes its counts.
+void place_list(uint list) {
+    uint r = list / 4u;
+    uint start = cull.group_start[list % 4u];
+    uint n = cull.group_count[list % 4u];
+    uint t = gl_LocalInvocationID.x;
+    uint placed = 0u;
+    for (uint chunk = 0u; chunk < n; chunk += GROUP_CHUNK) {
+        uint first = chunk + t * GROUPS_PER_THREAD;
+        uint last = min(first + GROUPS_PER_THREAD, n);
+        uint mine = 0u;
+        uint drawn = 0u;
+        for (uint j = first; j < last; ++j) {
+            mine += offsets[group_slot(0u, r, start + j)];
+            drawn += offsets[group_slot(1u, r, start + j)];
+        }
+        scan[t] = uvec2(mine, 0u);
+        scan_threads();
+        uint at = placed + scan[t].x - mine;
+        for (uint j = first; j < last; ++j) {
+            uint slot = group_slot(0u, r, start + j);
+            uint runs_of_group = offsets[slot];
+            offsets[slot] = at;
+            at += runs_of_group;
+        }
+        if (drawn != 0u) {
+            atomicAdd(instances, drawn);
+        }
+        placed += scan[63].x;
+        barrier();
+    }
+    if (t == 0u) {
+        counts[list] = placed;
+        counts[8u + list] = instances;
+    }
+}
+
+void main() {
+    uint t = gl_LocalInvocationID.x;
+    uint phase = work_region();
+    uint regions = gl_NumWorkGroups.x / max(cull.groups.x, 1u);
+    // Lists no group of the frame belongs to have no last workgroup: the dispatch's first
+    // empties them (and the early dispatch the late lists, which only the late one fills).
+    if (gl_WorkGroupID.x == 0u && t < 8u) {
+        if (t >= 4u * regions || cull.group_count[t % 4u] == 0u) {
+            counts[t] = 0u;
+            counts[8u + t] = 0u;
+        }
+    }
+    if (cull.groups.x == 0u) {
+        return;
+    }
+    uint g = gl_WorkGroupID.x % cull.groups.x;
+    uint r = gl_WorkGroupID.x / cull.groups.x;
+    uvec2 placed = place_group(r, g);
+    uint list = 4u * r + cluster_groups[g].list;
     if (t == 0u) {
         offsets[group_slot(0u, r, g)] = placed.x;
         offsets[group_slot(1u, r, g)] = placed.y;
+        instances = 0u;
+    }
+    // Every place this workgroup wrote is visible before the counter says so.
+    memoryBarrierBuffer();
+    barrier();
+    if (t == 0u) {
+        uint done = atomicAdd(work[8u + 8u * phase + list], 1u);
+        last_of_list = done + 1u == cull.group_count[list % 4u];
+    }
+    barrier();
+    if (last_of_list) {
+        memoryBarrierBuffer();
+        place_list(list);
     }
 }

@@ -1,5 +1,5 @@
 // Shared declarations of the cluster culling shaders (cluster_cull.comp, cluster_place.comp,
-// cluster_lists.comp, cluster_emit.comp): a second stage after instance culling that tests the clusters of every
+// cluster_emit.comp): a second stage after instance culling that tests the clusters of every
 // drawn instance and writes one indirect command per run of consecutive surviving clusters
 // (docs/CULLING.md, "Clusters"). Needs scene.glsl and cull.glsl first.
 //
@@ -44,14 +44,20 @@ layout(set = 1, binding = 12, std430) buffer Flags { uint flags[]; };
 // per draw group and region its runs (then its first command among its list's) and its entries
 // with runs (group_slot).
 layout(set = 1, binding = 14, std430) buffer Runs { uint runs[]; };
-layout(set = 1, binding = 15, std430) buffer Offsets { uint offsets[]; };
+// Coherent: cluster_place.comp's last workgroup of a list reads the places the others wrote.
+layout(set = 1, binding = 15, std430) coherent buffer Offsets { uint offsets[]; };
 // The frame's draw groups (cull.glsl), in draw order.
 layout(set = 1, binding = 16, std430) readonly buffer ClusterGroups { Group cluster_groups[]; };
 
 // Per region (0 early or only, 1 late): the dispatch's workgroups (x, 1, 1) and its chunk
-// count, then from word 8 the region's chunks (cull_clusters.comp appends the chunks of the
-// instances whose clusters the phase tests; a reset pass empties both lists each frame).
+// count, then the lists' placed groups, then from WORK_CHUNKS the region's chunks
+// (cull_clusters.comp appends the chunks of the instances whose clusters the phase tests; a
+// reset pass empties both lists each frame; cull.glsl). Writable in cluster_place.comp only.
+#ifdef CLUSTER_WORK_COUNTERS
+layout(set = 1, binding = 17, std430) coherent buffer Work { uint work[]; };
+#else
 layout(set = 1, binding = 17, std430) readonly buffer Work { uint work[]; };
+#endif
 
 // The region whose chunk list the dispatch runs through: the late phase's, or the early (or
 // only) phase's.
@@ -65,7 +71,7 @@ uint work_count(uint r) {
 }
 
 uint work_chunk(uint r, uint i) {
-    return work[8u + r * cull.commands.w + i];
+    return work[WORK_CHUNKS + r * cull.commands.w + i];
 }
 
 // The chunks (cull.commands: y where the first chunk of each instance is kept in
@@ -83,8 +89,8 @@ uint chunk_instance(uint w) {
     return cluster_base[cull.commands.z + w];
 }
 
-// Where group g's runs of region r (kind 0: cluster_place.comp writes them, cluster_lists.comp
-// turns them into the group's first command) or its entries with runs (kind 1) are kept in
+// Where group g's runs of region r (kind 0: cluster_place.comp writes them, then its list's
+// last workgroup turns them into the group's first command) or its entries with runs (kind 1) are kept in
 // Offsets, after the entries' places.
 uint group_slot(uint kind, uint r, uint g) {
     return 12u * cull.screen.z + (2u * kind + r) * cull.groups.x + g;

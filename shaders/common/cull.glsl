@@ -47,6 +47,12 @@ struct Lod {
     uint pad;
 };
 
+// The cluster techniques' work buffer (cluster.glsl's Work): per region (0 early or only, 1 late)
+// its chunk dispatch (x, 1, 1) and chunk count (words 0-7); per phase (0 early or only, 1 late)
+// and list 0-7, how many of the list's draw groups cluster_place.comp has placed (words 8-23);
+// from WORK_CHUNKS, the regions' chunk lists. A transfer resets words 0-23 every frame.
+const uint WORK_CHUNKS = 24u;
+
 // An entry of a list (cull.comp -> cull_compact.comp): 0 culled, else the instance id + 1 and,
 // from bit ENTRY_LEVEL_SHIFT, the level of detail it is drawn with.
 const uint ENTRY_LEVEL_SHIFT = 29u;

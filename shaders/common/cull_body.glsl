@@ -89,7 +89,7 @@ void append_chunks(uint p, uint id) {
     uint at = atomicAdd(work[4u * p + 3u], n);
     atomicMax(work[4u * p], min(at + n, 65535u));
     for (uint i = 0u; i < n; ++i) {
-        work[8u + p * cull.commands.w + at + i] = first + i;
+        work[WORK_CHUNKS + p * cull.commands.w + at + i] = first + i;
     }
 }
 #endif

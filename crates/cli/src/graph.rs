@@ -13,7 +13,7 @@ use crate::CliError;
 
 pub fn run(a: &RunArgs, dot: bool) -> Result<(), CliError> {
     let knobs = a.knob_settings(TechniqueMeant::Shading)?;
-    let scene = crate::run::load_scene(&a.scene, false)?;
+    let scene = crate::run::load_scene(&a.scene, crate::run::wants_clusters(&knobs))?;
     let (w, h) = a.size.unwrap_or((320, 180));
     crate::run::on_context(a.context_options(FeatureRequest::executor()), |ctx| {
         let mut o = RenderOptions {

@@ -12,7 +12,7 @@ use crate::CliError;
 
 pub fn run(args: &RunArgs) -> Result<(), CliError> {
     let knobs = args.knob_settings(TechniqueMeant::Shading)?;
-    let scene = crate::run::load_scene(&args.scene, false)?;
+    let scene = crate::run::load_scene(&args.scene, crate::run::wants_clusters(&knobs))?;
     let (w, h) = args.size.unwrap_or((160, 90));
     crate::run::on_context(args.context_options(FeatureRequest::executor()), |ctx| {
         let mut ropts = RenderOptions {

@@ -652,6 +652,25 @@ fn graph_explains_the_plan_of_a_scene_frame() {
         text.contains("why:") && text.contains("render pass"),
         "{text}"
     );
+    // A cluster technique's plan and lint: the scene's clusters are built for them.
+    let clustered = [
+        "forest:300",
+        "--culling",
+        "hiz-2phase-clusters",
+        "--size",
+        "64x36",
+    ];
+    let (ok, text, err) = tilegraph(&[&["graph"][..], &clustered].concat(), &env);
+    assert!(ok, "{err}");
+    for pass in [
+        "cluster-cull-late",
+        "cluster-place-late",
+        "cluster-emit-late",
+    ] {
+        assert!(text.contains(pass), "no {pass} in {text}");
+    }
+    let (ok, _, err) = tilegraph(&[&["lint"][..], &clustered].concat(), &env);
+    assert!(ok, "{err}");
 }
 
 /// D16 depth end to end (knob `depth_format`): the conservative techniques stay exact — FN 0 and

@@ -3,12 +3,12 @@
 //! the frustum, back-facing normal cone, and in the late phase the pyramid — and writes one
 //! indexed indirect command per run of consecutive surviving clusters, in the unculled order.
 //!
-//! Four dispatches per phase after the instance test (shaders `cluster_cull.comp`,
-//! `cluster_place.comp`, `cluster_lists.comp`, `cluster_emit.comp`): flags and runs per chunk
-//! of 64 clusters of an instance (a workgroup each, so a level baked into one mesh is culled by
-//! as many workgroups as it has chunks, not by one), added to the instance's entry; the
-//! entries' runs placed within their draw group (a workgroup per group, as the instance
-//! compaction packs survivors) and the groups' within their list (a workgroup per list); then
+//! Three dispatches per phase after the instance test (shaders `cluster_cull.comp`,
+//! `cluster_place.comp`, `cluster_emit.comp`): flags and runs per chunk of 64 clusters of an
+//! instance (a workgroup each, so a level baked into one mesh is culled by as many workgroups
+//! as it has chunks, not by one), added to the instance's entry; the entries' runs placed
+//! within their draw group (a workgroup per group, as the instance compaction packs survivors)
+//! and, by the last workgroup to finish a list's groups, the groups' within their list; then
 //! the commands, a workgroup per chunk, after its instance's earlier chunks' runs (and the
 //! entries' runs zeroed for the next culling). The instance compaction does not run: a culled
 //! instance's entry has no runs. A run ends at its chunk's end: a run split in two draws the
@@ -30,7 +30,6 @@ use crate::gpu_scene::{upload, Capacity};
 
 const CULL_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_cull.comp.spv");
 const PLACE_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_place.comp.spv");
-const LISTS_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_lists.comp.spv");
 const EMIT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_emit.comp.spv");
 
 /// The cluster set's storage buffers: bindings 1-17 (common/cluster.glsl).
@@ -56,6 +55,10 @@ pub struct ClusterLayout {
 
 /// Clusters a workgroup of the cull and emit dispatches handles.
 pub const CHUNK: u32 = 64;
+
+/// Where the work buffer's chunk lists start (cull.glsl's `WORK_CHUNKS`): after each region's
+/// dispatch header (8 words) and the placed-group counter of each phase's eight lists.
+const WORK_CHUNKS: u32 = 24;
 
 impl ClusterLayout {
     /// The layout of `scene`'s clusters, or `None` when it has none attached.
@@ -161,9 +164,9 @@ pub struct ClusterStage {
     /// Per region: the indirect dispatch of its chunks and their count, then the chunk lists
     /// (cluster.glsl's Work; `cull_clusters.comp` appends, a reset pass empties).
     pub work: Buffer,
-    /// `cluster_cull.comp`, `cluster_place.comp`, `cluster_lists.comp`, `cluster_emit.comp`,
-    /// their layouts and set pool.
-    compute: ComputeStage<4>,
+    /// `cluster_cull.comp`, `cluster_place.comp`, `cluster_emit.comp`, their layouts and set
+    /// pool.
+    compute: ComputeStage<3>,
     /// Two per slot: the early (or only) and the late phase.
     sets: Vec<vk::DescriptorSet>,
     /// Per-triangle culling after each emit (knob `triangle_culling`).
@@ -222,7 +225,7 @@ fn make_buffers(
         ),
         Spec::Empty(
             "cluster work",
-            (8 + 2 * u64::from(layout.chunks())) * 4,
+            (u64::from(WORK_CHUNKS) + 2 * u64::from(layout.chunks())) * 4,
             storage | indirect | dst,
         ),
     ];
@@ -260,10 +263,9 @@ fn make_buffers(
 pub enum ClusterStep {
     /// `cluster_cull.comp`: a workgroup per chunk flags its clusters and counts their runs.
     Cull,
-    /// `cluster_place.comp`: a workgroup per draw group and region places its entries' runs.
+    /// `cluster_place.comp`: a workgroup per draw group and region places its entries' runs;
+    /// the last of a list's places its groups and writes its counts.
     Place,
-    /// `cluster_lists.comp`: a workgroup per list places its groups and writes its counts.
-    Lists,
     /// `cluster_emit.comp`: a workgroup per chunk writes its runs' commands.
     Emit,
     /// Per-triangle culling of the commands just written (knob `triangle_culling`).
@@ -332,7 +334,6 @@ impl ClusterStage {
         let shaders = [
             ("cluster_cull.comp", CULL_SPV),
             ("cluster_place.comp", PLACE_SPV),
-            ("cluster_lists.comp", LISTS_SPV),
             ("cluster_emit.comp", EMIT_SPV),
         ];
         let sets = 2 * shared.slots.len() as u32;
@@ -414,14 +415,7 @@ impl ClusterStage {
                 sets,
                 (regions * groups.max(1), 1),
             ),
-            ClusterStep::Lists => self.compute.dispatch(
-                ctx,
-                cb,
-                self.compute.pipelines[2],
-                sets,
-                (regions * LISTS_PER_PHASE, 1),
-            ),
-            ClusterStep::Emit => listed(self.compute.pipelines[3]),
+            ClusterStep::Emit => listed(self.compute.pipelines[2]),
             ClusterStep::Triangles(step) => {
                 let t = self.triangles.as_ref().ok_or_else(|| VkError::Invalid {
                     what: "triangle culling".into(),
@@ -434,11 +428,13 @@ impl ClusterStage {
     }
 
     /// Records the reset of both regions' chunk lists (the graph made the work buffer a
-    /// transfer destination): no chunk, one workgroup row.
+    /// transfer destination): no chunk, one workgroup row; and of the lists' placed-group
+    /// counters (cull.glsl's `WORK_CHUNKS`).
     pub(super) fn record_work_reset(&self, ctx: &Context, cb: vk::CommandBuffer) {
-        let header: [u32; 8] = [0, 1, 1, 0, 0, 1, 1, 0];
+        let mut header = [0u32; WORK_CHUNKS as usize];
+        header[..8].copy_from_slice(&[0, 1, 1, 0, 0, 1, 1, 0]);
         // SAFETY: recording outside a render pass; the buffer is live, a transfer destination,
-        // and holds at least the 32 bytes of the header.
+        // and holds at least the header (make_buffers).
         unsafe {
             ctx.device
                 .cmd_update_buffer(cb, self.work.raw, 0, bytemuck::cast_slice(&header))

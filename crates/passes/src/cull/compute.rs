@@ -1,6 +1,6 @@
 //! The Vulkan objects a culling stage is made of — instance culling (`cull.comp`,
 //! `cull_compact.comp`, `cull_commands.comp`) and the cluster stage (`cluster_cull.comp`,
-//! `cluster_place.comp`, `cluster_lists.comp`, `cluster_emit.comp`) alike: one descriptor set
+//! `cluster_place.comp`, `cluster_emit.comp`) alike: one descriptor set
 //! layout (binding 0 the phase's parameter block, then storage buffers), a pipeline layout after
 //! the scene's set, `N` compute pipelines and a pool for the per-slot, per-phase sets.
 

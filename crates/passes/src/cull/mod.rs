@@ -316,7 +316,6 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         [
             "cluster-cull",
             "cluster-place",
-            "cluster-lists",
             "cluster-clear",
             "cluster-emit",
         ]
@@ -324,7 +323,6 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
         [
             "cluster-cull-late",
             "cluster-place-late",
-            "cluster-lists-late",
             "cluster-clear-late",
             "cluster-emit-late",
         ]
@@ -353,24 +351,20 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
     )
     .async_compute()
     .storage_read(c.runs)
-    .storage_write(c.offsets);
-    g.compute_pass(
-        names[2],
-        PassClass::Compute,
-        dispatch(which, Step::Cluster(clusters::ClusterStep::Lists)),
-    )
-    .async_compute()
+    // Its last workgroup of a list reads the groups' places the others wrote.
     .storage_read_write(c.offsets)
-    .storage_write(c.counts);
+    .storage_write(c.counts)
+    // The lists' placed-group counters.
+    .storage_read_write(c.work);
     if c.clear {
         let commands = c.commands;
         let clear: Payload = Box::new(move |pc, _| zero_fill(pc, commands));
-        g.transfer_pass(names[3], PassClass::Transfer, clear)
+        g.transfer_pass(names[2], PassClass::Transfer, clear)
             .transfer_dst(c.commands)
             .async_compute();
     }
     g.compute_pass(
-        names[4],
+        names[3],
         PassClass::Compute,
         dispatch(which, Step::Cluster(clusters::ClusterStep::Emit)),
     )

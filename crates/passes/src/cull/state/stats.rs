@@ -26,7 +26,7 @@ impl CullState {
         slot: usize,
     ) -> Result<(), VkError> {
         let stats = &self.slot(slot)?.stats;
-        // The cluster lists' counts have the instance lists' layout (cluster_lists.comp).
+        // The cluster lists' counts have the instance lists' layout (cluster_place.comp).
         let counts = self.clusters.as_ref().map_or(&self.counts, |c| &c.counts);
         let region = [vk::BufferCopy {
             src_offset: 0,
