@@ -173,6 +173,11 @@ enum Command {
         /// Android's); implies --clusters.
         #[arg(long, value_name = "FILE")]
         write_clusters: Option<std::path::PathBuf>,
+        /// Leave the levels of detail out of the clusters reported and written (an engine that
+        /// never sets `lod_error_px` saves their indices, about as many as the scene's, in the
+        /// file and on the GPU).
+        #[arg(long)]
+        without_levels: bool,
     },
 }
 
@@ -260,7 +265,14 @@ fn main() -> ExitCode {
             json,
             clusters,
             write_clusters,
-        } => scene_info(&scene, json, clusters, write_clusters.as_deref()),
+            without_levels,
+        } => scene_info(
+            &scene,
+            json,
+            clusters || without_levels,
+            write_clusters.as_deref(),
+            without_levels,
+        ),
         Command::Lint { run } => lint::run(&run),
         Command::CullCheck { run, save_frames } => cullcheck::run(&run, save_frames.as_deref()),
         Command::Bench(args) => bench::run(&args),
@@ -349,11 +361,15 @@ fn scene_info(
     json: bool,
     clusters: bool,
     write_clusters: Option<&std::path::Path>,
+    without_levels: bool,
 ) -> Result<(), CliError> {
     let scene = run::load_scene(spec, false)?;
     let info = scene.info();
     let clusters = if clusters || write_clusters.is_some() {
-        let (data, stats) = tilegraph_scene::clusters::build(&scene)?;
+        let (mut data, stats) = tilegraph_scene::clusters::build(&scene)?;
+        if without_levels {
+            data = data.without_lods();
+        }
         if let Some(path) = write_clusters {
             data.write(path)?;
         }
@@ -403,6 +419,12 @@ fn scene_info(
                 c.build_ms,
                 c.bytes as f64 / (1024.0 * 1024.0)
             )?;
+            outln!(
+                "levels of detail   {} ({} indices, {:.2} MiB)",
+                c.levels,
+                c.level_indices,
+                (c.level_indices * 4) as f64 / (1024.0 * 1024.0)
+            )?;
         }
     }
     Ok(())
@@ -418,6 +440,9 @@ struct ClusterInfo {
     build_ms: f64,
     /// Cluster records and mesh ranges (the index buffer is reordered, not grown).
     bytes: u64,
+    /// Levels of detail over every mesh, and the indices they add to the scene's.
+    levels: u64,
+    level_indices: u64,
 }
 
 impl ClusterInfo {
@@ -440,6 +465,8 @@ impl ClusterInfo {
             bytes: (data.clusters.len()
                 * std::mem::size_of::<tilegraph_scene::clusters::GpuCluster>()
                 + data.mesh_clusters.len() * 8) as u64,
+            levels: data.lods.iter().filter(|l| l.index_count > 0).count() as u64,
+            level_indices: data.lods.iter().map(|l| u64::from(l.index_count)).sum(),
         }
     }
 }

@@ -105,6 +105,41 @@ fn demo_writes_a_png() {
     std::fs::remove_file(&out).ok();
 }
 
+/// `scene-info --write-clusters`: the file for a device build, with the levels of detail or,
+/// `--without-levels`, without (fewer indices, the same clusters); both read back.
+#[test]
+fn cluster_files_are_written_with_or_without_levels() {
+    let Some(helmet) = tilegraph_e2e::test_data("scenes/FlightHelmet/FlightHelmet.gltf") else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("tg-cluster-files-{}", std::process::id()));
+    let (with, without) = (dir.join("with.tgc"), dir.join("without.tgc"));
+    let mut reports = Vec::new();
+    for (file, extra) in [(&with, None), (&without, Some("--without-levels"))] {
+        let mut args = vec!["scene-info", helmet.to_str().unwrap(), "--json"];
+        args.extend(["--write-clusters", file.to_str().unwrap()]);
+        args.extend(extra);
+        let (ok, out, err) = tilegraph(&args, &[]);
+        assert!(ok, "{err}");
+        let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+        reports.push(v["clusters"].clone());
+    }
+    let a = tilegraph_scene::clusters::ClusterData::read(&with).unwrap();
+    let b = tilegraph_scene::clusters::ClusterData::read(&without).unwrap();
+    assert_eq!(a.clusters, b.clusters);
+    assert!(b.lods.is_empty() && !a.lods.is_empty());
+    let level_indices: u64 = a.lods.iter().map(|l| u64::from(l.index_count)).sum();
+    assert!(level_indices > 0);
+    assert_eq!(
+        a.indices.len() as u64,
+        b.indices.len() as u64 + level_indices
+    );
+    assert_eq!(reports[0]["level_indices"], level_indices);
+    assert_eq!(reports[1]["levels"], 0);
+    assert!(std::fs::metadata(&with).unwrap().len() > std::fs::metadata(&without).unwrap().len());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn scene_info_json_has_the_documented_fields() {
     let (ok, out, err) = tilegraph(&["scene-info", "city:500", "--json"], &[]);
