@@ -6,8 +6,9 @@
 // back-facing cone test, and in two-phase culling's late phase the HiZ test against the pyramid
 // of the early depth. Writes each cluster's flags and the chunk's number of runs of consecutive
 // drawn clusters (a run ends at the chunk's end: chunks are independent, and a run split in two
-// draws the same triangles in the same order), added to its entry's (cluster_place.comp and
-// cluster_lists.comp place the entries', cluster_emit.comp writes one command per run and zeroes the entries').
+// draws the same triangles in the same order), added to its entry's (cluster_place.comp places
+// the entries' and their groups', cluster_emit.comp writes one command per run and zeroes the
+// entries').
 //
 // Phases (cull.info.y, as cull.comp): 0 frustum; 2 early (knob cluster_early = "clusters"
 // only: with "instances" the early phase is hiz-2phase's, whole instances): of the instances

@@ -29,7 +29,7 @@ layout(set = 0, binding = 6, std430) TRI_WRITES buffer Indices { uint index_data
 
 // VkDrawIndexedIndirectCommand, 5 uints each (cluster_emit.comp's).
 layout(set = 1, binding = 1, std430) TRI_WRITES buffer Commands { uint commands[]; };
-// Per list (0-7): its draw count (cluster_lists.comp's).
+// Per list (0-7): its draw count (cluster_place.comp's).
 layout(set = 1, binding = 2, std430) readonly buffer Counts { uint counts[]; };
 layout(set = 1, binding = 3, std430) readonly buffer DrawIds { uint draw_ids[]; };
 // A command's triangles are tested in slices of TRI_SLICE, a workgroup each (a run of 64

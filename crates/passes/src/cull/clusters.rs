@@ -258,7 +258,7 @@ fn make_buffers(
     })
 }
 
-/// One of the four cluster dispatches.
+/// One of the cluster dispatches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ClusterStep {
     /// `cluster_cull.comp`: a workgroup per chunk flags its clusters and counts their runs.
