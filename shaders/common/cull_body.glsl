@@ -92,6 +92,24 @@ void append_chunks(uint p, uint id) {
         work[WORK_CHUNKS + p * cull.commands.w + at + i] = first + i;
     }
 }
+
+// Two-phase culling empties each phase's work in the other phase's instance test, so no
+// transfer (and barrier) opens the frame: the early test empties the late phase's chunk list
+// and placed-group counters, the late test the early phase's for the next frame (made empty
+// at creation for the first). Neither phase's test touches the part it empties.
+void reset_other_work(uint phase) {
+    if (gl_GlobalInvocationID.x != 0u || (phase != 2u && phase != 3u)) {
+        return;
+    }
+    uint other = phase == 2u ? 1u : 0u;
+    work[4u * other] = 0u;
+    work[4u * other + 1u] = 1u;
+    work[4u * other + 2u] = 1u;
+    work[4u * other + 3u] = 0u;
+    for (uint list = 0u; list < 8u; ++list) {
+        work[8u + 8u * other + list] = 0u;
+    }
+}
 #endif
 
 // Marks the instance's entry of list `list`: drawn or not. Entries never move, so the frame is
@@ -104,6 +122,9 @@ void mark(uint list, uint id, bool draw, uint level) {
 
 void main() {
     uint id = gl_GlobalInvocationID.x;
+#ifdef CLUSTER_WORK
+    reset_other_work(cull.info.y);
+#endif
     if (id >= cull.info.x) {
         return;
     }

@@ -162,7 +162,8 @@ pub struct ClusterStage {
     /// Per list: the draw count (0-7), then the instances its commands draw (8-15).
     pub counts: Buffer,
     /// Per region: the indirect dispatch of its chunks and their count, then the chunk lists
-    /// (cluster.glsl's Work; `cull_clusters.comp` appends, a reset pass empties).
+    /// (cluster.glsl's Work; `cull_clusters.comp` appends; two-phase culling's instance tests
+    /// empty the other phase's, single-phase culling's a reset pass).
     pub work: Buffer,
     /// `cluster_cull.comp`, `cluster_place.comp`, `cluster_emit.comp`, their layouts and set
     /// pool.
@@ -321,13 +322,20 @@ impl ClusterStage {
         // Nothing was found occluded before the first frame: every cluster of an instance
         // visible last frame is a candidate for the early phase. The entries' runs start at
         // zero (each emit zeroes them once placed, for the next culling to add to).
-        let (visibility, runs) = (self.visibility.raw, self.runs.raw);
+        // Both phases' work starts empty: two-phase culling then empties each phase's in the
+        // other's instance test (cull_body.glsl's reset_other_work), single-phase culling in a
+        // transfer at the frame's start.
+        let (visibility, runs, work) = (self.visibility.raw, self.runs.raw, self.work.raw);
+        let header = work_header();
         ctx.submit_and_wait(|cb| {
-            // SAFETY: outside a render pass; the buffers are new and transfer destinations.
+            // SAFETY: outside a render pass; the buffers are new and transfer destinations, the
+            // work buffer holds at least the header (make_buffers).
             unsafe {
                 ctx.device
                     .cmd_fill_buffer(cb, visibility, 0, vk::WHOLE_SIZE, 1);
                 ctx.device.cmd_fill_buffer(cb, runs, 0, vk::WHOLE_SIZE, 0);
+                ctx.device
+                    .cmd_update_buffer(cb, work, 0, bytemuck::cast_slice(&header));
             };
             Ok(())
         })?;
@@ -429,10 +437,9 @@ impl ClusterStage {
 
     /// Records the reset of both regions' chunk lists (the graph made the work buffer a
     /// transfer destination): no chunk, one workgroup row; and of the lists' placed-group
-    /// counters (cull.glsl's `WORK_CHUNKS`).
+    /// counters (cull.glsl's `WORK_CHUNKS`). Single-phase culling's, every frame.
     pub(super) fn record_work_reset(&self, ctx: &Context, cb: vk::CommandBuffer) {
-        let mut header = [0u32; WORK_CHUNKS as usize];
-        header[..8].copy_from_slice(&[0, 1, 1, 0, 0, 1, 1, 0]);
+        let header = work_header();
         // SAFETY: recording outside a render pass; the buffer is live, a transfer destination,
         // and holds at least the header (make_buffers).
         unsafe {
@@ -461,6 +468,14 @@ impl ClusterStage {
             ctx.destroy_buffer(b);
         }
     }
+}
+
+/// The work buffer's empty header: per region no chunk and one workgroup row, every list's
+/// placed-group counter zero (cull.glsl's `WORK_CHUNKS`).
+fn work_header() -> [u32; WORK_CHUNKS as usize] {
+    let mut header = [0u32; WORK_CHUNKS as usize];
+    header[..8].copy_from_slice(&[0, 1, 1, 0, 0, 1, 1, 0]);
+    header
 }
 
 /// The cone test's snapping scale (`CullParams::clusters.w`): sub-pixel steps per unit of

@@ -203,7 +203,8 @@ pub fn import_cull_buffers(
             visibility: g.import_buffer("cluster-visibility", c.visibility.size, keep),
             runs: g.import_buffer("cluster-runs", c.runs.size, discard),
             offsets: g.import_buffer("cluster-offsets", c.offsets.size, discard),
-            work: g.import_buffer("cluster-work", c.work.size, discard),
+            // Two-phase culling's late test empties the early phase's work for the next frame.
+            work: g.import_buffer("cluster-work", c.work.size, keep),
             whole_early: state.cluster_early == ClusterEarly::Instances,
             clear: matches!(state.draw_count, DrawCount::Fixed { .. }),
             triangles: c.triangles.as_ref().zip(index_bytes).map(|(t, bytes)| {
@@ -265,8 +266,10 @@ enum Step {
 pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
     let two_phase = culling.base() == Culling::HizTwoPhase;
     let name = if two_phase { "cull-early" } else { "cull" };
-    if let Some(cl) = lists.clusters {
-        // Both phases' chunk lists start empty (the instance tests append).
+    if let (Some(cl), false) = (lists.clusters, two_phase) {
+        // The chunk list starts empty (the instance test appends). Two-phase culling's
+        // instance tests empty each other's phase's instead (cull_body.glsl): no transfer
+        // and barrier open its frame.
         let reset: Payload = Box::new(|pc, res| {
             let culling = res.states.require::<CullState>(pc.pass_name)?;
             culling.record_work_reset(pc.ctx, pc.cb)
