@@ -4,8 +4,9 @@
 // indexed indirect command per run of consecutive drawn clusters of each region the chunk has
 // runs in (a run ends at the chunk's end), at its entry's place — its group's first command
 // (placed by cluster_place.comp's last workgroup of its list), then its place in the group
-// (cluster_place.comp) — after the runs of the instance's chunks before it, in cluster order: the frame draws the surviving index ranges
-// in the unculled order (instance by instance, as the unculled instanced draw). Each command
+// (cluster_place.comp) — after the runs of the instance's chunks before it, in cluster order:
+// the frame draws the surviving index ranges in the unculled order (instance by instance, as
+// the unculled instanced draw). Each command
 // draws one instance whose id it stores in the draw list (firstInstance points at it).
 #include "scene.glsl"
 #include "cull.glsl"

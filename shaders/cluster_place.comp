@@ -126,7 +126,7 @@ void place_list(uint list) {
 void main() {
     uint t = gl_LocalInvocationID.x;
     uint phase = work_region();
-    uint regions = gl_NumWorkGroups.x / max(cull.groups.x, 1u);
+    uint regions = phase + 1u; // the late phase places the union's runs again
     // Lists no group of the frame belongs to have no last workgroup: the dispatch's first
     // empties them (and the early dispatch the late lists, which only the late one fills).
     if (gl_WorkGroupID.x == 0u && t < 8u) {
