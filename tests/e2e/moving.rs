@@ -219,6 +219,66 @@ fn cluster_techniques_stay_exact_while_the_scene_moves() {
     }
 }
 
+/// Instances coming and going leave cluster culling's history where it was: the cluster
+/// bases follow in the same buffers (before, every spawn made the renderer's buffers anew,
+/// waiting for the frames in flight and forgetting what was visible, and the next frame's
+/// late phase drew whatever the empty early depth could not hide). So `hiz-2phase-clusters`,
+/// whose early phase is `hiz-2phase`'s, draws no more triangles than `hiz-2phase` in any frame
+/// of a walk at eye height while instances spawn and despawn, and stays exact.
+#[test]
+fn spawns_leave_the_cluster_history_as_it_was() {
+    let g = gpu_with(None, culling_features()).unwrap();
+    let mut scene = tilegraph_scene::load("forest:2000").unwrap();
+    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    scene.attach_clusters(data).unwrap();
+    let walk = CameraPath::eye_height_walk(&scene.bounds(), 240, 16);
+    let path = CameraPath::new("walk 16", walk.keys()[..24].to_vec()).unwrap();
+    let run = |culling| {
+        let options = RenderOptions {
+            technique: Technique::Prepass,
+            culling,
+            width: 192,
+            height: 108,
+            ..Default::default()
+        };
+        let extras = CheckExtras {
+            motion: Some(MotionParams {
+                movers: 0.1,
+                spawns: 12,
+                seed: 1,
+            }),
+            ..Default::default()
+        };
+        cull_check_options(&g, &scene, options, &path, None, extras).unwrap()
+    };
+    let instances = run(Culling::HizTwoPhase);
+    let clusters = run(Culling::HizTwoPhaseClusters);
+    assert_exact("forest, walk with spawns", &instances);
+    assert_exact("forest, walk with spawns", &clusters);
+    for (i, c) in instances.frames.iter().zip(&clusters.frames) {
+        assert!(
+            c.triangles_drawn <= i.triangles_drawn,
+            "frame {}: hiz-2phase-clusters drew {} triangles, hiz-2phase {}",
+            c.frame,
+            c.triangles_drawn,
+            i.triangles_drawn
+        );
+        if let Some(cl) = &c.clusters {
+            assert_eq!(
+                cl.false_negatives, 0,
+                "frame {}: visible clusters culled",
+                c.frame
+            );
+        }
+    }
+    assert!(
+        clusters.totals.triangles_drawn < instances.totals.triangles_drawn,
+        "the clusters culled nothing more: {} against {} triangles",
+        clusters.totals.triangles_drawn,
+        instances.totals.triangles_drawn
+    );
+}
+
 /// A million instances build, load, cull and render on lavapipe (small): two-phase HiZ draws
 /// the unculled image while a thousand instances move every frame, and culls most of the city.
 #[test]

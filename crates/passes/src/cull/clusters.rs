@@ -44,8 +44,6 @@ pub struct ClusterLayout {
     pub total: u32,
     /// Per list of a phase: the cluster instances of its instances (its most commands).
     pub capacity: [u32; 4],
-    /// Per list 0-7: its first command.
-    pub cmd_base: [u32; 8],
     /// Per instance, its first chunk of [`CHUNK`] clusters, and the chunks' end: the
     /// instance's chunks are `chunk_base[i]..chunk_base[i + 1]`.
     pub chunk_base: Vec<u32>,
@@ -88,17 +86,10 @@ impl ClusterLayout {
             }
         }
         chunk_base.push(chunk_instance.len() as u32);
-        let mut cmd_base = [0u32; 8];
-        let mut at = 0;
-        for (list, b) in cmd_base.iter_mut().enumerate() {
-            *b = at;
-            at += capacity[list % LISTS_PER_PHASE as usize];
-        }
         Some(ClusterLayout {
             base,
             total,
             capacity,
-            cmd_base,
             chunk_base,
             chunk_instance,
         })
@@ -118,17 +109,79 @@ impl ClusterLayout {
         words
     }
 
-    /// `CullParams::commands` y, z, w: where the first chunks and the chunks' instances sit
-    /// in [`Self::base_words`], and how many chunks there are.
-    pub fn chunk_words(&self) -> [u32; 3] {
+    /// `CullParams::commands` y, z: where the first chunks and the chunks' instances sit in
+    /// [`Self::base_words`].
+    pub fn chunk_words(&self) -> [u32; 2] {
         let first_chunks = self.base.len() as u32;
-        let instances = first_chunks + self.chunk_base.len() as u32;
-        [first_chunks, instances, self.chunks()]
+        [first_chunks, first_chunks + self.chunk_base.len() as u32]
+    }
+}
+
+/// What the stage's buffers were made to hold: a layout a quarter larger than the scene's
+/// when they were made (and 64 more of each), so that instances coming and going take a new
+/// layout in the same buffers ([`ClusterStage::refit`]) — the culling history, the pyramid and
+/// the frames in flight stay — and new buffers are made once per growth of a quarter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClusterRoom {
+    /// Cluster instances: each region's flags and the cluster visibility.
+    pub total: u32,
+    /// Chunks: each region's chunk list and chunk runs (`CullParams::commands` w, their stride).
+    pub chunks: u32,
+    /// Per list of a phase: its most commands.
+    pub capacity: [u32; 4],
+    /// Per list 0-7: its first command.
+    pub cmd_base: [u32; 8],
+    /// Instance slots the base words have room for.
+    pub instances: u32,
+}
+
+impl ClusterRoom {
+    /// Room for `layout` and growth, and for `instances` instance slots.
+    pub fn for_layout(layout: &ClusterLayout, instances: u32) -> Self {
+        // A list with no clusters stays empty: a first instance in it is a new layout.
+        let grown = |x: u32| {
+            if x == 0 {
+                0
+            } else {
+                x.saturating_add(x / 4).saturating_add(64)
+            }
+        };
+        let capacity = layout.capacity.map(grown);
+        let mut cmd_base = [0u32; 8];
+        let mut at = 0u32;
+        for (list, b) in cmd_base.iter_mut().enumerate() {
+            *b = at;
+            at = at.saturating_add(capacity[list % LISTS_PER_PHASE as usize]);
+        }
+        ClusterRoom {
+            total: grown(layout.total),
+            chunks: grown(layout.chunks()),
+            capacity,
+            cmd_base,
+            instances: instances.max(layout.base.len() as u32),
+        }
+    }
+
+    /// Whether `layout` fits.
+    pub fn holds(&self, layout: &ClusterLayout) -> bool {
+        layout.total <= self.total
+            && layout.chunks() <= self.chunks
+            && layout.base.len() as u32 <= self.instances
+            && layout
+                .capacity
+                .iter()
+                .zip(self.capacity)
+                .all(|(&need, room)| need <= room)
     }
 
     /// Commands of both phases' lists.
     pub fn commands(&self) -> u32 {
         2 * self.capacity.iter().sum::<u32>()
+    }
+
+    /// Bytes of the base words ([`ClusterLayout::base_words`]) at most.
+    fn base_bytes(&self) -> u64 {
+        4 * (2 * u64::from(self.instances) + 1 + u64::from(self.chunks))
     }
 }
 
@@ -148,10 +201,19 @@ pub(super) struct Shared<'a> {
 
 /// The cluster stage's buffers, pipelines and descriptor sets.
 pub struct ClusterStage {
+    /// The scene's layout as the last [`Self::refit`] (or the creation) found it.
     pub layout: ClusterLayout,
+    /// What the buffers hold at most.
+    pub room: ClusterRoom,
     pub clusters: Buffer,
     pub mesh_clusters: Buffer,
-    pub base: Buffer,
+    /// Per frame slot, host-visible: the base words of the layout of that slot's frame
+    /// (written when the slot comes round after a new layout: frames in flight keep theirs).
+    pub base: Vec<Buffer>,
+    /// Per frame slot: the layout version its base words hold.
+    base_version: Vec<Option<u64>>,
+    /// Counts the layouts taken.
+    version: u64,
     /// Per region (early-or-union, late) and cluster instance: drawn or not.
     pub flags: Buffer,
     /// Per cluster instance: visible last frame (two-phase).
@@ -180,36 +242,34 @@ enum Spec<'a> {
     Empty(&'static str, u64, vk::BufferUsageFlags),
 }
 
-/// The stage's buffers: clusters, mesh ranges, bases, flags, visibility, runs, offsets,
-/// commands, counts, work (all destroyed again on an error).
+/// The stage's buffers: clusters, mesh ranges, flags, visibility, runs, offsets, commands,
+/// counts, work (all destroyed again on an error).
 fn make_buffers(
     ctx: &Context,
-    layout: &ClusterLayout,
+    room: &ClusterRoom,
     clusters: &tilegraph_scene::clusters::Clusters,
     capacity: Capacity,
-) -> Result<[Buffer; 10], VkError> {
+) -> Result<[Buffer; 9], VkError> {
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let total = u64::from(layout.total.max(1));
+    let total = u64::from(room.total.max(1));
     let stride = u64::from(capacity.stride.max(1));
     let entries = stride * u64::from(LIST_COUNT);
     // Runs per entry of the lists, then per region and chunk (cluster.glsl's chunk_slot).
-    let runs = entries + 2 * u64::from(layout.chunks());
+    let runs = entries + 2 * u64::from(room.chunks);
     // Places per entry of the lists, each entry's group (lists of a phase), then per kind,
     // region and draw group (cluster.glsl's group_of_entry and group_slot).
     let offsets =
         entries + stride * u64::from(LISTS_PER_PHASE) + 4 * u64::from(capacity.groups.max(1));
-    let base_words = layout.base_words();
     let src = vk::BufferUsageFlags::TRANSFER_SRC;
     let dst = vk::BufferUsageFlags::TRANSFER_DST;
     let indirect = vk::BufferUsageFlags::INDIRECT_BUFFER;
-    let commands = u64::from(layout.commands().max(1));
+    let commands = u64::from(room.commands().max(1));
     let specs = [
         Spec::Upload("clusters", bytemuck::cast_slice(&clusters.clusters)),
         Spec::Upload(
             "mesh clusters",
             bytemuck::cast_slice(&clusters.mesh_clusters),
         ),
-        Spec::Upload("cluster base", bytemuck::cast_slice(&base_words)),
         Spec::Empty("cluster flags", 2 * total * 4, storage),
         Spec::Empty("cluster visibility", total * 4, storage | dst),
         Spec::Empty("cluster runs", runs * 4, storage | dst),
@@ -226,7 +286,7 @@ fn make_buffers(
         ),
         Spec::Empty(
             "cluster work",
-            (u64::from(WORK_CHUNKS) + 2 * u64::from(layout.chunks())) * 4,
+            (u64::from(WORK_CHUNKS) + 2 * u64::from(room.chunks)) * 4,
             storage | indirect | dst,
         ),
     ];
@@ -248,7 +308,7 @@ fn make_buffers(
             }
         }
     }
-    <[Buffer; 10]>::try_from(made).map_err(|made| {
+    <[Buffer; 9]>::try_from(made).map_err(|made| {
         for b in made {
             ctx.destroy_buffer(b);
         }
@@ -286,13 +346,17 @@ impl ClusterStage {
         else {
             return Ok(None);
         };
-        let [clusters, mesh_clusters, base, flags, visibility, runs, offsets, commands, counts, work] =
-            make_buffers(ctx, &layout, clusters, capacity)?;
+        let room = ClusterRoom::for_layout(&layout, capacity.instances);
+        let [clusters, mesh_clusters, flags, visibility, runs, offsets, commands, counts, work] =
+            make_buffers(ctx, &room, clusters, capacity)?;
         let mut stage = ClusterStage {
             layout,
+            room,
             clusters,
             mesh_clusters,
-            base,
+            base: Vec::new(),
+            base_version: Vec::new(),
+            version: 0,
             flags,
             visibility,
             runs,
@@ -339,6 +403,16 @@ impl ClusterStage {
             };
             Ok(())
         })?;
+        for slot in 0..shared.slots.len() {
+            let b = ctx.create_buffer(
+                &format!("cluster base[{slot}]"),
+                self.room.base_bytes(),
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                MemoryUse::Streaming,
+            )?;
+            self.base.push(b);
+            self.base_version.push(None);
+        }
         let shaders = [
             ("cluster_cull.comp", CULL_SPV),
             ("cluster_place.comp", PLACE_SPV),
@@ -348,7 +422,8 @@ impl ClusterStage {
         self.compute
             .init(ctx, scene_set_layout, STORAGE_BINDINGS, shaders, sets)?;
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
-        for (params, order, groups) in &shared.slots {
+        for (slot, (params, order, groups)) in shared.slots.iter().enumerate() {
+            let base = self.base_raw(slot)?;
             for p in params {
                 let set = self.compute.allocate_set(ctx)?;
                 write_buffer_set(
@@ -366,7 +441,7 @@ impl ClusterStage {
                         (8, ssbo, shared.entries),
                         (9, ssbo, self.clusters.raw),
                         (10, ssbo, self.mesh_clusters.raw),
-                        (11, ssbo, self.base.raw),
+                        (11, ssbo, base),
                         (12, ssbo, self.flags.raw),
                         (13, ssbo, self.visibility.raw),
                         (14, ssbo, self.runs.raw),
@@ -386,7 +461,7 @@ impl ClusterStage {
                 draw_ids: shared.draw_ids,
                 pyramid: shared.pyramid,
                 levels: shared.levels,
-                command_slots: self.layout.commands(),
+                command_slots: self.room.commands(),
             };
             self.triangles = Some(TriangleStage::new(ctx, &inputs, scene_set_layout)?);
         }
@@ -435,6 +510,55 @@ impl ClusterStage {
         Ok(())
     }
 
+    /// Frame slot `slot`'s base words buffer.
+    pub(super) fn base_raw(&self, slot: usize) -> Result<vk::Buffer, VkError> {
+        self.base
+            .get(slot)
+            .map(|b| b.raw)
+            .ok_or_else(|| VkError::Invalid {
+                what: "cluster culling".into(),
+                reason: format!("no base words for frame slot {slot}"),
+            })
+    }
+
+    /// Takes `scene`'s cluster layout (instances came or went) where it fits the buffers:
+    /// each frame slot's base words follow when the slot comes round
+    /// ([`Self::write_base`]); the flags, runs and work lists are the frame's own, and the
+    /// cluster visibility only guides `cluster_early = clusters`' early phase (the late phase
+    /// tests every cluster of every visible instance), so nothing else needs to change. False
+    /// where it does not fit (or the scene lost its clusters): new buffers are needed.
+    pub(super) fn refit(&mut self, scene: &Scene) -> bool {
+        let Some(layout) = ClusterLayout::of(scene) else {
+            return false;
+        };
+        if !self.room.holds(&layout) {
+            return false;
+        }
+        if layout != self.layout {
+            self.layout = layout;
+            self.version += 1;
+        }
+        true
+    }
+
+    /// Writes frame slot `slot`'s base words where they are not the current layout's (the
+    /// slot's last frame is complete: its parameters are being written too).
+    pub(super) fn write_base(&mut self, ctx: &Context, slot: usize) -> Result<(), VkError> {
+        if self.base_version.get(slot) == Some(&Some(self.version)) {
+            return Ok(());
+        }
+        let words = self.layout.base_words();
+        let buffer = self.base.get_mut(slot).ok_or_else(|| VkError::Invalid {
+            what: "cluster culling".into(),
+            reason: format!("no base words for frame slot {slot}"),
+        })?;
+        ctx.write_mapped(buffer, 0, bytemuck::cast_slice(&words))?;
+        if let Some(v) = self.base_version.get_mut(slot) {
+            *v = Some(self.version);
+        }
+        Ok(())
+    }
+
     /// Records the reset of both regions' chunk lists (the graph made the work buffer a
     /// transfer destination): no chunk, one workgroup row; and of the lists' placed-group
     /// counters (cull.glsl's `WORK_CHUNKS`). Single-phase culling's, every frame.
@@ -456,7 +580,6 @@ impl ClusterStage {
         for b in [
             self.clusters,
             self.mesh_clusters,
-            self.base,
             self.flags,
             self.visibility,
             self.runs,
@@ -464,7 +587,10 @@ impl ClusterStage {
             self.commands,
             self.counts,
             self.work,
-        ] {
+        ]
+        .into_iter()
+        .chain(self.base)
+        {
             ctx.destroy_buffer(b);
         }
     }
@@ -506,5 +632,57 @@ mod cone_tests {
         assert!((s - 540.0 * 256.0).abs() < 1.0, "{s}");
         // Four bits (Vulkan's minimum): sixteen times coarser.
         assert!((cone_steps(p, (1920, 1080), 4) - 540.0 * 16.0).abs() < 0.1);
+    }
+}
+
+#[cfg(test)]
+mod room_tests {
+    use super::{ClusterLayout, ClusterRoom};
+
+    /// A layout of `counts` clusters per instance, all in the opaque single-sided list.
+    fn layout(counts: &[u32]) -> ClusterLayout {
+        let (mut base, mut chunk_base, mut chunk_instance) = (Vec::new(), Vec::new(), Vec::new());
+        let mut total = 0;
+        for (i, &n) in counts.iter().enumerate() {
+            base.push(total);
+            total += n;
+            chunk_base.push(chunk_instance.len() as u32);
+            chunk_instance.extend(std::iter::repeat_n(i as u32, n.div_ceil(64) as usize));
+        }
+        chunk_base.push(chunk_instance.len() as u32);
+        ClusterLayout {
+            base,
+            total,
+            capacity: [total, 0, 0, 0],
+            chunk_base,
+            chunk_instance,
+        }
+    }
+
+    #[test]
+    fn a_room_holds_its_layout_and_a_quarter_more() {
+        let made = layout(&[100; 40]);
+        let room = ClusterRoom::for_layout(&made, 64);
+        assert!(room.holds(&made));
+        // Ten more instances of the same mesh: a quarter more clusters, chunks and slots.
+        assert!(room.holds(&layout(&[100; 50])));
+        // Twice as many do not fit: new buffers.
+        assert!(!room.holds(&layout(&[100; 80])));
+        // Nor do more instance slots than the base words have room for.
+        assert!(!room.holds(&layout(&[1; 65])));
+        // The commands of each list start after the lists before, both phases alike.
+        assert_eq!(room.cmd_base[1], room.capacity[0]);
+        assert_eq!(room.cmd_base[4], room.capacity.iter().sum::<u32>());
+        assert_eq!(room.commands(), 2 * room.capacity[0]);
+    }
+
+    #[test]
+    fn an_empty_list_stays_empty() {
+        let made = layout(&[10; 4]);
+        let room = ClusterRoom::for_layout(&made, 8);
+        assert_eq!(room.capacity[1..], [0, 0, 0]);
+        let mut double_sided = layout(&[10; 4]);
+        double_sided.capacity = [30, 10, 0, 0];
+        assert!(!room.holds(&double_sided));
     }
 }

@@ -60,8 +60,8 @@ impl CullState {
         // Per list: where its commands start and how many it can hold.
         let place = |list: usize| match &self.clusters {
             Some(c) => (
-                c.layout.cmd_base.get(list).copied().unwrap_or(0) as usize,
-                c.layout.capacity.get(list % 4).copied().unwrap_or(0) as usize,
+                c.room.cmd_base.get(list).copied().unwrap_or(0) as usize,
+                c.room.capacity.get(list % 4).copied().unwrap_or(0) as usize,
             ),
             None => (list * slots, slots),
         };

@@ -10,6 +10,7 @@ use tilegraph_scene::{
 use tilegraph_vk::Context;
 
 use super::{create_resources, SceneRenderer};
+use crate::cull::CullState;
 use crate::gpu_scene::Capacity;
 use crate::occlusion::OqState;
 use crate::options::{RenderError, RenderOptions};
@@ -135,19 +136,24 @@ impl SceneRenderer {
     /// Makes the renderer fit `scene` before a frame: buffers with room for its instances and
     /// lists (else new ones: the frames in flight are waited for, once per doubling), per-
     /// instance layouts made again where they cannot follow changes (cluster bases when
-    /// instances come or go; query groups when a quarter of the instances changed), and the
+    /// instances come or go, in the same buffers until they outgrow them by a quarter; query
+    /// groups when a quarter of the instances changed), and the
     /// frame's passes decided again when a material class appears or disappears.
     pub(super) fn fit(&mut self, ctx: &Context, scene: &Scene) -> Result<(), RenderError> {
         let mut rebuild = !self.resources.scene.capacity().holds(scene);
-        let clusters = self.views.iter().any(|v| v.options.culling.clusters());
-        if clusters && self.structure != scene.structure_version() {
-            rebuild = true;
-        }
+        let structure_changed = self.structure != scene.structure_version();
         for k in 0..self.views.len() {
             let (Some(view), res) = (self.views.get_mut(k), &mut self.resources) else {
                 continue;
             };
             res.enter_view(k);
+            // Instances came or went: the cluster bases follow in the same buffers where
+            // they fit (the culling history and the pyramid stay), else new buffers.
+            if structure_changed && !rebuild {
+                if let Some(cull) = res.states.get_mut::<CullState>() {
+                    rebuild |= !cull.refit_clusters(scene);
+                }
+            }
             if let Some(oq) = res.states.get_mut::<OqState>() {
                 match view.oq_cursor.and_then(|c| scene.changes_since(c)) {
                     Some(changes) => {

@@ -31,8 +31,8 @@ impl CullState {
             // Cluster lists: the list's commands from its base, up to its capacity.
             Some(c) => {
                 let local = (list % LISTS_PER_PHASE) as usize;
-                let capacity = c.layout.capacity.get(local).copied().unwrap_or(0);
-                let base = c.layout.cmd_base.get(list as usize).copied().unwrap_or(0);
+                let capacity = c.room.capacity.get(local).copied().unwrap_or(0);
+                let base = c.room.cmd_base.get(list as usize).copied().unwrap_or(0);
                 if capacity == 0 {
                     return Ok(());
                 }

@@ -234,7 +234,9 @@ impl CullState {
                         scene.name()
                     ),
                 })?;
-            u64::from(layout.commands())
+            u64::from(
+                super::clusters::ClusterRoom::for_layout(&layout, capacity.instances).commands(),
+            )
         } else {
             0
         };
@@ -335,12 +337,12 @@ impl CullState {
                 // cull_clusters.comp lists each phase's chunks: the cluster base and the work
                 // lists at bindings 11 and 12.
                 if let Some(c) = &state.clusters {
-                    for &set in &state.sets {
+                    for (i, &set) in state.sets.iter().enumerate() {
                         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
                         write_buffer_set(
                             ctx,
                             set,
-                            &[(11, ssbo, c.base.raw), (12, ssbo, c.work.raw)],
+                            &[(11, ssbo, c.base_raw(i / 2)?), (12, ssbo, c.work.raw)],
                         );
                     }
                 }
@@ -460,6 +462,13 @@ impl CullState {
         Ok(set)
     }
 
+    /// Takes `scene`'s cluster layout after instances came or went, where the cluster stage's
+    /// buffers hold it (`ClusterStage::refit`); false where new buffers are needed. True
+    /// without a cluster stage.
+    pub fn refit_clusters(&mut self, scene: &tilegraph_scene::Scene) -> bool {
+        self.clusters.as_mut().is_none_or(|c| c.refit(scene))
+    }
+
     /// Raster occlusion: test a box drawn last frame again once every `interval` frames.
     pub fn set_recheck_interval(&mut self, interval: u32) {
         self.recheck_interval = interval.max(1);
@@ -505,22 +514,25 @@ impl CullState {
             u32::from(pyramid.is_some_and(|p| p.format == tilegraph_cull::DepthFormat::D16Unorm));
         // Cluster culling: where its commands and draw ids go, entries per list, and the cone
         // test (perspective views only: an orthographic view's direction is not modelled).
-        let [c1, c2, c3] = self
-            .clusters
-            .as_ref()
-            .map_or([0; 3], |c| c.layout.chunk_words());
+        if let Some(c) = &mut self.clusters {
+            c.write_base(ctx, slot)?;
+        }
+        let [c1, c2, c3] = self.clusters.as_ref().map_or([0; 3], |c| {
+            let [first_chunks, chunk_instances] = c.layout.chunk_words();
+            [first_chunks, chunk_instances, c.room.chunks]
+        });
         let (cluster_info, cmd_base) = match &self.clusters {
             Some(c) => {
                 let cone = u32::from(sphere_projection(m.projection).0[2] == 1.0);
                 let whole_early = u32::from(self.cluster_early == ClusterEarly::Instances);
                 // A chunk holds 64 clusters: a longer gap is a whole chunk.
                 let gap = self.cluster_gap.min(63);
-                let b = c.layout.cmd_base;
+                let b = c.room.cmd_base;
                 (
                     [
                         stride * LIST_COUNT,
                         cone | (whole_early << 1) | (gap << 8),
-                        c.layout.total,
+                        c.room.total,
                         cone_steps(
                             m.projection,
                             extent,
