@@ -135,6 +135,27 @@ pub fn bake_path_pvs(
     (g, spec, pvs)
 }
 
+/// Asserts that `refined` (a cluster technique) drew no more triangles than `whole` (the
+/// instance technique it refines) in any frame of the same path: what a cluster technique
+/// promises by construction.
+pub fn assert_no_more_triangles(
+    what: &str,
+    whole: &tilegraph_passes::cullcheck::CullCheck,
+    refined: &tilegraph_passes::cullcheck::CullCheck,
+) {
+    for (a, b) in whole.frames.iter().zip(&refined.frames) {
+        assert!(
+            b.triangles_drawn <= a.triangles_drawn,
+            "{what} frame {}: {} draws {} triangles, {} {}",
+            a.frame,
+            refined.technique,
+            b.triangles_drawn,
+            whole.technique,
+            a.triangles_drawn
+        );
+    }
+}
+
 /// `$TILEGRAPH_TEST_DATA` or `../shared/data` beside the repository.
 pub fn test_data_dir() -> std::path::PathBuf {
     tilegraph_scene::test_data::dir()
