@@ -521,21 +521,19 @@ impl ClusterStage {
             })
     }
 
-    /// Takes `scene`'s cluster layout (instances came or went) where it fits the buffers:
+    /// Takes the scene's new cluster layout (instances came or went; `None`: the scene has
+    /// no clusters any more) where it fits the buffers:
     /// each frame slot's base words follow when the slot comes round
     /// ([`Self::write_base`]); the flags, runs and work lists are the frame's own, and the
     /// cluster visibility only guides `cluster_early = clusters`' early phase (the late phase
     /// tests every cluster of every visible instance), so nothing else needs to change. False
     /// where it does not fit (or the scene lost its clusters): new buffers are needed.
-    pub(super) fn refit(&mut self, scene: &Scene) -> bool {
-        let Some(layout) = ClusterLayout::of(scene) else {
+    pub(super) fn refit(&mut self, layout: Option<&ClusterLayout>) -> bool {
+        let Some(layout) = layout.filter(|l| self.room.holds(l)) else {
             return false;
         };
-        if !self.room.holds(&layout) {
-            return false;
-        }
-        if layout != self.layout {
-            self.layout = layout;
+        if *layout != self.layout {
+            self.layout = layout.clone();
             self.version += 1;
         }
         true

@@ -10,6 +10,7 @@ use tilegraph_scene::{
 use tilegraph_vk::Context;
 
 use super::{create_resources, SceneRenderer};
+use crate::cull::clusters::ClusterLayout;
 use crate::cull::CullState;
 use crate::gpu_scene::Capacity;
 use crate::occlusion::OqState;
@@ -137,21 +138,24 @@ impl SceneRenderer {
     /// lists (else new ones: the frames in flight are waited for, once per doubling), per-
     /// instance layouts made again where they cannot follow changes (cluster bases when
     /// instances come or go, in the same buffers until they outgrow them by a quarter; query
-    /// groups when a quarter of the instances changed), and the
-    /// frame's passes decided again when a material class appears or disappears.
+    /// groups when a quarter of the instances changed), and the frame's passes decided again
+    /// when a material class appears or disappears.
     pub(super) fn fit(&mut self, ctx: &Context, scene: &Scene) -> Result<(), RenderError> {
         let mut rebuild = !self.resources.scene.capacity().holds(scene);
-        let structure_changed = self.structure != scene.structure_version();
+        // Instances came or went: the cluster layout, once for every view that culls clusters.
+        let clusters = self.views.iter().any(|v| v.options.culling.clusters());
+        let new_layout = (clusters && self.structure != scene.structure_version())
+            .then(|| ClusterLayout::of(scene));
         for k in 0..self.views.len() {
             let (Some(view), res) = (self.views.get_mut(k), &mut self.resources) else {
                 continue;
             };
             res.enter_view(k);
-            // Instances came or went: the cluster bases follow in the same buffers where
-            // they fit (the culling history and the pyramid stay), else new buffers.
-            if structure_changed && !rebuild {
+            // The cluster bases follow in the same buffers where they fit (the culling history
+            // and the pyramid stay), else new buffers.
+            if let (Some(layout), false) = (&new_layout, rebuild) {
                 if let Some(cull) = res.states.get_mut::<CullState>() {
-                    rebuild |= !cull.refit_clusters(scene);
+                    rebuild |= !cull.refit_clusters(layout.as_ref());
                 }
             }
             if let Some(oq) = res.states.get_mut::<OqState>() {

@@ -462,11 +462,12 @@ impl CullState {
         Ok(set)
     }
 
-    /// Takes `scene`'s cluster layout after instances came or went, where the cluster stage's
-    /// buffers hold it (`ClusterStage::refit`); false where new buffers are needed. True
-    /// without a cluster stage.
-    pub fn refit_clusters(&mut self, scene: &tilegraph_scene::Scene) -> bool {
-        self.clusters.as_mut().is_none_or(|c| c.refit(scene))
+    /// Takes the scene's cluster layout after instances came or went (`ClusterLayout::of`,
+    /// computed once for every view), where the cluster stage's buffers hold it
+    /// (`ClusterStage::refit`); false where new buffers are needed. True without a cluster
+    /// stage.
+    pub fn refit_clusters(&mut self, layout: Option<&super::clusters::ClusterLayout>) -> bool {
+        self.clusters.as_mut().is_none_or(|c| c.refit(layout))
     }
 
     /// Raster occlusion: test a box drawn last frame again once every `interval` frames.
