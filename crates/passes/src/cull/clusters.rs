@@ -18,14 +18,15 @@
 
 use ash::vk;
 use tilegraph_profile::MemoryUse;
-use tilegraph_scene::{MaterialClass, Scene};
+use tilegraph_scene::{Scene, SceneCursor};
 use tilegraph_vk::ash;
 use tilegraph_vk::pipeline::write_buffer_set;
 use tilegraph_vk::{Buffer, Context, VkError};
 
+pub use super::cluster_layout::{ClusterLayout, ClusterRoom, CHUNK};
 use super::compute::{phase_set, ComputeStage};
 use super::triangles::{TriangleInputs, TriangleStage, TriangleStep};
-use super::{list_index, LISTS_PER_PHASE, LIST_COUNT};
+use super::{LISTS_PER_PHASE, LIST_COUNT};
 use crate::gpu_scene::{upload, Capacity};
 
 const CULL_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_cull.comp.spv");
@@ -35,155 +36,9 @@ const EMIT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_emit.com
 /// The cluster set's storage buffers: bindings 1-17 (common/cluster.glsl).
 const STORAGE_BINDINGS: u32 = 17;
 
-/// Where each instance's clusters sit and how many commands each list can hold.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ClusterLayout {
-    /// Per instance: its first cluster instance.
-    pub base: Vec<u32>,
-    /// Cluster instances of the scene (blended ones included: they keep their place).
-    pub total: u32,
-    /// Per list of a phase: the cluster instances of its instances (its most commands).
-    pub capacity: [u32; 4],
-    /// Per instance, its first chunk of [`CHUNK`] clusters, and the chunks' end: the
-    /// instance's chunks are `chunk_base[i]..chunk_base[i + 1]`.
-    pub chunk_base: Vec<u32>,
-    /// Per chunk, its instance.
-    pub chunk_instance: Vec<u32>,
-}
-
-/// Clusters a workgroup of the cull and emit dispatches handles.
-pub const CHUNK: u32 = 64;
-
 /// Where the work buffer's chunk lists start (cull.glsl's `WORK_CHUNKS`): after each region's
 /// dispatch header (8 words) and the placed-group counter of each phase's eight lists.
 const WORK_CHUNKS: u32 = 24;
-
-impl ClusterLayout {
-    /// The layout of `scene`'s clusters, or `None` when it has none attached.
-    pub fn of(scene: &Scene) -> Option<Self> {
-        let clusters = scene.clusters()?;
-        let mut base = Vec::with_capacity(scene.instances().len());
-        let mut chunk_base = Vec::with_capacity(scene.instances().len() + 1);
-        let mut chunk_instance = Vec::new();
-        let mut total = 0u32;
-        let mut capacity = [0u32; 4];
-        for (i, inst) in scene.instances().iter().enumerate() {
-            base.push(total);
-            let count = clusters.of_mesh(inst.mesh.0).len() as u32;
-            total += count;
-            chunk_base.push(chunk_instance.len() as u32);
-            let chunks = count.div_ceil(CHUNK) as usize;
-            chunk_instance.extend(std::iter::repeat_n(i as u32, chunks));
-            let material = scene.instance_material(inst);
-            let class = match material.map(|m| m.class) {
-                Some(MaterialClass::Blended) => continue,
-                Some(MaterialClass::AlphaTested { .. }) => 1,
-                Some(MaterialClass::Opaque) | None => 0,
-            };
-            let sided = material.is_some_and(|m| m.double_sided);
-            if let Some(c) = capacity.get_mut(list_index(class, sided, 0) as usize) {
-                *c += count;
-            }
-        }
-        chunk_base.push(chunk_instance.len() as u32);
-        Some(ClusterLayout {
-            base,
-            total,
-            capacity,
-            chunk_base,
-            chunk_instance,
-        })
-    }
-
-    /// Chunks of [`CHUNK`] clusters over every instance.
-    pub fn chunks(&self) -> u32 {
-        self.chunk_instance.len() as u32
-    }
-
-    /// The base buffer's words: each instance's first cluster instance, then its first chunk
-    /// and the chunks' end, then each chunk's instance ([`Self::chunk_words`] says where).
-    pub fn base_words(&self) -> Vec<u32> {
-        let mut words = self.base.clone();
-        words.extend(&self.chunk_base);
-        words.extend(&self.chunk_instance);
-        words
-    }
-
-    /// `CullParams::commands` y, z: where the first chunks and the chunks' instances sit in
-    /// [`Self::base_words`].
-    pub fn chunk_words(&self) -> [u32; 2] {
-        let first_chunks = self.base.len() as u32;
-        [first_chunks, first_chunks + self.chunk_base.len() as u32]
-    }
-}
-
-/// What the stage's buffers were made to hold: a layout a quarter larger than the scene's
-/// when they were made (and 64 more of each), so that instances coming and going take a new
-/// layout in the same buffers ([`ClusterStage::refit`]) — the culling history, the pyramid and
-/// the frames in flight stay — and new buffers are made once per growth of a quarter.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ClusterRoom {
-    /// Cluster instances: each region's flags and the cluster visibility.
-    pub total: u32,
-    /// Chunks: each region's chunk list and chunk runs (`CullParams::commands` w, their stride).
-    pub chunks: u32,
-    /// Per list of a phase: its most commands.
-    pub capacity: [u32; 4],
-    /// Per list 0-7: its first command.
-    pub cmd_base: [u32; 8],
-    /// Instance slots the base words have room for.
-    pub instances: u32,
-}
-
-impl ClusterRoom {
-    /// Room for `layout` and growth, and for `instances` instance slots.
-    pub fn for_layout(layout: &ClusterLayout, instances: u32) -> Self {
-        // A list with no clusters stays empty: a first instance in it is a new layout.
-        let grown = |x: u32| {
-            if x == 0 {
-                0
-            } else {
-                x.saturating_add(x / 4).saturating_add(64)
-            }
-        };
-        let capacity = layout.capacity.map(grown);
-        let mut cmd_base = [0u32; 8];
-        let mut at = 0u32;
-        for (list, b) in cmd_base.iter_mut().enumerate() {
-            *b = at;
-            at = at.saturating_add(capacity[list % LISTS_PER_PHASE as usize]);
-        }
-        ClusterRoom {
-            total: grown(layout.total),
-            chunks: grown(layout.chunks()),
-            capacity,
-            cmd_base,
-            instances: instances.max(layout.base.len() as u32),
-        }
-    }
-
-    /// Whether `layout` fits.
-    pub fn holds(&self, layout: &ClusterLayout) -> bool {
-        layout.total <= self.total
-            && layout.chunks() <= self.chunks
-            && layout.base.len() as u32 <= self.instances
-            && layout
-                .capacity
-                .iter()
-                .zip(self.capacity)
-                .all(|(&need, room)| need <= room)
-    }
-
-    /// Commands of both phases' lists.
-    pub fn commands(&self) -> u32 {
-        2 * self.capacity.iter().sum::<u32>()
-    }
-
-    /// Bytes of the base words ([`ClusterLayout::base_words`]) at most.
-    fn base_bytes(&self) -> u64 {
-        4 * (2 * u64::from(self.instances) + 1 + u64::from(self.chunks))
-    }
-}
 
 /// The buffers the cluster stage binds that the instance culling owns.
 pub(super) struct Shared<'a> {
@@ -201,8 +56,10 @@ pub(super) struct Shared<'a> {
 
 /// The cluster stage's buffers, pipelines and descriptor sets.
 pub struct ClusterStage {
-    /// The scene's layout as the last [`Self::refit`] (or the creation) found it.
+    /// The scene's layout as the last [`Self::follow`] (or the creation) left it.
     pub layout: ClusterLayout,
+    /// Where in the scene's changes the layout is.
+    cursor: SceneCursor,
     /// What the buffers hold at most.
     pub room: ClusterRoom,
     pub clusters: Buffer,
@@ -210,10 +67,9 @@ pub struct ClusterStage {
     /// Per frame slot, host-visible: the base words of the layout of that slot's frame
     /// (written when the slot comes round after a new layout: frames in flight keep theirs).
     pub base: Vec<Buffer>,
-    /// Per frame slot: the layout version its base words hold.
-    base_version: Vec<Option<u64>>,
-    /// Counts the layouts taken.
-    version: u64,
+    /// Per frame slot: the layout its base words hold — epoch, slots and chunks
+    /// ([`ClusterRoom::base_writes`]); `None`: nothing yet.
+    base_written: Vec<Option<(u64, u32, u32)>>,
     /// Per region (early-or-union, late) and cluster instance: drawn or not.
     pub flags: Buffer,
     /// Per cluster instance: visible last frame (two-phase).
@@ -351,12 +207,12 @@ impl ClusterStage {
             make_buffers(ctx, &room, clusters, capacity)?;
         let mut stage = ClusterStage {
             layout,
+            cursor: shared.scene.cursor(),
             room,
             clusters,
             mesh_clusters,
             base: Vec::new(),
-            base_version: Vec::new(),
-            version: 0,
+            base_written: Vec::new(),
             flags,
             visibility,
             runs,
@@ -411,7 +267,7 @@ impl ClusterStage {
                 MemoryUse::Streaming,
             )?;
             self.base.push(b);
-            self.base_version.push(None);
+            self.base_written.push(None);
         }
         let shaders = [
             ("cluster_cull.comp", CULL_SPV),
@@ -521,38 +377,40 @@ impl ClusterStage {
             })
     }
 
-    /// Takes the scene's new cluster layout (instances came or went; `None`: the scene has
-    /// no clusters any more) where it fits the buffers:
-    /// each frame slot's base words follow when the slot comes round
-    /// ([`Self::write_base`]); the flags, runs and work lists are the frame's own, and the
-    /// cluster visibility only guides `cluster_early = clusters`' early phase (the late phase
-    /// tests every cluster of every visible instance), so nothing else needs to change. False
-    /// where it does not fit (or the scene lost its clusters): new buffers are needed.
-    pub(super) fn refit(&mut self, layout: Option<&ClusterLayout>) -> bool {
-        let Some(layout) = layout.filter(|l| self.room.holds(l)) else {
-            return false;
-        };
-        if *layout != self.layout {
-            self.layout = layout.clone();
-            self.version += 1;
-        }
-        true
+    /// Follows the scene's changes since the last call (instances that came or went: new
+    /// slots appended, freed ones reused in place, else every slot laid out anew;
+    /// [`ClusterLayout::follow`]) where the buffers hold the result: each frame slot's base
+    /// words follow when the slot comes round ([`Self::write_base`]); the flags, runs and
+    /// work lists are the frame's own, and the cluster visibility only guides
+    /// `cluster_early = clusters`' early phase (the late phase tests every cluster of every
+    /// visible instance), so nothing else needs to change. False where the result does not fit
+    /// (or the scene lost its clusters): new buffers are needed.
+    pub(super) fn follow(&mut self, scene: &Scene) -> bool {
+        let followed = self.layout.follow(scene, scene.changes_since(self.cursor));
+        self.cursor = scene.cursor();
+        followed && self.room.holds(&self.layout)
     }
 
-    /// Writes frame slot `slot`'s base words where they are not the current layout's (the
-    /// slot's last frame is complete: its parameters are being written too).
+    /// Brings frame slot `slot`'s base words to the layout: what was appended since they were
+    /// written, or all of them after a new layout (the slot's last frame is complete: its
+    /// parameters are being written too).
     pub(super) fn write_base(&mut self, ctx: &Context, slot: usize) -> Result<(), VkError> {
-        if self.base_version.get(slot) == Some(&Some(self.version)) {
+        let now = (self.layout.epoch, self.layout.slots(), self.layout.chunks());
+        let written = self.base_written.get(slot).copied().flatten();
+        if written == Some(now) {
             return Ok(());
         }
-        let words = self.layout.base_words();
         let buffer = self.base.get_mut(slot).ok_or_else(|| VkError::Invalid {
             what: "cluster culling".into(),
             reason: format!("no base words for frame slot {slot}"),
         })?;
-        ctx.write_mapped(buffer, 0, bytemuck::cast_slice(&words))?;
-        if let Some(v) = self.base_version.get_mut(slot) {
-            *v = Some(self.version);
+        for (at, words) in self.room.base_writes(&self.layout, written) {
+            if !words.is_empty() {
+                ctx.write_mapped(buffer, 4 * at as usize, bytemuck::cast_slice(words))?;
+            }
+        }
+        if let Some(w) = self.base_written.get_mut(slot) {
+            *w = Some(now);
         }
         Ok(())
     }
@@ -630,57 +488,5 @@ mod cone_tests {
         assert!((s - 540.0 * 256.0).abs() < 1.0, "{s}");
         // Four bits (Vulkan's minimum): sixteen times coarser.
         assert!((cone_steps(p, (1920, 1080), 4) - 540.0 * 16.0).abs() < 0.1);
-    }
-}
-
-#[cfg(test)]
-mod room_tests {
-    use super::{ClusterLayout, ClusterRoom};
-
-    /// A layout of `counts` clusters per instance, all in the opaque single-sided list.
-    fn layout(counts: &[u32]) -> ClusterLayout {
-        let (mut base, mut chunk_base, mut chunk_instance) = (Vec::new(), Vec::new(), Vec::new());
-        let mut total = 0;
-        for (i, &n) in counts.iter().enumerate() {
-            base.push(total);
-            total += n;
-            chunk_base.push(chunk_instance.len() as u32);
-            chunk_instance.extend(std::iter::repeat_n(i as u32, n.div_ceil(64) as usize));
-        }
-        chunk_base.push(chunk_instance.len() as u32);
-        ClusterLayout {
-            base,
-            total,
-            capacity: [total, 0, 0, 0],
-            chunk_base,
-            chunk_instance,
-        }
-    }
-
-    #[test]
-    fn a_room_holds_its_layout_and_a_quarter_more() {
-        let made = layout(&[100; 40]);
-        let room = ClusterRoom::for_layout(&made, 64);
-        assert!(room.holds(&made));
-        // Ten more instances of the same mesh: a quarter more clusters, chunks and slots.
-        assert!(room.holds(&layout(&[100; 50])));
-        // Twice as many do not fit: new buffers.
-        assert!(!room.holds(&layout(&[100; 80])));
-        // Nor do more instance slots than the base words have room for.
-        assert!(!room.holds(&layout(&[1; 65])));
-        // The commands of each list start after the lists before, both phases alike.
-        assert_eq!(room.cmd_base[1], room.capacity[0]);
-        assert_eq!(room.cmd_base[4], room.capacity.iter().sum::<u32>());
-        assert_eq!(room.commands(), 2 * room.capacity[0]);
-    }
-
-    #[test]
-    fn an_empty_list_stays_empty() {
-        let made = layout(&[10; 4]);
-        let room = ClusterRoom::for_layout(&made, 8);
-        assert_eq!(room.capacity[1..], [0, 0, 0]);
-        let mut double_sided = layout(&[10; 4]);
-        double_sided.capacity = [30, 10, 0, 0];
-        assert!(!room.holds(&double_sided));
     }
 }

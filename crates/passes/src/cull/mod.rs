@@ -36,6 +36,7 @@ use crate::frame::{scene_set, DrawSource, FrameGraph, Payload};
 use crate::hiz::HizState;
 use triangles::TriangleStep;
 
+mod cluster_layout;
 pub mod clusters;
 mod compute;
 mod layout;

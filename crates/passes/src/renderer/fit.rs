@@ -10,7 +10,6 @@ use tilegraph_scene::{
 use tilegraph_vk::Context;
 
 use super::{create_resources, SceneRenderer};
-use crate::cull::clusters::ClusterLayout;
 use crate::cull::CullState;
 use crate::gpu_scene::Capacity;
 use crate::occlusion::OqState;
@@ -136,26 +135,22 @@ pub(super) fn decide_setup(
 impl SceneRenderer {
     /// Makes the renderer fit `scene` before a frame: buffers with room for its instances and
     /// lists (else new ones: the frames in flight are waited for, once per doubling), per-
-    /// instance layouts made again where they cannot follow changes (cluster bases when
-    /// instances come or go, in the same buffers until they outgrow them by a quarter; query
-    /// groups when a quarter of the instances changed), and the frame's passes decided again
-    /// when a material class appears or disappears.
+    /// instance layouts following the changes (the cluster bases at the changes' cost, in the
+    /// same buffers until they outgrow them by a quarter) or made again where they cannot
+    /// (query groups when a quarter of the instances changed), and the frame's passes decided
+    /// again when a material class appears or disappears.
     pub(super) fn fit(&mut self, ctx: &Context, scene: &Scene) -> Result<(), RenderError> {
         let mut rebuild = !self.resources.scene.capacity().holds(scene);
-        // Instances came or went: the cluster layout, once for every view that culls clusters.
-        let clusters = self.views.iter().any(|v| v.options.culling.clusters());
-        let new_layout = (clusters && self.structure != scene.structure_version())
-            .then(|| ClusterLayout::of(scene));
         for k in 0..self.views.len() {
             let (Some(view), res) = (self.views.get_mut(k), &mut self.resources) else {
                 continue;
             };
             res.enter_view(k);
-            // The cluster bases follow in the same buffers where they fit (the culling history
-            // and the pyramid stay), else new buffers.
-            if let (Some(layout), false) = (&new_layout, rebuild) {
+            // The cluster layout follows the instances that came or went, in the same buffers
+            // where it fits (the culling history and the pyramid stay), else new buffers.
+            if !rebuild {
                 if let Some(cull) = res.states.get_mut::<CullState>() {
-                    rebuild |= !cull.refit_clusters(layout.as_ref());
+                    rebuild |= !cull.follow_clusters(scene);
                 }
             }
             if let Some(oq) = res.states.get_mut::<OqState>() {
@@ -177,7 +172,6 @@ impl SceneRenderer {
         if rebuild {
             self.rebuild(ctx, scene)?;
         }
-        self.structure = scene.structure_version();
         let content = SceneContent::of(scene);
         if content.presence() != self.content.presence() {
             for v in self.views.iter_mut() {

@@ -85,8 +85,6 @@ pub struct SceneRenderer {
     /// Instance slots of the scene the last frame drew.
     last_instances: usize,
     draw_builder: DrawBuilder,
-    /// The scene's structure version the per-instance layouts were made for.
-    structure: u64,
     /// The drawn instances per class the frame setup was decided for.
     content: SceneContent,
     declared: Option<DeclaredFrame>,
@@ -174,7 +172,6 @@ impl SceneRenderer {
             last_slot: 0,
             last_instances: scene.instances().len(),
             draw_builder: DrawBuilder::default(),
-            structure: scene.structure_version(),
             content,
             declared: None,
             plan_cache: PlanCache::new(),

@@ -462,12 +462,11 @@ impl CullState {
         Ok(set)
     }
 
-    /// Takes the scene's cluster layout after instances came or went (`ClusterLayout::of`,
-    /// computed once for every view), where the cluster stage's buffers hold it
-    /// (`ClusterStage::refit`); false where new buffers are needed. True without a cluster
-    /// stage.
-    pub fn refit_clusters(&mut self, layout: Option<&super::clusters::ClusterLayout>) -> bool {
-        self.clusters.as_mut().is_none_or(|c| c.refit(layout))
+    /// Follows the scene's changes in the cluster layout, where the cluster stage's buffers
+    /// hold the result (`ClusterStage::follow`: the changes' cost); false where new buffers
+    /// are needed. True without a cluster stage.
+    pub fn follow_clusters(&mut self, scene: &tilegraph_scene::Scene) -> bool {
+        self.clusters.as_mut().is_none_or(|c| c.follow(scene))
     }
 
     /// Raster occlusion: test a box drawn last frame again once every `interval` frames.
@@ -519,7 +518,7 @@ impl CullState {
             c.write_base(ctx, slot)?;
         }
         let [c1, c2, c3] = self.clusters.as_ref().map_or([0; 3], |c| {
-            let [first_chunks, chunk_instances] = c.layout.chunk_words();
+            let [first_chunks, chunk_instances] = c.room.chunk_words();
             [first_chunks, chunk_instances, c.room.chunks]
         });
         let (cluster_info, cmd_base) = match &self.clusters {
