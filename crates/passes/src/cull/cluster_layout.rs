@@ -8,7 +8,8 @@
 //! freed slot's mesh, and culling skips it); an instance added in a new slot appends one; an
 //! instance added in a freed slot takes the range in place when its mesh has no more clusters
 //! than the range holds (the shaders stop at the mesh's own count: the rest of the range idles).
-//! Only a slot that needs more than it holds lays every slot out anew.
+//! Only a slot that needs more than it holds lays every slot out anew, no range smaller than
+//! it was.
 
 use tilegraph_scene::{Change, MaterialClass, Scene};
 
@@ -45,6 +46,11 @@ pub struct ClusterLayout {
 impl ClusterLayout {
     /// The layout of `scene`'s clusters over every slot, or `None` when it has none attached.
     pub fn of(scene: &Scene) -> Option<Self> {
+        Self::lay_out(scene, &[], 0)
+    }
+
+    /// Every slot of `scene` laid out, slot `i`'s range at least `floor[i]` clusters.
+    fn lay_out(scene: &Scene, floor: &[u32], epoch: u64) -> Option<Self> {
         let mut layout = ClusterLayout {
             base: Vec::with_capacity(scene.instances().len()),
             total: 0,
@@ -52,10 +58,10 @@ impl ClusterLayout {
             chunk_base: Vec::with_capacity(scene.instances().len() + 1),
             chunk_instance: Vec::new(),
             lists: Vec::with_capacity(scene.instances().len()),
-            epoch: 0,
+            epoch,
         };
         layout.chunk_base.push(0);
-        layout.append(scene)?;
+        layout.append(scene, floor)?;
         Some(layout)
     }
 
@@ -96,13 +102,20 @@ impl ClusterLayout {
         };
         if anew {
             let epoch = self.epoch + 1;
-            match Self::of(scene) {
-                Some(fresh) => *self = ClusterLayout { epoch, ..fresh },
+            log::debug!(
+                "cluster layout: {} slots laid out anew (epoch {epoch})",
+                scene.instances().len()
+            );
+            // No range shrinks: a slot that held a larger mesh may again (instances of a few
+            // kinds churning through the freed slots lay out anew once, not every time).
+            let floor: Vec<u32> = (0..self.slots()).map(|i| self.allocated(i)).collect();
+            match Self::lay_out(scene, &floor, epoch) {
+                Some(fresh) => *self = fresh,
                 None => return false,
             }
             return true;
         }
-        self.append(scene).is_some()
+        self.append(scene, &[]).is_some()
     }
 
     /// Slot `i`'s cluster instances.
@@ -129,11 +142,20 @@ impl ClusterLayout {
         *old = list;
     }
 
-    /// Lays out the scene's slots past the last one laid out.
-    fn append(&mut self, scene: &Scene) -> Option<()> {
+    /// Lays out the scene's slots past the last one laid out, slot `i`'s range at least
+    /// `floor[i]` clusters.
+    fn append(&mut self, scene: &Scene, floor: &[u32]) -> Option<()> {
         let clusters = scene.clusters()?;
+        if self.slots() < scene.instances().len() as u32 && self.slots() > 0 {
+            log::debug!(
+                "cluster layout: slots {}..{} appended",
+                self.slots(),
+                scene.instances().len()
+            );
+        }
         for i in self.slots()..scene.instances().len() as u32 {
-            let (count, list) = slot_needs(scene, clusters, i);
+            let (need, list) = slot_needs(scene, clusters, i);
+            let count = need.max(floor.get(i as usize).copied().unwrap_or(0));
             self.base.push(self.total);
             self.total += count;
             let chunks = count.div_ceil(CHUNK) as usize;

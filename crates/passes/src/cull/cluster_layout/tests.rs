@@ -154,6 +154,19 @@ fn a_slot_that_needs_more_than_its_range_lays_everything_out_anew() {
     assert!(layout.follow(&scene, None));
     assert_eq!(layout.epoch, 2);
     check(&layout, &scene);
+    // Anew, no range shrinks: slot 2 keeps room for the large mesh it held, slot 4 grows.
+    let cursor = scene.cursor();
+    for slot in [2, 4] {
+        let h = scene.instance_handle(InstanceId(slot)).unwrap();
+        scene.remove_instance(h).unwrap();
+    }
+    let small = scene.mesh_handle(MeshId(1)).unwrap();
+    scene.add_instance(large, t, InstanceFlags::NONE).unwrap(); // slot 4
+    scene.add_instance(small, t, InstanceFlags::NONE).unwrap(); // slot 2
+    follow(&mut layout, &scene, cursor);
+    assert_eq!(layout.epoch, 3);
+    assert_eq!(layout.base, [0, 130, 260, 390, 392]);
+    assert_eq!(layout.total, 522);
 }
 
 #[test]
