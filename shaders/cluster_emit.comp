@@ -18,6 +18,12 @@ layout(local_size_x = 64) in;
 // different threads, and the end's index count is fixed up after a barrier.
 layout(set = 1, binding = 1, std430) coherent buffer Commands { uint commands[]; };
 layout(set = 1, binding = 3, std430) writeonly buffer DrawIds { uint draw_ids[]; };
+// Per command (from draw id cull.clusters.x on, which word 0 holds): the mesh's triangle its run
+// starts at (visbuf.vert's DrawRuns: the visibility buffer's ids count from it).
+layout(set = 1, binding = 18, std430) buffer RunTriangles {
+    uint run_base;
+    uint run_first_triangle[];
+};
 layout(set = 1, binding = 7, std430) readonly buffer Order { uint order[]; };
 
 shared uint scan[64];
@@ -86,6 +92,7 @@ void emit(uint r, uint w, uint id, uint e, uint g, Instance inst, uvec2 range, u
             commands[5u * cmd + 3u] = uint(m.vertex_offset);
             commands[5u * cmd + 4u] = cull.clusters.x + cmd;
             draw_ids[cull.clusters.x + cmd] = id;
+            run_first_triangle[cmd] = (cl.first_index - m.first_index) / 3u;
         }
         if (last) {
             // The end of the run's indices for now; the count once every start is written.

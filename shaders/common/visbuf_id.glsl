@@ -9,6 +9,8 @@ layout(constant_id = 0) const uint ALPHA_TESTED = 0u;
 
 layout(location = 0) in vec2 v_uv;
 layout(location = 1) flat in uint v_instance;
+// The mesh's triangle the draw's first primitive is (visbuf.vert: a cluster run's first).
+layout(location = 2) flat in uint v_first_triangle;
 layout(location = 0) out uint o_id;
 
 void main() {
@@ -18,5 +20,5 @@ void main() {
             discard;
         }
     }
-    o_id = visbuf_pack(v_instance, uint(gl_PrimitiveID));
+    o_id = visbuf_pack(v_instance, v_first_triangle + uint(gl_PrimitiveID));
 }

@@ -265,6 +265,7 @@ impl<'a> Composition<'a> {
                     (l.runs, &s.runs),
                     (l.offsets, &s.offsets),
                     (l.work, &s.work),
+                    (l.run_triangles, &s.run_triangles),
                 ] {
                     externals.insert(id, External::Buffer(CullState::handle(buffer)));
                 }

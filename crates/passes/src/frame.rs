@@ -239,6 +239,9 @@ pub enum DrawSource {
         commands: BufferId,
         counts: BufferId,
         draw_ids: BufferId,
+        /// Cluster culling's runs: per command, the mesh's triangle it starts at (bound in
+        /// the culled set; the visibility buffer's pass reads it).
+        runs: Option<BufferId>,
         phase: u32,
         clusters: bool,
         /// Per-triangle culling: the scene's index buffer, whose tail the commands draw.
@@ -254,11 +257,15 @@ impl DrawSource {
             commands,
             counts,
             draw_ids,
+            runs,
             indices,
             ..
         } = self
         {
             p.indirect(commands).indirect(counts).storage_read(draw_ids);
+            if let Some(r) = runs {
+                p.storage_read(r);
+            }
             if let Some(i) = indices {
                 p.index(i);
             }

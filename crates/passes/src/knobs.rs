@@ -335,6 +335,13 @@ impl Resolved {
     /// `auto`'s trial, when `culling = auto` chose [`Self::culling`] (`None` when the culling
     /// was given).
     pub fn auto_trial(&self, inputs: AutoInputs) -> Option<AutoTrial> {
+        // Per-triangle culling packs the triangles anew: the visibility buffer's ids cannot
+        // name them, so cluster culling is no candidate there.
+        let triangles = self.get("triangle_culling").and_then(KnobValue::as_name) == Some("on");
+        let inputs = AutoInputs {
+            clusters: inputs.clusters && !(triangles && self.technique == Technique::Visbuf),
+            ..inputs
+        };
         self.auto_reason
             .as_ref()
             .map(|_| AutoTrial::new(self.culling, inputs, self.technique))
@@ -827,8 +834,8 @@ mod tests {
                 Culling::SoftwareOcclusion
             ]
         );
-        // The cluster techniques only on a scene with its clusters attached, and not with the
-        // visibility buffer (its ids restart at each cluster range).
+        // The cluster techniques only on a scene with its clusters attached, with every
+        // shading.
         let clusters = AutoInputs {
             clusters: true,
             ..conditional
@@ -843,7 +850,25 @@ mod tests {
             ]
         );
         let visbuf = AutoTrial::new(Culling::HizTwoPhase, clusters, Technique::Visbuf);
-        assert!(!visbuf.candidates.iter().any(|c| c.clusters()));
+        assert!(visbuf.candidates.contains(&Culling::HizTwoPhaseClusters));
+        // Not with per-triangle culling, whose packed triangles the ids cannot name.
+        let resolved = |technique, triangles: &str| Resolved {
+            culling: Culling::HizTwoPhase,
+            technique,
+            auto_reason: Some("test".into()),
+            knobs: vec![KnobChoice {
+                name: "triangle_culling",
+                value: KnobValue::Name(triangles.into()),
+                origin: Origin::Run,
+            }],
+        };
+        let trial = |r: Resolved| r.auto_trial(clusters).map(|t| t.candidates);
+        let packed = trial(resolved(Technique::Visbuf, "on")).unwrap();
+        assert!(!packed.iter().any(|c| c.clusters()), "{packed:?}");
+        let forward = trial(resolved(Technique::Forward, "on")).unwrap();
+        assert!(forward.contains(&Culling::HizTwoPhaseClusters));
+        let plain = trial(resolved(Technique::Visbuf, "off")).unwrap();
+        assert!(plain.contains(&Culling::HizTwoPhaseClusters));
     }
 
     #[test]

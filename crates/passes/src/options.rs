@@ -393,6 +393,16 @@ pub(crate) fn check_device(
             reason,
         });
     }
+    if options.triangle_culling
+        && options.culling.clusters()
+        && options.technique == Technique::Visbuf
+    {
+        return Err(RenderError::UnsupportedCulling {
+            culling: options.culling.name(),
+            technique: options.technique.name(),
+            reason: "with knob triangle_culling its commands draw the kept triangles packed anew, which the ids' primitive ids cannot name",
+        });
+    }
     if options.culling == Culling::Pvs {
         let reason = match &options.pvs {
             None => Some("no visible set given (bake one with `tilegraph pvs`, pass it with --pvs or RenderOptions::pvs)".to_string()),

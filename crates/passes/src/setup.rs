@@ -273,9 +273,6 @@ impl Culling {
             // Both test boxes against a depth pre-pass before colour; the visibility buffer
             // and the G-buffer have no pre-pass to test against.
             Some("it needs a depth pre-pass before colour")
-        } else if self.clusters() && technique == Technique::Visbuf {
-            // The ids pass stores gl_PrimitiveID, which a cluster command restarts at its range.
-            Some("its ids hold primitive ids, which restart at each cluster range")
         } else {
             None
         }
@@ -762,9 +759,12 @@ mod tests {
         assert!(!decide(none, &profile("mali-valhall"), t).includes(PassKind::GbufferWrite));
         assert_eq!(Culling::HizTwoPhaseClusters.unsupported_with(t), None);
         assert!(Culling::RasterOcclusion.unsupported_with(t).is_some());
-        assert!(Culling::HizTwoPhaseClusters
-            .unsupported_with(Technique::Visbuf)
-            .is_some());
+        // The visibility buffer's ids count a cluster run's triangles from its first
+        // (visbuf.vert's DrawRuns).
+        assert_eq!(
+            Culling::HizTwoPhaseClusters.unsupported_with(Technique::Visbuf),
+            None
+        );
         let with = decide(MIXED, &profile("lavapipe"), t).with_culling(Culling::HizTwoPhase);
         assert!(!with.has_prepass());
     }

@@ -33,8 +33,9 @@ const CULL_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_cull.com
 const PLACE_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_place.comp.spv");
 const EMIT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_emit.comp.spv");
 
-/// The cluster set's storage buffers: bindings 1-17 (common/cluster.glsl).
-const STORAGE_BINDINGS: u32 = 17;
+/// The cluster set's storage buffers: bindings 1-18 (common/cluster.glsl; 18 the runs'
+/// first triangles, cluster_emit.comp).
+const STORAGE_BINDINGS: u32 = 18;
 
 /// Where the work buffer's chunk lists start (cull.glsl's `WORK_CHUNKS`): after each region's
 /// dispatch header (8 words) and the placed-group counter of each phase's eight lists.
@@ -83,6 +84,12 @@ pub struct ClusterStage {
     /// (cluster.glsl's Work; `cull_clusters.comp` appends; two-phase culling's instance tests
     /// empty the other phase's, single-phase culling's a reset pass).
     pub work: Buffer,
+    /// The draw id of cluster command 0 (`CullParams::clusters` x: after the instance lists'
+    /// room, however many entries a frame's lists hold), then per command the mesh's triangle
+    /// its run starts at (visbuf.vert's DrawRuns, bound in the culled set 0).
+    pub run_triangles: Buffer,
+    /// The draw id of cluster command 0.
+    pub draw_id_base: u32,
     /// `cluster_cull.comp`, `cluster_place.comp`, `cluster_emit.comp`, their layouts and set
     /// pool.
     compute: ComputeStage<3>,
@@ -105,7 +112,7 @@ fn make_buffers(
     room: &ClusterRoom,
     clusters: &tilegraph_scene::clusters::Clusters,
     capacity: Capacity,
-) -> Result<[Buffer; 9], VkError> {
+) -> Result<[Buffer; 10], VkError> {
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let total = u64::from(room.total.max(1));
     let stride = u64::from(capacity.stride.max(1));
@@ -145,6 +152,7 @@ fn make_buffers(
             (u64::from(WORK_CHUNKS) + 2 * u64::from(room.chunks)) * 4,
             storage | indirect | dst,
         ),
+        Spec::Empty("cluster run triangles", (1 + commands) * 4, storage | dst),
     ];
     let mut made = Vec::with_capacity(specs.len());
     for spec in specs {
@@ -164,7 +172,7 @@ fn make_buffers(
             }
         }
     }
-    <[Buffer; 9]>::try_from(made).map_err(|made| {
+    <[Buffer; 10]>::try_from(made).map_err(|made| {
         for b in made {
             ctx.destroy_buffer(b);
         }
@@ -203,7 +211,7 @@ impl ClusterStage {
             return Ok(None);
         };
         let room = ClusterRoom::for_layout(&layout, capacity.instances);
-        let [clusters, mesh_clusters, flags, visibility, runs, offsets, commands, counts, work] =
+        let [clusters, mesh_clusters, flags, visibility, runs, offsets, commands, counts, work, run_triangles] =
             make_buffers(ctx, &room, clusters, capacity)?;
         let mut stage = ClusterStage {
             layout,
@@ -220,6 +228,8 @@ impl ClusterStage {
             commands,
             counts,
             work,
+            run_triangles,
+            draw_id_base: capacity.stride.max(1).saturating_mul(LIST_COUNT),
             compute: ComputeStage::EMPTY,
             sets: Vec::new(),
             triangles: None,
@@ -246,6 +256,7 @@ impl ClusterStage {
         // other's instance test (cull_body.glsl's reset_other_work), single-phase culling in a
         // transfer at the frame's start.
         let (visibility, runs, work) = (self.visibility.raw, self.runs.raw, self.work.raw);
+        let (run_triangles, draw_id_base) = (self.run_triangles.raw, self.draw_id_base);
         let header = work_header();
         ctx.submit_and_wait(|cb| {
             // SAFETY: outside a render pass; the buffers are new and transfer destinations, the
@@ -256,6 +267,8 @@ impl ClusterStage {
                 ctx.device.cmd_fill_buffer(cb, runs, 0, vk::WHOLE_SIZE, 0);
                 ctx.device
                     .cmd_update_buffer(cb, work, 0, bytemuck::cast_slice(&header));
+                ctx.device
+                    .cmd_update_buffer(cb, run_triangles, 0, &draw_id_base.to_le_bytes());
             };
             Ok(())
         })?;
@@ -304,6 +317,7 @@ impl ClusterStage {
                         (15, ssbo, self.offsets.raw),
                         (16, ssbo, *groups),
                         (17, ssbo, self.work.raw),
+                        (18, ssbo, self.run_triangles.raw),
                     ],
                 );
                 self.sets.push(set);
@@ -443,6 +457,7 @@ impl ClusterStage {
             self.commands,
             self.counts,
             self.work,
+            self.run_triangles,
         ]
         .into_iter()
         .chain(self.base)

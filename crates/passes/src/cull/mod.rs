@@ -115,6 +115,9 @@ pub struct ClusterLists {
     pub offsets: BufferId,
     /// Each phase's chunks to cull and emit, and their indirect dispatches.
     pub work: BufferId,
+    /// Per cluster command: the mesh's triangle its run starts at (the visibility buffer's
+    /// ids count from it; visbuf.vert).
+    pub run_triangles: BufferId,
     /// `cluster_early = instances`: the early phase is hiz-2phase's (the instance compaction,
     /// whole instances drawn); the cluster stage runs in the late phase only.
     pub whole_early: bool,
@@ -145,6 +148,7 @@ impl CullLists {
             commands,
             counts,
             draw_ids: self.draw_ids,
+            runs: self.clusters.map(|c| c.run_triangles),
             phase,
             clusters: self.clusters.is_some(),
             indices: self.clusters.and_then(|c| c.triangles).map(|t| t.indices),
@@ -159,6 +163,8 @@ impl CullLists {
                 commands: self.commands,
                 counts: self.counts,
                 draw_ids: self.draw_ids,
+                // The culled set binds the runs: the visibility buffer's pass reads them.
+                runs: Some(c.run_triangles),
                 phase: 0,
                 clusters: false,
                 indices: None,
@@ -206,6 +212,8 @@ pub fn import_cull_buffers(
             offsets: g.import_buffer("cluster-offsets", c.offsets.size, discard),
             // Two-phase culling's late test empties the early phase's work for the next frame.
             work: g.import_buffer("cluster-work", c.work.size, keep),
+            // Its first word, where the commands' draw ids start, is written once.
+            run_triangles: g.import_buffer("cluster-run-triangles", c.run_triangles.size, keep),
             whole_early: state.cluster_early == ClusterEarly::Instances,
             clear: matches!(state.draw_count, DrawCount::Fixed { .. }),
             triangles: c.triangles.as_ref().zip(index_bytes).map(|(t, bytes)| {
@@ -380,7 +388,8 @@ fn add_cluster_stage(g: &mut FrameGraph, lists: CullLists, which: usize) {
     .storage_read(c.offsets)
     .storage_read(c.flags)
     .storage_read_write(c.commands)
-    .storage_write(lists.draw_ids);
+    .storage_write(lists.draw_ids)
+    .storage_write(c.run_triangles);
     if let Some(t) = c.triangles {
         add_triangle_stage(g, lists, c, t, which);
     }

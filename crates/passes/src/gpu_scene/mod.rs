@@ -244,6 +244,10 @@ impl Capacity {
     }
 }
 
+/// Set 0's cluster runs (visbuf.vert's DrawRuns): where a draw list's cluster commands begin
+/// and each one's first triangle in its mesh.
+pub const RUNS_BINDING: u32 = 10;
+
 /// Everything the scene passes bind: set 0 of `scene.glsl`, one per view and frame slot.
 ///
 /// The scene's data (geometry, textures, records, lists, tables) is one copy shared by every
@@ -262,8 +266,12 @@ pub struct GpuScene {
     pub set_layout: vk::DescriptorSetLayout,
     pool: vk::DescriptorPool,
     capacity: Capacity,
-    /// Per view, the culling shader's draw list, bound by its culled sets.
-    culled_draw_ids: Vec<Option<vk::Buffer>>,
+    /// Per view, the culling shader's draw list, bound by its culled sets, and with cluster
+    /// culling its runs' first triangles (`ClusterStage::run_triangles`).
+    culled_draw_ids: Vec<Option<(vk::Buffer, Option<vk::Buffer>)>>,
+    /// Bound as a set's runs where its draws have none (visbuf.vert's DrawRuns: where the
+    /// cluster commands begin, past every draw-list slot).
+    no_runs: Buffer,
     /// The view whose sets [`Self::set`] and [`Self::culled_set`] give.
     view: usize,
     /// The scene as the resident geometry holds it.
@@ -395,11 +403,25 @@ impl GpuScene {
                 return Err(e);
             }
         };
-        let textures = match GpuTextures::new(ctx, scene, textures) {
-            Ok(t) => t,
+        let no_runs = match upload(
+            ctx,
+            "no cluster runs",
+            &u32::MAX.to_le_bytes(),
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+        ) {
+            Ok(b) => b,
             Err(e) => {
                 ctx.destroy_buffer(vertices);
                 ctx.destroy_buffer(indices);
+                return Err(e);
+            }
+        };
+        let textures = match GpuTextures::new(ctx, scene, textures) {
+            Ok(t) => t,
+            Err(e) => {
+                for b in [vertices, indices, no_runs] {
+                    ctx.destroy_buffer(b);
+                }
                 return Err(e);
             }
         };
@@ -414,6 +436,7 @@ impl GpuScene {
             pool: vk::DescriptorPool::null(),
             capacity,
             culled_draw_ids: vec![None; atlases.len()],
+            no_runs,
             view: 0,
             geometry_cursor: Some(scene.cursor()),
             geometry_serial: 0,
@@ -452,6 +475,7 @@ impl GpuScene {
         let sampler = vk::DescriptorType::COMBINED_IMAGE_SAMPLER;
         let mut bindings = vec![(0, vk::DescriptorType::UNIFORM_BUFFER, all, 1)];
         bindings.extend((1..=7).map(|b| (b, ssbo, all, 1)));
+        bindings.push((RUNS_BINDING, ssbo, vk::ShaderStageFlags::VERTEX, 1));
         bindings.push((
             TEXTURE_BINDING,
             sampler,
@@ -469,7 +493,7 @@ impl GpuScene {
             },
             vk::DescriptorPoolSize {
                 ty: ssbo,
-                descriptor_count: 7 * n,
+                descriptor_count: 8 * n,
             },
             vk::DescriptorPoolSize {
                 ty: sampler,
@@ -541,15 +565,17 @@ impl GpuScene {
         let ssbo = vk::DescriptorType::STORAGE_BUFFER;
         for (view, v) in slot.views.iter().enumerate() {
             let culled = self.culled_draw_ids.get(view).copied().flatten();
-            let sets = [(v.set, slot.entries.raw)]
-                .into_iter()
-                .chain(v.culled_set.zip(culled));
+            let no_runs = self.no_runs.raw;
+            let sets = [(v.set, (slot.entries.raw, no_runs))].into_iter().chain(
+                v.culled_set
+                    .zip(culled.map(|(ids, runs)| (ids, runs.unwrap_or(no_runs)))),
+            );
             // Every view has its atlas (made with the views).
             let Some(atlas) = self.atlases.get(view) else {
                 continue;
             };
             let atlas = [atlas.descriptor()];
-            for (set, draw_list) in sets {
+            for (set, (draw_list, runs)) in sets {
                 write_buffer_set(
                     ctx,
                     set,
@@ -562,6 +588,7 @@ impl GpuScene {
                         (5, ssbo, self.vertices.raw),
                         (6, ssbo, self.indices.raw),
                         (7, ssbo, v.counters.raw),
+                        (RUNS_BINDING, ssbo, runs),
                     ],
                 );
                 let images = self.textures.image_infos();
@@ -681,6 +708,7 @@ impl GpuScene {
         }
         ctx.destroy_buffer(self.vertices);
         ctx.destroy_buffer(self.indices);
+        ctx.destroy_buffer(self.no_runs);
     }
 }
 

@@ -90,14 +90,20 @@ impl GpuScene {
     }
 
     /// Creates, per frame slot, the set that the current view's GPU-culled draws bind: the
-    /// same as its plain one but with the draw list its culling shader writes (`draw_ids`).
-    pub fn add_culled_sets(&mut self, ctx: &Context, draw_ids: vk::Buffer) -> Result<(), VkError> {
+    /// same as its plain one but with the draw list its culling shader writes (`draw_ids`)
+    /// and, with cluster culling, its runs' first triangles (`runs`).
+    pub fn add_culled_sets(
+        &mut self,
+        ctx: &Context,
+        draw_ids: vk::Buffer,
+        runs: Option<vk::Buffer>,
+    ) -> Result<(), VkError> {
         let view = self.view;
         let entry = self
             .culled_draw_ids
             .get_mut(view)
             .ok_or_else(|| no_view(view))?;
-        *entry = Some(draw_ids);
+        *entry = Some((draw_ids, runs));
         for i in 0..self.frames.len() {
             let set = allocate_set(ctx, self.pool, self.set_layout)?;
             if let Some(v) = self.frames[i].views.get_mut(view) {

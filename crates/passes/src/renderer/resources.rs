@@ -151,8 +151,9 @@ fn add_states(
         }
         c.set_recheck_interval(options.occlusion_recheck);
         let draw_ids = c.draw_ids.raw;
+        let runs = c.clusters.as_ref().map(|s| s.run_triangles.raw);
         res.states.insert(c);
-        res.scene.add_culled_sets(ctx, draw_ids)?;
+        res.scene.add_culled_sets(ctx, draw_ids, runs)?;
         if culling == Culling::RasterOcclusion {
             let visibility = res.states.get::<CullState>().map(|c| &c.visibility);
             if let Some(visibility) = visibility {

@@ -530,7 +530,7 @@ impl CullState {
                 let b = c.room.cmd_base;
                 (
                     [
-                        stride * LIST_COUNT,
+                        c.draw_id_base,
                         cone | (whole_early << 1) | (gap << 8),
                         c.room.total,
                         cone_steps(
