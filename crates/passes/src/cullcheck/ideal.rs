@@ -25,6 +25,9 @@ pub(super) struct FrameVisible {
 /// in which each frame hides every compared instance the oracle did not see (blended and hidden
 /// instances as they are) and, where the oracle saw clusters, draws only those of the others,
 /// timed whole, frames back to back after one untimed pass along the path (and the warm-up).
+/// Only its time is read: with the visibility buffer its cluster runs are CPU draws, whose ids
+/// count from each mesh's first triangle rather than the run's (the resolve shades other
+/// triangles of the same instances: the same work, not the same image).
 pub(super) fn ideal_frame(
     ctx: &Context,
     scene: &Scene,
