@@ -224,7 +224,9 @@ fn cluster_techniques_stay_exact_while_the_scene_moves() {
 /// waiting for the frames in flight and forgetting what was visible, and the next frame's
 /// late phase drew whatever the empty early depth could not hide). So `hiz-2phase-clusters`,
 /// whose early phase is `hiz-2phase`'s, draws no more triangles than `hiz-2phase` in any frame
-/// of a walk at eye height while instances spawn and despawn, and stays exact.
+/// of a walk at eye height while instances spawn and despawn, and stays exact. Its spawns
+/// append slots, take freed ones in place and lay every slot out anew twice (the cluster
+/// layout's debug log, `RUST_LOG=tilegraph_passes::cull::cluster_layout=debug`, names them).
 #[test]
 fn spawns_leave_the_cluster_history_as_it_was() {
     let g = gpu_with(None, culling_features()).unwrap();

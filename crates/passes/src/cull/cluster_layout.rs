@@ -90,8 +90,12 @@ impl ClusterLayout {
                 Change::Everything | Change::Mesh(_) => true,
                 Change::Instance(i) if i < self.slots() => {
                     let (count, list) = slot_needs(scene, clusters, i);
-                    if count > self.allocated(i) {
+                    let allocated = self.allocated(i);
+                    if count > allocated {
                         return true;
+                    }
+                    if count < allocated {
+                        log::debug!("cluster layout: slot {i} holds {count} of its {allocated}");
                     }
                     self.move_list(i, list);
                     false
