@@ -43,6 +43,8 @@ int main(int argc, char **argv) {
     }
     uint64_t crate_mesh;
     TG_CHECK(tg_scene_mesh_handle(scene, 2, &crate_mesh));
+    /* Spawn 3 is mirrored: it draws the crate's copy with the winding reversed. */
+    TG_CHECK(tg_scene_prepare_mirroring(scene, crate_mesh));
     uint64_t spawned[FRAMES][SPAWNS];
 
     EngineImage target = engine_image(&e, WIDTH, HEIGHT);
@@ -59,7 +61,7 @@ int main(int argc, char **argv) {
         TG_CHECK(tg_scene_set_transforms(scene, movers, moved, MOVERS));
         TgInstanceDesc spawn[SPAWNS];
         for (uint32_t k = 0; k < SPAWNS; k++) {
-            TgTransform t = {.linear = {1, 0, 0, 0, 1, 0, 0, 0, 1}};
+            TgTransform t = {.linear = {k == 3 ? -1 : 1, 0, 0, 0, 1, 0, 0, 0, 1}};
             for (int c = 0; c < 3; c++) {
                 t.translation[c] = camera.eye[c] + (camera.target[c] - camera.eye[c]) * 0.25;
             }

@@ -51,11 +51,15 @@ fn walk(scene: &Scene, frames: usize) -> CameraPath {
     CameraPath::new("walk with jumps", selected).unwrap()
 }
 
+/// A third of the small instances move, a quarter of those turning mirrored for half their
+/// period (each mesh's copy of reversed winding made on the first turn: with clusters
+/// attached, new cluster tables).
 fn motion() -> MotionParams {
     MotionParams {
         movers: 0.3,
         spawns: 6,
         seed: 7,
+        mirrors: 0.25,
     }
 }
 
@@ -204,6 +208,36 @@ fn cluster_techniques_stay_exact_while_the_scene_moves() {
     let shaded = (Technique::DeferredTexturing, Culling::HizTwoPhaseClusters);
     let r = check_shaded(&g, &scene, &path, shaded);
     assert_exact("closed spheres, walk", &r);
+    // No sphere mirrored at build: every mover's first turn makes its mesh's copy (clusters
+    // and cones turned) while the renderer runs, which then takes new cluster tables.
+    let plain = tilegraph_e2e::closed_spheres(4, 4, false);
+    let turning = MotionParams {
+        mirrors: 1.0,
+        ..motion()
+    };
+    for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
+        let options = RenderOptions {
+            technique: Technique::Prepass,
+            culling,
+            width: SIZE.0,
+            height: SIZE.1,
+            ..Default::default()
+        };
+        let extras = CheckExtras {
+            motion: Some(turning),
+            ..Default::default()
+        };
+        let r = cull_check_options(&g, &plain, options, &walk(&plain, 10), None, extras).unwrap();
+        assert_exact("closed spheres turning mirrored", &r);
+    }
+    let mut turned = plain.clone();
+    Motion::new(&plain, &walk(&plain, 10), turning)
+        .apply(&mut turned, 0)
+        .unwrap();
+    assert!(
+        turned.meshes().len() > plain.meshes().len(),
+        "no copy was made: nothing turned"
+    );
     // Per-triangle culling packs into the index buffer's tail while the scene moves.
     for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
         let options = RenderOptions {
@@ -248,6 +282,7 @@ fn spawns_leave_the_cluster_history_as_it_was() {
                 movers: 0.1,
                 spawns: 12,
                 seed: 1,
+                mirrors: 0.0,
             }),
             ..Default::default()
         };
@@ -345,4 +380,124 @@ fn the_memory_estimate_is_what_a_renderer_allocates() {
     assert_eq!(r.scene_memory(), estimate);
     assert!(estimate.bytes_per_instance() > 96.0, "{estimate:?}");
     r.destroy(&g);
+}
+
+/// `scene` built again: each mesh's vertices through `vertex`, each triangle's corners through
+/// `triangle`, each instance's linear part through `linear`.
+fn rebuilt(
+    scene: &Scene,
+    vertex: impl Fn(tilegraph_scene::Vertex) -> tilegraph_scene::Vertex,
+    triangle: impl Fn([u32; 3]) -> [u32; 3],
+    linear: impl Fn(glam::Mat3) -> glam::Mat3,
+) -> Scene {
+    use tilegraph_scene::{SceneBuilder, Transform};
+    let mut b = SceneBuilder::new(format!("{} rebuilt", scene.name()));
+    for m in scene.materials() {
+        assert!(m.base_color_texture.is_none(), "an untextured scene");
+        b.add_material(*m);
+    }
+    let meshes: Vec<_> = scene
+        .meshes()
+        .iter()
+        .map(|m| {
+            let first = m.vertex_offset as usize;
+            let vertices: Vec<_> = scene.vertices()[first..first + m.vertex_count as usize]
+                .iter()
+                .map(|v| vertex(*v))
+                .collect();
+            let range = m.first_index as usize..(m.first_index + m.index_count) as usize;
+            let indices: Vec<u32> = scene.indices()[range]
+                .chunks_exact(3)
+                .flat_map(|t| triangle([t[0], t[1], t[2]]))
+                .collect();
+            b.add_mesh(&vertices, &indices, m.material).unwrap()
+        })
+        .collect();
+    for inst in scene.instances() {
+        let t = Transform::new(linear(inst.transform.linear), inst.transform.translation);
+        b.add_instance(t, meshes[inst.mesh.index()]).unwrap();
+    }
+    b.build(Some(scene.camera_path().clone())).unwrap()
+}
+
+/// Frames 1-3 of the scene's path (frame 0 drawn before `turn` changes the scene).
+fn frames_drawn(
+    g: &tilegraph_e2e::Gpu,
+    scene: &Scene,
+    culling: Culling,
+    turn: impl FnOnce(&mut Scene),
+) -> Vec<Vec<u8>> {
+    let mut scene = scene.clone();
+    let options = RenderOptions {
+        technique: Technique::Prepass,
+        culling,
+        width: SIZE.0,
+        height: SIZE.1,
+        ..Default::default()
+    };
+    let mut r = SceneRenderer::new(g, &scene, options).unwrap();
+    let mut images = Vec::new();
+    let mut turn = Some(turn);
+    for (i, frame) in scene
+        .camera_path()
+        .clone()
+        .frames(SIZE.0 as f32 / SIZE.1 as f32)
+        .take(4)
+        .enumerate()
+    {
+        if i == 1 {
+            if let Some(t) = turn.take() {
+                t(&mut scene);
+            }
+        }
+        r.render_frame(g, &scene, &frame).unwrap();
+        if i > 0 {
+            images.push(r.read_image(g).unwrap().pixels);
+        }
+    }
+    r.destroy(g);
+    images
+}
+
+/// A mirroring instance (negative determinant) draws what its mesh mirrored by hand draws
+/// (positions and normals negated along x, every triangle turned, the instance's own
+/// transform): the same image bit for bit, whether the scene was built so or every instance
+/// turned mirroring between two frames of a running renderer (the meshes' copies made then).
+/// Drawn as given, without the turn, the same geometry shows its inside: another image.
+#[test]
+fn a_mirroring_instance_draws_its_mesh_mirrored() {
+    use glam::{Mat3, Vec3};
+    use tilegraph_scene::{Transform, Vertex};
+    let g = gpu_with(None, culling_features()).unwrap();
+    let scene = tilegraph_scene::load("city:300").unwrap();
+    let flip = Mat3::from_diagonal(Vec3::new(-1.0, 1.0, 1.0));
+    let mirrored = |v: Vertex| Vertex {
+        position: [-v.position[0], v.position[1], v.position[2]],
+        normal: [-v.normal[0], v.normal[1], v.normal[2]],
+        uv: v.uv,
+    };
+    let by_hand = rebuilt(&scene, mirrored, |[a, b, c]| [a, c, b], |l| l);
+    let built = rebuilt(&scene, |v| v, |t| t, |l| l * flip);
+    let inside_out = rebuilt(&scene, mirrored, |t| t, |l| l);
+    let keep = |_: &mut Scene| {};
+    let expected = frames_drawn(&g, &by_hand, Culling::None, keep);
+    for culling in [Culling::None, Culling::HizTwoPhase] {
+        assert_eq!(
+            frames_drawn(&g, &built, culling, keep),
+            expected,
+            "{culling:?}"
+        );
+        let turned = frames_drawn(&g, &scene, culling, |s| {
+            let moves: Vec<_> = (0..s.instances().len() as u32)
+                .filter_map(|i| s.instance_handle(tilegraph_scene::InstanceId(i)))
+                .map(|h| {
+                    let t = s.instance(h).unwrap().transform;
+                    (h, Transform::new(t.linear * flip, t.translation))
+                })
+                .collect();
+            s.set_transforms(&moves).unwrap();
+        });
+        assert_eq!(turned, expected, "{culling:?}, turned while drawn");
+    }
+    assert_ne!(frames_drawn(&g, &inside_out, Culling::None, keep), expected);
 }

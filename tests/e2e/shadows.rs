@@ -305,6 +305,7 @@ fn caster_culling_is_exact_while_the_scene_moves() {
         movers: 0.3,
         spawns: 6,
         seed: 7,
+        mirrors: 0.25,
     };
     for technique in [
         Technique::Forward,

@@ -1373,6 +1373,14 @@ TgStatus tg_scene_add_mesh(TgScene scene,
 TgStatus tg_scene_remove_mesh(TgScene scene, uint64_t mesh);
 
 /**
+ * Makes the copy of `mesh` with its winding reversed that instances under a mirroring
+ * transform (negative determinant) draw, if not made yet. Instances make it themselves on
+ * first use, except on a scene with clusters attached (its geometry is fixed): there a mesh
+ * an instance may mirror needs this call before `tg_scene_attach_clusters`.
+ */
+TgStatus tg_scene_prepare_mirroring(TgScene scene, uint64_t mesh);
+
+/**
  * The handle of mesh `index` of a loaded or created scene (its meshes in order).
  *
  * # Safety
@@ -1391,7 +1399,8 @@ TgStatus tg_scene_instance_handle(TgScene scene, uint32_t index, uint64_t *out_i
 /**
  * Adds `count` instances; their handles go to `out_instances` (in order). All or nothing: an
  * error (a stale mesh handle, a non-finite transform, unknown flags) names the entry and adds
- * none.
+ * none. An instance under a mirroring transform (negative determinant) draws its mesh with
+ * the winding reversed, so its front faces stay front (`tg_scene_prepare_mirroring`).
  *
  * # Safety
  * `descs` holds `count` elements, `out_instances` room for `count`.
@@ -1413,7 +1422,7 @@ TgStatus tg_scene_remove_instances(TgScene scene, const uint64_t *instances, uin
 /**
  * Moves `count` instances: `instances[k]` to `transforms[k]`. One call a frame for every
  * moving object. All or nothing: a stale handle or a non-finite transform names the entry and
- * moves none.
+ * moves none. A transform that turns mirroring (or back) switches the winding drawn.
  *
  * # Safety
  * Both arrays hold `count` elements.

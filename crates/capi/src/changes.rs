@@ -156,6 +156,20 @@ pub extern "C" fn tg_scene_remove_mesh(scene: TgScene, mesh: u64) -> TgStatus {
     })
 }
 
+/// Makes the copy of `mesh` with its winding reversed that instances under a mirroring
+/// transform (negative determinant) draw, if not made yet. Instances make it themselves on
+/// first use, except on a scene with clusters attached (its geometry is fixed): there a mesh
+/// an instance may mirror needs this call before `tg_scene_attach_clusters`.
+#[no_mangle]
+pub extern "C" fn tg_scene_prepare_mirroring(scene: TgScene, mesh: u64) -> TgStatus {
+    boundary("tg_scene_prepare_mirroring", || {
+        edit(scene, |s| {
+            s.prepare_mirroring(MeshHandle::from_bits(mesh))
+                .map_err(change_failure)
+        })
+    })
+}
+
 /// The handle of mesh `index` of a loaded or created scene (its meshes in order).
 ///
 /// # Safety
@@ -210,7 +224,8 @@ pub unsafe extern "C" fn tg_scene_instance_handle(
 
 /// Adds `count` instances; their handles go to `out_instances` (in order). All or nothing: an
 /// error (a stale mesh handle, a non-finite transform, unknown flags) names the entry and adds
-/// none.
+/// none. An instance under a mirroring transform (negative determinant) draws its mesh with
+/// the winding reversed, so its front faces stay front (`tg_scene_prepare_mirroring`).
 ///
 /// # Safety
 /// `descs` holds `count` elements, `out_instances` room for `count`.
@@ -287,7 +302,7 @@ pub unsafe extern "C" fn tg_scene_remove_instances(
 
 /// Moves `count` instances: `instances[k]` to `transforms[k]`. One call a frame for every
 /// moving object. All or nothing: a stale handle or a non-finite transform names the entry and
-/// moves none.
+/// moves none. A transform that turns mirroring (or back) switches the winding drawn.
 ///
 /// # Safety
 /// Both arrays hold `count` elements.

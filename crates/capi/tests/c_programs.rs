@@ -261,6 +261,7 @@ fn rust_moving_reference() -> Vec<u8> {
         .map(|h| scene.instance(*h).unwrap().transform)
         .collect();
     let crate_mesh = scene.mesh_handle(MeshId(2)).unwrap();
+    scene.prepare_mirroring(crate_mesh).unwrap();
     let path = scene.camera_path().clone();
     let mut spawned = Vec::new();
     let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
@@ -281,7 +282,8 @@ fn rust_moving_reference() -> Vec<u8> {
             .map(|k| {
                 let mut at = camera.eye + (camera.target - camera.eye) * 0.25;
                 at.x += f64::from(k) * 1.5;
-                let t = Transform::new(Mat3::IDENTITY, at);
+                let mirror = if k == 3 { -1.0 } else { 1.0 };
+                let t = Transform::new(Mat3::from_diagonal(glam::Vec3::new(mirror, 1.0, 1.0)), at);
                 scene
                     .add_instance(crate_mesh, t, InstanceFlags::CASTS_SHADOWS)
                     .unwrap()

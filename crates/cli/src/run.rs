@@ -249,16 +249,17 @@ pub fn wants_clusters(knobs: &KnobSettings) -> Clusters {
     }
 }
 
-/// A scene spec's motion: `SPEC@moving[:MOVERS[:SPAWNS[:SEED]]]` moves the scene along the
-/// camera path ([`MotionParams`]: the share of small instances that move, the instances
-/// spawned in front of the camera, the seed); returns the spec without it.
+/// A scene spec's motion: `SPEC@moving[:MOVERS[:SPAWNS[:SEED[:MIRRORS]]]]` moves the scene
+/// along the camera path ([`MotionParams`]: the share of small instances that move, the
+/// instances spawned in front of the camera, the seed, the share of movers mirrored for half
+/// their period); returns the spec without it.
 pub fn split_motion(spec: &str) -> Result<(&str, Option<MotionParams>), CliError> {
     let Some((scene, motion)) = spec.rsplit_once("@moving") else {
         return Ok((spec, None));
     };
     let bad = |why: &str| {
         CliError::Usage(format!(
-            "scene `{spec}`: {why} (SPEC@moving[:MOVERS[:SPAWNS[:SEED]]], e.g. city:10k@moving:0.2:12:1)"
+            "scene `{spec}`: {why} (SPEC@moving[:MOVERS[:SPAWNS[:SEED[:MIRRORS]]]], e.g. city:10k@moving:0.2:12:1:0.5)"
         ))
     };
     let mut params = MotionParams::default();
@@ -268,7 +269,7 @@ pub fn split_motion(spec: &str) -> Result<(&str, Option<MotionParams>), CliError
             .ok_or_else(|| bad("`@moving` is followed by `:`"))?
             .split(':')
             .collect();
-        if parts.len() > 3 {
+        if parts.len() > 4 {
             return Err(bad("too many fields"));
         }
         if let Some(m) = parts.first() {
@@ -283,6 +284,13 @@ pub fn split_motion(spec: &str) -> Result<(&str, Option<MotionParams>), CliError
         }
         if let Some(seed) = parts.get(2) {
             params.seed = seed.parse().map_err(|_| bad("SEED is an integer"))?;
+        }
+        if let Some(m) = parts.get(3) {
+            params.mirrors = m
+                .parse::<f64>()
+                .ok()
+                .filter(|m| (0.0..=1.0).contains(m))
+                .ok_or_else(|| bad("MIRRORS is a share from 0 to 1"))?;
         }
     }
     Ok((scene, Some(params)))

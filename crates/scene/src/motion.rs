@@ -4,7 +4,9 @@
 //! [`Motion::new`] picks from a scene what moves: some of its small instances **slide** back
 //! and forth along a street axis (out from behind whatever hides them and back), thin upright
 //! ones **swing** about an edge like doors, and a few instances of its meshes **spawn** in front
-//! of the camera path and despawn later. [`Motion::apply`] brings the scene to frame `n`'s state
+//! of the camera path and despawn later; with [`MotionParams::mirrors`], some movers also turn
+//! mirrored for half their period (an engine flipping a prop: its mesh's winding turns with
+//! it, `Scene::set_transforms`). [`Motion::apply`] brings the scene to frame `n`'s state
 //! from whatever frame it was at — every position is a function of the frame, spawned instances
 //! are there exactly in their window — so a path can be rendered again from its start, and two
 //! renderers fed the same frames see the same scene. Deterministic from its seed.
@@ -26,6 +28,8 @@ pub struct MotionParams {
     /// Instances spawned along the camera path (each lives for a part of it).
     pub spawns: usize,
     pub seed: u64,
+    /// Share of the movers (0..=1) mirrored along their local x axis for half their period.
+    pub mirrors: f64,
 }
 
 impl Default for MotionParams {
@@ -34,6 +38,7 @@ impl Default for MotionParams {
             movers: 0.1,
             spawns: 12,
             seed: 1,
+            mirrors: 0.0,
         }
     }
 }
@@ -61,6 +66,8 @@ struct Mover {
     handle: InstanceHandle,
     base: Transform,
     path: Path,
+    /// Mirrored along its local x axis while its path is in its second half.
+    mirrors: bool,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -96,6 +103,9 @@ impl Motion {
         radii.sort_unstable_by(f32::total_cmp);
         let median = radii.get(radii.len() / 2).copied().unwrap_or(0.0);
         let share = params.movers.clamp(0.0, 1.0);
+        // Its own sequence: the movers and paths are those of the same seed without mirrors.
+        let mut mirror_rng = Pcg64::seed_from_u64(params.seed ^ 0x6d69_7272_6f72);
+        let mirrors = params.mirrors.clamp(0.0, 1.0);
         let mut movers = Vec::new();
         for (i, inst) in scene.instances().iter().enumerate() {
             if !inst.flags.is_drawn() || inst.bounds.radius > median || !rng.random_bool(share) {
@@ -138,6 +148,7 @@ impl Motion {
                 handle,
                 base: inst.transform,
                 path,
+                mirrors: mirrors > 0.0 && mirror_rng.random_bool(mirrors),
             });
         }
         let spawns = place_spawns(scene, path, params.spawns, &mut rng, median);
@@ -170,7 +181,11 @@ impl Motion {
         self.batch.clear();
         let t = frame as f64;
         for m in &self.movers {
-            self.batch.push((m.handle, m.path.at(&m.base, t)));
+            let mut at = m.path.at(&m.base, t);
+            if m.mirrors && m.path.second_half(t) {
+                at.linear *= Mat3::from_diagonal(Vec3::new(-1.0, 1.0, 1.0));
+            }
+            self.batch.push((m.handle, at));
         }
         scene.set_transforms(&self.batch)?;
         for s in &mut self.spawns {
@@ -193,6 +208,12 @@ impl Motion {
 }
 
 impl Path {
+    /// Whether time `t` lies in the second half of the path's period.
+    fn second_half(&self, t: f64) -> bool {
+        let (Path::Slide { period, phase, .. } | Path::Swing { period, phase, .. }) = *self;
+        (t / period + phase / std::f64::consts::TAU).rem_euclid(1.0) >= 0.5
+    }
+
     fn at(&self, base: &Transform, t: f64) -> Transform {
         match *self {
             Path::Slide {

@@ -1,5 +1,5 @@
-//! A scene changed by handle: instances added, removed, moved, hidden; meshes added and
-//! removed. Every change is checked against a plain model of the scene, and a mirror that
+//! A scene changed by handle: instances added, removed, moved, hidden, mirrored and turned
+//! back; meshes added and removed. Every change is checked against a plain model of the scene, and a mirror that
 //! follows the scene's journal (as a renderer's upload does) must end up holding exactly what a
 //! full upload would.
 
@@ -161,9 +161,10 @@ impl Mirror {
     }
 }
 
-/// The model: what the scene should hold.
+/// The model: what the scene should hold (per instance: the mesh it was given, its flags,
+/// and whether its transform mirrors).
 struct Model {
-    instances: HashMap<InstanceHandle, (MeshHandle, InstanceFlags)>,
+    instances: HashMap<InstanceHandle, (MeshHandle, InstanceFlags, bool)>,
     meshes: Vec<(MeshHandle, MaterialId)>,
     removed: Vec<InstanceHandle>,
 }
@@ -176,7 +177,7 @@ impl Model {
                 .instance_handle(tilegraph_scene::InstanceId(i as u32))
                 .expect("built instances are live");
             let mesh = s.mesh_handle(inst.mesh).expect("its mesh is live");
-            instances.insert(h, (mesh, inst.flags));
+            instances.insert(h, (mesh, inst.flags, false));
         }
         let meshes = (0..s.meshes().len() as u32)
             .filter_map(|m| {
@@ -212,9 +213,32 @@ impl Model {
             },
         );
         let mut drawn = 0;
-        for (&h, &(mesh, flags)) in &self.instances {
+        for (&h, &(mesh, flags, mirrored)) in &self.instances {
             let inst = s.instance(h).expect("a live handle");
-            assert_eq!(inst.mesh, mesh.id());
+            assert_eq!(inst.transform.linear.determinant() < 0.0, mirrored);
+            if mirrored {
+                // Its mesh's copy with every triangle turned: same vertices and material.
+                let (given, drawn) = (
+                    s.mesh(mesh.id()).expect("mesh"),
+                    s.mesh(inst.mesh).expect("copy"),
+                );
+                assert_ne!(inst.mesh, mesh.id());
+                assert_eq!(
+                    (drawn.vertex_offset, drawn.material),
+                    (given.vertex_offset, given.material)
+                );
+                let of = |m: &tilegraph_scene::Mesh| {
+                    s.indices()[m.first_index as usize..(m.first_index + m.index_count) as usize]
+                        .to_vec()
+                };
+                let turned: Vec<u32> = of(given)
+                    .chunks(3)
+                    .flat_map(|t| [t[0], t[2], t[1]])
+                    .collect();
+                assert_eq!(of(drawn), turned);
+            } else {
+                assert_eq!(inst.mesh, mesh.id());
+            }
             assert_eq!(inst.flags, flags);
             let material = s.material(s.mesh(inst.mesh).expect("mesh").material);
             let material = material.expect("material");
@@ -231,7 +255,7 @@ impl Model {
             } else {
                 let class = u32::from(matches!(material.class, MaterialClass::AlphaTested { .. }));
                 let list = class * 2 + u32::from(material.double_sided);
-                assert_eq!(in_buckets.get(&slot), Some(&(list, mesh.id().0)));
+                assert_eq!(in_buckets.get(&slot), Some(&(list, inst.mesh.0)));
             }
         }
         assert!(in_grids.len() <= drawn);
@@ -247,21 +271,33 @@ impl Model {
 
 #[derive(Debug, Clone)]
 enum Op {
-    Add { mesh: usize, x: f64 },
+    Add {
+        mesh: usize,
+        x: f64,
+        mirrored: bool,
+    },
     Remove(usize),
-    Move { picks: Vec<usize>, dx: f64 },
+    Move {
+        picks: Vec<usize>,
+        dx: f64,
+        flip: bool,
+    },
     Hide(usize, bool),
-    AddMesh { material: u32, size: f32 },
+    AddMesh {
+        material: u32,
+        size: f32,
+    },
     RemoveMesh(usize),
     Sync,
 }
 
 fn op() -> impl Strategy<Value = Op> {
     prop_oneof![
-        4 => (0usize..8, -50.0f64..50.0).prop_map(|(mesh, x)| Op::Add { mesh, x }),
+        4 => (0usize..8, -50.0f64..50.0, proptest::bool::weighted(0.25))
+            .prop_map(|(mesh, x, mirrored)| Op::Add { mesh, x, mirrored }),
         3 => any::<usize>().prop_map(Op::Remove),
-        3 => (proptest::collection::vec(any::<usize>(), 1..6), -5.0f64..5.0)
-            .prop_map(|(picks, dx)| Op::Move { picks, dx }),
+        3 => (proptest::collection::vec(any::<usize>(), 1..6), -5.0f64..5.0, proptest::bool::weighted(0.2))
+            .prop_map(|(picks, dx, flip)| Op::Move { picks, dx, flip }),
         2 => (any::<usize>(), any::<bool>()).prop_map(|(i, h)| Op::Hide(i, h)),
         1 => (0u32..3, 0.5f32..4.0).prop_map(|(material, size)| Op::AddMesh { material, size }),
         1 => any::<usize>().prop_map(Op::RemoveMesh),
@@ -288,11 +324,13 @@ proptest! {
         mirror.sync(&s);
         for op in ops {
             match op {
-                Op::Add { mesh, x } => {
+                Op::Add { mesh, x, mirrored } => {
                     let (m, _) = model.meshes[mesh % model.meshes.len()];
-                    let t = Transform::new(Mat3::from_rotation_y(x as f32), DVec3::new(x, 1.0, -x));
+                    let scale = Vec3::new(if mirrored { -1.0 } else { 1.0 }, 1.0, 1.0);
+                    let linear = Mat3::from_rotation_y(x as f32) * Mat3::from_diagonal(scale);
+                    let t = Transform::new(linear, DVec3::new(x, 1.0, -x));
                     let h = s.add_instance(m, t, InstanceFlags::default()).expect("add");
-                    model.instances.insert(h, (m, InstanceFlags::default()));
+                    model.instances.insert(h, (m, InstanceFlags::default(), mirrored));
                 }
                 Op::Remove(k) => {
                     let hs = sorted_handles(&model);
@@ -302,7 +340,7 @@ proptest! {
                         model.removed.push(h);
                     }
                 }
-                Op::Move { picks, dx } => {
+                Op::Move { picks, dx, flip } => {
                     let hs = sorted_handles(&model);
                     if hs.is_empty() {
                         continue;
@@ -313,10 +351,18 @@ proptest! {
                             let h = hs[k % hs.len()];
                             let mut t = s.instance(h).expect("live").transform;
                             t.translation.x += dx;
+                            if flip {
+                                t.linear *= Mat3::from_diagonal(Vec3::new(1.0, 1.0, -1.0));
+                            }
                             (h, t)
                         })
                         .collect();
                     s.set_transforms(&moves).expect("move");
+                    for (h, t) in &moves {
+                        if let Some(e) = model.instances.get_mut(h) {
+                            e.2 = t.linear.determinant() < 0.0;
+                        }
+                    }
                 }
                 Op::Hide(k, hidden) => {
                     let hs = sorted_handles(&model);
@@ -335,7 +381,7 @@ proptest! {
                 }
                 Op::RemoveMesh(k) => {
                     let (h, _) = model.meshes[k % model.meshes.len()];
-                    let users = model.instances.values().filter(|(m, _)| *m == h).count();
+                    let users = model.instances.values().filter(|(m, _, _)| *m == h).count();
                     match s.remove_mesh(h) {
                         Ok(()) => {
                             prop_assert_eq!(users, 0);
@@ -482,4 +528,143 @@ fn motion_brings_the_scene_to_a_frame_from_any_frame() {
     let mid = path.len() / 2;
     other.apply(&mut fresh, mid).expect("apply");
     assert_eq!(places(&fresh), seen[mid]);
+}
+
+/// One cluster per mesh over its whole range: enough for the scene to count as clustered.
+fn whole_mesh_clusters(s: &Scene) -> tilegraph_scene::clusters::ClusterData {
+    let clusters: Vec<_> = s
+        .meshes()
+        .iter()
+        .map(|m| tilegraph_scene::clusters::GpuCluster {
+            first_index: m.first_index,
+            index_count: m.index_count,
+            cone_cutoff: 1.0,
+            ..Default::default()
+        })
+        .collect();
+    tilegraph_scene::clusters::ClusterData {
+        fingerprint: s.geometry_fingerprint(),
+        indices: s.indices().to_vec(),
+        mesh_clusters: (0..clusters.len() as u32).map(|k| [k, 1]).collect(),
+        clusters,
+        lods: Vec::new(),
+    }
+}
+
+/// A mirroring transform (negative determinant) draws its mesh's copy with every triangle
+/// turned, one copy shared by all mirroring instances of the mesh, whichever way the instance
+/// got its transform; turning back draws the mesh again. With clusters attached, the copy
+/// gets the mesh's clusters over its own indices, each cone made for the turned triangles.
+#[test]
+fn mirroring_instances_draw_their_mesh_turned() {
+    use tilegraph_scene::MeshId;
+    let mut b = SceneBuilder::new("mirrors");
+    let material = b.add_material(Material::opaque([1.0, 1.0, 1.0, 1.0]));
+    let (v, i) = quad(1.0);
+    let plain = b.add_mesh(&v, &i, material).expect("mesh");
+    let flip = Mat3::from_diagonal(Vec3::new(-1.0, 1.0, 1.0));
+    let at = |x: f64| DVec3::new(x, 0.0, 0.0);
+    b.add_instance(Transform::from_translation(at(0.0)), plain)
+        .expect("plain");
+    b.add_instance(Transform::new(flip, at(3.0)), plain)
+        .expect("mirroring");
+    b.add_instance(Transform::new(flip * 2.0, at(6.0)), plain)
+        .expect("mirroring, larger");
+    let mut s = b.build(None).expect("scene");
+    assert_eq!(s.meshes().len(), 2, "one copy for both mirroring instances");
+    let copy = MeshId(1);
+    let drawn: Vec<MeshId> = s.instances().iter().map(|i| i.mesh).collect();
+    assert_eq!(drawn, [plain, copy, copy]);
+    let of = |s: &Scene, m: MeshId| {
+        let m = s.mesh(m).expect("mesh");
+        s.indices()[m.first_index as usize..(m.first_index + m.index_count) as usize].to_vec()
+    };
+    assert_eq!(of(&s, copy), [0, 2, 1, 0, 3, 2]);
+    assert_eq!(s.mesh(copy).expect("copy").vertex_offset, 0);
+
+    // At run time: a mesh mirrored first by a move, and back.
+    let other = s.add_mesh(&v, &i, material).expect("mesh");
+    let prepared = s.add_mesh(&v, &i, material).expect("mesh");
+    let h = s
+        .add_instance(
+            other,
+            Transform::from_translation(at(9.0)),
+            InstanceFlags::default(),
+        )
+        .expect("plain");
+    let plain_h = s.mesh_handle(plain).expect("live");
+    let g = s
+        .add_instance(
+            plain_h,
+            Transform::new(flip, at(12.0)),
+            InstanceFlags::default(),
+        )
+        .expect("mirroring");
+    assert_eq!(
+        s.instance(g).expect("live").mesh,
+        copy,
+        "the builder's copy"
+    );
+    s.set_transforms(&[(h, Transform::new(flip, at(9.0)))])
+        .expect("turned mirroring");
+    let turned = s.instance(h).expect("live").mesh;
+    assert_ne!(turned, other.id());
+    assert_eq!(of(&s, turned), [0, 2, 1, 0, 3, 2]);
+    s.set_transforms(&[(h, Transform::from_translation(at(9.5)))])
+        .expect("turned back");
+    assert_eq!(s.instance(h).expect("live").mesh, other.id());
+    // Removing a mesh counts its copy's instances, and takes the copy with it.
+    s.remove_instance(h).expect("remove");
+    let e = s
+        .remove_mesh(plain_h)
+        .expect_err("in use by its copy's instances");
+    assert!(
+        matches!(e, SceneError::MeshInUse { instances: 4, .. }),
+        "{e}"
+    );
+    s.remove_mesh(other)
+        .expect("no instance draws it or its copy");
+    assert!(s.mesh_handle(turned).is_none(), "the copy went with it");
+
+    // Clusters attached: a copy made before, or made now with the mesh's clusters turned.
+    s.prepare_mirroring(prepared).expect("made now");
+    let lone = s.add_mesh(&v, &i, material).expect("mesh");
+    s.attach_clusters(whole_mesh_clusters(&s))
+        .expect("clusters");
+    let mirroring = Transform::new(flip, at(15.0));
+    let p = s
+        .add_instance(prepared, mirroring, InstanceFlags::default())
+        .expect("its copy exists");
+    assert_ne!(s.instance(p).expect("live").mesh, prepared.id());
+    let q = s
+        .add_instance(
+            lone,
+            Transform::from_translation(at(18.0)),
+            InstanceFlags::default(),
+        )
+        .expect("plain");
+    let indices_before = s.indices().len();
+    s.set_transforms(&[(g, Transform::from_translation(at(1.0))), (q, mirroring)])
+        .expect("both turned");
+    assert_eq!(s.instance(g).expect("live").mesh, plain);
+    let copy = s.instance(q).expect("live").mesh;
+    assert_ne!(copy, lone.id());
+    let clusters = s.clusters().expect("attached");
+    let (c, m) = (clusters.of_mesh(copy.0), s.mesh(copy).expect("copy"));
+    assert_eq!(c.len(), 1);
+    assert_eq!(
+        (c[0].first_index, c[0].index_count),
+        (m.first_index, m.index_count)
+    );
+    assert!(
+        m.first_index as usize >= indices_before - 6,
+        "after the clustered indices"
+    );
+    // The quad's triangles face -y; turned, +y: the copy's cone is made for those.
+    assert!(
+        c[0].cone_cutoff < 1.0 && c[0].cone_axis[1] > 0.99,
+        "{:?}",
+        c[0]
+    );
+    assert_eq!(of(&s, copy), [0, 2, 1, 0, 3, 2]);
 }

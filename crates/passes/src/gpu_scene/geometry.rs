@@ -16,6 +16,8 @@ pub(super) struct Copy {
     src: vk::Buffer,
     dst: vk::Buffer,
     region: vk::BufferCopy,
+    /// A growth's copy of the old buffer (queued before the staged ranges that land on it).
+    growth: bool,
 }
 
 /// Uploads `bytes` into a new buffer of `usage` in the static-geometry memory type, through a
@@ -140,21 +142,27 @@ impl GpuScene {
             self.stage(vb, 0, vertices);
             self.stage(ib, 0, indices);
         } else if let Some(list) = changes {
+            // Each range once, from what the arrays hold now: copies whose destinations
+            // overlap (a range written twice, or freed and taken again, within a frame) would
+            // race in the transfer.
+            let (mut v, mut i) = (Vec::new(), Vec::new());
             for &c in list {
                 match c {
-                    Change::Vertices { start, len } => {
-                        let (s, l) = (start as usize * 32, len as usize * 32);
-                        if let Some(bytes) = vertices.get(s..s + l) {
-                            self.stage(vb, s as u64, bytes);
-                        }
-                    }
-                    Change::Indices { start, len } => {
-                        let (s, l) = (start as usize * 4, len as usize * 4);
-                        if let Some(bytes) = indices.get(s..s + l) {
-                            self.stage(ib, s as u64, bytes);
-                        }
-                    }
+                    Change::Vertices { start, len } => v.push((start, start + len)),
+                    Change::Indices { start, len } => i.push((start, start + len)),
                     _ => {}
+                }
+            }
+            for (start, end) in merged(v) {
+                let (s, e) = (start as usize * 32, end as usize * 32);
+                if let Some(bytes) = vertices.get(s..e) {
+                    self.stage(vb, s as u64, bytes);
+                }
+            }
+            for (start, end) in merged(i) {
+                let (s, e) = (start as usize * 4, end as usize * 4);
+                if let Some(bytes) = indices.get(s..e) {
+                    self.stage(ib, s as u64, bytes);
                 }
             }
         }
@@ -205,6 +213,7 @@ impl GpuScene {
                 dst_offset: offset,
                 size: bytes.len() as u64,
             },
+            growth: false,
         });
     }
 
@@ -236,6 +245,7 @@ impl GpuScene {
                 dst_offset: 0,
                 size: old.size,
             },
+            growth: true,
         });
         self.retired
             .push((old, self.frames_written + self.frames.len() as u64));
@@ -343,9 +353,20 @@ impl GeometryUpload {
             .dst_stage_mask(readers | copy)
             .dst_access_mask(reads | write | vk::AccessFlags2::TRANSFER_READ)];
         ctx.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&before))?;
-        // Growth copies come first (they were queued first), so the new ranges land on top of
-        // the old content.
-        for c in &self.copies {
+        // Growth copies first (they were queued first), then a barrier, so that the new
+        // ranges land on top of the old content: copies without one between them may run in
+        // any order.
+        let growths = self.copies.iter().take_while(|c| c.growth).count();
+        for (k, c) in self.copies.iter().enumerate() {
+            if k == growths && k > 0 {
+                let between = [vk::MemoryBarrier2::default()
+                    .src_stage_mask(copy)
+                    .src_access_mask(write)
+                    .dst_stage_mask(copy)
+                    .dst_access_mask(write)];
+                let d = vk::DependencyInfo::default().memory_barriers(&between);
+                ctx.cmd_pipeline_barrier2(cb, &d)?;
+            }
             // SAFETY: outside a render pass; both buffers are live (a replaced one until the
             // frames that use it are done) and the region lies inside both.
             unsafe {
@@ -354,5 +375,28 @@ impl GeometryUpload {
             };
         }
         ctx.cmd_pipeline_barrier2(cb, &vk::DependencyInfo::default().memory_barriers(&after))
+    }
+}
+
+/// `ranges` (start, end) sorted, those that overlap or touch joined.
+fn merged(mut ranges: Vec<(u32, u32)>) -> Vec<(u32, u32)> {
+    ranges.sort_unstable();
+    let mut out: Vec<(u32, u32)> = Vec::with_capacity(ranges.len());
+    for (start, end) in ranges {
+        match out.last_mut() {
+            Some(last) if start <= last.1 => last.1 = last.1.max(end),
+            _ => out.push((start, end)),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn ranges_written_twice_are_copied_once() {
+        let ranges = vec![(10, 20), (0, 5), (12, 30), (5, 6), (40, 41), (10, 20)];
+        assert_eq!(super::merged(ranges), [(0, 6), (10, 30), (40, 41)]);
+        assert!(super::merged(Vec::new()).is_empty());
     }
 }

@@ -24,8 +24,6 @@ pub(super) struct Flatten<'x, 'd, 'a> {
     pub(super) ctx: &'x Ctx,
     pub(super) builder: SceneBuilder,
     pub(super) mesh_cache: Vec<Option<Vec<MeshId>>>,
-    /// Mesh -> its copy with reversed winding, for mirroring nodes (made on first use).
-    pub(super) mirrored: HashMap<MeshId, MeshId>,
     /// (POSITION, NORMAL, TEXCOORD_n) accessors -> (vertex offset, count): primitives that share
     /// vertex accessors share vertices.
     pub(super) vertex_cache: HashMap<(usize, usize, Option<usize>), (u32, u32)>,
@@ -64,14 +62,22 @@ impl Flatten<'_, '_, '_> {
                     .non_finite(format!("/nodes/{i}"), "world transform overflows".into()));
             }
             if let Some(m) = node.mesh {
-                let mut ids = self.mesh(m.value())?;
+                let ids = self.mesh(m.value())?;
                 // glTF: a mirroring transform (negative determinant) makes front faces
-                // clockwise; its instances draw a copy with the winding reversed.
-                if world.matrix3.determinant() < 0.0 {
-                    ids = self.mirrored_meshes(&ids, &format!("/nodes/{i}"))?;
-                }
+                // clockwise; its instances draw a copy with the winding reversed, which the
+                // builder makes on first use (its indices count against the limit).
                 let transform = Transform::from_daffine(&world);
                 for id in ids {
+                    let copy = self.builder.indices_added(id, &transform.linear);
+                    if copy > 0 {
+                        self.check_limit(
+                            &format!("/nodes/{i}"),
+                            "indices",
+                            self.builder.index_count(),
+                            copy,
+                            self.index_limit(),
+                        )?;
+                    }
                     if self.builder.instance_count() >= self.limits.max_instances {
                         return Err(self.ctx.limit(
                             format!("/nodes/{i}"),
@@ -102,37 +108,6 @@ impl Flatten<'_, '_, '_> {
             }
         }
         Ok(visited)
-    }
-
-    /// The mirrored copies of `ids` (made once per mesh; they count against the index limit).
-    fn mirrored_meshes(
-        &mut self,
-        ids: &[MeshId],
-        pointer: &str,
-    ) -> Result<Vec<MeshId>, SceneError> {
-        let mut out = Vec::with_capacity(ids.len());
-        for &id in ids {
-            if let Some(&m) = self.mirrored.get(&id) {
-                out.push(m);
-                continue;
-            }
-            let count = self.builder.mesh_index_count(id).unwrap_or(0) as usize;
-            self.check_limit(
-                pointer,
-                "indices",
-                self.builder.index_count(),
-                count,
-                self.index_limit(),
-            )?;
-            let Some(m) = self.builder.mirrored_mesh(id) else {
-                return Err(self
-                    .ctx
-                    .invalid(pointer.to_string(), format!("mesh {} is missing", id.0)));
-            };
-            self.mirrored.insert(id, m);
-            out.push(m);
-        }
-        Ok(out)
     }
 
     /// The tilegraph meshes of glTF mesh `m`, converting it on first use.

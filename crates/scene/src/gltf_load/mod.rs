@@ -289,7 +289,6 @@ pub fn load_gltf_bytes(
         ctx: &ctx,
         builder,
         mesh_cache: vec![None; doc.meshes.len()],
-        mirrored: HashMap::new(),
         vertex_cache: HashMap::new(),
         flat_source_cache: HashMap::new(),
         vertices_read: 0,

@@ -14,7 +14,8 @@ use glam::Vec3;
 use super::buckets::DrawBuckets;
 use super::grid::LooseGrid;
 use super::journal::{Change, Journal, SceneCursor};
-use super::pool::RangePool;
+use super::mirror::{mirroring, Mirrors};
+use super::pool::{write_range, RangePool};
 use super::{
     check_mesh, ClassCounts, Instance, InstanceBounds, InstanceFlags, InstanceHandle, InstanceId,
     Material, MaterialClass, MaterialId, Mesh, MeshHandle, MeshId, Scene, Transform, Vertex,
@@ -50,6 +51,8 @@ pub(super) struct Dynamic {
     pub drawn: ClassCounts,
     /// A batch's new bounds, checked before any is applied (kept: no allocation per batch).
     pub scratch: Vec<InstanceBounds>,
+    /// Each mesh's winding and its copy with the other, for mirroring instances.
+    pub mirrors: Mirrors,
 }
 
 /// The edit a bounds computation is for (what an error names).
@@ -75,7 +78,14 @@ impl Dynamic {
         vertices: usize,
         indices: usize,
         bounds: crate::bounds::DAabb,
+        mut mirrors: Mirrors,
     ) -> Self {
+        mirrors.infer(
+            meshes.len(),
+            instances
+                .iter()
+                .map(|i| (i.mesh.0, mirroring(&i.transform.linear))),
+        );
         let mut mesh_users = vec![0u32; meshes.len()];
         for i in instances {
             if let Some(u) = mesh_users.get_mut(i.mesh.index()) {
@@ -97,6 +107,7 @@ impl Dynamic {
             structure: 0,
             drawn: ClassCounts::default(),
             scratch: Vec::new(),
+            mirrors,
         };
         d.index_all(instances, meshes, materials, bounds);
         d
@@ -201,7 +212,7 @@ impl Scene {
         }
     }
 
-    fn live_mesh(&self, h: MeshHandle) -> Result<usize, SceneError> {
+    pub(super) fn live_mesh(&self, h: MeshHandle) -> Result<usize, SceneError> {
         let i = h.index as usize;
         match self.dynamic.mesh_generations.get(i) {
             Some(&g) if g == h.generation && self.mesh_handle(MeshId(h.index)).is_some() => Ok(i),
@@ -387,6 +398,25 @@ impl Scene {
             material,
             local_aabb,
         };
+        self.dynamic.journal.push(Change::Vertices {
+            start: vertex_start,
+            len: vertices.len() as u32,
+        });
+        self.dynamic.journal.push(Change::Indices {
+            start: index_start,
+            len: indices.len() as u32,
+        });
+        let index = self.new_mesh(mesh);
+        self.dynamic.mirrors.set(index, false);
+        Ok(MeshHandle {
+            index,
+            generation: self.dynamic.mesh_generations[index as usize],
+        })
+    }
+
+    /// Puts `mesh` (its vertices and indices written and in the journal) into a free mesh
+    /// slot or a new one, and into the journal; returns its slot.
+    pub(super) fn new_mesh(&mut self, mesh: Mesh) -> u32 {
         let d = &mut self.dynamic;
         let index = match d.free_meshes.pop() {
             Some(i) => {
@@ -401,24 +431,14 @@ impl Scene {
                 self.meshes.len() as u32 - 1
             }
         };
-        d.journal.push(Change::Vertices {
-            start: vertex_start,
-            len: vertices.len() as u32,
-        });
-        d.journal.push(Change::Indices {
-            start: index_start,
-            len: indices.len() as u32,
-        });
         d.journal.push(Change::Mesh(index));
         d.structure += 1;
-        Ok(MeshHandle {
-            index,
-            generation: d.mesh_generations[index as usize],
-        })
+        index
     }
 
-    /// Removes a mesh no instance draws any more; its geometry ranges are free for the next
-    /// mesh (its vertices stay taken while another mesh shares them: a mirrored copy).
+    /// Removes a mesh no instance draws any more, with its copy of reversed winding that
+    /// mirroring instances draw; their geometry ranges are free for the next mesh (vertices
+    /// stay taken while another mesh shares them).
     pub fn remove_mesh(&mut self, h: MeshHandle) -> Result<(), SceneError> {
         let i = self.live_mesh(h)?;
         if self.clusters.is_some() {
@@ -428,7 +448,9 @@ impl Scene {
                 reason: "clusters are attached: the geometry cannot change under them".into(),
             });
         }
-        let users = self.dynamic.mesh_users[i];
+        let partner = self.dynamic.mirrors.partner(i as u32).map(|p| p as usize);
+        let users = self.dynamic.mesh_users[i]
+            + partner.map_or(0, |p| self.dynamic.mesh_users.get(p).copied().unwrap_or(0));
         if users > 0 {
             return Err(SceneError::MeshInUse {
                 scene: self.name.clone(),
@@ -436,6 +458,16 @@ impl Scene {
                 instances: users,
             });
         }
+        self.dynamic.mirrors.forget(i as u32);
+        if let Some(p) = partner {
+            self.free_mesh(p);
+        }
+        self.free_mesh(i);
+        Ok(())
+    }
+
+    /// Frees mesh slot `i` and its ranges (its vertices only where no other mesh shares them).
+    fn free_mesh(&mut self, i: usize) {
         let m = self.meshes[i];
         let shared = self
             .meshes
@@ -460,7 +492,6 @@ impl Scene {
         d.free_meshes.push(i as u32);
         d.journal.push(Change::Mesh(i as u32));
         d.structure += 1;
-        Ok(())
     }
 
     /// World bounds of `transform` over the instance's local box (its mesh's, or the one the
@@ -503,7 +534,8 @@ impl Scene {
         })
     }
 
-    /// Adds an instance of mesh `mesh`.
+    /// Adds an instance of mesh `mesh`. Under a mirroring transform (negative determinant) it
+    /// draws the mesh's copy with the winding reversed, made on first use (`mirror.rs`).
     pub fn add_instance(
         &mut self,
         mesh: MeshHandle,
@@ -520,6 +552,7 @@ impl Scene {
             .unwrap_or(self.instances.len() as u32);
         self.dynamic.local_bounds.remove(&slot);
         let bounds = self.placed_bounds(slot, MeshId(m as u32), &transform, Edit::New)?;
+        let m = self.drawn_mesh(m as u32, &transform.linear)? as usize;
         let instance = Instance {
             transform,
             mesh: MeshId(m as u32),
@@ -565,29 +598,46 @@ impl Scene {
     }
 
     /// Moves instances, in one batch: every handle is checked and every transform must be
-    /// finite before any moves (an error names the first bad entry and changes nothing).
+    /// finite before any moves (an error names the first bad entry and changes nothing). An
+    /// instance whose transform turns mirroring, or back, draws its mesh's copy of the other
+    /// winding from then on (`mirror.rs`; a copy made here stays made if the batch fails).
     pub fn set_transforms(
         &mut self,
         moves: &[(InstanceHandle, Transform)],
     ) -> Result<(), SceneError> {
         let mut placed = std::mem::take(&mut self.dynamic.scratch);
         placed.clear();
-        let checked = moves.iter().enumerate().try_for_each(|(k, (h, t))| {
+        let mut flips = 0usize;
+        let mut checked = moves.iter().enumerate().try_for_each(|(k, (h, t))| {
             let slot = self.live_slot(*h)?;
             let mesh = self.instances[slot].mesh;
             placed.push(self.placed_bounds(slot as u32, mesh, t, Edit::Batch(k))?);
+            flips += usize::from(self.dynamic.mirrors.needs_partner(mesh.0, &t.linear));
             Ok(())
         });
+        if checked.is_ok() && flips > 0 {
+            checked = moves.iter().try_for_each(|(h, t)| {
+                let mesh = self.instances[h.slot as usize].mesh.0;
+                self.drawn_mesh(mesh, &t.linear).map(|_| ())
+            });
+        }
         if checked.is_ok() {
             for ((h, t), bounds) in moves.iter().zip(&placed) {
-                self.move_to(h.slot as usize, *t, *bounds);
+                let slot = h.slot as usize;
+                let mesh = self.instances[slot].mesh.0;
+                match self.dynamic.mirrors.partner(mesh) {
+                    Some(p) if self.dynamic.mirrors.needs_partner(mesh, &t.linear) => {
+                        self.remesh(slot as u32, MeshId(p), *t, *bounds)
+                    }
+                    _ => self.move_to(slot, *t, *bounds),
+                }
             }
         }
         self.dynamic.scratch = placed;
         checked
     }
 
-    fn move_to(&mut self, slot: usize, transform: Transform, bounds: InstanceBounds) {
+    pub(super) fn move_to(&mut self, slot: usize, transform: Transform, bounds: InstanceBounds) {
         let inst = &mut self.instances[slot];
         inst.transform = transform;
         inst.bounds = bounds;
@@ -649,7 +699,7 @@ impl Scene {
     }
 
     /// Puts a drawn instance into its bucket or the blended set, and its grid.
-    fn place(&mut self, slot: u32) {
+    pub(super) fn place(&mut self, slot: u32) {
         let inst = self.instances[slot as usize];
         if !inst.flags.is_drawn() {
             return;
@@ -680,7 +730,7 @@ impl Scene {
 
     /// Takes an instance out of its bucket and grid (before it is removed, hidden, or given
     /// another mesh).
-    fn unplace(&mut self, slot: u32) {
+    pub(super) fn unplace(&mut self, slot: u32) {
         let inst = self.instances[slot as usize];
         if !inst.flags.is_drawn() {
             return;
@@ -693,13 +743,4 @@ impl Scene {
         d.buckets.remove(slot, &mut d.journal);
         d.blended_grid.remove(slot);
     }
-}
-
-/// Writes `data` at `start` of `array`, growing it as needed.
-fn write_range<T: Copy + Default>(array: &mut Vec<T>, start: u32, data: &[T]) {
-    let start = start as usize;
-    if array.len() < start + data.len() {
-        array.resize(start + data.len(), T::default());
-    }
-    array[start..start + data.len()].copy_from_slice(data);
 }

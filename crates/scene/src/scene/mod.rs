@@ -19,6 +19,7 @@ mod gpu;
 mod grid;
 mod info;
 mod journal;
+mod mirror;
 mod one_mesh;
 mod placement;
 mod pool;
@@ -186,6 +187,8 @@ impl Scene {
         }
         validate_clusters(self, &data)?;
         self.indices = data.indices;
+        // Levels of detail follow the scene's indices: a mesh copy made later goes after them.
+        (self.dynamic.index_pool).extend_to(self.indices.len() as u32);
         self.dynamic.journal.push(Change::Everything);
         self.clusters = Some(Clusters {
             clusters: data.clusters,
@@ -447,6 +450,8 @@ pub struct SceneBuilder {
     textures: Vec<Texture>,
     instances: Vec<Instance>,
     gltf_counts: Option<GltfCounts>,
+    /// Each mesh's winding and its copy with the other ([`mirror`]).
+    mirrors: mirror::Mirrors,
 }
 
 impl SceneBuilder {
@@ -461,6 +466,7 @@ impl SceneBuilder {
             textures: Vec::new(),
             instances: Vec::new(),
             gltf_counts: None,
+            mirrors: mirror::Mirrors::default(),
         }
     }
 
@@ -569,24 +575,36 @@ impl SceneBuilder {
             material,
             local_aabb,
         });
-        MeshId((self.meshes.len() - 1) as u32)
+        let id = (self.meshes.len() - 1) as u32;
+        self.mirrors.set(id, false);
+        MeshId(id)
     }
 
-    pub(crate) fn mesh_index_count(&self, mesh: MeshId) -> Option<u32> {
-        self.meshes.get(mesh.index()).map(|m| m.index_count)
+    /// The indices an instance of `mesh` under `linear` adds: a mirroring instance's first
+    /// draws a copy of the mesh with the winding reversed ([`mirror`]).
+    pub(crate) fn indices_added(&self, mesh: MeshId, linear: &glam::Mat3) -> usize {
+        let copy =
+            self.mirrors.needs_partner(mesh.0, linear) && self.mirrors.partner(mesh.0).is_none();
+        match self.meshes.get(mesh.index()) {
+            Some(m) if copy => m.index_count as usize,
+            _ => 0,
+        }
     }
 
-    /// A copy of `mesh` with every triangle's winding reversed (same vertices, material and
-    /// bounds), for instances whose transform mirrors (negative determinant): glTF makes their
-    /// front faces clockwise, and the pipelines take counter-clockwise ones.
-    pub(crate) fn mirrored_mesh(&mut self, mesh: MeshId) -> Option<MeshId> {
+    /// The mesh an instance of `mesh` under `linear` draws: `mesh`, or for a transform of the
+    /// other sign its copy with the winding reversed (same vertices, material and bounds),
+    /// made on first use. `None` for an unknown mesh.
+    fn drawn_mesh(&mut self, mesh: MeshId, linear: &glam::Mat3) -> Option<MeshId> {
         let m = *self.meshes.get(mesh.index())?;
+        if !self.mirrors.needs_partner(mesh.0, linear) {
+            return Some(mesh);
+        }
+        if let Some(p) = self.mirrors.partner(mesh.0) {
+            return Some(MeshId(p));
+        }
         let first = m.first_index as usize;
         let range = self.indices.get(first..first + m.index_count as usize)?;
-        let flipped: Vec<u32> = range
-            .chunks_exact(3)
-            .flat_map(|t| [t[0], t[2], t[1]])
-            .collect();
+        let flipped: Vec<u32> = mirror::reversed_winding(range).collect();
         let first_index = self.indices.len() as u32;
         self.indices.extend_from_slice(&flipped);
         self.meshes.push(Mesh {
@@ -594,10 +612,14 @@ impl SceneBuilder {
             index_count: flipped.len() as u32,
             ..m
         });
-        Some(MeshId((self.meshes.len() - 1) as u32))
+        let copy = (self.meshes.len() - 1) as u32;
+        self.mirrors.link(mesh.0, copy);
+        Some(MeshId(copy))
     }
 
-    /// Adds an instance; checks the mesh id and that the transform and bounds are finite.
+    /// Adds an instance; checks the mesh id and that the transform and bounds are finite. A
+    /// mirroring transform (negative determinant) draws the mesh's copy with the winding
+    /// reversed, made on first use, so that its front faces stay front ([`mirror`]).
     pub fn add_instance(
         &mut self,
         transform: Transform,
@@ -624,6 +646,9 @@ impl SceneBuilder {
                 what: "world bounds overflow".into(),
             });
         }
+        let Some(mesh) = self.drawn_mesh(mesh, &transform.linear) else {
+            return Err(self.error(pointer, format!("mesh {} does not exist", mesh.0)));
+        };
         self.instances.push(Instance {
             transform,
             mesh,
@@ -638,7 +663,8 @@ impl SceneBuilder {
     }
 
     /// Adds an instance whose mesh id the caller knows to be valid and whose transform is finite
-    /// by construction (procedural generators). Skips the checks of [`Self::add_instance`] that
+    /// by construction (procedural generators, copies of a scene): the mesh is drawn as given,
+    /// so under a mirroring transform it must be one whose winding is already reversed. Skips the checks of [`Self::add_instance`] that
     /// would otherwise cost a measurable share of generating a million instances.
     #[inline]
     pub(crate) fn push_instance_trusted(&mut self, transform: Transform, mesh: MeshId) {
@@ -705,6 +731,7 @@ impl SceneBuilder {
             self.vertices.len(),
             self.indices.len(),
             bounds,
+            self.mirrors,
         );
         Ok(Scene {
             name: self.name,

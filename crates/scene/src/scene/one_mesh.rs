@@ -11,7 +11,7 @@ use crate::error::SceneError;
 impl Scene {
     /// The scene with every drawn instance baked into one mesh per material (world positions
     /// relative to the scene's bounds centre, where each mesh's one instance stands; normals by
-    /// the inverse transpose; mirrored instances' triangles turned so their front stays front).
+    /// the inverse transpose; each triangle's corners in the order its instance draws them).
     /// Same materials, same camera path, same image.
     pub fn one_mesh_per_material(&self) -> Result<Scene, SceneError> {
         let origin = if self.bounds.is_empty() {
@@ -55,15 +55,9 @@ impl Scene {
             let Some(tri) = self.indices.get(range) else {
                 continue;
             };
-            let mirrored = l.determinant() < 0.0;
-            for t in tri.chunks_exact(3) {
-                let t = if mirrored {
-                    [t[0], t[2], t[1]]
-                } else {
-                    [t[0], t[1], t[2]]
-                };
-                indices.extend(t.iter().map(|&i| base + i));
-            }
+            // As drawn: a mirroring instance's mesh already has the winding that keeps its
+            // front faces front once transformed (`mirror.rs`), and baking keeps the order.
+            indices.extend(tri.iter().map(|&i| base + i));
         }
         for (m, (vertices, indices)) in per_material.iter().enumerate() {
             if indices.is_empty() {

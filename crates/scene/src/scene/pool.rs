@@ -34,6 +34,12 @@ impl RangePool {
 
     /// The start of a range of `len` elements: the first free range that holds it, else the
     /// end of the array (which grows). `None` when the array would pass `u32::MAX` elements.
+    /// Counts everything below `end` as taken: the array grew past the pool (levels of
+    /// detail after a scene's indices).
+    pub(crate) fn extend_to(&mut self, end: u32) {
+        self.end = self.end.max(end);
+    }
+
     pub(crate) fn allocate(&mut self, len: u32) -> Option<u32> {
         if len == 0 {
             return Some(self.end);
@@ -74,6 +80,15 @@ impl RangePool {
             (false, false) => self.free.insert(i, (start, len)),
         }
     }
+}
+
+/// Writes `data` at `start` of `array`, growing it as needed.
+pub(crate) fn write_range<T: Copy + Default>(array: &mut Vec<T>, start: u32, data: &[T]) {
+    let start = start as usize;
+    if array.len() < start + data.len() {
+        array.resize(start + data.len(), T::default());
+    }
+    array[start..start + data.len()].copy_from_slice(data);
 }
 
 #[cfg(test)]

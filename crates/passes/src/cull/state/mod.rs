@@ -155,6 +155,9 @@ pub struct CullState {
     /// Level of detail: the scene's level table (`Lods` of cull_body.glsl) and the meshes it
     /// covers; none when off.
     lod_table: Option<(Buffer, u32)>,
+    /// The scene's clusters when the tables were uploaded: they grow only by a mesh's copy of
+    /// reversed winding (`Scene::prepare_mirroring`), which the tables then lack.
+    clusters_uploaded: usize,
     /// Commands per draw group: 1, or with levels of detail one per level (the mesh's own and
     /// [`tilegraph_scene::MAX_LODS`] coarser).
     pub lod_levels: u32,
@@ -293,6 +296,7 @@ impl CullState {
             index_tail: (0, 0),
             lod_error_px,
             lod_table: None,
+            clusters_uploaded: scene.clusters().map_or(0, |c| c.clusters.len()),
             lod_levels,
         };
         // A new renderer's visibility starts empty, not as whatever the memory held (another
@@ -464,9 +468,12 @@ impl CullState {
 
     /// Follows the scene's changes in the cluster layout, where the cluster stage's buffers
     /// hold the result (`ClusterStage::follow`: the changes' cost); false where new buffers
-    /// are needed. True without a cluster stage.
+    /// are needed (also for clusters the stage's and the level tables lack). True without
+    /// a cluster stage or level table.
     pub fn follow_clusters(&mut self, scene: &tilegraph_scene::Scene) -> bool {
-        self.clusters.as_mut().is_none_or(|c| c.follow(scene))
+        let tables = self.clusters.is_none() && self.lod_table.is_none()
+            || scene.clusters().map_or(0, |c| c.clusters.len()) == self.clusters_uploaded;
+        tables && self.clusters.as_mut().is_none_or(|c| c.follow(scene))
     }
 
     /// Raster occlusion: test a box drawn last frame again once every `interval` frames.
