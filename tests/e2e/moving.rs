@@ -73,14 +73,18 @@ fn check_shaded(
     path: &CameraPath,
     (technique, culling): (Technique, Culling),
 ) -> CullCheck {
-    let options = RenderOptions {
+    check_options(g, scene, path, options(technique, culling))
+}
+
+/// The suite's render options: `technique`, `culling`, [`SIZE`].
+fn options(technique: Technique, culling: Culling) -> RenderOptions {
+    RenderOptions {
         technique,
         culling,
         width: SIZE.0,
         height: SIZE.1,
         ..Default::default()
-    };
-    check_options(g, scene, path, options)
+    }
 }
 
 fn check_options(
@@ -89,8 +93,18 @@ fn check_options(
     path: &CameraPath,
     options: RenderOptions,
 ) -> CullCheck {
+    check_moving(g, scene, path, options, motion())
+}
+
+fn check_moving(
+    g: &tilegraph_e2e::Gpu,
+    scene: &Scene,
+    path: &CameraPath,
+    options: RenderOptions,
+    motion: MotionParams,
+) -> CullCheck {
     let extras = CheckExtras {
-        motion: Some(motion()),
+        motion: Some(motion),
         ..Default::default()
     };
     cull_check_options(g, scene, options, path, None, extras).unwrap()
@@ -216,18 +230,8 @@ fn cluster_techniques_stay_exact_while_the_scene_moves() {
         ..motion()
     };
     for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
-        let options = RenderOptions {
-            technique: Technique::Prepass,
-            culling,
-            width: SIZE.0,
-            height: SIZE.1,
-            ..Default::default()
-        };
-        let extras = CheckExtras {
-            motion: Some(turning),
-            ..Default::default()
-        };
-        let r = cull_check_options(&g, &plain, options, &walk(&plain, 10), None, extras).unwrap();
+        let options = options(Technique::Prepass, culling);
+        let r = check_moving(&g, &plain, &walk(&plain, 10), options, turning);
         assert_exact("closed spheres turning mirrored", &r);
     }
     let mut turned = plain.clone();
@@ -241,12 +245,8 @@ fn cluster_techniques_stay_exact_while_the_scene_moves() {
     // Per-triangle culling packs into the index buffer's tail while the scene moves.
     for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
         let options = RenderOptions {
-            technique: Technique::Prepass,
-            culling,
             triangle_culling: true,
-            width: SIZE.0,
-            height: SIZE.1,
-            ..Default::default()
+            ..options(Technique::Prepass, culling)
         };
         let r = check_options(&g, &scene, &path, options);
         assert_exact("closed spheres, walk, triangle culling", &r);
@@ -428,13 +428,7 @@ fn frames_drawn(
     turn: impl FnOnce(&mut Scene),
 ) -> Vec<Vec<u8>> {
     let mut scene = scene.clone();
-    let options = RenderOptions {
-        technique: Technique::Prepass,
-        culling,
-        width: SIZE.0,
-        height: SIZE.1,
-        ..Default::default()
-    };
+    let options = options(Technique::Prepass, culling);
     let mut r = SceneRenderer::new(g, &scene, options).unwrap();
     let mut images = Vec::new();
     let mut turn = Some(turn);
