@@ -1,7 +1,7 @@
 //! Randomized extremes on the GPU (lavapipe, validation on): beside the fixed extremes matrix
 //! (`culling.rs`), proptest draws cases — a viewport from 1x1 to 512x512 (mostly odd sizes),
-//! either depth convention, D32 or D16, a perspective near plane from 1e-4 to 1 m (or an
-//! orthographic view), the camera inside an instance's box, on its surface, just past it
+//! either depth convention, D32 or D16, a perspective near plane from 1e-4 to 1 m and a field
+//! of view from a scope's 0.2 degrees to 179 (or an orthographic view), the camera inside an instance's box, on its surface, just past it
 //! looking away, or out in the street, the world up to 10^6 m from the origin — and checks
 //! every conservative culling technique (frustum, two-phase HiZ with random pyramid knobs and
 //! bounds, same-frame queries, raster occlusion, and both cluster techniques on a scene of
@@ -94,13 +94,20 @@ fn side() -> impl Strategy<Value = u32> {
     prop_oneof![3 => 1..=64u32, 1 => 65..=512u32]
 }
 
+/// A perspective's vertical field of view: mostly 11-149 degrees, sometimes a scope's (0.2-3
+/// degrees: distant boxes cover few pixels, the pyramid's texels are far apart in angle) or
+/// nearly a half space (149-179 degrees: the frustum's side planes almost meet the eye's).
+fn fov() -> impl Strategy<Value = f32> {
+    prop_oneof![4 => 0.2..2.6f32, 1 => 0.0035..0.052f32, 1 => 2.6..3.124f32]
+}
+
 fn case() -> impl Strategy<Value = Case> {
     (
         (side(), side(), any::<bool>(), any::<bool>()),
         (
             prop_oneof![3 => Just(None), 1 => (0.5..200.0f32).prop_map(Some)],
             -4.0..0.0f32,
-            0.2..2.6f32,
+            fov(),
             any::<bool>(),
         ),
         (
