@@ -240,6 +240,8 @@ impl InstanceBounds {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Instance {
     pub transform: Transform,
+    /// The mesh drawn: the one given, or under a mirroring transform its copy with every
+    /// triangle turned (`Scene::prepare_mirroring`).
     pub mesh: MeshId,
     pub bounds: InstanceBounds,
     pub flags: InstanceFlags,
