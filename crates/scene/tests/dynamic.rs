@@ -530,24 +530,43 @@ fn motion_brings_the_scene_to_a_frame_from_any_frame() {
     assert_eq!(places(&fresh), seen[mid]);
 }
 
-/// One cluster per mesh over its whole range: enough for the scene to count as clustered.
+/// One cluster per mesh over its whole range, and one level of detail: the mesh's first
+/// triangle (after the scene's indices). Enough for the scene to count as clustered.
 fn whole_mesh_clusters(s: &Scene) -> tilegraph_scene::clusters::ClusterData {
+    use tilegraph_scene::clusters::{GpuCluster, GpuLod, MAX_LODS};
     let clusters: Vec<_> = s
         .meshes()
         .iter()
-        .map(|m| tilegraph_scene::clusters::GpuCluster {
+        .map(|m| GpuCluster {
             first_index: m.first_index,
             index_count: m.index_count,
             cone_cutoff: 1.0,
             ..Default::default()
         })
         .collect();
+    let mut indices = s.indices().to_vec();
+    let mut lods = vec![GpuLod::default(); s.meshes().len() * MAX_LODS];
+    for (k, m) in s
+        .meshes()
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.index_count > 0)
+    {
+        let first = m.first_index as usize;
+        lods[k * MAX_LODS] = GpuLod {
+            first_index: indices.len() as u32,
+            index_count: 3,
+            error: 1.0,
+            _pad: 0,
+        };
+        indices.extend_from_slice(&s.indices()[first..first + 3]);
+    }
     tilegraph_scene::clusters::ClusterData {
         fingerprint: s.geometry_fingerprint(),
-        indices: s.indices().to_vec(),
+        indices,
         mesh_clusters: (0..clusters.len() as u32).map(|k| [k, 1]).collect(),
         clusters,
-        lods: Vec::new(),
+        lods,
     }
 }
 
@@ -656,10 +675,6 @@ fn mirroring_instances_draw_their_mesh_turned() {
         (c[0].first_index, c[0].index_count),
         (m.first_index, m.index_count)
     );
-    assert!(
-        m.first_index as usize >= indices_before - 6,
-        "after the clustered indices"
-    );
     // The quad's triangles face -y; turned, +y: the copy's cone is made for those.
     assert!(
         c[0].cone_cutoff < 1.0 && c[0].cone_axis[1] > 0.99,
@@ -667,4 +682,33 @@ fn mirroring_instances_draw_their_mesh_turned() {
         c[0]
     );
     assert_eq!(of(&s, copy), [0, 2, 1, 0, 3, 2]);
+    // Its level of detail: the mesh's, turned.
+    let (own, turned) = (clusters.lods_of(lone.id().0), clusters.lods_of(copy.0));
+    assert_eq!((own.len(), turned.len()), (1, 1));
+    assert_eq!((turned[0].index_count, turned[0].error), (3, own[0].error));
+    let level = |l: &tilegraph_scene::clusters::GpuLod| {
+        s.indices()[l.first_index as usize..(l.first_index + l.index_count) as usize].to_vec()
+    };
+    assert_eq!(
+        (level(&own[0]), level(&turned[0])),
+        (vec![0, 1, 2], vec![0, 2, 1])
+    );
+    // No two ranges of the index array overlap: live meshes and levels of detail, the copies'
+    // past the levels the clusters brought.
+    let mut ranges: Vec<(u32, u32)> = s
+        .meshes()
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.index_count > 0)
+        .flat_map(|(k, m)| {
+            let levels = clusters.lods_of(k as u32).iter();
+            std::iter::once((m.first_index, m.index_count))
+                .chain(levels.map(|l| (l.first_index, l.index_count)))
+        })
+        .collect();
+    ranges.sort_unstable();
+    for w in ranges.windows(2) {
+        assert!(w[0].0 + w[0].1 <= w[1].0, "{:?} overlaps {:?}", w[0], w[1]);
+    }
+    assert!(turned[0].first_index as usize >= indices_before);
 }
