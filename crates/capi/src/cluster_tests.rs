@@ -58,3 +58,53 @@ fn prebuilt_clusters_attach_to_their_scene_only() {
     assert_eq!(tg_scene_destroy(scene), TgStatus::Ok);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// With clusters attached, the copy of a mesh with its winding turned (what mirroring
+/// instances draw) is made through the ABI, once; a handle that names no mesh is an invalid
+/// handle.
+#[test]
+fn a_mirrored_copy_is_prepared_with_clusters_attached() {
+    use crate::changes::{tg_scene_mesh_handle, tg_scene_prepare_mirroring};
+    let spec = "forest:30";
+    let built = tilegraph_scene::load(spec).unwrap();
+    let meshes = built.meshes().len() as u32;
+    let (data, _) = tilegraph_scene::clusters::build(&built).unwrap();
+    let path = std::env::temp_dir().join(format!(
+        "tilegraph-capi-mirror-{}.tgclusters",
+        std::process::id()
+    ));
+    data.write(&path).unwrap();
+    let scene = load(spec);
+    let (status, message) = attach(scene, &path);
+    assert_eq!(status, TgStatus::Ok, "{message}");
+    let mut mesh = 0u64;
+    // SAFETY: a writable out-pointer.
+    assert_eq!(
+        unsafe { tg_scene_mesh_handle(scene, 0, &mut mesh) },
+        TgStatus::Ok
+    );
+    let mut copy = 0u64;
+    // SAFETY: as above.
+    let copy_status = |copy: &mut u64| unsafe { tg_scene_mesh_handle(scene, meshes, copy) };
+    assert_eq!(
+        copy_status(&mut copy),
+        TgStatus::InvalidArgument,
+        "no copy yet"
+    );
+    assert_eq!(tg_scene_prepare_mirroring(scene, mesh), TgStatus::Ok);
+    assert_eq!(tg_scene_prepare_mirroring(scene, mesh), TgStatus::Ok);
+    assert_eq!(
+        copy_status(&mut copy),
+        TgStatus::Ok,
+        "the copy is mesh {meshes}"
+    );
+    // SAFETY: as above.
+    let after = unsafe { tg_scene_mesh_handle(scene, meshes + 1, &mut copy) };
+    assert_eq!(after, TgStatus::InvalidArgument, "made once");
+    assert_eq!(
+        tg_scene_prepare_mirroring(scene, u64::MAX),
+        TgStatus::InvalidHandle
+    );
+    assert_eq!(tg_scene_destroy(scene), TgStatus::Ok);
+    std::fs::remove_file(&path).unwrap();
+}
