@@ -102,4 +102,50 @@ mod tests {
         assert!((b.max - b.min).length() > 0.5 * (a.max - a.min).length());
         assert_eq!(one.camera_path(), scene.camera_path());
     }
+
+    /// Baked, every triangle still faces where its vertex normals point, mirroring instances
+    /// included (they draw their mesh's turned copy: baked as drawn, not turned again).
+    #[test]
+    fn baked_triangles_face_their_normals_under_mirroring_transforms() {
+        use crate::scene::{Material, SceneBuilder, Transform, Vertex};
+        use glam::{DVec3, Mat3, Vec3};
+        let mut b = SceneBuilder::new("mirrors");
+        let material = b.add_material(Material::opaque([1.0; 4]));
+        // A quad facing +y (counter-clockwise seen from above), normals +y.
+        let v = |x: f32, z: f32| Vertex {
+            position: [x, 0.0, z],
+            normal: [0.0, 1.0, 0.0],
+            uv: [x, z],
+        };
+        let quad = [v(0.0, 0.0), v(0.0, 1.0), v(1.0, 1.0), v(1.0, 0.0)];
+        let mesh = b.add_mesh(&quad, &[0, 1, 2, 0, 2, 3], material).unwrap();
+        for (k, scale) in [
+            Vec3::ONE,
+            Vec3::new(-1.0, 1.0, 1.0),
+            Vec3::new(2.0, 1.0, -3.0),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let linear = Mat3::from_rotation_y(0.3 * k as f32) * Mat3::from_diagonal(scale);
+            let at = DVec3::new(3.0 * k as f64, 0.0, 0.0);
+            b.add_instance(Transform::new(linear, at), mesh).unwrap();
+        }
+        let one = b.build(None).unwrap().one_mesh_per_material().unwrap();
+        let m = one.meshes()[0];
+        let vertices = &one.vertices()[m.vertex_offset as usize..];
+        let range = m.first_index as usize..(m.first_index + m.index_count) as usize;
+        let triangles = one.indices()[range].chunks_exact(3);
+        assert_eq!(triangles.len(), 6);
+        for t in triangles {
+            let [a, b, c] = [t[0], t[1], t[2]].map(|i| vertices[i as usize]);
+            let p = |v: Vertex| Vec3::from(v.position);
+            let facing = (p(b) - p(a)).cross(p(c) - p(a));
+            let normal = Vec3::from(a.normal) + Vec3::from(b.normal) + Vec3::from(c.normal);
+            assert!(
+                facing.dot(normal) > 0.0,
+                "{t:?}: faces {facing}, normals {normal}"
+            );
+        }
+    }
 }
