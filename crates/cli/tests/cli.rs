@@ -751,15 +751,16 @@ fn d16_depth_keeps_conservative_culling_exact() {
     assert!(plan.contains("D16_UNORM"), "{plan}");
 }
 
-/// A moving scene through the CLI (`SPEC@moving[:MOVERS[:SPAWNS[:SEED]]]`): cull-check moves
-/// it frame by frame for the oracle, the reference and the technique alike; render draws it;
-/// a malformed motion is a usage error naming the form.
+/// A moving scene through the CLI (`SPEC@moving[:MOVERS[:SPAWNS[:SEED[:MIRRORS]]]]`):
+/// cull-check moves it frame by frame (half the movers turning mirrored) for the oracle, the
+/// reference and the technique alike; render draws it; a malformed motion is a usage error
+/// naming the form.
 #[test]
 fn moving_scenes_are_checked_and_rendered_from_their_spec() {
     let (ok, out, err) = tilegraph(
         &[
             "cull-check",
-            "city:600@moving:0.3:4:2",
+            "city:600@moving:0.3:4:2:0.5",
             "--culling",
             "hiz-2phase",
             "--size",
@@ -796,6 +797,9 @@ fn moving_scenes_are_checked_and_rendered_from_their_spec() {
     let (ok, _, err) = tilegraph(&["scene-info", "city:600@moving:2"], &[]);
     assert!(!ok);
     assert!(err.contains("MOVERS is a share from 0 to 1"), "{err}");
+    let (ok, _, err) = tilegraph(&["scene-info", "city:600@moving:0.3:4:2:2"], &[]);
+    assert!(!ok);
+    assert!(err.contains("MIRRORS is a share from 0 to 1"), "{err}");
 }
 
 /// `--camera-path walk[:SEED]`: a walk at eye height through the scene (one-mesh levels too),
