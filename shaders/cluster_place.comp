@@ -86,39 +86,48 @@ uvec2 place_group(uint r, uint g) {
     return placed;
 }
 
-// Turns the runs of list `list`'s groups into their first commands and writes its counts.
+// Turns the runs of list `list`'s groups into their first commands and writes its counts. With
+// fixed places (cluster.glsl) a group's first command is the rooms of the groups before it, and
+// its runs are kept as its draw count.
 void place_list(uint list) {
     uint r = list / 4u;
     uint start = cull.group_start[list % 4u];
     uint n = cull.group_count[list % 4u];
     uint t = gl_LocalInvocationID.x;
-    uint placed = 0u;
+    bool pinned = fixed_places();
+    uvec2 placed = uvec2(0u); // commands placed (rooms with fixed places), runs
     for (uint chunk = 0u; chunk < n; chunk += GROUP_CHUNK) {
         uint first = chunk + t * GROUPS_PER_THREAD;
         uint last = min(first + GROUPS_PER_THREAD, n);
-        uint mine = 0u;
+        uvec2 mine = uvec2(0u);
         uint drawn = 0u;
         for (uint j = first; j < last; ++j) {
-            mine += offsets[group_slot(0u, r, start + j)];
+            uint runs_of_group = offsets[group_slot(0u, r, start + j)];
+            mine += uvec2(pinned ? group_room(start + j) : runs_of_group, runs_of_group);
             drawn += offsets[group_slot(1u, r, start + j)];
         }
-        scan[t] = uvec2(mine, 0u);
+        scan[t] = mine;
         scan_threads();
-        uint at = placed + scan[t].x - mine;
+        uint at = placed.x + scan[t].x - mine.x;
         for (uint j = first; j < last; ++j) {
             uint slot = group_slot(0u, r, start + j);
             uint runs_of_group = offsets[slot];
             offsets[slot] = at;
-            at += runs_of_group;
+            if (pinned) {
+                offsets[group_slot(2u, r, start + j)] = runs_of_group;
+                at += group_room(start + j);
+            } else {
+                at += runs_of_group;
+            }
         }
         if (drawn != 0u) {
             atomicAdd(instances, drawn);
         }
-        placed += scan[63].x;
+        placed += scan[63];
         barrier();
     }
     if (t == 0u) {
-        counts[list] = placed;
+        counts[list] = placed.y;
         counts[8u + list] = instances;
     }
 }

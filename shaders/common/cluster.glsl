@@ -90,10 +90,27 @@ uint chunk_instance(uint w) {
 }
 
 // Where group g's runs of region r (kind 0: cluster_place.comp writes them, then its list's
-// last workgroup turns them into the group's first command) or its entries with runs (kind 1) are kept in
-// Offsets, after the entries' places.
+// last workgroup turns them into the group's first command), its entries with runs (kind 1)
+// or, with fixed places, its runs again (kind 2: the group's draw count) are kept in Offsets,
+// after the entries' places.
 uint group_slot(uint kind, uint r, uint g) {
     return 12u * cull.screen.z + (2u * kind + r) * cull.groups.x + g;
+}
+
+// Fixed places (cull.clusters.y bit 2: engine materials draw the lists group by group, each
+// with its pipeline): each group's commands start at a place the CPU knows — the rooms of the
+// list's groups before it — instead of right after the runs of the groups before it, and each
+// group's runs are its own draw count (group_slot kind 2). tilegraph_passes::cull::ClusterStage
+// computes the same rooms.
+bool fixed_places() {
+    return (cull.clusters.y & 4u) != 0u;
+}
+
+// The most commands group g can need: one per cluster of each of its entries (a run holds a
+// cluster at least; every entry of a group draws the group's mesh).
+uint group_room(uint g) {
+    Group group = cluster_groups[g];
+    return group.len * mesh_clusters[group.mesh].y;
 }
 
 // Where the draw group of entry e (of lists 0-3) is kept in Offsets (cluster_place.comp

@@ -6,9 +6,11 @@
  * are given to it; five frames of the city's path are rendered through tilegraph's culling
  * (`none`, `hiz-2phase`) — or, for the comparison, by a renderer with no engine material
  * registered (tilegraph's own shading) — and written for the test to compare: `none` and
- * `hiz-2phase` must be equal, and differ from tilegraph's shading.
+ * `hiz-2phase` must be equal, and differ from tilegraph's shading. With a cluster file
+ * attached (written by the test), `none` and `hiz-2phase-clusters` must be equal.
  *
- * Usage: materials VS.spv FS.spv none|hiz-2phase|tilegraph OUT_PREFIX
+ * Usage: materials VS.spv FS.spv none|hiz-2phase|hiz-2phase-clusters|tilegraph OUT_PREFIX
+ *        [CLUSTERS]
  * (writes OUT_PREFIX-0.rgba .. OUT_PREFIX-4.rgba). Exits non-zero on any failure or validation
  * message.
  */
@@ -118,11 +120,14 @@ static void bind_tint(void *user, void *command_buffer, uint32_t pass) {
 }
 
 int main(int argc, char **argv) {
-    CHECK(argc >= 5, "usage: materials VS.spv FS.spv none|hiz-2phase|tilegraph OUT_PREFIX");
+    CHECK(argc >= 5, "usage: materials VS.spv FS.spv none|hiz-2phase|hiz-2phase-clusters|tilegraph "
+                     "OUT_PREFIX [CLUSTERS]");
     uint32_t culling = TG_CULLING_NONE;
     int engine_shading = 1;
     if (strcmp(argv[3], "hiz-2phase") == 0) {
         culling = TG_CULLING_HIZ_TWO_PHASE;
+    } else if (strcmp(argv[3], "hiz-2phase-clusters") == 0) {
+        culling = TG_CULLING_HIZ_TWO_PHASE_CLUSTERS;
     } else if (strcmp(argv[3], "tilegraph") == 0) {
         engine_shading = 0;
     } else {
@@ -138,6 +143,11 @@ int main(int argc, char **argv) {
     TG_CHECK(engine_adopt(&e, "lavapipe", &context));
     TgScene scene;
     TG_CHECK(tg_scene_load("city:400", &scene));
+    /* The scene's clusters, written on the desktop (every mode of a comparison attaches them:
+     * the same index order). */
+    if (argc >= 6) {
+        TG_CHECK(tg_scene_attach_clusters(scene, argv[5]));
+    }
     TgRendererDesc desc = {.technique = TG_TECHNIQUE_PREPASS,
                            .culling = culling,
                            .width = WIDTH,

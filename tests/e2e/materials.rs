@@ -3,7 +3,8 @@
 //! pipeline layout with tilegraph's scene set as set 0 and a set of its own bound by its bind
 //! callback. The city through `none` and `hiz-2phase` gives equal images frame by frame, with the
 //! engine's depth pre-pass shaders and without (tilegraph's pre-pass, then the engine's colour
-//! testing EQUAL against it), and the engine's shading really is what is drawn.
+//! testing EQUAL against it), and the engine's shading really is what is drawn; the cluster
+//! techniques draw it group by group, images equal to the unculled frame's.
 
 use std::rc::Rc;
 
@@ -192,7 +193,17 @@ fn frames(
 
 /// As [`frames`], under `options`.
 fn frames_with(scene: &Scene, options: RenderOptions, engine: Option<bool>) -> Vec<RgbaImage> {
-    let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+    frames_on("lavapipe", scene, options, engine)
+}
+
+/// As [`frames_with`], with profile `profile` forced.
+fn frames_on(
+    profile: &str,
+    scene: &Scene,
+    options: RenderOptions,
+    engine: Option<bool>,
+) -> Vec<RgbaImage> {
+    let g = gpu_with(Some(profile), options.device_features()).unwrap();
     let mut r = SceneRenderer::new(&g, scene, options).unwrap();
     let side = EngineSide::new(&g, &r);
     if let Some(depth) = engine {
@@ -240,6 +251,95 @@ fn an_engine_material_draws_the_culled_city_as_it_draws_the_unculled_one() {
             "the engine's shading is not what was drawn ({changed} pixels differ from tilegraph's)"
         );
     }
+}
+
+/// Cluster culling under engine materials: each draw group's runs of clusters are drawn with its
+/// own pipeline (the frame places each group's commands where the CPU knows them). The engine
+/// draws every other opaque material of the city, so each list alternates between its pipeline
+/// and tilegraph's; with the clusters attached, both cluster techniques give the unculled
+/// frame's image, through the GPU's draw count (lavapipe) and through a fixed one (adreno-6xx),
+/// forward with the engine's depth shaders and without, and through the visibility buffer with
+/// the engine's resolve.
+#[test]
+fn an_engine_material_draws_the_clusters_culling_kept() {
+    use tilegraph_passes::cull::Culling;
+    use tilegraph_passes::{Technique, VisbufResolve};
+    let mut scene = tilegraph_scene::load("city:400").unwrap();
+    let opaque: Vec<MaterialId> = scene
+        .materials()
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.class == MaterialClass::Opaque)
+        .map(|(i, _)| MaterialId(i as u32))
+        .collect();
+    assert!(opaque.len() >= 2, "{} opaque materials", opaque.len());
+    for id in opaque.iter().step_by(2) {
+        scene.set_engine_material(*id, Some(0)).unwrap();
+    }
+    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    scene.attach_clusters(data).unwrap();
+    fn forward(culling: Culling) -> RenderOptions {
+        RenderOptions {
+            width: 160,
+            height: 90,
+            culling,
+            ..Default::default()
+        }
+    }
+    fn visbuf(culling: Culling) -> RenderOptions {
+        RenderOptions {
+            technique: Technique::Visbuf,
+            visbuf_resolve: Some(VisbufResolve::Classified),
+            ..forward(culling)
+        }
+    }
+    type Options = fn(Culling) -> RenderOptions;
+    let cases: [(&str, Options, bool); 4] = [
+        ("lavapipe", forward, false),
+        ("lavapipe", forward, true),
+        ("adreno-6xx", forward, false),
+        ("lavapipe", visbuf, false),
+    ];
+    for (profile, options, depth) in cases {
+        let none = frames_on(profile, &scene, options(Culling::None), Some(depth));
+        let tilegraph = frames_on(profile, &scene, options(Culling::None), None);
+        let engine_shaded = differing(&none, &tilegraph);
+        assert!(
+            engine_shaded > 5 * 160 * 90 / 8,
+            "{profile}: only {engine_shaded} pixels are the engine's"
+        );
+        for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
+            let culled = frames_on(profile, &scene, options(culling), Some(depth));
+            let differ = differing(&none, &culled);
+            println!(
+                "{profile} {} engine depth {depth}: {differ} pixels differ from none, {engine_shaded} are the engine's",
+                culling.name()
+            );
+            assert_eq!(
+                differ,
+                0,
+                "{profile}, {}, engine depth shaders {depth}: the culled frames differ",
+                culling.name()
+            );
+        }
+    }
+
+    // Per-triangle culling packs the lists' triangles anew: no group to give a pipeline.
+    let options = RenderOptions {
+        triangle_culling: true,
+        ..forward(Culling::HizTwoPhaseClusters)
+    };
+    let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+    let side = EngineSide::new(&g, &r);
+    r.add_material(material(&side, false));
+    let cam = scene.camera_path().camera(0).unwrap();
+    match r.render(&g, &scene, &cam) {
+        Err(tilegraph_passes::RenderError::EngineMaterialsWithTriangleCulling { .. }) => {}
+        other => panic!("expected EngineMaterialsWithTriangleCulling, got {other:?}"),
+    }
+    r.destroy(&g);
+    side.destroy(&g);
 }
 
 /// Pixels of `a` and `b` that differ, over all frames.

@@ -206,8 +206,9 @@ pub unsafe extern "C" fn tg_renderer_resolve_set_layout(
 /// Registers an engine material on a renderer; its id (0, 1, ... per renderer) goes to
 /// `out_engine_material`. Scene materials given that id (`tg_scene_set_engine_material`) are
 /// drawn with its shaders in the passes it has shaders for, from the next record. The shaders
-/// are copied; the layout and `user` stay the engine's. Instance culling only: a renderer with
-/// a cluster culling refuses to record a scene that uses engine materials.
+/// are copied; the layout and `user` stay the engine's. Every culling draws them, cluster
+/// culling included (each draw group's surviving clusters with its pipeline); only per-triangle
+/// culling (knob `triangle_culling = on`) refuses to record a scene that uses engine materials.
 ///
 /// # Safety
 /// `desc` is valid (its shaders and name as `TgShader` says); `out_engine_material` writable.

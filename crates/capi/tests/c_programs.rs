@@ -7,7 +7,8 @@
 //!   recording; its pixels equal the same changes made through the Rust API, bit for bit;
 //! - `materials.c` registers an engine material of its own shaders (through the shipped
 //!   include), layout and bind callback; the city through `none` and `hiz-2phase` gives equal
-//!   images, which differ from tilegraph's own shading;
+//!   images, which differ from tilegraph's own shading, and with its cluster file attached
+//!   `none` and `hiz-2phase-clusters` do too;
 //! - `plan.c` compiles a deferred frame's graph for three profiles and walks every plan whole
 //!   (steps, attachments, subpasses, barriers): its text equals the Rust plan's, line for line;
 //! - `pvs.c` reads a visible set baked by the test from memory, as a game reads an asset, and
@@ -356,19 +357,24 @@ fn the_c_error_test_drives_every_status() {
     assert!(log.trim_end().ends_with("ok"), "{log}");
 }
 
-/// The C engine's frames in `mode` (`none`, `hiz-2phase`, `tilegraph`), as RGBA8 images.
-fn c_material_frames(exe: &Path, mode: &str) -> Vec<Vec<u8>> {
+/// The C engine's frames in `mode` (`none`, `hiz-2phase`, `hiz-2phase-clusters`,
+/// `tilegraph`), as RGBA8 images; with `clusters`, that cluster file attached.
+fn c_material_frames(exe: &Path, mode: &str, clusters: Option<&Path>) -> Vec<Vec<u8>> {
     let spv = root().join("shaders/spv");
-    let prefix = target_dir().join(format!("capi-materials-{mode}"));
-    let log = run(
-        exe,
-        &[
-            spv.join("test_engine.vert.spv").to_str().unwrap(),
-            spv.join("test_engine.frag.spv").to_str().unwrap(),
-            mode,
-            prefix.to_str().unwrap(),
-        ],
+    let name = format!(
+        "{mode}{}",
+        if clusters.is_some() { "-clustered" } else { "" }
     );
+    let prefix = target_dir().join(format!("capi-materials-{name}"));
+    let mut args = vec![
+        spv.join("test_engine.vert.spv").display().to_string(),
+        spv.join("test_engine.frag.spv").display().to_string(),
+        mode.to_string(),
+        prefix.display().to_string(),
+    ];
+    args.extend(clusters.map(|p| p.display().to_string()));
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let log = run(exe, &args);
     assert!(log.starts_with("ok"), "{log}");
     (0..5)
         .map(|k| std::fs::read(format!("{}-{k}.rgba", prefix.display())).unwrap())
@@ -378,13 +384,27 @@ fn c_material_frames(exe: &Path, mode: &str) -> Vec<Vec<u8>> {
 #[test]
 fn the_c_engine_material_draws_the_culled_city_as_the_unculled_one() {
     let exe = compile("materials");
-    let none = c_material_frames(&exe, "none");
-    let two_phase = c_material_frames(&exe, "hiz-2phase");
-    let tilegraph = c_material_frames(&exe, "tilegraph");
+    let none = c_material_frames(&exe, "none", None);
+    let two_phase = c_material_frames(&exe, "hiz-2phase", None);
+    let tilegraph = c_material_frames(&exe, "tilegraph", None);
     for (k, (a, b)) in none.iter().zip(&two_phase).enumerate() {
         assert!(
             a.len() == 160 * 90 * 4 && a == b,
             "frame {k}: hiz-2phase differs from none"
+        );
+    }
+    // Cluster culling draws the engine's groups too: with the city's cluster file attached
+    // (its index order) in both runs, the culled frames are the unculled ones.
+    let scene = tilegraph_scene::load("city:400").unwrap();
+    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    let file = target_dir().join("capi-materials-city400.clusters");
+    data.write(&file).unwrap();
+    let clustered = c_material_frames(&exe, "none", Some(&file));
+    let clusters = c_material_frames(&exe, "hiz-2phase-clusters", Some(&file));
+    for (k, (a, b)) in clustered.iter().zip(&clusters).enumerate() {
+        assert!(
+            a.len() == 160 * 90 * 4 && a == b,
+            "frame {k}: hiz-2phase-clusters differs from none"
         );
     }
     let changed: usize = none

@@ -242,6 +242,9 @@ pub enum DrawSource {
         /// Cluster culling's runs: per command, the mesh's triangle it starts at (bound in
         /// the culled set; the visibility buffer's pass reads it).
         runs: Option<BufferId>,
+        /// Cluster culling's places, which hold each draw group's draw count where engine
+        /// materials draw the lists group by group (fixed places, `cluster.glsl`).
+        group_counts: Option<BufferId>,
         phase: u32,
         clusters: bool,
         /// Per-triangle culling: the scene's index buffer, whose tail the commands draw.
@@ -258,11 +261,15 @@ impl DrawSource {
             counts,
             draw_ids,
             runs,
+            group_counts,
             indices,
             ..
         } = self
         {
             p.indirect(commands).indirect(counts).storage_read(draw_ids);
+            if let Some(c) = group_counts {
+                p.indirect(c);
+            }
             if let Some(r) = runs {
                 p.storage_read(r);
             }

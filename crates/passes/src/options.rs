@@ -83,8 +83,8 @@ pub enum RenderError {
         engine: u32,
         registered: usize,
     },
-    #[error("culling {culling} culls clusters; engine materials are drawn with instance culling (none, frustum, hiz, hiz-2phase, reproject, the query techniques)")]
-    EngineMaterialsWithClusters { culling: &'static str },
+    #[error("culling {culling} with triangle_culling = on packs each list's surviving triangles anew, so its draws cannot be split by engine material; engine materials are drawn with triangle_culling = off")]
+    EngineMaterialsWithTriangleCulling { culling: &'static str },
     #[error("material {material} is resolved by engine material {engine}'s shader, which runs after material classification: set the knob visbuf_resolve = classified (RenderOptions::visbuf_resolve)")]
     EngineResolveNeedsClassification { material: u32, engine: u32 },
     #[error("camera: {field}: {reason}")]

@@ -327,7 +327,7 @@ fn record_indirect(
                 pc.ctx,
                 pc.cb,
                 pc.frame_slot,
-                list,
+                (list, clusters),
                 (first as u32, len as u32),
             )?;
             first += len;

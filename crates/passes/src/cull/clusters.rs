@@ -65,6 +65,9 @@ pub struct ClusterStage {
     pub room: ClusterRoom,
     pub clusters: Buffer,
     pub mesh_clusters: Buffer,
+    /// Per mesh, its clusters (as `mesh_clusters` holds them): a draw group's room with fixed
+    /// places ([`Self::group_rooms`]).
+    mesh_cluster_counts: Vec<u32>,
     /// Per frame slot, host-visible: the base words of the layout of that slot's frame
     /// (written when the slot comes round after a new layout: frames in flight keep theirs).
     pub base: Vec<Buffer>,
@@ -119,10 +122,11 @@ fn make_buffers(
     let entries = stride * u64::from(LIST_COUNT);
     // Runs per entry of the lists, then per region and chunk (cluster.glsl's chunk_slot).
     let runs = entries + 2 * u64::from(room.chunks);
-    // Places per entry of the lists, each entry's group (lists of a phase), then per kind,
-    // region and draw group (cluster.glsl's group_of_entry and group_slot).
+    // Places per entry of the lists, each entry's group (lists of a phase), then per kind (3),
+    // region and draw group (cluster.glsl's group_of_entry and group_slot; kind 2, the groups'
+    // draw counts with fixed places, is read as indirect counts).
     let offsets =
-        entries + stride * u64::from(LISTS_PER_PHASE) + 4 * u64::from(capacity.groups.max(1));
+        entries + stride * u64::from(LISTS_PER_PHASE) + 6 * u64::from(capacity.groups.max(1));
     let src = vk::BufferUsageFlags::TRANSFER_SRC;
     let dst = vk::BufferUsageFlags::TRANSFER_DST;
     let indirect = vk::BufferUsageFlags::INDIRECT_BUFFER;
@@ -136,7 +140,7 @@ fn make_buffers(
         Spec::Empty("cluster flags", 2 * total * 4, storage),
         Spec::Empty("cluster visibility", total * 4, storage | dst),
         Spec::Empty("cluster runs", runs * 4, storage | dst),
-        Spec::Empty("cluster offsets", offsets * 4, storage),
+        Spec::Empty("cluster offsets", offsets * 4, storage | indirect),
         Spec::Empty(
             "cluster commands",
             commands * 20,
@@ -198,6 +202,13 @@ pub enum ClusterStep {
 }
 
 impl ClusterStage {
+    /// The most commands a draw group of `len` entries of `mesh` can need (cluster.glsl's
+    /// `group_room`): a run holds one cluster at least.
+    pub fn group_room(&self, len: u32, mesh: u32) -> u32 {
+        let clusters = self.mesh_cluster_counts.get(mesh as usize).copied();
+        len.saturating_mul(clusters.unwrap_or(0))
+    }
+
     /// The stage for `shared.scene`'s clusters (`None` without them) and lists of `capacity`.
     pub(super) fn new(
         ctx: &Context,
@@ -211,6 +222,7 @@ impl ClusterStage {
             return Ok(None);
         };
         let room = ClusterRoom::for_layout(&layout, capacity.instances);
+        let mesh_cluster_counts = clusters.mesh_clusters.iter().map(|r| r[1]).collect();
         let [clusters, mesh_clusters, flags, visibility, runs, offsets, commands, counts, work, run_triangles] =
             make_buffers(ctx, &room, clusters, capacity)?;
         let mut stage = ClusterStage {
@@ -219,6 +231,7 @@ impl ClusterStage {
             room,
             clusters,
             mesh_clusters,
+            mesh_cluster_counts,
             base: Vec::new(),
             base_written: Vec::new(),
             flags,

@@ -149,6 +149,7 @@ impl CullLists {
             counts,
             draw_ids: self.draw_ids,
             runs: self.clusters.map(|c| c.run_triangles),
+            group_counts: self.clusters.map(|c| c.offsets),
             phase,
             clusters: self.clusters.is_some(),
             indices: self.clusters.and_then(|c| c.triangles).map(|t| t.indices),
@@ -165,6 +166,7 @@ impl CullLists {
                 draw_ids: self.draw_ids,
                 // The culled set binds the runs: the visibility buffer's pass reads them.
                 runs: Some(c.run_triangles),
+                group_counts: None,
                 phase: 0,
                 clusters: false,
                 indices: None,

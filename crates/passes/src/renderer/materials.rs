@@ -110,8 +110,15 @@ impl SceneRenderer {
         for k in 0..res.views() {
             res.enter_view(k);
             if let Some(cull) = res.states.get_mut::<CullState>() {
-                if any && cull.clusters.is_some() {
-                    result = Err(RenderError::EngineMaterialsWithClusters {
+                // Per-triangle culling packs each list's triangles anew: its commands cannot
+                // be drawn group by group.
+                if any
+                    && cull
+                        .clusters
+                        .as_ref()
+                        .is_some_and(|c| c.triangles.is_some())
+                {
+                    result = Err(RenderError::EngineMaterialsWithTriangleCulling {
                         culling: cull.culling.name(),
                     });
                 }

@@ -55,6 +55,9 @@ struct SlotInputs {
     /// The mesh of each draw group, list by list as `group_start` / `group_count` say, and
     /// whether the frame kept a command per group (`runs.rs`: engine materials' runs).
     group_meshes: Vec<u32>,
+    /// With cluster culling and engine materials (fixed places, `runs.rs`): per draw group,
+    /// in the frame's order, the most commands it can need, as `cluster_place.comp` counts it.
+    group_rooms: Vec<u32>,
     group_start: [u32; 4],
     kept_every_group: bool,
 }
@@ -534,11 +537,13 @@ impl CullState {
                 let whole_early = u32::from(self.cluster_early == ClusterEarly::Instances);
                 // A chunk holds 64 clusters: a longer gap is a whole chunk.
                 let gap = self.cluster_gap.min(63);
+                // Engine materials draw the lists group by group: fixed places (runs.rs).
+                let fixed = u32::from(self.group_runs);
                 let b = c.room.cmd_base;
                 (
                     [
                         c.draw_id_base,
-                        cone | (whole_early << 1) | (gap << 8),
+                        cone | (whole_early << 1) | (fixed << 2) | (gap << 8),
                         c.room.total,
                         cone_steps(
                             m.projection,
@@ -655,12 +660,7 @@ impl CullState {
         inputs.group_start = layout.group_start;
         inputs.group_total = total;
         // Kept only for engine materials' runs: a frame without them allocates nothing here.
-        inputs.group_meshes.clear();
-        if self.group_runs {
-            inputs
-                .group_meshes
-                .extend(layout.groups.iter().map(|g| g[2]));
-        }
+        inputs.keep_groups(self.group_runs, layout, self.clusters.as_ref());
         inputs.kept_every_group = keep_empty == 1;
         inputs.pending = Some((self.frames_written, entries));
         self.frames_written += 1;
@@ -782,6 +782,7 @@ impl SlotInputs {
                 stats,
                 pending: None,
                 group_meshes: Vec::new(),
+                group_rooms: Vec::new(),
                 group_start: [0; 4],
                 kept_every_group: false,
             }),

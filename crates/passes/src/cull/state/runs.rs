@@ -6,7 +6,8 @@
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::{Context, VkError};
 
-use super::{CullState, LISTS_PER_PHASE};
+use super::{ClusterStage, CullState, DrawCount, SlotInputs, LISTS_PER_PHASE};
+use crate::cull::layout::GpuLayout;
 
 impl CullState {
     /// The mesh of each of list `list`'s draw groups in slot `slot`'s frame, in draw order.
@@ -19,13 +20,14 @@ impl CullState {
     }
 
     /// Records groups `first..first + count` of list `list` (slot `slot`'s frame, which must have
-    /// kept a command per group: [`CullState::group_runs`]).
+    /// kept a command per group: [`CullState::group_runs`]), of the cluster stage's lists
+    /// (`from_clusters`) or the instance compaction's.
     pub fn record_group_run(
         &self,
         ctx: &Context,
         cb: vk::CommandBuffer,
         slot: usize,
-        list: u32,
+        (list, from_clusters): (u32, bool),
         (first, count): (u32, u32),
     ) -> Result<(), VkError> {
         let inputs = self.slot(slot)?;
@@ -33,11 +35,8 @@ impl CullState {
             what: "engine material draws".into(),
             reason: reason.into(),
         };
-        if self.clusters.is_some() {
-            return Err(refuse(
-                "cluster culling draws clusters, not the lists' groups: engine materials are \
-                 drawn with instance culling (none, frustum, hiz, hiz-2phase, reproject)",
-            ));
+        if let Some(c) = self.clusters.as_ref().filter(|_| from_clusters) {
+            return self.record_cluster_groups(ctx, cb, (inputs, c), list, (first, count));
         }
         if !inputs.kept_every_group {
             return Err(refuse("the frame's culling kept no command per group"));
@@ -66,5 +65,105 @@ impl CullState {
             }
         }
         Ok(())
+    }
+}
+
+impl CullState {
+    /// Records groups `first..first + count` of cluster list `list` of a frame with fixed
+    /// places: each group one indirect call from its place, of its runs.
+    pub(super) fn record_cluster_groups(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        (inputs, c): (&SlotInputs, &ClusterStage),
+        list: u32,
+        (first, count): (u32, u32),
+    ) -> Result<(), VkError> {
+        let local = (list % LISTS_PER_PHASE) as usize;
+        let start = inputs.group_start.get(local).copied().unwrap_or(0) as usize;
+        let groups = inputs.group_count.get(local).copied().unwrap_or(0) as usize;
+        let Some(rooms) = inputs.group_rooms.get(start..start + groups) else {
+            return Err(VkError::Invalid {
+                what: "engine material draws".into(),
+                reason: "the frame's culling placed no cluster commands per group".into(),
+            });
+        };
+        let first = (first as usize).min(groups);
+        let end = first.saturating_add(count as usize).min(groups);
+        // cluster.glsl's group_slot(2, region, group): the group's draw count in the places.
+        let stride = u64::from(inputs.stride.max(1));
+        let groups_x = u64::from(inputs.group_total.max(1));
+        let region = u64::from(list / LISTS_PER_PHASE);
+        let count_at = |g: usize| 4 * (12 * stride + (4 + region) * groups_x + g as u64);
+        let base = u64::from(c.room.cmd_base.get(list as usize).copied().unwrap_or(0));
+        let mut place = base + rooms[..first].iter().map(|&r| u64::from(r)).sum::<u64>();
+        let d = &ctx.device;
+        for (j, &room) in rooms.iter().enumerate().take(end).skip(first) {
+            let offset = place * 20;
+            place += u64::from(room);
+            if room == 0 {
+                continue;
+            }
+            // SAFETY (all three): inside a render pass with the pipeline, buffers and sets
+            // bound; the group's room of commands from `offset` lies inside the list's
+            // capacity (the rooms of a list's groups sum to at most it: write_frame), each one
+            // written or cleared this frame, and its count inside the places buffer.
+            match self.draw_count {
+                DrawCount::Gpu => unsafe {
+                    d.cmd_draw_indexed_indirect_count(
+                        cb,
+                        c.commands.raw,
+                        offset,
+                        c.offsets.raw,
+                        count_at(start + j),
+                        room,
+                        20,
+                    );
+                },
+                DrawCount::Fixed { multi_draw: true } => unsafe {
+                    d.cmd_draw_indexed_indirect(cb, c.commands.raw, offset, room, 20);
+                },
+                DrawCount::Fixed { multi_draw: false } => {
+                    for k in 0..u64::from(room) {
+                        unsafe {
+                            d.cmd_draw_indexed_indirect(cb, c.commands.raw, offset + 20 * k, 1, 20)
+                        };
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl SlotInputs {
+    /// What a frame whose lists engine materials draw (`group_runs`) keeps of `layout`: each
+    /// draw group's mesh, and with a cluster stage each group's room (fixed places).
+    pub(super) fn keep_groups(
+        &mut self,
+        group_runs: bool,
+        layout: &GpuLayout,
+        clusters: Option<&ClusterStage>,
+    ) {
+        self.group_meshes.clear();
+        self.group_rooms.clear();
+        if !group_runs {
+            return;
+        }
+        self.group_meshes.extend(layout.groups.iter().map(|g| g[2]));
+        let Some(c) = clusters else {
+            return;
+        };
+        self.group_rooms
+            .extend(layout.groups.iter().map(|g| c.group_room(g[1], g[2])));
+        debug_assert!(
+            (0..4).all(|l| {
+                let start = layout.group_start[l] as usize;
+                let end = start + layout.group_count[l] as usize;
+                let rooms = self.group_rooms.get(start..end).unwrap_or(&[]);
+                rooms.iter().map(|&r| u64::from(r)).sum::<u64>() <= u64::from(c.room.capacity[l])
+            }),
+            "a list's groups need more commands than its room holds"
+        );
     }
 }
