@@ -342,6 +342,75 @@ fn an_engine_material_draws_the_clusters_culling_kept() {
     side.destroy(&g);
 }
 
+/// The same under a moving scene: instances move (a quarter of them turning mirrored and back),
+/// spawn and despawn every frame, so the draw groups, their lengths and the cluster layout
+/// change under the fixed places; 16 frames under `hiz-2phase-clusters` equal the unculled
+/// ones, every one of them shaded by the engine. The first mirrored instance gives its mesh a
+/// turned copy, whose clusters make the renderer's buffers anew: that once dropped the engine's
+/// materials (tilegraph's shading drew them from then on).
+#[test]
+fn an_engine_material_draws_the_clusters_of_a_moving_scene() {
+    use tilegraph_passes::cull::Culling;
+    use tilegraph_scene::{Motion, MotionParams};
+    let mut scene = tilegraph_scene::load("city:400").unwrap();
+    let opaque: Vec<MaterialId> = scene
+        .materials()
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.class == MaterialClass::Opaque)
+        .map(|(i, _)| MaterialId(i as u32))
+        .collect();
+    for id in opaque.iter().step_by(2) {
+        scene.set_engine_material(*id, Some(0)).unwrap();
+    }
+    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    scene.attach_clusters(data).unwrap();
+    let run = |culling, engine: bool| {
+        let mut scene = scene.clone();
+        let path = scene.camera_path().clone();
+        let params = MotionParams {
+            movers: 0.2,
+            spawns: 12,
+            seed: 3,
+            mirrors: 0.25,
+        };
+        let mut motion = Motion::new(&scene, &path, params);
+        let options = RenderOptions {
+            width: 160,
+            height: 90,
+            culling,
+            ..Default::default()
+        };
+        let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+        let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
+        let side = EngineSide::new(&g, &r);
+        if engine {
+            r.add_material(material(&side, true));
+        }
+        let mut images = Vec::new();
+        for i in 0..16 {
+            motion.apply(&mut scene, i).unwrap();
+            let cam = path.camera(i * 4).unwrap();
+            r.render(&g, &scene, &cam).unwrap();
+            images.push(r.read_image(&g).unwrap());
+        }
+        r.destroy(&g);
+        side.destroy(&g);
+        images
+    };
+    let none = run(Culling::None, true);
+    let tilegraph = run(Culling::None, false);
+    let clusters = run(Culling::HizTwoPhaseClusters, true);
+    for (k, ((a, b), t)) in none.iter().zip(&clusters).zip(&tilegraph).enumerate() {
+        assert!(a == b, "frame {k}: hiz-2phase-clusters differs from none");
+        let engine_shaded = differing(std::slice::from_ref(a), std::slice::from_ref(t));
+        assert!(
+            engine_shaded > 160 * 90 / 8,
+            "frame {k}: only {engine_shaded} pixels are the engine's"
+        );
+    }
+}
+
 /// Pixels of `a` and `b` that differ, over all frames.
 fn differing(a: &[RgbaImage], b: &[RgbaImage]) -> usize {
     a.iter()

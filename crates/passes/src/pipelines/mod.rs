@@ -298,6 +298,12 @@ impl Pipelines {
         (self.materials.len() - 1) as u32
     }
 
+    /// Hands the engine's materials, with their ids, to `fresh` (the renderer's pipelines made
+    /// anew for new buffers: the engine registered them once, for the renderer's life).
+    pub fn hand_materials_to(&mut self, fresh: &mut Pipelines) {
+        fresh.materials = std::mem::take(&mut self.materials);
+    }
+
     /// Engine materials registered.
     pub fn material_count(&self) -> usize {
         self.materials.len()

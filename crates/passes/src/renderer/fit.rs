@@ -215,7 +215,11 @@ impl SceneRenderer {
             capacity,
         )?;
         self.declared = None;
-        let old = std::mem::replace(&mut self.resources, fresh);
+        let mut old = std::mem::replace(&mut self.resources, fresh);
+        // The engine's materials stay registered (before, new buffers — a scene outgrowing its
+        // room, a mirrored copy with clusters attached — drew them with tilegraph's shaders).
+        old.pipelines
+            .hand_materials_to(&mut self.resources.pipelines);
         old.destroy(ctx);
         for v in self.views.iter_mut() {
             v.last_drawn = None;
