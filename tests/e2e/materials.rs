@@ -556,3 +556,70 @@ fn an_engine_material_draws_the_levels_culling_chose() {
         "no level was drawn"
     );
 }
+
+/// Two views of one renderer, each culling clusters (`hiz-2phase-clusters` and
+/// `frustum-clusters`, another size and camera), both draw the engine's materials from fixed
+/// places: each view's image equals that view rendered alone and unculled.
+#[test]
+fn every_view_draws_engine_materials_with_cluster_culling() {
+    use tilegraph_passes::cull::Culling;
+    let mut scene = tilegraph_scene::load("city:400").unwrap();
+    let opaque: Vec<MaterialId> = scene
+        .materials()
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.class == MaterialClass::Opaque)
+        .map(|(i, _)| MaterialId(i as u32))
+        .collect();
+    for id in opaque.iter().step_by(2) {
+        scene.set_engine_material(*id, Some(0)).unwrap();
+    }
+    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    scene.attach_clusters(data).unwrap();
+    let path = scene.camera_path().clone();
+    let camera = |k: usize| path.camera(k).unwrap();
+    let options = |culling, width| RenderOptions {
+        width,
+        height: 90,
+        culling,
+        ..Default::default()
+    };
+    let main = options(Culling::HizTwoPhaseClusters, 160);
+    let second = options(Culling::FrustumClusters, 120);
+    let g = gpu_with(Some("lavapipe"), tilegraph_e2e::culling_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, &scene, main.clone()).unwrap();
+    let side = EngineSide::new(&g, &r);
+    r.add_material(material(&side, true));
+    let v2 = r
+        .add_view(&g, &scene, second.clone(), &camera(100))
+        .unwrap();
+    let (mut mains, mut seconds) = (Vec::new(), Vec::new());
+    for i in 0..6 {
+        r.set_view_camera(v2, &camera(100 + 10 * i), false).unwrap();
+        r.render(&g, &scene, &camera(10 * i)).unwrap();
+        mains.push(r.read_image(&g).unwrap());
+        seconds.push(r.read_view_image(&g, v2).unwrap());
+    }
+    r.destroy(&g);
+    side.destroy(&g);
+    let alone = |o: RenderOptions, from: usize| {
+        let unculled = RenderOptions {
+            culling: Culling::None,
+            ..o
+        };
+        let mut r = SceneRenderer::new(&g, &scene, unculled).unwrap();
+        let side = EngineSide::new(&g, &r);
+        r.add_material(material(&side, true));
+        let images: Vec<_> = (0..6)
+            .map(|i| {
+                r.render(&g, &scene, &camera(from + 10 * i)).unwrap();
+                r.read_image(&g).unwrap()
+            })
+            .collect();
+        r.destroy(&g);
+        side.destroy(&g);
+        images
+    };
+    assert_eq!(differing(&mains, &alone(main, 0)), 0, "main view");
+    assert_eq!(differing(&seconds, &alone(second, 100)), 0, "second view");
+}
