@@ -258,8 +258,8 @@ fn an_engine_material_draws_the_culled_city_as_it_draws_the_unculled_one() {
 /// draws every other opaque material of the city, so each list alternates between its pipeline
 /// and tilegraph's; with the clusters attached, both cluster techniques give the unculled
 /// frame's image, through the GPU's draw count (lavapipe) and through a fixed one (adreno-6xx),
-/// forward with the engine's depth shaders and without, and through the visibility buffer with
-/// the engine's resolve.
+/// forward with the engine's depth shaders and without (and with `cluster_early = clusters`,
+/// `cluster_gap = 3`), and through the visibility buffer with the engine's resolve.
 #[test]
 fn an_engine_material_draws_the_clusters_culling_kept() {
     use tilegraph_passes::cull::Culling;
@@ -294,11 +294,20 @@ fn an_engine_material_draws_the_clusters_culling_kept() {
         }
     }
     type Options = fn(Culling) -> RenderOptions;
-    let cases: [(&str, Options, bool); 4] = [
+    // The early phase culling clusters too, gaps of up to 3 culled clusters drawn through.
+    fn other_settings(culling: Culling) -> RenderOptions {
+        RenderOptions {
+            cluster_early: tilegraph_passes::cull::ClusterEarly::Clusters,
+            cluster_gap: 3,
+            ..forward(culling)
+        }
+    }
+    let cases: [(&str, Options, bool); 5] = [
         ("lavapipe", forward, false),
         ("lavapipe", forward, true),
         ("adreno-6xx", forward, false),
         ("lavapipe", visbuf, false),
+        ("lavapipe", other_settings, true),
     ];
     for (profile, options, depth) in cases {
         let none = frames_on(profile, &scene, options(Culling::None), Some(depth));
