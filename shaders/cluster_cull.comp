@@ -153,7 +153,7 @@ void cull_chunk(uint w) {
     // its late entry is marked). Read by every thread before thread 0 rewrites it.
     bool drawn_early = late && entries[4u * cull.screen.z + e] == 0u;
     uint early_runs = drawn_early && !whole_early ? runs[chunk_slot(0u, w)] : 0u;
-    bool drawn = late ? visible_last[id] != 0u : entries[e] != 0u;
+    bool drawn = late ? (visible_last[id] & 1u) != 0u : entries[e] != 0u;
     Instance inst = instance_at(id);
     uvec2 range = mesh_clusters[inst.mesh];
     uint first = (w - chunk_first(id)) * 64u;

@@ -34,8 +34,9 @@ layout(set = 1, binding = 0, std140) uniform CullParams {
                            // step in pixels (f32 bits), w where the tail places start in its buffer
     vec4 lod;              // level of detail (knob lod_error_px): x the largest error in pixels (0: off),
                            // y pixels per unit of length at distance 1 (perspective) or anywhere
-                           // (orthographic), z 1 perspective
-    uvec4 lod_info;        // x levels per draw group (1: off; commands per group), y meshes in the level table
+                           // (orthographic), z 1 perspective, w the switching band (knob lod_hysteresis)
+    uvec4 lod_info;        // x levels per draw group (1: off; commands per group), y meshes in the level table,
+                           // z 1 = last frame's levels steer this frame's (no cut, not the first frame)
 } cull;
 
 // Levels of detail of a mesh coarser than its own (tilegraph_scene::GpuLod; MAX_LODS per mesh).
@@ -52,6 +53,10 @@ struct Lod {
 // and list 0-7, how many of the list's draw groups cluster_place.comp has placed (words 8-23);
 // from WORK_CHUNKS, the regions' chunk lists. A transfer resets words 0-23 every frame.
 const uint WORK_CHUNKS = 24u;
+
+// Where an instance's visibility word (cull_body.glsl's Visibility) keeps the level of detail
+// it was drawn with (bit 0: two-phase culling's visible last frame).
+const uint LEVEL_HISTORY_SHIFT = 8u;
 
 // An entry of a list (cull.comp -> cull_compact.comp): 0 culled, else the instance id + 1 and,
 // from bit ENTRY_LEVEL_SHIFT, the level of detail it is drawn with.

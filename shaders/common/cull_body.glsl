@@ -34,13 +34,17 @@ layout(set = 1, binding = 7, std430) readonly buffer Order { uint order[]; };
 // Per mesh, MAX_LODS coarser levels (cull.lod_info.y meshes; a mesh past them has none).
 layout(set = 1, binding = 13, std430) readonly buffer Lods { Lod lods[]; };
 
-// The coarsest level of detail of `inst` whose error, projected, stays within cull.lod.x
-// pixels (0: the mesh itself). The error is scaled by the model matrix's largest stretch (its
+// The level of detail of `inst`: the coarsest of its levels whose error, projected, stays
+// within cull.lod.x pixels (0: the mesh itself) — but no coarser than `last` (the level drawn
+// last frame) unless that coarser level's error stays within cull.lod.x * (1 - cull.lod.w) (the
+// switching band). A level is never kept past the bound: the finer switch is immediate. The
+// choice is idempotent (choosing again from its own result gives it back), so both phases of a
+// frame choose the same. The error is scaled by the model matrix's largest stretch (its
 // longest column where the columns are orthogonal, else their Frobenius norm, a bound) and
 // projected at the nearest point of the instance's bounding sphere: exact on the view axis,
 // under by up to the secant of the angle off it at the edge of the view. An eye inside the
 // sphere draws the mesh itself.
-uint lod_level(Instance inst) {
+uint lod_level(Instance inst, uint last) {
     if (cull.lod.x <= 0.0 || inst.mesh >= cull.lod_info.y) {
         return 0u;
     }
@@ -59,15 +63,37 @@ uint lod_level(Instance inst) {
         }
         per_unit /= distance;
     }
+    // level: the coarsest within the bound; banded: the coarsest within the band.
+    float banded_px = cull.lod_info.z == 1u ? cull.lod.x * (1.0 - cull.lod.w) : cull.lod.x;
     uint level = 0u;
+    uint banded = 0u;
     for (uint k = 0u; k < MAX_LODS; ++k) {
         Lod l = lods[inst.mesh * MAX_LODS + k];
-        if (l.index_count == 0u || l.error * stretch * per_unit > cull.lod.x) {
+        float px = l.error * stretch * per_unit;
+        if (l.index_count == 0u || px > cull.lod.x) {
             break;
         }
         level = k + 1u;
+        if (px <= banded_px) {
+            banded = k + 1u;
+        }
     }
-    return level;
+    return level > last ? max(last, banded) : level;
+}
+
+// The level instance `id` was drawn with last frame (0 without history: after a cut, in the
+// first frame, or with levels off).
+uint last_level(uint id) {
+    return cull.lod_info.z == 1u ? (visible_last[id] >> LEVEL_HISTORY_SHIFT) & 7u : 0u;
+}
+
+// Keeps `level` in instance `id`'s visibility word for the next frame (levels on only).
+void keep_level(uint id, uint visible_bit, uint level) {
+    if (cull.lod.x > 0.0) {
+        visible_last[id] = visible_bit | (level << LEVEL_HISTORY_SHIFT);
+    } else {
+        visible_last[id] = visible_bit;
+    }
 }
 
 #ifdef CLUSTER_WORK
@@ -134,10 +160,13 @@ void main() {
     }
     uint list = order[id] / cull.screen.z;
     uint phase = cull.info.y;
-    uint level = lod_level(inst);
+    uint level = lod_level(inst, last_level(id));
     bool in_frustum = frustum_visible(inst);
     if (phase == 0u) {
         mark(list, id, in_frustum, level);
+        if (cull.lod.x > 0.0) {
+            keep_level(id, 0u, level);
+        }
 #ifdef CLUSTER_WORK
         if (in_frustum) {
             append_chunks(0u, id);
@@ -145,6 +174,9 @@ void main() {
 #endif
     } else if (phase == 1u) {
         mark(list, id, in_frustum && hiz_visible(inst), level);
+        if (cull.lod.x > 0.0) {
+            keep_level(id, 0u, level);
+        }
     } else if (phase == 2u && cull.groups.w != 0u) {
         // Raster occlusion (cull.groups.w: the packed recheck): a box fragment passed, or the
         // instance was drawn last frame and its box was not tested (recheck.glsl). The word
@@ -158,24 +190,25 @@ void main() {
         mark(list, id, draw, level);
         visible_last[id] = draw ? FLAG_DRAWN : 0u;
     } else if (phase == 2u) {
-        mark(list, id, in_frustum && visible_last[id] != 0u, level);
+        bool was_visible = (visible_last[id] & 1u) != 0u;
+        mark(list, id, in_frustum && was_visible, level);
 #ifdef CLUSTER_WORK
         // cluster_early = "instances" (cull.clusters.y bit 1): the early phase draws whole
         // instances, no cluster stage runs early.
-        if (in_frustum && visible_last[id] != 0u && (cull.clusters.y & 2u) == 0u) {
+        if (in_frustum && was_visible && (cull.clusters.y & 2u) == 0u) {
             append_chunks(0u, id);
         }
 #endif
     } else {
         bool visible = in_frustum && hiz_visible(inst);
-        bool late = visible && visible_last[id] == 0u;
+        bool late = visible && (visible_last[id] & 1u) == 0u;
         mark(4u + list, id, late, level);
         if (late) {
             // The colour pass draws the early lists completed with the newly visible: the union,
             // in the unculled order (the late compaction packs the early lists again).
             mark(list, id, true, level);
         }
-        visible_last[id] = visible ? 1u : 0u;
+        keep_level(id, visible ? 1u : 0u, level);
 #ifdef CLUSTER_WORK
         // Every cluster of an instance visible now is tested against the pyramid.
         if (visible) {

@@ -302,3 +302,63 @@ fn long_groups_pack_each_level_once() {
     );
     r.destroy(&g);
 }
+
+/// An instance near a level's threshold does not flip levels from frame to frame: the camera
+/// dollies back and forth by 3 % over a grid of spheres (all in view), with a cut at frame 5.
+/// Without the band (`lod_hysteresis = 0`) the levels follow every step; with the default 0.2
+/// the spheres keep the finer levels they had (never a coarser one than the bound allows) until
+/// the cut, which forgets them; frustum and two-phase culling alike.
+#[test]
+fn levels_do_not_flip_near_a_threshold() {
+    use tilegraph_scene::{Camera, PathKey};
+    let mut scene = tilegraph_e2e::closed_spheres(12, 12, false);
+    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    scene.attach_clusters(data).unwrap();
+    let direction = glam::DVec3::new(0.0, 0.8, 0.6).normalize();
+    let keys = (0..8)
+        .map(|i| PathKey {
+            camera: Camera::looking_at(
+                direction * if i % 2 == 0 { 40.0 } else { 41.2 },
+                glam::DVec3::ZERO,
+            ),
+            cut: i == 0 || i == 5,
+        })
+        .collect();
+    let path = CameraPath::new("dolly", keys).unwrap();
+    let g = gpu_with(None, tilegraph_e2e::culling_features()).unwrap();
+    for culling in [Culling::Frustum, Culling::HizTwoPhase] {
+        let triangles = |band: f32| {
+            let o = RenderOptions {
+                width: 320,
+                height: 180,
+                culling,
+                lod_error_px: 2.0,
+                lod_hysteresis: band,
+                ..Default::default()
+            };
+            let r = cull_check_options(&g, &scene, o, &path, None, CheckExtras::default());
+            let r = r.unwrap();
+            assert_eq!(r.totals.false_negatives, 0, "{}", culling.name());
+            r.frames
+                .iter()
+                .map(|f| f.triangles_drawn)
+                .collect::<Vec<_>>()
+        };
+        let (plain, banded) = (triangles(0.0), triangles(0.2));
+        eprintln!("{}: band 0 {plain:?}, band 0.2 {banded:?}", culling.name());
+        let (near, far) = (plain[0], plain[1]);
+        // Without the band the levels follow the dolly: a coarser level one step out.
+        assert!(far < near, "{}: {plain:?}", culling.name());
+        assert!(
+            plain
+                .iter()
+                .enumerate()
+                .all(|(i, &t)| t == if i % 2 == 0 { near } else { far }),
+            "{}: {plain:?}",
+            culling.name()
+        );
+        // With it the near levels stay, but for the cut frame (5), which chooses afresh.
+        let want: Vec<u64> = (0..8).map(|i| if i == 5 { far } else { near }).collect();
+        assert_eq!(banded, want, "{}", culling.name());
+    }
+}

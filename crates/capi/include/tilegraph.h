@@ -1073,6 +1073,10 @@ typedef struct {
    * As `TgViewDesc::lod_error_px`.
    */
   float lod_error_px;
+  /**
+   * As `TgViewDesc::lod_hysteresis`.
+   */
+  float lod_hysteresis;
 } TgRendererDesc;
 
 /**
@@ -1305,6 +1309,13 @@ typedef struct {
    * _HIZ_TWO_PHASE and _REPROJECT choose them (docs/CULLING.md, "Levels of detail").
    */
   float lod_error_px;
+  /**
+   * Level of detail's switching band, a fraction of `lod_error_px`: an instance moves to a
+   * coarser level than last frame's only once that level's error projects within
+   * `lod_error_px * (1 - band)`, so that one near a threshold does not flip levels from frame
+   * to frame (docs/CULLING.md, "Levels of detail"). 0: the default, 0.2; negative: no band.
+   */
+  float lod_hysteresis;
 } TgViewDesc;
 
 /**

@@ -40,6 +40,11 @@ pub struct TgViewDesc {
     /// the scene's clusters (`tg_scene_attach_clusters`); TG_CULLING_FRUSTUM, _HIZ,
     /// _HIZ_TWO_PHASE and _REPROJECT choose them (docs/CULLING.md, "Levels of detail").
     pub lod_error_px: f32,
+    /// Level of detail's switching band, a fraction of `lod_error_px`: an instance moves to a
+    /// coarser level than last frame's only once that level's error projects within
+    /// `lod_error_px * (1 - band)`, so that one near a threshold does not flip levels from frame
+    /// to frame (docs/CULLING.md, "Levels of detail"). 0: the default, 0.2; negative: no band.
+    pub lod_hysteresis: f32,
 }
 
 /// The options of a view (the renderer's own camera's too): technique, culling, size, clear
@@ -60,8 +65,21 @@ pub(crate) fn view_options(desc: &TgViewDesc) -> Result<RenderOptions, Failure> 
         pvs: crate::pvs::of(desc.pvs, "desc->pvs")?,
         pvs_dilation: desc.pvs_dilation,
         lod_error_px: desc.lod_error_px,
+        lod_hysteresis: lod_hysteresis(desc.lod_hysteresis),
         ..RenderOptions::default()
     })
+}
+
+/// The band of a desc's `lod_hysteresis`: 0 the default, negative none (what is out of range
+/// the renderer refuses, saying why).
+fn lod_hysteresis(raw: f32) -> f32 {
+    if raw == 0.0 {
+        RenderOptions::default().lod_hysteresis
+    } else if raw < 0.0 {
+        0.0
+    } else {
+        raw
+    }
 }
 
 /// The visibility buffer's resolve of a desc's `visbuf_resolve`, or what is wrong with it.
@@ -133,11 +151,18 @@ mod tests {
             pvs: TgPvs { raw: 0 },
             pvs_dilation: 0,
             lod_error_px: 2.0,
+            lod_hysteresis: 0.0,
         };
         let Ok(options) = view_options(&desc) else {
             panic!("refused");
         };
         assert_eq!(options.lod_error_px, 2.0);
+        assert_eq!(options.lod_hysteresis, 0.2, "0 is the default band");
+        let none = TgViewDesc {
+            lod_hysteresis: -1.0,
+            ..desc
+        };
+        assert!(view_options(&none).is_ok_and(|o| o.lod_hysteresis == 0.0));
         let full = TgViewDesc {
             lod_error_px: 0.0,
             ..desc

@@ -57,6 +57,8 @@ pub struct TgRendererDesc {
     pub pvs_dilation: u32,
     /// As `TgViewDesc::lod_error_px`.
     pub lod_error_px: f32,
+    /// As `TgViewDesc::lod_hysteresis`.
+    pub lod_hysteresis: f32,
 }
 
 /// Which shadow casters each cascade draws (docs/CULLING.md, "Shadow casters"). All exact.
@@ -230,6 +232,7 @@ pub unsafe extern "C" fn tg_renderer_create(
                 pvs: desc.pvs,
                 pvs_dilation: desc.pvs_dilation,
                 lod_error_px: desc.lod_error_px,
+                lod_hysteresis: desc.lod_hysteresis,
             })?
         };
         let renderer = registry::with2(

@@ -588,6 +588,7 @@ impl Resolved {
         options.cluster_early = ClusterEarly::parse(name("cluster_early")).unwrap_or_default();
         options.triangle_culling = name("triangle_culling") == "on";
         options.lod_error_px = name("lod_error_px").parse().unwrap_or(0.0);
+        options.lod_hysteresis = name("lod_hysteresis").parse().unwrap_or(0.2);
         options.visbuf_resolve = VisbufResolve::parse(name("visbuf_resolve"));
         if let Some(t) = self.get("classify_tile").and_then(KnobValue::as_integer) {
             options.classify_tile = Some(t);
@@ -694,6 +695,7 @@ mod tests {
                     "cull_bounds" => ["aabb", "sphere"].contains(&s.as_str()),
                     "triangle_culling" => ["off", "on"].contains(&s.as_str()),
                     "lod_error_px" => s.parse::<f32>().is_ok_and(|p| p >= 0.0),
+                    "lod_hysteresis" => s.parse::<f32>().is_ok_and(|h| (0.0..1.0).contains(&h)),
                     "cluster_early" => ClusterEarly::parse(&s).is_some(),
                     "visbuf_resolve" => VisbufResolve::parse(&s).is_some(),
                     "classify_tile" => matches!(k.domain, Domain::Integers(_)),

@@ -152,6 +152,12 @@ pub struct RenderOptions {
     /// mesh's simplified levels whose error projects to at most this many pixels; 0 (the
     /// default) draws every mesh at full detail. GPU instance culling chooses the levels.
     pub lod_error_px: f32,
+    /// Level of detail's switching band (knob `lod_hysteresis`, in [0, 1)): an instance goes
+    /// to a coarser level than last frame's only once that level's error projects to at most
+    /// `lod_error_px * (1 - lod_hysteresis)`, and back to a finer one as soon as its level's
+    /// exceeds `lod_error_px`: an instance near a threshold does not flip levels from frame to
+    /// frame, and no level drawn exceeds the bound. 0: no band.
+    pub lod_hysteresis: f32,
     /// Keep the visibility buffer's ids after the frame (the oracle reads them back):
     /// the id attachment becomes an imported image, so it is stored.
     pub capture_ids: bool,
@@ -243,6 +249,7 @@ impl Default for RenderOptions {
             cluster_gap: CLUSTER_GAP,
             triangle_culling: false,
             lod_error_px: 0.0,
+            lod_hysteresis: 0.2,
             capture_ids: false,
             capture_depth: false,
             oq_group: 16,
@@ -462,6 +469,9 @@ fn check_lod(options: &RenderOptions, scene: &Scene) -> Result<(), RenderError> 
     let refuse = |reason| Err(RenderError::Lod { error_px, reason });
     if !(error_px.is_finite() && error_px > 0.0) {
         return refuse("a positive number of pixels, or 0 for full detail");
+    }
+    if !(0.0..1.0).contains(&options.lod_hysteresis) {
+        return refuse("lod_hysteresis is a fraction of the error in [0, 1)");
     }
     if !matches!(
         options.culling,

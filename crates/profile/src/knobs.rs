@@ -226,6 +226,13 @@ pub const KNOBS: &[KnobSpec] = &[
         help: "level of detail by screen error: each instance drawn with the coarsest of its mesh's simplified levels (meshoptimizer, kept with the clusters) whose error projects to at most this many pixels; fewer triangles for image error (cull-check reports it against the full-detail frame; 0: full detail)",
     },
     KnobSpec {
+        name: "lod_hysteresis",
+        domain: Domain::Choice(&["0", "0.1", "0.2", "0.3", "0.5"]),
+        default: DefaultValue::Name("0.2"),
+        applies: Applies::WithCulling(&["frustum", "hiz", "hiz-2phase", "reproject"]),
+        help: "level of detail's switching band: an instance moves to a coarser level than last frame's only once that level's error projects to at most lod_error_px * (1 - this), back to a finer one as soon as its level's exceeds lod_error_px; no flipping between levels near a threshold, the bound kept (0: no band)",
+    },
+    KnobSpec {
         name: "oq_group",
         domain: Domain::Integers(&[1, 2, 4, 8, 16, 32, 64]),
         default: DefaultValue::Integer(16),

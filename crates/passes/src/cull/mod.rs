@@ -99,6 +99,9 @@ pub struct CullLists {
     /// What single-phase culling tests against: the pyramid (`hiz`), or the reprojected one
     /// (`reproject`).
     pub occluder: Option<BufferId>,
+    /// Levels of detail are chosen: each instance's level is kept in the visibility words
+    /// from frame to frame (the hysteresis), whatever the culling.
+    pub lod_history: bool,
     /// The cluster stage's buffers (cluster techniques).
     pub clusters: Option<ClusterLists>,
 }
@@ -253,6 +256,7 @@ pub fn import_cull_buffers(
         survivors,
         pyramid,
         occluder: reprojected.or(pyramid),
+        lod_history: state.lod_levels > 1,
         clusters,
     }
 }
@@ -296,10 +300,11 @@ pub fn add_cull(g: &mut FrameGraph, lists: CullLists, culling: Culling) {
     if let Some(cl) = lists.clusters {
         c.storage_read_write(cl.work);
     }
-    if two_phase || culling == Culling::RasterOcclusion {
+    if two_phase || culling == Culling::RasterOcclusion || lists.lod_history {
         // The early phase reads last frame's visibility (raster occlusion: this frame's
-        // flags); cull.comp's visibility binding is writable (the late phase writes it), so
-        // synchronization validation counts the dispatch as a writer.
+        // flags; levels of detail: last frame's levels); cull.comp's visibility binding is
+        // writable (the late phase writes it), so synchronization validation counts the
+        // dispatch as a writer.
         c.storage_read_write(lists.visibility);
     }
     if let (Culling::Hiz | Culling::Reproject, Some(p)) = (culling, lists.occluder) {
@@ -669,6 +674,18 @@ pub enum Phase {
     HizPrevious = 1,
     Early = 2,
     Late = 3,
+}
+
+/// Levels of detail as GPU culling chooses them (docs/CULLING.md, "Levels of detail").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LodSettings {
+    /// The largest error a level may project to, in pixels (knob `lod_error_px`; 0: full
+    /// detail).
+    pub error_px: f32,
+    /// The switching band (knob `lod_hysteresis`): an instance moves to a coarser level than
+    /// last frame's only when that level's error projects to at most `error_px * (1 -
+    /// hysteresis)`; to a finer one as soon as its level's exceeds `error_px`. 0: no band.
+    pub hysteresis: f32,
 }
 
 /// How the culled lists are drawn (chosen when the culling state is made, from the profile's

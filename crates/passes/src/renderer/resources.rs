@@ -142,7 +142,10 @@ fn add_states(
                 cluster_gap: options.cluster_gap,
                 capacity,
                 triangle_culling: options.triangle_culling,
-                lod_error_px: options.lod_error_px,
+                lod: crate::cull::LodSettings {
+                    error_px: options.lod_error_px,
+                    hysteresis: options.lod_hysteresis,
+                },
             },
         )?;
         if c.clusters.as_ref().is_some_and(|s| s.triangles.is_some()) {

@@ -13,7 +13,7 @@ use super::clusters::{cone_steps, ClusterStage, Shared};
 use super::compute::{phase_set, ComputeStage};
 use super::{
     gpu_planes, sphere_projection, ClusterEarly, CullBounds, CullParams, Culling, DrawCount,
-    GpuLayout, Phase, Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
+    GpuLayout, LodSettings, Phase, Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
 };
 use crate::frame::PassState;
 use crate::gpu_scene::Capacity;
@@ -106,8 +106,8 @@ pub struct CullInputs<'a> {
     pub capacity: Capacity,
     /// Per-triangle culling after the cluster stage (knob `triangle_culling`).
     pub triangle_culling: bool,
-    /// Level of detail: the largest projected error in pixels (knob `lod_error_px`; 0 off).
-    pub lod_error_px: f32,
+    /// Level of detail (knobs `lod_error_px`, `lod_hysteresis`).
+    pub lod: LodSettings,
 }
 
 /// The persistent culling state of one renderer.
@@ -153,8 +153,8 @@ pub struct CullState {
     pub group_runs: bool,
     /// Per-triangle culling: the index buffer's tail this frame (first index, length).
     pub index_tail: (u32, u32),
-    /// Level of detail: the largest projected error in pixels (0 off).
-    pub lod_error_px: f32,
+    /// Level of detail: the largest projected error in pixels (0 off) and the switching band.
+    pub lod: LodSettings,
     /// Level of detail: the scene's level table (`Lods` of cull_body.glsl) and the meshes it
     /// covers; none when off.
     lod_table: Option<(Buffer, u32)>,
@@ -219,11 +219,11 @@ impl CullState {
             cluster_gap,
             capacity,
             triangle_culling,
-            lod_error_px,
+            lod,
         } = inputs;
         let lods = scene
             .clusters()
-            .filter(|c| lod_error_px > 0.0 && c.has_lods())
+            .filter(|c| lod.error_px > 0.0 && c.has_lods())
             .map(|c| (c.lods.as_slice(), c.mesh_clusters.len() as u32));
         let lod_levels = if lods.is_some() {
             1 + tilegraph_scene::MAX_LODS as u32
@@ -297,7 +297,7 @@ impl CullState {
             clusters: None,
             group_runs: false,
             index_tail: (0, 0),
-            lod_error_px,
+            lod,
             lod_table: None,
             clusters_uploaded: scene.clusters().map_or(0, |c| c.clusters.len()),
             lod_levels,
@@ -578,14 +578,16 @@ impl CullState {
         let lod = if lod_meshes > 0 {
             let perspective = m.projection.z_axis.w != 0.0;
             [
-                self.lod_error_px,
+                self.lod.error_px,
                 m.projection.y_axis.y.abs() * half_height,
                 if perspective { 1.0 } else { 0.0 },
-                0.0,
+                self.lod.hysteresis,
             ]
         } else {
             [0.0; 4]
         };
+        // Last frame's levels steer this frame's (the hysteresis), but after a cut or at first.
+        let lod_history = u32::from(!frame.cut && self.frames_written > 0);
         // Raster occlusion's early phase reads the box flags with this frame's turns.
         self.recheck = Recheck::new(self.recheck_interval, self.frames_written);
         let recheck = (self.culling == Culling::RasterOcclusion).then(|| self.recheck.packed());
@@ -612,7 +614,7 @@ impl CullState {
                 commands: [self.command_slots(), c1, c2, c3],
                 triangles,
                 lod,
-                lod_info: [self.lod_levels, lod_meshes, 0, 0],
+                lod_info: [self.lod_levels, lod_meshes, lod_history, 0],
             }
         };
         let first = match self.culling.base() {
