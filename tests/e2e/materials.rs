@@ -259,7 +259,8 @@ fn an_engine_material_draws_the_culled_city_as_it_draws_the_unculled_one() {
 /// and tilegraph's; with the clusters attached, both cluster techniques give the unculled
 /// frame's image, through the GPU's draw count (lavapipe) and through a fixed one (adreno-6xx),
 /// forward with the engine's depth shaders and without (and with `cluster_early = clusters`,
-/// `cluster_gap = 3`), and through the visibility buffer with the engine's resolve.
+/// `cluster_gap = 3`), through the visibility buffer with the engine's resolve, and on a tiler's
+/// profile (mali-valhall) with two cascades of shadows whose casters the pyramid culls.
 #[test]
 fn an_engine_material_draws_the_clusters_culling_kept() {
     use tilegraph_passes::cull::Culling;
@@ -302,12 +303,26 @@ fn an_engine_material_draws_the_clusters_culling_kept() {
             ..forward(culling)
         }
     }
-    let cases: [(&str, Options, bool); 5] = [
+    // Two cascades of shadows, their casters culled against this frame's pyramid.
+    fn shadowed(culling: Culling) -> RenderOptions {
+        RenderOptions {
+            technique: Technique::Prepass,
+            shadows: tilegraph_passes::shadow::ShadowOptions {
+                cascades: 2,
+                resolution: 256,
+                culling: tilegraph_passes::shadow::CasterCulling::ReceiversHiz,
+                ..Default::default()
+            },
+            ..forward(culling)
+        }
+    }
+    let cases: [(&str, Options, bool); 6] = [
         ("lavapipe", forward, false),
         ("lavapipe", forward, true),
         ("adreno-6xx", forward, false),
         ("lavapipe", visbuf, false),
         ("lavapipe", other_settings, true),
+        ("mali-valhall", shadowed, true),
     ];
     for (profile, options, depth) in cases {
         let none = frames_on(profile, &scene, options(Culling::None), Some(depth));
