@@ -110,8 +110,8 @@ impl SceneRenderer {
         for k in 0..res.views() {
             res.enter_view(k);
             if let Some(cull) = res.states.get_mut::<CullState>() {
-                // Per-triangle culling packs each list's triangles anew: its commands cannot
-                // be drawn group by group.
+                // Per-triangle culling walks a list's commands as packed one after another:
+                // not the fixed places of a frame drawn group by group.
                 if any
                     && cull
                         .clusters
