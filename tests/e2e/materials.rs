@@ -160,6 +160,12 @@ fn material(side: &EngineSide, depth: bool) -> EngineMaterial {
 
 /// The city with its opaque materials drawn by engine material 0.
 fn city_with_engine_materials() -> Scene {
+    city_with_engine_material_every(1)
+}
+
+/// The city with every `step`-th of its opaque materials drawn by engine material 0 (2: each
+/// list alternates between the engine's pipeline and tilegraph's).
+fn city_with_engine_material_every(step: usize) -> Scene {
     let mut scene = tilegraph_scene::load("city:400").unwrap();
     let opaque: Vec<MaterialId> = scene
         .materials()
@@ -168,11 +174,33 @@ fn city_with_engine_materials() -> Scene {
         .filter(|(_, m)| m.class == MaterialClass::Opaque)
         .map(|(i, _)| MaterialId(i as u32))
         .collect();
-    assert!(!opaque.is_empty());
-    for id in opaque {
+    assert!(opaque.len() >= step, "{} opaque materials", opaque.len());
+    for id in opaque.into_iter().step_by(step) {
         scene.set_engine_material(id, Some(0)).unwrap();
     }
     scene
+}
+
+/// [`city_with_engine_material_every`] 2, its clusters attached.
+fn clustered_city_with_engine_materials() -> Scene {
+    let mut scene = city_with_engine_material_every(2);
+    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
+    scene.attach_clusters(data).unwrap();
+    scene
+}
+
+/// What rendering `scene`'s first frame under `options` gives, engine material 0 registered
+/// (its colour shaders only).
+fn first_frame(scene: &Scene, options: RenderOptions) -> Result<(), tilegraph_passes::RenderError> {
+    let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
+    let mut r = SceneRenderer::new(&g, scene, options).unwrap();
+    let side = EngineSide::new(&g, &r);
+    r.add_material(material(&side, false));
+    let cam = scene.camera_path().camera(0).unwrap();
+    let result = r.render(&g, scene, &cam).map(|_| ());
+    r.destroy(&g);
+    side.destroy(&g);
+    result
 }
 
 /// Frames of the city's path (every 40th of its first 200) under `culling`, with the engine's
@@ -265,20 +293,7 @@ fn an_engine_material_draws_the_culled_city_as_it_draws_the_unculled_one() {
 fn an_engine_material_draws_the_clusters_culling_kept() {
     use tilegraph_passes::cull::Culling;
     use tilegraph_passes::{Technique, VisbufResolve};
-    let mut scene = tilegraph_scene::load("city:400").unwrap();
-    let opaque: Vec<MaterialId> = scene
-        .materials()
-        .iter()
-        .enumerate()
-        .filter(|(_, m)| m.class == MaterialClass::Opaque)
-        .map(|(i, _)| MaterialId(i as u32))
-        .collect();
-    assert!(opaque.len() >= 2, "{} opaque materials", opaque.len());
-    for id in opaque.iter().step_by(2) {
-        scene.set_engine_material(*id, Some(0)).unwrap();
-    }
-    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
-    scene.attach_clusters(data).unwrap();
+    let scene = clustered_city_with_engine_materials();
     fn forward(culling: Culling) -> RenderOptions {
         RenderOptions {
             width: 160,
@@ -348,22 +363,15 @@ fn an_engine_material_draws_the_clusters_culling_kept() {
         }
     }
 
-    // Per-triangle culling packs the lists' triangles anew: no group to give a pipeline.
+    // Per-triangle culling walks a list's commands as packed: not from fixed places.
     let options = RenderOptions {
         triangle_culling: true,
         ..forward(Culling::HizTwoPhaseClusters)
     };
-    let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
-    let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
-    let side = EngineSide::new(&g, &r);
-    r.add_material(material(&side, false));
-    let cam = scene.camera_path().camera(0).unwrap();
-    match r.render(&g, &scene, &cam) {
+    match first_frame(&scene, options) {
         Err(tilegraph_passes::RenderError::EngineMaterialsWithTriangleCulling { .. }) => {}
         other => panic!("expected EngineMaterialsWithTriangleCulling, got {other:?}"),
     }
-    r.destroy(&g);
-    side.destroy(&g);
 }
 
 /// The same under a moving scene: instances move (a quarter of them turning mirrored and back),
@@ -376,19 +384,7 @@ fn an_engine_material_draws_the_clusters_culling_kept() {
 fn an_engine_material_draws_the_clusters_of_a_moving_scene() {
     use tilegraph_passes::cull::Culling;
     use tilegraph_scene::{Motion, MotionParams};
-    let mut scene = tilegraph_scene::load("city:400").unwrap();
-    let opaque: Vec<MaterialId> = scene
-        .materials()
-        .iter()
-        .enumerate()
-        .filter(|(_, m)| m.class == MaterialClass::Opaque)
-        .map(|(i, _)| MaterialId(i as u32))
-        .collect();
-    for id in opaque.iter().step_by(2) {
-        scene.set_engine_material(*id, Some(0)).unwrap();
-    }
-    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
-    scene.attach_clusters(data).unwrap();
+    let scene = clustered_city_with_engine_materials();
     let run = |culling, engine: bool| {
         let mut scene = scene.clone();
         let path = scene.camera_path().clone();
@@ -494,17 +490,10 @@ fn an_engine_resolve_shades_the_classified_visibility_buffer() {
         visbuf_resolve: Some(VisbufResolve::Uber),
         ..visbuf(Culling::None)
     };
-    let g = gpu_with(Some("lavapipe"), options.device_features()).unwrap();
-    let mut r = SceneRenderer::new(&g, &scene, options).unwrap();
-    let side = EngineSide::new(&g, &r);
-    r.add_material(material(&side, false));
-    let cam = scene.camera_path().camera(0).unwrap();
-    match r.render(&g, &scene, &cam) {
+    match first_frame(&scene, options) {
         Err(tilegraph_passes::RenderError::EngineResolveNeedsClassification { .. }) => {}
         other => panic!("expected EngineResolveNeedsClassification, got {other:?}"),
     }
-    r.destroy(&g);
-    side.destroy(&g);
 }
 
 /// A scene naming an engine material the renderer does not have is a typed error.
@@ -587,19 +576,7 @@ fn an_engine_material_draws_the_levels_culling_chose() {
 #[test]
 fn every_view_draws_engine_materials_with_cluster_culling() {
     use tilegraph_passes::cull::Culling;
-    let mut scene = tilegraph_scene::load("city:400").unwrap();
-    let opaque: Vec<MaterialId> = scene
-        .materials()
-        .iter()
-        .enumerate()
-        .filter(|(_, m)| m.class == MaterialClass::Opaque)
-        .map(|(i, _)| MaterialId(i as u32))
-        .collect();
-    for id in opaque.iter().step_by(2) {
-        scene.set_engine_material(*id, Some(0)).unwrap();
-    }
-    let (data, _) = tilegraph_scene::clusters::build(&scene).unwrap();
-    scene.attach_clusters(data).unwrap();
+    let scene = clustered_city_with_engine_materials();
     let path = scene.camera_path().clone();
     let camera = |k: usize| path.camera(k).unwrap();
     let options = |culling, width| RenderOptions {

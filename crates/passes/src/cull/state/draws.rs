@@ -2,7 +2,7 @@
 //! has (a command per draw group and level of detail).
 
 use tilegraph_vk::ash::vk;
-use tilegraph_vk::{Context, VkError};
+use tilegraph_vk::{Context, Feature, VkError};
 
 use super::{CullState, DrawCount, LISTS_PER_PHASE};
 
@@ -49,34 +49,47 @@ impl CullState {
                 groups * self.lod_levels,
             ),
         };
+        let count = (counts.raw, u64::from(list) * 4);
+        // SAFETY: inside a render pass with a pipeline, buffers and sets bound (this pass's
+        // recording); the list holds `slots` >= `groups` commands from `offset` (its capacity,
+        // for cluster lists), every one written by cull_commands.comp or the emit this frame
+        // (cleared with a fixed count); its count is word `list` of the counts.
+        unsafe { self.record_commands(ctx, cb, commands.raw, (offset, groups), Some(count)) };
+        Ok(())
+    }
+
+    /// Records up to `max` indexed indirect commands of `commands` from byte `offset`: as many
+    /// as the GPU wrote at `count` (a buffer and byte offset) where the lists are counted on the
+    /// GPU, else all of them (the unused ones empty), in one call where the device draws several
+    /// per call.
+    ///
+    /// # Safety
+    /// `cb` is inside a render pass with a pipeline, vertex/index buffers and sets bound; the
+    /// `max` commands of 20 bytes from `offset` lie inside `commands`, each one written (or
+    /// cleared) this frame, and `count`'s word lies inside its buffer.
+    pub(super) unsafe fn record_commands(
+        &self,
+        ctx: &Context,
+        cb: vk::CommandBuffer,
+        commands: vk::Buffer,
+        (offset, max): (u64, u32),
+        count: Option<(vk::Buffer, u64)>,
+    ) {
         let d = &ctx.device;
-        // SAFETY (all three): inside a render pass with a pipeline, vertex/index buffers and
-        // sets bound; list `list` holds `slots` >= `groups` commands of 20 bytes from `offset`,
-        // every one written by cull_commands.comp this frame.
-        match self.draw_count {
-            DrawCount::Gpu => unsafe {
-                d.cmd_draw_indexed_indirect_count(
-                    cb,
-                    commands.raw,
-                    offset,
-                    counts.raw,
-                    u64::from(list) * 4,
-                    groups,
-                    20,
-                );
+        match (self.draw_count, count) {
+            // SAFETY (all three): as the caller promises.
+            (DrawCount::Gpu, Some((counts, at))) => unsafe {
+                d.cmd_draw_indexed_indirect_count(cb, commands, offset, counts, at, max, 20);
             },
-            DrawCount::Fixed { multi_draw: true } => unsafe {
-                d.cmd_draw_indexed_indirect(cb, commands.raw, offset, groups, 20);
+            _ if ctx.has_feature(Feature::MultiDrawIndirect) => unsafe {
+                d.cmd_draw_indexed_indirect(cb, commands, offset, max, 20);
             },
-            DrawCount::Fixed { multi_draw: false } => {
-                for k in 0..u64::from(groups) {
-                    unsafe {
-                        d.cmd_draw_indexed_indirect(cb, commands.raw, offset + 20 * k, 1, 20)
-                    };
+            _ => {
+                for k in 0..u64::from(max) {
+                    unsafe { d.cmd_draw_indexed_indirect(cb, commands, offset + 20 * k, 1, 20) };
                 }
             }
         }
-        Ok(())
     }
 
     /// Command slots per list: a command per draw group and level of detail.

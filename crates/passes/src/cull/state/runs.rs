@@ -6,7 +6,7 @@
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::{Context, VkError};
 
-use super::{ClusterStage, CullState, DrawCount, SlotInputs, LISTS_PER_PHASE};
+use super::{ClusterStage, CullState, SlotInputs, LISTS_PER_PHASE};
 use crate::cull::layout::GpuLayout;
 
 impl CullState {
@@ -51,19 +51,9 @@ impl CullState {
         let levels = self.lod_levels.max(1);
         let offset = (u64::from(list) * slots + u64::from(first * levels)) * 20;
         let count = count * levels;
-        let d = &ctx.device;
-        if ctx.has_feature(tilegraph_vk::Feature::MultiDrawIndirect) {
-            // SAFETY: inside a render pass with the pipeline, buffers and sets bound; commands
-            // `first..first + count` of the list lie inside its `slots`, written this frame.
-            unsafe { d.cmd_draw_indexed_indirect(cb, self.commands.raw, offset, count, 20) };
-        } else {
-            for k in 0..u64::from(count) {
-                // SAFETY: as above, one command at a time.
-                unsafe {
-                    d.cmd_draw_indexed_indirect(cb, self.commands.raw, offset + 20 * k, 1, 20)
-                };
-            }
-        }
+        // SAFETY: inside a render pass with the pipeline, buffers and sets bound; commands
+        // `first..first + count` of the list lie inside its `slots`, written this frame.
+        unsafe { self.record_commands(ctx, cb, self.commands.raw, (offset, count), None) };
         Ok(())
     }
 }
@@ -97,40 +87,18 @@ impl CullState {
         let count_at = |g: usize| 4 * (12 * stride + (4 + region) * groups_x + g as u64);
         let base = u64::from(c.room.cmd_base.get(list as usize).copied().unwrap_or(0));
         let mut place = base + rooms[..first].iter().map(|&r| u64::from(r)).sum::<u64>();
-        let d = &ctx.device;
         for (j, &room) in rooms.iter().enumerate().take(end).skip(first) {
             let offset = place * 20;
             place += u64::from(room);
             if room == 0 {
                 continue;
             }
-            // SAFETY (all three): inside a render pass with the pipeline, buffers and sets
-            // bound; the group's room of commands from `offset` lies inside the list's
-            // capacity (the rooms of a list's groups sum to at most it: write_frame), each one
-            // written or cleared this frame, and its count inside the places buffer.
-            match self.draw_count {
-                DrawCount::Gpu => unsafe {
-                    d.cmd_draw_indexed_indirect_count(
-                        cb,
-                        c.commands.raw,
-                        offset,
-                        c.offsets.raw,
-                        count_at(start + j),
-                        room,
-                        20,
-                    );
-                },
-                DrawCount::Fixed { multi_draw: true } => unsafe {
-                    d.cmd_draw_indexed_indirect(cb, c.commands.raw, offset, room, 20);
-                },
-                DrawCount::Fixed { multi_draw: false } => {
-                    for k in 0..u64::from(room) {
-                        unsafe {
-                            d.cmd_draw_indexed_indirect(cb, c.commands.raw, offset + 20 * k, 1, 20)
-                        };
-                    }
-                }
-            }
+            let count = (c.offsets.raw, count_at(start + j));
+            // SAFETY: inside a render pass with the pipeline, buffers and sets bound; the
+            // group's room of commands from `offset` lies inside the list's capacity (the rooms
+            // of a list's groups sum to at most it: keep_groups), each one written or cleared
+            // this frame; its count is group_slot(2, region, group) of the places.
+            unsafe { self.record_commands(ctx, cb, c.commands.raw, (offset, room), Some(count)) };
         }
         Ok(())
     }
