@@ -587,7 +587,7 @@ impl CullState {
             [0.0; 4]
         };
         // Last frame's levels steer this frame's (the hysteresis), but after a cut or at first.
-        let lod_history = u32::from(!frame.cut && self.frames_written > 0);
+        let lod_history = u32::from(lod_meshes > 0 && !frame.cut && self.frames_written > 0);
         // Raster occlusion's early phase reads the box flags with this frame's turns.
         self.recheck = Recheck::new(self.recheck_interval, self.frames_written);
         let recheck = (self.culling == Culling::RasterOcclusion).then(|| self.recheck.packed());

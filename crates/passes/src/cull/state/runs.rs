@@ -56,9 +56,7 @@ impl CullState {
         unsafe { self.record_commands(ctx, cb, self.commands.raw, (offset, count), None) };
         Ok(())
     }
-}
 
-impl CullState {
     /// Records groups `first..first + count` of cluster list `list` of a frame with fixed
     /// places: each group one indirect call from its place, of its runs.
     pub(super) fn record_cluster_groups(
