@@ -109,16 +109,22 @@ void place_list(uint list) {
         scan[t] = mine;
         scan_threads();
         uint at = placed.x + scan[t].x - mine.x;
+        uint runs_before = placed.y + scan[t].y - mine.y;
         for (uint j = first; j < last; ++j) {
             uint slot = group_slot(0u, r, start + j);
             uint runs_of_group = offsets[slot];
             offsets[slot] = at;
             if (pinned) {
+                // The group's draw count, and the runs of the list's groups before it (its
+                // entries with runs are summed above: per-triangle culling finds a command's
+                // group by them, common/triangles.glsl).
                 offsets[group_slot(2u, r, start + j)] = runs_of_group;
+                offsets[group_slot(1u, r, start + j)] = runs_before;
                 at += group_room(start + j);
             } else {
                 at += runs_of_group;
             }
+            runs_before += runs_of_group;
         }
         if (drawn != 0u) {
             atomicAdd(instances, drawn);

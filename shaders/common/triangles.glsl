@@ -42,6 +42,10 @@ const uint TRI_SLICE = 1024u;
 const uint TRI_SLICES = 8u;
 const uint TRI_GROUP = 256u; // threads of the count and write workgroups
 layout(set = 1, binding = 4, std430) buffer Triangles { uint tri[]; };
+// The cluster stage's places (common/cluster.glsl's Offsets): with fixed places (engine
+// materials), per draw group and region its first command (kind 0) and the runs of its list's
+// groups before it (kind 1).
+layout(set = 1, binding = 7, std430) readonly buffer Places { uint places[]; };
 
 uint tri_slice_slot(uint cmd, uint s) { return cmd * TRI_SLICES + s; }
 uint tri_place_slot(uint cmd) { return TRI_SLICES * cull.triangles.w + cmd; }
@@ -53,6 +57,33 @@ uint tri_lists() {
     return cull.info.y == 3u ? 8u : 4u;
 }
 
+// common/cluster.glsl's group_slot (the places of kind `kind` of group g in region r).
+uint tri_group_slot(uint kind, uint r, uint g) {
+    return 12u * cull.screen.z + (2u * kind + r) * cull.groups.x + g;
+}
+
+// Where the c-th command of list l sits among the list's: packed, the c-th; with fixed places
+// (cull.clusters.y bit 2) in the group whose runs cover c — the last whose runs before it are
+// at most c (a binary search: the runs before the groups only grow) — after that group's
+// first command.
+uint tri_place(uint l, uint c) {
+    if ((cull.clusters.y & 4u) == 0u) {
+        return c;
+    }
+    uint r = l / 4u;
+    uint lo = cull.group_start[l % 4u];
+    uint hi = lo + cull.group_count[l % 4u]; // c lies in one of lo..hi
+    while (hi - lo > 1u) {
+        uint mid = (lo + hi) / 2u;
+        if (places[tri_group_slot(1u, r, mid)] <= c) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return places[tri_group_slot(0u, r, lo)] + c - places[tri_group_slot(1u, r, lo)];
+}
+
 // The c-th command of the phase's lists (in list order): its slot and list; x = 0xFFFFFFFF
 // past the last.
 uvec2 tri_command(uint c) {
@@ -60,7 +91,7 @@ uvec2 tri_command(uint c) {
     for (uint l = 0u; l < lists; ++l) {
         uint n = counts[l];
         if (c < n) {
-            return uvec2(cull.cmd_base[l / 4u][l % 4u] + c, l);
+            return uvec2(cull.cmd_base[l / 4u][l % 4u] + tri_place(l, c), l);
         }
         c -= n;
     }

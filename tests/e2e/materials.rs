@@ -231,21 +231,35 @@ fn frames_on(
     options: RenderOptions,
     engine: Option<bool>,
 ) -> Vec<RgbaImage> {
+    frames_and_triangles(profile, scene, options, engine).0
+}
+
+/// As [`frames_on`], with the triangles each frame's colour lists drew (read back from the
+/// GPU lists; empty without GPU culling).
+fn frames_and_triangles(
+    profile: &str,
+    scene: &Scene,
+    options: RenderOptions,
+    engine: Option<bool>,
+) -> (Vec<RgbaImage>, Vec<u64>) {
     let g = gpu_with(Some(profile), options.device_features()).unwrap();
     let mut r = SceneRenderer::new(&g, scene, options).unwrap();
     let side = EngineSide::new(&g, &r);
     if let Some(depth) = engine {
         assert_eq!(r.add_material(material(&side, depth)), 0);
     }
-    let mut images = Vec::new();
+    let (mut images, mut triangles) = (Vec::new(), Vec::new());
     for i in (0..200).step_by(40) {
         let cam = scene.camera_path().camera(i).unwrap();
         r.render(&g, scene, &cam).unwrap();
         images.push(r.read_image(&g).unwrap());
+        if let Some(lists) = r.gpu_lists(&g).unwrap() {
+            triangles.push(lists.colour_triangles());
+        }
     }
     r.destroy(&g);
     side.destroy(&g);
-    images
+    (images, triangles)
 }
 
 #[test]
@@ -287,8 +301,9 @@ fn an_engine_material_draws_the_culled_city_as_it_draws_the_unculled_one() {
 /// and tilegraph's; with the clusters attached, both cluster techniques give the unculled
 /// frame's image, through the GPU's draw count (lavapipe) and through a fixed one (adreno-6xx),
 /// forward with the engine's depth shaders and without (and with `cluster_early = clusters`,
-/// `cluster_gap = 3`), through the visibility buffer with the engine's resolve, and on a tiler's
-/// profile (mali-valhall) with two cascades of shadows whose casters the pyramid culls.
+/// `cluster_gap = 3`), through the visibility buffer with the engine's resolve, on a tiler's
+/// profile (mali-valhall) with two cascades of shadows whose casters the pyramid culls, and with
+/// per-triangle culling after the clusters.
 #[test]
 fn an_engine_material_draws_the_clusters_culling_kept() {
     use tilegraph_passes::cull::Culling;
@@ -363,17 +378,40 @@ fn an_engine_material_draws_the_clusters_culling_kept() {
         }
     }
 
-    // Per-triangle culling walks a list's commands as packed: not from fixed places.
-    let options = RenderOptions {
-        triangle_culling: true,
-        ..forward(Culling::HizTwoPhaseClusters)
-    };
-    match first_frame(&scene, options) {
-        Err(tilegraph_passes::RenderError::EngineMaterialsWithTriangleCulling { .. }) => {}
-        other => panic!("expected EngineMaterialsWithTriangleCulling, got {other:?}"),
+    // Per-triangle culling after the clusters: it finds each command of a list drawn group by
+    // group through the groups' runs, and rewrites it in place.
+    fn triangles(culling: Culling) -> RenderOptions {
+        RenderOptions {
+            triangle_culling: true,
+            ..forward(culling)
+        }
+    }
+    // The lists read back: the engine's frames (drawn group by group from fixed places) draw
+    // the same triangles as tilegraph's own (packed), per-triangle culling fewer still.
+    let none = frames_on("lavapipe", &scene, forward(Culling::None), Some(true));
+    for culling in [Culling::FrustumClusters, Culling::HizTwoPhaseClusters] {
+        let run = |o, engine| frames_and_triangles("lavapipe", &scene, o, engine);
+        let (images, by_cluster) = run(forward(culling), Some(true));
+        let (_, packed) = run(forward(culling), None);
+        let (culled, by_triangle) = run(triangles(culling), Some(true));
+        let (_, packed_triangles) = run(triangles(culling), None);
+        let name = culling.name();
+        println!(
+            "{name}: triangles {by_cluster:?} (tilegraph's {packed:?}), per triangle {by_triangle:?} ({packed_triangles:?})"
+        );
+        assert_eq!(differing(&none, &images), 0, "{name}");
+        assert_eq!(differing(&none, &culled), 0, "{name} with triangle culling");
+        assert_eq!(
+            by_cluster, packed,
+            "{name}: fixed places drew other clusters"
+        );
+        assert_eq!(by_triangle, packed_triangles, "{name}: other triangles");
+        assert!(
+            by_triangle.iter().zip(&by_cluster).all(|(t, c)| t < c),
+            "{name}: per-triangle culling kept every triangle"
+        );
     }
 }
-
 /// The same under a moving scene: instances move (a quarter of them turning mirrored and back),
 /// spawn and despawn every frame, so the draw groups, their lengths and the cluster layout
 /// change under the fixed places; 16 frames under `hiz-2phase-clusters` equal the unculled

@@ -207,8 +207,7 @@ pub unsafe extern "C" fn tg_renderer_resolve_set_layout(
 /// `out_engine_material`. Scene materials given that id (`tg_scene_set_engine_material`) are
 /// drawn with its shaders in the passes it has shaders for, from the next record. The shaders
 /// are copied; the layout and `user` stay the engine's. Every culling draws them, cluster
-/// culling included (each draw group's surviving clusters with its pipeline); only per-triangle
-/// culling (knob `triangle_culling = on`) refuses to record a scene that uses engine materials.
+/// culling included (each draw group's surviving clusters with its pipeline).
 ///
 /// # Safety
 /// `desc` is valid (its shaders and name as `TgShader` says); `out_engine_material` writable.

@@ -83,8 +83,6 @@ pub enum RenderError {
         engine: u32,
         registered: usize,
     },
-    #[error("culling {culling} with triangle_culling = on: per-triangle culling walks each list's cluster commands as packed one after another, and engine materials place them group by group (one pipeline each); engine materials are drawn with triangle_culling = off")]
-    EngineMaterialsWithTriangleCulling { culling: &'static str },
     #[error("material {material} is resolved by engine material {engine}'s shader, which runs after material classification: set the knob visbuf_resolve = classified (RenderOptions::visbuf_resolve)")]
     EngineResolveNeedsClassification { material: u32, engine: u32 },
     #[error("camera: {field}: {reason}")]

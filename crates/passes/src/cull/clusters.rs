@@ -140,7 +140,7 @@ fn make_buffers(
         Spec::Empty("cluster flags", 2 * total * 4, storage),
         Spec::Empty("cluster visibility", total * 4, storage | dst),
         Spec::Empty("cluster runs", runs * 4, storage | dst),
-        Spec::Empty("cluster offsets", offsets * 4, storage | indirect),
+        Spec::Empty("cluster offsets", offsets * 4, storage | indirect | src),
         Spec::Empty(
             "cluster commands",
             commands * 20,
@@ -344,6 +344,7 @@ impl ClusterStage {
                 draw_ids: shared.draw_ids,
                 pyramid: shared.pyramid,
                 levels: shared.levels,
+                offsets: self.offsets.raw,
                 command_slots: self.room.commands(),
             };
             self.triangles = Some(TriangleStage::new(ctx, &inputs, scene_set_layout)?);

@@ -24,11 +24,10 @@ use tilegraph_graph::{
     AccessFlags, BufferId, Import, InitialContent, PassClass, PipelineStages, ResourceState,
     Retention,
 };
-use tilegraph_profile::IndirectCount;
 use tilegraph_scene::DepthConvention;
 use tilegraph_vk::ash;
 use tilegraph_vk::executor::PassContext;
-use tilegraph_vk::{Context, Feature, VkError};
+use tilegraph_vk::VkError;
 
 pub use crate::setup::Culling;
 
@@ -46,7 +45,7 @@ pub mod triangles;
 
 pub use layout::GpuLayout;
 pub use readback::{GpuLists, IndirectDraw};
-pub use state::{CullInputs, CullState, FrameLists, GpuCullCounts, Occluder};
+pub use state::{CullInputs, CullState, DrawCount, FrameLists, GpuCullCounts, Occluder};
 
 /// Temporal coherence of the occlusion tests (knob `occlusion_recheck`; CHC++, Mattausch et al.
 /// 2008, re-queries visible objects at intervals): an item (a query group, or an instance under
@@ -426,6 +425,7 @@ fn add_triangle_stage(
         .async_compute()
         .storage_read(c.commands)
         .storage_read(c.counts)
+        .storage_read(c.offsets)
         .storage_read(lists.draw_ids)
         .storage_read(t.indices)
         .storage_read_write(t.triangles);
@@ -435,12 +435,14 @@ fn add_triangle_stage(
     g.compute_pass(names[1], PassClass::Compute, step(TriangleStep::Scan))
         .async_compute()
         .storage_read(c.counts)
+        .storage_read(c.offsets)
         .storage_read_write(t.triangles);
     let mut write = g.compute_pass(names[2], PassClass::Compute, step(TriangleStep::Write));
     write
         .async_compute()
         .storage_read_write(c.commands)
         .storage_read(c.counts)
+        .storage_read(c.offsets)
         .storage_read(lists.draw_ids)
         .storage_read_write(t.indices)
         .storage_read_write(t.triangles);
@@ -686,31 +688,6 @@ pub struct LodSettings {
     /// last frame's only when that level's error projects to at most `error_px * (1 -
     /// hysteresis)`; to a finer one as soon as its level's exceeds `error_px`. 0: no band.
     pub hysteresis: f32,
-}
-
-/// How the culled lists are drawn (chosen when the culling state is made, from the profile's
-/// `indirect_count` and the device's features).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DrawCount {
-    /// `vkCmdDrawIndexedIndirectCount`: the GPU's count covers the surviving groups only.
-    Gpu,
-    /// One command per draw group, culled groups with zero instances; `multi_draw`: in one
-    /// `vkCmdDrawIndexedIndirect` (else one call per command, without `multiDrawIndirect`).
-    Fixed { multi_draw: bool },
-}
-
-impl DrawCount {
-    /// The mode for `ctx`'s profile and device.
-    pub fn for_device(ctx: &Context) -> Self {
-        let wanted = ctx.profile().passes.indirect_count == IndirectCount::WhenSupported;
-        if wanted && ctx.has_feature(Feature::DrawIndirectCount) {
-            DrawCount::Gpu
-        } else {
-            DrawCount::Fixed {
-                multi_draw: ctx.has_feature(Feature::MultiDrawIndirect),
-            }
-        }
-    }
 }
 
 /// Frustum planes of a camera-relative view-projection, for the shader (absent far plane of an

@@ -42,9 +42,16 @@ impl GpuLists {
 impl CullState {
     /// The last frame's lists as the GPU left them (reads the counts, commands and draw ids
     /// back; waits).
-    /// With cluster culling, the cluster commands: each draws one instance's index range.
-    /// `order`: the instances' entries of that frame (the scene's, [`crate::GpuScene`]).
-    pub fn read_lists(&self, ctx: &Context, order: Vec<u32>) -> Result<GpuLists, VkError> {
+    /// With cluster culling, the cluster commands: each draws one instance's index range
+    /// (from each draw group's fixed place where engine materials drew frame slot `slot`'s
+    /// frame group by group). `order`: the instances' entries of that frame (the scene's,
+    /// [`crate::GpuScene`]).
+    pub fn read_lists(
+        &self,
+        ctx: &Context,
+        order: Vec<u32>,
+        slot: usize,
+    ) -> Result<GpuLists, VkError> {
         let (counts, commands) = match &self.clusters {
             Some(c) => (&c.counts, &c.commands),
             None => (&self.counts, &self.commands),
@@ -65,13 +72,19 @@ impl CullState {
             ),
             None => (list * slots, slots),
         };
+        // With fixed places, each list's commands are its groups' runs, each from its place.
+        let fixed = self.fixed_places(ctx, slot)?;
         let lists = (0..LIST_COUNT as usize)
             .map(|list| {
                 let (base, capacity) = place(list);
                 let n = (word(&counts, list) as usize).min(capacity);
-                (0..n)
-                    .map(|k| {
-                        let at = base + k;
+                let slots: Vec<usize> = match &fixed {
+                    Some(f) => f.slots(list, base, capacity),
+                    None => (base..base + n).collect(),
+                };
+                slots
+                    .into_iter()
+                    .map(|at| {
                         let (count, first) =
                             (word(&commands, 5 * at + 1), word(&commands, 5 * at + 4));
                         IndirectDraw {
@@ -93,9 +106,10 @@ impl CullState {
         })
     }
 
-    /// The instances drawn by the last frame: the ids each list's commands cover (waits).
-    pub fn drawn_instances(&self, ctx: &Context) -> Result<Vec<u32>, VkError> {
-        let lists = self.read_lists(ctx, Vec::new())?;
+    /// The instances drawn by frame slot `slot`'s frame: the ids each list's commands cover
+    /// (waits).
+    pub fn drawn_instances(&self, ctx: &Context, slot: usize) -> Result<Vec<u32>, VkError> {
+        let lists = self.read_lists(ctx, Vec::new(), slot)?;
         let mut out: Vec<u32> = lists
             .lists
             .iter()
@@ -105,5 +119,40 @@ impl CullState {
         out.sort_unstable();
         out.dedup();
         Ok(out)
+    }
+}
+
+/// The cluster stage's places of a frame drawn group by group, read back: per draw group and
+/// region its first command (kind 0) and its draw count (kind 2), common/cluster.glsl's
+/// `group_slot`.
+pub(in crate::cull) struct FixedPlaces {
+    pub(in crate::cull) places: Vec<u32>,
+    pub(in crate::cull) stride: usize,
+    pub(in crate::cull) groups: usize,
+    pub(in crate::cull) group_start: [u32; 4],
+    pub(in crate::cull) group_count: [u32; 4],
+}
+
+impl FixedPlaces {
+    /// The command slots of list `list` (its commands from `base`, at most `capacity`), in draw
+    /// order.
+    fn slots(&self, list: usize, base: usize, capacity: usize) -> Vec<usize> {
+        let (region, local) = (
+            list / LISTS_PER_PHASE as usize,
+            list % LISTS_PER_PHASE as usize,
+        );
+        let at = |kind: usize, g: usize| {
+            let i = 12 * self.stride + (2 * kind + region) * self.groups + g;
+            self.places.get(i).copied().unwrap_or(0) as usize
+        };
+        let start = self.group_start[local] as usize;
+        let end = start + self.group_count[local] as usize;
+        (start..end)
+            .flat_map(|g| {
+                let first = at(0, g).min(capacity);
+                let n = at(2, g).min(capacity - first);
+                base + first..base + first + n
+            })
+            .collect()
     }
 }

@@ -22,8 +22,8 @@ const COUNT_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_tri_cou
 const SCAN_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_tri_scan.comp.spv");
 const WRITE_SPV: &[u8] = include_bytes!("../../../../shaders/spv/cluster_tri_write.comp.spv");
 
-/// The stage's storage bindings 1-6 (common/triangles.glsl).
-const STORAGE_BINDINGS: u32 = 6;
+/// The stage's storage bindings 1-7 (common/triangles.glsl).
+const STORAGE_BINDINGS: u32 = 7;
 
 /// The most workgroups a count or write dispatch starts per slice (each strides over the
 /// commands): enough to fill a GPU; on a CPU device (lavapipe) every workgroup is a task, and
@@ -76,6 +76,9 @@ pub(super) struct TriangleInputs {
     pub draw_ids: vk::Buffer,
     pub pyramid: vk::Buffer,
     pub levels: vk::Buffer,
+    /// The cluster stage's places: where each draw group's commands start with fixed places
+    /// (engine materials), and the runs of the list's groups before it.
+    pub offsets: vk::Buffer,
     /// Command slots of both phases' lists.
     pub command_slots: u32,
 }
@@ -155,6 +158,7 @@ impl TriangleStage {
                         (4, ssbo, self.triangles.raw),
                         (5, ssbo, inputs.pyramid),
                         (6, ssbo, inputs.levels),
+                        (7, ssbo, inputs.offsets),
                     ],
                 );
                 self.sets.push(set);

@@ -106,26 +106,13 @@ impl SceneRenderer {
             }
             resolves.push(engine);
         }
-        let mut result = Ok(());
         for k in 0..res.views() {
             res.enter_view(k);
             if let Some(cull) = res.states.get_mut::<CullState>() {
-                // Per-triangle culling walks a list's commands as packed one after another:
-                // not the fixed places of a frame drawn group by group.
-                if any
-                    && cull
-                        .clusters
-                        .as_ref()
-                        .is_some_and(|c| c.triangles.is_some())
-                {
-                    result = Err(RenderError::EngineMaterialsWithTriangleCulling {
-                        culling: cull.culling.name(),
-                    });
-                }
                 cull.group_runs = any;
             }
         }
         res.enter_view(0);
-        result
+        Ok(())
     }
 }

@@ -118,7 +118,7 @@ impl SceneRenderer {
             }
         }
         match self.resources.states.get::<CullState>() {
-            Some(c) => Ok(Some(c.drawn_instances(ctx)?)),
+            Some(c) => Ok(Some(c.drawn_instances(ctx, self.last_slot)?)),
             None => Ok(None),
         }
     }
@@ -131,7 +131,8 @@ impl SceneRenderer {
             .scene
             .read_order(ctx, self.last_slot, self.last_instances)?;
         let cull = self.resources.states.get::<CullState>();
-        Ok(cull.map(|c| c.read_lists(ctx, order)).transpose()?)
+        let slot = self.last_slot;
+        Ok(cull.map(|c| c.read_lists(ctx, order, slot)).transpose()?)
     }
 
     /// Fragments shaded by the opaque, alpha-tested and blended colour passes of the last frame

@@ -4,7 +4,9 @@
 use tilegraph_vk::ash::vk;
 use tilegraph_vk::{Context, Feature, VkError};
 
-use super::{CullState, DrawCount, LISTS_PER_PHASE};
+use tilegraph_profile::IndirectCount;
+
+use super::{CullState, LISTS_PER_PHASE};
 
 impl CullState {
     /// Records list `list`'s draws of frame slot `slot`: one `vkCmdDrawIndexedIndirectCount`,
@@ -95,5 +97,30 @@ impl CullState {
     /// Command slots per list: a command per draw group and level of detail.
     pub fn command_slots(&self) -> u32 {
         self.capacity.groups.max(1) * self.lod_levels
+    }
+}
+
+/// How the culled lists are drawn (chosen when the culling state is made, from the profile's
+/// `indirect_count` and the device's features).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DrawCount {
+    /// `vkCmdDrawIndexedIndirectCount`: the GPU's count covers the surviving groups only.
+    Gpu,
+    /// One command per draw group, culled groups with zero instances; `multi_draw`: in one
+    /// `vkCmdDrawIndexedIndirect` (else one call per command, without `multiDrawIndirect`).
+    Fixed { multi_draw: bool },
+}
+
+impl DrawCount {
+    /// The mode for `ctx`'s profile and device.
+    pub fn for_device(ctx: &Context) -> Self {
+        let wanted = ctx.profile().passes.indirect_count == IndirectCount::WhenSupported;
+        if wanted && ctx.has_feature(Feature::DrawIndirectCount) {
+            DrawCount::Gpu
+        } else {
+            DrawCount::Fixed {
+                multi_draw: ctx.has_feature(Feature::MultiDrawIndirect),
+            }
+        }
     }
 }

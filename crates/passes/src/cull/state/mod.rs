@@ -12,14 +12,17 @@ use tilegraph_vk::{Buffer, Context, Feature, VkError};
 use super::clusters::{cone_steps, ClusterStage, Shared};
 use super::compute::{phase_set, ComputeStage};
 use super::{
-    gpu_planes, sphere_projection, ClusterEarly, CullBounds, CullParams, Culling, DrawCount,
-    GpuLayout, LodSettings, Phase, Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
+    gpu_planes, sphere_projection, ClusterEarly, CullBounds, CullParams, Culling, GpuLayout,
+    LodSettings, Phase, Recheck, Step, LISTS_PER_PHASE, LIST_COUNT,
 };
 use crate::frame::PassState;
 use crate::gpu_scene::Capacity;
 use crate::hiz::{HizState, PyramidInfo};
 
 mod draws;
+pub use draws::DrawCount;
+mod slot;
+use slot::SlotInputs;
 mod runs;
 mod sizes;
 mod stats;
@@ -35,31 +38,6 @@ pub struct GpuCullCounts {
     pub instances: u32,
     /// Opaque and alpha-tested instances culled (the GPU lists' instances not drawn).
     pub culled: u32,
-}
-
-/// Per frame slot: what the CPU wrote for the GPU lists of that slot's frame.
-struct SlotInputs {
-    params: [Buffer; 2],
-    /// The draw groups (`Groups` of common/cull.glsl).
-    groups: Buffer,
-    /// Entries per list of the slot's frame (the scene's stride then).
-    stride: u32,
-    /// Groups per list of a phase, as written (what the draws of that frame cover).
-    group_count: [u32; 4],
-    /// Groups per phase.
-    group_total: u32,
-    /// The counts buffer as the slot's frame left it (`cull-stats` copies it; host-visible).
-    stats: Buffer,
-    /// The frame whose counts `stats` will hold, and the instances it culled on the GPU.
-    pending: Option<(u64, u32)>,
-    /// The mesh of each draw group, list by list as `group_start` / `group_count` say, and
-    /// whether the frame kept a command per group (`runs.rs`: engine materials' runs).
-    group_meshes: Vec<u32>,
-    /// With cluster culling and engine materials (fixed places, `runs.rs`): per draw group,
-    /// in the frame's order, the most commands it can need, as `cluster_place.comp` counts it.
-    group_rooms: Vec<u32>,
-    group_start: [u32; 4],
-    kept_every_group: bool,
 }
 
 /// The pyramid the culling shaders test against: its buffer and its level table (a
@@ -755,46 +733,6 @@ impl CullState {
             }))
         {
             ctx.destroy_buffer(b);
-        }
-    }
-}
-
-impl SlotInputs {
-    /// Frame slot `slot`'s parameter blocks and groups for up to `n` instances.
-    fn new(ctx: &Context, slot: u32, n: u64) -> Result<Self, VkError> {
-        let specs = Self::specs(n);
-        let mut made = Vec::with_capacity(specs.len());
-        for (what, size, usage, memory) in specs {
-            let name = format!("cull {what}[{slot}]");
-            match ctx.create_buffer(&name, size, usage, memory) {
-                Ok(b) => made.push(b),
-                Err(e) => {
-                    destroy_buffers(ctx, made);
-                    return Err(e);
-                }
-            }
-        }
-        match <[Buffer; 4]>::try_from(made) {
-            Ok([early, late, groups, stats]) => Ok(SlotInputs {
-                params: [early, late],
-                groups,
-                stride: 1,
-                group_count: [0; 4],
-                group_total: 0,
-                stats,
-                pending: None,
-                group_meshes: Vec::new(),
-                group_rooms: Vec::new(),
-                group_start: [0; 4],
-                kept_every_group: false,
-            }),
-            Err(made) => {
-                destroy_buffers(ctx, made);
-                Err(VkError::Invalid {
-                    what: "cull".into(),
-                    reason: "slot buffers missing".into(),
-                })
-            }
         }
     }
 }

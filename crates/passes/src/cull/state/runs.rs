@@ -8,6 +8,7 @@ use tilegraph_vk::{Context, VkError};
 
 use super::{ClusterStage, CullState, SlotInputs, LISTS_PER_PHASE};
 use crate::cull::layout::GpuLayout;
+use crate::cull::readback::FixedPlaces;
 
 impl CullState {
     /// The mesh of each of list `list`'s draw groups in slot `slot`'s frame, in draw order.
@@ -99,6 +100,32 @@ impl CullState {
             unsafe { self.record_commands(ctx, cb, c.commands.raw, (offset, room), Some(count)) };
         }
         Ok(())
+    }
+
+    /// Where the cluster commands of frame slot `slot`'s frame sit when engine materials drew
+    /// it group by group (fixed places; `None`: packed), read back.
+    pub(in crate::cull) fn fixed_places(
+        &self,
+        ctx: &Context,
+        slot: usize,
+    ) -> Result<Option<FixedPlaces>, VkError> {
+        let (Some(c), Ok(inputs)) = (&self.clusters, self.slot(slot)) else {
+            return Ok(None);
+        };
+        if inputs.group_rooms.is_empty() {
+            return Ok(None);
+        }
+        let places = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&c.offsets))?;
+        Ok(Some(FixedPlaces {
+            places: places
+                .chunks_exact(4)
+                .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+                .collect(),
+            stride: inputs.stride.max(1) as usize,
+            groups: inputs.group_total.max(1) as usize,
+            group_start: inputs.group_start,
+            group_count: inputs.group_count,
+        }))
     }
 }
 
