@@ -66,7 +66,7 @@ pub struct ClusterStage {
     pub clusters: Buffer,
     pub mesh_clusters: Buffer,
     /// Per mesh, its clusters (as `mesh_clusters` holds them): a draw group's room with fixed
-    /// places ([`Self::group_rooms`]).
+    /// places ([`Self::group_room`]).
     mesh_cluster_counts: Vec<u32>,
     /// Per frame slot, host-visible: the base words of the layout of that slot's frame
     /// (written when the slot comes round after a new layout: frames in flight keep theirs).
@@ -199,6 +199,14 @@ pub enum ClusterStep {
     Emit,
     /// Per-triangle culling of the commands just written (knob `triangle_culling`).
     Triangles(TriangleStep),
+}
+
+/// Where kind `kind` of draw group `group` of region `region` sits in the places buffer
+/// (common/cluster.glsl's `group_slot`), in words, for lists of `stride` entries and `groups`
+/// draw groups a phase (both at least 1, as the shaders read them).
+pub(super) fn group_slot(stride: u32, groups: u32, kind: u32, region: u32, group: u32) -> u64 {
+    let (stride, groups) = (u64::from(stride.max(1)), u64::from(groups.max(1)));
+    12 * stride + u64::from(2 * kind + region) * groups + u64::from(group)
 }
 
 impl ClusterStage {

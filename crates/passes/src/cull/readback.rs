@@ -2,6 +2,7 @@
 
 use tilegraph_vk::{Context, VkError};
 
+use super::clusters::group_slot;
 use super::{CullState, DrawCount, LISTS_PER_PHASE, LIST_COUNT};
 
 /// One indirect command of the culled lists, read back.
@@ -127,8 +128,8 @@ impl CullState {
 /// `group_slot`.
 pub(in crate::cull) struct FixedPlaces {
     pub(in crate::cull) places: Vec<u32>,
-    pub(in crate::cull) stride: usize,
-    pub(in crate::cull) groups: usize,
+    pub(in crate::cull) stride: u32,
+    pub(in crate::cull) groups: u32,
     pub(in crate::cull) group_start: [u32; 4],
     pub(in crate::cull) group_count: [u32; 4],
 }
@@ -141,8 +142,9 @@ impl FixedPlaces {
             list / LISTS_PER_PHASE as usize,
             list % LISTS_PER_PHASE as usize,
         );
-        let at = |kind: usize, g: usize| {
-            let i = 12 * self.stride + (2 * kind + region) * self.groups + g;
+        let at = |kind: u32, g: usize| {
+            let i = group_slot(self.stride, self.groups, kind, region as u32, g as u32);
+            let i = usize::try_from(i).unwrap_or(usize::MAX);
             self.places.get(i).copied().unwrap_or(0) as usize
         };
         let start = self.group_start[local] as usize;

@@ -30,7 +30,7 @@ impl CullState {
         let slots = u64::from(self.command_slots());
         let clusters = self.clusters.as_ref().filter(|_| from_clusters);
         // Engine materials' frames place cluster commands group by group (runs.rs).
-        if let (Some(c), true) = (clusters, !inputs.group_rooms.is_empty()) {
+        if let (Some(c), true) = (clusters, !inputs.group_places.is_empty()) {
             return self.record_cluster_groups(ctx, cb, (inputs, c), list, (0, groups));
         }
         let (commands, counts, offset, groups) = match clusters {

@@ -7,6 +7,7 @@ use tilegraph_vk::ash::vk;
 use tilegraph_vk::{Context, VkError};
 
 use super::{ClusterStage, CullState, SlotInputs, LISTS_PER_PHASE};
+use crate::cull::clusters::group_slot;
 use crate::cull::layout::GpuLayout;
 use crate::cull::readback::FixedPlaces;
 
@@ -71,7 +72,7 @@ impl CullState {
         let local = (list % LISTS_PER_PHASE) as usize;
         let start = inputs.group_start.get(local).copied().unwrap_or(0) as usize;
         let groups = inputs.group_count.get(local).copied().unwrap_or(0) as usize;
-        let Some(rooms) = inputs.group_rooms.get(start..start + groups) else {
+        let Some(places) = inputs.group_places.get(start..start + groups) else {
             return Err(VkError::Invalid {
                 what: "engine material draws".into(),
                 reason: "the frame's culling placed no cluster commands per group".into(),
@@ -79,19 +80,16 @@ impl CullState {
         };
         let first = (first as usize).min(groups);
         let end = first.saturating_add(count as usize).min(groups);
-        // cluster.glsl's group_slot(2, region, group): the group's draw count in the places.
-        let stride = u64::from(inputs.stride.max(1));
-        let groups_x = u64::from(inputs.group_total.max(1));
-        let region = u64::from(list / LISTS_PER_PHASE);
-        let count_at = |g: usize| 4 * (12 * stride + (4 + region) * groups_x + g as u64);
+        // The group's draw count in the places: group_slot(2, region, group).
+        let region = list / LISTS_PER_PHASE;
+        let count_at =
+            |g: usize| 4 * group_slot(inputs.stride, inputs.group_total, 2, region, g as u32);
         let base = u64::from(c.room.cmd_base.get(list as usize).copied().unwrap_or(0));
-        let mut place = base + rooms[..first].iter().map(|&r| u64::from(r)).sum::<u64>();
-        for (j, &room) in rooms.iter().enumerate().take(end).skip(first) {
-            let offset = place * 20;
-            place += u64::from(room);
+        for (j, &(place, room)) in places.iter().enumerate().take(end).skip(first) {
             if room == 0 {
                 continue;
             }
+            let offset = (base + u64::from(place)) * 20;
             let count = (c.offsets.raw, count_at(start + j));
             // SAFETY: inside a render pass with the pipeline, buffers and sets bound; the
             // group's room of commands from `offset` lies inside the list's capacity (the rooms
@@ -112,7 +110,7 @@ impl CullState {
         let (Some(c), Ok(inputs)) = (&self.clusters, self.slot(slot)) else {
             return Ok(None);
         };
-        if inputs.group_rooms.is_empty() {
+        if inputs.group_places.is_empty() {
             return Ok(None);
         }
         let places = tilegraph_vk::readback::read_buffer(ctx, Self::handle(&c.offsets))?;
@@ -121,8 +119,8 @@ impl CullState {
                 .chunks_exact(4)
                 .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
                 .collect(),
-            stride: inputs.stride.max(1) as usize,
-            groups: inputs.group_total.max(1) as usize,
+            stride: inputs.stride,
+            groups: inputs.group_total,
             group_start: inputs.group_start,
             group_count: inputs.group_count,
         }))
@@ -131,7 +129,7 @@ impl CullState {
 
 impl SlotInputs {
     /// What a frame whose lists engine materials draw (`group_runs`) keeps of `layout`: each
-    /// draw group's mesh, and with a cluster stage each group's room (fixed places).
+    /// draw group's mesh, and with a cluster stage each group's place and room (fixed places).
     pub(super) fn keep_groups(
         &mut self,
         group_runs: bool,
@@ -139,7 +137,7 @@ impl SlotInputs {
         clusters: Option<&ClusterStage>,
     ) {
         self.group_meshes.clear();
-        self.group_rooms.clear();
+        self.group_places.clear();
         if !group_runs {
             return;
         }
@@ -147,16 +145,21 @@ impl SlotInputs {
         let Some(c) = clusters else {
             return;
         };
-        self.group_rooms
-            .extend(layout.groups.iter().map(|g| c.group_room(g[1], g[2])));
-        debug_assert!(
-            (0..4).all(|l| {
-                let start = layout.group_start[l] as usize;
-                let end = start + layout.group_count[l] as usize;
-                let rooms = self.group_rooms.get(start..end).unwrap_or(&[]);
-                rooms.iter().map(|&r| u64::from(r)).sum::<u64>() <= u64::from(c.room.capacity[l])
-            }),
-            "a list's groups need more commands than its room holds"
-        );
+        // Groups come list by list (GpuLayout::fill): each list's places start at 0.
+        let mut list = u32::MAX;
+        let mut place = 0u32;
+        for g in &layout.groups {
+            if g[3] % LISTS_PER_PHASE != list {
+                list = g[3] % LISTS_PER_PHASE;
+                place = 0;
+            }
+            let room = c.group_room(g[1], g[2]);
+            self.group_places.push((place, room));
+            place = place.saturating_add(room);
+            debug_assert!(
+                place <= c.room.capacity[list as usize],
+                "list {list}'s groups need more commands than its room holds"
+            );
+        }
     }
 }

@@ -24,8 +24,10 @@ pub(super) struct SlotInputs {
     /// whether the frame kept a command per group (`runs.rs`: engine materials' runs).
     pub(super) group_meshes: Vec<u32>,
     /// With cluster culling and engine materials (fixed places, `runs.rs`): per draw group,
-    /// in the frame's order, the most commands it can need, as `cluster_place.comp` counts it.
-    pub(super) group_rooms: Vec<u32>,
+    /// in the frame's order, its first command within its list (the rooms of the list's groups
+    /// before it) and its room — the most commands it can need — as `cluster_place.comp`
+    /// counts them.
+    pub(super) group_places: Vec<(u32, u32)>,
     pub(super) group_start: [u32; 4],
     pub(super) kept_every_group: bool,
 }
@@ -55,7 +57,7 @@ impl SlotInputs {
                 stats,
                 pending: None,
                 group_meshes: Vec::new(),
-                group_rooms: Vec::new(),
+                group_places: Vec::new(),
                 group_start: [0; 4],
                 kept_every_group: false,
             }),
