@@ -12,6 +12,7 @@ const LIMITS: Limits = Limits {
     max_indices: 1 << 22,
     max_instances: 1 << 20,
     max_texture_pixels: 1 << 20,
+    max_texture_pixels_total: 1 << 22,
 };
 
 fuzz_target!(|data: &[u8]| {

@@ -159,6 +159,10 @@ static void device_errors(void) {
     zero.width = 0;
     expect(tg_renderer_create(context, scene, &zero, &renderer), TG_STATUS_INVALID_ARGUMENT,
            "must all be non-zero", "zero width");
+    TgRendererDesc many = desc;
+    many.frames_in_flight = 17;
+    expect(tg_renderer_create(context, scene, &many, &renderer), TG_STATUS_INVALID_ARGUMENT,
+           "more than 16", "too many frames in flight");
     TgRendererDesc unknown = desc;
     unknown.culling = 99;
     expect(tg_renderer_create(context, scene, &unknown, &renderer), TG_STATUS_INVALID_ARGUMENT,
@@ -172,6 +176,17 @@ static void device_errors(void) {
     EngineSlot s = engine_slot(&e);
     int first = 1;
     TG_CHECK(frame(&e, &s, renderer, scene, &img, 0, &first));
+    /* Stage bits tilegraph does not know never reach a barrier (the command buffer is not
+     * submitted; the next begin resets it). */
+    engine_begin(&e, &s);
+    TgCamera camera;
+    uint32_t cut;
+    TG_CHECK(tg_scene_path_camera(scene, 1, &camera, &cut));
+    TgTarget odd = engine_frame_target(&img, WIDTH, HEIGHT, first);
+    odd.initial.stages = ~(VkPipelineStageFlags2)0;
+    TgEngineFrame odd_frame = {.command_buffer = s.cb, .slot = 0};
+    expect(tg_renderer_record(renderer, &camera, cut, &odd_frame, &odd),
+           TG_STATUS_INVALID_ARGUMENT, "initial.stages", "unknown stage bits");
 
     /* Out of memory: the budget at what tilegraph holds; a new plan needs more. */
     TgRenderer second;

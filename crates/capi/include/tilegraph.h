@@ -1034,7 +1034,7 @@ typedef struct {
   uint32_t width;
   uint32_t height;
   /**
-   * The engine's frames in flight: `TgEngineFrame::slot` is below it.
+   * The engine's frames in flight, 1 to 16: `TgEngineFrame::slot` is below it.
    */
   uint32_t frames_in_flight;
   float clear_color[4];

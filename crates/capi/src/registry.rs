@@ -340,8 +340,13 @@ pub fn remove<T: Any>(raw: u64, kind: Kind, name: &str) -> Result<Option<Box<T>>
         let object = slot.object.take().and_then(|o| o.downcast::<T>().ok());
         slot.live = false;
         let uses = std::mem::take(&mut slot.uses);
+        // A slot whose generation would wrap is retired, never reused: a handle destroyed
+        // long ago must not name a new object (the `slot_bits` limit bounds the cost).
+        let retired = slot.generation == u16::MAX;
         let index = decode(raw).slot;
-        r.free.push(index);
+        if !retired {
+            r.free.push(index);
+        }
         for (raw, kind) in uses {
             if let Ok(used) = r.slot(raw, kind, "used object") {
                 used.users = used.users.saturating_sub(1);
@@ -380,5 +385,28 @@ mod tests {
         let err = with(old, Kind::Plan, "plan", |v: &u8| Ok(*v)).unwrap_err();
         assert!(err.message.contains("destroyed"), "{}", err.message);
         assert_eq!(with(new, Kind::Plan, "plan", |v: &u8| Ok(*v)).unwrap(), 2);
+    }
+
+    #[test]
+    fn a_slot_is_retired_before_its_generation_wraps() {
+        // Each test runs on a thread of its own: this registry is the test's.
+        let first = insert(Kind::Plan, 0u8).unwrap();
+        let slot = decode(first).slot;
+        remove::<u8>(first, Kind::Plan, "plan").unwrap();
+        let mut last = first;
+        for _ in 1..u16::MAX {
+            last = insert(Kind::Plan, 0u8).unwrap();
+            assert_eq!(decode(last).slot, slot, "the one slot is reused");
+            remove::<u8>(last, Kind::Plan, "plan").unwrap();
+        }
+        assert_eq!(decode(last).generation, u16::MAX);
+        let next = insert(Kind::Plan, 0u8).unwrap();
+        assert_ne!(
+            decode(next).slot,
+            slot,
+            "a slot at the last generation is not reused"
+        );
+        let err = with(first, Kind::Plan, "plan", |v: &u8| Ok(*v)).unwrap_err();
+        assert!(err.message.contains("destroyed"), "{}", err.message);
     }
 }

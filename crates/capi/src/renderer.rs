@@ -33,7 +33,7 @@ pub struct TgRendererDesc {
     /// The size of the targets the renderer draws into.
     pub width: u32,
     pub height: u32,
-    /// The engine's frames in flight: `TgEngineFrame::slot` is below it.
+    /// The engine's frames in flight, 1 to 16: `TgEngineFrame::slot` is below it.
     pub frames_in_flight: u32,
     pub clear_color: [f32; 4],
     /// Instance slots the renderer's buffers hold from the start (0: the scene's; rounded up to
@@ -184,11 +184,19 @@ pub(crate) fn state(s: &TgImageState, name: &str) -> Result<ResourceState, Failu
             s.layout
         ))
     })?;
-    Ok(ResourceState::image(
-        layout,
-        PipelineStages::from_bits(s.stages),
-        AccessFlags::from_bits(s.access),
-    ))
+    let stages = PipelineStages::from_named_bits(s.stages).ok_or_else(|| {
+        Failure::invalid(format!(
+            "`{name}.stages` {:#x} holds bits that are no VkPipelineStageFlagBits2 tilegraph knows",
+            s.stages
+        ))
+    })?;
+    let access = AccessFlags::from_named_bits(s.access).ok_or_else(|| {
+        Failure::invalid(format!(
+            "`{name}.access` {:#x} holds bits that are no VkAccessFlagBits2 tilegraph knows",
+            s.access
+        ))
+    })?;
+    Ok(ResourceState::image(layout, stages, access))
 }
 
 /// Makes a renderer for `scene` on `context`: uploads the scene, makes the culling
@@ -214,6 +222,13 @@ pub unsafe extern "C" fn tg_renderer_create(
             return Err(Failure::invalid(format!(
                 "width {}, height {} and frames_in_flight {} must all be non-zero",
                 desc.width, desc.height, desc.frames_in_flight
+            )));
+        }
+        let most = tilegraph_vk::frames::MAX_FRAMES_IN_FLIGHT;
+        if desc.frames_in_flight as usize > most {
+            return Err(Failure::invalid(format!(
+                "frames_in_flight {} is more than {most}",
+                desc.frames_in_flight
             )));
         }
         // The renderer's own camera is a view like any other, with the scene-wide choices.

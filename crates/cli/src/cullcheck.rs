@@ -161,6 +161,12 @@ fn print(
         "totals: visible {} drawn {} FN {} (in {} frames) FP {} (rate {:.3}); images equal {}/{}; triangles drawn {}; culling GPU {:.3} ms of {:.3} ms per frame (medians)",
         t.visible, t.drawn, t.false_negatives, t.frames_with_false_negatives, t.false_positives, t.false_positive_rate, t.frames_image_equal, t.frames, t.triangles_drawn, t.cull_gpu_ms, t.frame_gpu_ms
     )?;
+    if t.image_diff_pixels > 0 {
+        outln!(
+            "images differ in {} pixels over the path, {} of them depth ties (both frames hold the same depth there, and another surface at that depth won: depth precision and draw order, not culling)",
+            t.image_diff_pixels, t.image_diff_pixels_depth_tie
+        )?;
+    }
     if let Some(ms) = t.software_cpu_ms {
         outln!("software occlusion: {ms:.3} CPU ms per frame (median)")?;
     }

@@ -280,7 +280,12 @@ pub fn split_motion(spec: &str) -> Result<(&str, Option<MotionParams>), CliError
                 .ok_or_else(|| bad("MOVERS is a share from 0 to 1"))?;
         }
         if let Some(n) = parts.get(1) {
-            params.spawns = n.parse().map_err(|_| bad("SPAWNS is a count"))?;
+            let most = tilegraph_scene::motion::MAX_SPAWNS;
+            params.spawns = n
+                .parse()
+                .ok()
+                .filter(|&n| n <= most)
+                .ok_or_else(|| bad(&format!("SPAWNS is a count up to {most}")))?;
         }
         if let Some(seed) = parts.get(2) {
             params.seed = seed.parse().map_err(|_| bad("SEED is an integer"))?;

@@ -396,6 +396,12 @@ macro_rules! vk_flags {
             pub const fn from_bits(bits: $int) -> Self {
                 Self(bits)
             }
+            /// `bits` when every bit set is a named flag's, else `None` (bits from outside,
+            /// an engine's through the C ABI, are checked before they reach a barrier).
+            pub fn from_named_bits(bits: $int) -> Option<Self> {
+                let named = Self::NAMED.iter().fold(0, |all, (_, f)| all | f.0);
+                (bits & !named == 0).then_some(Self(bits))
+            }
             pub const fn is_empty(self) -> bool {
                 self.0 == 0
             }
@@ -479,6 +485,9 @@ vk_flags! {
         DRAW_INDIRECT = 0x2,
         VERTEX_INPUT = 0x4,
         VERTEX_SHADER = 0x8,
+        TESSELLATION_CONTROL_SHADER = 0x10,
+        TESSELLATION_EVALUATION_SHADER = 0x20,
+        GEOMETRY_SHADER = 0x40,
         FRAGMENT_SHADER = 0x80,
         EARLY_FRAGMENT_TESTS = 0x100,
         LATE_FRAGMENT_TESTS = 0x200,

@@ -431,7 +431,8 @@ impl<'a> Composition<'a> {
     /// After the geometry: the visibility buffer's or the G-buffer's resolve, blended
     /// geometry, next frame's occluders (single-phase HiZ: this frame's depth; occlusion
     /// queries read next frame, after all opaque work by the graph's class order), and a clear
-    /// when nothing drew (an empty view of an empty scene still produces a cleared image).
+    /// when nothing drew (an empty view of an empty scene still produces a cleared image, and
+    /// a kept depth image a cleared depth).
     fn after_geometry(&mut self) {
         let setup = self.spec.setup;
         let culling = self.culling();
@@ -456,8 +457,10 @@ impl<'a> Composition<'a> {
         if culling.uses_queries() && !culling.conditional() && t.depth_written() {
             add_occlusion_queries(g, t.depth, None);
         }
-        if !t.color_written() {
-            add_clear(g, t);
+        // A kept depth image is exported, so something must write it, as the colour.
+        let clear_depth = self.spec.depth_target.is_some() && !t.depth_written();
+        if !t.color_written() || clear_depth {
+            add_clear(g, t, clear_depth);
         }
     }
 

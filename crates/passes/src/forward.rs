@@ -65,12 +65,18 @@ pub fn add_transparent(g: &mut FrameGraph, targets: &mut SceneTargets) -> PassId
     p.id()
 }
 
-/// Declares a pass that only clears the colour target: a frame in which nothing drew (an empty
-/// view of an empty scene) still produces a cleared image.
-pub fn add_clear(g: &mut FrameGraph, targets: &mut SceneTargets) -> PassId {
+/// Declares a pass that only clears: the colour target when no pass drew it (an empty view of
+/// an empty scene still produces a cleared image), and with `depth` the depth target when no
+/// pass wrote it (a depth image the renderer keeps is exported, cleared to the far plane).
+pub fn add_clear(g: &mut FrameGraph, targets: &mut SceneTargets, depth: bool) -> PassId {
     let record: Payload = Box::new(|_, _| Ok(()));
     let mut p = g.raster_pass("clear", PassClass::Opaque, record);
-    targets.attach_color(&mut p);
+    if !targets.color_written() {
+        targets.attach_color(&mut p);
+    }
+    if depth && !targets.depth_written() {
+        targets.attach_depth(&mut p, false);
+    }
     p.coverage(Coverage::Full);
     p.id()
 }

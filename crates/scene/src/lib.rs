@@ -124,6 +124,23 @@ pub const MAX_SPREAD_MATERIALS: u32 = 4096;
 /// `@dense:L`, every triangle split into `4^L` ([`Scene::densified`]); with `@draws`, a mesh per
 /// instance ([`Scene::mesh_per_instance`]) — the bottleneck finder's constructed cases.
 pub fn load_with(spec: &str, options: &LoadOptions) -> Result<Scene, SceneError> {
+    load_variant(spec, options, 0)
+}
+
+/// The most suffixes one spec chains (each makes a whole new scene from the one before).
+pub const MAX_SPEC_SUFFIXES: usize = 8;
+
+/// [`load_with`] after `depth` suffixes were taken off `spec`.
+fn load_variant(spec: &str, options: &LoadOptions, depth: usize) -> Result<Scene, SceneError> {
+    let load_with = |base: &str, options: &LoadOptions| {
+        if depth >= MAX_SPEC_SUFFIXES {
+            return Err(SceneError::BadSpec {
+                spec: spec.to_string(),
+                reason: format!("more than {MAX_SPEC_SUFFIXES} @ suffixes"),
+            });
+        }
+        load_variant(base, options, depth + 1)
+    };
     if let Some(level) = spec.strip_suffix("@one-mesh") {
         return load_with(level, options)?.one_mesh_per_material();
     }

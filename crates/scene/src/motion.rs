@@ -20,12 +20,16 @@ use crate::error::SceneError;
 use crate::scene::{InstanceFlags, InstanceHandle, InstanceId, MaterialClass, MeshHandle, Scene};
 use crate::Transform;
 
+/// The most instances a motion spawns along a path.
+pub const MAX_SPAWNS: usize = 1 << 16;
+
 /// How much moves.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MotionParams {
     /// Share of the small instances that move (0..=1).
     pub movers: f64,
-    /// Instances spawned along the camera path (each lives for a part of it).
+    /// Instances spawned along the camera path (each lives for a part of it), at most
+    /// [`MAX_SPAWNS`] (more are not placed).
     pub spawns: usize,
     pub seed: u64,
     /// Share of the movers (0..=1) mirrored along their local x axis for half their period.
@@ -151,7 +155,7 @@ impl Motion {
                 mirrors: mirrors > 0.0 && mirror_rng.random_bool(mirrors),
             });
         }
-        let spawns = place_spawns(scene, path, params.spawns, &mut rng, median);
+        let spawns = place_spawns(scene, path, params.spawns.min(MAX_SPAWNS), &mut rng, median);
         Motion {
             movers,
             spawns,

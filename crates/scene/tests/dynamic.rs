@@ -712,3 +712,50 @@ fn mirroring_instances_draw_their_mesh_turned() {
     }
     assert!(turned[0].first_index as usize >= indices_before);
 }
+
+/// A cluster file whose counts wrap round 2^32 back to a mesh's end is refused: each cluster
+/// must follow on from the last inside its mesh.
+#[test]
+fn clusters_whose_counts_wrap_round_are_refused() {
+    use tilegraph_scene::clusters::GpuCluster;
+    let s = base();
+    let mut data = whole_mesh_clusters(&s);
+    let Some(m) = s.meshes().iter().position(|m| m.index_count >= 3) else {
+        panic!("the base scene has a mesh with triangles");
+    };
+    let mesh = s.meshes()[m];
+    // Counts of 2^32 - 1 (a multiple of 3) three times, then what brings `at` back to the end.
+    let big = u32::MAX;
+    let mut at = mesh.first_index;
+    let mut wrapped = Vec::new();
+    for _ in 0..3 {
+        wrapped.push(GpuCluster {
+            first_index: at,
+            index_count: big,
+            cone_cutoff: 1.0,
+            ..Default::default()
+        });
+        at = at.wrapping_add(big);
+    }
+    let end = mesh.first_index.wrapping_add(mesh.index_count);
+    wrapped.push(GpuCluster {
+        first_index: at,
+        index_count: end.wrapping_sub(at),
+        cone_cutoff: 1.0,
+        ..Default::default()
+    });
+    assert_eq!(
+        end.wrapping_sub(at) % 3,
+        0,
+        "the last count is whole triangles"
+    );
+    let first = data.clusters.len() as u32;
+    data.clusters.extend(wrapped);
+    data.mesh_clusters[m] = [first, 4];
+    let mut s = s;
+    let e = s
+        .attach_clusters(data)
+        .expect_err("counts that wrap round must not tile the mesh");
+    assert!(matches!(e, SceneError::Clusters { .. }), "{e}");
+    assert!(e.to_string().contains("past the mesh's end"), "{e}");
+}

@@ -253,6 +253,20 @@ fn unusable_images_are_typed_errors_naming_the_image() {
         "image",
         "/images/0",
     );
+    // Two images of 16 pixels each under a limit of 20 in all: the second is refused, named.
+    let two = doc(
+        json!([textured(0, 0), textured(1, 0)]),
+        json!([{"source": 0}, {"source": 1}]),
+        json!([{"uri": "x.png"}, {"uri": "x.png"}]),
+        None,
+    );
+    let total = Limits {
+        max_texture_pixels_total: 20,
+        ..Limits::default()
+    };
+    let files = [("x.png", png(4, 4, [0; 4]))];
+    expect_image_err(load(&two, &files, &total), "image", "/images/1");
+    assert!(load(&two, &files, &lim).is_ok());
     let missing_texture = doc(
         json!([textured(3, 0), {}]),
         json!([{"source": 0}]),

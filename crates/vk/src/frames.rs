@@ -120,12 +120,23 @@ impl FrameSlot {
     }
 }
 
+/// The most frames a ring keeps in flight: each holds command buffers, fences and per-frame
+/// buffers, and past three or four frames only latency grows.
+pub const MAX_FRAMES_IN_FLIGHT: usize = 16;
+
 impl FrameRing {
+    /// A ring of `frames_in_flight` frames (1 to [`MAX_FRAMES_IN_FLIGHT`]; 0 is taken as 1).
     pub fn new(
         ctx: &Context,
         frames_in_flight: usize,
         submission: Submission,
     ) -> Result<Self, VkError> {
+        if frames_in_flight > MAX_FRAMES_IN_FLIGHT {
+            return Err(VkError::Invalid {
+                what: "frames in flight".into(),
+                reason: format!("{frames_in_flight}: at most {MAX_FRAMES_IN_FLIGHT}"),
+            });
+        }
         let mut ring = FrameRing {
             slots: Vec::new(),
             next_frame: 0,

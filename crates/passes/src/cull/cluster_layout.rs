@@ -147,7 +147,8 @@ impl ClusterLayout {
     }
 
     /// Lays out the scene's slots past the last one laid out, slot `i`'s range at least
-    /// `floor[i]` clusters.
+    /// `floor[i]` clusters; `None` without clusters, or where the cluster instances would
+    /// pass 2^32 (the shaders' words).
     fn append(&mut self, scene: &Scene, floor: &[u32]) -> Option<()> {
         let clusters = scene.clusters()?;
         if self.slots() < scene.instances().len() as u32 && self.slots() > 0 {
@@ -161,7 +162,7 @@ impl ClusterLayout {
             let (need, list) = slot_needs(scene, clusters, i);
             let count = need.max(floor.get(i as usize).copied().unwrap_or(0));
             self.base.push(self.total);
-            self.total += count;
+            self.total = self.total.checked_add(count)?;
             let chunks = count.div_ceil(CHUNK) as usize;
             self.chunk_instance.extend(std::iter::repeat_n(i, chunks));
             self.chunk_base.push(self.chunk_instance.len() as u32);

@@ -158,6 +158,23 @@ fn make_buffers(
         ),
         Spec::Empty("cluster run triangles", (1 + commands) * 4, storage | dst),
     ];
+    // Every buffer is bound whole: none may pass the device's storage buffer range.
+    let limit = u64::from(ctx.physical.limits.max_storage_buffer_range);
+    for spec in &specs {
+        let (name, size) = match spec {
+            Spec::Upload(name, bytes) => (*name, bytes.len() as u64),
+            Spec::Empty(name, size, _) => (*name, *size),
+        };
+        if size > limit {
+            return Err(VkError::Invalid {
+                what: format!("cluster culling's {name}"),
+                reason: format!(
+                    "{size} bytes for {} cluster instances; this device binds at most {limit} (maxStorageBufferRange)",
+                    room.total
+                ),
+            });
+        }
+    }
     let mut made = Vec::with_capacity(specs.len());
     for spec in specs {
         let buffer = match spec {

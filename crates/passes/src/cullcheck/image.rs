@@ -111,6 +111,39 @@ fn psnr(mse: f64) -> Option<f64> {
 
 /// The diff image of a failed frame: the reference in dim grey, differing pixels red, pixels
 /// owned (in the oracle) by a visible instance the technique did not draw magenta.
+/// The pixels where a technique's image differs from the reference's, and of them those
+/// whose owner (`ids`, the oracle's) the technique drew, and those where both depths are the
+/// same bit for bit (`FrameCheck`'s `image_diff_pixels*`).
+#[derive(Debug, Default, Clone, Copy)]
+pub(super) struct PixelDiff {
+    pub pixels: usize,
+    pub owner_drawn: usize,
+    pub depth_tie: usize,
+}
+
+impl PixelDiff {
+    pub fn between(
+        got: &RgbaImage,
+        want: &RgbaImage,
+        ids: &[u32],
+        drawn: &[bool],
+        depths: Option<&(Vec<f32>, Vec<f32>)>,
+    ) -> Self {
+        let mut diff = PixelDiff::default();
+        let pairs = got.pixels.chunks_exact(4).zip(want.pixels.chunks_exact(4));
+        for (p, _) in pairs.enumerate().filter(|(_, (a, b))| a != b) {
+            diff.pixels += 1;
+            let owner = ids.get(p).copied().unwrap_or(u32::MAX) as usize;
+            diff.owner_drawn += usize::from(drawn.get(owner).copied().unwrap_or(false));
+            let tie = depths.is_some_and(|(a, b)| {
+                matches!((a.get(p), b.get(p)), (Some(x), Some(y)) if x.to_bits() == y.to_bits())
+            });
+            diff.depth_tie += usize::from(tie);
+        }
+        diff
+    }
+}
+
 pub(super) fn diff_image(
     got: &RgbaImage,
     want: &RgbaImage,

@@ -55,6 +55,11 @@ pub struct FrameCheck {
     /// second phase), not a culling error. A culling error shows as a difference at a pixel whose
     /// owner was culled.
     pub image_diff_pixels_owner_drawn: usize,
+    /// Of the differing pixels, those where both frames hold the same depth, bit for bit: the
+    /// nearest surface is there, and of surfaces at its depth (or at the cleared depth, where
+    /// an EQUAL test lets them through) another won — a tie that depth precision makes (D16,
+    /// or standard depth with a tiny near plane), resolved by draw order, not a culling error.
+    pub image_diff_pixels_depth_tie: usize,
     /// How far the image lies from the reference (levels of detail trade this for triangles;
     /// an exact technique's is zero).
     pub image_error: ImageError,
@@ -96,6 +101,10 @@ pub struct Totals {
     /// Clusters drawn that owned no pixel (cluster techniques).
     pub cluster_false_positives: usize,
     pub frames_image_equal: usize,
+    /// Pixels that differ from the references over the path, and of those the depth ties
+    /// (`FrameCheck::image_diff_pixels_depth_tie`).
+    pub image_diff_pixels: usize,
+    pub image_diff_pixels_depth_tie: usize,
     /// The frames' images against the references', together (mean squared error over the
     /// path, the largest difference).
     pub image_error: ImageError,
@@ -296,12 +305,13 @@ pub fn cull_check_options(
     )?;
     // Every caster into every cascade: the technique's caster culling is checked with its
     // instance culling.
-    // Levels of detail: the reference's and the technique's depth are kept and compared.
-    let lod = tested.lod_error_px > 0.0;
+    // The reference's and the technique's depth are kept and compared: where the images
+    // differ, the same depth on both sides is a tie (and with levels of detail, how far the
+    // surfaces moved).
     let reference = RenderOptions {
         culling: Culling::None,
         lod_error_px: 0.0,
-        capture_depth: lod,
+        capture_depth: true,
         shadows: ShadowOptions {
             culling: CasterCulling::None,
             ..tested.shadows
@@ -338,7 +348,7 @@ pub fn cull_check_options(
     };
     let culling = tested.culling;
     let tested = RenderOptions {
-        capture_depth: lod,
+        capture_depth: true,
         ..tested
     };
     let tested = match SceneRenderer::new(ctx, world.scene(), tested) {
@@ -551,6 +561,11 @@ impl Run<'_> {
                 }
                 None => drawn.iter_mut().for_each(|d| *d = true),
             }
+            let depths = match (tested.read_depth(ctx)?, reference.read_depth(ctx)?) {
+                (Some(a), Some(b)) => Some((a, b)),
+                _ => None,
+            };
+            let diff = image::PixelDiff::between(&got, &want, ids, &drawn, depths.as_ref());
             let mut check = FrameCheck {
                 frame: index,
                 cut: frame.cut,
@@ -559,13 +574,14 @@ impl Run<'_> {
                 false_negatives: 0,
                 false_positives: 0,
                 image_equal: got == want,
-                image_diff_pixels: 0,
-                image_diff_pixels_owner_drawn: 0,
-                image_error: match (tested.read_depth(ctx)?, reference.read_depth(ctx)?) {
-                    (Some(a), Some(b)) => {
-                        ImageError::between(&got, &want).with_depth(&a, &b, &frame.current)
+                image_diff_pixels: diff.pixels,
+                image_diff_pixels_owner_drawn: diff.owner_drawn,
+                image_diff_pixels_depth_tie: diff.depth_tie,
+                image_error: match &depths {
+                    Some((a, b)) => {
+                        ImageError::between(&got, &want).with_depth(a, b, &frame.current)
                     }
-                    _ => ImageError::between(&got, &want),
+                    None => ImageError::between(&got, &want),
                 },
                 triangles_drawn: 0,
                 false_negative_ids: Vec::new(),
@@ -574,20 +590,6 @@ impl Run<'_> {
                 shadow_casters_all: casters_all.map(|c| c.iter().sum()),
                 casters: caster_check,
             };
-            for (p, (a, b)) in got
-                .pixels
-                .chunks_exact(4)
-                .zip(want.pixels.chunks_exact(4))
-                .enumerate()
-            {
-                if a != b {
-                    check.image_diff_pixels += 1;
-                    let owner = ids.get(p).copied().unwrap_or(u32::MAX) as usize;
-                    if drawn.get(owner).copied().unwrap_or(false) {
-                        check.image_diff_pixels_owner_drawn += 1;
-                    }
-                }
-            }
             for i in (0..n).filter(|&i| compare[i]) {
                 check.visible += usize::from(visible[i]);
                 if drawn[i] {
@@ -716,6 +718,8 @@ impl Run<'_> {
                 .map(|c| c.false_positives)
                 .sum(),
             frames_image_equal: frames.iter().filter(|f| f.image_equal).count(),
+            image_diff_pixels: frames.iter().map(|f| f.image_diff_pixels).sum(),
+            image_diff_pixels_depth_tie: frames.iter().map(|f| f.image_diff_pixels_depth_tie).sum(),
             image_error: ImageError::over(frames.iter().map(|f| &f.image_error)),
             triangles_drawn: frames.iter().map(|f| f.triangles_drawn).sum(),
             // Folded from +0.0: an empty f64 sum is -0.0, which prints as "-0.0 ms".

@@ -26,6 +26,8 @@ pub(super) struct Images<'a, 'd> {
     pub ctx: &'d Ctx,
     /// (image, sampler) -> texture already made.
     made: HashMap<(usize, Option<usize>), TextureId>,
+    /// Pixels decoded so far (`Limits::max_texture_pixels_total`).
+    pixels: u64,
 }
 
 impl<'a, 'd> Images<'a, 'd> {
@@ -45,6 +47,7 @@ impl<'a, 'd> Images<'a, 'd> {
             limits,
             ctx,
             made: HashMap::new(),
+            pixels: 0,
         }
     }
 
@@ -103,9 +106,20 @@ impl<'a, 'd> Images<'a, 'd> {
                 ctx.image(ip.clone(), "neither PNG nor JPEG (no mimeType)".into())
             })?,
         };
-        let max_pixels = self.limits.max_texture_pixels as u64;
-        let (w, h, rgba) = decode_image(&bytes, format, max_pixels)
-            .map_err(|e| ctx.image(ip.clone(), e.to_string()))?;
+        // Within the limit per image and what is left of the one over all of them.
+        let left = (self.limits.max_texture_pixels_total as u64).saturating_sub(self.pixels);
+        let max_pixels = (self.limits.max_texture_pixels as u64).min(left);
+        let (w, h, rgba) = decode_image(&bytes, format, max_pixels).map_err(|e| {
+            let total = match left < self.limits.max_texture_pixels as u64 {
+                true => format!(
+                    " ({} pixels of textures decoded before it, of {} in all)",
+                    self.pixels, self.limits.max_texture_pixels_total
+                ),
+                false => String::new(),
+            };
+            ctx.image(ip.clone(), format!("{e}{total}"))
+        })?;
+        self.pixels += u64::from(w) * u64::from(h);
         let name = img
             .name
             .clone()

@@ -130,18 +130,23 @@ pub struct Limits {
     pub max_instances: usize,
     /// Pixels of one texture image (checked from its header, before decoding).
     pub max_texture_pixels: usize,
+    /// Pixels of all the texture images together (each checked before it is decoded): many
+    /// small image entries can name one large image's bytes.
+    pub max_texture_pixels_total: usize,
 }
 
 impl Default for Limits {
     /// 2^26 vertices (2 GiB of vertex data), 2^28 indices (1 GiB), 2^24 instances (about
     /// 2 GiB of instances: a 1 MB file can instance a 10k-primitive mesh from 10k nodes),
-    /// 2^26 pixels per texture (8192 x 8192, 341 MiB with mips).
+    /// 2^26 pixels per texture (8192 x 8192, 341 MiB with mips), 2^30 pixels of textures in
+    /// all (5.3 GiB with mips).
     fn default() -> Self {
         Limits {
             max_vertices: 1 << 26,
             max_indices: 1 << 28,
             max_instances: 1 << 24,
             max_texture_pixels: 1 << 26,
+            max_texture_pixels_total: 1 << 30,
         }
     }
 }

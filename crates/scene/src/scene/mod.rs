@@ -290,20 +290,28 @@ fn validate_clusters(scene: &Scene, data: &ClusterData) -> Result<(), SceneError
                 "mesh {m}: clusters {first}+{count} past the end"
             )));
         };
-        let mut at = mesh.first_index;
+        // In u64: a file's counts must not wrap round to a mesh's end.
+        let mut at = u64::from(mesh.first_index);
+        let end = at + u64::from(mesh.index_count);
         for (k, c) in clusters.iter().enumerate() {
-            if c.first_index != at || c.index_count % 3 != 0 {
+            if u64::from(c.first_index) != at || c.index_count % 3 != 0 {
                 return Err(bad(format!(
                     "mesh {m} cluster {k}: indices {}+{} do not follow on from {at}",
                     c.first_index, c.index_count
                 )));
             }
-            at += c.index_count;
+            at += u64::from(c.index_count);
+            if at > end {
+                return Err(bad(format!(
+                    "mesh {m} cluster {k}: indices {}+{} past the mesh's end {end}",
+                    c.first_index, c.index_count
+                )));
+            }
         }
-        if at != mesh.first_index + mesh.index_count {
+        if at != end {
             return Err(bad(format!(
                 "mesh {m}: clusters cover {} of its {} indices",
-                at - mesh.first_index,
+                at - u64::from(mesh.first_index),
                 mesh.index_count
             )));
         }

@@ -33,6 +33,12 @@ impl Scene {
                     variant.double_sided = m.double_sided;
                     b.add_material(variant)
                 });
+                if b.index_count() + indices.len() > u32::MAX as usize {
+                    return Err(SceneError::BadSpec {
+                        spec: format!("{}@materials:{n}", self.name),
+                        reason: "a copy per material would exceed 32-bit index offsets".into(),
+                    });
+                }
                 ids.push(b.push_mesh_range(vertex_offset, vertex_count, indices, material));
             }
             copies.push(ids);
@@ -328,6 +334,12 @@ mod tests {
             let e = crate::load(bad).unwrap_err().to_string();
             assert!(e.contains("@dense"), "{bad}: {e}");
         }
+        // Each suffix makes a whole scene: a chain of them is bounded (not a deep recursion).
+        let most = format!("city:4{}", "@draws".repeat(crate::MAX_SPEC_SUFFIXES));
+        assert!(crate::load(&most).is_ok(), "{most}");
+        let over = format!("city:4{}", "@draws".repeat(crate::MAX_SPEC_SUFFIXES + 1));
+        let e = crate::load(&over).unwrap_err().to_string();
+        assert!(e.contains("suffixes"), "{e}");
     }
 
     #[test]

@@ -213,10 +213,16 @@ impl CullState {
             let layout =
                 super::clusters::ClusterLayout::of(scene).ok_or_else(|| VkError::Invalid {
                     what: format!("culling {}", culling.name()),
-                    reason: format!(
-                        "scene {} has no clusters (attach them: tilegraph_scene::clusters)",
-                        scene.name()
-                    ),
+                    reason: match scene.clusters() {
+                        None => format!(
+                            "scene {} has no clusters (attach them: tilegraph_scene::clusters)",
+                            scene.name()
+                        ),
+                        Some(_) => format!(
+                            "scene {}'s instances hold 2^32 clusters or more",
+                            scene.name()
+                        ),
+                    },
                 })?;
             u64::from(
                 super::clusters::ClusterRoom::for_layout(&layout, capacity.instances).commands(),
