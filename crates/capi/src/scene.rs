@@ -1,6 +1,7 @@
 //! Scenes: uploaded from plain arrays (no glTF needed), or loaded from a glTF file or a
 //! procedural spec; the cameras of a scene's path.
 
+use std::collections::HashMap;
 use std::ffi::c_char;
 
 use glam::{DVec3, Mat3, Vec3};
@@ -262,6 +263,9 @@ fn build(desc: &TgSceneDesc) -> Result<Scene, Failure> {
             uv: v.uv,
         })
         .collect();
+    // Meshes over the same vertex range (an engine's one vertex buffer, indexed absolutely)
+    // share its vertices once: the first mesh adds them, the others draw over them.
+    let mut ranges: HashMap<(u32, u32), MeshId> = HashMap::new();
     for (i, m) in meshes.iter().enumerate() {
         let range = |first: u32, count: u32, len: usize, what: &str| {
             let (first, count) = (first as usize, count as usize);
@@ -275,7 +279,15 @@ fn build(desc: &TgSceneDesc) -> Result<Scene, Failure> {
         };
         let v = range(m.first_vertex, m.vertex_count, vertices.len(), "vertices")?;
         let x = range(m.first_index, m.index_count, indices.len(), "indices")?;
-        b.add_mesh(&vertices[v], &indices[x], MaterialId(m.material))?;
+        let material = MaterialId(m.material);
+        match ranges.get(&(m.first_vertex, m.vertex_count)) {
+            Some(&shared) => b.add_mesh_sharing(shared, &indices[x], material)?,
+            None => {
+                let id = b.add_mesh(&vertices[v], &indices[x], material)?;
+                ranges.insert((m.first_vertex, m.vertex_count), id);
+                id
+            }
+        };
     }
     for inst in instances {
         let transform = Transform::new(
@@ -422,4 +434,58 @@ pub unsafe extern "C" fn tg_scene_path_camera(
             Ok(())
         })
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An engine's meshes indexing one vertex buffer absolutely (each mesh's range the whole
+    /// buffer) share it: the vertices are added once, not once per mesh.
+    #[test]
+    fn meshes_over_one_vertex_range_share_it() {
+        let v = |x: f32, y: f32| TgVertex {
+            position: [x, y, 0.0],
+            normal: [0.0, 0.0, 1.0],
+            uv: [x, y],
+        };
+        let vertices = [v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0), v(1.0, 1.0)];
+        let indices = [0u32, 1, 2, 1, 3, 2];
+        let materials = [TgMaterial {
+            base_color: [1.0; 4],
+            material_class: TgMaterialClass::Opaque as u32,
+            alpha_cutoff: 0.0,
+            double_sided: 0,
+        }];
+        let mesh = |first_index: u32| TgMesh {
+            first_vertex: 0,
+            vertex_count: 4,
+            first_index,
+            index_count: 3,
+            material: 0,
+        };
+        let meshes = [mesh(0), mesh(3)];
+        let instances = [0u32, 1].map(|m| TgInstance {
+            linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            translation: [0.0, 0.0, -5.0],
+            mesh: m,
+        });
+        let desc = TgSceneDesc {
+            name: std::ptr::null(),
+            vertices: vertices.as_ptr(),
+            vertex_count: 4,
+            indices: indices.as_ptr(),
+            index_count: 6,
+            materials: materials.as_ptr(),
+            material_count: 1,
+            meshes: meshes.as_ptr(),
+            mesh_count: 2,
+            instances: instances.as_ptr(),
+            instance_count: 2,
+        };
+        let scene = build(&desc).unwrap();
+        assert_eq!(scene.vertices().len(), 4);
+        assert_eq!(scene.meshes().len(), 2);
+        assert_eq!(scene.triangles_drawn(), 2);
+    }
 }

@@ -759,3 +759,33 @@ fn clusters_whose_counts_wrap_round_are_refused() {
     assert!(matches!(e, SceneError::Clusters { .. }), "{e}");
     assert!(e.to_string().contains("past the mesh's end"), "{e}");
 }
+
+/// Meshes over one vertex range share its vertices (no copy per mesh); their indices are
+/// checked against the shared range.
+#[test]
+fn meshes_sharing_vertices_add_them_once() {
+    let mut b = SceneBuilder::new("shared");
+    let m = b.add_material(Material::opaque([1.0, 1.0, 1.0, 1.0]));
+    let (v, i) = quad(1.0);
+    let first = b.add_mesh(&v, &i, m).expect("first mesh");
+    let second = b
+        .add_mesh_sharing(first, &[2, 1, 0], m)
+        .expect("same vertices");
+    let e = b
+        .add_mesh_sharing(first, &[0, 1, 4], m)
+        .expect_err("index 4 is past the 4 shared vertices");
+    assert!(
+        matches!(e, SceneError::IndexOutOfRange { index: 4, .. }),
+        "{e}"
+    );
+    let e = b
+        .add_mesh_sharing(tilegraph_scene::MeshId(9), &[0, 1, 2], m)
+        .expect_err("no mesh 9");
+    assert!(e.to_string().contains("mesh 9"), "{e}");
+    b.add_instance(Transform::IDENTITY, second)
+        .expect("instance");
+    let s = b.build(None).expect("scene");
+    assert_eq!(s.vertices().len(), 4, "the vertices once");
+    assert_eq!(s.meshes()[1].vertex_offset, s.meshes()[0].vertex_offset);
+    assert_eq!(s.meshes()[1].index_count, 3);
+}

@@ -16,7 +16,7 @@ pub struct ImageError {
     pub mse: f64,
     /// Peak signal-to-noise ratio, 10 log10(255^2 / mse) dB; `None` where the images are equal.
     pub psnr_db: Option<f64>,
-    /// Where both frames' depth was kept (levels of detail): the largest difference of the
+    /// Where both frames' depth was kept (every `cull-check` frame): the largest difference of the
     /// distance along the view axis at a pixel both cover, relative to the reference's (a
     /// pixel one covers and the other does not shows in the colours).
     pub max_depth_rel_diff: Option<f64>,

@@ -639,7 +639,9 @@ impl Run<'_> {
         // clocks, and its timings measured that (up to 2.8x on an H200 at 1080p). The first
         // times each pass, the second only the whole frame: what is outside the passes (render
         // pass clears, loads and stores, barriers) counts in a frame, and timing each pass
-        // costs time of its own (docs/ACCURACY.md, "What a frame time is").
+        // costs time of its own (docs/ACCURACY.md, "What a frame time is"). The timed frames
+        // keep no depth: storing it is the comparison's cost, not the technique's.
+        tested.stop_keeping_depth(ctx)?;
         Timing {
             path,
             count: frames.len(),

@@ -36,6 +36,7 @@ use crate::gpu_scene::Capacity;
 use crate::lint::lint_frame;
 use crate::options::{FrameReport, RenderError, RenderOptions};
 use crate::setup::{FrameSetup, SceneContent};
+use crate::targets::destroy_target;
 pub use memory::{scene_memory, SceneMemory};
 pub use readback::PixelOwners;
 use resources::create_resources;
@@ -689,6 +690,21 @@ impl SceneRenderer {
 
     pub fn executor(&self) -> &Executor {
         &self.executor
+    }
+
+    /// Stops keeping the main view's depth ([`RenderOptions::capture_depth`]) from the next
+    /// frame on: its image is destroyed (after the frames in flight) and the frame declared
+    /// again without it, so the depth stays in tile memory where it would have been stored.
+    /// `cull-check` compares depth on its checked frames, and times frames without it.
+    pub fn stop_keeping_depth(&mut self, ctx: &Context) -> Result<(), RenderError> {
+        let Some(target) = self.views.main.depth_target.take() else {
+            return Ok(());
+        };
+        self.executor.finish(ctx)?;
+        destroy_target(ctx, target);
+        self.views.main.options.capture_depth = false;
+        self.declared = None;
+        Ok(())
     }
 
     /// What the GPU queries of the next frames measure ([`RenderOptions::gpu_timing`]). A

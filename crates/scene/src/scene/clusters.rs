@@ -2,6 +2,9 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use super::Scene;
+use crate::error::SceneError;
+
 /// Most triangles in a cluster (meshoptimizer's limit is 512; 124 is niagara's and NVIDIA's
 /// mesh-shader choice, and a multiple of 4 as meshoptimizer asks).
 pub const MAX_TRIANGLES: usize = 124;
@@ -127,3 +130,137 @@ pub(crate) fn fnv1a(hash: u64, bytes: &[u8]) -> u64 {
 }
 
 pub(crate) const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// Checks `data` against `scene` (each mesh's clusters tile its index range in order, every
+/// index stays inside the mesh's vertices) before [`Scene::attach_clusters`] swaps it in.
+pub(super) fn validate(scene: &Scene, data: &ClusterData) -> Result<(), SceneError> {
+    let bad = |reason: String| SceneError::Clusters {
+        what: scene.name().to_string(),
+        reason,
+    };
+    if data.indices.len() < scene.indices().len() {
+        return Err(bad(format!(
+            "{} indices for a scene of {}",
+            data.indices.len(),
+            scene.indices().len()
+        )));
+    }
+    if data.mesh_clusters.len() != scene.meshes().len() {
+        return Err(bad(format!(
+            "cluster ranges for {} meshes, the scene has {}",
+            data.mesh_clusters.len(),
+            scene.meshes().len()
+        )));
+    }
+    for (m, (mesh, &[first, count])) in scene.meshes().iter().zip(&data.mesh_clusters).enumerate() {
+        let Some(clusters) = data
+            .clusters
+            .get(first as usize..first as usize + count as usize)
+        else {
+            return Err(bad(format!(
+                "mesh {m}: clusters {first}+{count} past the end"
+            )));
+        };
+        // In u64: a file's counts must not wrap round to a mesh's end.
+        let mut at = u64::from(mesh.first_index);
+        let end = at + u64::from(mesh.index_count);
+        for (k, c) in clusters.iter().enumerate() {
+            if u64::from(c.first_index) != at || c.index_count % 3 != 0 {
+                return Err(bad(format!(
+                    "mesh {m} cluster {k}: indices {}+{} do not follow on from {at}",
+                    c.first_index, c.index_count
+                )));
+            }
+            at += u64::from(c.index_count);
+            if at > end {
+                return Err(bad(format!(
+                    "mesh {m} cluster {k}: indices {}+{} past the mesh's end {end}",
+                    c.first_index, c.index_count
+                )));
+            }
+        }
+        if at != end {
+            return Err(bad(format!(
+                "mesh {m}: clusters cover {} of its {} indices",
+                at - u64::from(mesh.first_index),
+                mesh.index_count
+            )));
+        }
+        let range = mesh.first_index as usize..(mesh.first_index + mesh.index_count) as usize;
+        if let Some(i) = data
+            .indices
+            .get(range)
+            .and_then(|ix| ix.iter().find(|&&i| i >= mesh.vertex_count))
+        {
+            return Err(bad(format!(
+                "mesh {m}: index {i} past its {} vertices",
+                mesh.vertex_count
+            )));
+        }
+    }
+    validate_lods(scene, data).map_err(bad)
+}
+
+/// Checks the levels of detail of `data`: [`MAX_LODS`] per mesh, each a range of whole
+/// triangles after the scene's indices over the mesh's vertices, errors finite and never
+/// decreasing.
+fn validate_lods(scene: &Scene, data: &ClusterData) -> Result<(), String> {
+    // Without levels (`ClusterData::without_lods`): the scene's indices only.
+    if data.lods.is_empty() {
+        return match data.indices.len() == scene.indices().len() {
+            true => Ok(()),
+            false => Err(format!(
+                "{} indices and no levels of detail for a scene of {}",
+                data.indices.len(),
+                scene.indices().len()
+            )),
+        };
+    }
+    if data.lods.len() != scene.meshes().len() * MAX_LODS {
+        return Err(format!(
+            "{} levels of detail for {} meshes ({MAX_LODS} each)",
+            data.lods.len(),
+            scene.meshes().len()
+        ));
+    }
+    let tail = scene.indices().len() as u64..data.indices.len() as u64;
+    for (m, (mesh, levels)) in scene
+        .meshes()
+        .iter()
+        .zip(data.lods.chunks_exact(MAX_LODS))
+        .enumerate()
+    {
+        let mut error = 0.0f32;
+        for (k, l) in levels.iter().enumerate() {
+            if l.index_count == 0 {
+                continue;
+            }
+            let start = u64::from(l.first_index);
+            let end = start + u64::from(l.index_count);
+            if l.index_count % 3 != 0 || !tail.contains(&start) || end > tail.end {
+                return Err(format!(
+                    "mesh {m} level {}: indices {start}+{} outside the level tail {tail:?}",
+                    k + 1,
+                    l.index_count
+                ));
+            }
+            if !(l.error.is_finite() && l.error >= error) {
+                return Err(format!(
+                    "mesh {m} level {}: error {} after {error}",
+                    k + 1,
+                    l.error
+                ));
+            }
+            error = l.error;
+            let indices = &data.indices[start as usize..end as usize];
+            if let Some(i) = indices.iter().find(|&&i| i >= mesh.vertex_count) {
+                return Err(format!(
+                    "mesh {m} level {}: index {i} past its {} vertices",
+                    k + 1,
+                    mesh.vertex_count
+                ));
+            }
+        }
+    }
+    Ok(())
+}

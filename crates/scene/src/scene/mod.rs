@@ -185,7 +185,7 @@ impl Scene {
                 reason: "built from other geometry (fingerprint differs)".into(),
             });
         }
-        validate_clusters(self, &data)?;
+        clusters::validate(self, &data)?;
         self.indices = data.indices;
         // Levels of detail follow the scene's indices: a mesh copy made later goes after them.
         (self.dynamic.index_pool).extend_to(self.indices.len() as u32);
@@ -260,140 +260,6 @@ impl Scene {
     }
 }
 
-/// Checks `data` against `scene` (each mesh's clusters tile its index range in order, every
-/// index stays inside the mesh's vertices) before [`Scene::attach_clusters`] swaps it in.
-fn validate_clusters(scene: &Scene, data: &ClusterData) -> Result<(), SceneError> {
-    let bad = |reason: String| SceneError::Clusters {
-        what: scene.name().to_string(),
-        reason,
-    };
-    if data.indices.len() < scene.indices().len() {
-        return Err(bad(format!(
-            "{} indices for a scene of {}",
-            data.indices.len(),
-            scene.indices().len()
-        )));
-    }
-    if data.mesh_clusters.len() != scene.meshes().len() {
-        return Err(bad(format!(
-            "cluster ranges for {} meshes, the scene has {}",
-            data.mesh_clusters.len(),
-            scene.meshes().len()
-        )));
-    }
-    for (m, (mesh, &[first, count])) in scene.meshes().iter().zip(&data.mesh_clusters).enumerate() {
-        let Some(clusters) = data
-            .clusters
-            .get(first as usize..first as usize + count as usize)
-        else {
-            return Err(bad(format!(
-                "mesh {m}: clusters {first}+{count} past the end"
-            )));
-        };
-        // In u64: a file's counts must not wrap round to a mesh's end.
-        let mut at = u64::from(mesh.first_index);
-        let end = at + u64::from(mesh.index_count);
-        for (k, c) in clusters.iter().enumerate() {
-            if u64::from(c.first_index) != at || c.index_count % 3 != 0 {
-                return Err(bad(format!(
-                    "mesh {m} cluster {k}: indices {}+{} do not follow on from {at}",
-                    c.first_index, c.index_count
-                )));
-            }
-            at += u64::from(c.index_count);
-            if at > end {
-                return Err(bad(format!(
-                    "mesh {m} cluster {k}: indices {}+{} past the mesh's end {end}",
-                    c.first_index, c.index_count
-                )));
-            }
-        }
-        if at != end {
-            return Err(bad(format!(
-                "mesh {m}: clusters cover {} of its {} indices",
-                at - u64::from(mesh.first_index),
-                mesh.index_count
-            )));
-        }
-        let range = mesh.first_index as usize..(mesh.first_index + mesh.index_count) as usize;
-        if let Some(i) = data
-            .indices
-            .get(range)
-            .and_then(|ix| ix.iter().find(|&&i| i >= mesh.vertex_count))
-        {
-            return Err(bad(format!(
-                "mesh {m}: index {i} past its {} vertices",
-                mesh.vertex_count
-            )));
-        }
-    }
-    validate_lods(scene, data).map_err(bad)
-}
-
-/// Checks the levels of detail of `data`: [`MAX_LODS`] per mesh, each a range of whole
-/// triangles after the scene's indices over the mesh's vertices, errors finite and never
-/// decreasing.
-fn validate_lods(scene: &Scene, data: &ClusterData) -> Result<(), String> {
-    // Without levels (`ClusterData::without_lods`): the scene's indices only.
-    if data.lods.is_empty() {
-        return match data.indices.len() == scene.indices().len() {
-            true => Ok(()),
-            false => Err(format!(
-                "{} indices and no levels of detail for a scene of {}",
-                data.indices.len(),
-                scene.indices().len()
-            )),
-        };
-    }
-    if data.lods.len() != scene.meshes().len() * MAX_LODS {
-        return Err(format!(
-            "{} levels of detail for {} meshes ({MAX_LODS} each)",
-            data.lods.len(),
-            scene.meshes().len()
-        ));
-    }
-    let tail = scene.indices().len() as u64..data.indices.len() as u64;
-    for (m, (mesh, levels)) in scene
-        .meshes()
-        .iter()
-        .zip(data.lods.chunks_exact(MAX_LODS))
-        .enumerate()
-    {
-        let mut error = 0.0f32;
-        for (k, l) in levels.iter().enumerate() {
-            if l.index_count == 0 {
-                continue;
-            }
-            let start = u64::from(l.first_index);
-            let end = start + u64::from(l.index_count);
-            if l.index_count % 3 != 0 || !tail.contains(&start) || end > tail.end {
-                return Err(format!(
-                    "mesh {m} level {}: indices {start}+{} outside the level tail {tail:?}",
-                    k + 1,
-                    l.index_count
-                ));
-            }
-            if !(l.error.is_finite() && l.error >= error) {
-                return Err(format!(
-                    "mesh {m} level {}: error {} after {error}",
-                    k + 1,
-                    l.error
-                ));
-            }
-            error = l.error;
-            let indices = &data.indices[start as usize..end as usize];
-            if let Some(i) = indices.iter().find(|&&i| i >= mesh.vertex_count) {
-                return Err(format!(
-                    "mesh {m} level {}: index {i} past its {} vertices",
-                    k + 1,
-                    mesh.vertex_count
-                ));
-            }
-        }
-    }
-    Ok(())
-}
-
 /// Checks a mesh's data: the material exists, indices are a positive multiple of 3 and inside
 /// the vertices, every vertex is finite.
 fn check_mesh(
@@ -401,6 +267,19 @@ fn check_mesh(
     pointer: &str,
     vertices: &[Vertex],
     indices: &[u32],
+    material: MaterialId,
+    materials: usize,
+) -> Result<(), SceneError> {
+    check_indices(name, pointer, indices, vertices.len(), material, materials)?;
+    check_vertices(name, pointer, vertices)
+}
+
+/// A mesh's indices (whole triangles, each below `vertex_count`) and its material.
+fn check_indices(
+    name: &str,
+    pointer: &str,
+    indices: &[u32],
+    vertex_count: usize,
     material: MaterialId,
     materials: usize,
 ) -> Result<(), SceneError> {
@@ -421,16 +300,21 @@ fn check_mesh(
     if let Some((position, &index)) = indices
         .iter()
         .enumerate()
-        .find(|(_, &i)| i as usize >= vertices.len())
+        .find(|(_, &i)| i as usize >= vertex_count)
     {
         return Err(SceneError::IndexOutOfRange {
             file: name.to_string(),
             pointer: pointer.to_string(),
             index: u64::from(index),
             position,
-            vertex_count: vertices.len(),
+            vertex_count,
         });
     }
+    Ok(())
+}
+
+/// Every vertex value finite.
+fn check_vertices(name: &str, pointer: &str, vertices: &[Vertex]) -> Result<(), SceneError> {
     if let Some(i) = vertices
         .iter()
         .position(|v| !(v.position.iter().chain(&v.normal).chain(&v.uv)).all(|x| x.is_finite()))
@@ -531,6 +415,33 @@ impl SceneBuilder {
         }
         let offset = self.push_vertices(vertices);
         Ok(self.push_mesh_range(offset, vertices.len() as u32, indices, material))
+    }
+
+    /// Adds a mesh over the vertices of mesh `of`, added before: engines whose meshes index
+    /// one vertex buffer share its vertices once instead of a copy per mesh. Checks the
+    /// indices against `of`'s vertices and the material id.
+    pub fn add_mesh_sharing(
+        &mut self,
+        of: MeshId,
+        indices: &[u32],
+        material: MaterialId,
+    ) -> Result<MeshId, SceneError> {
+        let pointer = format!("/meshes/{}", self.meshes.len());
+        let Some((offset, count)) = self.mesh_vertex_range(of) else {
+            return Err(self.error(pointer, format!("mesh {} does not exist", of.0)));
+        };
+        check_indices(
+            &self.name,
+            &pointer,
+            indices,
+            count as usize,
+            material,
+            self.materials.len(),
+        )?;
+        if self.indices.len() + indices.len() > u32::MAX as usize {
+            return Err(self.error(pointer, "shared buffers would exceed 32-bit offsets".into()));
+        }
+        Ok(self.push_mesh_range(offset, count, indices, material))
     }
 
     /// Appends vertices to the shared buffer; returns their offset. Callers check sizes.
