@@ -782,6 +782,8 @@ mod tests {
                 fp_rate: 0.0,
                 frames_with_false_negatives: usize::from(false_negatives > 0),
                 frames_image_equal: 1,
+                image_diff_pixels: 0,
+                image_diff_pixels_depth_tie: 0,
                 image_rmse: 0.0,
                 image_psnr_db: None,
                 image_max_channel_diff: 0,

@@ -168,6 +168,8 @@ fn sweep(out: &Path) -> (Vec<Setting>, Results) {
                     fp_rate: 0.05 + 0.3 * wobble,
                     frames_with_false_negatives: usize::from(fn_rate > 0.0) * 3,
                     frames_image_equal: if fn_rate > 0.0 { 21 } else { 24 },
+                    image_diff_pixels: 0,
+                    image_diff_pixels_depth_tie: 0,
                     image_rmse: 0.0,
                     image_psnr_db: None,
                     image_max_channel_diff: 0,

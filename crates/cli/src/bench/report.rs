@@ -250,7 +250,13 @@ pub fn rows<'a>(g: &Group<'a>, labels: &Labels) -> Vec<Row<'a>> {
                 format!("{} ({})", t.false_negatives, t.frames_with_false_negatives),
                 format!("{:.4}", t.fn_rate),
                 format!("{:.3}", t.fp_rate),
-                format!("{}/{}", t.frames_image_equal, t.frames),
+                match (t.image_diff_pixels, t.image_diff_pixels_depth_tie) {
+                    (0, _) => format!("{}/{}", t.frames_image_equal, t.frames),
+                    (d, ties) => format!(
+                        "{}/{} ({d} px, {ties} ties)",
+                        t.frames_image_equal, t.frames
+                    ),
+                },
                 format!("{:.3}", t.cull_gpu_ms),
                 format!("{:.3}", t.passes_gpu_ms),
                 format!("{:.3}", t.frame_gpu_ms),

@@ -90,6 +90,12 @@ pub struct TotalsRecord {
     pub fp_rate: f64,
     pub frames_with_false_negatives: usize,
     pub frames_image_equal: usize,
+    /// Pixels that differed from the unculled images over the path, and of those the ones
+    /// holding the same depth (ties of depth precision; 0 in results written before them).
+    #[serde(default)]
+    pub image_diff_pixels: usize,
+    #[serde(default)]
+    pub image_diff_pixels_depth_tie: usize,
     /// The images against the full-detail, unculled ones over the path: root mean squared
     /// difference per channel (8-bit levels; 0 for an exact technique), PSNR (absent where
     /// every frame was equal) and the largest difference (levels of detail trade these for
@@ -225,6 +231,8 @@ impl RunRecord {
                 })
                 .count(),
             frames_image_equal: t.frames_image_equal,
+            image_diff_pixels: t.image_diff_pixels,
+            image_diff_pixels_depth_tie: t.image_diff_pixels_depth_tie,
             image_rmse: t.image_error.mse.sqrt(),
             image_psnr_db: t.image_error.psnr_db,
             image_max_channel_diff: t.image_error.max_channel_diff,
