@@ -121,9 +121,8 @@ impl Camera {
         if up.length() < 1e-9 {
             return Err(("up", "zero-length up vector".into()));
         }
-        // Below ~0.06 degrees the f32 cross product in look_at loses the right vector.
         let sin = dir.normalize().cross(up.normalize()).length();
-        if sin.is_nan() || sin < 1e-3 {
+        if sin.is_nan() || sin < VERTICAL_SIN {
             return Err(("up", "parallel to the view direction".into()));
         }
         check_projection(&self.projection)
@@ -627,11 +626,14 @@ impl CameraPath {
             };
             let eye = vec3("eye", f.eye)?;
             let target = vec3("target", f.target)?;
-            let up = vec3("up", f.up)?;
+            let up = match f.up {
+                Some(up) => vec3("up", up)?,
+                None => default_up(target - eye),
+            };
             // f64 -> f32 can overflow to infinity (1e39); check after the cast.
             let up32 = up.as_vec3();
             if !up32.is_finite() {
-                return Err(err("up", format!("{:?} does not fit f32", f.up)));
+                return Err(err("up", format!("{up:?} does not fit f32")));
             }
             let near = f.near as f32;
             let far = f.far.map(|x| x as f32);
@@ -699,7 +701,7 @@ impl CameraPath {
                 JsonFrame {
                     eye: c.eye.to_array(),
                     target: c.target.to_array(),
-                    up: c.up.as_dvec3().to_array(),
+                    up: Some(c.up.as_dvec3().to_array()),
                     fov_y_deg,
                     near,
                     far,
@@ -712,9 +714,22 @@ impl CameraPath {
     }
 }
 
-fn default_up() -> [f64; 3] {
-    [0.0, 1.0, 0.0]
+/// A frame's up where the path gives none: +Y, unless the view is within [`Camera::validate`]'s
+/// limit of straight down or up (a top-down camera), where +Y gives no orientation; there the
+/// top of the image faces -Z looking down and +Z looking up, the limit of +Y for a camera that
+/// faced -Z and pitched to the vertical.
+fn default_up(direction: DVec3) -> DVec3 {
+    let dir = direction.normalize_or_zero();
+    if dir.cross(DVec3::Y).length() < VERTICAL_SIN {
+        DVec3::new(0.0, 0.0, dir.y.signum())
+    } else {
+        DVec3::Y
+    }
 }
+
+/// The sine of the smallest angle between the view direction and up that [`Camera::validate`]
+/// accepts: below ~0.06 degrees the f32 cross product in `look_at` loses the right vector.
+const VERTICAL_SIN: f64 = 1e-3;
 fn default_fov() -> f64 {
     60.0
 }
@@ -733,8 +748,8 @@ struct JsonPath {
 struct JsonFrame {
     eye: [f64; 3],
     target: [f64; 3],
-    #[serde(default = "default_up")]
-    up: [f64; 3],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    up: Option<[f64; 3]>,
     #[serde(default = "default_fov")]
     fov_y_deg: f64,
     #[serde(default = "default_near")]
@@ -916,13 +931,38 @@ mod tests {
     }
 
     #[test]
+    fn a_path_without_up_may_look_straight_down_or_up() {
+        let text = r#"{"frames": [
+            {"eye": [0, 10, 0], "target": [0, 0, 0]},
+            {"eye": [0, 10, 0], "target": [0.000001, 0, 0]},
+            {"eye": [0, 0, 0], "target": [0, 3, 0]},
+            {"eye": [0, 10, 0], "target": [1, 0, 0]}
+        ]}"#;
+        let path = CameraPath::from_json_str(text, "top-down").unwrap();
+        let ups: Vec<Vec3> = path.keys.iter().map(|k| k.camera.up).collect();
+        assert_eq!(ups, [Vec3::NEG_Z, Vec3::NEG_Z, Vec3::Z, Vec3::Y]);
+        // Looking down, the top of the image faces -Z: a point north of the target is above
+        // the centre of the image.
+        let view = path.keys[0].camera.view_relative();
+        let north = view.transform_point3(Vec3::new(0.0, -10.0, -1.0));
+        assert!(north.y > 0.0 && north.x.abs() < 1e-6, "{north}");
+        // Written back with the up it used, the path reads the same.
+        let again = CameraPath::from_json_str(&path.to_json(), "again").unwrap();
+        let again_ups: Vec<Vec3> = again.keys.iter().map(|k| k.camera.up).collect();
+        assert_eq!(again_ups, ups);
+    }
+
+    #[test]
     fn malformed_json_paths_name_the_frame_and_field() {
         let frame = |body: &str| {
             format!(r#"{{"frames": [{{"eye": [0,0,0], "target": [0,0,-1]}}, {{{body}}}]}}"#)
         };
         let cases = [
             (frame(r#""eye": [1,2,3], "target": [1,2,3]"#), "target"),
-            (frame(r#""eye": [0,0,0], "target": [0,5,0]"#), "up"),
+            (
+                frame(r#""eye": [0,0,0], "target": [0,5,0], "up": [0,1,0]"#),
+                "up",
+            ),
             (
                 frame(r#""eye": [0,0,0], "target": [0,0,-1], "up": [0,0,0]"#),
                 "up",
