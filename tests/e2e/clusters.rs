@@ -229,7 +229,11 @@ fn with_godot_room(levels: &[(&str, u64)]) -> Vec<(String, u64)> {
 /// The Godot room (its objects instances, its walls one mesh) walks the same way.
 #[test]
 fn one_mesh_levels_on_eye_height_walks_stay_exact() {
-    let specs = with_godot_room(&[("interior:700@one-mesh", 7), ("city:900@one-mesh", 3)]);
+    let specs = with_godot_room(&[
+        ("interior:700@one-mesh", 7),
+        ("city:900@one-mesh", 3),
+        ("maze:700@one-mesh", 5),
+    ]);
     for (spec, seed) in &specs {
         let (spec, seed) = (spec.as_str(), *seed);
         let scene = with_clusters(spec);

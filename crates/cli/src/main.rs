@@ -160,7 +160,7 @@ enum Command {
     Pvs(pvs::PvsArgs),
     /// Instance, mesh and triangle counts, bounds and material classes of a scene.
     SceneInfo {
-        /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
+        /// A .gltf/.glb path, or city|forest|field|interior|maze[:size[:seed]], or `default`.
         scene: String,
         /// One JSON object instead of a table.
         #[arg(long)]

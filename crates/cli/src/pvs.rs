@@ -9,7 +9,7 @@ use crate::CliError;
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct PvsArgs {
-    /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
+    /// A .gltf/.glb path, or city|forest|field|interior|maze[:size[:seed]], or `default`.
     pub scene: String,
     /// A cell's side in metres.
     #[arg(long, default_value_t = 8.0)]

@@ -23,7 +23,7 @@ pub enum TechniqueMeant {
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct RunArgs {
-    /// A .gltf/.glb path, or city|forest|field|interior[:size[:seed]], or `default`.
+    /// A .gltf/.glb path, or city|forest|field|interior|maze[:size[:seed]], or `default`.
     pub scene: String,
     /// Force a profile by name; takes precedence over TILEGRAPH_PROFILE.
     #[arg(long)]

@@ -33,7 +33,7 @@
 //! ```
 //!
 //! A spec is a path to a `.gltf` / `.glb` file (or any existing file), or
-//! `city|forest|field|interior[:size[:seed]]` where size is an instance count with an optional
+//! `city|forest|field|interior|maze[:size[:seed]]` where size is an instance count with an optional
 //! `k` (thousand) or `M` (million) suffix (default 10k) and seed is a u64 (default 1), or
 //! `default` for [`default_scene`]. See docs/SCENES.md for the formats and conventions.
 
@@ -259,7 +259,7 @@ fn parse_spec<'a>(spec: &'a str, options: &LoadOptions) -> Result<Spec<'a>, Scen
     let Ok(kind) = name.parse::<ProceduralKind>() else {
         return Err(bad(
             "not a .gltf/.glb file, an existing file, `default`, or one of \
-             city|forest|field|interior[:size[:seed]]"
+             city|forest|field|interior|maze[:size[:seed]]"
                 .into(),
         ));
     };

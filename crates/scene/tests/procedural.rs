@@ -305,3 +305,46 @@ fn gpu_records_match_instances() {
         assert!((h - i.bounds.half_extents).max_element() < slack);
     }
 }
+
+/// The maze holds what breaks culling below the instance — triangles of zero area, needles
+/// whose apex lies 1e-6 of their length off the base, millimetre wires — behind walls that hide
+/// most of it, and keeps all of it when baked into one mesh per material.
+#[test]
+fn the_maze_holds_degenerate_and_thin_triangles_behind_walls() {
+    let s = gen(ProceduralKind::Maze, 6_000, 4);
+    let (mut zero, mut needles, mut thin) = (0, 0, 0);
+    for m in s.meshes() {
+        let first = m.first_index as usize;
+        for t in s.indices()[first..first + m.index_count as usize].chunks_exact(3) {
+            let p = |k: usize| {
+                Vec3::from_array(s.vertices()[m.vertex_offset as usize + t[k] as usize].position)
+            };
+            let (a, b, c) = (p(0), p(1), p(2));
+            let area = 0.5 * (b - a).cross(c - a).length();
+            let longest = (b - a).length().max((c - b).length()).max((a - c).length());
+            if area == 0.0 {
+                zero += 1;
+            } else if area / (longest * longest) < 1e-5 {
+                needles += 1;
+            } else if area / (longest * longest) < 1e-3 {
+                thin += 1;
+            }
+        }
+    }
+    assert!(
+        zero >= 2 && needles >= 1 && thin >= 2,
+        "{zero} {needles} {thin}"
+    );
+    // Each clutter mesh is placed.
+    let used: HashSet<u32> = s.instances().iter().map(|i| i.mesh.0).collect();
+    assert_eq!(used.len(), s.meshes().len(), "every mesh instanced");
+    let (hidden, total) = hidden_share(&s, 40.0);
+    println!("maze: {hidden:.2} of {total} hidden from the first camera");
+    assert!(
+        total > 100 && hidden > 0.5,
+        "maze: most clutter behind walls ({hidden:.2})"
+    );
+    let one = s.one_mesh_per_material().unwrap();
+    assert_eq!(one.triangles_drawn(), s.triangles_drawn());
+    assert!(one.instances().len() <= s.materials().len());
+}

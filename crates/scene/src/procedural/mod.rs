@@ -6,6 +6,7 @@
 //! | `forest`   | many alpha-tested foliage cards, trunks            | alpha-tested heavy |
 //! | `field`    | almost nothing: an open plain                      | opaque + cards     |
 //! | `interior` | walls with doors: portal-like occlusion            | opaque + glass + plants |
+//! | `maze`     | walls with doors; wires, needles, zero-area and edge-on pieces below them | opaque |
 //!
 //! `size` is the number of instances: every generator places exactly `max(size, minimum)`
 //! instances (a handful of shared meshes, many instances). Randomness comes only from
@@ -16,6 +17,7 @@ mod city;
 mod field;
 mod forest;
 mod interior;
+mod maze;
 pub mod seed_grid;
 pub(crate) mod shapes;
 
@@ -32,7 +34,7 @@ use crate::error::SceneError;
 use crate::scene::{MaterialId, MeshId, Scene, SceneBuilder, SceneSource, Transform};
 use shapes::MeshData;
 
-/// The four procedural worlds.
+/// The five procedural worlds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ProceduralKind {
@@ -40,14 +42,16 @@ pub enum ProceduralKind {
     Forest,
     Field,
     Interior,
+    Maze,
 }
 
 impl ProceduralKind {
-    pub const ALL: [ProceduralKind; 4] = [
+    pub const ALL: [ProceduralKind; 5] = [
         ProceduralKind::City,
         ProceduralKind::Forest,
         ProceduralKind::Field,
         ProceduralKind::Interior,
+        ProceduralKind::Maze,
     ];
 
     pub fn name(self) -> &'static str {
@@ -56,6 +60,7 @@ impl ProceduralKind {
             ProceduralKind::Forest => "forest",
             ProceduralKind::Field => "field",
             ProceduralKind::Interior => "interior",
+            ProceduralKind::Maze => "maze",
         }
     }
 
@@ -66,6 +71,7 @@ impl ProceduralKind {
             ProceduralKind::Forest => 64,
             ProceduralKind::Field => 16,
             ProceduralKind::Interior => 200,
+            ProceduralKind::Maze => 200,
         }
     }
 }
@@ -124,6 +130,7 @@ pub fn generate(kind: ProceduralKind, params: ProceduralParams) -> Result<Scene,
         ProceduralKind::Forest => forest::generate(&mut g, size)?,
         ProceduralKind::Field => field::generate(&mut g, size)?,
         ProceduralKind::Interior => interior::generate(&mut g, size)?,
+        ProceduralKind::Maze => maze::generate(&mut g, size)?,
     };
     debug_assert_eq!(g.builder.instance_count(), size);
     g.builder.build(Some(path))

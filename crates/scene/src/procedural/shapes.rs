@@ -32,6 +32,16 @@ impl MeshData {
         self.indices.extend_from_slice(&[a, b, c, a, c, d]);
     }
 
+    /// One triangle `a, b, c`, facing `(b - a) x (c - a)` (+y where that is zero: a
+    /// degenerate triangle still carries a unit normal).
+    pub fn triangle(&mut self, a: Vec3, b: Vec3, c: Vec3) {
+        let n = (b - a).cross(c - a).normalize_or(Vec3::Y);
+        let i = self.vertex(a, n, Vec2::new(0.0, 1.0));
+        let j = self.vertex(b, n, Vec2::new(1.0, 1.0));
+        let k = self.vertex(c, n, Vec2::new(0.5, 0.0));
+        self.indices.extend_from_slice(&[i, j, k]);
+    }
+
     /// An axis-aligned box from `min` to `max`, 6 faces with outward normals (CCW from outside).
     pub fn cuboid(&mut self, min: Vec3, max: Vec3) {
         let s = max - min;
