@@ -202,7 +202,7 @@ fn objects_leaving_occluders_are_drawn_the_frame_they_appear() {
 #[test]
 fn conservative_techniques_stay_exact_along_a_walk_while_the_scene_moves() {
     let g = gpu_with(None, culling_features()).unwrap();
-    for spec in ["city:1500", "interior:800"] {
+    for spec in ["city:1500", "interior:800", "maze:800"] {
         let scene = tilegraph_scene::load(spec).unwrap();
         let path = walk(&scene, 16);
         for culling in CONSERVATIVE {
