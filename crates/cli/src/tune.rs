@@ -35,7 +35,8 @@ pub struct TuneArgs {
     /// The scene to tune for (a spec, as every command takes).
     #[arg(long)]
     pub scene: String,
-    /// The camera path to tune on (JSON); the scene's own when absent.
+    /// The camera path to tune on: a JSON file, or `walk[:SEED]` (at eye height through the
+    /// scene, sweeping the view, with cuts); the scene's own when absent.
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
     /// Accept settings whose FN / visible over the path is at most this (default: no false
