@@ -853,6 +853,45 @@ fn walks_at_eye_height_are_named_camera_paths() {
     assert!(!ok && err.contains("walk:SEED"), "{err}");
 }
 
+/// A JSON camera path that looks straight down (a top-down camera) and straight up, giving no
+/// `up`, is checked like any path: no frame is refused for an up parallel to the view.
+#[test]
+fn a_top_down_json_path_without_up_is_checked() {
+    let path = std::env::temp_dir().join(format!("tilegraph-top-down-{}.json", std::process::id()));
+    std::fs::write(
+        &path,
+        r#"{"frames": [
+            {"eye": [0, 30, 0], "target": [0, 0, 0], "cut": true},
+            {"eye": [2, 12, 1], "target": [2, 0, 1]},
+            {"eye": [2, 2.5, 1], "target": [2, 0, 1], "near": 0.01},
+            {"eye": [1, 0.5, 1], "target": [1, 9, 1], "cut": true}
+        ]}"#,
+    )
+    .unwrap();
+    let (ok, out, err) = tilegraph(
+        &[
+            "cull-check",
+            "maze:300",
+            "--camera-path",
+            path.to_str().unwrap(),
+            "--culling",
+            "hiz-2phase",
+            "--size",
+            "96x54",
+            "--frames",
+            "4",
+            "--json",
+        ],
+        &[("TILEGRAPH_VALIDATION", "required")],
+    );
+    std::fs::remove_file(&path).ok();
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["totals"]["false_negatives"], 0, "{out}");
+    assert_eq!(v["totals"]["frames_image_equal"], 4, "{out}");
+    assert!(v["totals"]["visible"].as_u64().unwrap_or(0) > 0, "{out}");
+}
+
 /// `auto` times a visible set given for the scene only where the profile says
 /// `auto_pvs = "allow"` (no shipped profile does).
 #[test]
