@@ -163,8 +163,14 @@ fn print(
     )?;
     if t.image_diff_pixels > 0 {
         outln!(
-            "images differ in {} pixels over the path, {} of them depth ties (both frames hold the same depth there, and another surface at that depth won: depth precision and draw order, not culling)",
-            t.image_diff_pixels, t.image_diff_pixels_depth_tie
+            "images differ in {} pixels over the path, {} of them depth ties (both frames hold the same depth there, and another surface at that depth won: depth precision and draw order, not culling), {} stray (see below)",
+            t.image_diff_pixels, t.image_diff_pixels_depth_tie, t.image_diff_pixels_stray
+        )?;
+    }
+    if t.stray_only + t.cluster_stray_only + t.image_diff_pixels_stray > 0 {
+        outln!(
+            "stray pixels: {} culled instances and {} culled clusters were seen only through pixels the rasterizer drew at a depth their triangles never reach (a degenerate sliver's depth plane); they count neither visible nor FN",
+            t.stray_only, t.cluster_stray_only
         )?;
     }
     if let Some(ms) = t.software_cpu_ms {

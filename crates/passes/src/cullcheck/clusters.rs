@@ -17,6 +17,8 @@ use crate::renderer::SceneRenderer;
 
 use crate::cull::IndirectDraw;
 
+use super::stray::OracleFrame;
+
 /// One frame's clusters: visible (owning a pixel in the oracle), drawn by the technique, and the
 /// differences, counted as (instance, cluster) pairs of the compared instances.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -25,6 +27,10 @@ pub struct ClusterCheck {
     pub drawn: usize,
     pub false_negatives: usize,
     pub false_positives: usize,
+    /// Clusters the technique culled whose every pixel in the oracle is stray (a fragment at a
+    /// depth its triangle never reaches: `stray.rs`), counted neither visible nor false
+    /// negative.
+    pub stray_only: usize,
 }
 
 use crate::draws::cluster_key as key;
@@ -57,22 +63,27 @@ pub fn visible_clusters(
     compare: &[bool],
 ) -> Option<Vec<u64>> {
     scene.clusters()?;
-    let mesh_of = |i: u32| scene.instances().get(i as usize).map(|inst| inst.mesh);
-    let compared = |i: u32| compare.get(i as usize).copied().unwrap_or(false);
     let mut visible: Vec<u64> = owners
         .iter()
         .zip(triangles)
-        .filter(|(&i, _)| i != u32::MAX && compared(i))
-        .filter_map(|(&i, &t)| {
-            let mesh = scene.mesh(mesh_of(i)?)?;
-            let index = mesh.first_index.checked_add(t.checked_mul(3)?)?;
-            let c = clusters_in(scene, mesh_of(i)?.0, index, 1);
-            (!c.is_empty()).then(|| key(i, c.start))
-        })
+        .filter_map(|(&i, &t)| pixel_cluster(scene, compare, i, t))
         .collect();
     visible.sort_unstable();
     visible.dedup();
     Some(visible)
+}
+
+/// The (instance, cluster) key of a pixel owned by instance `i`'s triangle `t`, if `i` is
+/// compared and the triangle lies in a cluster.
+fn pixel_cluster(scene: &Scene, compare: &[bool], i: u32, t: u32) -> Option<u64> {
+    if !compare.get(i as usize).copied().unwrap_or(false) {
+        return None;
+    }
+    let mesh_id = scene.instances().get(i as usize)?.mesh;
+    let mesh = scene.mesh(mesh_id)?;
+    let index = mesh.first_index.checked_add(t.checked_mul(3)?)?;
+    let c = clusters_in(scene, mesh_id.0, index, 1);
+    (!c.is_empty()).then(|| key(i, c.start))
 }
 
 /// A cluster technique's frame below the instance.
@@ -95,6 +106,7 @@ pub(super) fn of_technique(
     scene: &Scene,
     owners: (&[u32], Option<&[u32]>),
     compare: &[bool],
+    stray: Option<&OracleFrame<'_>>,
 ) -> Result<Below, RenderError> {
     let lists = tested.gpu_lists(ctx)?.ok_or(RenderError::MissingReadback {
         what: "the cluster technique's GPU lists",
@@ -106,12 +118,29 @@ pub(super) fn of_technique(
         .flatten()
         .collect();
     let (ids, triangles) = owners;
-    let visible = triangles.and_then(|t| visible_clusters(scene, ids, t, compare));
+    let mut visible = triangles.and_then(|t| visible_clusters(scene, ids, t, compare));
     let packed = tested.options().triangle_culling;
-    let check = visible
-        .as_deref()
-        .filter(|_| !packed)
-        .map(|v| cluster_check(scene, v, compare, &colour));
+    let check = match (visible.as_mut(), triangles) {
+        (Some(v), Some(t)) if !packed => {
+            let drawn = drawn_clusters(scene, compare, &colour);
+            // Culled clusters seen only through stray pixels are not visible.
+            let only_stray = stray.map_or_else(Vec::new, |s| {
+                let culled: Vec<u64> = v
+                    .iter()
+                    .filter(|k| drawn.binary_search(k).is_err())
+                    .copied()
+                    .collect();
+                let key_of = |p: usize| pixel_cluster(scene, compare, *ids.get(p)?, *t.get(p)?);
+                s.only_stray(&culled, key_of)
+            });
+            v.retain(|k| only_stray.binary_search(k).is_err());
+            Some(ClusterCheck {
+                stray_only: only_stray.len(),
+                ..compared(v, &drawn)
+            })
+        }
+        _ => None,
+    };
     Ok(Below {
         triangles: lists.colour_triangles(),
         check,
@@ -127,6 +156,11 @@ pub fn cluster_check(
     compare: &[bool],
     colour: &[&IndirectDraw],
 ) -> ClusterCheck {
+    compared(visible, &drawn_clusters(scene, compare, colour))
+}
+
+/// The clusters of compared instances that `colour`'s commands drew, as sorted keys.
+fn drawn_clusters(scene: &Scene, compare: &[bool], colour: &[&IndirectDraw]) -> Vec<u64> {
     let mesh_of = |i: u32| scene.instances().get(i as usize).map(|inst| inst.mesh);
     let compared = |i: u32| compare.get(i as usize).copied().unwrap_or(false);
     let mut drawn: Vec<u64> = colour
@@ -141,6 +175,11 @@ pub fn cluster_check(
         .collect();
     drawn.sort_unstable();
     drawn.dedup();
+    drawn
+}
+
+/// Visible against drawn clusters (both sorted keys).
+fn compared(visible: &[u64], drawn: &[u64]) -> ClusterCheck {
     let in_drawn = |k: &u64| drawn.binary_search(k).is_ok();
     let in_visible = |k: &u64| visible.binary_search(k).is_ok();
     ClusterCheck {
@@ -148,6 +187,7 @@ pub fn cluster_check(
         drawn: drawn.len(),
         false_negatives: visible.iter().filter(|k| !in_drawn(k)).count(),
         false_positives: drawn.iter().filter(|k| !in_visible(k)).count(),
+        stray_only: 0,
     }
 }
 
@@ -236,7 +276,8 @@ mod tests {
                 visible: 3,
                 drawn: 6,
                 false_negatives: 0,
-                false_positives: 3
+                false_positives: 3,
+                stray_only: 0,
             }
         );
         // Instance 0's last cluster culled (its run ends at index 12): one false negative.

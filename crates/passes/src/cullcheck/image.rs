@@ -7,6 +7,8 @@ use tilegraph_scene::{DepthConvention, FrameMatrices};
 
 use tilegraph_vk::readback::RgbaImage;
 
+use super::stray::OracleFrame;
+
 /// How far a frame's image lies from the reference's, over the RGB channels (0-255).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct ImageError {
@@ -109,16 +111,16 @@ fn psnr(mse: f64) -> Option<f64> {
     (mse > 0.0).then(|| 10.0 * (255.0 * 255.0 / mse).log10())
 }
 
-/// The diff image of a failed frame: the reference in dim grey, differing pixels red, pixels
-/// owned (in the oracle) by a visible instance the technique did not draw magenta.
 /// The pixels where a technique's image differs from the reference's, and of them those
 /// whose owner (`ids`, the oracle's) the technique drew, and those where both depths are the
-/// same bit for bit (`FrameCheck`'s `image_diff_pixels*`).
+/// same bit for bit, and those whose owner in the oracle is stray (`FrameCheck`'s
+/// `image_diff_pixels*`).
 #[derive(Debug, Default, Clone, Copy)]
 pub(super) struct PixelDiff {
     pub pixels: usize,
     pub owner_drawn: usize,
     pub depth_tie: usize,
+    pub stray: usize,
 }
 
 impl PixelDiff {
@@ -128,6 +130,7 @@ impl PixelDiff {
         ids: &[u32],
         drawn: &[bool],
         depths: Option<&(Vec<f32>, Vec<f32>)>,
+        stray: Option<&OracleFrame<'_>>,
     ) -> Self {
         let mut diff = PixelDiff::default();
         let pairs = got.pixels.chunks_exact(4).zip(want.pixels.chunks_exact(4));
@@ -139,11 +142,14 @@ impl PixelDiff {
                 matches!((a.get(p), b.get(p)), (Some(x), Some(y)) if x.to_bits() == y.to_bits())
             });
             diff.depth_tie += usize::from(tie);
+            diff.stray += usize::from(stray.is_some_and(|s| s.is_stray(p)));
         }
         diff
     }
 }
 
+/// The diff image of a failed frame: the reference in dim grey, differing pixels red, pixels
+/// owned (in the oracle) by a visible instance the technique did not draw magenta.
 pub(super) fn diff_image(
     got: &RgbaImage,
     want: &RgbaImage,
