@@ -163,8 +163,13 @@ fn print(
     )?;
     if t.image_diff_pixels > 0 {
         outln!(
-            "images differ in {} pixels over the path, {} of them depth ties (both frames hold the same depth there, and another surface at that depth won: depth precision and draw order, not culling), {} stray (see below)",
-            t.image_diff_pixels, t.image_diff_pixels_depth_tie, t.image_diff_pixels_stray
+            "images differ in {} pixels over the path, {} of them depth ties (both frames hold the same depth there, and another surface at that depth won: depth precision and draw order, not culling){}",
+            t.image_diff_pixels,
+            t.image_diff_pixels_depth_tie,
+            match t.image_diff_pixels_stray {
+                0 => String::new(),
+                n => format!(", {n} stray (below)"),
+            }
         )?;
     }
     if t.stray_only + t.cluster_stray_only + t.image_diff_pixels_stray > 0 {

@@ -154,6 +154,17 @@ fn scene_info_json_has_the_documented_fields() {
     }
     assert_eq!(v["bounds"]["min"].as_array().map(Vec::len), Some(3));
     assert_eq!(v["bounds"]["max"].as_array().map(Vec::len), Some(3));
+    assert_eq!(v["degenerate"]["zero_area"], 0, "the city is clean: {v}");
+    // The maze strews zero-area triangles and needles on purpose.
+    let (ok, out, err) = tilegraph(&["scene-info", "maze:700", "--json"], &[]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    for k in ["zero_area", "slivers"] {
+        assert!(
+            v["degenerate"][k].as_u64().is_some_and(|n| n > 0),
+            "{k} in {v}"
+        );
+    }
     let (ok, _, err) = tilegraph(&["scene-info", "/nonexistent.gltf"], &[]);
     assert!(!ok && err.contains("nonexistent"), "{err}");
 }

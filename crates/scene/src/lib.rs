@@ -65,8 +65,8 @@ pub use motion::{Motion, MotionParams};
 pub use procedural::seed_grid;
 pub use procedural::{generate, ProceduralKind, ProceduralParams};
 pub use scene::{
-    BoundsInfo, CellRun, Change, ClassCounts, DrawBuckets, DrawGroup, GltfCounts, GpuInstance,
-    GpuLod, GpuMaterial, GpuMesh, GridMember, Instance, InstanceBounds, InstanceFlags,
+    BoundsInfo, CellRun, Change, ClassCounts, Degenerate, DrawBuckets, DrawGroup, GltfCounts,
+    GpuInstance, GpuLod, GpuMaterial, GpuMesh, GridMember, Instance, InstanceBounds, InstanceFlags,
     InstanceHandle, InstanceId, LooseGrid, Material, MaterialClass, MaterialId, Mesh, MeshHandle,
     MeshId, Overlap, RelativeInstance, Scene, SceneBuilder, SceneCursor, SceneInfo, SceneSource,
     SplitPoint, Transform, Vertex, DRAW_LISTS, MAX_LODS,

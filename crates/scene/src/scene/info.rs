@@ -47,8 +47,56 @@ impl Scene {
             camera_path_frames: self.camera_path.len() as u64,
             textures: self.textures.len() as u64,
             texture_bytes: self.texture_bytes(),
+            degenerate: self.degenerate_triangles(),
         }
     }
+
+    /// The meshes' triangles (each once) that cover nothing or almost nothing
+    /// ([`Degenerate`]).
+    pub fn degenerate_triangles(&self) -> Degenerate {
+        let mut count = Degenerate::default();
+        for mesh in &self.meshes {
+            let first = mesh.first_index as usize;
+            let Some(indices) = self.indices.get(first..first + mesh.index_count as usize) else {
+                continue;
+            };
+            let corner = |i: u32| {
+                let v = usize::try_from(i64::from(i) + i64::from(mesh.vertex_offset)).ok()?;
+                self.vertices.get(v).map(|v| glam::Vec3::from(v.position))
+            };
+            for t in indices.chunks_exact(3) {
+                let (Some(a), Some(b), Some(c)) = (corner(t[0]), corner(t[1]), corner(t[2])) else {
+                    continue;
+                };
+                let twice_area = (b - a).cross(c - a).length();
+                let longest = (b - a)
+                    .length_squared()
+                    .max((c - b).length_squared())
+                    .max((a - c).length_squared());
+                if twice_area == 0.0 {
+                    count.zero_area += 1;
+                } else if twice_area < 2.0 * SLIVER * longest {
+                    count.slivers += 1;
+                }
+            }
+        }
+        count
+    }
+}
+
+/// Area over the longest edge squared below which a triangle is a sliver: a needle whose apex
+/// lies 2e-5 of its length off its base. Thin geometry meant as such (a 1 mm wire 8 m long,
+/// 1.25e-4) stays above it.
+const SLIVER: f32 = 1e-5;
+
+/// Triangles that cover nothing (`zero_area`: collinear or repeated corners, exactly, in
+/// f32) or almost nothing (`slivers`: area under [`SLIVER`] of the longest edge squared). They
+/// add nothing to an image, yet a rasterizer may draw a pixel of one at a depth it never
+/// reaches (docs/ACCURACY.md, "Stray pixels"): a mesh to clean.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Degenerate {
+    pub zero_area: u64,
+    pub slivers: u64,
 }
 
 /// Counts per material class.
@@ -114,6 +162,8 @@ pub struct SceneInfo {
     /// Textures and the bytes of their mip chains (RGBA8): the GPU memory they take.
     pub textures: u64,
     pub texture_bytes: u64,
+    /// Triangles that cover nothing or almost nothing, once per mesh.
+    pub degenerate: Degenerate,
 }
 
 impl fmt::Display for SceneInfo {
@@ -142,6 +192,16 @@ impl fmt::Display for SceneInfo {
             "triangles          {} drawn ({} unique)",
             self.triangles, self.unique_triangles
         )?;
+        let Degenerate { zero_area, slivers } = self.degenerate;
+        let clean = if zero_area + slivers > 0 {
+            " (they cover nothing, or almost, and may rasterize stray pixels: a mesh to clean)"
+        } else {
+            ""
+        };
+        writeln!(
+            f,
+            "degenerate         {zero_area} zero-area, {slivers} slivers{clean}"
+        )?;
         writeln!(f, "vertices / indices {} / {}", self.vertices, self.indices)?;
         writeln!(
             f,
@@ -166,5 +226,40 @@ impl fmt::Display for SceneInfo {
             "bounds             [{x0:.3}, {y0:.3}, {z0:.3}] .. [{x1:.3}, {y1:.3}, {z1:.3}]"
         )?;
         write!(f, "camera path        {} frames", self.camera_path_frames)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::{Material, SceneBuilder, Transform, Vertex};
+
+    #[test]
+    fn zero_area_triangles_and_needles_are_degenerate_wires_are_not() {
+        let mut b = SceneBuilder::new("degenerate");
+        let m = b.add_material(Material::opaque([1.0; 4]));
+        let v = |x: f32, y: f32, z: f32| Vertex {
+            position: [x, y, z],
+            normal: [0.0, 0.0, 1.0],
+            uv: [0.0, 0.0],
+        };
+        let vertices = [
+            // 0-2: a plain triangle; 3: collinear with 0 and 1.
+            v(0.0, 0.0, 0.0),
+            v(1.0, 0.0, 0.0),
+            v(0.0, 1.0, 0.0),
+            v(2.0, 0.0, 0.0),
+            // 4: a needle's apex 1e-6 of its length off the base 0-1 (at its middle).
+            v(0.5, 1e-6, 0.0),
+            // 5, 6: a wire 1 mm wide and 8 m long with 0.
+            v(8.0, 0.0, 0.0),
+            v(8.0, 0.001, 0.0),
+        ];
+        let indices = [0, 1, 2, 0, 1, 3, 0, 0, 2, 0, 1, 4, 0, 5, 6];
+        let mesh = b.add_mesh(&vertices, &indices, m).unwrap();
+        b.add_instance(Transform::IDENTITY, mesh).unwrap();
+        let scene = b.build(None).unwrap();
+        let d = scene.degenerate_triangles();
+        assert_eq!((d.zero_area, d.slivers), (2, 1), "{d:?}");
+        assert_eq!(scene.info().degenerate, d);
     }
 }

@@ -35,7 +35,7 @@ pub use elements::{
 };
 pub use gpu::{GpuInstance, GpuMaterial, GpuMesh, RelativeInstance, SplitPoint};
 pub use grid::{CellRun, GridMember, LooseGrid, Overlap};
-pub use info::{BoundsInfo, ClassCounts, SceneInfo};
+pub use info::{BoundsInfo, ClassCounts, Degenerate, SceneInfo};
 pub use journal::{Change, SceneCursor};
 
 /// Where a scene came from.
