@@ -265,42 +265,50 @@ fn one_mesh_levels_on_eye_height_walks_stay_exact() {
     }
 }
 
-/// A zero-area triangle of the maze (collinear corners, 15-22 m away) that lavapipe, at
-/// 333x77, rasterizes at one pixel with depth 1.0 — the near plane, where its corners lie at
-/// 0.0006 — owns that pixel in the unculled frame; `hiz-2phase-clusters` rightly culls its
-/// cluster (whose box lies behind a wall). The oracle judges the pixel stray, off its
-/// triangle, and counts no false negative for it; every other pixel and cluster stays exact.
-/// (On the H200 the same frame draws no such fragment and is exact outright.)
+/// Degenerate triangles of the maze that lavapipe, at 333x77, rasterizes at a depth they
+/// never reach. On walk 233673 a collinear triangle 15-22 m away owns a pixel at depth 1.0 —
+/// the near plane, where its corners lie at 0.0006 — in the unculled frame (19), and
+/// `hiz-2phase-clusters` rightly culls its cluster, whose box lies behind a wall. On walk
+/// 491291 `frustum-clusters`, drawing the level in runs of clusters, shows such a fleck at 1.0
+/// in front of a wall (frame 10) that the whole draw of the unculled frame does not. The oracle
+/// judges both stray: no false negative, and every differing pixel a stray one. (On the H200
+/// neither frame draws a stray fragment, and both are exact outright.)
 #[test]
-fn a_degenerate_triangles_stray_pixel_is_no_culled_cluster() {
-    let scene = with_clusters("maze:1500:233673@one-mesh");
-    let path = CameraPath::eye_height_walk(&scene.bounds(), 240, 233673);
-    let options = RenderOptions {
-        width: 333,
-        height: 77,
-        culling: Culling::HizTwoPhaseClusters,
-        ..Default::default()
-    };
+fn degenerate_triangles_stray_pixels_are_no_culling_errors() {
     let g = gpu_with(None, tilegraph_e2e::culling_features()).unwrap();
-    let r =
-        cull_check_options(&g, &scene, options, &path, Some(20), CheckExtras::default()).unwrap();
-    for f in &r.frames {
-        let c = f
-            .clusters
-            .expect("a cluster technique's frame has a cluster comparison");
-        assert_eq!(c.false_negatives, 0, "frame {}: {c:?}", f.frame);
-        assert_eq!(f.false_negatives, 0, "frame {}", f.frame);
-        assert_eq!(
-            f.image_diff_pixels, f.image_diff_pixels_stray,
-            "frame {}: every differing pixel is a stray one",
-            f.frame
+    for (seed, culling, frames) in [
+        (233673, Culling::HizTwoPhaseClusters, 20),
+        (491291, Culling::FrustumClusters, 11),
+    ] {
+        let size = if seed == 233673 { 1500 } else { 500 };
+        let scene = with_clusters(&format!("maze:{size}:{seed}@one-mesh"));
+        let path = CameraPath::eye_height_walk(&scene.bounds(), 240, seed);
+        let options = RenderOptions {
+            width: 333,
+            height: 77,
+            culling,
+            ..Default::default()
+        };
+        let extras = CheckExtras::default();
+        let r = cull_check_options(&g, &scene, options, &path, Some(frames), extras).unwrap();
+        for f in &r.frames {
+            let c = f
+                .clusters
+                .expect("a cluster technique's frame has a cluster comparison");
+            assert_eq!(c.false_negatives, 0, "walk {seed} frame {}: {c:?}", f.frame);
+            assert_eq!(f.false_negatives, 0, "walk {seed} frame {}", f.frame);
+            assert_eq!(
+                f.image_diff_pixels, f.image_diff_pixels_stray,
+                "walk {seed} frame {}: every differing pixel is a stray one",
+                f.frame
+            );
+        }
+        let t = &r.totals;
+        println!(
+            "maze walk {seed} at 333x77, {}: clusters FN {}, stray-only {}; images equal {}/{}, {} stray pixels differ",
+            r.technique, t.cluster_false_negatives, t.cluster_stray_only, t.frames_image_equal, t.frames, t.image_diff_pixels_stray
         );
     }
-    let t = &r.totals;
-    println!(
-        "maze walk 233673 at 333x77: clusters FN {}, stray-only {}; images equal {}/{}, {} stray pixels differ",
-        t.cluster_false_negatives, t.cluster_stray_only, t.frames_image_equal, t.frames, t.image_diff_pixels_stray
-    );
 }
 
 /// The cluster knobs' other settings trade work, never exactness: `cluster_early = "clusters"`

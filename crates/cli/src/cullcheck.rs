@@ -174,8 +174,8 @@ fn print(
     }
     if t.stray_only + t.cluster_stray_only + t.image_diff_pixels_stray > 0 {
         outln!(
-            "stray pixels: {} culled instances and {} culled clusters were seen only through pixels the rasterizer drew at a depth their triangles never reach (a degenerate sliver's depth plane); they count neither visible nor FN",
-            t.stray_only, t.cluster_stray_only
+            "stray pixels: {} of the differing pixels are a degenerate triangle's, drawn by the rasterizer at a depth the triangle never reaches (in the unculled frame or the technique's: no culling keeps or makes them); {} culled instances and {} culled clusters were seen only through such pixels and count neither visible nor FN",
+            t.image_diff_pixels_stray, t.stray_only, t.cluster_stray_only
         )?;
     }
     if let Some(ms) = t.software_cpu_ms {

@@ -324,6 +324,8 @@ impl Run<'_> {
         let mut visible_sets = Vec::with_capacity(count);
         let mut cpu_ms = Vec::with_capacity(count);
         let mut compared = 0;
+        // Degenerate triangles, for telling stray pixels in the technique's frame.
+        let degenerate = world.scene().degenerate_triangle_ids();
         for index in 0..count {
             let Some(frame) = path.frame(index, aspect) else {
                 break;
@@ -355,6 +357,8 @@ impl Run<'_> {
                     instances: ids,
                     triangles,
                     depth,
+                    size,
+                    degenerate: &degenerate,
                 }),
                 _ => None,
             };

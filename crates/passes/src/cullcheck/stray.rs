@@ -14,9 +14,16 @@
 //! range the frame keeps), widened by a slack far above depth precision. An owner seen only
 //! through stray pixels is reported as such, not as visible, and a differing pixel whose
 //! owner in the oracle is stray is counted apart from culling errors.
+//!
+//! The same sliver may be covered in one frame and not in the other: lavapipe rasterizes it
+//! differently when the draw around it changes (a cluster technique draws a mesh in runs). A
+//! stray pixel the *technique* shows is recognised without its owner: the technique's depth
+//! there is nearer than the unculled frame's — culling draws a subset, so no culled surface
+//! can show as something nearer — and a degenerate triangle (`Scene::degenerate_triangle_ids`)
+//! of a drawn instance passes within a pixel of its centre, its own depths well behind that.
 
-use glam::Vec3;
-use tilegraph_scene::{FrameMatrices, Scene};
+use glam::{Vec2, Vec3};
+use tilegraph_scene::{FrameMatrices, MeshId, Scene};
 
 /// How far outside its triangle's depth range a pixel may lie and still be the triangle's:
 /// absolute, and relative to the depths themselves. Depth-buffer steps (D16: 1.5e-5) and
@@ -33,6 +40,11 @@ pub(super) struct OracleFrame<'a> {
     pub instances: &'a [u32],
     pub triangles: &'a [u32],
     pub depth: &'a [f32],
+    /// The frame's size in pixels.
+    pub size: (u32, u32),
+    /// The scene's degenerate triangles, (mesh, triangle) in mesh order
+    /// (`Scene::degenerate_triangle_ids`).
+    pub degenerate: &'a [(MeshId, u32)],
 }
 
 impl OracleFrame<'_> {
@@ -76,6 +88,98 @@ impl OracleFrame<'_> {
             .map(|(&k, _)| k)
             .collect()
     }
+}
+
+impl OracleFrame<'_> {
+    /// Whether the technique's pixel `p`, at depth `technique` where the unculled frame holds
+    /// `reference`, is a degenerate triangle's stray: `technique` is nearer, and a degenerate
+    /// triangle of an instance `drawn` says was drawn passes within a pixel of `p`'s centre
+    /// and lies clearly off `technique`.
+    pub fn is_technique_stray(
+        &self,
+        p: usize,
+        (technique, reference): (f32, f32),
+        drawn: &[bool],
+    ) -> bool {
+        let (width, height) = self.size;
+        let degenerate = self.degenerate;
+        if !self.matrices.depth.is_closer(technique, reference) || width == 0 {
+            return false;
+        }
+        let centre = Vec2::new(
+            (p % width as usize) as f32 + 0.5,
+            (p / width as usize) as f32 + 0.5,
+        );
+        let size = Vec2::new(width as f32, height as f32);
+        let instances = self.scene.instances().iter().enumerate();
+        instances
+            .filter(|(i, _)| drawn.get(*i).copied().unwrap_or(false))
+            .any(|(i, inst)| {
+                let first = degenerate.partition_point(|&(m, _)| m < inst.mesh);
+                degenerate[first..]
+                    .iter()
+                    .take_while(|&&(m, _)| m == inst.mesh)
+                    .any(|&(_, t)| {
+                        let i = i as u32;
+                        let near = footprint(self.scene, self.matrices, i, t, size)
+                            .is_some_and(|f| distance(centre, &f) <= 1.0);
+                        near && depth_range(self.scene, self.matrices, i, t)
+                            .is_some_and(|(lo, hi)| outside(technique, lo, hi))
+                    })
+            })
+    }
+}
+
+/// The pixel positions of triangle `triangle` of instance `instance`'s mesh in a frame of
+/// `size` pixels; `None` when a corner lies behind the eye (its footprint is then unbounded:
+/// not judged) or the triangle does not exist.
+fn footprint(
+    scene: &Scene,
+    m: &FrameMatrices,
+    instance: u32,
+    triangle: u32,
+    size: Vec2,
+) -> Option<[Vec2; 3]> {
+    let inst = scene.instances().get(instance as usize)?;
+    let mesh = scene.mesh(inst.mesh)?;
+    if triangle >= mesh.triangle_count() {
+        return None;
+    }
+    let first = mesh.first_index as usize + 3 * triangle as usize;
+    let corners = scene.indices().get(first..first + 3)?;
+    let mut out = [Vec2::ZERO; 3];
+    for (o, &index) in out.iter_mut().zip(corners) {
+        let vertex = usize::try_from(i64::from(index) + i64::from(mesh.vertex_offset)).ok()?;
+        let position = Vec3::from(scene.vertices().get(vertex)?.position);
+        let world = (inst.transform.linear * position).as_dvec3() + inst.transform.translation;
+        let clip = m.view_projection * (world - m.eye).as_vec3().extend(1.0);
+        if clip.w <= 0.0 {
+            return None;
+        }
+        *o = (Vec2::new(clip.x, clip.y) / clip.w + 1.0) * 0.5 * size;
+    }
+    Some(out)
+}
+
+/// The distance from `p` to the triangle `t` (0 inside), degenerate ones included: the
+/// nearest of its three edges where `p` is outside.
+fn distance(p: Vec2, t: &[Vec2; 3]) -> f32 {
+    let edge = |a: Vec2, b: Vec2| {
+        let ab = b - a;
+        let along = if ab.length_squared() > 0.0 {
+            ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (a + ab * along).distance(p)
+    };
+    let side = |a: Vec2, b: Vec2| (b - a).perp_dot(p - a);
+    let s = [side(t[0], t[1]), side(t[1], t[2]), side(t[2], t[0])];
+    let inside = s.iter().all(|&x| x > 0.0) || s.iter().all(|&x| x < 0.0);
+    if inside {
+        return 0.0;
+    }
+    edge(t[0], t[1]).min(edge(t[1], t[2])).min(edge(t[2], t[0]))
 }
 
 /// Whether `depth` lies clearly outside `lo..=hi` (by more than the slack).
@@ -182,6 +286,8 @@ mod tests {
                 instances: &[instance],
                 triangles: &[0],
                 depth: &[depth],
+                size: (1, 1),
+                degenerate: &[],
             };
             frame.is_stray(0)
         };
@@ -197,6 +303,8 @@ mod tests {
                 instances: &[0, 0, u32::MAX],
                 triangles: &[0, 0, 0],
                 depth: &[depth[0], depth[1], 0.0],
+                size: (3, 1),
+                degenerate: &[],
             };
             let key = |p: usize| {
                 frame
@@ -209,5 +317,42 @@ mod tests {
         };
         assert_eq!(two([1.0, 1.0]), [0]);
         assert!(two([1.0, (lo + hi) / 2.0]).is_empty());
+    }
+
+    #[test]
+    fn a_nearer_technique_pixel_on_a_degenerate_footprint_is_stray() {
+        // Collinear corners 10-20 m away, seen in a 64x64 frame.
+        let s = scene([[0.0, 0.0, -10.0], [0.0, 0.5, -15.0], [0.0, 1.0, -20.0]]);
+        let m = frame(DVec3::ZERO);
+        let degenerate = s.degenerate_triangle_ids();
+        assert_eq!(degenerate.len(), 1);
+        let size = (64u32, 64u32);
+        let f = footprint(&s, &m, 0, 0, Vec2::new(64.0, 64.0)).unwrap();
+        let on = |c: Vec2| c.y as usize * 64 + c.x as usize;
+        let (lo, hi) = depth_range(&s, &m, 0, 0).unwrap();
+        let oracle = OracleFrame {
+            scene: &s,
+            matrices: &m,
+            instances: &[],
+            triangles: &[],
+            depth: &[],
+            size,
+            degenerate: &degenerate,
+        };
+        let p = on((f[0] + f[2]) / 2.0);
+        // The technique shows the near plane there, the unculled frame the background.
+        assert!(oracle.is_technique_stray(p, (1.0, 0.0), &[true]));
+        // Not drawn, farther than the unculled frame, on the triangle, or far from it: no.
+        assert!(!oracle.is_technique_stray(p, (1.0, 0.0), &[false]));
+        assert!(!oracle.is_technique_stray(p, (0.0, 1.0), &[true]));
+        assert!(!oracle.is_technique_stray(p, ((lo + hi) / 2.0, 0.0), &[true]));
+        let away = on(Vec2::new((f[0].x + 20.0).rem_euclid(64.0), f[0].y));
+        assert!(!oracle.is_technique_stray(away, (1.0, 0.0), &[true]));
+        // Distances: inside a plain triangle 0, else to the nearest edge.
+        let t = [Vec2::ZERO, Vec2::new(4.0, 0.0), Vec2::new(0.0, 4.0)];
+        assert_eq!(distance(Vec2::new(1.0, 1.0), &t), 0.0);
+        assert_eq!(distance(Vec2::new(-2.0, 1.0), &t), 2.0);
+        let line = [Vec2::ZERO, Vec2::new(2.0, 0.0), Vec2::new(4.0, 0.0)];
+        assert_eq!(distance(Vec2::new(3.0, 0.5), &line), 0.5);
     }
 }

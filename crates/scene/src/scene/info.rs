@@ -4,7 +4,7 @@ use std::fmt;
 
 use serde::Serialize;
 
-use super::{MaterialClass, Scene, SceneSource};
+use super::{MaterialClass, MeshId, Scene, SceneSource};
 
 impl Scene {
     /// The counts the CLI prints (`tilegraph scene info`).
@@ -55,7 +55,24 @@ impl Scene {
     /// ([`Degenerate`]).
     pub fn degenerate_triangles(&self) -> Degenerate {
         let mut count = Degenerate::default();
-        for mesh in &self.meshes {
+        self.each_degenerate(|_, _, zero_area| match zero_area {
+            true => count.zero_area += 1,
+            false => count.slivers += 1,
+        });
+        count
+    }
+
+    /// Every degenerate triangle ([`Degenerate`]) as (mesh, triangle of the mesh's draw), in
+    /// mesh order.
+    pub fn degenerate_triangle_ids(&self) -> Vec<(MeshId, u32)> {
+        let mut ids = Vec::new();
+        self.each_degenerate(|mesh, triangle, _| ids.push((mesh, triangle)));
+        ids
+    }
+
+    /// Calls `f(mesh, triangle, zero_area)` for each degenerate triangle.
+    fn each_degenerate(&self, mut f: impl FnMut(MeshId, u32, bool)) {
+        for (m, mesh) in self.meshes.iter().enumerate() {
             let first = mesh.first_index as usize;
             let Some(indices) = self.indices.get(first..first + mesh.index_count as usize) else {
                 continue;
@@ -64,8 +81,8 @@ impl Scene {
                 let v = usize::try_from(i64::from(i) + i64::from(mesh.vertex_offset)).ok()?;
                 self.vertices.get(v).map(|v| glam::Vec3::from(v.position))
             };
-            for t in indices.chunks_exact(3) {
-                let (Some(a), Some(b), Some(c)) = (corner(t[0]), corner(t[1]), corner(t[2])) else {
+            for (t, corners) in indices.chunks_exact(3).enumerate() {
+                let [Some(a), Some(b), Some(c)] = [0, 1, 2].map(|k| corner(corners[k])) else {
                     continue;
                 };
                 let twice_area = (b - a).cross(c - a).length();
@@ -73,14 +90,11 @@ impl Scene {
                     .length_squared()
                     .max((c - b).length_squared())
                     .max((a - c).length_squared());
-                if twice_area == 0.0 {
-                    count.zero_area += 1;
-                } else if twice_area < 2.0 * SLIVER * longest {
-                    count.slivers += 1;
+                if twice_area < 2.0 * SLIVER * longest || twice_area == 0.0 {
+                    f(MeshId(m as u32), t as u32, twice_area == 0.0);
                 }
             }
         }
-        count
     }
 }
 
@@ -261,5 +275,15 @@ mod tests {
         let d = scene.degenerate_triangles();
         assert_eq!((d.zero_area, d.slivers), (2, 1), "{d:?}");
         assert_eq!(scene.info().degenerate, d);
+        let ids: Vec<u32> = scene
+            .degenerate_triangle_ids()
+            .iter()
+            .map(|&(_, t)| t)
+            .collect();
+        assert_eq!(
+            ids,
+            [1, 2, 3],
+            "the collinear, repeated-corner and needle triangles"
+        );
     }
 }
