@@ -163,18 +163,19 @@ fn print(
     )?;
     if t.image_diff_pixels > 0 {
         outln!(
-            "images differ in {} pixels over the path, {} of them depth ties (both frames hold the same depth there, and another surface at that depth won: depth precision and draw order, not culling){}",
+            "images differ in {} pixels over the path, {} of them depth ties (both frames hold the same depth there, and another surface at that depth won: depth precision and draw order, not culling){}; {} neither",
             t.image_diff_pixels,
             t.image_diff_pixels_depth_tie,
             match t.image_diff_pixels_stray {
                 0 => String::new(),
                 n => format!(", {n} stray (below)"),
-            }
+            },
+            t.image_diff_pixels_unexplained
         )?;
     }
     if t.stray_only + t.cluster_stray_only + t.image_diff_pixels_stray > 0 {
         outln!(
-            "stray pixels: {} of the differing pixels are a degenerate triangle's, drawn by the rasterizer at a depth the triangle never reaches (in the unculled frame or the technique's: no culling keeps or makes them); {} culled instances and {} culled clusters were seen only through such pixels and count neither visible nor FN",
+            "stray pixels: {} of the differing pixels are a degenerate triangle's, which the rasterizer draws at a depth the triangle never reaches or covers differently from draw to draw (in the unculled frame or the technique's: no culling keeps or makes them); {} culled instances and {} culled clusters were seen only through pixels off their triangles' depth and count neither visible nor FN",
             t.image_diff_pixels_stray, t.stray_only, t.cluster_stray_only
         )?;
     }

@@ -463,7 +463,7 @@ impl Matrix<'_> {
                     ));
                 } else if s.entry.max_false_negatives == 0 && t.frames_image_equal < t.frames {
                     case.failures.push(format!(
-                        "culling: the image differs from the unculled one in {} of {} frames, {} pixels ({} of them depth ties: the same depth, another surface at it drawn first — depth precision; {} stray: owned by a degenerate triangle the rasterizer drew off its own depth — a mesh to clean; docs/ACCURACY.md)",
+                        "culling: the image differs from the unculled one in {} of {} frames, {} pixels ({} of them depth ties: the same depth, another surface at it drawn first — depth precision; {} stray: a degenerate triangle's, drawn off its own depth or covered differently from draw to draw — a mesh to clean; docs/ACCURACY.md)",
                         t.frames - t.frames_image_equal,
                         t.frames,
                         t.image_diff_pixels,

@@ -121,6 +121,8 @@ pub(super) struct PixelDiff {
     pub owner_drawn: usize,
     pub depth_tie: usize,
     pub stray: usize,
+    /// Neither a tie nor stray.
+    pub unexplained: usize,
 }
 
 impl PixelDiff {
@@ -142,12 +144,12 @@ impl PixelDiff {
                 matches!((a.get(p), b.get(p)), (Some(x), Some(y)) if x.to_bits() == y.to_bits())
             });
             diff.depth_tie += usize::from(tie);
-            // A stray pixel in the unculled frame (its owner's), or in the technique's.
-            let technique_stray = |s: &OracleFrame<'_>| {
-                let pair = depths.and_then(|(a, b)| Some((*a.get(p)?, *b.get(p)?)));
-                pair.is_some_and(|d| s.is_technique_stray(p, d, drawn))
-            };
-            diff.stray += usize::from(stray.is_some_and(|s| s.is_stray(p) || technique_stray(s)));
+            let pair = depths.and_then(|(a, b)| Some((*a.get(p)?, *b.get(p)?)));
+            let explained = stray
+                .zip(pair)
+                .is_some_and(|(s, d)| s.explains_difference(p, d, drawn));
+            diff.stray += usize::from(explained);
+            diff.unexplained += usize::from(!tie && !explained);
         }
         diff
     }

@@ -486,6 +486,7 @@ impl Run<'_> {
                 image_diff_pixels_owner_drawn: diff.owner_drawn,
                 image_diff_pixels_depth_tie: diff.depth_tie,
                 image_diff_pixels_stray: diff.stray,
+                image_diff_pixels_unexplained: diff.unexplained,
                 image_error: match &depths {
                     Some((a, b)) => {
                         ImageError::between(&got, &want).with_depth(a, b, &frame.current)
@@ -639,6 +640,10 @@ impl Run<'_> {
             image_diff_pixels: frames.iter().map(|f| f.image_diff_pixels).sum(),
             image_diff_pixels_depth_tie: frames.iter().map(|f| f.image_diff_pixels_depth_tie).sum(),
             image_diff_pixels_stray: frames.iter().map(|f| f.image_diff_pixels_stray).sum(),
+            image_diff_pixels_unexplained: frames
+                .iter()
+                .map(|f| f.image_diff_pixels_unexplained)
+                .sum(),
             image_error: ImageError::over(frames.iter().map(|f| &f.image_error)),
             triangles_drawn: frames.iter().map(|f| f.triangles_drawn).sum(),
             // Folded from +0.0: an empty f64 sum is -0.0, which prints as "-0.0 ms".

@@ -32,6 +32,8 @@ pub struct FrameCheck {
     /// triangle never reaches (a degenerate sliver's ill-conditioned depth plane, `stray.rs`),
     /// a rasterizer's artefact that no culling can be held to.
     pub image_diff_pixels_stray: usize,
+    /// Of the differing pixels, those neither a depth tie nor stray: what to look at.
+    pub image_diff_pixels_unexplained: usize,
     /// How far the image lies from the reference (levels of detail trade this for triangles;
     /// an exact technique's is zero).
     pub image_error: ImageError,
@@ -87,6 +89,7 @@ pub struct Totals {
     /// Of the differing pixels, those whose owner in the oracle is stray
     /// (`FrameCheck::image_diff_pixels_stray`).
     pub image_diff_pixels_stray: usize,
+    pub image_diff_pixels_unexplained: usize,
     /// The frames' images against the references', together (mean squared error over the
     /// path, the largest difference).
     pub image_error: ImageError,

@@ -15,12 +15,16 @@
 //! through stray pixels is reported as such, not as visible, and a differing pixel whose
 //! owner in the oracle is stray is counted apart from culling errors.
 //!
-//! The same sliver may be covered in one frame and not in the other: lavapipe rasterizes it
-//! differently when the draw around it changes (a cluster technique draws a mesh in runs). A
-//! stray pixel the *technique* shows is recognised without its owner: the technique's depth
-//! there is nearer than the unculled frame's — culling draws a subset, so no culled surface
-//! can show as something nearer — and a degenerate triangle (`Scene::degenerate_triangle_ids`)
-//! of a drawn instance passes within a pixel of its centre, its own depths well behind that.
+//! Nor is a degenerate triangle's coverage reproducible: lavapipe covers a sample on a sliver's
+//! edge, or not, depending on the draw around it (a cluster technique draws a mesh in runs of
+//! clusters, the unculled frame in one draw). So a differing pixel is also stray where the
+//! oracle's owner there is a degenerate triangle (`Scene::degenerate_triangle_ids`) the
+//! technique drew, and where the technique shows something nearer than the unculled frame —
+//! culling draws a subset, so no culled surface shows as something nearer — on the footprint
+//! (within a pixel) of a degenerate triangle it drew: the owner of the technique's pixel is
+//! not known (forward shading keeps no ids), the triangle that can explain it is. These
+//! judge images only; a culled owner counts as a false negative unless every pixel of it is
+//! off its triangle's depth.
 
 use glam::{Vec2, Vec3};
 use tilegraph_scene::{FrameMatrices, MeshId, Scene};
@@ -91,19 +95,38 @@ impl OracleFrame<'_> {
 }
 
 impl OracleFrame<'_> {
-    /// Whether the technique's pixel `p`, at depth `technique` where the unculled frame holds
-    /// `reference`, is a degenerate triangle's stray: `technique` is nearer, and a degenerate
-    /// triangle of an instance `drawn` says was drawn passes within a pixel of `p`'s centre
-    /// and lies clearly off `technique`.
-    pub fn is_technique_stray(
+    /// Whether pixel `p`, where the technique's image differs from the unculled one (depths
+    /// `technique` and `reference`), is a degenerate triangle's doing (module doc): the
+    /// oracle's pixel is stray, or its owner a degenerate triangle of an instance `drawn` says
+    /// the technique drew, or the technique is nearer there on such a triangle's footprint.
+    pub fn explains_difference(
         &self,
         p: usize,
         (technique, reference): (f32, f32),
         drawn: &[bool],
     ) -> bool {
+        if self.is_stray(p) {
+            return true;
+        }
+        let owner = (self.instances.get(p), self.triangles.get(p));
+        if let (Some(&i), Some(&t)) = owner {
+            let inst = self.scene.instances().get(i as usize);
+            if inst.is_some_and(|inst| self.degenerate.binary_search(&(inst.mesh, t)).is_ok())
+                && drawn.get(i as usize).copied().unwrap_or(false)
+            {
+                return true;
+            }
+        }
+        self.matrices.depth.is_closer(technique, reference)
+            && self.on_degenerate_footprint(p, drawn)
+    }
+
+    /// Whether a degenerate triangle of an instance `drawn` says was drawn passes within a
+    /// pixel of `p`'s centre.
+    fn on_degenerate_footprint(&self, p: usize, drawn: &[bool]) -> bool {
         let (width, height) = self.size;
         let degenerate = self.degenerate;
-        if !self.matrices.depth.is_closer(technique, reference) || width == 0 {
+        if width == 0 {
             return false;
         }
         let centre = Vec2::new(
@@ -120,11 +143,8 @@ impl OracleFrame<'_> {
                     .iter()
                     .take_while(|&&(m, _)| m == inst.mesh)
                     .any(|&(_, t)| {
-                        let i = i as u32;
-                        let near = footprint(self.scene, self.matrices, i, t, size)
-                            .is_some_and(|f| distance(centre, &f) <= 1.0);
-                        near && depth_range(self.scene, self.matrices, i, t)
-                            .is_some_and(|(lo, hi)| outside(technique, lo, hi))
+                        footprint(self.scene, self.matrices, i as u32, t, size)
+                            .is_some_and(|f| distance(centre, &f) <= 1.0)
                     })
             })
     }
@@ -320,7 +340,7 @@ mod tests {
     }
 
     #[test]
-    fn a_nearer_technique_pixel_on_a_degenerate_footprint_is_stray() {
+    fn a_degenerate_triangles_pixel_explains_a_difference() {
         // Collinear corners 10-20 m away, seen in a 64x64 frame.
         let s = scene([[0.0, 0.0, -10.0], [0.0, 0.5, -15.0], [0.0, 1.0, -20.0]]);
         let m = frame(DVec3::ZERO);
@@ -340,14 +360,25 @@ mod tests {
             degenerate: &degenerate,
         };
         let p = on((f[0] + f[2]) / 2.0);
-        // The technique shows the near plane there, the unculled frame the background.
-        assert!(oracle.is_technique_stray(p, (1.0, 0.0), &[true]));
-        // Not drawn, farther than the unculled frame, on the triangle, or far from it: no.
-        assert!(!oracle.is_technique_stray(p, (1.0, 0.0), &[false]));
-        assert!(!oracle.is_technique_stray(p, (0.0, 1.0), &[true]));
-        assert!(!oracle.is_technique_stray(p, ((lo + hi) / 2.0, 0.0), &[true]));
+        // The technique shows something nearer there than the unculled frame's background: at
+        // the near plane, or on the triangle itself (coverage the whole draw did not give).
+        assert!(oracle.explains_difference(p, (1.0, 0.0), &[true]));
+        assert!(oracle.explains_difference(p, ((lo + hi) / 2.0, 0.0), &[true]));
+        // Not drawn, farther than the unculled frame, or far from the triangle: no.
+        assert!(!oracle.explains_difference(p, (1.0, 0.0), &[false]));
+        assert!(!oracle.explains_difference(p, (0.0, 1.0), &[true]));
         let away = on(Vec2::new((f[0].x + 20.0).rem_euclid(64.0), f[0].y));
-        assert!(!oracle.is_technique_stray(away, (1.0, 0.0), &[true]));
+        assert!(!oracle.explains_difference(away, (1.0, 0.0), &[true]));
+        // The oracle's owner there is the degenerate triangle, drawn: its coverage, not culling.
+        let owned = OracleFrame {
+            instances: &[0],
+            triangles: &[0],
+            depth: &[(lo + hi) / 2.0],
+            size: (1, 1),
+            ..oracle
+        };
+        assert!(owned.explains_difference(0, (0.0, (lo + hi) / 2.0), &[true]));
+        assert!(!owned.explains_difference(0, (0.0, (lo + hi) / 2.0), &[false]));
         // Distances: inside a plain triangle 0, else to the nearest edge.
         let t = [Vec2::ZERO, Vec2::new(4.0, 0.0), Vec2::new(0.0, 4.0)];
         assert_eq!(distance(Vec2::new(1.0, 1.0), &t), 0.0);
