@@ -26,7 +26,7 @@
 //! judge images only; a culled owner counts as a false negative unless every pixel of it is
 //! off its triangle's depth.
 
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3, Vec4};
 use tilegraph_scene::{FrameMatrices, MeshId, Scene};
 
 /// How far outside its triangle's depth range a pixel may lie and still be the triangle's:
@@ -92,9 +92,7 @@ impl OracleFrame<'_> {
             .map(|(&k, _)| k)
             .collect()
     }
-}
 
-impl OracleFrame<'_> {
     /// Whether pixel `p`, where the technique's image differs from the unculled one (depths
     /// `technique` and `reference`), is a degenerate triangle's doing (module doc): the
     /// oracle's pixel is stray, or its owner a degenerate triangle of an instance `drawn` says
@@ -160,6 +158,22 @@ fn footprint(
     triangle: u32,
     size: Vec2,
 ) -> Option<[Vec2; 3]> {
+    let clip = clip_corners(scene, m, instance, triangle)?;
+    if clip.iter().any(|c| c.w <= 0.0) {
+        return None;
+    }
+    Some(clip.map(|c| (Vec2::new(c.x, c.y) / c.w + 1.0) * 0.5 * size))
+}
+
+/// The clip-space corners of triangle `triangle` of instance `instance`'s mesh in the frame of
+/// `m` (positions relative to the eye in f64, as the renderer's model matrices are);
+/// `None`: no such instance or triangle.
+fn clip_corners(
+    scene: &Scene,
+    m: &FrameMatrices,
+    instance: u32,
+    triangle: u32,
+) -> Option<[Vec4; 3]> {
     let inst = scene.instances().get(instance as usize)?;
     let mesh = scene.mesh(inst.mesh)?;
     if triangle >= mesh.triangle_count() {
@@ -167,16 +181,12 @@ fn footprint(
     }
     let first = mesh.first_index as usize + 3 * triangle as usize;
     let corners = scene.indices().get(first..first + 3)?;
-    let mut out = [Vec2::ZERO; 3];
+    let mut out = [Vec4::ZERO; 3];
     for (o, &index) in out.iter_mut().zip(corners) {
         let vertex = usize::try_from(i64::from(index) + i64::from(mesh.vertex_offset)).ok()?;
         let position = Vec3::from(scene.vertices().get(vertex)?.position);
         let world = (inst.transform.linear * position).as_dvec3() + inst.transform.translation;
-        let clip = m.view_projection * (world - m.eye).as_vec3().extend(1.0);
-        if clip.w <= 0.0 {
-            return None;
-        }
-        *o = (Vec2::new(clip.x, clip.y) / clip.w + 1.0) * 0.5 * size;
+        *o = m.view_projection * (world - m.eye).as_vec3().extend(1.0);
     }
     Some(out)
 }
@@ -217,19 +227,8 @@ pub(super) fn depth_range(
     instance: u32,
     triangle: u32,
 ) -> Option<(f32, f32)> {
-    let inst = scene.instances().get(instance as usize)?;
-    let mesh = scene.mesh(inst.mesh)?;
-    if triangle >= mesh.triangle_count() {
-        return None;
-    }
-    let first = mesh.first_index as usize + 3 * triangle as usize;
-    let corners = scene.indices().get(first..first + 3)?;
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for &index in corners {
-        let vertex = usize::try_from(i64::from(index) + i64::from(mesh.vertex_offset)).ok()?;
-        let position = Vec3::from(scene.vertices().get(vertex)?.position);
-        let world = (inst.transform.linear * position).as_dvec3() + inst.transform.translation;
-        let clip = m.view_projection * (world - m.eye).as_vec3().extend(1.0);
+    for clip in clip_corners(scene, m, instance, triangle)? {
         let depth = if clip.w > 0.0 {
             (clip.z / clip.w).clamp(0.0, 1.0)
         } else {
